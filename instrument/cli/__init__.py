@@ -1,0 +1,1 @@
+"""The `instrument` command line: one module per subcommand, wired up in `main`."""

@@ -1,0 +1,95 @@
+"""`instrument inspect`: what a user checks about their motion capture before training."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserError
+from ..motion.bvh import read_bvh
+from ..motion.steps import contiguous_runs, segment_steps
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("inspect", help="check BVH files: skeleton, frames, steps found, warnings")
+    p.add_argument("paths", nargs="+", metavar="FILE_OR_DIR", help="BVH files or folders holding them")
+    p.add_argument("--json", action="store_true", help="print one JSON document instead of text")
+    p.set_defaults(run=run)
+
+
+def bvh_files(paths: list[str]) -> list[Path]:
+    """The BVH files named, and those inside the folders named (sorted); an error for a missing path."""
+    files: list[Path] = []
+    for name in paths:
+        path = Path(name)
+        if path.is_dir():
+            found = sorted(p for p in path.rglob("*") if p.suffix.lower() == ".bvh" and p.is_file())
+            if not found:
+                raise UserError(f"{path}: no .bvh files in this folder")
+            files.extend(found)
+        elif path.is_file():
+            files.append(path)
+        else:
+            raise UserError(f"{path}: no such file or folder")
+    return files
+
+
+def describe(path: Path) -> dict:
+    motion = read_bvh(path)
+    segmentation = segment_steps(motion)
+    steps = segmentation.steps
+    warnings = list(segmentation.warnings)
+    runs = contiguous_runs(steps)
+    if len(runs) > 1:
+        warnings.append(f"steps fall into {len(runs)} separate runs")
+    skeleton = motion.skeleton
+    return {
+        "file": str(path),
+        "frames": motion.frames,
+        "fps": motion.fps,
+        "duration": motion.duration,
+        "joints": [{"name": j.name, "channels": list(j.channels)} for j in skeleton.joints],
+        "channels": skeleton.channel_count,
+        "feet": list(segmentation.feet),
+        "steps": [{"label": s.label, "start": s.start, "frames": s.frames} for s in steps],
+        "warnings": warnings,
+    }
+
+
+def _text(info: dict) -> str:
+    steps = info["steps"]
+    mean = float(np.mean([s["frames"] for s in steps])) if steps else 0.0
+    rotation_orders = sorted({"".join(c[0] for c in j["channels"] if c.endswith("rotation")) or "-" for j in info["joints"]})
+    lines = [
+        info["file"],
+        f"  joints   {len(info['joints'])} ({', '.join(j['name'] for j in info['joints'])})",
+        f"  channels {info['channels']} (rotation orders {', '.join(rotation_orders)})",
+        f"  frames   {info['frames']} at {info['fps']:g} fps, {info['duration']:.2f} s",
+        f"  steps    {len(steps)}, mean {mean:.1f} frames ({mean / info['fps']:.2f} s); feet {' / '.join(info['feet'])}",
+    ]
+    lines += [f"  warning: {w}" for w in info["warnings"]]
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    results, failed = [], 0
+    for path in bvh_files(args.paths):
+        try:
+            info = describe(path)
+        except UserError as error:
+            failed += 1
+            print(f"instrument inspect: error: {error}", file=sys.stderr)
+            if args.json:
+                results.append({"file": str(path), "error": str(error)})
+            continue
+        results.append(info)
+        if not args.json:
+            print(_text(info))
+    if args.json:
+        json.dump(results, sys.stdout, indent=1)
+        print()
+    return 1 if failed else 0

@@ -1,0 +1,217 @@
+"""The representation the models learn, and its exact inverse.
+
+A frame becomes one vector:
+
+    root.height, root.vx, root.vz, root.yaw_rate, root.tilt.x, root.tilt.z, <joint>(3) per moving joint
+
+The root is described in its heading frame (the root's rotation about the up axis, Y): speeds
+in units per second along the heading frame's x and z axes, the yaw rate in radians per second,
+and the root's remaining rotation ("tilt", the swing of a swing-twist split, so it has no y
+part) as an exponential map. Nothing in it depends on
+where the character stands or faces, so a model can learn it from many takes; integrating the
+speeds and yaw rate gives the world path back. Every other joint is the exponential map of its
+local rotation, made continuous over time. Joints that never move are left out; the channels
+they and everything else not modelled hold come from a template frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .bvh import Motion, Skeleton
+from .kinematics import channels_from_local, forward_kinematics, local_transforms
+from .rotations import (
+    axis_angle_matrix,
+    continuous_expmap,
+    continuous_quaternions,
+    euler_to_matrix,
+    expmap_to_matrix,
+    matrix_to_euler,
+    matrix_to_expmap,
+    matrix_to_quat,
+    quat_to_matrix,
+    rotation_angle_between,
+    slerp,
+)
+
+# tilt has no y part: the heading took all rotation about Y (the swing of a swing-twist split)
+ROOT_FEATURES = ("root.height", "root.vx", "root.vz", "root.yaw_rate", "root.tilt.x", "root.tilt.z")
+STILL_RADIANS = 1e-4  # a joint whose rotation never strays further than this is left out
+DEFAULT_FPS = 30.0
+
+# HTS windows for static, delta and delta-delta features
+WINDOWS = (np.array([0.0, 1.0, 0.0]), np.array([-0.5, 0.0, 0.5]), np.array([1.0, -2.0, 1.0]))
+
+
+@dataclass(frozen=True)
+class FeatureLayout:
+    """Which joint is the root, which joints are modelled, and the template for the rest."""
+
+    skeleton: Skeleton
+    root: int
+    joints: tuple[int, ...]
+    template: tuple[float, ...]  # one frame of channel values for everything not modelled
+
+    @property
+    def dimension(self) -> int:
+        return len(ROOT_FEATURES) + 3 * len(self.joints)
+
+    @property
+    def names(self) -> list[str]:
+        joint_names = self.skeleton.names
+        axes = ("x", "y", "z")
+        return list(ROOT_FEATURES) + [f"{joint_names[j]}.{a}" for j in self.joints for a in axes]
+
+    def to_dict(self) -> dict:
+        names = self.skeleton.names
+        return {
+            "root": names[self.root],
+            "joints": [names[j] for j in self.joints],
+            "left_out": [n for i, n in enumerate(names) if i != self.root and i not in self.joints],
+            "template": list(self.template),
+            "names": self.names,
+            "up_axis": "Y",
+        }
+
+    @classmethod
+    def from_dict(cls, skeleton: Skeleton, data: dict) -> "FeatureLayout":
+        index = {n: i for i, n in enumerate(skeleton.names)}
+        return cls(skeleton, index[data["root"]], tuple(index[n] for n in data["joints"]), tuple(data["template"]))
+
+
+def choose_layout(motions: list[Motion]) -> FeatureLayout:
+    """Pick the root and the moving joints from all the motions (which share one skeleton)."""
+    skeleton = motions[0].skeleton
+    rotations = [local_transforms(m)[0] for m in motions]
+    moving_position = np.zeros(len(skeleton.joints), dtype=bool)
+    for m in motions:
+        for j, (joint, start) in enumerate(zip(skeleton.joints, skeleton.channel_start())):
+            cols = [start + k for k, c in enumerate(joint.channels) if c.endswith("position")]
+            if cols and np.ptp(m.channels[:, cols], axis=0).max() > 1e-6:
+                moving_position[j] = True
+    candidates = np.flatnonzero(moving_position)
+    root = int(candidates[0]) if len(candidates) else 0
+    first = rotations[0][0]
+    still = np.ones(len(skeleton.joints), dtype=bool)
+    for rot in rotations:
+        still &= rotation_angle_between(rot, first[None]).max(axis=0) < STILL_RADIANS
+    below_root = _descendants(skeleton, root)
+    joints = tuple(j for j in below_root if not still[j])
+    return FeatureLayout(skeleton, root, joints, tuple(float(v) for v in motions[0].channels[0]))
+
+
+def _descendants(skeleton: Skeleton, joint: int) -> list[int]:
+    out, parents = [], skeleton.parents
+    for j in range(len(parents)):
+        p = parents[j]
+        while p >= 0 and p != joint:
+            p = parents[p]
+        if p == joint:
+            out.append(j)
+    return out
+
+
+def heading_angle(world_rotation: np.ndarray) -> np.ndarray:
+    """Unwrapped yaw (radians) of rotations (T, 3, 3): the twist about Y in a swing-twist split."""
+    quat = continuous_quaternions(matrix_to_quat(world_rotation))
+    return np.unwrap(2.0 * np.arctan2(quat[:, 1], quat[:, 3]))
+
+
+def _template_world(layout: FeatureLayout) -> tuple[np.ndarray, np.ndarray]:
+    """World rotation and position of the root's parent in the template frame (identity at the top)."""
+    parent = layout.skeleton.joints[layout.root].parent
+    if parent < 0:
+        return np.eye(3), np.zeros(3)
+    template = Motion(layout.skeleton, np.asarray(layout.template)[None], DEFAULT_FPS)
+    world_rot, world_pos = forward_kinematics(layout.skeleton, *local_transforms(template))
+    return world_rot[0, parent], world_pos[0, parent]
+
+
+def extract(motion: Motion, layout: FeatureLayout) -> tuple[np.ndarray, np.ndarray, float]:
+    """Features (T, D) of a motion, with the root's start position and heading for `restore`."""
+    rotations, translations = local_transforms(motion)
+    world_rot, world_pos = forward_kinematics(motion.skeleton, rotations, translations)
+    root_rot, root_pos = world_rot[:, layout.root], world_pos[:, layout.root]
+    fps = motion.fps
+    yaw = heading_angle(root_rot)
+    heading = axis_angle_matrix("y", yaw)
+    step = np.diff(root_pos, axis=0)
+    local_step = np.einsum("tji,tj->ti", heading[:-1], step) * fps  # heading^T @ step
+    yaw_rate = np.diff(yaw) * fps
+    if len(step) == 0:
+        local_step, yaw_rate = np.zeros((1, 3)), np.zeros(1)
+    else:
+        local_step = np.vstack([local_step, local_step[-1:]])
+        yaw_rate = np.append(yaw_rate, yaw_rate[-1])
+    tilt = continuous_expmap(matrix_to_expmap(np.einsum("tji,tjk->tik", heading, root_rot)))
+    joints = continuous_expmap(matrix_to_expmap(rotations[:, list(layout.joints)]))
+    features = np.hstack(
+        [root_pos[:, 1:2], local_step[:, 0:1], local_step[:, 2:3], yaw_rate[:, None], tilt[:, [0, 2]], joints.reshape(motion.frames, -1)]
+    )
+    return features, root_pos[0], float(yaw[0])
+
+
+def restore(
+    features: np.ndarray,
+    layout: FeatureLayout,
+    fps: float,
+    start: np.ndarray | None = None,
+    start_heading: float = 0.0,
+) -> Motion:
+    """Motion from features: integrate the root path, put rotations back, fill the rest."""
+    features = np.asarray(features, dtype=np.float64)
+    frames = features.shape[0]
+    skeleton = layout.skeleton
+    yaw = start_heading + np.concatenate([[0.0], np.cumsum(features[:-1, 3]) / fps])
+    heading = axis_angle_matrix("y", yaw)
+    local_step = np.zeros((frames, 3))
+    local_step[:, 0], local_step[:, 2] = features[:, 1], features[:, 2]
+    world_step = np.einsum("tij,tj->ti", heading, local_step) / fps
+    origin = np.zeros(3) if start is None else np.asarray(start, dtype=np.float64)
+    root_pos = np.empty((frames, 3))
+    root_pos[0] = origin
+    root_pos[1:] = origin + np.cumsum(world_step[:-1], axis=0)
+    root_pos[:, 1] = features[:, 0]
+    tilt = np.zeros((frames, 3))
+    tilt[:, 0], tilt[:, 2] = features[:, 4], features[:, 5]
+    root_rot = heading @ expmap_to_matrix(tilt)
+
+    template = Motion(skeleton, np.broadcast_to(np.asarray(layout.template), (frames, skeleton.channel_count)).copy(), fps)
+    rotations, translations = local_transforms(template)
+    parent_rot, parent_pos = _template_world(layout)
+    rotations[:, layout.root] = parent_rot.T @ root_rot
+    translations[:, layout.root] = (root_pos - parent_pos) @ parent_rot
+    joint_maps = features[:, len(ROOT_FEATURES) :].reshape(frames, len(layout.joints), 3)
+    rotations[:, list(layout.joints)] = expmap_to_matrix(joint_maps)
+    return Motion(skeleton, channels_from_local(skeleton, rotations, translations), fps)
+
+
+def resample(motion: Motion, fps: float = DEFAULT_FPS) -> Motion:
+    """The motion at another frame rate: rotations by slerp, positions linearly."""
+    if abs(motion.fps - fps) < 1e-9 or motion.frames < 2:
+        return motion
+    count = int(np.floor((motion.frames - 1) * fps / motion.fps + 1e-9)) + 1
+    position = np.arange(count) * (motion.fps / fps)
+    lower = np.minimum(np.floor(position).astype(int), motion.frames - 2)
+    frac = position - lower
+    skeleton = motion.skeleton
+    out = np.empty((count, skeleton.channel_count))
+    for joint, start in zip(skeleton.joints, skeleton.channel_start()):
+        cols = np.arange(start, start + len(joint.channels))
+        rot = np.array([c.endswith("rotation") for c in joint.channels])
+        pos_cols = cols[~rot]
+        values = motion.channels[:, pos_cols]
+        out[:, pos_cols] = values[lower] * (1 - frac[:, None]) + values[lower + 1] * frac[:, None]
+        if rot.any():
+            quat = continuous_quaternions(matrix_to_quat(euler_to_matrix(motion.channels[:, cols[rot]], joint.rotation_order)))
+            out[:, cols[rot]] = matrix_to_euler(quat_to_matrix(slerp(quat[lower], quat[lower + 1], frac)), joint.rotation_order)
+    return Motion(skeleton, out, float(fps), source=motion.source)
+
+
+def with_deltas(static: np.ndarray) -> np.ndarray:
+    """[o, delta o, delta-delta o] with the HTS windows; edges repeat the end frames."""
+    padded = np.pad(static, ((1, 1), (0, 0)), mode="edge")
+    parts = [w[0] * padded[:-2] + w[1] * padded[1:-1] + w[2] * padded[2:] for w in WINDOWS]
+    return np.hstack(parts)

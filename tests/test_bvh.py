@@ -1,0 +1,138 @@
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from instrument.errors import UserError
+from instrument.motion.bvh import bvh_text, parse_bvh, read_bvh, write_bvh
+from samples import cmu_style_walk, reorder_bvh
+
+SIMPLE = """HIERARCHY
+ROOT Hips
+{
+\tOFFSET 0 0 0
+\tCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
+\tJOINT Leg
+\t{
+\t\tOFFSET 0 -10 0
+\t\tCHANNELS 3 Zrotation Xrotation Yrotation
+\t\tEnd Site
+\t\t{
+\t\t\tOFFSET 0 -10 0
+\t\t}
+\t}
+}
+MOTION
+Frames: 2
+Frame Time: 0.0333333
+0 90 0 0 0 0 10 20 30
+1 90 2 0 0 0 15 25 35
+"""
+
+
+def test_reads_every_shared_walk_with_its_skeleton(real_walks):
+    for path in real_walks:
+        motion = read_bvh(path)
+        assert len(motion.skeleton.joints) == 22, path
+        assert motion.skeleton.names[:2] == ["joint_Root", "Hips"]
+        assert motion.channels.shape == (motion.frames, 132)
+        assert motion.fps == 30.0
+        assert 180 <= motion.frames <= 466
+    assert len(real_walks) == 175
+
+
+def test_simple_file_values_and_end_site():
+    motion = parse_bvh(SIMPLE)
+    assert motion.skeleton.names == ["Hips", "Leg"]
+    assert motion.skeleton.joints[1].end_site == (0.0, -10.0, 0.0)
+    assert motion.skeleton.joints[1].rotation_order == "ZXY"
+    np.testing.assert_array_equal(motion.channels[1], [1, 90, 2, 0, 0, 0, 15, 25, 35])
+
+
+def test_crlf_tabs_and_spaces_read_alike():
+    crlf = SIMPLE.replace("\t", "    ").replace("\n", "\r\n")
+    a, b = parse_bvh(SIMPLE), parse_bvh(crlf)
+    np.testing.assert_array_equal(a.channels, b.channels)
+    assert a.skeleton == b.skeleton
+
+
+def test_cmu_style_file_loads():
+    text, _ = cmu_style_walk(newline="\r\n")
+    motion = parse_bvh(text, "cmu.bvh")
+    assert len(motion.skeleton.joints) == 31
+    assert motion.fps == pytest.approx(120.0)
+    assert [len(j.channels) for j in motion.skeleton.joints[:3]] == [6, 3, 3]
+    assert motion.skeleton.joints[2].rotation_order == "ZYX"
+
+
+def test_write_reads_back_to_written_precision(real_walks, tmp_path):
+    motion = read_bvh(real_walks[0])
+    out = tmp_path / "copy.bvh"
+    write_bvh(out, motion)
+    again = read_bvh(out)
+    assert again.skeleton.same_layout(motion.skeleton)
+    np.testing.assert_allclose(again.skeleton.offsets, motion.skeleton.offsets, atol=5e-7)
+    np.testing.assert_allclose(again.channels, motion.channels, atol=5e-7)
+    assert again.fps == motion.fps
+    assert not list(tmp_path.glob("*.part"))
+
+
+def test_large_file_reads_quickly_enough_to_measure(real_walks):
+    # the speed figure is measured by scripts/bench; here only that a 466-frame take parses whole
+    longest = max(real_walks, key=lambda p: p.stat().st_size)
+    assert read_bvh(longest).frames == 466
+
+
+BROKEN = {
+    "missing MOTION": (SIMPLE.split("MOTION")[0], "MOTION section is missing"),
+    "truncated frames": (SIMPLE.replace("Frames: 2", "Frames: 3"), "truncated: header says 3 frames, file has 2"),
+    "channel count": (SIMPLE.replace("1 90 2 0 0 0 15 25 35", "1 90 2 0 0 0 15 25"), "frame has 8 values, the hierarchy has 9 channels"),
+    "not a number": (SIMPLE.replace("15 25 35", "15 abc 35"), "not a number: 'abc'"),
+    "CHANNELS count": (SIMPLE.replace("CHANNELS 3 Zrotation", "CHANNELS 4 Zrotation"), "CHANNELS says 4 channels but lists 3"),
+    "unknown channel": (SIMPLE.replace("Xrotation Yrotation\n\t\tEnd", "Xrotation Wrotation\n\t\tEnd"), "unknown channel 'Wrotation'"),
+    "bad offset": (SIMPLE.replace("OFFSET 0 -10 0\n\t\tCHANNELS", "OFFSET 0 x 0\n\t\tCHANNELS"), "OFFSET has a value that is not a number"),
+    "empty file": ("", "unexpected end of file"),
+}
+LINES = {"missing MOTION": 15, "truncated frames": 20, "channel count": 20, "not a number": 20, "CHANNELS count": 9, "unknown channel": 9, "bad offset": 8}
+
+
+@pytest.mark.parametrize("case", sorted(BROKEN))
+def test_broken_files_name_file_and_line(case):
+    text, message = BROKEN[case]
+    with pytest.raises(UserError) as error:
+        parse_bvh(text, "bad.bvh")
+    text_of_error = str(error.value)
+    assert message in text_of_error
+    assert "\n" not in text_of_error
+    if case in LINES:
+        assert text_of_error.startswith(f"bad.bvh:{LINES[case]}: "), text_of_error
+
+
+def test_broken_file_on_the_command_line_is_one_line_and_exit_1(tmp_path):
+    bad = tmp_path / "bad.bvh"
+    bad.write_text(SIMPLE.replace("15 25 35", "15 abc 35"))
+    result = subprocess.run([sys.executable, "-m", "instrument", "inspect", str(bad)], capture_output=True, text=True)
+    assert result.returncode == 1
+    assert result.stderr.strip().count("\n") == 0
+    assert f"{bad}:20: not a number" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize("order", ["XYZ", "ZYX", "YXZ"])
+def test_other_euler_orders_and_three_channel_joints_give_the_same_pose(order):
+    text, _ = cmu_style_walk(fps=30)
+    original = parse_bvh(text)
+    from instrument.motion.kinematics import world_positions
+
+    reordered = parse_bvh(reorder_bvh(text, order))
+    assert reordered.skeleton.joints[3].rotation_order == order
+    np.testing.assert_allclose(world_positions(reordered), world_positions(original), atol=1e-4)
+
+
+def test_text_of_written_file_has_hierarchy_and_frame_count(real_walks):
+    motion = read_bvh(real_walks[0])
+    text = bvh_text(motion)
+    assert text.startswith("HIERARCHY\nROOT joint_Root\n")
+    assert f"Frames: {motion.frames}\n" in text
+    assert text.count("End Site") == 5

@@ -1,0 +1,60 @@
+import json
+import subprocess
+import sys
+
+from samples import cmu_style_walk
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "instrument", *args], capture_output=True, text=True, timeout=120)
+
+
+def test_help_lists_the_subcommands():
+    result = run("--help")
+    assert result.returncode == 0
+    assert "inspect" in result.stdout
+
+
+def test_inspect_json_on_a_folder(tmp_path):
+    text, _ = cmu_style_walk(fps=120)
+    (tmp_path / "walk.bvh").write_text(text)
+    (tmp_path / "notes.txt").write_text("not motion")
+    result = run("inspect", "--json", str(tmp_path))
+    assert result.returncode == 0, result.stderr
+    document = json.loads(result.stdout)
+    assert len(document) == 1
+    info = document[0]
+    assert {"file", "frames", "fps", "joints", "steps"} <= set(info)
+    assert info["frames"] == 528 and info["fps"] == 120.0
+    assert len(info["joints"]) == 31
+    assert {s["label"] for s in info["steps"]} == {"left", "right"}
+    assert all(60 <= s["frames"] <= 72 for s in info["steps"])
+
+
+def test_inspect_text_names_steps_and_warnings(tmp_path):
+    text, _ = cmu_style_walk(fps=30)
+    path = tmp_path / "walk.bvh"
+    path.write_text(text)
+    result = run("inspect", str(path))
+    assert result.returncode == 0
+    assert "joints   31" in result.stdout
+    assert "steps    " in result.stdout and "LeftToeBase / RightToeBase" in result.stdout
+
+
+def test_inspect_keeps_going_past_a_bad_file_and_exits_1(tmp_path):
+    text, _ = cmu_style_walk(fps=30)
+    (tmp_path / "a_good.bvh").write_text(text)
+    (tmp_path / "b_bad.bvh").write_text(text.replace("MOTION", "MOTON"))
+    result = run("inspect", "--json", str(tmp_path))
+    assert result.returncode == 1
+    document = json.loads(result.stdout)
+    assert "steps" in document[0] and "error" in document[1]
+    assert "b_bad.bvh:" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_missing_path_and_empty_folder_are_one_line_errors(tmp_path):
+    for args in (["inspect", str(tmp_path / "nope.bvh")], ["inspect", str(tmp_path)]):
+        result = run(*args)
+        assert result.returncode == 1
+        assert len(result.stderr.strip().splitlines()) == 1
+        assert str(tmp_path) in result.stderr
