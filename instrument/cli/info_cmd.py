@@ -1,0 +1,62 @@
+"""`instrument info`: what a model file holds."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from ..models.modelfile import default_model_path, load_model
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("info", help="describe a model file: styles, states, durations, provenance, licence")
+    p.add_argument("model", nargs="?", metavar="MODEL", help="model file (default: the shipped default model)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(run=run)
+
+
+def summary(path: str) -> dict:
+    model = load_model(path)
+    meta = model.metadata
+    layout = model.layout
+    return {
+        "file": str(path),
+        "styles": model.style_names,
+        "labels": model.labels,
+        "states": model.states,
+        "fps": model.fps,
+        "static_dimension": layout.dimension,
+        "observation_dimension": 3 * layout.dimension,
+        "joints": len(layout.skeleton.joints),
+        "modelled_joints": len(layout.joints),
+        "mean_step_frames": meta.get("mean_step_frames", {}),
+        "model_step_frames": {
+            name: float(model.style(name).duration_means.sum(axis=1).mean()) for name in model.style_names
+        } | {"(average)": float(model.average.duration_means.sum(axis=1).mean())},
+        "takes": len(meta.get("data", [])),
+        "frames": sum(d["frames"] for d in meta.get("data", [])),
+        "licence": meta.get("licence", ""),
+        "attribution": meta.get("attribution", ""),
+        "training": meta.get("training", {}),
+    }
+
+
+def run(args: argparse.Namespace) -> int:
+    info = summary(args.model or str(default_model_path()))
+    if args.json:
+        print(json.dumps(info, indent=1))
+        return 0
+    print(info["file"])
+    print(f"  styles     {', '.join(info['styles'])}")
+    print(f"  labels     {', '.join(info['labels'])}; {info['states']} states each; {info['fps']:g} fps")
+    print(f"  features   {info['static_dimension']} static ({info['modelled_joints']} of {info['joints']} joints), "
+          f"{info['observation_dimension']} with deltas")
+    print("  step       mean frames per step (data / model):")
+    for name in info["styles"]:
+        print(f"    {name:<12} {info['mean_step_frames'].get(name, float('nan')):5.1f} / {info['model_step_frames'][name]:5.1f}")
+    print(f"  data       {info['takes']} takes, {info['frames']} frames")
+    print(f"  trained    {info['training'].get('command', '')!s} ({info['training'].get('seconds', '?')} s)")
+    print(f"  licence    {info['licence']}")
+    if info["attribution"]:
+        print(f"  attribution {info['attribution']}")
+    return 0

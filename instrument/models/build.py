@@ -1,0 +1,73 @@
+"""From BVH takes to a complete Model: corpus, average model, style models, metadata."""
+
+from __future__ import annotations
+
+import platform
+import time
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .. import __version__
+from ..motion.features import WINDOWS
+from ..motion.steps import LABELS
+from .corpus import Take, load_corpus, segments_by_label
+from .modelfile import Model
+from .training import TrainingReport, adapt_styles, train_average, variance_floors
+
+UNSPECIFIED_LICENCE = "unspecified: the licence of the training data applies"
+
+
+def build_model(
+    pairs: list[tuple[Path, str]],
+    fps: float = 30.0,
+    states: int = 5,
+    command: str = "",
+    licence: str = UNSPECIFIED_LICENCE,
+    attribution: str = "",
+    progress: Callable[[int, int, str], None] | None = None,
+    on_iteration: Callable[[int, float], None] | None = None,
+) -> tuple[Model, TrainingReport, list[Take]]:
+    started = time.perf_counter()
+    layout, takes, warnings = load_corpus(pairs, fps, progress)
+    report = TrainingReport(warnings=list(warnings))
+    segments = segments_by_label(takes, states)
+    floors = variance_floors(segments)
+    average = train_average(segments, states, floors, report=report, on_iteration=on_iteration)
+    style_names = sorted({t.style for t in takes})
+    per_style = {s: segments_by_label([t for t in takes if t.style == s], states) for s in style_names}
+    styles = adapt_styles(average, per_style, floors, report)
+    dimension = layout.dimension
+    step_max = np.max([np.abs(np.diff(t.observations[:, :dimension], axis=0)).max(axis=0) for t in takes], axis=0)
+    metadata = {
+        "fps": fps,
+        "states": states,
+        "labels": list(LABELS),
+        "styles": style_names,
+        "skeleton": layout.skeleton.to_dict(),
+        "features": layout.to_dict(),
+        "windows": [w.tolist() for w in WINDOWS],
+        "licence": licence,
+        "attribution": attribution,
+        "training": {
+            "command": command,
+            "states": states,
+            "fps": fps,
+            "iterations": len(report.loglik_per_frame),
+            "loglik_per_frame": report.loglik_per_frame,
+            "variance_floor_ratio": 0.01,
+            "seconds": round(time.perf_counter() - started, 1),
+            "instrument_version": __version__,
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+        },
+        "data": [
+            {"file": t.path.name, "style": t.style, "frames": t.frames, "steps": len(t.steps), "sha256": t.sha256} for t in takes
+        ],
+        "mean_step_frames": {
+            s: float(np.mean([st.frames for t in takes if t.style == s for st in t.steps])) for s in style_names
+        },
+        "warnings": report.warnings,
+    }
+    return Model(metadata, average, styles, step_max), report, takes

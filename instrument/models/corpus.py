@@ -1,0 +1,137 @@
+"""A training corpus: BVH takes with their styles, turned into labelled observation segments."""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import re
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserError, located
+from ..motion.bvh import Motion, read_bvh
+from ..motion.features import FeatureLayout, choose_layout, extract, resample, with_deltas
+from ..motion.steps import LABELS, segment_steps
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+DEFAULT_STYLE_PATTERN = r"_([A-Za-z]+)_[^_]*$"  # dataset-2_walk_elderly_003 -> elderly
+
+
+@dataclass
+class Take:
+    path: Path
+    style: str
+    observations: np.ndarray  # (frames, 3 * D): [o, delta o, delta-delta o]
+    steps: list  # Step objects, frame indices into `observations`
+    sha256: str
+
+    @property
+    def frames(self) -> int:
+        return int(self.observations.shape[0])
+
+    def segments(self, label: str) -> list[np.ndarray]:
+        return [self.observations[s.start : s.end] for s in self.steps if s.label == label]
+
+
+def style_from_name(path: Path, pattern: str) -> str:
+    match = re.search(pattern, path.stem)
+    if not match or not match.groups() or not match.group(1):
+        raise UserError(f"{path}: cannot read a style from the name with the pattern {pattern!r} (give --style-from or a manifest)")
+    return match.group(1).lower()
+
+
+def read_manifest(path: Path) -> list[tuple[Path, str]]:
+    """(file, style) pairs from a CSV (header `file,style`) or TOML ([[take]] file = ..., style = ...)."""
+    base = path.parent
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as e:
+        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
+    pairs: list[tuple[Path, str]] = []
+    if path.suffix.lower() == ".toml":
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as e:
+            raise UserError(f"{path}: {e}") from None
+        takes = data.get("take")
+        if not isinstance(takes, list) or not takes:
+            raise UserError(f"{path}: expected [[take]] tables with keys 'file' and 'style'")
+        for k, take in enumerate(takes, 1):
+            if not isinstance(take.get("file"), str) or not isinstance(take.get("style"), str):
+                raise UserError(f"{path}: take {k}: needs string keys 'file' and 'style'")
+            pairs.append((base / take["file"], take["style"]))
+        return pairs
+    rows = list(csv.reader(text.splitlines()))
+    if not rows or [c.strip().lower() for c in rows[0][:2]] != ["file", "style"]:
+        raise located(path, "a CSV manifest starts with the header 'file,style'", 1)
+    for number, row in enumerate(rows[1:], 2):
+        if not row or not "".join(row).strip():
+            continue
+        if len(row) < 2 or not row[0].strip() or not row[1].strip():
+            raise located(path, "expected 'file,style'", number)
+        pairs.append((base / row[0].strip(), row[1].strip()))
+    return pairs
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def read_motions(pairs: list[tuple[Path, str]], fps: float, progress=None) -> list[Motion]:
+    """Read and resample every take; an error names the files whose skeleton differs from the first."""
+    motions: list[Motion] = []
+    for k, (path, _) in enumerate(pairs):
+        if not path.is_file():
+            raise UserError(f"{path}: no such file")
+        motions.append(resample(read_bvh(path), fps))
+        if progress:
+            progress(k + 1, len(pairs), "reading")
+    first = motions[0].skeleton
+    different = [str(p) for (p, _), m in zip(pairs, motions) if not m.skeleton.same_layout(first)]
+    if different:
+        raise UserError(
+            f"skeleton differs from the first file's ({pairs[0][0]}): {', '.join(different[:5])}"
+            + (f" and {len(different) - 5} more" if len(different) > 5 else "")
+        )
+    return motions
+
+
+def make_takes(pairs: list[tuple[Path, str]], motions: list[Motion], layout: FeatureLayout, progress=None) -> tuple[list[Take], list[str]]:
+    """Observation vectors and steps of each motion; takes without steps are left out with a warning."""
+    takes: list[Take] = []
+    warnings: list[str] = []
+    for k, ((path, style), motion) in enumerate(zip(pairs, motions)):
+        if not motion.skeleton.same_layout(layout.skeleton):
+            raise UserError(f"{path}: skeleton differs from the model's")
+        static, _, _ = extract(motion, layout)
+        segmentation = segment_steps(motion, layout)
+        warnings += [f"{path}: {w}" for w in segmentation.warnings]
+        if not segmentation.steps:
+            warnings.append(f"{path}: no steps, left out")
+            continue
+        takes.append(Take(path, style, with_deltas(static), segmentation.steps, _sha256(path)))
+        if progress:
+            progress(k + 1, len(pairs), "features")
+    return takes, warnings
+
+
+def load_corpus(pairs: list[tuple[Path, str]], fps: float, progress=None) -> tuple[FeatureLayout, list[Take], list[str]]:
+    """Read, resample, check skeletons, choose the feature layout, extract features and steps."""
+    motions = read_motions(pairs, fps, progress)
+    layout = choose_layout(motions)
+    takes, warnings = make_takes(pairs, motions, layout, progress)
+    if not takes:
+        raise UserError("no steps found in any file: nothing to train on")
+    return layout, takes, warnings
+
+
+def segments_by_label(takes: list[Take], states: int) -> list[list[np.ndarray]]:
+    """For each label in LABELS, the observation segments of its steps (those long enough for every state)."""
+    return [[seg for take in takes for seg in take.segments(label) if len(seg) >= states] for label in LABELS]
