@@ -1,0 +1,139 @@
+"""Maximum-likelihood parameter generation (Tokuda 2000), with a banded solver compiled by numba.
+
+For each static dimension, c = (W' P W)^-1 W' P mu, where W stacks the static, delta and
+delta-delta windows (each reaching one frame either side). W' P W is symmetric pentadiagonal,
+so an LDL' factorisation solves it in O(T). The bands are formed on the fly inside the same
+sweep over time, all dimensions at once, so nothing of size T x D x 3 is built in between. At
+the edges of a sequence the delta and delta-delta precisions are zero, as in HTS and nnmnkwii.
+
+LAPACK's banded Cholesky (dpbsv) pays two BLAS calls per unknown and is 3 times slower than
+nnmnkwii here; numpy cannot run a recurrence over time without a Python loop. numba compiles
+this one loop, which is why it is a dependency.
+
+The same routine continues a trajectory: frames already sent enter as fixed values, and only
+the frames after them are solved for, so a streamed walk has no jump where windows meet.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..motion.features import WINDOWS
+
+D_PREV, D_NEXT = float(WINDOWS[1][0]), float(WINDOWS[1][2])
+A_PREV, A_MID, A_NEXT = (float(v) for v in WINDOWS[2])
+assert WINDOWS[1][1] == 0.0 and tuple(WINDOWS[0]) == (0.0, 1.0, 0.0)
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _precision_row(second, k, as_variance, row):  # pragma: no cover - compiled
+    for j in range(row.shape[0]):
+        row[j] = 1.0 / second[k, j] if as_variance else second[k, j]
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def _solve(means, second, as_variance, fixed, count, out, l1, l2):  # pragma: no cover - compiled
+    """means and `second` (precisions, or variances when as_variance): (N, M, 3D); fixed:
+    (N, max(F, 1), D) holding F = count known frames; out: (N, M - F, D); l1, l2: (M, D) work.
+
+    One forward sweep forms row t of W'PW (from the windows centred on t-1, t and t+1) and
+    eliminates it at once (LDL'); one backward sweep substitutes. Precisions and pivots live in
+    three-row rolling buffers, so nothing the size of the input is allocated; the branches are
+    per frame, so the loop over dimensions is straight-line code the compiler can vectorise.
+    """
+    n_seq, frames, width = means.shape
+    dim = width // 3
+    prec_rows = np.empty((3, width))
+    pivots = np.ones((3, dim))
+    inverses = np.ones((3, dim))
+    last_fixed = max(count - 1, 0)
+    for n in range(n_seq):
+        z = out[n]  # the forward sweep's values, overwritten by the solution
+        mu = means[n]
+        _precision_row(second[n], max(count - 1, 0), as_variance, prec_rows[max(count - 1, 0) % 3])
+        _precision_row(second[n], count, as_variance, prec_rows[count % 3])
+        for t in range(count, frames):
+            tp, tn, tpp = max(t - 1, 0), min(t + 1, frames - 1), max(t - 2, 0)
+            if t + 1 < frames:
+                _precision_row(second[n], t + 1, as_variance, prec_rows[(t + 1) % 3])
+            # dynamic windows centred on the first or last frame have zero precision
+            w_here = 1.0 if 0 < t < frames - 1 else 0.0
+            w_prev = 1.0 if 0 < t - 1 else 0.0
+            w_next = 1.0 if t + 1 < frames - 1 else 0.0
+            # couplings to unknown frames stay in the matrix; to known frames they move to the rhs
+            unknown1 = 1.0 if t - 1 >= count else 0.0
+            unknown2 = 1.0 if t - 2 >= count else 0.0
+            known1 = 1.0 if (t >= 1 and t - 1 < count) else 0.0
+            known2 = 1.0 if (t >= 2 and t - 2 < count) else 0.0
+            fixed_p, fixed_pp = fixed[n, min(tp, last_fixed)], fixed[n, min(tpp, last_fixed)]
+            prec_t, prec_p, prec_n = prec_rows[t % 3], prec_rows[tp % 3], prec_rows[tn % 3]
+            mu_t, mu_p, mu_n = mu[t], mu[tp], mu[tn]
+            piv_t, piv_p, piv_pp = pivots[t % 3], pivots[tp % 3], pivots[tpp % 3]
+            inv_t, inv_p, inv_pp = inverses[t % 3], inverses[tp % 3], inverses[tpp % 3]
+            l1_p, l1_t, l2_t = l1[tp], l1[t], l2[t]
+            z_t, z_p, z_pp = z[t - count], z[max(tp - count, 0)], z[max(tpp - count, 0)]
+            for d in range(dim):
+                p0 = prec_t[d]
+                p1_here = prec_t[dim + d] * w_here
+                p2_here = prec_t[2 * dim + d] * w_here
+                p1_prev = prec_p[dim + d] * w_prev
+                p2_prev = prec_p[2 * dim + d] * w_prev
+                p1_next = prec_n[dim + d] * w_next
+                p2_next = prec_n[2 * dim + d] * w_next
+                diag = (p0 + D_PREV * D_PREV * p1_next + D_NEXT * D_NEXT * p1_prev
+                        + A_PREV * A_PREV * p2_next + A_MID * A_MID * p2_here + A_NEXT * A_NEXT * p2_prev)
+                rhs = (p0 * mu_t[d] + A_MID * p2_here * mu_t[2 * dim + d]
+                       + D_PREV * p1_next * mu_n[dim + d] + A_PREV * p2_next * mu_n[2 * dim + d]
+                       + D_NEXT * p1_prev * mu_p[dim + d] + A_NEXT * p2_prev * mu_p[2 * dim + d])
+                a1 = A_PREV * A_MID * p2_here + A_MID * A_NEXT * p2_prev  # A[t-1, t]
+                a2 = D_PREV * D_NEXT * p1_prev + A_PREV * A_NEXT * p2_prev  # A[t-2, t]
+                rhs -= known1 * a1 * fixed_p[d] + known2 * a2 * fixed_pp[d]
+                a1 *= unknown1
+                a2 *= unknown2
+                m2 = a2 * inv_pp[d]
+                m1 = (a1 - m2 * piv_pp[d] * l1_p[d]) * inv_p[d]
+                pivot = diag - m1 * m1 * piv_p[d] - m2 * m2 * piv_pp[d]
+                inverse = 1.0 / pivot
+                # forward substitution, kept as y = z / pivot (z of earlier rows is y * pivot)
+                y = (rhs - m1 * piv_p[d] * z_p[d] - m2 * piv_pp[d] * z_pp[d]) * inverse
+                piv_t[d] = pivot
+                inv_t[d] = inverse
+                l1_t[d] = m1
+                l2_t[d] = m2
+                z_t[d] = y
+        for t in range(frames - 1, count - 1, -1):
+            has1 = 1.0 if t + 1 < frames else 0.0
+            has2 = 1.0 if t + 2 < frames else 0.0
+            x_t, x_1, x_2 = z[t - count], z[min(t + 1, frames - 1) - count], z[min(t + 2, frames - 1) - count]
+            l1_1, l2_2 = l1[min(t + 1, frames - 1)], l2[min(t + 2, frames - 1)]
+            for d in range(dim):
+                x_t[d] = x_t[d] - has1 * l1_1[d] * x_1[d] - has2 * l2_2[d] * x_2[d]
+
+
+def mlpg_continued(means: np.ndarray, precisions: np.ndarray, fixed: np.ndarray, as_variance: bool = False) -> np.ndarray:
+    """Static frames for batches of windows: means, precisions (N, M, 3D), fixed (N, F, D).
+
+    The first F frames of each window are known (F = 0 for a whole sequence, 2 to continue a
+    stream: windows reach one frame back, so two fixed frames pin the join). Returns the other
+    M - F frames, (N, M - F, D). With as_variance, `precisions` holds variances instead.
+    """
+    means = np.ascontiguousarray(means, dtype=np.float64)
+    precisions = np.ascontiguousarray(precisions, dtype=np.float64)
+    sequences, frames, width = means.shape
+    count = fixed.shape[1]
+    if count == 0:  # the kernel reads a fixed row even when it is multiplied by zero
+        fixed = np.zeros((sequences, 1, width // 3))
+    fixed = np.ascontiguousarray(fixed, dtype=np.float64)
+    out = np.zeros((sequences, frames - count, width // 3))
+    # work arrays come from numpy, whose allocator reuses memory: fresh pages cost more than the solve
+    l1 = np.zeros((frames, width // 3))
+    l2 = np.zeros((frames, width // 3))
+    _solve(means, precisions, as_variance, fixed, count, out, l1, l2)
+    return out
+
+
+def mlpg(means: np.ndarray, variances: np.ndarray) -> np.ndarray:
+    """Static trajectories (T, D) from means and variances (T, 3D) of [o, delta o, delta-delta o]."""
+    means = np.asarray(means, dtype=np.float64)
+    return mlpg_continued(means[None], np.asarray(variances, dtype=np.float64)[None], np.zeros((1, 0, means.shape[1] // 3)), True)[0]
