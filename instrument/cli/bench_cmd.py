@@ -8,19 +8,27 @@ import time
 
 import numpy as np
 
-from ..motion.bvh import Motion, Skeleton, bvh_text, parse_bvh
+from ..models.modelfile import default_model_path, load_model
+from ..motion.bvh import Joint, Motion, Skeleton, bvh_text, parse_bvh
 from ..motion.features import choose_layout, extract
+from ..synthesis.interpolation import interpolate, style_space
+from ..synthesis.mlpg import mlpg
+from ..synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Walker, state_plan, step
+
+MLPG_FRAMES = 10_000
+BATCH = 100
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("bench", help="measure parsing and synthesis speed on this machine")
+    p.add_argument("--model", help="model file (default: the shipped default model)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--repeat", type=int, default=20, help="timed repetitions per figure (the median is reported)")
+    p.add_argument("--repeat", type=int, default=15, help="timed repetitions per figure (the median is reported)")
     p.set_defaults(run=run)
 
 
-def _median_seconds(work, repeat: int) -> float:
-    work()  # warm up
+def median_seconds(work, repeat: int) -> float:
+    work()  # warm up (and compile)
     times = []
     for _ in range(repeat):
         start = time.perf_counter()
@@ -31,34 +39,86 @@ def _median_seconds(work, repeat: int) -> float:
 
 def benchmark_walk(frames: int = 500, joints: int = 22) -> str:
     """BVH text of a `frames`-long chain of `joints` 6-channel joints with smooth random motion."""
-    from ..motion.bvh import Joint
-
-    skeleton = Skeleton(
-        tuple(
-            Joint(f"J{k}", k - 1, (0.0, 10.0, 0.0), ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation"))
-            for k in range(joints)
-        )
-    )
+    channels6 = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
+    skeleton = Skeleton(tuple(Joint(f"J{k}", k - 1, (0.0, 10.0, 0.0), channels6) for k in range(joints)))
     rng = np.random.default_rng(0)
     channels = np.cumsum(rng.normal(0, 1.0, (frames, skeleton.channel_count)), axis=0)
     return bvh_text(Motion(skeleton, channels, 30.0))
 
 
-def measure(repeat: int) -> dict:
+def _nnmnkwii_mlpg():
+    try:
+        from nnmnkwii.paramgen import mlpg as reference
+    except ImportError:
+        return None
+    windows = [(0, 0, np.array([1.0])), (1, 1, np.array([-0.5, 0.0, 0.5])), (1, 1, np.array([1.0, -2.0, 1.0]))]
+    return lambda means, variances: reference(means, variances, windows)
+
+
+def measure(model_path: str | None, repeat: int) -> dict:
+    figures: dict = {}
     text = benchmark_walk()
     motion = parse_bvh(text)
     layout = choose_layout([motion])
-    return {
-        "bvh_parse_ms_500x22": 1000 * _median_seconds(lambda: parse_bvh(text), repeat),
-        "features_ms_500x22": 1000 * _median_seconds(lambda: extract(motion, layout), repeat),
-    }
+    figures["bvh_parse_ms_500x22"] = 1000 * median_seconds(lambda: parse_bvh(text), repeat)
+    figures["features_ms_500x22"] = 1000 * median_seconds(lambda: extract(motion, layout), repeat)
+
+    model = load_model(model_path or default_model_path())
+    space = style_space(model)
+    dimension = model.layout.dimension
+    all_styles = Controls(np.full(len(model.style_names), 1.0 / len(model.style_names)) * 1.5)
+    ids = state_plan(space, Walker(dimension), all_styles, MLPG_FRAMES)
+    lam = interpolate(space, all_styles.weights)
+    means, variances = lam.means[ids], 1.0 / lam.precisions[ids]
+    figures["dimension"] = dimension
+    figures["mlpg_frames"] = MLPG_FRAMES
+    figures["mlpg_frames_per_s"] = MLPG_FRAMES / median_seconds(lambda: mlpg(means, variances), repeat)
+    reference = _nnmnkwii_mlpg()
+    figures["nnmnkwii_frames_per_s"] = (
+        MLPG_FRAMES / median_seconds(lambda: reference(means, variances), repeat) if reference else None
+    )
+    figures["mlpg_speedup_over_nnmnkwii"] = (
+        figures["mlpg_frames_per_s"] / figures["nnmnkwii_frames_per_s"] if reference else None
+    )
+
+    frames = 300
+    walker = [Walker(dimension)]
+    controls = [all_styles]
+    for _ in range(5):
+        step(space, walker, controls)
+    start = time.perf_counter()
+    for _ in range(frames):
+        step(space, walker, controls)
+    figures["stream_us_per_frame"] = 1e6 * (time.perf_counter() - start) / frames
+    crowd = [Walker(dimension, seed=k) for k in range(BATCH)]
+    crowd_controls = [Controls(all_styles.weights * (1 + 0.01 * k)) for k in range(BATCH)]
+    for _ in range(5):
+        step(space, crowd, crowd_controls)
+    start = time.perf_counter()
+    for _ in range(frames // 10):
+        step(space, crowd, crowd_controls)
+    figures["stream_us_per_frame_batch"] = 1e6 * (time.perf_counter() - start) / (frames // 10) / BATCH
+    figures["lookahead"] = DEFAULT_LOOKAHEAD
+    per_character = figures["stream_us_per_frame_batch"]
+    figures["characters_at_30fps"] = int(1e6 / 30 / per_character)
+    figures["characters_at_60fps"] = int(1e6 / 60 / per_character)
+    return figures
 
 
 def run(args: argparse.Namespace) -> int:
-    figures = measure(max(1, args.repeat))
+    f = measure(args.model, max(1, args.repeat))
     if args.json:
-        print(json.dumps(figures, indent=1))
+        print(json.dumps(f, indent=1))
+        return 0
+    print(f"BVH parse, 500 frames x 22 joints:      {f['bvh_parse_ms_500x22']:8.1f} ms")
+    print(f"feature extraction, same file:          {f['features_ms_500x22']:8.1f} ms")
+    print(f"full MLPG, {f['mlpg_frames']} frames x {f['dimension']} dims:  {f['mlpg_frames_per_s']:8.0f} frames/s")
+    if f["nnmnkwii_frames_per_s"]:
+        print(f"nnmnkwii MLPG, same input:              {f['nnmnkwii_frames_per_s']:8.0f} frames/s "
+              f"(ours x{f['mlpg_speedup_over_nnmnkwii']:.2f})")
     else:
-        print(f"BVH parse, 500 frames x 22 joints: {figures['bvh_parse_ms_500x22']:.1f} ms")
-        print(f"feature extraction, same file:      {figures['features_ms_500x22']:.1f} ms")
+        print("nnmnkwii MLPG:                          not installed (pip install nnmnkwii)")
+    print(f"streaming, one character:               {f['stream_us_per_frame']:8.1f} us/frame (look-ahead {f['lookahead']})")
+    print(f"streaming, per character in a crowd of {BATCH}: {f['stream_us_per_frame_batch']:6.1f} us/frame")
+    print(f"characters in realtime on one core:     {f['characters_at_30fps']} at 30 fps, {f['characters_at_60fps']} at 60 fps")
     return 0

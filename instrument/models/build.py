@@ -40,6 +40,7 @@ def build_model(
     styles = adapt_styles(average, per_style, floors, report)
     dimension = layout.dimension
     step_max = np.max([np.abs(np.diff(t.observations[:, :dimension], axis=0)).max(axis=0) for t in takes], axis=0)
+    static_std = np.vstack([t.observations[:, :dimension] for t in takes]).std(axis=0)
     metadata = {
         "fps": fps,
         "states": states,
@@ -70,4 +71,4 @@ def build_model(
         },
         "warnings": report.warnings,
     }
-    return Model(metadata, average, styles, step_max), report, takes
+    return Model(metadata, average, styles, static_std, step_max), report, takes

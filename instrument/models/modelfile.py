@@ -5,6 +5,7 @@ Arrays:
     average_duration_means, average_duration_variances   (labels, states)
     style_means, style_variances                (styles, labels, states, 3D)
     style_duration_means, style_duration_variances       (styles, labels, states)
+    static_std                                  (D,) standard deviation of each static feature in the data
     static_step_max                             (D,) largest frame-to-frame change of each static feature in the data
     metadata                                    a 0-d string array holding JSON
 """
@@ -35,6 +36,7 @@ class Model:
     metadata: dict
     average: HSMM
     styles: HSMM  # each array has a leading axis over metadata["styles"]
+    static_std: np.ndarray
     static_step_max: np.ndarray
 
     @property
@@ -67,6 +69,7 @@ def save_model(path: str | Path, model: Model) -> None:
     path = Path(path)
     arrays = {f"average_{p}": getattr(model.average, p) for p in PARAMETERS}
     arrays |= {f"style_{p}": getattr(model.styles, p) for p in PARAMETERS}
+    arrays["static_std"] = model.static_std
     arrays["static_step_max"] = model.static_step_max
     metadata = dict(model.metadata, format=FORMAT, format_version=FORMAT_VERSION)
     arrays["metadata"] = np.array(json.dumps(metadata, indent=1))
@@ -102,7 +105,7 @@ def load_model(path: str | Path) -> Model:
     _check_shapes(path, metadata, arrays)
     average = HSMM(*(arrays[f"average_{p}"] for p in PARAMETERS))
     styles = HSMM(*(arrays[f"style_{p}"] for p in PARAMETERS))
-    return Model(metadata, average, styles, arrays["static_step_max"])
+    return Model(metadata, average, styles, arrays["static_std"], arrays["static_step_max"])
 
 
 def _check_shapes(path: Path, metadata: dict, arrays: dict) -> None:
@@ -120,6 +123,7 @@ def _check_shapes(path: Path, metadata: dict, arrays: dict) -> None:
         "style_variances": (styles, labels, states, 3 * static),
         "style_duration_means": (styles, labels, states),
         "style_duration_variances": (styles, labels, states),
+        "static_std": (static,),
         "static_step_max": (static,),
     }
     for name, shape in expected.items():

@@ -10,13 +10,15 @@ and the root's remaining rotation ("tilt", the swing of a swing-twist split, so 
 part) as an exponential map. Nothing in it depends on
 where the character stands or faces, so a model can learn it from many takes; integrating the
 speeds and yaw rate gives the world path back. Every other joint is the exponential map of its
-local rotation, made continuous over time. Joints that never move are left out; the channels
+local rotation relative to its rotation in a template frame (so maps stay far from an angle of
+pi, where takes would disagree), made continuous over time. Joints that never move are left out; the channels
 they and everything else not modelled hold come from a template frame.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -53,6 +55,16 @@ class FeatureLayout:
     root: int
     joints: tuple[int, ...]
     template: tuple[float, ...]  # one frame of channel values for everything not modelled
+
+    @cached_property
+    def reference(self) -> np.ndarray:
+        """(joints, 3, 3) local rotations of the modelled joints in the template frame.
+
+        Joint features are exponential maps relative to these, so they stay small and far from
+        an angle of pi, where the equivalent maps of different takes would disagree.
+        """
+        template = Motion(self.skeleton, np.asarray(self.template)[None], DEFAULT_FPS)
+        return local_transforms(template)[0][0, list(self.joints)]
 
     @property
     def dimension(self) -> int:
@@ -146,7 +158,8 @@ def extract(motion: Motion, layout: FeatureLayout) -> tuple[np.ndarray, np.ndarr
         local_step = np.vstack([local_step, local_step[-1:]])
         yaw_rate = np.append(yaw_rate, yaw_rate[-1])
     tilt = continuous_expmap(matrix_to_expmap(np.einsum("tji,tjk->tik", heading, root_rot)))
-    joints = continuous_expmap(matrix_to_expmap(rotations[:, list(layout.joints)]))
+    relative = np.einsum("jki,tjkl->tjil", layout.reference, rotations[:, list(layout.joints)])  # ref^T @ R
+    joints = continuous_expmap(matrix_to_expmap(relative))
     features = np.hstack(
         [root_pos[:, 1:2], local_step[:, 0:1], local_step[:, 2:3], yaw_rate[:, None], tilt[:, [0, 2]], joints.reshape(motion.frames, -1)]
     )
@@ -184,7 +197,7 @@ def restore(
     rotations[:, layout.root] = parent_rot.T @ root_rot
     translations[:, layout.root] = (root_pos - parent_pos) @ parent_rot
     joint_maps = features[:, len(ROOT_FEATURES) :].reshape(frames, len(layout.joints), 3)
-    rotations[:, list(layout.joints)] = expmap_to_matrix(joint_maps)
+    rotations[:, list(layout.joints)] = layout.reference @ expmap_to_matrix(joint_maps)
     return Motion(skeleton, channels_from_local(skeleton, rotations, translations), fps)
 
 

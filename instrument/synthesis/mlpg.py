@@ -26,13 +26,13 @@ A_PREV, A_MID, A_NEXT = (float(v) for v in WINDOWS[2])
 assert WINDOWS[1][1] == 0.0 and tuple(WINDOWS[0]) == (0.0, 1.0, 0.0)
 
 
-@njit(cache=True, nogil=True, fastmath=True)
+@njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
 def _precision_row(second, k, as_variance, row):  # pragma: no cover - compiled
     for j in range(row.shape[0]):
         row[j] = 1.0 / second[k, j] if as_variance else second[k, j]
 
 
-@njit(cache=True, nogil=True, fastmath=True)
+@njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
 def _solve(means, second, as_variance, fixed, count, out, l1, l2):  # pragma: no cover - compiled
     """means and `second` (precisions, or variances when as_variance): (N, M, 3D); fixed:
     (N, max(F, 1), D) holding F = count known frames; out: (N, M - F, D); l1, l2: (M, D) work.
@@ -66,49 +66,46 @@ def _solve(means, second, as_variance, fixed, count, out, l1, l2):  # pragma: no
             unknown2 = 1.0 if t - 2 >= count else 0.0
             known1 = 1.0 if (t >= 1 and t - 1 < count) else 0.0
             known2 = 1.0 if (t >= 2 and t - 2 < count) else 0.0
-            fixed_p, fixed_pp = fixed[n, min(tp, last_fixed)], fixed[n, min(tpp, last_fixed)]
-            prec_t, prec_p, prec_n = prec_rows[t % 3], prec_rows[tp % 3], prec_rows[tn % 3]
-            mu_t, mu_p, mu_n = mu[t], mu[tp], mu[tn]
-            piv_t, piv_p, piv_pp = pivots[t % 3], pivots[tp % 3], pivots[tpp % 3]
-            inv_t, inv_p, inv_pp = inverses[t % 3], inverses[tp % 3], inverses[tpp % 3]
-            l1_p, l1_t, l2_t = l1[tp], l1[t], l2[t]
-            z_t, z_p, z_pp = z[t - count], z[max(tp - count, 0)], z[max(tpp - count, 0)]
+            fp, fpp = min(tp, last_fixed), min(tpp, last_fixed)
+            rt, rp, rn = t % 3, tp % 3, tn % 3  # rows of the rolling precision buffer
+            qt, qp, qpp = t % 3, tp % 3, tpp % 3  # rows of the rolling pivot buffers
+            zt, zp, zpp = t - count, max(tp - count, 0), max(tpp - count, 0)
             for d in range(dim):
-                p0 = prec_t[d]
-                p1_here = prec_t[dim + d] * w_here
-                p2_here = prec_t[2 * dim + d] * w_here
-                p1_prev = prec_p[dim + d] * w_prev
-                p2_prev = prec_p[2 * dim + d] * w_prev
-                p1_next = prec_n[dim + d] * w_next
-                p2_next = prec_n[2 * dim + d] * w_next
+                p0 = prec_rows[rt, d]
+                p1_here = prec_rows[rt, dim + d] * w_here
+                p2_here = prec_rows[rt, 2 * dim + d] * w_here
+                p1_prev = prec_rows[rp, dim + d] * w_prev
+                p2_prev = prec_rows[rp, 2 * dim + d] * w_prev
+                p1_next = prec_rows[rn, dim + d] * w_next
+                p2_next = prec_rows[rn, 2 * dim + d] * w_next
                 diag = (p0 + D_PREV * D_PREV * p1_next + D_NEXT * D_NEXT * p1_prev
                         + A_PREV * A_PREV * p2_next + A_MID * A_MID * p2_here + A_NEXT * A_NEXT * p2_prev)
-                rhs = (p0 * mu_t[d] + A_MID * p2_here * mu_t[2 * dim + d]
-                       + D_PREV * p1_next * mu_n[dim + d] + A_PREV * p2_next * mu_n[2 * dim + d]
-                       + D_NEXT * p1_prev * mu_p[dim + d] + A_NEXT * p2_prev * mu_p[2 * dim + d])
+                rhs = (p0 * mu[t, d] + A_MID * p2_here * mu[t, 2 * dim + d]
+                       + D_PREV * p1_next * mu[tn, dim + d] + A_PREV * p2_next * mu[tn, 2 * dim + d]
+                       + D_NEXT * p1_prev * mu[tp, dim + d] + A_NEXT * p2_prev * mu[tp, 2 * dim + d])
                 a1 = A_PREV * A_MID * p2_here + A_MID * A_NEXT * p2_prev  # A[t-1, t]
                 a2 = D_PREV * D_NEXT * p1_prev + A_PREV * A_NEXT * p2_prev  # A[t-2, t]
-                rhs -= known1 * a1 * fixed_p[d] + known2 * a2 * fixed_pp[d]
+                rhs -= known1 * a1 * fixed[n, fp, d] + known2 * a2 * fixed[n, fpp, d]
                 a1 *= unknown1
                 a2 *= unknown2
-                m2 = a2 * inv_pp[d]
-                m1 = (a1 - m2 * piv_pp[d] * l1_p[d]) * inv_p[d]
-                pivot = diag - m1 * m1 * piv_p[d] - m2 * m2 * piv_pp[d]
+                m2 = a2 * inverses[qpp, d]
+                m1 = (a1 - m2 * pivots[qpp, d] * l1[tp, d]) * inverses[qp, d]
+                pivot = diag - m1 * m1 * pivots[qp, d] - m2 * m2 * pivots[qpp, d]
                 inverse = 1.0 / pivot
                 # forward substitution, kept as y = z / pivot (z of earlier rows is y * pivot)
-                y = (rhs - m1 * piv_p[d] * z_p[d] - m2 * piv_pp[d] * z_pp[d]) * inverse
-                piv_t[d] = pivot
-                inv_t[d] = inverse
-                l1_t[d] = m1
-                l2_t[d] = m2
-                z_t[d] = y
+                y = (rhs - m1 * pivots[qp, d] * z[zp, d] - m2 * pivots[qpp, d] * z[zpp, d]) * inverse
+                pivots[qt, d] = pivot
+                inverses[qt, d] = inverse
+                l1[t, d] = m1
+                l2[t, d] = m2
+                z[zt, d] = y
         for t in range(frames - 1, count - 1, -1):
             has1 = 1.0 if t + 1 < frames else 0.0
             has2 = 1.0 if t + 2 < frames else 0.0
-            x_t, x_1, x_2 = z[t - count], z[min(t + 1, frames - 1) - count], z[min(t + 2, frames - 1) - count]
-            l1_1, l2_2 = l1[min(t + 1, frames - 1)], l2[min(t + 2, frames - 1)]
+            z1, z2 = min(t + 1, frames - 1) - count, min(t + 2, frames - 1) - count
+            r1, r2 = min(t + 1, frames - 1), min(t + 2, frames - 1)
             for d in range(dim):
-                x_t[d] = x_t[d] - has1 * l1_1[d] * x_1[d] - has2 * l2_2[d] * x_2[d]
+                z[t - count, d] = z[t - count, d] - has1 * l1[r1, d] * z[z1, d] - has2 * l2[r2, d] * z[z2, d]
 
 
 def mlpg_continued(means: np.ndarray, precisions: np.ndarray, fixed: np.ndarray, as_variance: bool = False) -> np.ndarray:

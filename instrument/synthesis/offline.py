@@ -1,0 +1,55 @@
+"""Whole walks at once: streaming or full-sequence generation with constant controls, as BVH."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..models.modelfile import Model
+from ..motion.bvh import Motion
+from ..motion.features import FeatureLayout, restore
+from .interpolation import StyleSpace
+from .mlpg import mlpg_continued
+from .stream import DEFAULT_LOOKAHEAD, Controls, Walker, state_plan, step
+
+ROOT_RATES = slice(1, 4)  # root.vx, root.vz, root.yaw_rate in the static features
+
+
+def drive(static: np.ndarray, cadence: float | np.ndarray, turn: float | np.ndarray) -> np.ndarray:
+    """Root speeds scaled by the cadence (a step taken faster covers the same ground sooner, so
+    the feet do not slide) and the steering added to the yaw rate."""
+    out = np.array(static, dtype=np.float64)
+    out[..., ROOT_RATES] *= np.asarray(cadence)[..., None] if np.ndim(cadence) else cadence
+    out[..., 3] += turn
+    return out
+
+
+def synthesize(
+    space: StyleSpace,
+    dimension: int,
+    controls: Controls,
+    frames: int,
+    method: str = "stream",
+    lookahead: int = DEFAULT_LOOKAHEAD,
+    seed: int = 0,
+) -> np.ndarray:
+    """Static features (frames, D) of a walk with constant controls, root speeds driven."""
+    walker = Walker(dimension, lookahead=lookahead, seed=seed)
+    if method == "full":
+        ids = state_plan(space, walker, controls, frames)
+        lam = walker.lam
+        static = mlpg_continued(lam.means[ids][None], lam.precisions[ids][None], np.zeros((1, 0, dimension)))[0]
+    else:
+        static = np.vstack([step(space, [walker], [controls]) for _ in range(frames)])
+    return drive(static, walker.cadence, controls.turn)
+
+
+def to_motion(static: np.ndarray, layout: FeatureLayout, fps: float) -> Motion:
+    """The walk on the model's skeleton, starting at the origin facing the model's heading 0."""
+    return restore(static, layout, fps)
+
+
+def default_controls(model: Model, weights: dict[str, float] | None = None, **kwargs) -> Controls:
+    vector = np.zeros(len(model.style_names))
+    for name, value in (weights or {}).items():
+        vector[model.style_names.index(name)] = value
+    return Controls(vector, **kwargs)

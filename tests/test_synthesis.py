@@ -1,0 +1,210 @@
+"""MLPG, streaming generation, interpolation and durations on the shipped default model."""
+
+import numpy as np
+import pytest
+
+from instrument.models.modelfile import default_model_path, load_model
+from instrument.synthesis.durations import state_durations, whole_frames
+from instrument.synthesis.interpolation import GROUPS, interpolate, style_space
+from instrument.synthesis.mlpg import mlpg, mlpg_continued
+from instrument.synthesis.offline import default_controls, synthesize
+from instrument.synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Walker, state_plan, step
+
+WINDOWS = [(0, 0, np.array([1.0])), (1, 1, np.array([-0.5, 0.0, 0.5])), (1, 1, np.array([1.0, -2.0, 1.0]))]
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_model(default_model_path())
+
+
+@pytest.fixture(scope="module")
+def space(model):
+    return style_space(model)
+
+
+@pytest.mark.parametrize("frames", [1, 2, 3, 4, 7, 50, 1000])
+def test_mlpg_agrees_with_nnmnkwii(frames):
+    paramgen = pytest.importorskip("nnmnkwii.paramgen", reason="nnmnkwii (the test oracle) is not installed")
+    rng = np.random.default_rng(frames)
+    means = rng.normal(size=(frames, 3 * 9))
+    variances = rng.uniform(0.01, 3.0, size=(frames, 3 * 9))
+    np.testing.assert_allclose(mlpg(means, variances), paramgen.mlpg(means, variances, WINDOWS), atol=1e-8, rtol=0)
+
+
+def test_continuing_from_fixed_frames_of_the_exact_solution_changes_nothing():
+    rng = np.random.default_rng(1)
+    means, variances = rng.normal(size=(60, 12)), rng.uniform(0.1, 2.0, size=(60, 12))
+    full = mlpg(means, variances)
+    for count in (1, 2):
+        rest = mlpg_continued(means[None], 1 / variances[None], full[None, :count])[0]
+        np.testing.assert_allclose(rest, full[count:], atol=1e-10)
+
+
+def test_interpolation_identities(model, space):
+    styles = len(model.style_names)
+    zero = interpolate(space, np.zeros(styles))
+    np.testing.assert_allclose(zero.means, model.average.means.reshape(zero.means.shape), atol=1e-12)
+    np.testing.assert_allclose(1 / zero.precisions, model.average.variances.reshape(zero.means.shape), rtol=1e-10)
+    np.testing.assert_allclose(zero.duration_means, model.average.duration_means, atol=1e-12)
+    for k, name in enumerate(model.style_names):
+        one = interpolate(space, np.eye(styles)[k])
+        style = model.style(name)
+        np.testing.assert_allclose(one.means, style.means.reshape(one.means.shape), atol=1e-10)
+        np.testing.assert_allclose(1 / one.precisions, style.variances.reshape(one.means.shape), rtol=1e-10)
+        np.testing.assert_allclose(one.duration_means, style.duration_means, atol=1e-10)
+        np.testing.assert_allclose(one.duration_variances, style.duration_variances, rtol=1e-10)
+
+
+def test_half_weight_lies_between_and_inversion_mirrors(model, space):
+    k = model.style_names.index("elderly")
+    w = np.zeros(len(model.style_names))
+    base, full = interpolate(space, w).means, interpolate(space, np.eye(len(w))[k]).means
+    half = interpolate(space, 0.5 * np.eye(len(w))[k]).means
+    inverse = interpolate(space, -1.0 * np.eye(len(w))[k]).means
+    np.testing.assert_allclose(half, (base + full) / 2, atol=1e-12)
+    np.testing.assert_allclose(inverse - base, base - full, atol=1e-12)
+
+
+@pytest.mark.parametrize("weight", [-10.0, -3.0, 5.0, 25.0])
+def test_variances_stay_positive_for_extreme_weights(model, space, weight):
+    weights = np.full(len(model.style_names), weight)
+    lam = interpolate(space, weights)
+    assert np.isfinite(lam.precisions).all() and (lam.precisions > 0).all()
+    assert (lam.duration_variances > 0).all()
+    walker = Walker(model.layout.dimension)
+    frames = np.vstack([step(space, [walker], [Controls(weights)]) for _ in range(40)])
+    assert np.isfinite(frames).all()
+
+
+def test_body_part_weights(model, space):
+    names = model.style_names
+    masks = space.group_masks
+    assert GROUPS == ("root", "legs", "upper")
+    legs_joints = {model.layout.names[i].split(".")[0] for i in np.flatnonzero(masks[1, : model.layout.dimension])}
+    assert legs_joints == {"UpperLeg_L", "LowerLeg_L", "Foot_L", "Toes_L", "UpperLeg_R", "LowerLeg_R", "Foot_R", "Toes_R"}
+    parts = np.full((len(names), len(GROUPS)), np.nan)
+    parts[names.index("youthful")] = [0.0, 1.0, 0.0]  # youthful legs only
+    parts[names.index("elderly")] = [0.0, 0.0, 1.0]  # elderly upper body only
+    mixed = interpolate(space, np.zeros(len(names)), parts)
+    youthful = interpolate(space, np.eye(len(names))[names.index("youthful")])
+    elderly = interpolate(space, np.eye(len(names))[names.index("elderly")])
+    average = interpolate(space, np.zeros(len(names)))
+    np.testing.assert_allclose(mixed.means[:, masks[1]], youthful.means[:, masks[1]], atol=1e-12)
+    np.testing.assert_allclose(mixed.means[:, masks[2]], elderly.means[:, masks[2]], atol=1e-12)
+    np.testing.assert_allclose(mixed.means[:, masks[0]], average.means[:, masks[0]], atol=1e-12)
+
+
+def test_speed_and_phase_stretch():
+    means, variances = np.array([3.0, 2.0, 4.0, 3.0, 3.0]), np.array([1.0, 0.5, 2.0, 1.0, 0.5])
+    natural = state_durations(means, variances)
+    np.testing.assert_allclose(natural, means)
+    faster = state_durations(means, variances, speed=1.5)
+    assert faster.sum() == pytest.approx(means.sum() / 1.5)
+    assert np.argmax(means - faster) == 2  # the most variable state gives most
+    assert state_durations(means, variances, speed=100.0).sum() >= state_durations(means, variances, speed=4.0).sum() - 1e-9
+    assert (state_durations(means, variances, speed=4.0) >= 1.0).all()
+    stretched = state_durations(means, variances, state_scale=np.array([1, 1, 3.0, 1, 1]))
+    np.testing.assert_allclose(stretched, means * [1, 1, 3, 1, 1])
+
+
+def test_fractional_durations_never_drift():
+    carry, total = 0.0, 0
+    for k in range(10_000):
+        frames, carry = whole_frames(2.3 + 0.01 * (k % 7), carry)
+        assert frames >= 1
+        total += frames
+    exact = sum(2.3 + 0.01 * (k % 7) for k in range(10_000))
+    assert abs(total - exact) <= 1.0
+
+
+@pytest.mark.parametrize("speed", [0.5, 1.0, 2.0])
+def test_the_state_plan_follows_the_real_valued_durations(model, space, speed):
+    walker = Walker(model.layout.dimension)
+    plan = state_plan(space, walker, default_controls(model, speed=speed), 6000)
+    states_entered = np.count_nonzero(np.diff(plan) != 0) + 1
+    mean_duration = np.mean(walker.base)  # real-valued frames per state after speed control
+    assert 6000 / states_entered == pytest.approx(mean_duration, rel=0.01)
+    if speed == 0.5:  # no state is near the one-frame floor: the step takes exactly twice as long
+        natural = Walker(model.layout.dimension)
+        state_plan(space, natural, default_controls(model), 10)
+        assert np.sum(walker.base) == pytest.approx(2 * np.sum(natural.base))
+
+
+@pytest.mark.parametrize("style", ["elderly", "youthful", None])
+def test_streaming_matches_full_mlpg_within_one_percent(model, space, style):
+    controls = default_controls(model, {style: 1.0} if style else {})
+    frames = 600
+    streamed = synthesize(space, model.layout.dimension, controls, frames, "stream", DEFAULT_LOOKAHEAD)
+    # the stream never ends, so the full solve runs on past the compared frames (no end effect)
+    full = synthesize(space, model.layout.dimension, controls, frames + 150, "full")[:frames]
+    rms = np.sqrt(((streamed - full) ** 2).mean(axis=0))
+    assert (rms <= 0.01 * model.static_std).all(), model.layout.names[int(np.argmax(rms / model.static_std))]
+
+
+def test_short_lookahead_is_measurably_worse(model, space):
+    controls = default_controls(model, {"elderly": 1.0})
+    full = synthesize(space, model.layout.dimension, controls, 450, "full")[:300]
+    errors = [np.max(np.sqrt(((synthesize(space, model.layout.dimension, controls, 300, "stream", a) - full) ** 2).mean(0))
+                     / model.static_std) for a in (4, 16, 64)]
+    assert errors[0] > errors[1] > errors[2]
+
+
+@pytest.mark.parametrize("target", [2.0, -1.0])
+def test_abrupt_weight_change_stays_within_recorded_pace(model, space, target):
+    names = model.style_names
+    for name in names:
+        walker = Walker(model.layout.dimension)
+        frames = []
+        for n in range(150):
+            weights = np.zeros(len(names))
+            if n >= 80:
+                weights[names.index(name)] = target
+            frames.append(step(space, [walker], [Controls(weights)])[0])
+        change = np.abs(np.diff(np.array(frames), axis=0))
+        assert (change <= model.static_step_max * (1 + 1e-9)).all(), name
+
+
+def test_without_the_rate_limit_an_abrupt_change_can_exceed_the_recorded_pace(model, space):
+    names = model.style_names
+    worst = 0.0
+    for name in ("active", "youthful"):
+        walker = Walker(model.layout.dimension, max_step_ratio=0.0)
+        frames = [step(space, [walker], [Controls(2.0 * (np.arange(len(names)) == names.index(name)) * (n >= 80))])[0]
+                  for n in range(100)]
+        worst = max(worst, (np.abs(np.diff(np.array(frames), axis=0)) / model.static_step_max).max())
+    assert worst > 1.0  # so the limit in the test above is doing real work
+
+
+def test_a_control_change_shows_in_the_very_next_frame(model, space):
+    d, names = model.layout.dimension, model.style_names
+    steady, changed = Walker(d), Walker(d)
+    calm = Controls(np.zeros(len(names)))
+    for _ in range(45):
+        a = step(space, [steady], [calm])
+        b = step(space, [changed], [calm])
+        np.testing.assert_array_equal(a, b)
+    bold = Controls(np.eye(len(names))[names.index("feminine")] * 2.0)
+    assert np.abs(step(space, [changed], [bold]) - step(space, [steady], [calm])).max() > 1e-3
+
+
+def test_liveliness_is_deterministic_per_seed(model, space):
+    controls = default_controls(model, {"normal": 1.0}, liveliness=1.0)
+    a = synthesize(space, model.layout.dimension, controls, 200, seed=5)
+    b = synthesize(space, model.layout.dimension, controls, 200, seed=5)
+    c = synthesize(space, model.layout.dimension, controls, 200, seed=6)
+    np.testing.assert_array_equal(a, b)
+    assert np.abs(a - c).max() > 1e-3
+    plain = synthesize(space, model.layout.dimension, default_controls(model, {"normal": 1.0}), 200, seed=5)
+    assert np.abs(a - plain).max() > 1e-3
+
+
+def test_a_crowd_step_equals_each_walker_alone(model, space):
+    d, names = model.layout.dimension, model.style_names
+    controls = [Controls(np.eye(len(names))[k % len(names)] * (0.5 + k)) for k in range(5)]
+    crowd = [Walker(d, seed=k) for k in range(5)]
+    alone = [Walker(d, seed=k) for k in range(5)]
+    for _ in range(40):
+        together = step(space, crowd, controls)
+        separate = np.vstack([step(space, [w], [c]) for w, c in zip(alone, controls)])
+        np.testing.assert_allclose(together, separate, atol=1e-12)
