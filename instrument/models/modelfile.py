@@ -22,6 +22,7 @@ import numpy as np
 from ..errors import UserError
 from ..motion.bvh import Skeleton
 from ..motion.features import FeatureLayout
+from ..shipped import default_model_path  # noqa: F401  (re-exported: where the default model is)
 from .hsmm import HSMM
 
 FORMAT = "instrument-style-model"
@@ -137,13 +138,3 @@ def _check_shapes(path: Path, metadata: dict, arrays: dict) -> None:
         if (arrays[name] <= 0).any():
             raise UserError(f"{path}: array {name!r} holds variances that are not positive")
 
-
-def default_model_path() -> Path:
-    """The shipped default model: `models/` of a checkout, or the copy installed with the package."""
-    checkout = Path(__file__).resolve().parents[2] / "models" / "default.npz"
-    if checkout.is_file():
-        return checkout
-    installed = Path(__file__).resolve().parents[1] / "shipped_models" / "default.npz"
-    if installed.is_file():
-        return installed
-    raise UserError(f"the default model is missing (looked in {checkout} and {installed}); give --model")

@@ -57,14 +57,25 @@ class FeatureLayout:
     template: tuple[float, ...]  # one frame of channel values for everything not modelled
 
     @cached_property
+    def template_pose(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Local rotations (J, 3, 3) and translations (J, 3) of the template frame, and the world
+        rotation and position of the root's parent in it (identity at the top)."""
+        template = Motion(self.skeleton, np.asarray(self.template)[None], DEFAULT_FPS)
+        rotations, translations = local_transforms(template)
+        world_rot, world_pos = forward_kinematics(self.skeleton, rotations, translations)
+        parent = self.skeleton.joints[self.root].parent
+        if parent < 0:
+            return rotations[0], translations[0], np.eye(3), np.zeros(3)
+        return rotations[0], translations[0], world_rot[0, parent], world_pos[0, parent]
+
+    @cached_property
     def reference(self) -> np.ndarray:
         """(joints, 3, 3) local rotations of the modelled joints in the template frame.
 
         Joint features are exponential maps relative to these, so they stay small and far from
         an angle of pi, where the equivalent maps of different takes would disagree.
         """
-        template = Motion(self.skeleton, np.asarray(self.template)[None], DEFAULT_FPS)
-        return local_transforms(template)[0][0, list(self.joints)]
+        return self.template_pose[0][list(self.joints)]
 
     @property
     def dimension(self) -> int:
@@ -131,16 +142,6 @@ def heading_angle(world_rotation: np.ndarray) -> np.ndarray:
     return np.unwrap(2.0 * np.arctan2(quat[:, 1], quat[:, 3]))
 
 
-def _template_world(layout: FeatureLayout) -> tuple[np.ndarray, np.ndarray]:
-    """World rotation and position of the root's parent in the template frame (identity at the top)."""
-    parent = layout.skeleton.joints[layout.root].parent
-    if parent < 0:
-        return np.eye(3), np.zeros(3)
-    template = Motion(layout.skeleton, np.asarray(layout.template)[None], DEFAULT_FPS)
-    world_rot, world_pos = forward_kinematics(layout.skeleton, *local_transforms(template))
-    return world_rot[0, parent], world_pos[0, parent]
-
-
 def extract(motion: Motion, layout: FeatureLayout) -> tuple[np.ndarray, np.ndarray, float]:
     """Features (T, D) of a motion, with the root's start position and heading for `restore`."""
     rotations, translations = local_transforms(motion)
@@ -166,6 +167,41 @@ def extract(motion: Motion, layout: FeatureLayout) -> tuple[np.ndarray, np.ndarr
     return features, root_pos[0], float(yaw[0])
 
 
+def restore_local(
+    features: np.ndarray,
+    layout: FeatureLayout,
+    fps: float,
+    start: np.ndarray | None = None,
+    start_heading: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, float]]:
+    """Local joint rotations (T, J, 3, 3) and translations (T, J, 3) from features, integrating
+    the root path from `start` and `start_heading`; also where the root would be one frame
+    after the last (so a stream can continue the path frame by frame)."""
+    features = np.asarray(features, dtype=np.float64)
+    frames = features.shape[0]
+    yaw = start_heading + np.concatenate([[0.0], np.cumsum(features[:, 3]) / fps])  # one longer: the next frame too
+    heading = axis_angle_matrix("y", yaw)
+    local_step = np.zeros((frames, 3))
+    local_step[:, 0], local_step[:, 2] = features[:, 1], features[:, 2]
+    world_step = np.einsum("tij,tj->ti", heading[:-1], local_step) / fps
+    origin = np.zeros(3) if start is None else np.asarray(start, dtype=np.float64)
+    path = origin + np.concatenate([np.zeros((1, 3)), np.cumsum(world_step, axis=0)])
+    root_pos = path[:-1].copy()
+    root_pos[:, 1] = features[:, 0]
+    tilt = np.zeros((frames, 3))
+    tilt[:, 0], tilt[:, 2] = features[:, 4], features[:, 5]
+    root_rot = heading[:-1] @ expmap_to_matrix(tilt)
+
+    template_rot, template_trans, parent_rot, parent_pos = layout.template_pose
+    rotations = np.broadcast_to(template_rot, (frames,) + template_rot.shape).copy()
+    translations = np.broadcast_to(template_trans, (frames,) + template_trans.shape).copy()
+    rotations[:, layout.root] = parent_rot.T @ root_rot
+    translations[:, layout.root] = (root_pos - parent_pos) @ parent_rot
+    joint_maps = features[:, len(ROOT_FEATURES) :].reshape(frames, len(layout.joints), 3)
+    rotations[:, list(layout.joints)] = layout.reference @ expmap_to_matrix(joint_maps)
+    return rotations, translations, (path[-1], float(yaw[-1]))
+
+
 def restore(
     features: np.ndarray,
     layout: FeatureLayout,
@@ -174,31 +210,8 @@ def restore(
     start_heading: float = 0.0,
 ) -> Motion:
     """Motion from features: integrate the root path, put rotations back, fill the rest."""
-    features = np.asarray(features, dtype=np.float64)
-    frames = features.shape[0]
-    skeleton = layout.skeleton
-    yaw = start_heading + np.concatenate([[0.0], np.cumsum(features[:-1, 3]) / fps])
-    heading = axis_angle_matrix("y", yaw)
-    local_step = np.zeros((frames, 3))
-    local_step[:, 0], local_step[:, 2] = features[:, 1], features[:, 2]
-    world_step = np.einsum("tij,tj->ti", heading, local_step) / fps
-    origin = np.zeros(3) if start is None else np.asarray(start, dtype=np.float64)
-    root_pos = np.empty((frames, 3))
-    root_pos[0] = origin
-    root_pos[1:] = origin + np.cumsum(world_step[:-1], axis=0)
-    root_pos[:, 1] = features[:, 0]
-    tilt = np.zeros((frames, 3))
-    tilt[:, 0], tilt[:, 2] = features[:, 4], features[:, 5]
-    root_rot = heading @ expmap_to_matrix(tilt)
-
-    template = Motion(skeleton, np.broadcast_to(np.asarray(layout.template), (frames, skeleton.channel_count)).copy(), fps)
-    rotations, translations = local_transforms(template)
-    parent_rot, parent_pos = _template_world(layout)
-    rotations[:, layout.root] = parent_rot.T @ root_rot
-    translations[:, layout.root] = (root_pos - parent_pos) @ parent_rot
-    joint_maps = features[:, len(ROOT_FEATURES) :].reshape(frames, len(layout.joints), 3)
-    rotations[:, list(layout.joints)] = layout.reference @ expmap_to_matrix(joint_maps)
-    return Motion(skeleton, channels_from_local(skeleton, rotations, translations), fps)
+    rotations, translations, _ = restore_local(features, layout, fps, start, start_heading)
+    return Motion(layout.skeleton, channels_from_local(layout.skeleton, rotations, translations), fps)
 
 
 def resample(motion: Motion, fps: float = DEFAULT_FPS) -> Motion:

@@ -31,17 +31,26 @@ def local_transforms(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
 
 
 def channels_from_local(skeleton: Skeleton, rotations: np.ndarray, translations: np.ndarray) -> np.ndarray:
-    """The inverse of `local_transforms`: BVH channel values (T, C), Euler angles unwrapped."""
+    """The inverse of `local_transforms`: BVH channel values (T, C), Euler angles unwrapped.
+
+    Joints sharing a rotation order are converted in one call (a file usually has one order).
+    """
     frames = rotations.shape[0]
     out = np.zeros((frames, skeleton.channel_count))
-    for j, (joint, start) in enumerate(zip(skeleton.joints, skeleton.channel_start())):
-        order = joint.rotation_order
-        euler = matrix_to_euler(rotations[:, j], order) if order else None
+    starts = skeleton.channel_start()
+    orders: dict[str, list[int]] = {}
+    for j, joint in enumerate(skeleton.joints):
+        if joint.rotation_order:
+            orders.setdefault(joint.rotation_order, []).append(j)
         for k, c in enumerate(joint.channels):
-            if c.endswith("rotation"):
-                out[:, start + k] = euler[:, order.index(c[0])]
-            else:
-                out[:, start + k] = translations[:, j, AXIS_INDEX[c[0]]]
+            if c.endswith("position"):
+                out[:, starts[j] + k] = translations[:, j, AXIS_INDEX[c[0]]]
+    for order, joints in orders.items():
+        euler = matrix_to_euler(rotations[:, joints], order)  # (T, joints, 3)
+        for n, j in enumerate(joints):
+            for k, c in enumerate(skeleton.joints[j].channels):
+                if c.endswith("rotation"):
+                    out[:, starts[j] + k] = euler[:, n, order.index(c[0])]
     return out
 
 

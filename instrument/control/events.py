@@ -1,0 +1,77 @@
+"""Control events and controller logs (JSON Lines, one event a line)."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import UserError, located
+
+
+@dataclass(frozen=True)
+class ControlEvent:
+    time: float  # seconds since the performance started
+    source: str  # which device: "demo", "midi:nanoKONTROL2", "hid:054c:09cc", "osc"
+    control: str  # the device's control id, or a target name for a direct source
+    value: float
+
+    def to_json(self) -> str:
+        return json.dumps({"t": round(self.time, 6), "source": self.source, "control": self.control, "value": self.value})
+
+
+def read_log(path: str | Path) -> list[ControlEvent]:
+    """Every event of a log, in time order; a bad line is a one-line error naming file and line."""
+    path = Path(path)
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except OSError as e:
+        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
+    events = []
+    for number, line in enumerate(lines, 1):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        try:
+            item = json.loads(line)
+        except json.JSONDecodeError as e:
+            raise located(path, f"not JSON: {e.msg}", number) from None
+        if not isinstance(item, dict):
+            raise located(path, "expected an object with t, source, control, value", number)
+        missing = [k for k in ("t", "source", "control", "value") if k not in item]
+        if missing:
+            raise located(path, f"missing key {missing[0]!r}", number)
+        t, value = item["t"], item["value"]
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in (t, value)) or t < 0:
+            raise located(path, "'t' and 'value' must be finite numbers, 't' not negative", number)
+        events.append(ControlEvent(float(t), str(item["source"]), str(item["control"]), float(value)))
+    events.sort(key=lambda e: e.time)
+    return events
+
+
+class LogReplay:
+    """Hands out a log's events as performance time passes; loops when asked."""
+
+    def __init__(self, events: list[ControlEvent], loop: bool = False):
+        self.events = events
+        self.loop = loop and bool(events)
+        self.length = (events[-1].time + 1.0) if events else 0.0
+        self.position = 0
+        self.offset = 0.0
+
+    def due(self, now: float) -> list[ControlEvent]:
+        out = []
+        while True:
+            if self.position >= len(self.events):
+                if not self.loop:
+                    return out
+                self.position, self.offset = 0, self.offset + self.length
+            event = self.events[self.position]
+            if event.time + self.offset > now:
+                return out
+            out.append(event)
+            self.position += 1
+
+    @property
+    def finished(self) -> bool:
+        return not self.loop and self.position >= len(self.events)

@@ -1,0 +1,92 @@
+"""Control state: what the performer has set, as named targets, snapshotted once per frame.
+
+Targets:
+    style/<name>            weight of a style (0 absent, 1 the style, >1 exaggerated, <0 inverted)
+    part/<style>/<group>    weight of a style for one body part (root, legs, upper); NaN follows style/<name>
+    speed                   step rate relative to the model's (0.25 to 4)
+    phase/<k>               stretch of state k (1-based) of every step (0.25 to 4)
+    turn                    steering, radians per second (positive turns left)
+    liveliness              0: every step alike; 1: durations drawn from the model
+    reset                   any value: everything back to the start
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..synthesis.durations import MAX_SPEED, MIN_SPEED
+from ..synthesis.interpolation import GROUPS
+from ..synthesis.stream import Controls
+
+MAX_TURN = 3.0  # rad/s
+WEIGHT_LIMIT = 10.0
+
+
+class ControlState:
+    def __init__(self, style_names: list[str], states: int):
+        self.style_names = list(style_names)
+        self.states = states
+        self.reset()
+
+    def reset(self) -> None:
+        self.weights = np.zeros(len(self.style_names))
+        self.part_weights = np.full((len(self.style_names), len(GROUPS)), np.nan)
+        self.speed = 1.0
+        self.turn = 0.0
+        self.liveliness = 0.0
+        self.state_scale = np.ones(self.states)
+
+    def targets(self) -> list[str]:
+        names = [f"style/{s}" for s in self.style_names]
+        names += [f"part/{s}/{g}" for s in self.style_names for g in GROUPS]
+        names += ["speed", "turn", "liveliness", "reset"] + [f"phase/{k + 1}" for k in range(self.states)]
+        return names
+
+    def knows(self, target: str) -> bool:
+        return target in set(self.targets())
+
+    def set(self, target: str, value: float) -> bool:
+        """Apply one value; False (and nothing changes) for an unknown target or a non-number."""
+        if not isinstance(value, (int, float)) or not math.isfinite(value):
+            return False
+        parts = target.split("/")
+        if parts[0] == "style" and len(parts) == 2 and parts[1] in self.style_names:
+            self.weights[self.style_names.index(parts[1])] = float(np.clip(value, -WEIGHT_LIMIT, WEIGHT_LIMIT))
+        elif parts[0] == "part" and len(parts) == 3 and parts[1] in self.style_names and parts[2] in GROUPS:
+            self.part_weights[self.style_names.index(parts[1]), GROUPS.index(parts[2])] = float(
+                np.clip(value, -WEIGHT_LIMIT, WEIGHT_LIMIT))
+        elif target == "speed":
+            self.speed = float(np.clip(value, MIN_SPEED, MAX_SPEED))
+        elif target == "turn":
+            self.turn = float(np.clip(value, -MAX_TURN, MAX_TURN))
+        elif target == "liveliness":
+            self.liveliness = float(np.clip(value, 0.0, 1.0))
+        elif parts[0] == "phase" and len(parts) == 2 and parts[1].isdigit() and 1 <= int(parts[1]) <= self.states:
+            self.state_scale[int(parts[1]) - 1] = float(np.clip(value, MIN_SPEED, MAX_SPEED))
+        elif target == "reset":
+            self.reset()
+        else:
+            return False
+        return True
+
+    def get(self, target: str) -> float:
+        parts = target.split("/")
+        if parts[0] == "style":
+            return float(self.weights[self.style_names.index(parts[1])])
+        if parts[0] == "part":
+            return float(self.part_weights[self.style_names.index(parts[1]), GROUPS.index(parts[2])])
+        if parts[0] == "phase":
+            return float(self.state_scale[int(parts[1]) - 1])
+        return float(getattr(self, target))
+
+    def snapshot(self) -> Controls:
+        parts = None if np.isnan(self.part_weights).all() else self.part_weights.copy()
+        return Controls(self.weights.copy(), parts, self.speed, self.state_scale.copy(), self.liveliness, self.turn)
+
+    def echo(self) -> dict[str, float]:
+        """The values a control surface shows: every style weight, speed, turn, liveliness."""
+        out = {f"style/{s}": float(w) for s, w in zip(self.style_names, self.weights)}
+        out.update(speed=self.speed, turn=self.turn, liveliness=self.liveliness)
+        return out

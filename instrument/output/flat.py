@@ -1,0 +1,40 @@
+"""The flat OSC profile: one address per value group, for TouchDesigner, Max, Pd, Blender add-ons.
+
+Per frame, in bundles of at most 1,400 bytes, in this order:
+
+    /walk/bone/<Joint>/quat  f f f f   local rotation of every joint (x, y, z, w), BVH joint names
+    /walk/bone/<Joint>/pos   f f f     world position of every joint (model units)
+    /walk/root/pos           f f f     world position of the root joint
+    /walk/root/quat          f f f f   world rotation of the root joint (x, y, z, w)
+    /walk/style/<name>       f         echo of every style weight
+    /walk/speed, /walk/turn, /walk/liveliness   f   echo of the other controls
+    /walk/frame              i f       frame index and performance time in seconds; sent last,
+                                       so a receiver can apply the frame when it arrives
+
+Coordinates are the model's: right-handed, Y up, the units of the training data (centimetres
+for the shipped model).
+"""
+
+from __future__ import annotations
+
+from ..runtime.pose import Pose, quaternions
+from .osc import bundles, message
+
+
+class FlatProfile:
+    def __init__(self, joint_names: list[str], root: int):
+        self.names = joint_names
+        self.root = root
+        self.quat_addresses = [f"/walk/bone/{n}/quat" for n in joint_names]
+        self.pos_addresses = [f"/walk/bone/{n}/pos" for n in joint_names]
+
+    def datagrams(self, pose: Pose, echo: dict[str, float]) -> list[bytes]:
+        quats = pose.local_quaternions()
+        messages = [message(a, *q) for a, q in zip(self.quat_addresses, quats.tolist())]
+        messages += [message(a, *p) for a, p in zip(self.pos_addresses, pose.world_positions.tolist())]
+        root_quat = quaternions(pose.world_rotations[self.root])
+        messages.append(message("/walk/root/pos", *pose.world_positions[self.root].tolist()))
+        messages.append(message("/walk/root/quat", *root_quat.tolist()))
+        messages += [message(f"/walk/{name}", value) for name, value in echo.items()]
+        messages.append(message("/walk/frame", int(pose.index), float(pose.time)))
+        return bundles(messages)

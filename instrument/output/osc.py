@@ -1,0 +1,118 @@
+"""OSC over UDP: targets given as HOST:PORT[/profile], datagrams packed into small bundles.
+
+A target that is down or unreachable never stops the instrument: the error is reported (once a
+minute per target) and sending goes on, so the renderer picks up as soon as it is back.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import socket
+from dataclasses import dataclass
+
+import struct
+
+from pythonosc.osc_message_builder import OscMessageBuilder
+
+from ..errors import UserError
+from ..runtime.console import Console
+
+VMC_PORT = 39539
+FLAT_PORT = 9000
+MAX_BUNDLE = 1400  # bytes: receivers read 8 KB at most, and one Ethernet frame is safest
+PROFILES = ("flat", "vmc")
+
+
+@dataclass(frozen=True)
+class OscTarget:
+    host: str
+    port: int
+    profile: str
+
+    def __str__(self) -> str:
+        return f"{self.host}:{self.port}/{self.profile}"
+
+
+def parse_target(text: str) -> OscTarget:
+    """HOST:PORT[/vmc|/flat]; without a profile, port 39539 means VMC and any other the flat profile."""
+    address, _, profile = text.partition("/")
+    host, sep, port_text = address.rpartition(":")
+    if not sep or not host:
+        raise UserError(f"--osc {text!r}: expected HOST:PORT[/vmc|/flat], e.g. 127.0.0.1:39539/vmc")
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise UserError(f"--osc {text!r}: port {port_text!r} is not a number") from None
+    if not 0 < port < 65536:
+        raise UserError(f"--osc {text!r}: port must be 1 to 65535")
+    profile = profile or ("vmc" if port == VMC_PORT else "flat")
+    if profile not in PROFILES:
+        raise UserError(f"--osc {text!r}: unknown profile {profile!r} (vmc or flat)")
+    return OscTarget(host, port, profile)
+
+
+def message(address: str, *args: float | int | str) -> bytes:
+    builder = OscMessageBuilder(address=address)
+    for arg in args:
+        if isinstance(arg, str):
+            builder.add_arg(arg, "s")
+        elif isinstance(arg, int):
+            builder.add_arg(arg, "i")
+        else:
+            builder.add_arg(float(arg), "f")
+    return builder.build().dgram
+
+
+def bundles(messages: list[bytes], limit: int = MAX_BUNDLE) -> list[bytes]:
+    """Messages packed in order into as few bundles as fit under `limit` bytes each."""
+    out, current, size = [], [], 16  # "#bundle\\0" + time tag
+    for m in messages:
+        if current and size + 4 + len(m) > limit:
+            out.append(_bundle(current))
+            current, size = [], 16
+        current.append(m)
+        size += 4 + len(m)
+    if current:
+        out.append(_bundle(current))
+    return out
+
+
+IMMEDIATELY = struct.pack(">Q", 1)  # the OSC time tag meaning "now"
+
+
+def _bundle(messages: list[bytes]) -> bytes:
+    return b"#bundle\0" + IMMEDIATELY + b"".join(struct.pack(">i", len(m)) + m for m in messages)
+
+
+class UdpOut:
+    """One socket per target; errors are reported, never raised."""
+
+    def __init__(self, target: OscTarget, console: Console):
+        self.target, self.console = target, console
+        try:
+            info = socket.getaddrinfo(target.host, target.port, type=socket.SOCK_DGRAM)[0]
+        except socket.gaierror as e:
+            raise UserError(f"--osc {target}: cannot resolve {target.host!r}: {e.strerror}") from None
+        family, _, _, _, self.address = info
+        self.sock = socket.socket(family, socket.SOCK_DGRAM)
+        self.sock.setblocking(False)
+        ip = ipaddress.ip_address(self.address[0])
+        if ip.is_multicast:
+            self.sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, 1)
+        elif family == socket.AF_INET and (str(ip) == "255.255.255.255" or str(ip).endswith(".255")):
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
+        self.sent = 0
+        self.failed = 0
+
+    def send(self, datagrams: list[bytes]) -> None:
+        for dgram in datagrams:
+            try:
+                self.sock.sendto(dgram, self.address)
+                self.sent += 1
+            except OSError as e:  # unreachable network, full buffer, refused: keep going
+                self.failed += 1
+                self.console.warn(f"osc {self.target}", f"OSC target {self.target}: {e.strerror or e} (still sending)")
+                return
+
+    def close(self) -> None:
+        self.sock.close()

@@ -1,0 +1,46 @@
+"""The outputs the live loop drives: OSC targets (flat or VMC profile) and the BVH recorder."""
+
+from __future__ import annotations
+
+from ..models.modelfile import Model
+from ..runtime.console import Console
+from ..runtime.pose import Pose, PoseStream
+from .flat import FlatProfile
+from .humanoid import guess_humanoid, read_humanoid
+from .osc import OscTarget, UdpOut
+from .recorder import BvhRecorder
+from .vmc import VmcProfile, forward_direction
+
+
+class OscOutput:
+    def __init__(self, target: OscTarget, profile, console: Console):
+        self.name = f"osc {target}"
+        self.profile = profile
+        self.out = UdpOut(target, console)
+
+    def send(self, pose: Pose, echo: dict[str, float]) -> None:
+        self.out.send(self.profile.datagrams(pose, echo))
+
+    def close(self) -> None:
+        self.out.close()
+
+
+class RecorderOutput:
+    def __init__(self, path: str, model: Model, fps: float):
+        self.name = f"bvh {path}"
+        self.poses = PoseStream(model.layout, fps)
+        self.recorder = BvhRecorder(path, model.layout.skeleton, fps)
+
+    def send(self, pose: Pose, echo: dict[str, float]) -> None:
+        self.recorder.write(self.poses.channels(pose))
+
+    def close(self) -> None:
+        self.recorder.close()
+
+
+def make_profile(kind: str, model: Model, humanoid_file: str | None = None):
+    layout = model.layout
+    if kind == "flat":
+        return FlatProfile(layout.skeleton.names, layout.root)
+    mapping = read_humanoid(humanoid_file, layout.skeleton) if humanoid_file else guess_humanoid(layout.skeleton)
+    return VmcProfile(layout, mapping, forward_direction(model.average.means[..., : layout.dimension]))

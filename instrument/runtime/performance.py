@@ -1,0 +1,149 @@
+"""The live loop: control events -> control state -> engine -> pose -> outputs, once per frame.
+
+Performance time is the frame index divided by the frame rate. Events are applied at frame
+boundaries by that time, so a replayed log gives the same frames whether it runs in realtime
+or as fast as the CPU allows. The engine works at the model's frame rate; other output rates
+are interpolated from its frames.
+"""
+
+from __future__ import annotations
+
+import signal
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Protocol
+
+import numpy as np
+
+from ..control.events import ControlEvent, LogReplay
+from ..control.state import ControlState
+from ..models.modelfile import Model
+from ..synthesis.interpolation import style_space
+from ..synthesis.offline import drive
+from ..synthesis.stream import DEFAULT_LOOKAHEAD, Walker, step
+from .clock import FrameClock
+from .console import Console
+from .pose import Pose, PoseStream
+
+STATUS_EVERY = 0.5  # seconds of wall time
+
+
+class Output(Protocol):
+    name: str
+
+    def send(self, pose: Pose, echo: dict[str, float]) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class Engine:
+    """The walk at the model's rate, sampled at any output rate by interpolating features."""
+
+    def __init__(self, model: Model, fps: float, lookahead: int = DEFAULT_LOOKAHEAD, seed: int = 0):
+        self.model, self.fps = model, fps
+        self.space = style_space(model)
+        self.walker = Walker(model.layout.dimension, lookahead=lookahead, seed=seed)
+        self.frames: list[np.ndarray] = []  # the last two model frames, driven
+        self.made = 0  # model frames made
+
+    def sample(self, time_s: float, controls) -> np.ndarray:
+        """Static features at performance time `time_s`, making model frames as needed.
+
+        At the model's own rate this is exactly its newest frame (no added latency); between
+        model frames it interpolates the two around `time_s`.
+        """
+        position = time_s * self.model.fps
+        newest = int(np.ceil(position - 1e-9))
+        while self.made <= newest:
+            frame = step(self.space, [self.walker], [controls])[0]
+            self.frames = (self.frames + [drive(frame, self.walker.cadence, controls.turn)])[-2:]
+            self.made += 1
+        fraction = position - (newest - 1)
+        if fraction >= 1.0 - 1e-9 or len(self.frames) == 1:
+            return self.frames[-1]
+        return self.frames[0] + (self.frames[1] - self.frames[0]) * fraction
+
+
+@dataclass
+class Summary:
+    frames: int = 0
+    late: int = 0
+    dropped: int = 0
+    output_errors: dict[str, int] = field(default_factory=dict)
+    seconds: float = 0.0
+
+
+def perform(
+    model: Model,
+    outputs: list[Output],
+    console: Console,
+    fps: float = 30.0,
+    seconds: float | None = None,
+    replay: LogReplay | None = None,
+    live_sources: list[Callable[[float], list[ControlEvent]]] = (),
+    fast: bool = False,
+    apply: Callable[[ControlState, ControlEvent], bool] | None = None,
+    describe_sources: Callable[[], str] = lambda: "",
+    lookahead: int = DEFAULT_LOOKAHEAD,
+) -> Summary:
+    """Run until `seconds` of performance time, the end of a non-looping replay, or Ctrl-C."""
+    state = ControlState(model.style_names, model.states)
+    apply = apply or (lambda s, e: s.set(e.control, e.value))
+    engine = Engine(model, fps, lookahead)
+    poses = PoseStream(model.layout, fps)
+    clock = FrameClock(fps, realtime=not fast)
+    summary = Summary()
+    stop = {"now": False}
+    previous = signal.signal(signal.SIGTERM, lambda *_: stop.__setitem__("now", True))
+    last_status = 0.0
+    started = time.monotonic()
+    try:
+        while not stop["now"]:
+            index = clock.frame
+            now = index / fps
+            if seconds is not None and now >= seconds:
+                break
+            if replay is not None:
+                if replay.finished and seconds is None:
+                    break
+                for event in replay.due(now):
+                    if not apply(state, event):
+                        console.warn(f"unknown {event.control}", f"ignored an event for unknown control {event.control!r}")
+            for source in live_sources:
+                for event in source(now):
+                    apply(state, event)
+            controls = state.snapshot()
+            pose = poses.next(engine.sample(now, controls))
+            echo = state.echo()
+            for output in outputs:
+                try:
+                    output.send(pose, echo)
+                except Exception as error:  # an output's failure never stops the clock or the others
+                    summary.output_errors[output.name] = summary.output_errors.get(output.name, 0) + 1
+                    console.warn(f"output {output.name}", f"output {output.name} failed: {type(error).__name__}: {error}")
+            summary.frames += 1
+            if summary.frames == 1:
+                clock.restart()  # the first frame paid for warming up: the schedule starts now
+            wall = time.monotonic()
+            if not fast and wall - last_status >= STATUS_EVERY:
+                last_status = wall
+                console.status(_status(index, fps, clock, state, describe_sources()))
+            clock.wait()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        for output in outputs:
+            try:
+                output.close()
+            except Exception as error:
+                console.warn(f"close {output.name}", f"output {output.name} did not close cleanly: {error}")
+    summary.late, summary.dropped = clock.late, clock.dropped
+    summary.seconds = time.monotonic() - started
+    return summary
+
+
+def _status(index: int, fps: float, clock: FrameClock, state: ControlState, sources: str) -> str:
+    weights = " ".join(f"{n[:4]} {w:+.2f}" for n, w in zip(state.style_names, state.weights) if w != 0.0) or "average"
+    return (f"frame {index:7d}  {fps:g} fps  late {clock.late}  speed {state.speed:.2f}  turn {state.turn:+.2f}  "
+            f"{weights}" + (f"  | {sources}" if sources else ""))

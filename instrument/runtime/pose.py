@@ -1,0 +1,56 @@
+"""From generated features to a pose per frame: the root path integrated as the walk goes."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..motion.features import FeatureLayout, restore_local
+from ..motion.kinematics import channels_from_local, forward_kinematics
+from ..motion.rotations import matrix_to_quat
+
+
+@dataclass
+class Pose:
+    """One frame of the character, in the model's space (right-handed, Y up, the model's units)."""
+
+    index: int
+    time: float  # seconds of performance time (index / fps)
+    rotations: np.ndarray  # (J, 3, 3) local joint rotations
+    translations: np.ndarray  # (J, 3) local joint translations
+    world_rotations: np.ndarray  # (J, 3, 3)
+    world_positions: np.ndarray  # (J, 3)
+
+    def local_quaternions(self) -> np.ndarray:
+        """(J, 4) local rotations as (x, y, z, w), each with w >= 0."""
+        return quaternions(self.rotations)
+
+
+def quaternions(rotations: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) as quaternions (x, y, z, w) with w >= 0 (one sign for receivers)."""
+    quats = matrix_to_quat(rotations)
+    return np.where(quats[..., 3:4] < 0, -quats, quats)
+
+
+class PoseStream:
+    """Turns each frame of static features into a Pose, carrying the root's path across frames."""
+
+    def __init__(self, layout: FeatureLayout, fps: float):
+        self.layout, self.fps = layout, fps
+        self.position = np.zeros(3)
+        self.heading = 0.0
+        self.index = 0
+
+    def next(self, static: np.ndarray) -> Pose:
+        rotations, translations, (self.position, self.heading) = restore_local(
+            static[None], self.layout, self.fps, self.position, self.heading
+        )
+        world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations, translations)
+        pose = Pose(self.index, self.index / self.fps, rotations[0], translations[0], world_rot[0], world_pos[0])
+        self.index += 1
+        return pose
+
+    def channels(self, pose: Pose) -> np.ndarray:
+        """BVH channel values of a pose (for recording)."""
+        return channels_from_local(self.layout.skeleton, pose.rotations[None], pose.translations[None])[0]
