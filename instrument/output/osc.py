@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import ipaddress
 import socket
+import time
 from dataclasses import dataclass
 
 import struct
@@ -101,17 +102,40 @@ class UdpOut:
             self.sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, 1)
         elif family == socket.AF_INET and (str(ip) == "255.255.255.255" or str(ip).endswith(".255")):
             self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
+        self.connected = False
+        self.next_attempt = 0.0
         self.sent = 0
         self.failed = 0
+        self._connect()
+
+    def _connect(self) -> None:
+        """Connect the socket, so that a target that is down is reported (refused); an unreachable
+        network is reported and tried again about once a second."""
+        now = time.monotonic()
+        if now < self.next_attempt:
+            return
+        self.next_attempt = now + 1.0
+        try:
+            self.sock.connect(self.address)
+            self.connected = True
+        except OSError as e:
+            self._failed(e)
+
+    def _failed(self, error: OSError) -> None:
+        self.failed += 1
+        self.console.warn(f"osc {self.target}", f"OSC target {self.target}: {error.strerror or error} (still trying)")
 
     def send(self, datagrams: list[bytes]) -> None:
+        if not self.connected:
+            self._connect()
+            if not self.connected:
+                return
         for dgram in datagrams:
             try:
-                self.sock.sendto(dgram, self.address)
+                self.sock.send(dgram)
                 self.sent += 1
-            except OSError as e:  # unreachable network, full buffer, refused: keep going
-                self.failed += 1
-                self.console.warn(f"osc {self.target}", f"OSC target {self.target}: {e.strerror or e} (still sending)")
+            except OSError as e:  # refused, unreachable, buffer full: report and go on with the next frame
+                self._failed(e)
                 return
 
     def close(self) -> None:

@@ -38,7 +38,7 @@ class FrameClock:
         due = self.deadline()
         now = self.now()
         if now > due + self.period:  # more than a whole frame behind: drop the missed slots
-            missed = int((now - due) / self.period)
+            missed = int((now - due) / self.period) + 1  # so the next deadline is ahead again
             self.late += 1
             self.dropped += missed
             self.start += missed * self.period

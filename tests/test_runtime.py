@@ -1,0 +1,239 @@
+"""The live instrument end to end: real UDP on 127.0.0.1, real processes, real files."""
+
+import filecmp
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from instrument.control.events import ControlEvent, LogReplay, read_log
+from instrument.errors import UserError
+from instrument.models.modelfile import default_model_path, load_model
+from instrument.motion.bvh import read_bvh
+from instrument.output.osc import MAX_BUNDLE, parse_target
+from instrument.output.recorder import BvhRecorder
+from instrument.runtime.clock import FrameClock
+from instrument.runtime.console import Console
+from instrument.runtime.performance import perform
+from oscrecv import Receiver, free_port
+
+RUN = [sys.executable, "-m", "instrument", "run"]
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_model(default_model_path())
+
+
+def test_flat_profile_sends_every_frame_consecutively_with_all_bones(model):
+    receiver = Receiver()
+    try:
+        result = subprocess.run(RUN + ["--seconds", "2", "--osc", f"127.0.0.1:{receiver.port}/flat", "--quiet"],
+                                capture_output=True, text=True, timeout=60)
+        time.sleep(0.3)
+    finally:
+        receiver.close()
+    assert result.returncode == 0, result.stderr
+    assert all(len(d) <= MAX_BUNDLE for d in receiver.datagrams)
+    messages = receiver.messages()
+    frames = [params[0] for address, params in messages if address == "/walk/frame"]
+    assert frames == list(range(60))
+    joints = model.layout.skeleton.names
+    per_frame = [a for a, _ in messages if a.endswith("/quat") and a.startswith("/walk/bone/")]
+    assert len(per_frame) == 60 * len(joints)
+    assert {a.split("/")[3] for a in per_frame} == set(joints)
+    assert ("/walk/style/elderly" in {a for a, _ in messages}) and ("/walk/speed" in {a for a, _ in messages})
+    # the root travels: world position of the root joint changes over the run
+    roots = np.array([p for a, p in messages if a == "/walk/root/pos"])
+    assert np.linalg.norm(roots[-1] - roots[0]) > 50
+
+
+def test_vmc_profile_read_by_an_independent_parser(model):
+    vmcp = pytest.importorskip("vmcp", reason="the independent VMC parser vmcp[osc4py3] is not installed")
+    from vmcp.events import BoneTransformEvent, RelativeTimeEvent, RootTransformEvent
+    from vmcp.facades import on_receive
+    from vmcp.osc import OSC
+    from vmcp.osc.backend.osc4py3 import as_eventloop as backend
+
+    port = free_port()
+    roots, bones, times = [], [], []
+    with OSC(backend) as osc:
+        receiver = osc.create_receiver("127.0.0.1", port, "vmc").open()
+        on_receive(receiver, RootTransformEvent, roots.append)
+        on_receive(receiver, BoneTransformEvent, bones.append)
+        on_receive(receiver, RelativeTimeEvent, times.append)
+        process = subprocess.Popen(RUN + ["--seconds", "2", "--osc", f"127.0.0.1:{port}/vmc", "--quiet"])
+        deadline = time.monotonic() + 60
+        while process.poll() is None and time.monotonic() < deadline:
+            osc.run()
+            time.sleep(0.001)
+        for _ in range(200):
+            osc.run()
+            time.sleep(0.002)
+    assert process.returncode == 0
+    assert len(roots) == 60 and len(times) == 60
+    expected = {"Hips", "Spine", "Chest", "Neck", "Head", "LeftUpperLeg", "LeftLowerLeg", "LeftFoot", "LeftToes",
+                "RightUpperLeg", "RightLowerLeg", "RightFoot", "RightToes", "LeftShoulder", "LeftUpperArm",
+                "LeftLowerArm", "LeftHand", "RightShoulder", "RightUpperArm", "RightLowerArm", "RightHand"}
+    counts = {}
+    for event in bones:
+        counts[event.joint.value] = counts.get(event.joint.value, 0) + 1
+    assert set(counts) == expected
+    assert all(c == 60 for c in counts.values())
+    assert all(abs(np.linalg.norm([e.rotation.x, e.rotation.y, e.rotation.z, e.rotation.w]) - 1) < 1e-5 for e in bones)
+
+
+def test_fast_replay_writes_the_same_bvh_every_time_and_as_in_realtime(tmp_path):
+    log = tmp_path / "log.jsonl"
+    log.write_text("".join(ControlEvent(t / 10, "test", c, v).to_json() + "\n" for t, c, v in
+                           [(5, "style/elderly", 1.0), (12, "speed", 1.3), (20, "style/feminine", -0.5), (25, "turn", 0.3)]))
+    paths = [tmp_path / f"{k}.bvh" for k in range(3)]
+    for k, path in enumerate(paths):
+        mode = ["--fast"] if k < 2 else []
+        result = subprocess.run(RUN + ["--replay", str(log), "--seconds", "3", "--no-osc", "--bvh", str(path), "--quiet"] + mode,
+                                capture_output=True, text=True, timeout=60)
+        assert result.returncode == 0, result.stderr
+    assert filecmp.cmp(paths[0], paths[1], shallow=False)
+    assert filecmp.cmp(paths[0], paths[2], shallow=False)
+    assert read_bvh(paths[0]).frames == 90
+
+
+def test_a_dead_target_leaves_the_run_and_the_recording_intact(tmp_path):
+    dead = free_port()  # nothing listens there: the kernel refuses, the instrument says so and goes on
+    receiver = Receiver()
+    path = tmp_path / "take.bvh"
+    try:
+        result = subprocess.run(RUN + ["--seconds", "2", "--osc", f"127.0.0.1:{dead}/flat", "--osc", f"127.0.0.1:{receiver.port}/vmc",
+                                       "--bvh", str(path), "--quiet"], capture_output=True, text=True, timeout=60)
+        time.sleep(0.3)
+    finally:
+        receiver.close()
+    assert result.returncode == 0, result.stderr
+    assert f"OSC target 127.0.0.1:{dead}/flat" in result.stderr and "refused" in result.stderr.lower()
+    assert result.stderr.count("warning:") == 1  # once a minute, not once a frame
+    assert read_bvh(path).frames == 60
+    assert sum(1 for a, _ in receiver.messages() if a == "/VMC/Ext/OK") == 60
+
+
+def test_ctrl_c_leaves_a_valid_recording(tmp_path):
+    path = tmp_path / "take.bvh"
+    process = subprocess.Popen(RUN + ["--no-osc", "--bvh", str(path), "--quiet"], stderr=subprocess.PIPE, text=True)
+    time.sleep(3)
+    process.send_signal(signal.SIGINT)
+    assert process.wait(20) == 0
+    motion = read_bvh(path)
+    assert 30 <= motion.frames <= 120
+
+
+def test_a_killed_run_is_recovered(tmp_path):
+    path = tmp_path / "take.bvh"
+    process = subprocess.Popen(RUN + ["--no-osc", "--bvh", str(path), "--quiet"])
+    time.sleep(3)
+    process.kill()
+    process.wait(20)
+    result = subprocess.run([sys.executable, "-m", "instrument", "recover", str(path)], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert read_bvh(path).frames >= 30
+
+
+def test_recording_never_overwrites(tmp_path, model):
+    path = tmp_path / "keep.bvh"
+    path.write_text("precious")
+    with pytest.raises(UserError, match="already exists"):
+        BvhRecorder(path, model.layout.skeleton, 30.0)
+    assert path.read_text() == "precious"
+
+
+class Exploding:
+    name = "exploding"
+
+    def __init__(self):
+        self.calls = 0
+
+    def send(self, pose, echo):
+        self.calls += 1
+        raise RuntimeError("renderer crashed")
+
+    def close(self):
+        raise RuntimeError("and cannot close")
+
+
+class Collecting:
+    name = "collecting"
+
+    def __init__(self):
+        self.indices = []
+
+    def send(self, pose, echo):
+        self.indices.append(pose.index)
+
+    def close(self):
+        pass
+
+
+def test_an_output_that_fails_never_stops_the_clock_or_the_others(model, capsys):
+    exploding, collecting = Exploding(), Collecting()
+    console = Console()
+    summary = perform(model, [exploding, collecting], console, fps=30, seconds=1.0, fast=True)
+    assert collecting.indices == list(range(30))
+    assert exploding.calls == 30 and summary.output_errors == {"exploding": 30}
+    err = capsys.readouterr().err
+    assert err.count("output exploding failed") == 1
+
+
+def test_the_clock_keeps_absolute_deadlines_and_catches_up_without_a_burst():
+    now = [100.0]
+    sleeps = []
+    clock = FrameClock(50.0, now=lambda: now[0], sleep=lambda s: (sleeps.append(s), now.__setitem__(0, now[0] + s)))
+    for _ in range(10):
+        now[0] += 0.005  # 5 ms of work per frame
+        clock.wait()
+    assert now[0] == pytest.approx(100.0 + 10 * 0.02)  # no drift: exactly on the grid
+    assert clock.late == 0
+    now[0] += 0.065  # one frame takes 65 ms: more than three periods
+    clock.wait()
+    assert clock.late == 1 and clock.dropped == 3
+    before = len(sleeps)
+    now[0] += 0.001
+    clock.wait()
+    assert len(sleeps) > before  # the next frame waits again: no burst of back-to-back frames
+    assert (now[0] - 100.0) % 0.02 == pytest.approx(0.0, abs=1e-9) or (now[0] - 100.0) % 0.02 == pytest.approx(0.02, abs=1e-9)
+
+
+def test_log_replay_and_its_errors(tmp_path):
+    log = tmp_path / "log.jsonl"
+    log.write_text('{"t": 0.5, "source": "x", "control": "speed", "value": 1.2}\n{"t": 0.1, "source": "x", "control": "turn", "value": 1}\n')
+    events = read_log(log)
+    assert [e.control for e in events] == ["turn", "speed"]
+    replay = LogReplay(events, loop=True)
+    assert [e.control for e in replay.due(0.2)] == ["turn"]
+    assert [e.control for e in replay.due(1.0)] == ["speed"]
+    assert [e.control for e in replay.due(1.65)] == ["turn"]  # looped: the log is 1.5 s long
+    for bad, message in [("{not json\n", "not JSON"), ('{"t": 1}\n', "missing key 'source'"),
+                         ('{"t": -1, "source": "x", "control": "c", "value": 1}\n', "finite numbers")]:
+        log.write_text('{"t": 0, "source": "x", "control": "c", "value": 1}\n' + bad)
+        with pytest.raises(UserError, match=f"{log}:2: .*{message}"):
+            read_log(log)
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--fps", "200"], "--fps must be between 24 and 120"),
+    (["--osc", "localhost"], "expected HOST:PORT"),
+    (["--osc", "127.0.0.1:99999"], "port must be 1 to 65535"),
+    (["--osc", "127.0.0.1:9000/midi"], "unknown profile"),
+    (["--replay", "missing.jsonl"], "missing.jsonl: cannot read"),
+    (["--fast"], "--fast needs an end"),
+])
+def test_run_errors_are_one_line(args, message):
+    result = subprocess.run(RUN + args, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 1
+    assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_target_parsing():
+    assert str(parse_target("127.0.0.1:39539")) == "127.0.0.1:39539/vmc"
+    assert str(parse_target("127.0.0.1:7000")) == "127.0.0.1:7000/flat"
+    assert parse_target("::1:9000/vmc").host == "::1"
