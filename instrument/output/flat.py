@@ -6,6 +6,7 @@ Per frame, in bundles of at most 1,400 bytes, in this order:
     /walk/bone/<Joint>/pos   f f f     world position of every joint (model units)
     /walk/root/pos           f f f     world position of the root joint
     /walk/root/quat          f f f f   world rotation of the root joint (x, y, z, w)
+    /walk/root/local         f f f     local translation of the root joint (its BVH position channels)
     /walk/style/<name>       f         echo of every style weight
     /walk/speed, /walk/turn, /walk/liveliness   f   echo of the other controls
     /walk/frame              i f       frame index and performance time in seconds; sent last,
@@ -35,6 +36,7 @@ class FlatProfile:
         root_quat = quaternions(pose.world_rotations[self.root])
         messages.append(message("/walk/root/pos", *pose.world_positions[self.root].tolist()))
         messages.append(message("/walk/root/quat", *root_quat.tolist()))
+        messages.append(message("/walk/root/local", *pose.translations[self.root].tolist()))
         messages += [message(f"/walk/{name}", value) for name, value in echo.items()]
         messages.append(message("/walk/frame", int(pose.index), float(pose.time)))
         return bundles(messages)
