@@ -153,7 +153,10 @@ class Exploding:
     def __init__(self):
         self.calls = 0
 
-    def send(self, pose, echo):
+    def prepare(self, pose, echo):
+        return pose
+
+    def send(self, prepared):
         self.calls += 1
         raise RuntimeError("renderer crashed")
 
@@ -167,8 +170,11 @@ class Collecting:
     def __init__(self):
         self.indices = []
 
-    def send(self, pose, echo):
-        self.indices.append(pose.index)
+    def prepare(self, pose, echo):
+        return pose.index
+
+    def send(self, index):
+        self.indices.append(index)
 
     def close(self):
         pass
@@ -187,20 +193,40 @@ def test_an_output_that_fails_never_stops_the_clock_or_the_others(model, capsys)
 def test_the_clock_keeps_absolute_deadlines_and_catches_up_without_a_burst():
     now = [100.0]
     sleeps = []
-    clock = FrameClock(50.0, now=lambda: now[0], sleep=lambda s: (sleeps.append(s), now.__setitem__(0, now[0] + s)))
-    for _ in range(10):
+
+    def sleep(s):
+        sleeps.append(s)
+        now[0] += s
+
+    def tick():  # the fake clock moves on a little whenever it is read (so spinning ends)
+        now[0] += 1e-5
+        return now[0]
+
+    clock = FrameClock(50.0, now=tick, sleep=sleep)
+    sends = []
+    for k in range(10):
         now[0] += 0.005  # 5 ms of work per frame
-        clock.wait()
-    assert now[0] == pytest.approx(100.0 + 10 * 0.02)  # no drift: exactly on the grid
+        if k == 0:
+            clock.restart()  # as the live loop does once the first frame is made
+        assert clock.hold() < 1e-4
+        sends.append(now[0])
+        clock.advance(lead=0.006)
+    assert sends[-1] - sends[0] == pytest.approx(9 * 0.02, abs=1e-4)  # on the grid: no drift
     assert clock.late == 0
-    now[0] += 0.065  # one frame takes 65 ms: more than three periods
-    clock.wait()
-    assert clock.late == 1 and clock.dropped == 3
-    before = len(sleeps)
-    now[0] += 0.001
-    clock.wait()
-    assert len(sleeps) > before  # the next frame waits again: no burst of back-to-back frames
-    assert (now[0] - 100.0) % 0.02 == pytest.approx(0.0, abs=1e-9) or (now[0] - 100.0) % 0.02 == pytest.approx(0.02, abs=1e-9)
+    now[0] += 0.065  # one frame takes 65 ms
+    assert clock.hold() > 0.04
+    assert clock.late == 1
+    clock.advance(lead=0.006)
+    assert clock.dropped >= 2
+    after = []
+    for _ in range(3):
+        now[0] += 0.001
+        clock.hold()
+        after.append(now[0])
+        clock.advance(lead=0.006)
+    # back on the grid at once, one period apart: no burst of back-to-back frames
+    assert np.diff(after) == pytest.approx([0.02, 0.02], abs=2e-4)
+    assert (after[0] - sends[0]) % 0.02 == pytest.approx(0.0, abs=2e-4) or (after[0] - sends[0]) % 0.02 == pytest.approx(0.02, abs=2e-4)
 
 
 def test_log_replay_and_its_errors(tmp_path):

@@ -24,7 +24,47 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", help="model file (default: the shipped default model)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--repeat", type=int, default=15, help="timed repetitions per figure (the median is reported)")
+    p.add_argument("--pacing", type=float, metavar="SECONDS",
+                   help="instead: run the live loop this long (demo, both OSC profiles to 127.0.0.1) and measure "
+                        "how far each frame's send time is from its deadline")
+    p.add_argument("--fps", type=float, default=60.0, help="frame rate for --pacing (default 60)")
     p.set_defaults(run=run)
+
+
+def measure_pacing(model_path: str | None, seconds: float, fps: float) -> dict:
+    """Send-time deviation from the schedule of the live loop, with real UDP outputs."""
+    import socket
+
+    from ..control.events import LogReplay, read_log
+    from ..output.osc import OscTarget
+    from ..output.outputs import OscOutput, make_profile
+    from ..runtime.console import Console
+    from ..runtime.performance import perform
+    from ..shipped import demo_log_path
+
+    model = load_model(model_path or default_model_path())
+    sinks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(2)]
+    for s in sinks:
+        s.bind(("127.0.0.1", 0))
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+    console = Console(quiet=True)
+    outputs = [OscOutput(OscTarget("127.0.0.1", s.getsockname()[1], kind), make_profile(kind, model), console)
+               for s, kind in zip(sinks, ("vmc", "flat"))]
+    timing: list[float] = []
+    summary = perform(model, outputs, console, fps, seconds, LogReplay(read_log(demo_log_path()), loop=True), timing=timing)
+    for s in sinks:
+        s.close()
+    deviation = np.abs(np.array(timing[1:])) * 1000.0
+    return {
+        "pacing_fps": fps,
+        "pacing_seconds": seconds,
+        "pacing_frames": summary.frames,
+        "pacing_p50_ms": float(np.percentile(deviation, 50)),
+        "pacing_p99_ms": float(np.percentile(deviation, 99)),
+        "pacing_max_ms": float(deviation.max()),
+        "pacing_late_frames": summary.late,
+        "pacing_dropped_frames": summary.dropped,
+    }
 
 
 def median_seconds(work, repeat: int) -> float:
@@ -106,6 +146,15 @@ def measure(model_path: str | None, repeat: int) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.pacing:
+        f = measure_pacing(args.model, args.pacing, args.fps)
+        if args.json:
+            print(json.dumps(f, indent=1))
+        else:
+            print(f"live loop at {f['pacing_fps']:g} fps for {f['pacing_seconds']:g} s ({f['pacing_frames']} frames, 2 OSC outputs):")
+            print(f"send time minus deadline: p50 {f['pacing_p50_ms']:.3f} ms, p99 {f['pacing_p99_ms']:.3f} ms, "
+                  f"max {f['pacing_max_ms']:.3f} ms; late frames {f['pacing_late_frames']}, dropped {f['pacing_dropped_frames']}")
+        return 0
     f = measure(args.model, max(1, args.repeat))
     if args.json:
         print(json.dumps(f, indent=1))

@@ -18,8 +18,11 @@ class OscOutput:
         self.profile = profile
         self.out = UdpOut(target, console)
 
-    def send(self, pose: Pose, echo: dict[str, float]) -> None:
-        self.out.send(self.profile.datagrams(pose, echo))
+    def prepare(self, pose: Pose, echo: dict[str, float]) -> list[bytes]:
+        return self.profile.datagrams(pose, echo)
+
+    def send(self, datagrams: list[bytes]) -> None:
+        self.out.send(datagrams)
 
     def close(self) -> None:
         self.out.close()
@@ -31,8 +34,11 @@ class RecorderOutput:
         self.poses = PoseStream(model.layout, fps)
         self.recorder = BvhRecorder(path, model.layout.skeleton, fps)
 
-    def send(self, pose: Pose, echo: dict[str, float]) -> None:
-        self.recorder.write(self.poses.channels(pose))
+    def prepare(self, pose: Pose, echo: dict[str, float]):
+        return self.poses.channels(pose)
+
+    def send(self, channels) -> None:
+        self.recorder.write(channels)
 
     def close(self) -> None:
         self.recorder.close()

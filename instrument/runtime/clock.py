@@ -4,13 +4,18 @@ from __future__ import annotations
 
 import time
 
+SPIN = 0.0005  # the last half millisecond before a deadline is spun, not slept (sleep overshoots)
+LATE = 0.0001  # a frame sent more than this after its deadline counts as late
+
 
 class FrameClock:
     """Deadlines start + n / fps, so sleep errors never accumulate (no drift over an hour).
 
-    A frame finished after the next one was due counts as late. When the loop falls more than a
-    frame behind, the missed slots are dropped and the schedule moves on from now: the walk
-    carries on at its own pace instead of bursting through the backlog.
+    The loop wakes a little before each deadline (`lead`, about what making a frame takes),
+    makes the frame, then `hold`s until the deadline and sends it, so frames leave on time.
+    A frame not ready by its deadline counts as late. When the loop falls more than a frame
+    behind, the missed slots are dropped and the schedule moves on from now: the walk carries
+    on at its own pace instead of bursting through the backlog.
     """
 
     def __init__(self, fps: float, realtime: bool = True, now=time.monotonic, sleep=time.sleep):
@@ -18,7 +23,7 @@ class FrameClock:
         self.realtime = realtime
         self.now, self.sleep = now, sleep
         self.start = now()
-        self.frame = 0  # index of the next frame to make
+        self.frame = 0  # index of the frame being made
         self.late = 0
         self.dropped = 0
 
@@ -29,25 +34,36 @@ class FrameClock:
     def deadline(self, frame: int | None = None) -> float:
         return self.start + (self.frame if frame is None else frame) * self.period
 
-    def wait(self) -> float:
-        """Block until the next frame is due; returns how late the wake-up was (seconds)."""
-        if not self.realtime:
-            self.frame += 1
-            return 0.0
+    def advance(self, lead: float = 0.0) -> None:
+        """Move to the next frame and sleep until `lead` seconds before its deadline."""
         self.frame += 1
-        due = self.deadline()
+        if not self.realtime:
+            return
         now = self.now()
+        due = self.deadline()
         if now > due + self.period:  # more than a whole frame behind: drop the missed slots
             missed = int((now - due) / self.period) + 1  # so the next deadline is ahead again
-            self.late += 1
             self.dropped += missed
             self.start += missed * self.period
-            due = self.deadline()
-        elif now > due:
-            self.late += 1
+        self._until(self.deadline() - lead)
+
+    def hold(self) -> float:
+        """Wait for the current frame's deadline; returns how late it is (0 if on time)."""
+        if not self.realtime:
+            return 0.0
+        due = self.deadline()
+        lateness = self.now() - due
+        if lateness > 0:
+            self.late += lateness > LATE
+            return lateness
+        self._until(due)
+        return 0.0
+
+    def _until(self, moment: float) -> None:
         while True:
-            remaining = due - self.now()
+            remaining = moment - self.now()
             if remaining <= 0:
-                break
-            self.sleep(remaining if remaining > 0.002 else remaining / 2)
-        return self.now() - due
+                return
+            if remaining > SPIN:
+                self.sleep(remaining - SPIN)
+            # else: spin

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import signal
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Callable, Protocol
 
@@ -29,9 +30,13 @@ STATUS_EVERY = 0.5  # seconds of wall time
 
 
 class Output(Protocol):
+    """Made in two halves so the work is done before the deadline and only sending at it."""
+
     name: str
 
-    def send(self, pose: Pose, echo: dict[str, float]) -> None: ...
+    def prepare(self, pose: Pose, echo: dict[str, float]) -> object: ...
+
+    def send(self, prepared: object) -> None: ...
 
     def close(self) -> None: ...
 
@@ -85,8 +90,11 @@ def perform(
     apply: Callable[[ControlState, ControlEvent], bool] | None = None,
     describe_sources: Callable[[], str] = lambda: "",
     lookahead: int = DEFAULT_LOOKAHEAD,
+    timing: list[float] | None = None,
 ) -> Summary:
-    """Run until `seconds` of performance time, the end of a non-looping replay, or Ctrl-C."""
+    """Run until `seconds` of performance time, the end of a non-looping replay, or Ctrl-C.
+
+    `timing`, when given, receives each frame's send time minus its deadline (seconds)."""
     state = ControlState(model.style_names, model.states)
     apply = apply or (lambda s, e: s.set(e.control, e.value))
     engine = Engine(model, fps, lookahead)
@@ -97,6 +105,7 @@ def perform(
     previous = signal.signal(signal.SIGTERM, lambda *_: stop.__setitem__("now", True))
     last_status = 0.0
     started = time.monotonic()
+    work_times: deque[float] = deque(maxlen=120)  # how long making a frame took, recently
     try:
         while not stop["now"]:
             index = clock.frame
@@ -112,23 +121,26 @@ def perform(
             for source in live_sources:
                 for event in source(now):
                     apply(state, event)
+            work_started = time.monotonic()
             controls = state.snapshot()
             pose = poses.next(engine.sample(now, controls))
             echo = state.echo()
-            for output in outputs:
-                try:
-                    output.send(pose, echo)
-                except Exception as error:  # an output's failure never stops the clock or the others
-                    summary.output_errors[output.name] = summary.output_errors.get(output.name, 0) + 1
-                    console.warn(f"output {output.name}", f"output {output.name} failed: {type(error).__name__}: {error}")
-            summary.frames += 1
-            if summary.frames == 1:
+            prepared = [_attempt(console, summary, output, output.prepare, pose, echo) for output in outputs]
+            work_times.append(time.monotonic() - work_started)
+            if index == 0:
                 clock.restart()  # the first frame paid for warming up: the schedule starts now
-            wall = time.monotonic()
-            if not fast and wall - last_status >= STATUS_EVERY:
-                last_status = wall
+            clock.hold()
+            sent_at = time.monotonic()
+            for output, payload in zip(outputs, prepared):
+                if payload is not None:
+                    _attempt(console, summary, output, output.send, payload)
+            if timing is not None:
+                timing.append(sent_at - clock.deadline())
+            summary.frames += 1
+            if not fast and sent_at - last_status >= STATUS_EVERY:
+                last_status = sent_at
                 console.status(_status(index, fps, clock, state, describe_sources()))
-            clock.wait()
+            clock.advance(lead=min(np.percentile(work_times, 95) + 0.001, 0.5 / fps))
     except KeyboardInterrupt:
         pass
     finally:
@@ -141,6 +153,16 @@ def perform(
     summary.late, summary.dropped = clock.late, clock.dropped
     summary.seconds = time.monotonic() - started
     return summary
+
+
+def _attempt(console: Console, summary: Summary, output: Output, method, *args):
+    """Call an output's method; a failure is counted and reported, never raised."""
+    try:
+        return method(*args)
+    except Exception as error:  # an output's failure never stops the clock or the others
+        summary.output_errors[output.name] = summary.output_errors.get(output.name, 0) + 1
+        console.warn(f"output {output.name}", f"output {output.name} failed: {type(error).__name__}: {error}")
+        return None
 
 
 def _status(index: int, fps: float, clock: FrameClock, state: ControlState, sources: str) -> str:

@@ -1,0 +1,72 @@
+"""`instrument render`: a contact sheet (PNG) or an animation (GIF) of a recorded performance."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserError
+from ..motion.bvh import read_bvh
+from ..motion.kinematics import world_positions
+from ..output.drawing import draw_figure, drawn_parents, pyplot, side_projection
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("render", help="draw a BVH recording: contact sheet (.png) or animation (.gif)")
+    p.add_argument("--bvh", required=True, metavar="FILE.bvh")
+    p.add_argument("--out", required=True, metavar="walk.png|walk.gif")
+    p.add_argument("--every", type=int, default=0, help="draw every Nth frame (default: 12 figures for a PNG, 15 fps for a GIF)")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    out = Path(args.out)
+    if out.suffix.lower() not in (".png", ".gif"):
+        raise UserError(f"--out {out}: give a .png (contact sheet) or a .gif (animation)")
+    motion = read_bvh(args.bvh)
+    plt = pyplot("Agg")
+    positions = world_positions(motion)
+    parents = drawn_parents(motion.skeleton.parents, positions)
+    path = positions[-1].mean(axis=0) - positions[0].mean(axis=0)
+    points = side_projection(positions, path if np.linalg.norm(path[[0, 2]]) > 1e-6 else np.array([0.0, 0.0, 1.0]))
+    height = np.ptp(points[..., 1]) or 1.0
+    if out.suffix.lower() == ".png":
+        every = args.every or max(1, motion.frames // 12)
+        frames = list(range(0, motion.frames, every))
+        columns = min(6, len(frames))
+        rows = (len(frames) + columns - 1) // columns
+        fig, axes = plt.subplots(rows, columns, figsize=(2 * columns, 3 * rows), squeeze=False)
+        for ax in axes.ravel():
+            ax.axis("off")
+        for ax, f in zip(axes.ravel(), frames):
+            centre = points[f].mean(axis=0)
+            draw_figure(ax, points[f], parents)
+            ax.set_xlim(centre[0] - 0.5 * height, centre[0] + 0.5 * height)
+            ax.set_ylim(points[..., 1].min() - 0.05 * height, points[..., 1].max() + 0.05 * height)
+            ax.set_aspect("equal")
+            ax.set_title(f"{f / motion.fps:.2f} s", fontsize=8)
+        fig.tight_layout()
+        fig.savefig(out, dpi=80)
+    else:
+        from matplotlib.animation import FuncAnimation, PillowWriter
+
+        every = args.every or max(1, int(round(motion.fps / 15)))
+        frames = list(range(0, motion.frames, every))
+        fig, ax = plt.subplots(figsize=(4, 4))
+
+        def draw(f):
+            ax.clear()
+            ax.axis("off")
+            centre = points[f].mean(axis=0)
+            draw_figure(ax, points[f], parents)
+            ax.set_xlim(centre[0] - 0.6 * height, centre[0] + 0.6 * height)
+            ax.set_ylim(points[..., 1].min() - 0.05 * height, points[..., 1].max() + 0.05 * height)
+            ax.set_aspect("equal")
+
+        FuncAnimation(fig, draw, frames=frames).save(out, writer=PillowWriter(fps=motion.fps / every))
+    plt.close("all")
+    print(f"wrote {out}", file=sys.stderr)
+    return 0

@@ -1,0 +1,43 @@
+"""Stick figures with matplotlib (an optional extra: pip install 'instrument[view]')."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import UserError
+
+
+def pyplot(backend: str | None = None):
+    """matplotlib.pyplot, or a one-line error saying how to install it."""
+    try:
+        import matplotlib
+
+        if backend:
+            matplotlib.use(backend)
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise UserError("drawing needs matplotlib: pip install 'instrument[view]' (or pip install matplotlib)") from None
+    return plt
+
+
+def side_projection(positions: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """(..., J, 2): distance along `direction` (horizontal) and height, for a side view."""
+    d = np.array([direction[0], 0.0, direction[2]])
+    d = d / (np.linalg.norm(d) or 1.0)
+    return np.stack([positions @ d, positions[..., 1]], axis=-1)
+
+
+def drawn_parents(parents: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """Parents for drawing: a top joint that never moves (a ground-level origin such as
+    joint_Root) is not joined to the walking body it would trail a line to."""
+    parents = np.array(parents)
+    for top in np.flatnonzero(parents < 0):
+        if np.ptp(positions[:, top], axis=0).max() < 1e-6:
+            parents[parents == top] = -1
+    return parents
+
+
+def draw_figure(ax, points: np.ndarray, parents: np.ndarray, color: str = "black") -> None:
+    for j, p in enumerate(parents):
+        if p >= 0:
+            ax.plot(points[[p, j], 0], points[[p, j], 1], color=color, linewidth=2, solid_capstyle="round")

@@ -1,0 +1,75 @@
+"""Looking without a renderer: contact sheets, animations and the live view, drawn headless."""
+
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from oscrecv import free_port
+
+pytest.importorskip("matplotlib", reason="matplotlib (the view extra) is not installed")
+from PIL import Image  # noqa: E402  (comes with matplotlib)
+
+CLI = [sys.executable, "-m", "instrument"]
+
+
+def picture(path) -> np.ndarray:
+    return np.asarray(Image.open(path).convert("L"), dtype=float) / 255.0
+
+
+@pytest.fixture(scope="module")
+def walks(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("walks")
+    for style in ("elderly", "youthful"):
+        result = subprocess.run(CLI + ["synth", "--style", f"{style}=1.5", "--seconds", "4", "--out", str(folder / f"{style}.bvh")],
+                                capture_output=True, text=True)
+        assert result.returncode == 0, result.stderr
+    return folder
+
+
+def test_contact_sheets_show_figures_and_differ_between_styles(walks):
+    sheets = []
+    for style in ("elderly", "youthful"):
+        out = walks / f"{style}.png"
+        result = subprocess.run(CLI + ["render", "--bvh", str(walks / f"{style}.bvh"), "--out", str(out)], capture_output=True, text=True)
+        assert result.returncode == 0, result.stderr
+        sheets.append(picture(out))
+    for sheet in sheets:
+        ink = (sheet < 0.5).mean()
+        assert 0.003 < ink < 0.3  # figures are drawn, the page is not filled
+    assert sheets[0].shape == sheets[1].shape
+    assert np.abs(sheets[0] - sheets[1]).mean() > 0.005
+
+
+def test_animation_has_frames(walks):
+    out = walks / "walk.gif"
+    result = subprocess.run(CLI + ["render", "--bvh", str(walks / "youthful.bvh"), "--out", str(out)], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    gif = Image.open(out)
+    assert gif.n_frames >= 50
+    gif.seek(0)
+    first = np.asarray(gif.convert("L"), dtype=float)
+    gif.seek(gif.n_frames // 2)
+    middle = np.asarray(gif.convert("L"), dtype=float)
+    assert np.abs(first - middle).mean() > 0.1
+
+
+def test_render_refuses_other_formats(walks):
+    result = subprocess.run(CLI + ["render", "--bvh", str(walks / "youthful.bvh"), "--out", str(walks / "walk.jpg")], capture_output=True, text=True)
+    assert result.returncode == 1 and "give a .png" in result.stderr
+
+
+def test_live_view_draws_the_received_walk(tmp_path):
+    port, out = free_port(), tmp_path / "view.png"
+    viewer = subprocess.Popen(CLI + ["view", "--port", str(port), "--frames", "30", "--save", str(out)],
+                              stderr=subprocess.PIPE, text=True)
+    for line in viewer.stderr:
+        if "listening" in line:
+            break
+    run = subprocess.run(CLI + ["run", "--seconds", "2", "--osc", f"127.0.0.1:{port}/flat", "--quiet"], capture_output=True, text=True)
+    assert run.returncode == 0
+    assert viewer.wait(30) == 0
+    ink = (picture(out) < 0.5).mean()
+    assert 0.002 < ink < 0.3
