@@ -8,7 +8,7 @@ from .errors import UserError
 
 _TOP = Path(__file__).resolve().parents[1]
 _PACKAGE = Path(__file__).resolve().parent
-PLACES = {"models": "shipped_models", "examples/demo": "shipped_demo"}  # checkout folder -> installed folder
+PLACES = {"models": "shipped_models", "examples/demo": "shipped_demo", "mappings": "shipped_mappings"}  # checkout -> installed
 
 
 def shipped_file(folder: str, name: str) -> Path:
@@ -27,3 +27,11 @@ def default_model_path() -> Path:
 
 def demo_log_path() -> Path:
     return shipped_file("examples/demo", "demo.jsonl")
+
+
+def shipped_mappings() -> list[Path]:
+    """Every mapping file that ships (mappings/*.toml)."""
+    for folder in (_TOP / "mappings", _PACKAGE / PLACES["mappings"]):
+        if folder.is_dir():
+            return sorted(folder.glob("*.toml"))
+    return []

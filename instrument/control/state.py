@@ -8,6 +8,9 @@ Targets:
     turn                    steering, radians per second (positive turns left)
     liveliness              0: every step alike; 1: durations drawn from the model
     reset                   any value: everything back to the start
+
+Presets are named sets of target values; recalling one moves there at once or over a morph
+time, by performance time (so a replayed performance morphs identically).
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ class ControlState:
         self.reset()
 
     def reset(self) -> None:
+        self.morph: tuple[float, float, dict[str, tuple[float, float]]] | None = None  # start, seconds, target: (from, to)
         self.weights = np.zeros(len(self.style_names))
         self.part_weights = np.full((len(self.style_names), len(GROUPS)), np.nan)
         self.speed = 1.0
@@ -66,7 +70,8 @@ class ControlState:
         elif parts[0] == "phase" and len(parts) == 2 and parts[1].isdigit() and 1 <= int(parts[1]) <= self.states:
             self.state_scale[int(parts[1]) - 1] = float(np.clip(value, MIN_SPEED, MAX_SPEED))
         elif target == "reset":
-            self.reset()
+            if value > 0:  # a button's press, not its release
+                self.reset()
         else:
             return False
         return True
@@ -80,6 +85,26 @@ class ControlState:
         if parts[0] == "phase":
             return float(self.state_scale[int(parts[1]) - 1])
         return float(getattr(self, target))
+
+    def recall(self, preset: dict[str, float], now: float, seconds: float = 0.0) -> None:
+        """Go to a preset's values, at once or over `seconds` of performance time."""
+        if seconds <= 0:
+            for target, value in preset.items():
+                self.set(target, value)
+            self.morph = None
+            return
+        self.morph = (now, seconds, {t: (self.get(t), v) for t, v in preset.items() if self.knows(t)})
+
+    def advance(self, now: float) -> None:
+        """Move a running morph to performance time `now`."""
+        if self.morph is None:
+            return
+        start, seconds, moves = self.morph
+        share = min(max((now - start) / seconds, 0.0), 1.0)
+        for target, (first, last) in moves.items():
+            self.set(target, first + (last - first) * share)
+        if share >= 1.0:
+            self.morph = None
 
     def snapshot(self) -> Controls:
         parts = None if np.isnan(self.part_weights).all() else self.part_weights.copy()

@@ -1,0 +1,355 @@
+"""Mapping files: which control of which device drives which target, in which mode.
+
+A mapping is TOML (format in the README). Loading checks every key, and a mistake is one line
+naming the file, the line and the key. At run time a `Mapper` turns raw events of its device
+into target values: it decodes 14-bit pairs, NRPN and relative encoders (stateful, so replaying
+the same raw events gives the same values), applies range, curve and deadzone, and soft
+takeover (none, pick-up, value scaling).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import UserError
+from .events import ControlEvent
+from .state import ControlState
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+MESSAGES = ("cc", "cc14", "nrpn", "note", "pitchbend", "hid")
+MODES = ("absolute", "toggle", "momentary", "relative-twos", "relative-signed", "relative-signed2", "relative-offset")
+TAKEOVERS = ("none", "pickup", "scale")
+CURVES = ("linear", "exp")
+HID_INPUTS = ("lx", "ly", "rx", "ry", "l2", "r2", "hat") + tuple(
+    f"button/{b}" for b in ("square", "cross", "circle", "triangle", "l1", "r1", "l2", "r2", "share", "options", "l3", "r3",
+                            "up", "down", "left", "right"))
+PICKUP_THRESHOLD = 3.0 / 128.0  # of the target's range (Mixxx)
+FAST_SWEEP = 0.050  # seconds: a value this soon after an accepted one is accepted too (Mixxx)
+
+
+@dataclass(frozen=True)
+class ControlSpec:
+    message: str  # cc, cc14, nrpn, note, pitchbend, hid
+    target: str
+    channel: int = 1  # 1 to 16
+    number: int = 0  # CC number, NRPN parameter, note; for cc14 the MSB's CC (the LSB is number + 32)
+    input: str = ""  # for hid: lx, ly, rx, ry, l2, r2, hat, button/<name>
+    mode: str = "absolute"
+    range: tuple[float, float] = (0.0, 1.0)
+    curve: str = "linear"
+    takeover: str = "none"
+    step: float = 0.01  # relative encoders: target units per tick
+    deadzone: float = 0.0  # hid sticks: share of the half-range around the centre that reads as centre
+    invert: bool = False
+
+    @property
+    def key(self) -> str:
+        return self.input if self.message == "hid" else f"{self.message}/{self.channel}/{self.number}"
+
+
+@dataclass(frozen=True)
+class Mapping:
+    name: str
+    path: str
+    midi: str | None  # MIDI port name pattern (regular expression, case-insensitive)
+    hid: tuple[tuple[int, int], ...] | None  # (vendor id, product id) of each model of the device
+    controls: tuple[ControlSpec, ...]
+    presets: dict[str, dict[str, float]] = field(default_factory=dict)
+    morph: float = 0.0  # default seconds to morph into a recalled preset
+
+
+def parse_hid_id(text: object, fail=None) -> tuple[int, int]:
+    match = re.fullmatch(r"([0-9a-fA-F]{4}):([0-9a-fA-F]{4})", str(text))
+    if not match:
+        message = f"{text!r}: expected VVVV:PPPP (hexadecimal vendor and product id, e.g. 054c:09cc)"
+        raise fail(message) if fail else UserError(message)
+    return int(match.group(1), 16), int(match.group(2), 16)
+
+
+def _line_of(text: str, needle: str, start: int = 0) -> int:
+    """1-based line of the first `needle` at or after character `start` (for error messages)."""
+    at = text.find(needle, start)
+    return text.count("\n", 0, at) + 1 if at >= 0 else 0
+
+
+def load_mapping(path: str | Path, state: ControlState | None = None) -> Mapping:
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as e:
+        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise UserError(f"{path}: {e}") from None
+    starts = [m.start() for m in re.finditer(r"^\s*\[\[control\]\]", text, re.MULTILINE)]
+
+    def fail(message: str, key: str, index: int | None = None) -> UserError:
+        begin = starts[index] if index is not None and index < len(starts) else 0
+        line = _line_of(text, key, begin) or (_line_of(text, "[[control]]", begin) if index is not None else 1)
+        return UserError(f"{path}:{line}: {key}: {message}")
+
+    allowed_top = {"name", "device", "control", "presets", "morph"}
+    for key in data:
+        if key not in allowed_top:
+            raise fail(f"unknown key (expected one of {', '.join(sorted(allowed_top))})", key)
+    device = data.get("device", {})
+    if not isinstance(device, dict):
+        raise fail("must be a table", "device")
+    midi, hid = device.get("midi"), device.get("hid")
+    for key in device:
+        if key not in ("midi", "hid"):
+            raise fail("unknown key in [device] (midi or hid)", key)
+    if midi is not None:
+        if not isinstance(midi, str):
+            raise fail("must be a string (a port name pattern)", "midi")
+        try:
+            re.compile(midi)
+        except re.error as e:
+            raise fail(f"not a regular expression: {e}", "midi") from None
+    hid_ids = None
+    if hid is not None:
+        hid_ids = tuple(parse_hid_id(h, lambda m: fail(m, "hid")) for h in (hid if isinstance(hid, list) else [hid]))
+    raw_controls = data.get("control", [])
+    if not isinstance(raw_controls, list):
+        raise fail("use [[control]] tables", "control")
+    controls = [_control(item, k, fail, state) for k, item in enumerate(raw_controls)]
+    presets = {}
+    for name, values in (data.get("presets") or {}).items():
+        if not isinstance(values, dict) or not all(isinstance(v, (int, float)) for v in values.values()):
+            raise fail("a preset is a table of target = number", name)
+        for target in values:
+            if state is not None and not state.knows(target):
+                raise fail(f"unknown target {target!r}", target)
+        presets[name] = {k: float(v) for k, v in values.items()}
+    morph = data.get("morph", 0.0)
+    if not isinstance(morph, (int, float)) or morph < 0:
+        raise fail("must be a number of seconds, 0 or more", "morph")
+    return Mapping(str(data.get("name", path.stem)), str(path), midi, hid_ids, tuple(controls), presets, float(morph))
+
+
+def _control(item: dict, index: int, fail, state: ControlState | None) -> ControlSpec:
+    if not isinstance(item, dict):
+        raise fail("must be a table", "control", index)
+    known = {f for f in ControlSpec.__dataclass_fields__}
+    for key in item:
+        if key not in known:
+            raise fail(f"unknown key (expected {', '.join(sorted(known))})", key, index)
+    for key in ("message", "target"):
+        if key not in item:
+            raise fail("missing", key, index)
+    message = item["message"]
+    if message not in MESSAGES:
+        raise fail(f"{message!r} is not one of {', '.join(MESSAGES)}", "message", index)
+    values = dict(item)
+    if "range" in values:
+        r = values["range"]
+        if not (isinstance(r, list) and len(r) == 2 and all(isinstance(v, (int, float)) for v in r) and r[0] != r[1]):
+            raise fail("expected [low, high], two different numbers", "range", index)
+        values["range"] = (float(r[0]), float(r[1]))
+    checks = [
+        ("mode", MODES), ("takeover", TAKEOVERS), ("curve", CURVES),
+    ]
+    for key, choices in checks:
+        if key in values and values[key] not in choices:
+            raise fail(f"{values[key]!r} is not one of {', '.join(choices)}", key, index)
+    if "channel" in values and not (isinstance(values["channel"], int) and 1 <= values["channel"] <= 16):
+        raise fail("must be 1 to 16", "channel", index)
+    limit = 16383 if message == "nrpn" else 127
+    if message in ("cc", "cc14", "nrpn", "note") and not (isinstance(values.get("number"), int) and 0 <= values["number"] <= limit):
+        raise fail(f"must be a whole number 0 to {limit}", "number", index)
+    if message == "cc14" and values["number"] > 31:
+        raise fail("a 14-bit pair has its MSB on CC 0 to 31 (the LSB is number + 32)", "number", index)
+    if message == "hid" and values.get("input") not in HID_INPUTS:
+        raise fail(f"{values.get('input')!r} is not one of {', '.join(HID_INPUTS[:7])}, button/...", "input", index)
+    for key in ("step", "deadzone"):
+        if key in values and not isinstance(values[key], (int, float)):
+            raise fail("must be a number", key, index)
+    target = values["target"]
+    if not isinstance(target, str) or (state is not None and not state.knows(target) and not target.startswith("preset/")):
+        raise fail(f"unknown target {target!r}", "target", index)
+    return ControlSpec(**values)
+
+
+def style_problems(mapping: Mapping, state: ControlState) -> list[str]:
+    """Targets of a mapping that the loaded model lacks (reported at start, not fatal)."""
+    return [c.target for c in mapping.controls if not state.knows(c.target) and not c.target.startswith("preset/")]
+
+
+@dataclass
+class _Memory:
+    """What a control remembers between events."""
+
+    msb: int | None = None  # 14-bit: the last MSB
+    lsb: int = 0
+    toggled: bool = False
+    last_position: float | None = None  # the hardware position (target units) of the last event
+    last_accepted: float = -math.inf  # time of the last accepted value
+
+
+class Mapper:
+    """Raw events of one device -> target values in the control state."""
+
+    def __init__(self, mapping: Mapping, presets: dict[str, dict[str, float]] | None = None, morph: float | None = None):
+        self.mapping = mapping
+        self.presets = mapping.presets if presets is None else presets
+        self.morph = mapping.morph if morph is None else morph
+        self.by_key: dict[str, list[ControlSpec]] = {}
+        for spec in mapping.controls:
+            self.by_key.setdefault(spec.key, []).append(spec)
+            if spec.message == "cc14":
+                self.by_key.setdefault(f"cc/{spec.channel}/{spec.number + 32}", []).append(spec)
+        self.memory: dict[ControlSpec, _Memory] = {spec: _Memory() for spec in mapping.controls}
+        self.nrpn: dict[int, list[int]] = {}  # channel -> [parameter MSB, parameter LSB, data MSB]
+
+    def apply(self, state: ControlState, event: ControlEvent) -> bool:
+        """Apply one raw event; False if no control of the mapping uses it."""
+        parts = event.control.split("/")
+        if parts[0] == "cc" and len(parts) == 3 and parts[2] in ("99", "98", "6", "38", "96", "97"):
+            if self._nrpn(state, int(parts[1]), int(parts[2]), int(event.value), event.time):
+                return True
+        specs = self.by_key.get(event.control)
+        if not specs:
+            return False
+        for spec in specs:
+            value = self._decode(state, spec, event)
+            if value is not None:
+                self._set(state, spec, value, event.time)
+        return True
+
+    def _nrpn(self, state: ControlState, channel: int, cc: int, value: int, time: float) -> bool:
+        slot = self.nrpn.setdefault(channel, [0, 0, 0])
+        if cc == 99:
+            slot[0] = value
+            return True
+        if cc == 98:
+            slot[1] = value
+            return True
+        parameter = slot[0] * 128 + slot[1]
+        specs = self.by_key.get(f"nrpn/{channel}/{parameter}")
+        if not specs:
+            return False
+        for spec in specs:
+            if cc == 6:
+                slot[2] = value
+                raw = value / 127.0 if spec.mode == "absolute" else None
+                if raw is None:
+                    continue
+            elif cc == 38:
+                raw = (slot[2] * 128 + value) / 16383.0
+            else:  # 96 increment, 97 decrement
+                ticks = 1 if cc == 96 else -1
+                self._set(state, spec, self._relative(state, spec, ticks), time)
+                continue
+            self._set(state, spec, self._scale(spec, raw), time)
+        return True
+
+    def _decode(self, state: ControlState, spec: ControlSpec, event: ControlEvent) -> float | None:
+        """The target value an event asks for, or None (half of a pair, a release, ...)."""
+        raw = event.value
+        memory = self.memory[spec]
+        if spec.message == "cc14":
+            if event.control == f"cc/{spec.channel}/{spec.number}":  # MSB: a new coarse value resets the LSB
+                memory.msb, memory.lsb = int(raw), 0
+            else:
+                memory.lsb = int(raw)
+            if memory.msb is None:
+                return None
+            return self._scale(spec, (memory.msb * 128 + memory.lsb) / 16383.0)
+        if spec.mode.startswith("relative"):
+            return self._relative(state, spec, _ticks(spec.mode, int(raw)))
+        if spec.mode in ("toggle", "momentary"):
+            pressed = raw > 0
+            if spec.mode == "momentary":
+                return spec.range[1] if pressed else spec.range[0]
+            if not pressed:
+                return None
+            memory.toggled = not memory.toggled
+            return spec.range[1] if memory.toggled else spec.range[0]
+        if spec.message == "pitchbend":
+            return self._scale(spec, raw / 16383.0)
+        if spec.message == "hid":
+            return self._scale(spec, _hid_unit(spec, raw))
+        return self._scale(spec, raw / 127.0)
+
+    def _scale(self, spec: ControlSpec, unit: float) -> float:
+        unit = min(max(unit, 0.0), 1.0)
+        if spec.invert:
+            unit = 1.0 - unit
+        if spec.curve == "exp":
+            unit = unit * unit
+        low, high = spec.range
+        return low + (high - low) * unit
+
+    def _relative(self, state: ControlState, spec: ControlSpec, ticks: int) -> float:
+        low, high = sorted(spec.range)
+        return min(max(state.get(spec.target) + ticks * spec.step, low), high)
+
+    def _set(self, state: ControlState, spec: ControlSpec, value: float, time: float) -> None:
+        if spec.target.startswith("preset/"):
+            if value > min(spec.range) and spec.target[7:] in self.presets:
+                state.recall(self.presets[spec.target[7:]], time, self.morph)
+            return
+        if not spec.mode.startswith("relative") and spec.mode == "absolute" and spec.takeover != "none":
+            value = self._takeover(state, spec, value, time)
+            if value is None:
+                return
+        state.set(spec.target, value)
+
+    def _takeover(self, state: ControlState, spec: ControlSpec, position: float, time: float) -> float | None:
+        """Soft takeover: the value to set, or None while the hardware is away from the parameter."""
+        memory = self.memory[spec]
+        current = state.get(spec.target)
+        previous, memory.last_position = memory.last_position, position
+        span = abs(spec.range[1] - spec.range[0])
+        if previous is None:  # the first value after enabling only tells where the hardware is
+            return None
+        if spec.takeover == "scale":
+            if abs(position - current) <= PICKUP_THRESHOLD * span or position == previous:
+                memory.last_accepted = time
+                return position
+            end = max(spec.range) if position > previous else min(spec.range)
+            if (end - previous) == 0:
+                return position
+            value = current + (position - previous) * (end - current) / (end - previous)
+            memory.last_accepted = time
+            return value
+        near = abs(position - current) <= PICKUP_THRESHOLD * span
+        crossed = (previous - current) * (position - current) < 0
+        recent = time - memory.last_accepted <= FAST_SWEEP
+        if near or crossed or recent:
+            memory.last_accepted = time
+            return position
+        return None
+
+
+def _ticks(mode: str, value: int) -> int:
+    """Signed steps of a relative encoder message, in its encoding."""
+    if mode == "relative-twos":  # 1..63 up, 127..65 down
+        return value - 128 if value >= 64 else value
+    if mode == "relative-signed":  # bit 6 is the sign: 1..63 up, 65..127 down
+        return -(value - 64) if value >= 64 else value
+    if mode == "relative-signed2":  # bit 6 set means up: 65..127 up, 1..63 down
+        return value - 64 if value >= 64 else -value
+    return value - 64  # relative-offset: 64 is no change
+
+
+def _hid_unit(spec: ControlSpec, raw: float) -> float:
+    """A HID reading (0..255, centre 128 for sticks) as 0..1, with the deadzone around the centre."""
+    if spec.input in ("lx", "ly", "rx", "ry"):
+        centred = (raw - 128.0) / 127.0
+        centred = max(-1.0, min(1.0, centred))
+        if abs(centred) <= spec.deadzone:
+            centred = 0.0
+        else:
+            centred = math.copysign((abs(centred) - spec.deadzone) / (1.0 - spec.deadzone), centred)
+        return (centred + 1.0) / 2.0
+    return raw / 255.0 if spec.input in ("l2", "r2") else float(raw > 0)
