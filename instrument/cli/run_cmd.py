@@ -3,68 +3,204 @@
 from __future__ import annotations
 
 import argparse
+import re
+import sys
+from pathlib import Path
 
+from ..control.devices import HidInput, MidiInput, OscInput
 from ..control.events import LogReplay, read_log
+from ..control.hub import ControlHub
+from ..control.mapping import load_mapping, parse_hid_id, style_problems
+from ..control.state import ControlState
 from ..errors import UserError
 from ..models.modelfile import load_model
 from ..output.osc import FLAT_PORT, VMC_PORT, parse_target
 from ..output.outputs import OscOutput, RecorderOutput, make_profile
 from ..runtime.console import Console
 from ..runtime.performance import perform
-from ..shipped import default_model_path, demo_log_path
+from ..shipped import default_model_path, demo_log_path, shipped_mappings
 from .synth_cmd import number
 
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
 DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
+DEFAULTS = {"fps": "30", "no_osc": False, "no_loop": False, "fast": False, "quiet": False}
+LISTS = ("osc", "mapping")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="the live instrument: walk, listen to controls, send OSC (default: the demo performance)")
+    p.add_argument("--config", metavar="SHOW.toml", help="a show file holding any of these options (flags given here win)")
     p.add_argument("--model", help="model file (default: the shipped default model)")
-    p.add_argument("--fps", default="30", help="output frame rate, 24 to 120 (default 30)")
+    p.add_argument("--fps", help="output frame rate, 24 to 120 (default 30)")
     p.add_argument("--seconds", help="stop after this many seconds of performance (default: until Ctrl-C)")
     p.add_argument("--osc", action="append", metavar="HOST:PORT[/vmc|/flat]",
                    help=f"OSC target, repeatable (default: {' and '.join(DEFAULT_TARGETS)}); "
                         "a broadcast (x.x.x.255) or multicast (224-239.x.x.x) address sends to many")
-    p.add_argument("--no-osc", action="store_true", help="send no OSC at all")
+    p.add_argument("--no-osc", action="store_true", default=None, help="send no OSC at all")
     p.add_argument("--bvh", metavar="OUT.bvh", help="record the performance as BVH while it plays")
+    p.add_argument("--midi", metavar="PATTERN", help="MIDI input: the first port whose name matches (regular expression)")
+    p.add_argument("--midi-virtual", metavar="NAME", help="create a virtual MIDI input port NAME that other programs connect to")
+    p.add_argument("--midi-api", choices=("alsa", "jack"), help="MIDI system (default: rtmidi's choice, ALSA on Linux)")
+    p.add_argument("--hid", metavar="VVVV:PPPP", help="HID game controller by vendor and product id, e.g. 054c:09cc")
+    p.add_argument("--mapping", action="append", metavar="FILE.toml",
+                   help="mapping file, repeatable (default: the shipped mapping that matches the device)")
+    p.add_argument("--osc-in", metavar="[HOST:]PORT", help="accept control from OSC surfaces (bound to 127.0.0.1 unless HOST is given)")
+    p.add_argument("--presets", metavar="FILE.toml", help="[presets.NAME] tables of target = value, recalled by preset/NAME")
+    p.add_argument("--morph", help="seconds to morph into a recalled preset (default: the mapping's)")
+    p.add_argument("--record", metavar="LOG.jsonl", help="record every raw control event with its time")
     p.add_argument("--replay", metavar="LOG.jsonl", help="play a controller log (default with no controllers: the demo, looped)")
-    p.add_argument("--no-loop", action="store_true", help="play the log once and stop")
+    p.add_argument("--no-loop", action="store_true", default=None, help="play the log once and stop")
     p.add_argument("--humanoid", metavar="BONES.toml", help="joint-to-humanoid-bone map for the VMC profile")
-    p.add_argument("--fast", action="store_true", help="no realtime pacing: as fast as the CPU allows (offline rendering)")
-    p.add_argument("--quiet", action="store_true", help="no status line")
+    p.add_argument("--fast", action="store_true", default=None, help="no realtime pacing: as fast as the CPU allows (offline rendering)")
+    p.add_argument("--quiet", action="store_true", default=None, help="no status line")
     p.set_defaults(run=run)
 
 
+def apply_show_file(args: argparse.Namespace) -> dict:
+    """Fill options not given on the command line from the show file; returns its presets."""
+    path = Path(args.config)
+    try:
+        text = path.read_text(encoding="utf-8")
+        data = tomllib.loads(text)
+    except OSError as e:
+        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise UserError(f"{path}: {e}") from None
+    presets = data.pop("presets", {})
+    options = {a for a in vars(args) if a not in ("config", "run", "command")}
+    for key, value in data.items():
+        dest = key.replace("-", "_")
+        line = text[: text.find(key)].count("\n") + 1 if key in text else 1
+        if dest not in options:
+            raise UserError(f"{path}:{line}: {key}: unknown option (the show file takes the flags of `instrument run`)")
+        if dest in LISTS:
+            value = value if isinstance(value, list) else [value]
+            if not all(isinstance(v, str) for v in value):
+                raise UserError(f"{path}:{line}: {key}: expected a string or a list of strings")
+        elif isinstance(DEFAULTS.get(dest), bool):
+            if not isinstance(value, bool):
+                raise UserError(f"{path}:{line}: {key}: expected true or false")
+        elif not isinstance(value, (str, int, float)) or isinstance(value, bool):
+            raise UserError(f"{path}:{line}: {key}: expected a string or a number")
+        else:
+            value = str(value)
+        if getattr(args, dest) is None:
+            setattr(args, dest, value)
+        if dest in ("model", "bvh", "replay", "record", "humanoid", "presets") or dest == "mapping":
+            base = path.parent
+            current = getattr(args, dest)
+            if current is value:  # came from the file: paths are relative to it
+                setattr(args, dest, [str(base / v) for v in value] if isinstance(value, list) else str(base / value))
+    if not isinstance(presets, dict):
+        raise UserError(f"{path}: presets: expected [presets.NAME] tables")
+    return presets
+
+
+def read_presets(path: str) -> dict:
+    try:
+        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as e:
+        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise UserError(f"{path}: {e}") from None
+    return data.get("presets", {})
+
+
+def check_presets(presets: dict, state: ControlState, where: str) -> dict[str, dict[str, float]]:
+    out = {}
+    for name, values in presets.items():
+        if not isinstance(values, dict) or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values.values()):
+            raise UserError(f"{where}: presets.{name}: expected target = number pairs")
+        for target in values:
+            if not state.knows(target):
+                raise UserError(f"{where}: presets.{name}: unknown target {target!r}")
+        out[name] = {k: float(v) for k, v in values.items()}
+    return out
+
+
+def choose_mappings(args: argparse.Namespace, state: ControlState, console: Console) -> list:
+    mappings = [load_mapping(m, state) for m in (args.mapping or [])]
+    wanted_midi = args.midi or args.midi_virtual
+    if (wanted_midi or (args.replay and not args.mapping)) and not any(m.midi for m in mappings) and wanted_midi:
+        shipped = [load_mapping(p, state) for p in shipped_mappings()]
+        matching = [m for m in shipped if m.midi and m.midi != "." and re.search(m.midi, wanted_midi, re.IGNORECASE)]
+        generic = [m for m in shipped if m.midi == "."]
+        chosen = (matching or generic)[:1]
+        if chosen:
+            console.say(f"MIDI mapping: {chosen[0].name} ({chosen[0].path})")
+        mappings += chosen
+    if args.hid and not any(m.hid for m in mappings):
+        ids = parse_hid_id(args.hid)
+        shipped = [load_mapping(p, state) for p in shipped_mappings()]
+        chosen = [m for m in shipped if m.hid and ids in m.hid][:1]
+        if not chosen:
+            raise UserError(f"--hid {args.hid}: no shipped mapping for this device; give --mapping")
+        console.say(f"HID mapping: {chosen[0].name} ({chosen[0].path})")
+        mappings += chosen
+    for mapping in mappings:
+        for target in style_problems(mapping, state):
+            console.warn(f"style {mapping.path} {target}", f"{mapping.path}: {target}: the model has no such style; that control does nothing")
+    return mappings
+
+
 def run(args: argparse.Namespace) -> int:
+    show_presets = apply_show_file(args) if args.config else {}
+    for key, value in DEFAULTS.items():
+        if getattr(args, key) is None:
+            setattr(args, key, value)
     fps = number("--fps", args.fps)
     if not 24 <= fps <= 120:
         raise UserError(f"--fps must be between 24 and 120, not {args.fps}")
     seconds = None if args.seconds is None else number("--seconds", args.seconds)
     if seconds is not None and seconds <= 0:
         raise UserError(f"--seconds must be positive, not {args.seconds}")
+    morph = 0.0 if args.morph is None else number("--morph", args.morph)
     model = load_model(args.model or default_model_path())
     console = Console(quiet=args.quiet)
-    replay_path = args.replay or demo_log_path()
-    replay = LogReplay(read_log(replay_path), loop=not args.no_loop)
+    state = ControlState(model.style_names, model.states)
+    presets = check_presets(show_presets, state, args.config or "show file")
+    if args.presets:
+        presets.update(check_presets(read_presets(args.presets), state, args.presets))
+    mappings = choose_mappings(args, state, console)
+    live = bool(args.midi or args.midi_virtual or args.hid or args.osc_in)
+    replay_path = args.replay or (None if live else demo_log_path())
+    replay = LogReplay(read_log(replay_path), loop=not args.no_loop) if replay_path else None
     targets = [] if args.no_osc else [parse_target(t) for t in (args.osc or DEFAULT_TARGETS)]
-    if args.fast and seconds is None and (replay.loop or not replay.events):
+    if args.fast and seconds is None and (replay is None or replay.loop or not replay.events):
         raise UserError("--fast needs an end: give --seconds, or --no-loop with a log")
-    outputs = []
+    outputs, devices, hub = [], [], None
     try:
+        hub = ControlHub(mappings, presets, args.record, morph)
+        if args.midi or args.midi_virtual:
+            devices.append(MidiInput(console, args.midi, args.midi_virtual, args.midi_api))
+        if args.hid:
+            vendor, product = parse_hid_id(args.hid)
+            devices.append(HidInput(console, vendor, product))
+        if args.osc_in:
+            devices.append(OscInput(console, args.osc_in if ":" in args.osc_in else f"127.0.0.1:{args.osc_in}"))
         if args.bvh:
             outputs.append(RecorderOutput(args.bvh, model, fps))
         profiles = {kind: make_profile(kind, model, args.humanoid) for kind in {t.profile for t in targets}}
         outputs += [OscOutput(t, profiles[t.profile], console) for t in targets]
     except UserError:
-        for output in outputs:
-            output.close()
+        for thing in outputs + devices + ([hub] if hub else []):
+            thing.close()
         raise
     if not args.quiet:
-        console.say(f"model {args.model or default_model_path()}; "
-                    f"{fps:g} fps; controls from {replay_path}; OSC to {', '.join(map(str, targets)) or 'nowhere'}"
-                    + (f"; recording {args.bvh}" if args.bvh else ""))
-    summary = perform(model, outputs, console, fps, seconds, replay, fast=args.fast,
-                      describe_sources=lambda: f"replay {'(loop)' if replay.loop else ''}")
+        sources = [d.describe() for d in devices] + ([f"log {replay_path}"] if replay_path else [])
+        console.say(f"model {args.model or default_model_path()}; {fps:g} fps; controls: {', '.join(sources) or 'none'}; "
+                    f"OSC to {', '.join(map(str, targets)) or 'nowhere'}" + (f"; recording {args.bvh}" if args.bvh else ""))
+    try:
+        summary = perform(model, outputs, console, fps, seconds, replay, live_sources=[d.poll for d in devices], fast=args.fast,
+                          apply=hub.apply, describe_sources=lambda: ", ".join(d.describe() for d in devices) or "replay",
+                          state=state)
+    finally:
+        for thing in devices + [hub]:
+            thing.close()
     if not args.quiet:
         console.say(f"stopped after {summary.frames} frames; late {summary.late}, dropped {summary.dropped}"
                     + (f"; output errors {summary.output_errors}" if summary.output_errors else ""))

@@ -127,7 +127,7 @@ def load_mapping(path: str | Path, state: ControlState | None = None) -> Mapping
         if not isinstance(values, dict) or not all(isinstance(v, (int, float)) for v in values.values()):
             raise fail("a preset is a table of target = number", name)
         for target in values:
-            if state is not None and not state.knows(target):
+            if state is not None and not state.knows(target) and target.split("/")[0] not in ("style", "part"):
                 raise fail(f"unknown target {target!r}", target)
         presets[name] = {k: float(v) for k, v in values.items()}
     morph = data.get("morph", 0.0)
@@ -174,7 +174,9 @@ def _control(item: dict, index: int, fail, state: ControlState | None) -> Contro
         if key in values and not isinstance(values[key], (int, float)):
             raise fail("must be a number", key, index)
     target = values["target"]
-    if not isinstance(target, str) or (state is not None and not state.knows(target) and not target.startswith("preset/")):
+    style_target = isinstance(target, str) and target.split("/")[0] in ("style", "part")  # checked against the model later
+    if not isinstance(target, str) or (state is not None and not style_target and not state.knows(target)
+                                       and not target.startswith("preset/")):
         raise fail(f"unknown target {target!r}", "target", index)
     return ControlSpec(**values)
 

@@ -91,11 +91,12 @@ def perform(
     describe_sources: Callable[[], str] = lambda: "",
     lookahead: int = DEFAULT_LOOKAHEAD,
     timing: list[float] | None = None,
+    state: ControlState | None = None,
 ) -> Summary:
     """Run until `seconds` of performance time, the end of a non-looping replay, or Ctrl-C.
 
     `timing`, when given, receives each frame's send time minus its deadline (seconds)."""
-    state = ControlState(model.style_names, model.states)
+    state = state or ControlState(model.style_names, model.states)
     apply = apply or (lambda s, e: s.set(e.control, e.value))
     engine = Engine(model, fps, lookahead)
     poses = PoseStream(model.layout, fps)
@@ -122,6 +123,7 @@ def perform(
                 for event in source(now):
                     apply(state, event)
             work_started = time.monotonic()
+            state.advance(now)
             controls = state.snapshot()
             pose = poses.next(engine.sample(now, controls))
             echo = state.echo()

@@ -1,0 +1,49 @@
+"""`instrument devices`: the MIDI ports and HID devices here, each with the shipped mapping that fits."""
+
+from __future__ import annotations
+
+import argparse
+import re
+
+from ..control.devices import midi_backend
+from ..control.mapping import load_mapping
+from ..shipped import shipped_mappings
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("devices", help="list MIDI ports and HID devices, with the shipped mapping for each")
+    p.add_argument("--midi-api", choices=("alsa", "jack"), help="MIDI system (default: rtmidi's choice)")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    mappings = [load_mapping(p) for p in shipped_mappings()]
+    print("MIDI inputs:")
+    try:
+        names = midi_backend(args.midi_api).get_input_names()
+    except Exception as error:
+        names = []
+        print(f"  (MIDI not available: {error})")
+    for name in names:
+        fit = next((m for m in mappings if m.midi and m.midi != "." and re.search(m.midi, name, re.IGNORECASE)), None)
+        print(f"  {name}  ->  {fit.path if fit else 'no shipped mapping (generic: mappings/generic-8-faders.toml)'}")
+    if not names:
+        print("  none")
+    print("HID devices:")
+    try:
+        import hid
+
+        found = hid.enumerate()
+    except Exception as error:
+        found = []
+        print(f"  (HID not available: {error})")
+    shown = 0
+    for info in found:
+        ids = (info.get("vendor_id", 0), info.get("product_id", 0))
+        fit = next((m for m in mappings if m.hid and ids in m.hid), None)
+        if fit or info.get("usage_page") in (1,):
+            shown += 1
+            print(f"  {ids[0]:04x}:{ids[1]:04x} {info.get('product_string') or ''}  ->  {fit.path if fit else 'no shipped mapping'}")
+    if not shown:
+        print("  none")
+    return 0
