@@ -26,3 +26,43 @@ def real_walks() -> list[Path]:
     if not files:
         pytest.skip(f"real walks not found in {SHARED_WALKS}")
     return files
+
+
+@pytest.fixture(scope="session")
+def jack():
+    """A JACK server with the dummy driver (real MIDI without a sound card), started if needed."""
+    import shutil
+    import subprocess
+    import time
+
+    if shutil.which("jackd") is None:
+        pytest.skip("JACK is not installed (apt-get install jackd2)")
+    os.environ["JACK_NO_START_SERVER"] = "1"
+    import mido
+
+    backend = mido.Backend("mido.backends.rtmidi/UNIX_JACK", load=True)
+
+    def running() -> bool:
+        try:
+            backend.get_input_names()
+            probe = backend.open_output("instrument-probe", virtual=True)
+            probe.close()
+            return True
+        except Exception:
+            return False
+
+    server = None
+    if not running():
+        server = subprocess.Popen(["jackd", "--no-realtime", "-d", "dummy", "-r", "48000", "-p", "256"],
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        for _ in range(50):
+            time.sleep(0.1)
+            if running():
+                break
+        else:
+            server.kill()
+            pytest.skip("the JACK server did not start")
+    yield backend
+    if server is not None:
+        server.terminate()
+        server.wait(10)

@@ -27,7 +27,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
-DEFAULTS = {"fps": "30", "no_osc": False, "no_loop": False, "fast": False, "quiet": False}
+DEFAULTS = {"fps": "30", "no_osc": False, "loop": False, "fast": False, "quiet": False}
 LISTS = ("osc", "mapping")
 
 
@@ -52,8 +52,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--presets", metavar="FILE.toml", help="[presets.NAME] tables of target = value, recalled by preset/NAME")
     p.add_argument("--morph", help="seconds to morph into a recalled preset (default: the mapping's)")
     p.add_argument("--record", metavar="LOG.jsonl", help="record every raw control event with its time")
-    p.add_argument("--replay", metavar="LOG.jsonl", help="play a controller log (default with no controllers: the demo, looped)")
-    p.add_argument("--no-loop", action="store_true", default=None, help="play the log once and stop")
+    p.add_argument("--replay", metavar="LOG.jsonl", help="play a controller log once (default with no controllers: the demo, looped)")
+    p.add_argument("--loop", action="store_true", default=None, help="play the --replay log over and over")
     p.add_argument("--humanoid", metavar="BONES.toml", help="joint-to-humanoid-bone map for the VMC profile")
     p.add_argument("--fast", action="store_true", default=None, help="no realtime pacing: as fast as the CPU allows (offline rendering)")
     p.add_argument("--quiet", action="store_true", default=None, help="no status line")
@@ -168,10 +168,10 @@ def run(args: argparse.Namespace) -> int:
     mappings = choose_mappings(args, state, console)
     live = bool(args.midi or args.midi_virtual or args.hid or args.osc_in)
     replay_path = args.replay or (None if live else demo_log_path())
-    replay = LogReplay(read_log(replay_path), loop=not args.no_loop) if replay_path else None
+    replay = LogReplay(read_log(replay_path), loop=args.loop or not args.replay) if replay_path else None
     targets = [] if args.no_osc else [parse_target(t) for t in (args.osc or DEFAULT_TARGETS)]
     if args.fast and seconds is None and (replay is None or replay.loop or not replay.events):
-        raise UserError("--fast needs an end: give --seconds, or --no-loop with a log")
+        raise UserError("--fast needs an end: give --seconds, or a --replay log (played once)")
     outputs, devices, hub = [], [], None
     try:
         hub = ControlHub(mappings, presets, args.record, morph)

@@ -18,7 +18,7 @@ class ControlEvent:
     value: float
 
     def to_json(self) -> str:
-        return json.dumps({"t": round(self.time, 6), "source": self.source, "control": self.control, "value": self.value})
+        return json.dumps({"t": self.time, "source": self.source, "control": self.control, "value": self.value})  # exact: replays hit the same frame
 
 
 def read_log(path: str | Path) -> list[ControlEvent]:

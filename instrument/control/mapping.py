@@ -206,9 +206,11 @@ class Mapper:
         self.morph = mapping.morph if morph is None else morph
         self.by_key: dict[str, list[ControlSpec]] = {}
         for spec in mapping.controls:
-            self.by_key.setdefault(spec.key, []).append(spec)
-            if spec.message == "cc14":
-                self.by_key.setdefault(f"cc/{spec.channel}/{spec.number + 32}", []).append(spec)
+            if spec.message == "cc14":  # both halves of the pair arrive as plain CCs
+                for number in (spec.number, spec.number + 32):
+                    self.by_key.setdefault(f"cc/{spec.channel}/{number}", []).append(spec)
+            else:
+                self.by_key.setdefault(spec.key, []).append(spec)
         self.memory: dict[ControlSpec, _Memory] = {spec: _Memory() for spec in mapping.controls}
         self.nrpn: dict[int, list[int]] = {}  # channel -> [parameter MSB, parameter LSB, data MSB]
 

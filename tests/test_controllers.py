@@ -1,0 +1,247 @@
+"""Controllers end to end: real MIDI through JACK, a simulated DualShock 4, OSC surfaces, show files."""
+
+import filecmp
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from conftest import REPO
+from instrument.control.devices import HidInput
+from instrument.control.hub import ControlHub
+from instrument.control.mapping import load_mapping
+from instrument.control.state import ControlState
+from instrument.models.modelfile import default_model_path, load_model
+from instrument.runtime.console import Console
+from instrument.runtime.performance import perform
+from oscrecv import Receiver, free_port
+
+RUN = [sys.executable, "-m", "instrument", "run"]
+NANO = str(REPO / "mappings" / "korg-nanokontrol2.toml")
+
+
+def frames_and_echo(receiver: Receiver, address: str) -> list[tuple[int, float]]:
+    """(frame index, echoed value) per frame, from the flat profile."""
+    out, value = [], None
+    for a, params in receiver.messages():
+        if a == address:
+            value = params[0]
+        elif a == "/walk/frame":
+            out.append((params[0], value))
+    return out
+
+
+def last_frame(receiver: Receiver) -> int:
+    frames = [p[0] for a, p in receiver.messages() if a == "/walk/frame"]
+    return frames[-1] if frames else -1
+
+
+def wait_for_port(backend, name: str, timeout: float = 20.0) -> str:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        names = [n for n in backend.get_output_names() if name in n]
+        if names:
+            return names[0]
+        time.sleep(0.1)
+    raise AssertionError(f"port {name} never appeared")
+
+
+def test_nanokontrol2_faders_over_jack_with_pickup_and_exact_replay(jack, tmp_path):
+    receiver = Receiver()
+    log, live_bvh, replay_bvh = tmp_path / "take.jsonl", tmp_path / "live.bvh", tmp_path / "replay.bvh"
+    process = subprocess.Popen(RUN + ["--midi-virtual", "instr-nano", "--midi-api", "jack", "--mapping", NANO,
+                                      "--osc", f"127.0.0.1:{receiver.port}/flat", "--seconds", "7", "--quiet",
+                                      "--record", str(log), "--bvh", str(live_bvh)], stderr=subprocess.PIPE, text=True)
+    try:
+        out = jack.open_output(wait_for_port(jack, "instr-nano"))
+        while last_frame(receiver) < 15:
+            time.sleep(0.05)
+
+        def cc(value, number=1):
+            out.send(__import__("mido").Message("control_change", channel=0, control=number, value=value))
+
+        cc(120)  # elderly fader, first value: only tells where the fader is
+        time.sleep(0.3)
+        cc(110)  # far from the parameter (0 is at 42): not picked up
+        time.sleep(0.3)
+        ignored_until = last_frame(receiver)
+        sent_at = last_frame(receiver)
+        cc(43)  # near the parameter: picked up
+        time.sleep(0.3)
+        for value in range(44, 101, 2):  # a real fader move: small steps, milliseconds apart
+            cc(value)
+            time.sleep(0.005)
+        time.sleep(0.5)
+        out.close()
+    finally:
+        stderr = process.communicate(timeout=60)[1]
+        receiver.close()
+    assert process.returncode == 0, stderr
+    echo = frames_and_echo(receiver, "/walk/style/elderly")
+    assert [f for f, _ in echo] == list(range(len(echo)))
+    assert all(v == 0.0 for f, v in echo if f <= ignored_until)
+    first_change = next(f for f, v in echo if v != 0.0)
+    assert first_change <= sent_at + 2  # the frame being sent, or the very next one
+    assert echo[first_change][1] == pytest.approx(43 / 127 * 3 - 1, abs=1e-6)
+    assert echo[-1][1] == pytest.approx(100 / 127 * 3 - 1, abs=1e-6)
+    # the recorded raw events replay to the same frames, byte for byte, as fast as the CPU allows
+    result = subprocess.run(RUN + ["--replay", str(log), "--mapping", NANO, "--no-osc", "--fast", "--seconds", "7",
+                                   "--bvh", str(replay_bvh), "--quiet"], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert filecmp.cmp(live_bvh, replay_bvh, shallow=False)
+
+
+def test_an_unplugged_midi_device_is_reported_and_reconnected(jack, tmp_path):
+    import mido
+
+    device = jack.open_output("FakeKontrol", virtual=True)
+    process = subprocess.Popen(RUN + ["--midi", "FakeKontrol", "--midi-api", "jack", "--no-osc", "--seconds", "8", "--quiet",
+                                      "--bvh", str(tmp_path / "walk.bvh")], stderr=subprocess.PIPE, text=True)
+    time.sleep(3)
+    device.close()  # unplugged
+    time.sleep(2.5)
+    device = jack.open_output("FakeKontrol", virtual=True)  # plugged back in
+    time.sleep(1.5)
+    device.send(mido.Message("control_change", channel=0, control=8, value=127))
+    stderr = process.communicate(timeout=60)[1]
+    device.close()
+    assert process.returncode == 0, stderr
+    assert "unplugged" in stderr and "connected" in stderr
+    from instrument.motion.bvh import read_bvh
+
+    assert read_bvh(tmp_path / "walk.bvh").frames == 240  # the walk never stopped
+
+
+class SimulatedDualShock4:
+    """Stands in for hidapi: the same `enumerate` and `device` calls, DualShock 4 USB reports,
+    and on unplug the same OSError('read error') from read() and an empty enumerate()."""
+
+    def __init__(self):
+        self.plugged = True
+        self.reports: list[list[int]] = []
+        self.opened = 0
+
+    @staticmethod
+    def report(lx=128, ly=128, rx=128, ry=128, hat=8, face=0, shoulders=0, l2=0, r2=0) -> list[int]:
+        return [0x01, lx, ly, rx, ry, (face << 4) | hat, shoulders, 0, l2, r2] + [0] * 54
+
+    def enumerate(self, vendor=0, product=0):
+        return [{"path": b"/dev/hidraw-sim", "vendor_id": 0x054C, "product_id": 0x09CC}] if self.plugged and (vendor, product) == (0x054C, 0x09CC) else []
+
+    def device(self):
+        sim = self
+
+        class Device:
+            def open_path(self, path):
+                if not sim.plugged:
+                    raise OSError("open failed")
+                sim.opened += 1
+
+            def set_nonblocking(self, flag):
+                pass
+
+            def read(self, size):
+                if not sim.plugged:
+                    raise OSError("read error")
+                return sim.reports.pop(0) if sim.reports else []
+
+            def close(self):
+                pass
+
+        return Device()
+
+
+def test_simulated_dualshock4_steers_drives_a_style_and_survives_unplug(capsys):
+    model = load_model(default_model_path())
+    pad = SimulatedDualShock4()
+    console = Console()
+    device = HidInput(console, 0x054C, 0x09CC, hid=pad)
+    state = ControlState(model.style_names, model.states)
+    hub = ControlHub([load_mapping(REPO / "mappings" / "sony-dualshock4.toml", state)])
+    seen = []
+
+    class Watch:
+        name = "watch"
+
+        def prepare(self, pose, echo):
+            return (pose.index, echo["turn"], echo["style/active"], echo["speed"])
+
+        def send(self, values):
+            seen.append(values)
+            index = values[0]
+            if index == 10:
+                pad.reports.append(pad.report(lx=0, r2=255))  # full left, R2 pressed
+            if index == 30:
+                pad.plugged = False  # cable pulled
+            if index == 80:
+                pad.plugged = True
+            if index == 120:
+                pad.reports.append(pad.report(lx=128, r2=0, face=0b0010))  # centre, release, cross: preset "proud"
+
+        def close(self):
+            pass
+
+    perform(model, [Watch()], console, fps=30, seconds=6.0, live_sources=[device.poll], apply=hub.apply, state=state)
+    err = capsys.readouterr().err
+    assert [s[0] for s in seen] == list(range(180))  # the walk never stopped
+    by_frame = {s[0]: s for s in seen}
+    assert by_frame[15][1] == pytest.approx(1.2) and by_frame[15][2] == pytest.approx(2.0)  # steering left, active 2
+    assert "lost" in err and "reconnected" in err
+    assert pad.opened >= 2
+    assert by_frame[170][1] == 0.0 and by_frame[170][2] == pytest.approx(0.5)  # preset "proud" recalled
+
+
+def test_osc_surface_controls_and_presets(tmp_path):
+    control_port, receiver = free_port(), Receiver()
+    presets = tmp_path / "presets.toml"
+    presets.write_text('[presets.bold]\n"style/feminine" = 2.0\nspeed = 1.5\n')
+    process = subprocess.Popen(RUN + ["--osc-in", str(control_port), "--osc", f"127.0.0.1:{receiver.port}/flat", "--seconds", "4",
+                                      "--presets", str(presets), "--quiet"], stderr=subprocess.PIPE, text=True)
+    from pythonosc.udp_client import SimpleUDPClient
+
+    client = SimpleUDPClient("127.0.0.1", control_port)
+    while last_frame(receiver) < 20:
+        time.sleep(0.05)
+    client.send_message("/walk/style/elderly", 1.5)
+    time.sleep(0.5)
+    client.send_message("/walk/preset/bold", 1.0)
+    time.sleep(0.5)
+    client.send_message("/walk/nonsense", 1.0)  # ignored
+    stderr = process.communicate(timeout=60)[1]
+    receiver.close()
+    assert process.returncode == 0, stderr
+    elderly = frames_and_echo(receiver, "/walk/style/elderly")
+    feminine = frames_and_echo(receiver, "/walk/style/feminine")
+    assert elderly[-1][1] == pytest.approx(1.5) and feminine[-1][1] == pytest.approx(2.0)
+    speed = frames_and_echo(receiver, "/walk/speed")
+    assert speed[-1][1] == pytest.approx(1.5)
+
+
+def test_show_file_starts_the_whole_setup(tmp_path):
+    receiver = Receiver()
+    show = tmp_path / "show.toml"
+    show.write_text(f'seconds = 2\nosc = ["127.0.0.1:{receiver.port}/flat"]\nquiet = true\nbvh = "take.bvh"\n'
+                    f'replay = "cues.jsonl"\n[presets.calm]\n"style/elderly" = 0.5\n')
+    (tmp_path / "cues.jsonl").write_text('{"t": 0.5, "source": "cue", "control": "preset/calm", "value": 1}\n')
+    result = subprocess.run(RUN + ["--config", str(show)], capture_output=True, text=True, timeout=60)
+    time.sleep(0.2)
+    receiver.close()
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "take.bvh").exists()
+    assert frames_and_echo(receiver, "/walk/style/elderly")[-1][1] == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("text,message", [
+    ('seconds = 2\nvolume = 11\n', "show.toml:2: volume: unknown option"),
+    ('seconds = 2\nquiet = "yes"\n', "show.toml:2: quiet: expected true or false"),
+    ('seconds = [2]\n', "show.toml:1: seconds: expected a string or a number"),
+    ('seconds = 2\n[presets.x]\n"style/sleepy" = 1\n', "presets.x: unknown target 'style/sleepy'"),
+])
+def test_bad_show_files_are_one_line_errors(tmp_path, text, message):
+    show = tmp_path / "show.toml"
+    show.write_text(text)
+    result = subprocess.run(RUN + ["--config", str(show)], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 1
+    assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1

@@ -1,0 +1,214 @@
+"""Mapping files and the decoding of every message kind, mode and takeover rule."""
+
+import math
+
+import pytest
+
+from instrument.control.events import ControlEvent
+from instrument.control.mapping import Mapper, load_mapping
+from instrument.control.state import ControlState
+from instrument.errors import UserError
+from conftest import REPO
+
+STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
+
+
+def state() -> ControlState:
+    return ControlState(STYLES, 5)
+
+
+def mapper(tmp_path, controls: str, extra: str = "") -> Mapper:
+    path = tmp_path / "m.toml"
+    path.write_text(f'{extra}\n[device]\nmidi = "test"\n{controls}')
+    return Mapper(load_mapping(path, state()))
+
+
+def send(m: Mapper, s: ControlState, control: str, value: float, t: float = 0.0) -> bool:
+    return m.apply(s, ControlEvent(t, "midi:test", control, value))
+
+
+def test_absolute_cc_with_range_and_clamping(tmp_path):
+    m = mapper(tmp_path, '[[control]]\nmessage = "cc"\nnumber = 7\ntarget = "style/elderly"\nrange = [-1.0, 2.0]\n')
+    s = state()
+    assert send(m, s, "cc/1/7", 127)
+    assert s.get("style/elderly") == pytest.approx(2.0)
+    send(m, s, "cc/1/7", 0)
+    assert s.get("style/elderly") == pytest.approx(-1.0)
+    send(m, s, "cc/1/7", 500)  # out of range: clamped
+    assert s.get("style/elderly") == pytest.approx(2.0)
+    assert not send(m, s, "cc/1/8", 64)  # unknown messages are ignored
+    assert not send(m, s, "cc/2/7", 64)  # other channel
+
+
+def test_fourteen_bit_pairs_reset_the_lsb_on_a_new_msb(tmp_path):
+    m = mapper(tmp_path, '[[control]]\nmessage = "cc14"\nnumber = 1\ntarget = "speed"\nrange = [0.0, 4.0]\n')
+    s = state()
+    send(m, s, "cc/1/1", 64)  # MSB
+    assert s.speed == pytest.approx(4.0 * 64 * 128 / 16383)
+    send(m, s, "cc/1/33", 100)  # LSB
+    assert s.speed == pytest.approx(4.0 * (64 * 128 + 100) / 16383)
+    send(m, s, "cc/1/1", 65)  # a new MSB: LSB back to 0
+    assert s.speed == pytest.approx(4.0 * 65 * 128 / 16383)
+
+
+def test_nrpn_data_entry_and_increments(tmp_path):
+    m = mapper(tmp_path, '[[control]]\nmessage = "nrpn"\nnumber = 300\ntarget = "turn"\nrange = [-1.0, 1.0]\nstep = 0.1\n')
+    s = state()
+    for cc, v in ((99, 2), (98, 44), (6, 127), (38, 127)):  # parameter 2*128+44 = 300
+        send(m, s, f"cc/1/{cc}", v)
+    assert s.turn == pytest.approx(1.0)
+    send(m, s, "cc/1/6", 64)
+    send(m, s, "cc/1/38", 0)
+    assert s.turn == pytest.approx(-1 + 2 * 64 * 128 / 16383)
+    before = s.turn
+    send(m, s, "cc/1/97", 0)  # decrement
+    assert s.turn == pytest.approx(before - 0.1)
+    send(m, s, "cc/1/99", 0)  # another parameter selected: data entry no longer reaches turn
+    send(m, s, "cc/1/98", 1)
+    send(m, s, "cc/1/6", 0)
+    assert s.turn == pytest.approx(before - 0.1)
+
+
+@pytest.mark.parametrize("mode,up,down", [
+    ("relative-twos", 1, 127), ("relative-signed", 1, 65), ("relative-signed2", 65, 1), ("relative-offset", 65, 63),
+])
+def test_relative_encoders_in_every_encoding(tmp_path, mode, up, down):
+    m = mapper(tmp_path, f'[[control]]\nmessage = "cc"\nnumber = 5\nmode = "{mode}"\ntarget = "liveliness"\nstep = 0.1\n')
+    s = state()
+    for _ in range(3):
+        send(m, s, "cc/1/5", up)
+    assert s.liveliness == pytest.approx(0.3)
+    send(m, s, "cc/1/5", down)
+    assert s.liveliness == pytest.approx(0.2)
+    for _ in range(10):
+        send(m, s, "cc/1/5", down)
+    assert s.liveliness == 0.0  # clamped to the range
+
+
+def test_buttons_toggle_and_momentary_and_pitch_bend(tmp_path):
+    m = mapper(tmp_path, '[[control]]\nmessage = "note"\nnumber = 36\nmode = "toggle"\ntarget = "style/active"\n'
+                         '[[control]]\nmessage = "note"\nnumber = 37\nmode = "momentary"\ntarget = "style/normal"\n'
+                         '[[control]]\nmessage = "pitchbend"\nnumber = 0\ntarget = "speed"\nrange = [0.5, 2.0]\n')
+    s = state()
+    send(m, s, "note/1/36", 100)
+    send(m, s, "note/1/36", 0)
+    assert s.get("style/active") == 1.0
+    send(m, s, "note/1/36", 90)
+    assert s.get("style/active") == 0.0
+    send(m, s, "note/1/37", 100)
+    assert s.get("style/normal") == 1.0
+    send(m, s, "note/1/37", 0)
+    assert s.get("style/normal") == 0.0
+    send(m, s, "pitchbend/1/0", 16383)
+    assert s.speed == pytest.approx(2.0)
+
+
+def test_pickup_follows_mixxx(tmp_path):
+    m = mapper(tmp_path, '[[control]]\nmessage = "cc"\nnumber = 0\ntarget = "style/elderly"\nrange = [-1.0, 2.0]\ntakeover = "pickup"\n')
+    s = state()  # elderly is 0, which is fader position 127/3 = 42.3
+    send(m, s, "cc/1/0", 120, t=0.0)  # the first value after enabling is ignored
+    assert s.get("style/elderly") == 0.0
+    send(m, s, "cc/1/0", 110, t=1.0)  # far from the parameter, not crossing it: ignored
+    assert s.get("style/elderly") == 0.0
+    send(m, s, "cc/1/0", 43, t=2.0)  # near: picked up
+    assert s.get("style/elderly") == pytest.approx(43 / 127 * 3 - 1)
+    send(m, s, "cc/1/0", 90, t=2.02)  # a fast sweep: within 50 ms of the last accepted value
+    assert s.get("style/elderly") == pytest.approx(90 / 127 * 3 - 1)
+    s.set("style/elderly", 0.0)  # something else moved the parameter (a preset)
+    send(m, s, "cc/1/0", 100, t=3.0)  # the fader is far away now: ignored
+    assert s.get("style/elderly") == 0.0
+    send(m, s, "cc/1/0", 30, t=4.0)  # it crossed the parameter (from above to below): picked up
+    assert s.get("style/elderly") == pytest.approx(30 / 127 * 3 - 1)
+
+
+def test_value_scaling_converges_at_the_end_of_travel(tmp_path):
+    m = mapper(tmp_path, '[[control]]\nmessage = "cc"\nnumber = 0\ntarget = "liveliness"\ntakeover = "scale"\n')
+    s = state()
+    s.set("liveliness", 0.8)
+    send(m, s, "cc/1/0", 0, t=0)  # hardware at the bottom, parameter at 0.8
+    send(m, s, "cc/1/0", 64, t=1)
+    assert 0.8 < s.liveliness < 64 / 127 + 0.8  # it moved up, less than a jump would
+    send(m, s, "cc/1/0", 127, t=2)
+    assert s.liveliness == pytest.approx(1.0)  # both reach the end together
+
+
+def test_hid_sticks_have_deadzones(tmp_path):
+    path = tmp_path / "pad.toml"
+    path.write_text('[device]\nhid = "054c:09cc"\n[[control]]\nmessage = "hid"\ninput = "lx"\ntarget = "turn"\nrange = [-1.0, 1.0]\ndeadzone = 0.1\n')
+    m, s = Mapper(load_mapping(path, state())), state()
+    for raw in (128, 135, 121):  # within the deadzone around the centre
+        m.apply(s, ControlEvent(0, "hid:054c:09cc", "lx", raw))
+        assert s.turn == 0.0
+    m.apply(s, ControlEvent(0, "hid:054c:09cc", "lx", 255))
+    assert s.turn == pytest.approx(1.0)
+    m.apply(s, ControlEvent(0, "hid:054c:09cc", "lx", 0))
+    assert s.turn == pytest.approx(-1.0)
+
+
+def test_presets_recall_and_morph_by_performance_time(tmp_path):
+    m = mapper(tmp_path, '[[control]]\nmessage = "note"\nnumber = 1\nmode = "momentary"\ntarget = "preset/bold"\n',
+               'morph = 2.0\n[presets.bold]\n"style/feminine" = 2.0\nspeed = 1.5\n')
+    s = state()
+    send(m, s, "note/1/1", 127, t=10.0)
+    s.advance(10.0)
+    assert s.get("style/feminine") == 0.0
+    s.advance(11.0)
+    assert s.get("style/feminine") == pytest.approx(1.0) and s.speed == pytest.approx(1.25)
+    s.advance(12.5)
+    assert s.get("style/feminine") == pytest.approx(2.0) and s.morph is None
+
+
+def test_every_shipped_mapping_loads_and_names_the_default_styles():
+    from instrument.control.mapping import style_problems
+
+    files = sorted((REPO / "mappings").glob("*.toml"))
+    assert {f.stem for f in files} >= {"korg-nanokontrol2", "akai-midimix", "novation-launch-control-xl",
+                                       "behringer-x-touch-mini", "sony-dualshock4", "generic-8-faders"}
+    for f in files:
+        mapping = load_mapping(f, state())
+        assert not style_problems(mapping, state()), f
+        styles = {c.target for c in mapping.controls if c.target.startswith("style/")}
+        assert len(styles) == 7 or f.stem == "sony-dualshock4", f
+        assert any(c.target == "speed" for c in mapping.controls), f
+
+
+def test_a_style_the_model_lacks_is_reported_not_fatal(tmp_path):
+    from instrument.control.mapping import style_problems
+
+    path = tmp_path / "m.toml"
+    path.write_text('[device]\nmidi = "x"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "style/sleepy"\n')
+    assert style_problems(load_mapping(path, state()), state()) == ["style/sleepy"]
+
+
+@pytest.mark.parametrize("body,line,key", [
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "sped"\n', 6, "target"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "cc"\nnumber = 300\ntarget = "speed"\n', 5, "number"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "sysex"\ntarget = "speed"\n', 4, "message"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\nmode = "spin"\n', 7, "mode"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\nrange = [1, 1]\n', 7, "range"),
+    ('[device]\nmidi = "x"\n\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\ncolour = "red"\n', 8, "colour"),
+    ('[device]\nhid = "sony"\n', 2, "hid"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "cc"\ntarget = "speed"\n', 3, "number"),
+])
+def test_mapping_errors_name_file_line_and_key(tmp_path, body, line, key):
+    path = tmp_path / "bad.toml"
+    path.write_text(body)
+    with pytest.raises(UserError) as error:
+        load_mapping(path, state())
+    text = str(error.value)
+    assert text.startswith(f"{path}:{line}: {key}:"), text
+    assert "\n" not in text
+
+
+def test_broken_toml_is_one_line(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text("[device\nmidi = 'x'\n")
+    with pytest.raises(UserError, match=f"^{path}: .*line 1"):
+        load_mapping(path, state())
+
+
+def test_state_ignores_non_numbers_and_unknown_targets():
+    s = state()
+    assert not s.set("style/elderly", math.nan)
+    assert not s.set("nonsense", 1.0)
+    assert s.set("speed", 99.0) and s.speed == 4.0
