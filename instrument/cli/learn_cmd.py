@@ -1,0 +1,89 @@
+"""`instrument learn`: MIDI learn in the terminal, written out as a mapping file."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from ..control.devices import MidiInput, midi_raw
+from ..control.learn import detect
+from ..control.state import ControlState
+from ..errors import UserError
+from ..models.modelfile import load_model
+from ..runtime.console import Console
+from ..shipped import default_model_path
+
+QUIET_AFTER = 0.8  # seconds without messages that end a capture
+RANGES = {"style": (-1.0, 2.0), "part": (-1.0, 2.0), "speed": (0.5, 2.0), "phase": (0.5, 2.0), "turn": (-1.0, 1.0),
+          "liveliness": (0.0, 1.0)}
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("learn", help="MIDI learn: pick a target, move a control, write a mapping file")
+    p.add_argument("--out", required=True, metavar="MY.toml")
+    p.add_argument("--model", help="model whose styles are offered (default: the shipped default model)")
+    p.add_argument("--midi", metavar="PATTERN", help="MIDI input port (regular expression)")
+    p.add_argument("--midi-virtual", metavar="NAME", help="create a virtual MIDI input port NAME instead")
+    p.add_argument("--midi-api", choices=("alsa", "jack"))
+    p.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for a control to move (default 30)")
+    p.set_defaults(run=run)
+
+
+def capture(device: MidiInput, timeout: float) -> list[tuple[str, float]]:
+    """Raw events from the first message until the control rests for a moment."""
+    device.pending.clear()
+    raw: list[tuple[str, float]] = []
+    deadline, last = time.monotonic() + timeout, None
+    while time.monotonic() < deadline:
+        while device.pending:
+            event = midi_raw(device.pending.popleft())
+            if event:
+                raw.append(event)
+                last = time.monotonic()
+        if last is not None and time.monotonic() - last > QUIET_AFTER:
+            break
+        time.sleep(0.005)
+    return raw
+
+
+def run(args: argparse.Namespace) -> int:
+    out = Path(args.out)
+    if out.exists():
+        raise UserError(f"{out}: already exists (nothing is overwritten)")
+    if not (args.midi or args.midi_virtual):
+        raise UserError("give --midi PATTERN (a port to listen to) or --midi-virtual NAME")
+    model = load_model(args.model or default_model_path())
+    targets = ControlState(model.style_names, model.states).targets()
+    targets = [t for t in targets if not t.startswith("part/")] + [f"preset/{n}" for n in ("1", "2", "3", "4")]
+    device = MidiInput(Console(), args.midi, args.midi_virtual, args.midi_api)
+    port = args.midi_virtual or args.midi
+    blocks: list[str] = []
+    print("targets: " + ", ".join(f"{k + 1}) {t}" for k, t in enumerate(targets)), flush=True)
+    try:
+        while True:
+            print("target (number or name; empty line to finish)? ", end="", flush=True)
+            line = sys.stdin.readline()
+            if not line or not line.strip():
+                break
+            choice = line.strip()
+            target = targets[int(choice) - 1] if choice.isdigit() and 0 < int(choice) <= len(targets) else choice
+            if target not in targets:
+                print(f"not a target: {choice}", flush=True)
+                continue
+            print(f"move the control for {target} (an encoder: turn it up, then down)", flush=True)
+            learned = detect(capture(device, args.timeout))
+            if learned is None:
+                print("nothing arrived; skipped", flush=True)
+                continue
+            print(f"learned {learned.message} channel {learned.channel} number {learned.number} ({learned.mode}) -> {target}", flush=True)
+            blocks.append(learned.toml(target, RANGES.get(target.split("/")[0])))
+    finally:
+        device.close()
+    if not blocks:
+        print("nothing learned; no file written", file=sys.stderr)
+        return 0
+    out.write_text(f'# Learned with instrument learn\nname = "{out.stem}"\n\n[device]\nmidi = "{port}"\n\n' + "\n".join(blocks))
+    print(f"wrote {len(blocks)} controls to {out}", file=sys.stderr)
+    return 0

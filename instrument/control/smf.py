@@ -1,0 +1,80 @@
+"""MIDI-only controller logs as Standard MIDI Files: type 1, one track per device, 1 ms ticks.
+
+At 1000 ticks per beat and 60 beats per minute one tick is one millisecond, so event times
+survive the round trip to the millisecond (a log's frame times are multiples of 1/fps, which
+land back on the same frames when read). Track names carry the device (the log's `source`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mido
+
+from ..errors import UserError
+from .events import ControlEvent
+
+TICKS_PER_BEAT = 1000
+TEMPO = 1_000_000  # microseconds per beat: 60 bpm, so a tick is a millisecond
+
+
+def _message(event: ControlEvent) -> mido.Message:
+    kind, channel, number = (event.control.split("/") + ["", "", ""])[:3]
+    channel = int(channel) - 1
+    value = int(round(event.value))
+    if kind == "cc":
+        return mido.Message("control_change", channel=channel, control=int(number), value=value)
+    if kind == "note":
+        return mido.Message("note_on", channel=channel, note=int(number), velocity=value)
+    if kind == "pitchbend":
+        return mido.Message("pitchwheel", channel=channel, pitch=value - 8192)
+    raise ValueError(event.control)
+
+
+def export_smf(events: list[ControlEvent], path: str | Path) -> int:
+    """Write the MIDI events of a log; returns how many events were written."""
+    tracks: dict[str, list[ControlEvent]] = {}
+    for event in events:
+        if not event.source.startswith("midi:"):
+            raise UserError(f"{event.source}: only MIDI events go into a MIDI file (this log also holds {event.source!r})")
+        tracks.setdefault(event.source, []).append(event)
+    midi = mido.MidiFile(type=1, ticks_per_beat=TICKS_PER_BEAT)
+    tempo = mido.MidiTrack([mido.MetaMessage("set_tempo", tempo=TEMPO, time=0)])
+    midi.tracks.append(tempo)
+    for source, track_events in tracks.items():
+        track = mido.MidiTrack([mido.MetaMessage("track_name", name=source[len("midi:"):], time=0)])
+        now = 0
+        for event in track_events:
+            tick = int(round(event.time * 1000))
+            track.append(_message(event).copy(time=tick - now))
+            now = tick
+        midi.tracks.append(track)
+    midi.save(str(path))
+    return len(events)
+
+
+def import_smf(path: str | Path, fps: float = 30.0) -> list[ControlEvent]:
+    """Events of a MIDI file, each on the frame at or after its time (frames of `fps`)."""
+    from .devices import midi_raw
+
+    try:
+        midi = mido.MidiFile(str(path))
+    except (OSError, EOFError, ValueError, KeyError) as e:
+        raise UserError(f"{path}: not a readable MIDI file ({e})") from None
+    scale = 1.0 / midi.ticks_per_beat  # beats per tick; tempo is read from the file
+    events: list[ControlEvent] = []
+    tempo = 500_000
+    for track in midi.tracks:
+        name = next((m.name for m in track if m.type == "track_name"), "midi")
+        seconds, tick_tempo = 0.0, tempo
+        for message in track:
+            seconds += message.time * scale * tick_tempo / 1e6
+            if message.type == "set_tempo":
+                tick_tempo = tempo = message.tempo
+                continue
+            raw = midi_raw(message) if not message.is_meta else None
+            if raw is not None:
+                frame = round(seconds * fps)
+                events.append(ControlEvent(frame / fps, f"midi:{name}", raw[0], raw[1]))
+    events.sort(key=lambda e: e.time)
+    return events

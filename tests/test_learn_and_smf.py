@@ -1,0 +1,113 @@
+"""MIDI learn over real JACK MIDI, the detection of every message kind, and Standard MIDI Files."""
+
+import subprocess
+import sys
+import time
+
+import mido
+import pytest
+
+from instrument.control.events import ControlEvent, read_log
+from instrument.control.learn import detect
+from instrument.control.mapping import Mapper, load_mapping
+from instrument.control.smf import export_smf, import_smf
+from instrument.control.state import ControlState
+from test_controllers import wait_for_port
+
+STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
+
+
+def cc(number, values, channel=1):
+    return [(f"cc/{channel}/{number}", float(v)) for v in values]
+
+
+@pytest.mark.parametrize("raw,expected", [
+    (cc(7, range(0, 128, 9)), ("cc", 7, "absolute")),
+    ([x for v in range(0, 128, 16) for x in cc(1, [v]) + cc(33, [v])], ("cc14", 1, "absolute")),
+    (cc(99, [2]) + cc(98, [44]) + cc(6, [10]) + cc(38, [5]), ("nrpn", 300, "absolute")),
+    (cc(20, [1, 1, 2, 1, 127, 127, 126, 127]), ("cc", 20, "relative-twos")),
+    (cc(20, [1, 1, 2, 1, 65, 65, 66, 65]), ("cc", 20, "relative-signed")),
+    (cc(20, [65, 65, 66, 65, 1, 1, 2, 1]), ("cc", 20, "relative-signed2")),
+    (cc(20, [65, 65, 66, 65, 63, 63, 62, 63]), ("cc", 20, "relative-offset")),
+    ([("note/1/36", 100.0), ("note/1/36", 0.0)], ("note", 36, "momentary")),
+    ([("pitchbend/2/0", 100.0), ("pitchbend/2/0", 16000.0)], ("pitchbend", 0, "absolute")),
+])
+def test_detection(raw, expected):
+    learned = detect(raw)
+    assert (learned.message, learned.number, learned.mode) == expected
+
+
+def test_learn_over_jack_writes_a_working_mapping(jack, tmp_path):
+    out = tmp_path / "mine.toml"
+    process = subprocess.Popen([sys.executable, "-m", "instrument", "learn", "--midi-virtual", "learn-test", "--midi-api", "jack",
+                                "--out", str(out), "--timeout", "20"],
+                               stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, bufsize=1)
+    port = jack.open_output(wait_for_port(jack, "learn-test"))
+
+    def answer(text):
+        process.stdin.write(text + "\n")
+        process.stdin.flush()
+        for line in process.stdout:
+            if "move the control" in line:
+                return
+
+    def send(messages):
+        for m in messages:
+            port.send(m)
+            time.sleep(0.01)
+        for line in process.stdout:  # wait until it says what it learned
+            if "learned" in line:
+                return line
+
+    process.stdout.readline()  # the list of targets
+    answer("style/elderly")
+    learned = send([mido.Message("control_change", control=7, value=v) for v in range(0, 128, 8)])
+    assert "cc channel 1 number 7 (absolute)" in learned
+    answer("speed")
+    pairs = [m for v in range(0, 128, 16) for m in (mido.Message("control_change", control=2, value=v),
+                                                   mido.Message("control_change", control=34, value=v))]
+    assert "cc14 channel 1 number 2" in send(pairs)
+    answer("turn")
+    encoder = [mido.Message("control_change", channel=3, control=20, value=v) for v in (1, 1, 2, 1, 127, 127, 126, 127)]
+    assert "relative-twos" in send(encoder)
+    process.stdin.write("\n")
+    process.stdin.flush()
+    assert process.wait(30) == 0, process.stderr.read()
+    port.close()
+    state = ControlState(STYLES, 5)
+    mapper = Mapper(load_mapping(out, state))
+    mapper.apply(state, ControlEvent(0, "midi:x", "cc/1/7", 127))  # first value: pick-up only learns the position
+    mapper.apply(state, ControlEvent(1, "midi:x", "cc/1/7", 42))
+    assert state.get("style/elderly") == pytest.approx(42 / 127 * 3 - 1)
+    for _ in range(3):
+        mapper.apply(state, ControlEvent(2, "midi:x", "cc/4/20", 1))
+    assert state.turn == pytest.approx(0.03)
+
+
+def test_midi_logs_round_trip_through_a_standard_midi_file(tmp_path):
+    events = [ControlEvent(k / 30, "midi:nanoKONTROL2", f"cc/1/{k % 8}", float(k % 128)) for k in range(50)]
+    events += [ControlEvent(0.5, "midi:pads", "note/10/36", 100.0), ControlEvent(0.6, "midi:pads", "note/10/36", 0.0),
+               ControlEvent(1.0, "midi:pads", "pitchbend/2/0", 12000.0)]
+    events.sort(key=lambda e: e.time)
+    path = tmp_path / "take.mid"
+    export_smf(events, path)
+    midi = mido.MidiFile(str(path))
+    assert midi.type == 1 and midi.ticks_per_beat == 1000
+    names = [next(m.name for m in t if m.type == "track_name") for t in midi.tracks[1:]]
+    assert names == ["nanoKONTROL2", "pads"]
+    again = import_smf(path, fps=30)
+    key = lambda e: (round(e.time * 30), e.source, e.control, e.value)  # noqa: E731
+    assert sorted(map(key, again)) == sorted(map(key, events))
+
+
+def test_cli_log_export_import(tmp_path):
+    log = tmp_path / "take.jsonl"
+    log.write_text(ControlEvent(1 / 3, "midi:x", "cc/1/7", 64.0).to_json() + "\n")
+    run = lambda *a: subprocess.run([sys.executable, "-m", "instrument", "log", *a], capture_output=True, text=True)  # noqa: E731
+    assert run("export", str(log), "--out", str(tmp_path / "t.mid")).returncode == 0
+    assert run("import", str(tmp_path / "t.mid"), "--out", str(tmp_path / "back.jsonl")).returncode == 0
+    assert read_log(tmp_path / "back.jsonl") == read_log(log)
+    other = tmp_path / "mixed.jsonl"
+    other.write_text(ControlEvent(0, "demo", "speed", 1.0).to_json() + "\n")
+    result = run("export", str(other), "--out", str(tmp_path / "m.mid"))
+    assert result.returncode == 1 and "only MIDI events" in result.stderr
