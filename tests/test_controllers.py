@@ -245,3 +245,31 @@ def test_bad_show_files_are_one_line_errors(tmp_path, text, message):
     result = subprocess.run(RUN + ["--config", str(show)], capture_output=True, text=True, timeout=60)
     assert result.returncode == 1
     assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_midi_feedback_follows_a_preset_recall(jack, tmp_path):
+    import mido
+
+    control_port = free_port()
+    process = subprocess.Popen(RUN + ["--midi-virtual", "instr-fb", "--midi-api", "jack", "--mapping", NANO, "--no-osc",
+                                      "--osc-in", str(control_port), "--seconds", "5", "--quiet"], stderr=subprocess.PIPE, text=True)
+    received = []
+    deadline = time.monotonic() + 20
+    while time.monotonic() < deadline:
+        names = [n for n in jack.get_input_names() if "instr-fb feedback" in n]
+        if names:
+            break
+        time.sleep(0.1)
+    listener = jack.open_input(names[0], callback=received.append)
+    time.sleep(1.0)
+    from pythonosc.udp_client import SimpleUDPClient
+
+    SimpleUDPClient("127.0.0.1", control_port).send_message("/walk/preset/proud", 1.0)  # masculine 1.5, active 0.5, exhausted -1
+    stderr = process.communicate(timeout=60)[1]
+    listener.close()
+    assert process.returncode == 0, stderr
+    values = {m.control: m.value for m in received if m.type == "control_change"}
+    # the morph ends on the preset: each fader is told where its parameter now stands
+    assert values[4] == round((1.5 + 1) / 3 * 127)  # masculine fader
+    assert values[0] == round((0.5 + 1) / 3 * 127)  # active
+    assert values[2] == 0  # exhausted at -1: the bottom

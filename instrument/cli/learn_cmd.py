@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..control.devices import MidiInput, midi_raw
+from ..control.devices import MidiInput
 from ..control.learn import detect
 from ..control.state import ControlState
 from ..errors import UserError
@@ -33,15 +33,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def capture(device: MidiInput, timeout: float) -> list[tuple[str, float]]:
     """Raw events from the first message until the control rests for a moment."""
-    device.pending.clear()
+    device.read_raw()  # forget anything that came before the question
     raw: list[tuple[str, float]] = []
     deadline, last = time.monotonic() + timeout, None
     while time.monotonic() < deadline:
-        while device.pending:
-            event = midi_raw(device.pending.popleft())
-            if event:
-                raw.append(event)
-                last = time.monotonic()
+        fresh = device.read_raw()
+        if fresh:
+            raw += fresh
+            last = time.monotonic()
         if last is not None and time.monotonic() - last > QUIET_AFTER:
             break
         time.sleep(0.005)

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from ..control.devices import HidInput, MidiInput, OscInput
 from ..control.events import LogReplay, read_log
+from ..control.feedback import MidiFeedback
 from ..control.hub import ControlHub
 from ..control.mapping import load_mapping, parse_hid_id, style_problems
 from ..control.state import ControlState
@@ -27,7 +28,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
-DEFAULTS = {"fps": "30", "no_osc": False, "loop": False, "fast": False, "quiet": False}
+DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "fast": False, "quiet": False}
 LISTS = ("osc", "mapping")
 
 
@@ -45,6 +46,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--midi", metavar="PATTERN", help="MIDI input: the first port whose name matches (regular expression)")
     p.add_argument("--midi-virtual", metavar="NAME", help="create a virtual MIDI input port NAME that other programs connect to")
     p.add_argument("--midi-api", choices=("alsa", "jack"), help="MIDI system (default: rtmidi's choice, ALSA on Linux)")
+    p.add_argument("--no-feedback", action="store_true", default=None,
+                   help="send nothing back to the MIDI controller (default: LEDs and motor faders follow the state)")
     p.add_argument("--hid", metavar="VVVV:PPPP", help="HID game controller by vendor and product id, e.g. 054c:09cc")
     p.add_argument("--mapping", action="append", metavar="FILE.toml",
                    help="mapping file, repeatable (default: the shipped mapping that matches the device)")
@@ -177,6 +180,8 @@ def run(args: argparse.Namespace) -> int:
         hub = ControlHub(mappings, presets, args.record, morph)
         if args.midi or args.midi_virtual:
             devices.append(MidiInput(console, args.midi, args.midi_virtual, args.midi_api))
+            if hub.midi is not None and not args.no_feedback:
+                outputs.append(MidiFeedback(hub.midi.mapping, state, console, args.midi, args.midi_virtual, args.midi_api))
         if args.hid:
             vendor, product = parse_hid_id(args.hid)
             devices.append(HidInput(console, vendor, product))

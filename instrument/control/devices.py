@@ -10,7 +10,6 @@ from __future__ import annotations
 import re
 import socket
 import time
-from collections import deque
 
 from ..errors import UserError
 from ..runtime.console import Console
@@ -27,31 +26,51 @@ def midi_backend(api: str | None = None):
     return mido.Backend(name, load=True)
 
 
-def midi_raw(message) -> tuple[str, float] | None:
-    """A mido message as a raw control id and value, or None for messages no mapping uses."""
-    channel = getattr(message, "channel", 0) + 1
-    if message.type == "control_change":
-        return f"cc/{channel}/{message.control}", float(message.value)
-    if message.type == "note_on":
-        return f"note/{channel}/{message.note}", float(message.velocity)
-    if message.type == "note_off":
-        return f"note/{channel}/{message.note}", 0.0
-    if message.type == "pitchwheel":
-        return f"pitchbend/{channel}/0", float(message.pitch + 8192)
+def raw_from_bytes(data: list[int]) -> tuple[str, float] | None:
+    """A MIDI message (status and data bytes) as a raw control id and value, or None."""
+    if len(data) < 2:
+        return None
+    kind, channel = data[0] & 0xF0, (data[0] & 0x0F) + 1
+    if kind == 0xB0 and len(data) >= 3:
+        return f"cc/{channel}/{data[1]}", float(data[2])
+    if kind == 0x90 and len(data) >= 3:
+        return f"note/{channel}/{data[1]}", float(data[2])
+    if kind == 0x80 and len(data) >= 3:
+        return f"note/{channel}/{data[1]}", 0.0
+    if kind == 0xE0 and len(data) >= 3:
+        return f"pitchbend/{channel}/0", float(data[1] | (data[2] << 7))
     return None
 
 
+def midi_raw(message) -> tuple[str, float] | None:
+    """A mido message as a raw control id and value (for MIDI files)."""
+    return None if message.is_meta else raw_from_bytes(message.bytes())
+
+
+RTMIDI_APIS = {"jack": "API_UNIX_JACK", "alsa": "API_LINUX_ALSA", None: "API_UNSPECIFIED", "": "API_UNSPECIFIED"}
+QUEUE_LIMIT = 65536  # messages rtmidi holds between two polls: a flood is queued, not lost
+
+
 class MidiInput:
-    """The first input port whose name matches a pattern, or a virtual port others connect to."""
+    """The first input port whose name matches a pattern, or a virtual port others connect to.
+
+    python-rtmidi queues incoming messages in C++; the performance loop drains the queue each
+    frame. No Python callback thread competes with the clock for the interpreter, so a flood of
+    messages costs only their decoding.
+    """
 
     def __init__(self, console: Console, pattern: str | None = None, virtual: str | None = None, api: str | None = None):
+        import rtmidi
+
+        self.rtmidi = rtmidi
         self.console, self.pattern, self.virtual = console, pattern, virtual
+        self.api = getattr(rtmidi, RTMIDI_APIS[api])
         try:
-            self.backend = midi_backend(api)
+            self.port = rtmidi.MidiIn(self.api, name="instrument", queue_size_limit=QUEUE_LIMIT)
         except Exception as error:  # no MIDI system at all (no ALSA, no JACK server)
             raise UserError(f"MIDI is not available ({api or 'default'} API): {error}") from None
-        self.pending: deque = deque()
-        self.port = None
+        self.port.ignore_types(sysex=True, timing=True, active_sense=True)
+        self.open = False
         self.port_name = ""
         self.next_attempt = 0.0
         self.received = 0
@@ -68,49 +87,55 @@ class MidiInput:
         self.next_attempt = now + RETRY_SECONDS
         try:
             if self.virtual:
-                self.port = self.backend.open_input(self.virtual, virtual=True, callback=self._receive)
+                self.port.open_virtual_port(self.virtual)
                 self.port_name = self.virtual
             else:
-                names = [n for n in self.backend.get_input_names() if re.search(self.pattern, n, re.IGNORECASE)]
-                if not names:
+                names = self.port.get_ports()
+                matching = [k for k, n in enumerate(names) if re.search(self.pattern, n, re.IGNORECASE)]
+                if not matching:
                     if first:
                         self.console.warn(f"midi {self.pattern}", f"no MIDI input matches {self.pattern!r} yet; waiting for it")
                     return
-                self.port = self.backend.open_input(names[0], callback=self._receive)
-                self.port_name = names[0]
+                self.port.open_port(matching[0], name="input")
+                self.port_name = names[matching[0]]
                 if not first:
-                    self.console.say(f"MIDI input {names[0]!r} connected")
+                    self.console.say(f"MIDI input {self.port_name!r} connected")
+            self.open = True
         except Exception as error:
-            self.port = None
             self.console.warn(f"midi {self.pattern or self.virtual}", f"cannot open MIDI input: {error}")
 
-    def _receive(self, message) -> None:  # called on rtmidi's thread
-        self.pending.append(message)
+    def read_raw(self) -> list[tuple[str, float]]:
+        """Every message queued since the last read, decoded."""
+        out = []
+        while True:
+            item = self.port.get_message()
+            if item is None:
+                return out
+            raw = raw_from_bytes(item[0])
+            if raw is not None:
+                out.append(raw)
 
     def poll(self, now: float) -> list[ControlEvent]:
-        if self.port is None:
+        if not self.open:
             self._open()
         elif not self.virtual and time.monotonic() >= self.next_attempt:
             self.next_attempt = time.monotonic() + RETRY_SECONDS
-            if self.port_name not in self.backend.get_input_names():
+            if self.port_name not in self.port.get_ports():
                 self.console.warn(f"midi gone {self.port_name}", f"MIDI input {self.port_name!r} unplugged; the walk goes on, waiting for it")
-                self.port.close()
-                self.port = None
-        events = []
-        while self.pending:
-            raw = midi_raw(self.pending.popleft())
-            if raw is not None:
-                events.append(ControlEvent(now, self.source, raw[0], raw[1]))
+                self.port.close_port()
+                self.open = False
+        events = [ControlEvent(now, self.source, control, value) for control, value in self.read_raw()] if self.open else []
         self.received += len(events)
         return events
 
     def describe(self) -> str:
-        return f"{self.source} {'on' if self.port else 'waiting'}"
+        return f"{self.source} {'on' if self.open else 'waiting'}"
 
     def close(self) -> None:
-        if self.port is not None:
-            self.port.close()
-            self.port = None
+        if self.open:
+            self.port.close_port()
+            self.open = False
+        self.port.delete()
 
 
 DS4_IDS = ((0x054C, 0x05C4), (0x054C, 0x09CC))

@@ -27,6 +27,7 @@ from .console import Console
 from .pose import Pose, PoseStream
 
 STATUS_EVERY = 0.5  # seconds of wall time
+LEAD_MARGIN = 0.0005  # seconds added to the expected work of a frame when waking before its deadline
 
 
 class Output(Protocol):
@@ -113,6 +114,7 @@ def perform(
             now = index / fps
             if seconds is not None and now >= seconds:
                 break
+            work_started = time.monotonic()  # from here on, the frame's work: events, engine, outputs
             if replay is not None:
                 if replay.finished and seconds is None:
                     break
@@ -122,7 +124,6 @@ def perform(
             for source in live_sources:
                 for event in source(now):
                     apply(state, event)
-            work_started = time.monotonic()
             state.advance(now)
             controls = state.snapshot()
             pose = poses.next(engine.sample(now, controls))
@@ -142,7 +143,9 @@ def perform(
             if not fast and sent_at - last_status >= STATUS_EVERY:
                 last_status = sent_at
                 console.status(_status(index, fps, clock, state, describe_sources()))
-            clock.advance(lead=min(np.percentile(work_times, 95) + 0.001, 0.5 / fps))
+            # wake early enough for what a frame has recently taken, and at once after a jump
+            expected = max(np.percentile(work_times, 95), work_times[-1])
+            clock.advance(lead=min(1.2 * expected + LEAD_MARGIN, 0.5 / fps))
     except KeyboardInterrupt:
         pass
     finally:

@@ -1,0 +1,85 @@
+"""MIDI feedback: LEDs, knob rings and motor faders follow the control state.
+
+After every frame, each absolute control of the mapping whose target changed (a preset recall,
+a morph, another controller, a reset) is sent its value back in its own message, so the
+surface shows where every parameter is. It is an output of the live loop: a device that is
+gone is reported and the performance goes on.
+"""
+
+from __future__ import annotations
+
+import re
+
+from ..runtime.console import Console
+from .devices import midi_backend
+from .mapping import ControlSpec, Mapping
+from .state import ControlState
+
+
+def raw_values(spec: ControlSpec, value: float) -> list[tuple[str, int, int]]:
+    """The (message type, number, value) a control would send to stand at `value`."""
+    low, high = spec.range
+    unit = min(max((value - low) / (high - low), 0.0), 1.0)
+    if spec.curve == "exp":
+        unit = unit ** 0.5
+    if spec.invert:
+        unit = 1.0 - unit
+    if spec.message == "cc":
+        return [("control_change", spec.number, round(unit * 127))]
+    if spec.message == "cc14":
+        fine = round(unit * 16383)
+        return [("control_change", spec.number, fine >> 7), ("control_change", spec.number + 32, fine & 0x7F)]
+    if spec.message == "pitchbend":
+        return [("pitchwheel", 0, round(unit * 16383) - 8192)]
+    if spec.message == "note":
+        return [("note_on", spec.number, 127 if unit >= 0.5 else 0)]
+    return []
+
+
+class MidiFeedback:
+    def __init__(self, mapping: Mapping, state: ControlState, console: Console, pattern: str | None = None,
+                 virtual: str | None = None, api: str | None = None):
+        import mido
+
+        self.mido, self.state, self.console = mido, state, console
+        self.name = f"midi feedback {virtual or pattern}"
+        self.controls = [c for c in mapping.controls
+                         if c.message in ("cc", "cc14", "pitchbend", "note") and c.mode in ("absolute", "toggle")
+                         and state.knows(c.target)]
+        backend = midi_backend(api)
+        self.port = None
+        if virtual:
+            self.port = backend.open_output(f"{virtual} feedback", virtual=True)
+        else:
+            names = [n for n in backend.get_output_names() if re.search(pattern, n, re.IGNORECASE)]
+            if names:
+                self.port = backend.open_output(names[0])
+            else:
+                console.warn(self.name, f"no MIDI output matches {pattern!r}: no feedback to the controller")
+        self.sent: dict[ControlSpec, float] = {c: state.get(c.target) for c in self.controls}
+
+    def prepare(self, pose, echo) -> list:
+        messages = []
+        for spec in self.controls:
+            value = self.state.get(spec.target)
+            if value != self.sent[spec]:
+                self.sent[spec] = value
+                for kind, number, raw in raw_values(spec, value):
+                    channel = spec.channel - 1
+                    if kind == "control_change":
+                        messages.append(self.mido.Message(kind, channel=channel, control=number, value=raw))
+                    elif kind == "pitchwheel":
+                        messages.append(self.mido.Message(kind, channel=channel, pitch=raw))
+                    else:
+                        messages.append(self.mido.Message(kind, channel=channel, note=number, velocity=raw))
+        return messages
+
+    def send(self, messages: list) -> None:
+        if self.port is not None:
+            for message in messages:
+                self.port.send(message)
+
+    def close(self) -> None:
+        if self.port is not None:
+            self.port.close()
+            self.port = None
