@@ -35,7 +35,7 @@ PICKUP_THRESHOLD = 3.0 / 128.0  # of the target's range (Mixxx)
 FAST_SWEEP = 0.050  # seconds: a value this soon after an accepted one is accepted too (Mixxx)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # identity: each control of a file is its own, and hashing stays cheap
 class ControlSpec:
     message: str  # cc, cc14, nrpn, note, pitchbend, hid
     target: str

@@ -27,9 +27,14 @@ MAX_TURN = 3.0  # rad/s
 WEIGHT_LIMIT = 10.0
 
 
+def _clamp(value: float, low: float, high: float) -> float:
+    return float(min(max(value, low), high))
+
+
 class ControlState:
     def __init__(self, style_names: list[str], states: int):
         self.style_names = list(style_names)
+        self.style_index = {name: k for k, name in enumerate(self.style_names)}
         self.states = states
         self.reset()
 
@@ -56,19 +61,18 @@ class ControlState:
         if not isinstance(value, (int, float)) or not math.isfinite(value):
             return False
         parts = target.split("/")
-        if parts[0] == "style" and len(parts) == 2 and parts[1] in self.style_names:
-            self.weights[self.style_names.index(parts[1])] = float(np.clip(value, -WEIGHT_LIMIT, WEIGHT_LIMIT))
-        elif parts[0] == "part" and len(parts) == 3 and parts[1] in self.style_names and parts[2] in GROUPS:
-            self.part_weights[self.style_names.index(parts[1]), GROUPS.index(parts[2])] = float(
-                np.clip(value, -WEIGHT_LIMIT, WEIGHT_LIMIT))
+        if parts[0] == "style" and len(parts) == 2 and parts[1] in self.style_index:
+            self.weights[self.style_index[parts[1]]] = _clamp(value, -WEIGHT_LIMIT, WEIGHT_LIMIT)
+        elif parts[0] == "part" and len(parts) == 3 and parts[1] in self.style_index and parts[2] in GROUPS:
+            self.part_weights[self.style_index[parts[1]], GROUPS.index(parts[2])] = _clamp(value, -WEIGHT_LIMIT, WEIGHT_LIMIT)
         elif target == "speed":
-            self.speed = float(np.clip(value, MIN_SPEED, MAX_SPEED))
+            self.speed = _clamp(value, MIN_SPEED, MAX_SPEED)
         elif target == "turn":
-            self.turn = float(np.clip(value, -MAX_TURN, MAX_TURN))
+            self.turn = _clamp(value, -MAX_TURN, MAX_TURN)
         elif target == "liveliness":
-            self.liveliness = float(np.clip(value, 0.0, 1.0))
+            self.liveliness = _clamp(value, 0.0, 1.0)
         elif parts[0] == "phase" and len(parts) == 2 and parts[1].isdigit() and 1 <= int(parts[1]) <= self.states:
-            self.state_scale[int(parts[1]) - 1] = float(np.clip(value, MIN_SPEED, MAX_SPEED))
+            self.state_scale[int(parts[1]) - 1] = _clamp(value, MIN_SPEED, MAX_SPEED)
         elif target == "reset":
             if value > 0:  # a button's press, not its release
                 self.reset()
@@ -79,9 +83,9 @@ class ControlState:
     def get(self, target: str) -> float:
         parts = target.split("/")
         if parts[0] == "style":
-            return float(self.weights[self.style_names.index(parts[1])])
+            return float(self.weights[self.style_index[parts[1]]])
         if parts[0] == "part":
-            return float(self.part_weights[self.style_names.index(parts[1]), GROUPS.index(parts[2])])
+            return float(self.part_weights[self.style_index[parts[1]], GROUPS.index(parts[2])])
         if parts[0] == "phase":
             return float(self.state_scale[int(parts[1]) - 1])
         return float(getattr(self, target))
