@@ -121,23 +121,15 @@ def measure(model_path: str | None, repeat: int) -> dict:
         figures["mlpg_frames_per_s"] / figures["nnmnkwii_frames_per_s"] if reference else None
     )
 
-    frames = 300
+    frames, blocks = 100, max(3, min(repeat, 9))  # the median of several blocks: one busy moment is not the figure
     walker = [Walker(dimension)]
     controls = [all_styles]
-    for _ in range(5):
-        step(space, walker, controls)
-    start = time.perf_counter()
-    for _ in range(frames):
-        step(space, walker, controls)
-    figures["stream_us_per_frame"] = 1e6 * (time.perf_counter() - start) / frames
+    figures["stream_us_per_frame"] = 1e6 / frames * median_seconds(
+        lambda: [step(space, walker, controls) for _ in range(frames)], blocks)
     crowd = [Walker(dimension, seed=k) for k in range(BATCH)]
     crowd_controls = [Controls(all_styles.weights * (1 + 0.01 * k)) for k in range(BATCH)]
-    for _ in range(5):
-        step(space, crowd, crowd_controls)
-    start = time.perf_counter()
-    for _ in range(frames // 10):
-        step(space, crowd, crowd_controls)
-    figures["stream_us_per_frame_batch"] = 1e6 * (time.perf_counter() - start) / (frames // 10) / BATCH
+    figures["stream_us_per_frame_batch"] = 1e6 / 10 / BATCH * median_seconds(
+        lambda: [step(space, crowd, crowd_controls) for _ in range(10)], blocks)
     figures["lookahead"] = DEFAULT_LOOKAHEAD
     per_character = figures["stream_us_per_frame_batch"]
     figures["characters_at_30fps"] = int(1e6 / 30 / per_character)
