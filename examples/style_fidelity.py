@@ -18,7 +18,7 @@ import numpy as np
 from instrument.models.build import build_model
 from instrument.models.corpus import DEFAULT_STYLE_PATTERN, make_takes, read_motions, style_from_name
 from instrument.models.evaluation import split_holdout
-from instrument.motion.features import extract, with_deltas
+from instrument.motion.features import extract
 from instrument.motion.steps import segment_steps
 from instrument.synthesis.interpolation import style_space
 from instrument.synthesis.offline import default_controls, synthesize, to_motion

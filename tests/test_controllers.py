@@ -5,7 +5,7 @@ import subprocess
 import sys
 import time
 
-import numpy as np
+import mido
 import pytest
 
 from conftest import REPO
@@ -60,7 +60,7 @@ def test_nanokontrol2_faders_over_jack_with_pickup_and_exact_replay(jack, tmp_pa
             time.sleep(0.05)
 
         def cc(value, number=1):
-            out.send(__import__("mido").Message("control_change", channel=0, control=number, value=value))
+            out.send(mido.Message("control_change", channel=0, control=number, value=value))
 
         cc(120)  # elderly fader, first value: only tells where the fader is
         time.sleep(0.3)
@@ -94,8 +94,6 @@ def test_nanokontrol2_faders_over_jack_with_pickup_and_exact_replay(jack, tmp_pa
 
 
 def test_an_unplugged_midi_device_is_reported_and_reconnected(jack, tmp_path):
-    import mido
-
     device = jack.open_output("FakeKontrol", virtual=True)
     process = subprocess.Popen(RUN + ["--midi", "FakeKontrol", "--midi-api", "jack", "--no-osc", "--seconds", "8", "--quiet",
                                       "--bvh", str(tmp_path / "walk.bvh")], stderr=subprocess.PIPE, text=True)
@@ -248,7 +246,6 @@ def test_bad_show_files_are_one_line_errors(tmp_path, text, message):
 
 
 def test_midi_feedback_follows_a_preset_recall(jack, tmp_path):
-    import mido
 
     control_port = free_port()
     process = subprocess.Popen(RUN + ["--midi-virtual", "instr-fb", "--midi-api", "jack", "--mapping", NANO, "--no-osc",

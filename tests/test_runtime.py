@@ -52,7 +52,7 @@ def test_flat_profile_sends_every_frame_consecutively_with_all_bones(model):
 
 
 def test_vmc_profile_read_by_an_independent_parser(model):
-    vmcp = pytest.importorskip("vmcp", reason="the independent VMC parser vmcp[osc4py3] is not installed")
+    pytest.importorskip("vmcp", reason="the independent VMC parser vmcp[osc4py3] is not installed")
     from vmcp.events import BoneTransformEvent, RelativeTimeEvent, RootTransformEvent
     from vmcp.facades import on_receive
     from vmcp.osc import OSC

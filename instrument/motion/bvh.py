@@ -165,6 +165,7 @@ def _parse_hierarchy(lines: _Lines) -> Skeleton:
         raise lines.error(f"expected ROOT, found {tokens[0]!r}")
     joints: list[dict] = []
     stack: list[int] = []  # open joints; -2 marks an open End Site
+    end_owner = -1  # the joint whose End Site is open
     pending: tuple[str, int] | None = (" ".join(tokens[1:]) or "root", -1)
     while True:
         if pending is not None:

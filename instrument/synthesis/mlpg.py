@@ -72,7 +72,6 @@ def _solve(means, second, as_variance, fixed, count, out, l1, l2):  # pragma: no
             zt, zp, zpp = t - count, max(tp - count, 0), max(tpp - count, 0)
             for d in range(dim):
                 p0 = prec_rows[rt, d]
-                p1_here = prec_rows[rt, dim + d] * w_here
                 p2_here = prec_rows[rt, 2 * dim + d] * w_here
                 p1_prev = prec_rows[rp, dim + d] * w_prev
                 p2_prev = prec_rows[rp, 2 * dim + d] * w_prev
