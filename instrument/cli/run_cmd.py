@@ -128,9 +128,15 @@ def check_presets(presets: dict, state: ControlState, where: str) -> dict[str, d
 def choose_mappings(args: argparse.Namespace, state: ControlState, console: Console) -> list:
     mappings = [load_mapping(m, state) for m in (args.mapping or [])]
     wanted_midi = args.midi or args.midi_virtual
-    if (wanted_midi or (args.replay and not args.mapping)) and not any(m.midi for m in mappings) and wanted_midi:
+    if wanted_midi and not any(m.midi for m in mappings):
         shipped = [load_mapping(p, state) for p in shipped_mappings()]
-        matching = [m for m in shipped if m.midi and m.midi != "." and re.search(m.midi, wanted_midi, re.IGNORECASE)]
+        def fits(m) -> bool:  # the device's pattern matches what the user named, or the other way round
+            try:
+                return bool(re.search(m.midi, wanted_midi, re.IGNORECASE) or re.search(wanted_midi, m.midi, re.IGNORECASE))
+            except re.error:
+                return False
+
+        matching = [m for m in shipped if m.midi and m.midi != "." and fits(m)]
         generic = [m for m in shipped if m.midi == "."]
         chosen = (matching or generic)[:1]
         if chosen:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..models.modelfile import Model
 from ..runtime.console import Console
-from ..runtime.pose import Pose, PoseStream
+from ..runtime.pose import Pose, pose_channels
 from .flat import FlatProfile
 from .humanoid import guess_humanoid, read_humanoid
 from .osc import OscTarget, UdpOut
@@ -31,11 +31,11 @@ class OscOutput:
 class RecorderOutput:
     def __init__(self, path: str, model: Model, fps: float):
         self.name = f"bvh {path}"
-        self.poses = PoseStream(model.layout, fps)
+        self.skeleton = model.layout.skeleton
         self.recorder = BvhRecorder(path, model.layout.skeleton, fps)
 
     def prepare(self, pose: Pose, echo: dict[str, float]):
-        return self.poses.channels(pose)
+        return pose_channels(self.skeleton, pose)
 
     def send(self, channels) -> None:
         self.recorder.write(channels)

@@ -51,6 +51,7 @@ class PoseStream:
         self.index += 1
         return pose
 
-    def channels(self, pose: Pose) -> np.ndarray:
-        """BVH channel values of a pose (for recording)."""
-        return channels_from_local(self.layout.skeleton, pose.rotations[None], pose.translations[None])[0]
+
+def pose_channels(skeleton, pose: Pose) -> np.ndarray:
+    """BVH channel values of a pose (for recording)."""
+    return channels_from_local(skeleton, pose.rotations[None], pose.translations[None])[0]
