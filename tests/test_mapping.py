@@ -110,8 +110,10 @@ def test_pickup_follows_mixxx(tmp_path):
     assert s.get("style/elderly") == 0.0
     send(m, s, "cc/1/0", 110, t=1.0)  # far from the parameter, not crossing it: ignored
     assert s.get("style/elderly") == 0.0
+    assert len(m.awaiting) == 1  # feedback tells the surface where the parameter is
     send(m, s, "cc/1/0", 43, t=2.0)  # near: picked up
     assert s.get("style/elderly") == pytest.approx(43 / 127 * 3 - 1)
+    assert not m.awaiting
     send(m, s, "cc/1/0", 90, t=2.02)  # a fast sweep: within 50 ms of the last accepted value
     assert s.get("style/elderly") == pytest.approx(90 / 127 * 3 - 1)
     s.set("style/elderly", 0.0)  # something else moved the parameter (a preset)

@@ -187,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
         if args.midi or args.midi_virtual:
             devices.append(MidiInput(console, args.midi, args.midi_virtual, args.midi_api))
             if hub.midi is not None and not args.no_feedback:
-                outputs.append(MidiFeedback(hub.midi.mapping, state, console, args.midi, args.midi_virtual, args.midi_api))
+                outputs.append(MidiFeedback(hub.midi, state, console, args.midi, args.midi_virtual, args.midi_api))
         if args.hid:
             vendor, product = parse_hid_id(args.hid)
             devices.append(HidInput(console, vendor, product))

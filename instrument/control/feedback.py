@@ -2,8 +2,9 @@
 
 After every frame, each absolute control of the mapping whose target changed (a preset recall,
 a morph, another controller, a reset) is sent its value back in its own message, so the
-surface shows where every parameter is. It is an output of the live loop: a device that is
-gone is reported and the performance goes on.
+surface shows where every parameter is; a control awaiting pick-up is told its parameter's
+value each time it is moved, so a motor fader goes there and an LED ring shows where to go.
+It is an output of the live loop: a device that is gone is reported and the performance goes on.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import re
 
 from ..runtime.console import Console
 from .devices import midi_backend
-from .mapping import ControlSpec, Mapping
+from .mapping import ControlSpec, Mapper
 from .state import ControlState
 
 
@@ -37,11 +38,12 @@ def raw_values(spec: ControlSpec, value: float) -> list[tuple[str, int, int]]:
 
 
 class MidiFeedback:
-    def __init__(self, mapping: Mapping, state: ControlState, console: Console, pattern: str | None = None,
+    def __init__(self, mapper: Mapper, state: ControlState, console: Console, pattern: str | None = None,
                  virtual: str | None = None, api: str | None = None):
         import mido
 
-        self.mido, self.state, self.console = mido, state, console
+        self.mido, self.mapper, self.state, self.console = mido, mapper, state, console
+        mapping = mapper.mapping
         self.name = f"midi feedback {virtual or pattern}"
         self.controls = [c for c in mapping.controls
                          if c.message in ("cc", "cc14", "pitchbend", "note") and c.mode in ("absolute", "toggle")
@@ -60,9 +62,10 @@ class MidiFeedback:
 
     def prepare(self, pose, echo) -> list:
         messages = []
+        awaiting, self.mapper.awaiting = self.mapper.awaiting, set()
         for spec in self.controls:
             value = self.state.get(spec.target)
-            if value != self.sent[spec]:
+            if value != self.sent[spec] or spec in awaiting:
                 self.sent[spec] = value
                 for kind, number, raw in raw_values(spec, value):
                     channel = spec.channel - 1

@@ -212,6 +212,7 @@ class Mapper:
             else:
                 self.by_key.setdefault(spec.key, []).append(spec)
         self.memory: dict[ControlSpec, _Memory] = {spec: _Memory() for spec in mapping.controls}
+        self.awaiting: set[ControlSpec] = set()  # controls whose hardware is away from their parameter
         self.nrpn: dict[int, list[int]] = {}  # channel -> [parameter MSB, parameter LSB, data MSB]
 
     def apply(self, state: ControlState, event: ControlEvent) -> bool:
@@ -331,7 +332,9 @@ class Mapper:
         recent = time - memory.last_accepted <= FAST_SWEEP
         if near or crossed or recent:
             memory.last_accepted = time
+            self.awaiting.discard(spec)
             return position
+        self.awaiting.add(spec)
         return None
 
 
