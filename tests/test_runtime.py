@@ -263,3 +263,27 @@ def test_target_parsing():
     assert str(parse_target("127.0.0.1:39539")) == "127.0.0.1:39539/vmc"
     assert str(parse_target("127.0.0.1:7000")) == "127.0.0.1:7000/flat"
     assert parse_target("::1:9000/vmc").host == "::1"
+
+
+def test_a_python_osc_server_receives_consecutive_frames():
+    """The same stream through python-osc's own server and dispatcher, as a user's patch would see it."""
+    import threading
+
+    from pythonosc.dispatcher import Dispatcher
+    from pythonosc.osc_server import ThreadingOSCUDPServer
+
+    frames, elderly = [], []
+    dispatcher = Dispatcher()
+    dispatcher.map("/walk/frame", lambda address, index, time_s: frames.append(index))
+    dispatcher.map("/walk/style/elderly", lambda address, value: elderly.append(value))
+    server = ThreadingOSCUDPServer(("127.0.0.1", 0), dispatcher)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        result = subprocess.run(RUN + ["--seconds", "10", "--osc", f"127.0.0.1:{server.server_address[1]}/flat", "--quiet"],
+                                capture_output=True, text=True, timeout=60)
+        time.sleep(0.3)
+    finally:
+        server.shutdown()
+    assert result.returncode == 0, result.stderr
+    assert sorted(frames) == list(range(300))
+    assert max(elderly) == pytest.approx(1.0)  # the demo sweeps elderly up to 1 from 4 s to 8 s
