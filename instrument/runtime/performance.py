@@ -8,6 +8,7 @@ are interpolated from its frames.
 
 from __future__ import annotations
 
+import gc
 import signal
 import time
 from collections import deque
@@ -131,6 +132,10 @@ def perform(
             prepared = [_attempt(console, summary, output, output.prepare, pose, echo) for output in outputs]
             work_times.append(time.monotonic() - work_started)
             if index == 0:
+                # everything loaded so far lives for the whole show: keep the collector off it, so
+                # a full collection during the performance walks only what the performance made
+                gc.collect()
+                gc.freeze()
                 clock.restart()  # the first frame paid for warming up: the schedule starts now
             clock.hold()
             sent_at = time.monotonic()
