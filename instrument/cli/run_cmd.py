@@ -30,6 +30,7 @@ else:  # pragma: no cover
 DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
 DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "fast": False, "quiet": False}
 LISTS = ("osc", "mapping")
+PATHS = ("model", "bvh", "replay", "record", "humanoid", "presets", "mapping")  # relative to the show file
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -93,7 +94,7 @@ def apply_show_file(args: argparse.Namespace) -> dict:
             value = str(value)
         if getattr(args, dest) is None:
             setattr(args, dest, value)
-        if dest in ("model", "bvh", "replay", "record", "humanoid", "presets") or dest == "mapping":
+        if dest in PATHS:
             base = path.parent
             current = getattr(args, dest)
             if current is value:  # came from the file: paths are relative to it

@@ -46,8 +46,8 @@ class Output(Protocol):
 class Engine:
     """The walk at the model's rate, sampled at any output rate by interpolating features."""
 
-    def __init__(self, model: Model, fps: float, lookahead: int = DEFAULT_LOOKAHEAD, seed: int = 0):
-        self.model, self.fps = model, fps
+    def __init__(self, model: Model, lookahead: int = DEFAULT_LOOKAHEAD, seed: int = 0):
+        self.model = model
         self.space = style_space(model)
         self.walker = Walker(model.layout.dimension, lookahead=lookahead, seed=seed)
         self.frames: list[np.ndarray] = []  # the last two model frames, driven
@@ -100,7 +100,7 @@ def perform(
     `timing`, when given, receives each frame's send time minus its deadline (seconds)."""
     state = state or ControlState(model.style_names, model.states)
     apply = apply or (lambda s, e: s.set(e.control, e.value))
-    engine = Engine(model, fps, lookahead)
+    engine = Engine(model, lookahead)
     poses = PoseStream(model.layout, fps)
     clock = FrameClock(fps, realtime=not fast)
     summary = Summary()
