@@ -18,10 +18,10 @@ import numpy as np
 from instrument.models.build import build_model
 from instrument.models.corpus import DEFAULT_STYLE_PATTERN, make_takes, read_motions, style_from_name
 from instrument.models.evaluation import split_holdout
-from instrument.motion.features import extract
+from instrument.motion.features import extract, restore
 from instrument.motion.steps import segment_steps
 from instrument.synthesis.interpolation import style_space
-from instrument.synthesis.offline import default_controls, synthesize, to_motion
+from instrument.synthesis.offline import default_controls, synthesize
 
 
 def step_features(static: np.ndarray, steps) -> np.ndarray:
@@ -86,7 +86,7 @@ def main() -> None:
         for seed in range(args.walks):
             controls = default_controls(model, {style: 1.0}, liveliness=1.0 if seed else 0.0)
             static = synthesize(space, dimension, controls, frames, seed=seed)
-            motion = to_motion(static, model.layout, model.fps)
+            motion = restore(static, model.layout, model.fps)
             again, _, _ = extract(motion, model.layout)  # the walk as the classifier sees real takes
             steps = segment_steps(motion, model.layout).steps
             x = step_features(again, steps)

@@ -78,8 +78,8 @@ def test_write_reads_back_to_written_precision(real_walks, tmp_path):
     assert not list(tmp_path.glob("*.part"))
 
 
-def test_large_file_reads_quickly_enough_to_measure(real_walks):
-    # the speed figure is measured by scripts/bench; here only that a 466-frame take parses whole
+def test_the_longest_shared_walk_reads_whole(real_walks):
+    # its speed is a figure of `instrument bench`, not of a test
     longest = max(real_walks, key=lambda p: p.stat().st_size)
     assert read_bvh(longest).frames == 466
 

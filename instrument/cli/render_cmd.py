@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import UserError
 from ..motion.bvh import read_bvh
 from ..motion.kinematics import world_positions
-from ..output.drawing import draw_figure, drawn_parents, pyplot, side_projection
+from ..output.drawing import draw_framed, drawn_parents, pyplot, side_projection
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -33,6 +33,7 @@ def run(args: argparse.Namespace) -> int:
     path = positions[-1].mean(axis=0) - positions[0].mean(axis=0)
     points = side_projection(positions, path if np.linalg.norm(path[[0, 2]]) > 1e-6 else np.array([0.0, 0.0, 1.0]))
     height = np.ptp(points[..., 1]) or 1.0
+    low, high = points[..., 1].min() - 0.05 * height, points[..., 1].max() + 0.05 * height
     if out.suffix.lower() == ".png":
         every = args.every or max(1, motion.frames // 12)
         frames = list(range(0, motion.frames, every))
@@ -42,11 +43,7 @@ def run(args: argparse.Namespace) -> int:
         for ax in axes.ravel():
             ax.axis("off")
         for ax, f in zip(axes.ravel(), frames):
-            centre = points[f].mean(axis=0)
-            draw_figure(ax, points[f], parents)
-            ax.set_xlim(centre[0] - 0.5 * height, centre[0] + 0.5 * height)
-            ax.set_ylim(points[..., 1].min() - 0.05 * height, points[..., 1].max() + 0.05 * height)
-            ax.set_aspect("equal")
+            draw_framed(ax, points[f], parents, low, high, 0.5 * height)
             ax.set_title(f"{f / motion.fps:.2f} s", fontsize=8)
         fig.tight_layout()
         fig.savefig(out, dpi=80)
@@ -59,12 +56,7 @@ def run(args: argparse.Namespace) -> int:
 
         def draw(f):
             ax.clear()
-            ax.axis("off")
-            centre = points[f].mean(axis=0)
-            draw_figure(ax, points[f], parents)
-            ax.set_xlim(centre[0] - 0.6 * height, centre[0] + 0.6 * height)
-            ax.set_ylim(points[..., 1].min() - 0.05 * height, points[..., 1].max() + 0.05 * height)
-            ax.set_aspect("equal")
+            draw_framed(ax, points[f], parents, low, high, 0.6 * height)
 
         FuncAnimation(fig, draw, frames=frames).save(out, writer=PillowWriter(fps=motion.fps / every))
     plt.close("all")

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import re
-import sys
 from pathlib import Path
 
 from ..control.devices import HidInput, MidiInput, OscInput
@@ -20,12 +19,8 @@ from ..output.outputs import OscOutput, RecorderOutput, make_profile
 from ..runtime.console import Console
 from ..runtime.performance import perform
 from ..shipped import default_model_path, demo_log_path, shipped_mappings
-from .synth_cmd import number
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from ..tomlfile import read_toml
+from .arguments import number
 
 DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
 DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "fast": False, "quiet": False}
@@ -67,13 +62,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def apply_show_file(args: argparse.Namespace) -> dict:
     """Fill options not given on the command line from the show file; returns its presets."""
     path = Path(args.config)
-    try:
-        text = path.read_text(encoding="utf-8")
-        data = tomllib.loads(text)
-    except OSError as e:
-        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
-    except tomllib.TOMLDecodeError as e:
-        raise UserError(f"{path}: {e}") from None
+    text, data = read_toml(path)
     presets = data.pop("presets", {})
     options = {a for a in vars(args) if a not in ("config", "run", "command")}
     for key, value in data.items():
@@ -102,16 +91,6 @@ def apply_show_file(args: argparse.Namespace) -> dict:
     if not isinstance(presets, dict):
         raise UserError(f"{path}: presets: expected [presets.NAME] tables")
     return presets
-
-
-def read_presets(path: str) -> dict:
-    try:
-        data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
-    except OSError as e:
-        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
-    except tomllib.TOMLDecodeError as e:
-        raise UserError(f"{path}: {e}") from None
-    return data.get("presets", {})
 
 
 def check_presets(presets: dict, state: ControlState, where: str) -> dict[str, dict[str, float]]:
@@ -174,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
     state = ControlState(model.style_names, model.states)
     presets = check_presets(show_presets, state, args.config or "show file")
     if args.presets:
-        presets.update(check_presets(read_presets(args.presets), state, args.presets))
+        presets.update(check_presets(read_toml(args.presets)[1].get("presets", {}), state, args.presets))
     mappings = choose_mappings(args, state, console)
     live = bool(args.midi or args.midi_virtual or args.hid or args.osc_in)
     replay_path = args.replay or (None if live else demo_log_path())

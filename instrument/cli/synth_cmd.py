@@ -6,11 +6,13 @@ import argparse
 import sys
 
 from ..errors import UserError
+from .arguments import number
 from ..models.modelfile import default_model_path, load_model
 from ..motion.bvh import write_bvh
 from ..synthesis.durations import MAX_SPEED, MIN_SPEED
 from ..synthesis.interpolation import style_space
-from ..synthesis.offline import default_controls, synthesize, to_motion
+from ..motion.features import restore
+from ..synthesis.offline import default_controls, synthesize
 from ..synthesis.stream import DEFAULT_LOOKAHEAD
 
 
@@ -28,16 +30,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--liveliness", default="0", help="0: mean state durations; 1: durations drawn from the model (seeded)")
     p.add_argument("--seed", default="0", help="seed for liveliness draws (default 0)")
     p.set_defaults(run=run)
-
-
-def number(option: str, text: str, kind=float):
-    try:
-        value = kind(text)
-    except ValueError:
-        raise UserError(f"{option}: not a {'whole ' if kind is int else ''}number: {text!r}") from None
-    if kind is float and value != value or value in (float("inf"), float("-inf")):
-        raise UserError(f"{option}: not a finite number: {text!r}")
-    return value
 
 
 def parse_weights(items: list[str], styles: list[str]) -> dict[str, float]:
@@ -69,6 +61,6 @@ def run(args: argparse.Namespace) -> int:
     frames = max(1, int(round(seconds * model.fps)))
     controls = default_controls(model, weights, speed=speed, liveliness=liveliness)
     static = synthesize(style_space(model), model.layout.dimension, controls, frames, args.method, lookahead, seed)
-    write_bvh(args.out, to_motion(static, model.layout, model.fps))
+    write_bvh(args.out, restore(static, model.layout, model.fps))  # from the origin, heading 0
     print(f"wrote {frames} frames ({seconds:g} s) to {args.out}", file=sys.stderr)
     return 0

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import UserError
 from ..models.modelfile import load_model
-from ..output.drawing import draw_figure, drawn_parents, pyplot
+from ..output.drawing import draw_framed, drawn_parents, pyplot
 from ..output.osc import FLAT_PORT
 from ..shipped import default_model_path
 
@@ -78,12 +78,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _draw(ax, positions: np.ndarray, parents: np.ndarray, frame: int) -> None:
     ax.clear()
-    centre = positions.mean(axis=0)
-    points = np.stack([positions[:, 2] - centre[2], positions[:, 1]], axis=1)
-    draw_figure(ax, points, parents)
+    points = np.stack([positions[:, 2], positions[:, 1]], axis=1)  # side view: forward and up
     height = max(np.ptp(points[:, 1]), 1e-6)
-    ax.set_xlim(-0.7 * height, 0.7 * height)
-    ax.set_ylim(points[:, 1].min() - 0.1 * height, points[:, 1].max() + 0.1 * height)
-    ax.set_aspect("equal")
+    draw_framed(ax, points, parents, points[:, 1].min() - 0.1 * height, points[:, 1].max() + 0.1 * height, 0.7 * height)
     ax.set_title(f"frame {frame}")
-    ax.axis("off")

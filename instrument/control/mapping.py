@@ -11,18 +11,13 @@ from __future__ import annotations
 
 import math
 import re
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import UserError
+from ..tomlfile import read_toml
 from .events import ControlEvent
 from .state import ControlState
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 MESSAGES = ("cc", "cc14", "nrpn", "note", "pitchbend", "hid")
 MODES = ("absolute", "toggle", "momentary", "relative-twos", "relative-signed", "relative-signed2", "relative-offset")
@@ -82,14 +77,7 @@ def _line_of(text: str, needle: str, start: int = 0) -> int:
 
 def load_mapping(path: str | Path, state: ControlState | None = None) -> Mapping:
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as e:
-        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise UserError(f"{path}: {e}") from None
+    text, data = read_toml(path)
     starts = [m.start() for m in re.finditer(r"^\s*\[\[control\]\]", text, re.MULTILINE)]
 
     def fail(message: str, key: str, index: int | None = None) -> UserError:

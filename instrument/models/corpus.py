@@ -5,7 +5,6 @@ from __future__ import annotations
 import csv
 import hashlib
 import re
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,11 +14,7 @@ from ..errors import UserError, located
 from ..motion.bvh import Motion, read_bvh
 from ..motion.features import FeatureLayout, choose_layout, extract, resample, with_deltas
 from ..motion.steps import LABELS, segment_steps
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from ..tomlfile import read_toml
 
 DEFAULT_STYLE_PATTERN = r"_([A-Za-z]+)_[^_]*$"  # dataset-2_walk_elderly_003 -> elderly
 
@@ -50,16 +45,9 @@ def style_from_name(path: Path, pattern: str) -> str:
 def read_manifest(path: Path) -> list[tuple[Path, str]]:
     """(file, style) pairs from a CSV (header `file,style`) or TOML ([[take]] file = ..., style = ...)."""
     base = path.parent
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as e:
-        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
     pairs: list[tuple[Path, str]] = []
     if path.suffix.lower() == ".toml":
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as e:
-            raise UserError(f"{path}: {e}") from None
+        _, data = read_toml(path)
         takes = data.get("take")
         if not isinstance(takes, list) or not takes:
             raise UserError(f"{path}: expected [[take]] tables with keys 'file' and 'style'")
@@ -68,6 +56,10 @@ def read_manifest(path: Path) -> list[tuple[Path, str]]:
                 raise UserError(f"{path}: take {k}: needs string keys 'file' and 'style'")
             pairs.append((base / take["file"], take["style"]))
         return pairs
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as e:
+        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
     rows = list(csv.reader(text.splitlines()))
     if not rows or [c.strip().lower() for c in rows[0][:2]] != ["file", "style"]:
         raise located(path, "a CSV manifest starts with the header 'file,style'", 1)

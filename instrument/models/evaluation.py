@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 
 from .corpus import Take, make_takes, read_motions
 from .hsmm import HSMM, log_likelihood
@@ -67,6 +66,3 @@ def format_table(table: dict[str, dict[str, float]]) -> str:
                  f"beats all other styles: {sum(b for _, b in wins.values())}/{len(wins)}")
     return "\n".join(lines)
 
-
-def mean_step_frames(takes: list[Take]) -> float:
-    return float(np.mean([s.frames for t in takes for s in t.steps]))

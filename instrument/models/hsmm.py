@@ -33,11 +33,6 @@ class HSMM:
     duration_means: np.ndarray
     duration_variances: np.ndarray
 
-    def label(self, index: int) -> "HSMM":
-        """The parameters of one label, keeping a leading axis of length 1."""
-        s = slice(index, index + 1)
-        return HSMM(self.means[s], self.variances[s], self.duration_means[s], self.duration_variances[s])
-
 
 @dataclass
 class Statistics:

@@ -37,6 +37,16 @@ def drawn_parents(parents: np.ndarray, positions: np.ndarray) -> np.ndarray:
     return parents
 
 
+def draw_framed(ax, points: np.ndarray, parents: np.ndarray, low: float, high: float, half_width: float) -> None:
+    """A stick figure centred across the axes, heights from `low` to `high`, no axis lines."""
+    ax.axis("off")
+    draw_figure(ax, points, parents)
+    centre = points[:, 0].mean()
+    ax.set_xlim(centre - half_width, centre + half_width)
+    ax.set_ylim(low, high)
+    ax.set_aspect("equal")
+
+
 def draw_figure(ax, points: np.ndarray, parents: np.ndarray, color: str = "black") -> None:
     for j, p in enumerate(parents):
         if p >= 0:

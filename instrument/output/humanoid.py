@@ -12,16 +12,11 @@ maps joint names to bone names:
 from __future__ import annotations
 
 import re
-import sys
 from pathlib import Path
 
 from ..errors import UserError
 from ..motion.bvh import Skeleton
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from ..tomlfile import read_toml
 
 HUMAN_BONES = (
     "Hips", "Spine", "Chest", "UpperChest", "Neck", "Head",
@@ -96,12 +91,7 @@ def guess_humanoid(skeleton: Skeleton) -> dict[str, str]:
 
 def read_humanoid(path: str | Path, skeleton: Skeleton) -> dict[str, str]:
     path = Path(path)
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as e:
-        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
-    except tomllib.TOMLDecodeError as e:
-        raise UserError(f"{path}: {e}") from None
+    _, data = read_toml(path)
     bones = data.get("bones")
     if not isinstance(bones, dict) or not bones:
         raise UserError(f"{path}: expected a [bones] table of \"joint\" = \"HumanBone\"")

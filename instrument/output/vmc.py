@@ -38,13 +38,12 @@ CHAIN_NEXT = {"Hips": ("Spine",), "Spine": ("Chest", "UpperChest", "Neck"), "Che
 UNITY = np.array([-1.0, -1.0, 1.0, 1.0])  # right-handed (x, y, z, w) -> Unity's left-handed, Z flipped
 
 
-def units_to_metres(layout: FeatureLayout) -> float:
+def units_to_metres(hip_height: float) -> float:
     """Guess the data's unit from the hips' height: centimetres, metres or inches."""
-    height = float(_template_world(layout)[1][layout.root][1])
     for scale in (0.01, 1.0, 0.0254):
-        if 0.5 <= height * scale <= 1.5:
+        if 0.5 <= hip_height * scale <= 1.5:
             return scale
-    return 0.95 / height if height > 0 else 1.0
+    return 0.95 / hip_height if hip_height > 0 else 1.0
 
 
 def _template_world(layout: FeatureLayout) -> tuple[np.ndarray, np.ndarray]:
@@ -76,11 +75,11 @@ class VmcProfile:
         names = skeleton.names
         self.joints = [names.index(j) for j in mapping]
         self.bones = [mapping[names[j]] for j in self.joints]
-        self.scale = units_to_metres(layout) if scale is None else scale
         # turn the walk so it heads to -Z here, which is +Z (the avatar's front) after the Z flip
         phi = float(np.arctan2(forward[0], forward[2]))
         self.turn = axis_angle_matrix("y", np.pi - phi)
         world_rot, world_pos = _template_world(layout)
+        self.scale = units_to_metres(float(world_pos[layout.root][1])) if scale is None else scale
         by_bone = {mapping[names[j]]: j for j in self.joints}
         rest = []
         for j, bone in zip(self.joints, self.bones):
@@ -95,7 +94,9 @@ class VmcProfile:
                 turned = _swing(self.turn @ direction, DIRECTIONS[bone]) @ turned
             rest.append(turned)
         self.rest_inverse = np.transpose(np.array(rest), (0, 2, 1))
-        self.parents = [self._mapped_parent(skeleton, j) for j in self.joints]
+        self.parents = np.array([self._mapped_parent(skeleton, j) for j in self.joints])
+        self.has_parent = self.parents >= 0
+        self.parent_rows = np.where(self.has_parent, self.parents, np.arange(len(self.joints)))
 
     @staticmethod
     def _direction_child(skeleton, joint: int, bone: str, by_bone: dict[str, int]) -> int | None:
@@ -117,16 +118,13 @@ class VmcProfile:
     def bone_transforms(self, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
         """Per mapped bone: Unity quaternion (x, y, z, w) and Unity local position (metres)."""
         normalised = self.turn @ pose.world_rotations[self.joints] @ self.rest_inverse  # world deltas from the T-pose
-        local = np.array([normalised[k] if p < 0 else normalised[p].T @ normalised[k] for k, p in enumerate(self.parents)])
-        quats = quaternions(local) * UNITY
-        positions = np.zeros((len(self.joints), 3))
-        for k, p in enumerate(self.parents):
-            world = self.turn @ pose.world_positions[self.joints[k]]
-            if p >= 0:
-                world = world - self.turn @ pose.world_positions[self.joints[p]]
-                world = normalised[p].T @ world
-            positions[k] = world * self.scale * np.array([1.0, 1.0, -1.0])
-        return quats, positions
+        # in the frame of the humanoid parent; a bone without one (the hips) stays in world space
+        parent_frames = np.where(self.has_parent[:, None, None], normalised[self.parent_rows], np.eye(3))
+        local = np.transpose(parent_frames, (0, 2, 1)) @ normalised
+        world = pose.world_positions[self.joints] @ self.turn.T
+        offsets = world - np.where(self.has_parent[:, None], world[self.parent_rows], 0.0)
+        positions = np.einsum("kji,kj->ki", parent_frames, offsets) * self.scale * np.array([1.0, 1.0, -1.0])
+        return quaternions(local) * UNITY, positions
 
     def datagrams(self, pose: Pose, echo: dict[str, float]) -> list[bytes]:
         quats, positions = self.bone_transforms(pose)

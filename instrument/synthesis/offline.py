@@ -1,12 +1,10 @@
-"""Whole walks at once: streaming or full-sequence generation with constant controls, as BVH."""
+"""Whole walks at once: streaming or full-sequence generation with constant controls."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from ..models.modelfile import Model
-from ..motion.bvh import Motion
-from ..motion.features import FeatureLayout, restore
 from .interpolation import StyleSpace
 from .mlpg import mlpg_continued
 from .stream import DEFAULT_LOOKAHEAD, Controls, Walker, state_plan, step
@@ -41,11 +39,6 @@ def synthesize(
     else:
         static = np.vstack([step(space, [walker], [controls]) for _ in range(frames)])
     return drive(static, walker.cadence, controls.turn)
-
-
-def to_motion(static: np.ndarray, layout: FeatureLayout, fps: float) -> Motion:
-    """The walk on the model's skeleton, starting at the origin facing the model's heading 0."""
-    return restore(static, layout, fps)
 
 
 def default_controls(model: Model, weights: dict[str, float] | None = None, **kwargs) -> Controls:
