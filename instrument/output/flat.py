@@ -19,23 +19,21 @@ for the shipped model).
 from __future__ import annotations
 
 from ..runtime.pose import Pose, quaternions
-from .osc import bundles, message
+from .osc import bundles, float_messages, float_prefix, message
 
 
 class FlatProfile:
     def __init__(self, joint_names: list[str], root: int):
         self.names = joint_names
         self.root = root
-        self.quat_addresses = [f"/walk/bone/{n}/quat" for n in joint_names]
-        self.pos_addresses = [f"/walk/bone/{n}/pos" for n in joint_names]
+        self.quat_prefixes = [float_prefix(f"/walk/bone/{n}/quat", 4) for n in joint_names]
+        self.pos_prefixes = [float_prefix(f"/walk/bone/{n}/pos", 3) for n in joint_names]
 
     def datagrams(self, pose: Pose, echo: dict[str, float]) -> list[bytes]:
-        quats = pose.local_quaternions()
-        messages = [message(a, *q) for a, q in zip(self.quat_addresses, quats.tolist())]
-        messages += [message(a, *p) for a, p in zip(self.pos_addresses, pose.world_positions.tolist())]
-        root_quat = quaternions(pose.world_rotations[self.root])
+        messages = float_messages(self.quat_prefixes, pose.local_quaternions())
+        messages += float_messages(self.pos_prefixes, pose.world_positions)
         messages.append(message("/walk/root/pos", *pose.world_positions[self.root].tolist()))
-        messages.append(message("/walk/root/quat", *root_quat.tolist()))
+        messages.append(message("/walk/root/quat", *quaternions(pose.world_rotations[self.root]).tolist()))
         messages.append(message("/walk/root/local", *pose.translations[self.root].tolist()))
         messages += [message(f"/walk/{name}", value) for name, value in echo.items()]
         messages.append(message("/walk/frame", int(pose.index), float(pose.time)))

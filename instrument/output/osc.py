@@ -9,10 +9,10 @@ from __future__ import annotations
 import ipaddress
 import socket
 import time
+import struct
 from dataclasses import dataclass
 
-import struct
-
+import numpy as np
 
 from ..errors import UserError
 from ..runtime.console import Console
@@ -73,6 +73,20 @@ def message(address: str, *args: float | int | str) -> bytes:
         return prefix + struct.pack(">" + tags, *args)
     body = b"".join(_padded(a) if t == "s" else struct.pack(">" + t, a) for t, a in zip(tags, args))
     return prefix + body
+
+
+def float_prefix(address: str, floats: int, *strings: str) -> bytes:
+    """The fixed start of a message whose arguments are `strings` then `floats` float32 values:
+    address, type tags and the strings (for `float_messages`)."""
+    return _padded(address) + _padded("," + "s" * len(strings) + "f" * floats) + b"".join(_padded(t) for t in strings)
+
+
+def float_messages(prefixes: list[bytes], values: np.ndarray) -> list[bytes]:
+    """One message per row of `values` (rows, floats), each after its prefix: all the floats of
+    a frame are converted to big-endian float32 in one numpy call."""
+    data = np.ascontiguousarray(values, dtype=">f4").tobytes()
+    width = 4 * values.shape[-1]
+    return [p + data[i * width : (i + 1) * width] for i, p in enumerate(prefixes)]
 
 
 def bundles(messages: list[bytes], limit: int = MAX_BUNDLE) -> list[bytes]:

@@ -22,7 +22,7 @@ from ..motion.features import FeatureLayout, extract, restore_local
 from ..motion.kinematics import forward_kinematics
 from ..motion.rotations import axis_angle_matrix
 from ..runtime.pose import Pose, quaternions
-from .osc import bundles, message
+from .osc import bundles, float_messages, float_prefix, message
 
 UP, DOWN, FORWARD = np.array([0.0, 1.0, 0.0]), np.array([0.0, -1.0, 0.0]), np.array([0.0, 0.0, -1.0])
 LEFT, RIGHT = np.array([-1.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0])  # in the source frame, facing -Z
@@ -75,6 +75,7 @@ class VmcProfile:
         names = skeleton.names
         self.joints = [names.index(j) for j in mapping]
         self.bones = [mapping[names[j]] for j in self.joints]
+        self.bone_prefixes = [float_prefix("/VMC/Ext/Bone/Pos", 7, bone) for bone in self.bones]
         # turn the walk so it heads to -Z here, which is +Z (the avatar's front) after the Z flip
         phi = float(np.arctan2(forward[0], forward[2]))
         self.turn = axis_angle_matrix("y", np.pi - phi)
@@ -129,7 +130,7 @@ class VmcProfile:
     def datagrams(self, pose: Pose, echo: dict[str, float]) -> list[bytes]:
         quats, positions = self.bone_transforms(pose)
         messages = [message("/VMC/Ext/Root/Pos", "root", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)]
-        messages += [message("/VMC/Ext/Bone/Pos", bone, *p, *q) for bone, p, q in zip(self.bones, positions.tolist(), quats.tolist())]
+        messages += float_messages(self.bone_prefixes, np.hstack([positions, quats]))
         messages += [message("/VMC/Ext/OK", 1), message("/VMC/Ext/T", float(pose.time))]
         return bundles(messages)
 
