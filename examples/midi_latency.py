@@ -1,11 +1,18 @@
 """MIDI-to-OSC latency and a MIDI flood, through real JACK MIDI (needs a running JACK server:
-`jackd --no-realtime -d dummy -r 48000 -p 256 &`).
+`jackd --no-realtime -d dummy -r 48000 -p 64 &`).
 
     python examples/midi_latency.py [--fps 30] [--changes 100] [--flood-seconds 10]
 
 1. Latency: a fader (CC 1, no takeover) jumps to a new value every 150-250 ms; for each jump,
-   the time from sending the MIDI message to the arrival of the first OSC frame whose echo
-   shows the new weight. Reports p50, p99 and max.
+   the time to the arrival of the first OSC frame whose echo shows the new weight, from the
+   message's arrival at the instrument's MIDI input and from its sending. Reports p50, p99 and
+   max of both. The two differ by JACK's transport (up to a period or two of the JACK server).
+
+   Arrival is measured by a second JACK MIDI input listening to the same sender (JACK hands a
+   message to every reader in the same cycle). python-rtmidi stamps each message with the time
+   since the previous one, taken by JACK's clock in that cycle; the stamps are anchored to the
+   monotonic clock by the message that reached the probe's Python callback soonest after its
+   cycle, so arrival times are exact up to that one callback delay (reported).
 2. Flood: 10,000 control changes a second for the given time while the instrument runs;
    reports the late and dropped frames the instrument counted.
 """
@@ -15,6 +22,7 @@ from __future__ import annotations
 import argparse
 import os
 import random
+import select
 import socket
 import subprocess
 import sys
@@ -22,8 +30,8 @@ import tempfile
 import threading
 import time
 
-import mido
 import numpy as np
+import rtmidi
 from pythonosc.osc_bundle import OscBundle
 
 MAPPING = """[device]
@@ -43,7 +51,6 @@ def main() -> None:
     parser.add_argument("--flood-seconds", type=float, default=10.0)
     args = parser.parse_args()
     os.environ["JACK_NO_START_SERVER"] = "1"
-    backend = mido.Backend("mido.backends.rtmidi/UNIX_JACK", load=True)
     mapping = tempfile.NamedTemporaryFile("w", suffix=".toml", delete=False)
     mapping.write(MAPPING)
     mapping.close()
@@ -54,51 +61,75 @@ def main() -> None:
     stop = threading.Event()
 
     def listen() -> None:
-        sock.settimeout(0.1)
+        """Stamp every datagram as it comes and parse only when none is waiting: parsing one
+        bundle with python-osc takes longer than the instrument takes to send the next."""
+        sock.setblocking(False)
         while not stop.is_set():
-            try:
-                data = sock.recv(65536)
-            except socket.timeout:
-                continue
-            now = time.monotonic()
-            for m in OscBundle(data):
-                if m.address == "/walk/style/elderly":
-                    arrivals.append((now, m.params[0]))
+            select.select([sock], [], [], 0.1)
+            received = []
+            while True:
+                try:
+                    received.append((sock.recv(65536), time.monotonic()))
+                except BlockingIOError:
+                    break
+            for data, now in received:
+                for m in OscBundle(data):
+                    if m.address == "/walk/style/elderly":
+                        arrivals.append((now, m.params[0]))
 
     threading.Thread(target=listen, daemon=True).start()
     seconds = args.changes * 0.2 + args.flood_seconds + 8
     run = subprocess.Popen([sys.executable, "-m", "instrument", "run", "--midi-virtual", "latency", "--midi-api", "jack",
                             "--mapping", mapping.name, "--no-feedback", "--osc", f"127.0.0.1:{sock.getsockname()[1]}/flat",
                             "--fps", str(args.fps), "--seconds", str(seconds)], stderr=subprocess.PIPE, text=True)
-    while not [n for n in backend.get_output_names() if "latency" in n]:
+    out = rtmidi.MidiOut(rtmidi.API_UNIX_JACK, name="latency-sender")
+    while not [n for n in out.get_ports() if "latency" in n]:
         time.sleep(0.1)
-    out = backend.open_output([n for n in backend.get_output_names() if "latency" in n][0])
+    out.open_port(next(i for i, n in enumerate(out.get_ports()) if "latency" in n), name="out")
+    probe = rtmidi.MidiIn(rtmidi.API_UNIX_JACK, name="latency-probe", queue_size_limit=1 << 20)
+    probe.open_port(next(i for i, n in enumerate(probe.get_ports()) if "latency-sender" in n))
+    probed: list[tuple[float, float, int]] = []  # (callback time, JACK time since the previous message, value)
+    probe.set_callback(lambda message, _: probed.append((time.monotonic(), message[1], message[0][2])))
     time.sleep(2.0)
-    latencies = []
+    changes = []  # (sent, value, first OSC arrival showing the value)
     value = 0
     for _ in range(args.changes):
         value = (value + random.randint(5, 60)) % 128
         sent = time.monotonic()
-        out.send(mido.Message("control_change", control=1, value=value))
+        out.send_message([0xB0, 1, value])
         time.sleep(random.uniform(0.15, 0.25))
         seen = [t for t, v in list(arrivals) if t >= sent and abs(v - value / 100.0) < 1e-4]
-        if seen:
-            latencies.append(seen[0] - sent)
+        changes.append((sent, value, seen[0] if seen else np.nan))
+    probe.close_port()  # the flood goes unprobed: 10,000 Python callbacks a second would load the CPU
     flood_start = time.monotonic()
     count = 0
     while time.monotonic() - flood_start < args.flood_seconds:
         for _ in range(10):
-            out.send(mido.Message("control_change", control=1, value=count % 128))
+            out.send_message([0xB0, 1, count % 128])
             count += 1
         time.sleep(max(0.0, flood_start + count / 10_000 - time.monotonic()))
-    out.close()
+    out.close_port()
     stderr = run.communicate()[1]
     stop.set()
-    lat = np.array(latencies) * 1000
+    callback_times, gaps, values = np.array(probed).T
+    since_first = np.cumsum(gaps)
+    delays = callback_times - since_first
+    probe_arrivals = delays.min() + since_first  # each message's arrival at a JACK input, monotonic clock
+    sent, value, shown = np.array(changes).T
+    arrived = np.full(len(sent), np.nan)
+    for k in range(len(sent)):  # the probe's first message of that value after it was sent
+        match = np.flatnonzero((values == value[k]) & (callback_times >= sent[k]) & (callback_times < sent[k] + 0.15))
+        if len(match):
+            arrived[k] = probe_arrivals[match[0]]
     period = 1000 / args.fps
-    print(f"latency over {len(lat)} changes at {args.fps:g} fps (frame period {period:.1f} ms): "
-          f"p50 {np.percentile(lat, 50):.1f} ms, p99 {np.percentile(lat, 99):.1f} ms, max {lat.max():.1f} ms "
-          f"(target: at most {period + 2:.1f} ms)")
+    print(f"at {args.fps:g} fps (frame period {period:.1f} ms), {np.isfinite(shown).sum()} of {len(shown)} changes seen "
+          f"({np.isfinite(arrived).sum()} probed); target: at most {period + 2:.1f} ms")
+    for name, start in (("from arrival", arrived), ("from sending", sent)):
+        lat = (shown - start)[np.isfinite(shown - start)] * 1000
+        print(f"  latency {name}: p50 {np.percentile(lat, 50):.1f} ms, p99 {np.percentile(lat, 99):.1f} ms, max {lat.max():.1f} ms")
+    transit = (arrived - sent)[np.isfinite(arrived)] * 1000
+    print(f"  JACK transport (sending to arrival): p50 {np.median(transit):.2f} ms, max {transit.max():.2f} ms; "
+          f"probe callbacks came a median {(np.median(delays) - delays.min()) * 1000:.3f} ms later than the soonest one")
     print(f"flood: {count} messages in {args.flood_seconds:g} s ({count / args.flood_seconds:.0f}/s)")
     lines = stderr.strip().splitlines()
     print("instrument:", next((l for l in reversed(lines) if l.startswith("stopped")), "\n".join(lines[-5:])))

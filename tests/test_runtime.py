@@ -1,6 +1,7 @@
 """The live instrument end to end: real UDP on 127.0.0.1, real processes, real files."""
 
 import filecmp
+import os
 import signal
 import subprocess
 import sys
@@ -15,7 +16,7 @@ from instrument.models.modelfile import default_model_path, load_model
 from instrument.motion.bvh import read_bvh
 from instrument.output.osc import MAX_BUNDLE, parse_target
 from instrument.output.recorder import BvhRecorder
-from instrument.runtime.clock import FrameClock
+from instrument.runtime.clock import IDLE_EVERY, SPIN, FrameClock
 from instrument.runtime.console import Console
 from instrument.runtime.performance import perform
 from oscrecv import Receiver, free_port
@@ -227,6 +228,81 @@ def test_the_clock_keeps_absolute_deadlines_and_catches_up_without_a_burst():
     # back on the grid at once, one period apart: no burst of back-to-back frames
     assert np.diff(after) == pytest.approx([0.02, 0.02], abs=2e-4)
     assert (after[0] - sends[0]) % 0.02 == pytest.approx(0.0, abs=2e-4) or (after[0] - sends[0]) % 0.02 == pytest.approx(0.02, abs=2e-4)
+
+
+def test_the_clock_does_idle_work_while_waiting_and_still_wakes_on_time():
+    now = [0.0]
+    sleeps, idle_at = [], []
+
+    def sleep(s):
+        sleeps.append(s)
+        now[0] += s
+
+    def tick():
+        now[0] += 1e-6
+        return now[0]
+
+    clock = FrameClock(30.0, now=tick, sleep=sleep)
+    clock.restart()
+    clock.advance(lead=0.002, idle=lambda: idle_at.append(now[0]))
+    woke = now[0]
+    assert woke == pytest.approx(1 / 30 - 0.002, abs=1e-4)  # idling does not move the wake-up
+    assert max(sleeps) <= IDLE_EVERY + 1e-12
+    gaps = np.diff([0.0] + idle_at)
+    assert len(idle_at) >= (1 / 30 - 0.002 - SPIN) / IDLE_EVERY - 1 and gaps.max() <= IDLE_EVERY + 1e-4
+    assert woke - idle_at[-1] <= SPIN + 1e-4  # the last look is just before waking
+
+
+class Echoes:
+    name = "echoes"
+
+    def __init__(self):
+        self.frames = []
+
+    def prepare(self, pose, echo):
+        return pose.index, echo["style/elderly"]
+
+    def send(self, frame):
+        self.frames.append(frame)
+
+    def close(self):
+        pass
+
+
+def test_live_events_taken_while_waiting_count_for_the_coming_frame(model):
+    """A live source is read many times between frames; every event is stamped with the time of
+    the frame it comes before, and that frame already shows it (as a replay of the log would)."""
+    fps = 30.0
+    calls, events = [], []
+
+    def source(now):
+        calls.append(now)
+        event = ControlEvent(now, "direct", "style/elderly", len(calls) / 1000.0)
+        events.append(event)
+        return [event]
+
+    echoes = Echoes()
+    perform(model, [echoes], Console(quiet=True), fps=fps, seconds=0.5, live_sources=[source])
+    assert [i for i, _ in echoes.frames] == list(range(15))
+    assert all(abs(t * fps - round(t * fps)) < 1e-9 for t in calls)  # always a frame's time
+    assert len(calls) > 3 * len(echoes.frames)  # looked at while waiting, not once a frame
+    for index, shown in echoes.frames:
+        latest = [e.value for e in events if e.time <= index / fps + 1e-9][-1]
+        assert shown == latest
+
+
+def test_realtime_scheduling_is_taken_or_refused_with_a_reason():
+    probe = ("import os; from instrument.runtime.priority import realtime_scheduling\n"
+             "{drop}refused = realtime_scheduling()\n"
+             "print(repr(refused), os.sched_getscheduler(0) == os.SCHED_FIFO)")
+    result = subprocess.run([sys.executable, "-c", probe.format(drop="")], capture_output=True, text=True, timeout=60)
+    refused, fifo = result.stdout.split(" ")
+    assert (refused == "None") == (fifo.strip() == "True")  # says what really happened
+    if os.geteuid() == 0:  # an unprivileged user with no rtprio limit is refused, with a reason
+        drop = "import resource; resource.setrlimit(resource.RLIMIT_RTPRIO, (0, 0)); os.setgid(65534); os.setuid(65534)\n"
+        result = subprocess.run([sys.executable, "-c", probe.format(drop=drop)], capture_output=True, text=True, timeout=60)
+        assert result.returncode == 0, result.stderr
+        assert "not permitted" in result.stdout and result.stdout.strip().endswith("False")
 
 
 def test_log_replay_and_its_errors(tmp_path):

@@ -18,12 +18,14 @@ from ..output.osc import FLAT_PORT, VMC_PORT, parse_target
 from ..output.outputs import OscOutput, RecorderOutput, make_profile
 from ..runtime.console import Console
 from ..runtime.performance import perform
+from ..runtime.priority import realtime_scheduling
 from ..shipped import default_model_path, demo_log_path, shipped_mappings
 from ..tomlfile import read_toml
 from .arguments import number
 
 DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
-DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "fast": False, "quiet": False}
+DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "fast": False, "quiet": False,
+            "normal_priority": False}
 LISTS = ("osc", "mapping")
 PATHS = ("model", "bvh", "replay", "record", "humanoid", "presets", "mapping")  # relative to the show file
 
@@ -55,6 +57,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--loop", action="store_true", default=None, help="play the --replay log over and over")
     p.add_argument("--humanoid", metavar="BONES.toml", help="joint-to-humanoid-bone map for the VMC profile")
     p.add_argument("--fast", action="store_true", default=None, help="no realtime pacing: as fast as the CPU allows (offline rendering)")
+    p.add_argument("--normal-priority", action="store_true", default=None,
+                   help="do not ask for realtime scheduling (default: asked for, so frames stay on time on a busy machine)")
     p.add_argument("--quiet", action="store_true", default=None, help="no status line")
     p.set_defaults(run=run)
 
@@ -185,6 +189,10 @@ def run(args: argparse.Namespace) -> int:
         sources = [d.describe() for d in devices] + ([f"log {replay_path}"] if replay_path else [])
         console.say(f"model {args.model or default_model_path()}; {fps:g} fps; controls: {', '.join(sources) or 'none'}; "
                     f"OSC to {', '.join(map(str, targets)) or 'nowhere'}" + (f"; recording {args.bvh}" if args.bvh else ""))
+    if not args.fast and not args.normal_priority:
+        refused = realtime_scheduling()
+        if refused and not args.quiet:
+            console.say(f"realtime scheduling {refused}: running at normal priority (frames may be late on a busy machine)")
     try:
         summary = perform(model, outputs, console, fps, seconds, replay, live_sources=[d.poll for d in devices], fast=args.fast,
                           apply=hub.apply, describe_sources=lambda: ", ".join(d.describe() for d in devices) or "replay",

@@ -188,17 +188,18 @@ def restore_local(
     path = origin + np.concatenate([np.zeros((1, 3)), np.cumsum(world_step, axis=0)])
     root_pos = path[:-1].copy()
     root_pos[:, 1] = features[:, 0]
-    tilt = np.zeros((frames, 3))
-    tilt[:, 0], tilt[:, 2] = features[:, 4], features[:, 5]
-    root_rot = heading[:-1] @ expmap_to_matrix(tilt)
+    expmaps = np.zeros((frames, 1 + len(layout.joints), 3))  # the root's tilt, then every joint's
+    expmaps[:, 0, 0], expmaps[:, 0, 2] = features[:, 4], features[:, 5]
+    expmaps[:, 1:] = features[:, len(ROOT_FEATURES) :].reshape(frames, len(layout.joints), 3)
+    matrices = expmap_to_matrix(expmaps)
+    root_rot = heading[:-1] @ matrices[:, 0]
 
     template_rot, template_trans, parent_rot, parent_pos = layout.template_pose
     rotations = np.broadcast_to(template_rot, (frames,) + template_rot.shape).copy()
     translations = np.broadcast_to(template_trans, (frames,) + template_trans.shape).copy()
     rotations[:, layout.root] = parent_rot.T @ root_rot
     translations[:, layout.root] = (root_pos - parent_pos) @ parent_rot
-    joint_maps = features[:, len(ROOT_FEATURES) :].reshape(frames, len(layout.joints), 3)
-    rotations[:, list(layout.joints)] = layout.reference @ expmap_to_matrix(joint_maps)
+    rotations[:, list(layout.joints)] = layout.reference @ matrices[:, 1:]
     return rotations, translations, (path[-1], float(yaw[-1]))
 
 

@@ -70,13 +70,13 @@ def axis_angle_matrix(axis: str, angle: np.ndarray) -> np.ndarray:
     """Rotation matrices about one coordinate axis ('x', 'y' or 'z') by angles in radians."""
     angle = np.asarray(angle, dtype=np.float64)
     c, s = np.cos(angle), np.sin(angle)
-    one, zero = np.ones_like(angle), np.zeros_like(angle)
-    rows = {
-        "x": [[one, zero, zero], [zero, c, -s], [zero, s, c]],
-        "y": [[c, zero, s], [zero, one, zero], [-s, zero, c]],
-        "z": [[c, -s, zero], [s, c, zero], [zero, zero, one]],
-    }[axis.lower()]
-    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+    i = "xyz".index(axis.lower())
+    j, k = (i + 1) % 3, (i + 2) % 3  # the plane the rotation turns, in right-handed order
+    out = np.zeros(angle.shape + (3, 3))
+    out[..., i, i] = 1.0
+    out[..., j, j] = out[..., k, k] = c
+    out[..., j, k], out[..., k, j] = -s, s
+    return out
 
 
 def continuous_quaternions(quat: np.ndarray) -> np.ndarray:

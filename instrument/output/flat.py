@@ -18,6 +18,8 @@ for the shipped model).
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..runtime.pose import Pose, quaternions
 from .osc import bundles, float_messages, float_prefix, message
 
@@ -30,10 +32,11 @@ class FlatProfile:
         self.pos_prefixes = [float_prefix(f"/walk/bone/{n}/pos", 3) for n in joint_names]
 
     def datagrams(self, pose: Pose, echo: dict[str, float]) -> list[bytes]:
-        messages = float_messages(self.quat_prefixes, pose.local_quaternions())
+        quats = quaternions(np.concatenate([pose.rotations, pose.world_rotations[self.root][None]]))  # local, then the root's world
+        messages = float_messages(self.quat_prefixes, quats[:-1])
         messages += float_messages(self.pos_prefixes, pose.world_positions)
         messages.append(message("/walk/root/pos", *pose.world_positions[self.root].tolist()))
-        messages.append(message("/walk/root/quat", *quaternions(pose.world_rotations[self.root]).tolist()))
+        messages.append(message("/walk/root/quat", *quats[-1].tolist()))
         messages.append(message("/walk/root/local", *pose.translations[self.root].tolist()))
         messages += [message(f"/walk/{name}", value) for name, value in echo.items()]
         messages.append(message("/walk/frame", int(pose.index), float(pose.time)))

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import time
+from typing import Callable
 
 SPIN = 0.0005  # the last half millisecond before a deadline is spun, not slept (sleep overshoots)
+IDLE_EVERY = 0.002  # seconds between two calls of the idle work while waiting for a frame
 LATE = 0.0001  # a frame sent more than this after its deadline counts as late
 
 
@@ -34,8 +36,9 @@ class FrameClock:
     def deadline(self, frame: int | None = None) -> float:
         return self.start + (self.frame if frame is None else frame) * self.period
 
-    def advance(self, lead: float = 0.0) -> None:
-        """Move to the next frame and sleep until `lead` seconds before its deadline."""
+    def advance(self, lead: float = 0.0, idle: Callable[[], None] | None = None) -> None:
+        """Move to the next frame and sleep until `lead` seconds before its deadline, calling
+        `idle` about every IDLE_EVERY seconds meanwhile (and once more at the end of the wait)."""
         self.frame += 1
         if not self.realtime:
             return
@@ -45,7 +48,7 @@ class FrameClock:
             missed = int((now - due) / self.period) + 1  # so the next deadline is ahead again
             self.dropped += missed
             self.start += missed * self.period
-        self._until(self.deadline() - lead)
+        self._until(self.deadline() - lead, idle)
 
     def hold(self) -> float:
         """Wait for the current frame's deadline; returns how late it is (0 if on time)."""
@@ -59,11 +62,13 @@ class FrameClock:
         self._until(due)
         return 0.0
 
-    def _until(self, moment: float) -> None:
+    def _until(self, moment: float, idle: Callable[[], None] | None = None) -> None:
         while True:
             remaining = moment - self.now()
             if remaining <= 0:
                 return
             if remaining > SPIN:
-                self.sleep(remaining - SPIN)
+                self.sleep(min(remaining - SPIN, IDLE_EVERY) if idle else remaining - SPIN)
+                if idle:
+                    idle()
             # else: spin

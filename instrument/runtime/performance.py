@@ -28,7 +28,7 @@ from .console import Console
 from .pose import Pose, PoseStream
 
 STATUS_EVERY = 0.5  # seconds of wall time
-LEAD_MARGIN = 0.0005  # seconds added to the expected work of a frame when waking before its deadline
+LEAD_MARGIN = 0.0003  # seconds added to the expected work of a frame when waking before its deadline
 
 
 class Output(Protocol):
@@ -109,6 +109,12 @@ def perform(
     last_status = 0.0
     started = time.monotonic()
     work_times: deque[float] = deque(maxlen=120)  # how long making a frame took, recently
+
+    def take_live(now: float) -> None:
+        for source in live_sources:
+            for event in source(now):
+                apply(state, event)
+
     try:
         while not stop["now"]:
             index = clock.frame
@@ -122,9 +128,7 @@ def perform(
                 for event in replay.due(now):
                     if not apply(state, event):
                         console.warn(f"unknown {event.control}", f"ignored an event for unknown control {event.control!r}")
-            for source in live_sources:
-                for event in source(now):
-                    apply(state, event)
+            take_live(now)  # what came since the last look, while the loop waited
             state.advance(now)
             controls = state.snapshot()
             pose = poses.next(engine.sample(now, controls))
@@ -148,9 +152,13 @@ def perform(
             if not fast and sent_at - last_status >= STATUS_EVERY:
                 last_status = sent_at
                 console.status(_status(index, fps, clock, state, describe_sources()))
-            # wake early enough for what a frame has recently taken, and at once after a jump
+            # wake early enough for what a frame has recently taken, and at once after a jump;
+            # meanwhile take live events as they come (stamped with the coming frame's time, as
+            # if taken at its start), so a flood of them is handled while waiting, not at the frame
             expected = max(np.percentile(work_times, 95), work_times[-1])
-            clock.advance(lead=min(1.2 * expected + LEAD_MARGIN, 0.5 / fps))
+            upcoming = (index + 1) / fps
+            clock.advance(lead=min(expected + LEAD_MARGIN, 0.5 / fps),
+                          idle=(lambda: take_live(upcoming)) if live_sources else None)
     except KeyboardInterrupt:
         pass
     finally:

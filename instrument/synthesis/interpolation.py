@@ -28,19 +28,18 @@ MAX_LOG_VARIANCE_CHANGE = float(np.log(1e4))  # extreme weights may scale a vari
 
 @dataclass(frozen=True)
 class StyleSpace:
-    """lambda 0 and the style offsets, flattened over (label, state) for fast gathering."""
+    """lambda 0 and the style offsets, flattened over (label, state) for fast gathering.
+
+    Means and log variances are stacked (axis "kind": 0 means, 1 log variances), so one
+    matrix product moves both when the weights change."""
 
     style_names: tuple[str, ...]
     labels: int
     states: int
-    mean0: np.ndarray  # (labels * states, 3D)
-    log_var0: np.ndarray
-    mean_offsets: np.ndarray  # (styles, labels * states, 3D)
-    log_var_offsets: np.ndarray
-    duration_mean0: np.ndarray  # (labels * states,)
-    duration_log_var0: np.ndarray
-    duration_mean_offsets: np.ndarray  # (styles, labels * states)
-    duration_log_var_offsets: np.ndarray
+    base: np.ndarray  # (2, labels * states, 3D) lambda 0's means and log variances
+    offsets: np.ndarray  # (styles, 2, labels * states, 3D) each style's, minus lambda 0's
+    duration_base: np.ndarray  # (2, labels * states) the same for the state durations
+    duration_offsets: np.ndarray  # (styles, 2, labels * states)
     group_masks: np.ndarray  # (groups, 3D) which observation dimensions belong to each group
     max_step: np.ndarray  # (D,) largest frame-to-frame change of each static feature in the data
 
@@ -89,23 +88,19 @@ def body_groups(layout: FeatureLayout) -> np.ndarray:
 def style_space(model: Model) -> StyleSpace:
     labels, states = len(model.labels), model.states
     flat = lambda a: a.reshape(a.shape[:-3] + (labels * states, a.shape[-1]))  # noqa: E731
-    mean0, log_var0 = flat(model.average.means), np.log(flat(model.average.variances))
-    dmean0 = model.average.duration_means.reshape(-1)
-    dlog0 = np.log(model.average.duration_variances.reshape(-1))
+    base = np.stack([flat(model.average.means), np.log(flat(model.average.variances))])
+    duration_base = np.stack([model.average.duration_means.reshape(-1), np.log(model.average.duration_variances.reshape(-1))])
     styles = len(model.style_names)
     masks = np.tile(body_groups(model.layout), (1, 3))
     return StyleSpace(
         style_names=tuple(model.style_names),
         labels=labels,
         states=states,
-        mean0=mean0,
-        log_var0=log_var0,
-        mean_offsets=flat(model.styles.means) - mean0,
-        log_var_offsets=np.log(flat(model.styles.variances)) - log_var0,
-        duration_mean0=dmean0,
-        duration_log_var0=dlog0,
-        duration_mean_offsets=model.styles.duration_means.reshape(styles, -1) - dmean0,
-        duration_log_var_offsets=np.log(model.styles.duration_variances.reshape(styles, -1)) - dlog0,
+        base=base,
+        offsets=np.stack([flat(model.styles.means), np.log(flat(model.styles.variances))], axis=1) - base,
+        duration_base=duration_base,
+        duration_offsets=np.stack([model.styles.duration_means.reshape(styles, -1),
+                                   np.log(model.styles.duration_variances.reshape(styles, -1))], axis=1) - duration_base,
         group_masks=masks,
         max_step=model.static_step_max,
     )
@@ -118,17 +113,21 @@ def interpolate(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray
     to the overall weight.
     """
     weights = np.asarray(weights, dtype=np.float64)
+    styles = len(weights)
     if part_weights is None:
-        means = space.mean0 + np.tensordot(weights, space.mean_offsets, axes=1)
-        log_var = space.log_var0 + np.tensordot(weights, space.log_var_offsets, axes=1)
+        change = (weights @ space.offsets.reshape(styles, -1)).reshape(space.base.shape)
     else:
         per_group = np.where(np.isnan(part_weights), weights[:, None], part_weights)
         per_dim = per_group @ space.group_masks  # (styles, 3D): each dimension is in one group
-        means = space.mean0 + np.einsum("sf,skf->kf", per_dim, space.mean_offsets)
-        log_var = space.log_var0 + np.einsum("sf,skf->kf", per_dim, space.log_var_offsets)
-    log_var = space.log_var0 + np.clip(log_var - space.log_var0, -MAX_LOG_VARIANCE_CHANGE, MAX_LOG_VARIANCE_CHANGE)
-    duration_means = space.duration_mean0 + weights @ space.duration_mean_offsets
-    duration_log_change = np.clip(weights @ space.duration_log_var_offsets, -MAX_LOG_VARIANCE_CHANGE, MAX_LOG_VARIANCE_CHANGE)
-    duration_vars = np.exp(space.duration_log_var0 + duration_log_change)
+        change = np.einsum("sf,sxkf->xkf", per_dim, space.offsets)
+    means = space.base[0] + change[0]
+    precisions = np.exp(-(space.base[1] + _limited(change[1])))
+    duration_change = (weights @ space.duration_offsets.reshape(styles, -1)).reshape(space.duration_base.shape)
+    duration_means = space.duration_base[0] + duration_change[0]
+    duration_vars = np.exp(space.duration_base[1] + _limited(duration_change[1]))
     shape = (space.labels, space.states)
-    return Lambda(means, np.exp(-log_var), duration_means.reshape(shape), duration_vars.reshape(shape))
+    return Lambda(means, precisions, duration_means.reshape(shape), duration_vars.reshape(shape))
+
+
+def _limited(log_change: np.ndarray) -> np.ndarray:
+    return np.minimum(np.maximum(log_change, -MAX_LOG_VARIANCE_CHANGE), MAX_LOG_VARIANCE_CHANGE)

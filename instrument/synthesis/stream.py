@@ -140,7 +140,7 @@ def step(space: StyleSpace, walkers: list[Walker], controls: list[Controls]) -> 
     have sent the same number of frames (a crowd starts together)."""
     lookahead = walkers[0].lookahead
     fixed = min(walkers[0].sent, 2)
-    width = space.mean0.shape[1]
+    width = space.base.shape[2]
     means = np.empty((len(walkers), fixed + lookahead + 1, width))
     precisions = np.empty_like(means)
     plans = []
