@@ -1,7 +1,7 @@
 """MIDI-to-OSC latency and a MIDI flood, through real JACK MIDI (needs a running JACK server:
 `jackd --no-realtime -d dummy -r 48000 -p 64 &`).
 
-    python examples/midi_latency.py [--fps 30] [--changes 100] [--flood-seconds 10]
+    python examples/midi_latency.py [--fps 30] [--changes 200] [--flood-seconds 10]
 
 1. Latency: a fader (CC 1, no takeover) jumps to a new value every 150-250 ms; for each jump,
    the time to the arrival of the first OSC frame whose echo shows the new weight, from the
@@ -12,9 +12,10 @@
    message to every reader in the same cycle). python-rtmidi stamps each message with the time
    since the previous one, taken by JACK's clock in that cycle; the stamps are anchored to the
    monotonic clock by the message that reached the probe's Python callback soonest after its
-   cycle, so arrival times are exact up to that one callback delay (reported).
-2. Flood: 10,000 control changes a second for the given time while the instrument runs;
-   reports the late and dropped frames the instrument counted.
+   cycle. Arrival times are thus late by that one callback's delay (microseconds), which makes
+   the latency from arrival read that much low; the spread of the other callbacks is reported.
+2. Flood: a fresh instrument gets 10,000 control changes a second for the given time, with
+   two calm seconds before and after; reports the late and dropped frames it counted.
 """
 
 from __future__ import annotations
@@ -47,14 +48,37 @@ range = [0.0, 1.27]
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--fps", type=float, default=30.0)
-    parser.add_argument("--changes", type=int, default=100)
+    parser.add_argument("--changes", type=int, default=200)
     parser.add_argument("--flood-seconds", type=float, default=10.0)
     args = parser.parse_args()
     os.environ["JACK_NO_START_SERVER"] = "1"
     mapping = tempfile.NamedTemporaryFile("w", suffix=".toml", delete=False)
     mapping.write(MAPPING)
     mapping.close()
+    latency(mapping.name, args.fps, args.changes)
+    flood(mapping.name, args.fps, args.flood_seconds)
 
+
+def start(mapping: str, fps: float, seconds: float, osc_port: int) -> tuple[subprocess.Popen, rtmidi.MidiOut]:
+    """The instrument on a virtual JACK MIDI port, and a sender connected to it."""
+    run = subprocess.Popen([sys.executable, "-m", "instrument", "run", "--midi-virtual", "latency", "--midi-api", "jack",
+                            "--mapping", mapping, "--no-feedback", "--osc", f"127.0.0.1:{osc_port}/flat",
+                            "--fps", str(fps), "--seconds", str(seconds)], stderr=subprocess.PIPE, text=True)
+    out = rtmidi.MidiOut(rtmidi.API_UNIX_JACK, name="latency-sender")
+    while not [n for n in out.get_ports() if "latency" in n]:
+        time.sleep(0.1)
+    out.open_port(next(i for i, n in enumerate(out.get_ports()) if "latency" in n), name="out")
+    return run, out
+
+
+def finish(run: subprocess.Popen, out: rtmidi.MidiOut) -> str:
+    """The instrument's closing line (frames, late, dropped)."""
+    out.close_port()
+    lines = run.communicate()[1].strip().splitlines()
+    return next((l for l in reversed(lines) if l.startswith("stopped")), "\n".join(lines[-5:]))
+
+
+def latency(mapping: str, fps: float, count: int) -> None:
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sock.bind(("127.0.0.1", 0))
     arrivals: list[tuple[float, float]] = []  # (arrival time, echoed elderly weight)
@@ -78,14 +102,7 @@ def main() -> None:
                         arrivals.append((now, m.params[0]))
 
     threading.Thread(target=listen, daemon=True).start()
-    seconds = args.changes * 0.2 + args.flood_seconds + 8
-    run = subprocess.Popen([sys.executable, "-m", "instrument", "run", "--midi-virtual", "latency", "--midi-api", "jack",
-                            "--mapping", mapping.name, "--no-feedback", "--osc", f"127.0.0.1:{sock.getsockname()[1]}/flat",
-                            "--fps", str(args.fps), "--seconds", str(seconds)], stderr=subprocess.PIPE, text=True)
-    out = rtmidi.MidiOut(rtmidi.API_UNIX_JACK, name="latency-sender")
-    while not [n for n in out.get_ports() if "latency" in n]:
-        time.sleep(0.1)
-    out.open_port(next(i for i, n in enumerate(out.get_ports()) if "latency" in n), name="out")
+    run, out = start(mapping, fps, count * 0.2 + 6, sock.getsockname()[1])
     probe = rtmidi.MidiIn(rtmidi.API_UNIX_JACK, name="latency-probe", queue_size_limit=1 << 20)
     probe.open_port(next(i for i, n in enumerate(probe.get_ports()) if "latency-sender" in n))
     probed: list[tuple[float, float, int]] = []  # (callback time, JACK time since the previous message, value)
@@ -93,46 +110,55 @@ def main() -> None:
     time.sleep(2.0)
     changes = []  # (sent, value, first OSC arrival showing the value)
     value = 0
-    for _ in range(args.changes):
+    for _ in range(count):
         value = (value + random.randint(5, 60)) % 128
         sent = time.monotonic()
         out.send_message([0xB0, 1, value])
         time.sleep(random.uniform(0.15, 0.25))
         seen = [t for t, v in list(arrivals) if t >= sent and abs(v - value / 100.0) < 1e-4]
         changes.append((sent, value, seen[0] if seen else np.nan))
-    probe.close_port()  # the flood goes unprobed: 10,000 Python callbacks a second would load the CPU
-    flood_start = time.monotonic()
-    count = 0
-    while time.monotonic() - flood_start < args.flood_seconds:
-        for _ in range(10):
-            out.send_message([0xB0, 1, count % 128])
-            count += 1
-        time.sleep(max(0.0, flood_start + count / 10_000 - time.monotonic()))
-    out.close_port()
-    stderr = run.communicate()[1]
+    probe.close_port()
+    closing = finish(run, out)
     stop.set()
+
     callback_times, gaps, values = np.array(probed).T
     since_first = np.cumsum(gaps)
     delays = callback_times - since_first
     probe_arrivals = delays.min() + since_first  # each message's arrival at a JACK input, monotonic clock
     sent, value, shown = np.array(changes).T
     arrived = np.full(len(sent), np.nan)
-    for k in range(len(sent)):  # the probe's first message of that value after it was sent
+    for k in range(len(sent)):  # the probe's message of that value just after it was sent
         match = np.flatnonzero((values == value[k]) & (callback_times >= sent[k]) & (callback_times < sent[k] + 0.15))
         if len(match):
             arrived[k] = probe_arrivals[match[0]]
-    period = 1000 / args.fps
-    print(f"at {args.fps:g} fps (frame period {period:.1f} ms), {np.isfinite(shown).sum()} of {len(shown)} changes seen "
+    period = 1000 / fps
+    print(f"latency at {fps:g} fps (frame period {period:.1f} ms), {np.isfinite(shown).sum()} of {len(shown)} changes seen "
           f"({np.isfinite(arrived).sum()} probed); target: at most {period + 2:.1f} ms")
-    for name, start in (("from arrival", arrived), ("from sending", sent)):
-        lat = (shown - start)[np.isfinite(shown - start)] * 1000
-        print(f"  latency {name}: p50 {np.percentile(lat, 50):.1f} ms, p99 {np.percentile(lat, 99):.1f} ms, max {lat.max():.1f} ms")
+    for name, start_times in (("from arrival", arrived), ("from sending", sent)):
+        lat = (shown - start_times)[np.isfinite(shown - start_times)] * 1000
+        print(f"  {name}: p50 {np.percentile(lat, 50):.1f} ms, p99 {np.percentile(lat, 99):.1f} ms, max {lat.max():.1f} ms")
     transit = (arrived - sent)[np.isfinite(arrived)] * 1000
     print(f"  JACK transport (sending to arrival): p50 {np.median(transit):.2f} ms, max {transit.max():.2f} ms; "
           f"probe callbacks came a median {(np.median(delays) - delays.min()) * 1000:.3f} ms later than the soonest one")
-    print(f"flood: {count} messages in {args.flood_seconds:g} s ({count / args.flood_seconds:.0f}/s)")
-    lines = stderr.strip().splitlines()
-    print("instrument:", next((l for l in reversed(lines) if l.startswith("stopped")), "\n".join(lines[-5:])))
+    print(f"  instrument: {closing}")
+
+
+def flood(mapping: str, fps: float, seconds: float) -> None:
+    """A fresh instrument: 2 s calm, the flood, 2 s calm; its late frames are the flood's."""
+    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink.bind(("127.0.0.1", 0))
+    run, out = start(mapping, fps, seconds + 6, sink.getsockname()[1])
+    time.sleep(2.0)
+    flood_start = time.monotonic()
+    count = 0
+    while time.monotonic() - flood_start < seconds:
+        for _ in range(10):
+            out.send_message([0xB0, 1, count % 128])
+            count += 1
+        time.sleep(max(0.0, flood_start + count / 10_000 - time.monotonic()))
+    print(f"flood: {count} messages in {seconds:g} s ({count / seconds:.0f}/s)")
+    print(f"  instrument: {finish(run, out)}")
+    sink.close()
 
 
 if __name__ == "__main__":

@@ -40,6 +40,7 @@ def measure_pacing(model_path: str | None, seconds: float, fps: float) -> dict:
     from ..output.outputs import OscOutput, make_profile
     from ..runtime.console import Console
     from ..runtime.performance import perform
+    from ..runtime.priority import realtime_scheduling
     from ..shipped import demo_log_path
 
     model = load_model(model_path or default_model_path())
@@ -51,6 +52,7 @@ def measure_pacing(model_path: str | None, seconds: float, fps: float) -> dict:
     outputs = [OscOutput(OscTarget("127.0.0.1", s.getsockname()[1], kind), make_profile(kind, model), console)
                for s, kind in zip(sinks, ("vmc", "flat"))]
     timing: list[float] = []
+    refused = realtime_scheduling()  # as `instrument run` does
     summary = perform(model, outputs, console, fps, seconds, LogReplay(read_log(demo_log_path()), loop=True), timing=timing)
     for s in sinks:
         s.close()
@@ -64,6 +66,7 @@ def measure_pacing(model_path: str | None, seconds: float, fps: float) -> dict:
         "pacing_max_ms": float(deviation.max()),
         "pacing_late_frames": summary.late,
         "pacing_dropped_frames": summary.dropped,
+        "pacing_scheduling": "realtime" if refused is None else f"normal ({refused})",
     }
 
 
@@ -143,7 +146,8 @@ def run(args: argparse.Namespace) -> int:
         if args.json:
             print(json.dumps(f, indent=1))
         else:
-            print(f"live loop at {f['pacing_fps']:g} fps for {f['pacing_seconds']:g} s ({f['pacing_frames']} frames, 2 OSC outputs):")
+            print(f"live loop at {f['pacing_fps']:g} fps for {f['pacing_seconds']:g} s ({f['pacing_frames']} frames, 2 OSC outputs, "
+                  f"{f['pacing_scheduling']} scheduling):")
             print(f"send time minus deadline: p50 {f['pacing_p50_ms']:.3f} ms, p99 {f['pacing_p99_ms']:.3f} ms, "
                   f"max {f['pacing_max_ms']:.3f} ms; late frames {f['pacing_late_frames']}, dropped {f['pacing_dropped_frames']}")
         return 0

@@ -108,7 +108,7 @@ def perform(
     previous = signal.signal(signal.SIGTERM, lambda *_: stop.__setitem__("now", True))
     last_status = 0.0
     started = time.monotonic()
-    work_times: deque[float] = deque(maxlen=120)  # how long making a frame took, recently
+    work_times: deque[float] = deque(maxlen=300)  # how long making a frame took, recently
 
     def take_live(now: float) -> None:
         for source in live_sources:
@@ -134,7 +134,8 @@ def perform(
             pose = poses.next(engine.sample(now, controls))
             echo = state.echo()
             prepared = [_attempt(console, summary, output, output.prepare, pose, echo) for output in outputs]
-            work_times.append(time.monotonic() - work_started)
+            if index > 0:  # the first frame compiles and loads: not what a frame takes
+                work_times.append(time.monotonic() - work_started)
             if index == 0:
                 # everything loaded so far lives for the whole show: keep the collector off it, so
                 # a full collection during the performance walks only what the performance made
@@ -155,7 +156,7 @@ def perform(
             # wake early enough for what a frame has recently taken, and at once after a jump;
             # meanwhile take live events as they come (stamped with the coming frame's time, as
             # if taken at its start), so a flood of them is handled while waiting, not at the frame
-            expected = max(np.percentile(work_times, 95), work_times[-1])
+            expected = max(np.percentile(work_times, 99), work_times[-1]) if work_times else 0.5 / fps
             upcoming = (index + 1) / fps
             clock.advance(lead=min(expected + LEAD_MARGIN, 0.5 / fps),
                           idle=(lambda: take_live(upcoming)) if live_sources else None)
