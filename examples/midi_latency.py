@@ -30,6 +30,7 @@ import sys
 import tempfile
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import rtmidi
@@ -59,21 +60,26 @@ def main() -> None:
     flood(mapping.name, args.fps, args.flood_seconds)
 
 
-def start(mapping: str, fps: float, seconds: float, osc_port: int) -> tuple[subprocess.Popen, rtmidi.MidiOut]:
-    """The instrument on a virtual JACK MIDI port, and a sender connected to it."""
-    run = subprocess.Popen([sys.executable, "-m", "instrument", "run", "--midi-virtual", "latency", "--midi-api", "jack",
+def start(mapping: str, fps: float, seconds: float, osc_port: int, phase: str,
+          extra: tuple[str, ...] = ()) -> tuple[subprocess.Popen, rtmidi.MidiOut]:
+    """The instrument on a virtual JACK MIDI port of its own name, and a sender connected to it
+    (by exact name: JACK keeps a closed port's client around, and renames a client whose name
+    is taken)."""
+    port = f"latency-{os.getpid()}-{phase}"
+    run = subprocess.Popen([sys.executable, "-m", "instrument", "run", "--midi-virtual", port, "--midi-api", "jack",
                             "--mapping", mapping, "--no-feedback", "--osc", f"127.0.0.1:{osc_port}/flat",
-                            "--fps", str(fps), "--seconds", str(seconds)], stderr=subprocess.PIPE, text=True)
-    out = rtmidi.MidiOut(rtmidi.API_UNIX_JACK, name="latency-sender")
-    while not [n for n in out.get_ports() if "latency" in n]:
+                            "--fps", str(fps), "--seconds", str(seconds), *extra], stderr=subprocess.PIPE, text=True)
+    out = rtmidi.MidiOut(rtmidi.API_UNIX_JACK, name=f"sender-{os.getpid()}-{phase}")
+    while not [n for n in out.get_ports() if n.endswith(":" + port)]:
         time.sleep(0.1)
-    out.open_port(next(i for i, n in enumerate(out.get_ports()) if "latency" in n), name="out")
+    out.open_port(next(i for i, n in enumerate(out.get_ports()) if n.endswith(":" + port)), name="out")
     return run, out
 
 
 def finish(run: subprocess.Popen, out: rtmidi.MidiOut) -> str:
     """The instrument's closing line (frames, late, dropped)."""
     out.close_port()
+    out.delete()
     lines = run.communicate()[1].strip().splitlines()
     return next((l for l in reversed(lines) if l.startswith("stopped")), "\n".join(lines[-5:]))
 
@@ -102,9 +108,9 @@ def latency(mapping: str, fps: float, count: int) -> None:
                         arrivals.append((now, m.params[0]))
 
     threading.Thread(target=listen, daemon=True).start()
-    run, out = start(mapping, fps, count * 0.2 + 6, sock.getsockname()[1])
-    probe = rtmidi.MidiIn(rtmidi.API_UNIX_JACK, name="latency-probe", queue_size_limit=1 << 20)
-    probe.open_port(next(i for i, n in enumerate(probe.get_ports()) if "latency-sender" in n))
+    run, out = start(mapping, fps, count * 0.2 + 6, sock.getsockname()[1], "latency")
+    probe = rtmidi.MidiIn(rtmidi.API_UNIX_JACK, name=f"probe-{os.getpid()}", queue_size_limit=1 << 20)
+    probe.open_port(next(i for i, n in enumerate(probe.get_ports()) if n.startswith(f"sender-{os.getpid()}-latency:")))
     probed: list[tuple[float, float, int]] = []  # (callback time, JACK time since the previous message, value)
     probe.set_callback(lambda message, _: probed.append((time.monotonic(), message[1], message[0][2])))
     time.sleep(2.0)
@@ -118,6 +124,7 @@ def latency(mapping: str, fps: float, count: int) -> None:
         seen = [t for t, v in list(arrivals) if t >= sent and abs(v - value / 100.0) < 1e-4]
         changes.append((sent, value, seen[0] if seen else np.nan))
     probe.close_port()
+    probe.delete()
     closing = finish(run, out)
     stop.set()
 
@@ -144,10 +151,12 @@ def latency(mapping: str, fps: float, count: int) -> None:
 
 
 def flood(mapping: str, fps: float, seconds: float) -> None:
-    """A fresh instrument: 2 s calm, the flood, 2 s calm; its late frames are the flood's."""
+    """A fresh instrument: 2 s calm, the flood, 2 s calm; its late frames are the flood's. It
+    records every event it takes, which also counts what reached it."""
     sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sink.bind(("127.0.0.1", 0))
-    run, out = start(mapping, fps, seconds + 6, sink.getsockname()[1])
+    log = Path(tempfile.mkdtemp()) / "flood.jsonl"
+    run, out = start(mapping, fps, seconds + 6, sink.getsockname()[1], "flood", ("--record", str(log)))
     time.sleep(2.0)
     flood_start = time.monotonic()
     count = 0
@@ -156,8 +165,10 @@ def flood(mapping: str, fps: float, seconds: float) -> None:
             out.send_message([0xB0, 1, count % 128])
             count += 1
         time.sleep(max(0.0, flood_start + count / 10_000 - time.monotonic()))
-    print(f"flood: {count} messages in {seconds:g} s ({count / seconds:.0f}/s)")
-    print(f"  instrument: {finish(run, out)}")
+    closing = finish(run, out)
+    taken = len(log.read_text().splitlines())
+    print(f"flood: {count} messages sent in {seconds:g} s ({count / seconds:.0f}/s), {taken} taken by the instrument (and recorded)")
+    print(f"  instrument: {closing}")
     sink.close()
 
 

@@ -7,6 +7,7 @@ from typing import Callable
 
 SPIN = 0.0005  # the last half millisecond before a deadline is spun, not slept (sleep overshoots)
 IDLE_EVERY = 0.002  # seconds between two calls of the idle work while waiting for a frame
+IDLE_UNTIL = 0.001  # idle work stops this long before waking, so it never delays the wake-up
 LATE = 0.0001  # a frame sent more than this after its deadline counts as late
 
 
@@ -38,7 +39,7 @@ class FrameClock:
 
     def advance(self, lead: float = 0.0, idle: Callable[[], None] | None = None) -> None:
         """Move to the next frame and sleep until `lead` seconds before its deadline, calling
-        `idle` about every IDLE_EVERY seconds meanwhile (and once more at the end of the wait)."""
+        `idle` about every IDLE_EVERY seconds meanwhile (up to IDLE_UNTIL before waking)."""
         self.frame += 1
         if not self.realtime:
             return
@@ -63,12 +64,14 @@ class FrameClock:
         return 0.0
 
     def _until(self, moment: float, idle: Callable[[], None] | None = None) -> None:
+        if idle is not None:
+            while (remaining := moment - IDLE_UNTIL - self.now()) > 0:
+                self.sleep(min(remaining, IDLE_EVERY))
+                idle()
         while True:
             remaining = moment - self.now()
             if remaining <= 0:
                 return
             if remaining > SPIN:
-                self.sleep(min(remaining - SPIN, IDLE_EVERY) if idle else remaining - SPIN)
-                if idle:
-                    idle()
+                self.sleep(remaining - SPIN)
             # else: spin

@@ -28,7 +28,7 @@ from .console import Console
 from .pose import Pose, PoseStream
 
 STATUS_EVERY = 0.5  # seconds of wall time
-LEAD_MARGIN = 0.0003  # seconds added to the expected work of a frame when waking before its deadline
+LEAD_MARGIN = 0.0005  # seconds added to the expected work of a frame when waking before its deadline
 
 
 class Output(Protocol):
