@@ -16,6 +16,7 @@ class FrameClock:
 
     The loop wakes a little before each deadline (`lead`, about what making a frame takes),
     makes the frame, then `hold`s until the deadline and sends it, so frames leave on time.
+    While it waits it can run small `idle` work (reading devices), never into the wake-up.
     A frame not ready by its deadline counts as late. When the loop falls more than a frame
     behind, the missed slots are dropped and the schedule moves on from now: the walk carries
     on at its own pace instead of bursting through the backlog.
