@@ -134,9 +134,9 @@ def perform(
             pose = poses.next(engine.sample(now, controls))
             echo = state.echo()
             prepared = [_attempt(console, summary, output, output.prepare, pose, echo) for output in outputs]
-            if index > 0:  # the first frame compiles and loads: not what a frame takes
+            if index > 0:
                 work_times.append(time.monotonic() - work_started)
-            if index == 0:
+            else:  # the first frame compiled and loaded things: not what a frame takes
                 # everything loaded so far lives for the whole show: keep the collector off it, so
                 # a full collection during the performance walks only what the performance made
                 gc.collect()

@@ -22,10 +22,6 @@ class Pose:
     world_rotations: np.ndarray  # (J, 3, 3)
     world_positions: np.ndarray  # (J, 3)
 
-    def local_quaternions(self) -> np.ndarray:
-        """(J, 4) local rotations as (x, y, z, w), each with w >= 0."""
-        return quaternions(self.rotations)
-
 
 def quaternions(rotations: np.ndarray) -> np.ndarray:
     """Rotation matrices (..., 3, 3) as quaternions (x, y, z, w) with w >= 0 (one sign for receivers)."""

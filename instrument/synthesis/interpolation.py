@@ -130,4 +130,6 @@ def interpolate(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray
 
 
 def _limited(log_change: np.ndarray) -> np.ndarray:
+    """np.clip to +-MAX_LOG_VARIANCE_CHANGE, as two ufuncs (np.clip's own overhead is most of
+    its cost on arrays this small, and this runs whenever a control moves)."""
     return np.minimum(np.maximum(log_change, -MAX_LOG_VARIANCE_CHANGE), MAX_LOG_VARIANCE_CHANGE)
