@@ -128,7 +128,8 @@ class ReportLayout:
         self.sign_bit = np.where(self.minimum < 0, np.left_shift(1, sizes - 1), np.iinfo(np.int64).max)
         self.wrap = np.left_shift(np.int64(1), sizes)
         self.span = np.maximum(self.maximum - self.minimum, 1).astype(float)
-        self.may_be_null = np.array([c.null_state for c in controls])
+        # a hat outside its range is released, null-state flag or not (the Switch Pro's USB descriptor lacks it)
+        self.may_be_null = np.array([c.null_state or c.kind == "hat" for c in controls])
         self.hats = [k for k, c in enumerate(controls) if c.kind == "hat"]
 
     def raw(self, report: bytes) -> np.ndarray:

@@ -52,7 +52,7 @@ def parse_feedback(table: object, fail) -> FeedbackSpec:
     leds = table.get("leds", False)
     if not isinstance(leds, bool):
         raise fail("must be true or false", "leds")
-    byte = lambda v: isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 255  # noqa: E731
+    byte = lambda v: isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 255
     report, light_bar = table.get("report"), table.get("light-bar")
     for key, value in (("report", report), ("light-bar", light_bar)):
         if value is not None and not byte(value):
