@@ -12,7 +12,6 @@ from argparse import Namespace
 from typing import ClassVar
 
 import pytest
-import tomllib
 from conftest import REPO
 from hid_descriptors import DUALSENSE_USB, DUALSHOCK4_USB, SPACENAVIGATOR_USB, SWITCH_PRO_USB, XBOX_WIRELESS_BT
 from hid_sim import SimulatedDevice, SimulatedHid
@@ -28,6 +27,7 @@ from instrument.models.modelfile import default_model_path, load_model
 from instrument.runtime.console import Console
 from instrument.runtime.performance import perform
 from instrument.shipped import shipped_mappings
+from instrument.tomlfile import read_toml
 
 MAPPINGS = REPO / "mappings"
 
@@ -311,7 +311,7 @@ def test_spacemouse_unplugged_and_replugged_its_led_on_each_time(model):
 
 
 def test_dualshock4_light_bar_shows_the_leading_styles_colour(model):
-    colours = tomllib.loads((MAPPINGS / "sony-dualshock4.toml").read_text())["feedback"]["colours"]
+    colours = read_toml(MAPPINGS / "sony-dualshock4.toml")[1]["feedback"]["colours"]
     rgb = {name: bytes.fromhex(text[1:]) for name, text in colours.items()}
     sim = SimulatedDevice(DUALSHOCK4_USB, 0x054C, 0x09CC)
     state = state_of(model)

@@ -2,7 +2,7 @@
 
 The descriptor (hidapi's get_report_descriptor, or the hidraw ioctl where the binding lacks it)
 is parsed once with hid-tools, the Linux HID maintainers' parser that the kernel's HID selftests
-use. Each input report is then decoded with a precomputed table of bit positions (numpy) and
+use. Each input report is then decoded with a precomputed table of bit positions and
 normalised the same way for every device: an axis, trigger, dial or slider reads 0..1 over its
 logical range (a stick at rest is near 0.5), a button 0 or 1, a hat switch `Hat` (its position,
 0..1, or -1 when released) and the four buttons `Hat/up`, `Hat/right`, `Hat/down`, `Hat/left`.
@@ -24,8 +24,6 @@ import os
 import re
 import time
 from dataclasses import dataclass, field
-
-import numpy as np
 
 from ..errors import UserError
 from ..runtime.console import Console
@@ -112,40 +110,44 @@ class OutputField:
 
 
 class ReportLayout:
-    """How to decode one input report: bit positions of every control, gathered with one index."""
+    """How to decode one input report: each control's shift and mask into the report read as one
+    little-endian integer. (For the tens of fields a controller has this is several times faster
+    than a numpy bit table, whose per-call overhead dominates: 1.8 against 8 us for a DualShock 4.)"""
 
     def __init__(self, report_id: int, length: int, controls: list[HidControl]):
         self.report_id, self.length, self.controls = report_id, length, controls
-        widest = max(c.size for c in controls)
-        self.index = np.zeros((len(controls), widest), dtype=np.intp)
-        self.weights = np.zeros((len(controls), widest), dtype=np.int64)
-        for k, c in enumerate(controls):
-            self.index[k, :c.size] = np.arange(c.bit, c.bit + c.size)
-            self.weights[k, :c.size] = 1 << np.arange(c.size, dtype=np.int64)
-        sizes = np.array([c.size for c in controls], dtype=np.int64)
-        self.minimum = np.array([c.minimum for c in controls], dtype=np.int64)
-        self.maximum = np.array([c.maximum for c in controls], dtype=np.int64)
-        self.sign_bit = np.where(self.minimum < 0, np.left_shift(1, sizes - 1), np.iinfo(np.int64).max)
-        self.wrap = np.left_shift(np.int64(1), sizes)
-        self.span = np.maximum(self.maximum - self.minimum, 1).astype(float)
+        self.fields = [(c.bit, (1 << c.size) - 1) for c in controls]
+        self.signed = [(k, 1 << (c.size - 1), 1 << c.size) for k, c in enumerate(controls) if c.minimum < 0]
         # a hat outside its range is released, null-state flag or not (the Switch Pro's USB descriptor lacks it)
-        self.may_be_null = np.array([c.null_state or c.kind == "hat" for c in controls])
+        self.checked = [(k, c.minimum, c.maximum) for k, c in enumerate(controls)
+                        if not (c.null_state or c.kind == "hat") and _narrower(c)]
         self.hats = [k for k, c in enumerate(controls) if c.kind == "hat"]
 
-    def raw(self, report: bytes) -> np.ndarray:
-        """The logical value of every control (sign-extended where the range is signed)."""
-        bits = np.unpackbits(np.frombuffer(report, dtype=np.uint8, count=self.length), bitorder="little")
-        raw = (bits[self.index] * self.weights).sum(axis=1)
-        return np.where(raw >= self.sign_bit, raw - self.wrap, raw)
+    def raw(self, report: bytes) -> list[int] | None:
+        """The logical value of every control, or None for garbage (a value outside a range that has no null state)."""
+        bits = int.from_bytes(report[:self.length], "little")
+        raw = [(bits >> shift) & mask for shift, mask in self.fields]
+        for k, half, wrap in self.signed:
+            if raw[k] >= half:
+                raw[k] -= wrap
+        for k, low, high in self.checked:
+            if not low <= raw[k] <= high:
+                return None
+        return raw
 
-    def decode(self, report: bytes) -> tuple[np.ndarray, np.ndarray] | None:
-        """(raw, normalised) values, or None for garbage (a value outside a range that has no null state)."""
-        raw = self.raw(report)
-        outside = (raw < self.minimum) | (raw > self.maximum)
-        if (outside & ~self.may_be_null).any():
-            return None
-        unit = np.clip((raw - self.minimum) / self.span, 0.0, 1.0)
-        return raw, np.where(outside, -1.0, unit)
+    def unit(self, k: int, raw: int) -> float:
+        """A logical value as 0..1 over the control's range; -1 outside it (a released hat)."""
+        c = self.controls[k]
+        if not c.minimum <= raw <= c.maximum:
+            return -1.0
+        return (raw - c.minimum) / (c.maximum - c.minimum) if c.maximum > c.minimum else float(raw > c.minimum)
+
+
+def _narrower(c: HidControl) -> bool:
+    """Whether the logical range leaves values of the field's bits out (only then can a value be garbage)."""
+    if c.minimum < 0:
+        return c.minimum > -(1 << (c.size - 1)) or c.maximum < (1 << (c.size - 1)) - 1
+    return c.minimum > 0 or c.maximum < (1 << c.size) - 1
 
 
 @dataclass
@@ -269,12 +271,13 @@ class HidInput:
         self.console, self.vendor, self.product = console, vendor, product
         self.device = None
         self.descriptor: Descriptor | None = None
-        self.last: dict[int, np.ndarray] = {}  # report id -> normalised values last seen
+        self.last: dict[int, list[int]] = {}  # report id -> logical values last seen
         self.hat_state: dict[str, float] = {}
         self.next_attempt = 0.0
         self.connections = 0  # how many times it was opened (feedback is sent again after each)
         self.dropped = {"short": 0, "unknown id": 0, "garbage": 0}
         self.reports = 0
+        self.read_size = 64
 
     @property
     def source(self) -> str:
@@ -301,6 +304,7 @@ class HidInput:
                 problems.append("its report descriptor declares no controls")
                 continue
             self.device, self.descriptor, self.last = device, descriptor, {}
+            self.read_size = max(64, *(layout.length for layout in descriptor.layouts.values()))  # hidraw cuts longer reports
             self.console.say(f"HID device {self.source} {'reconnected' if self.connections else 'connected'}: "
                              f"{describe_controls(descriptor.controls)}")
             self.connections += 1
@@ -325,7 +329,7 @@ class HidInput:
         out: list[tuple[str, float]] = []
         for _ in range(READS_PER_POLL):
             try:
-                report = self.device.read(64)
+                report = self.device.read(self.read_size)
             except (OSError, ValueError) as error:  # unplugged: hidapi raises OSError ('read error')
                 self._lost(error)
                 break
@@ -345,22 +349,24 @@ class HidInput:
         elif len(report) < layout.length:
             problem = "short"
         else:
-            decoded = layout.decode(report)
-            if decoded is None:
+            raw = layout.raw(report)
+            if raw is None:
                 problem = "garbage"
         if problem is not None:
             self.dropped[problem] += 1
             self.console.warn(f"hid dropped {self.source}", f"HID device {self.source}: dropped reports that do not fit its "
                               f"descriptor ({', '.join(f'{n} {k}' for k, n in self.dropped.items() if n)})")
             return []
-        raw, values = decoded
         last = self.last.get(layout.report_id)
-        changed = range(len(values)) if last is None else np.flatnonzero(values != last)
-        self.last[layout.report_id] = values
+        self.last[layout.report_id] = raw
+        if last == raw:
+            return []
+        changed = range(len(raw)) if last is None else [k for k, (now, before) in enumerate(zip(raw, last)) if now != before]
         controls = layout.controls
-        out = [(controls[k].name, float(values[k])) for k in changed]
+        out = [(controls[k].name, layout.unit(k, raw[k])) for k in changed]
         for k in layout.hats:
-            out += self._hat(controls[k], int(raw[k]))
+            if last is None or raw[k] != last[k]:
+                out += self._hat(controls[k], raw[k])
         return out
 
     def _hat(self, control: HidControl, raw: int) -> list[tuple[str, float]]:
