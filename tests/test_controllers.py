@@ -10,7 +10,7 @@ import pytest
 
 from conftest import REPO
 from hid_descriptors import DUALSHOCK4_USB
-from instrument.control.devices import HidInput
+from instrument.control.hid import HidInput
 from instrument.control.hub import ControlHub
 from instrument.control.mapping import load_mapping
 from instrument.control.state import ControlState

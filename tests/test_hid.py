@@ -415,3 +415,24 @@ def test_instrument_devices_lists_each_hid_devices_controls_by_usage(monkeypatch
     assert "generic-gamepad.toml (by its usages)" in next(line for line in lines if "DualSense" in line)
     assert "no shipped mapping" in next(line for line in lines if "Six axes" in line)
     assert "Mouse" not in out
+
+
+def test_instrument_run_plays_a_hid_device_through_its_mapping_with_feedback(monkeypatch, tmp_path, capsys):
+    from instrument.cli.main import main
+
+    pad = SimulatedDevice(DUALSENSE_USB, 0x054C, 0x0CE6, "DualSense")
+    light = SimulatedDevice(DUALSHOCK4_USB, 0x054C, 0x09CC, "Wireless Controller")
+    bus = SimulatedHid(pad, light)
+    monkeypatch.setattr(hid_module, "hidapi", lambda: bus)
+    pad.send(dualsense_report(), None, None, dualsense_report(l2=255))
+    log = tmp_path / "take.jsonl"
+    assert main(["run", "--hid", "054c:0ce6", "--seconds", "1", "--no-osc", "--quiet", "--normal-priority",
+                 "--record", str(log)]) == 0
+    err = capsys.readouterr().err
+    assert "HID mapping: Generic gamepad" in err and "by its usages" in err
+    assert '"control": "Rx", "value": 1.0' in log.read_text()  # recorded by usage, normalised
+    light.send(ds4_report(r2=255))
+    assert main(["run", "--hid", "054c:09cc", "--seconds", "1", "--no-osc", "--quiet", "--normal-priority"]) == 0
+    assert light.written and light.written[-1][:2] == bytes([5, 2])  # the light bar was set
+    assert main(["run", "--hid", "1234:0001", "--seconds", "1", "--no-osc", "--quiet"]) == 1
+    assert "--hid 1234:0001: no mapping names this device, and it is not here to read its usages from" in capsys.readouterr().err

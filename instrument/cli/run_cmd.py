@@ -6,9 +6,10 @@ import argparse
 import re
 from pathlib import Path
 
-from ..control.devices import HidInput, MidiInput, OscInput
+from ..control.devices import MidiInput, OscInput
 from ..control.events import LogReplay, read_log
 from ..control.feedback import MidiFeedback
+from ..control.hid import HidInput
 from ..control.hid import choose_mapping as choose_hid_mapping
 from ..control.hid_feedback import HidFeedback
 from ..control.hub import ControlHub

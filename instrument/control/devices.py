@@ -1,4 +1,4 @@
-"""Input devices: MIDI ports (mido + python-rtmidi), HID controllers (hidapi; decoded in hid.py), OSC surfaces.
+"""Input devices: MIDI ports (mido + python-rtmidi) and OSC surfaces (HID controllers are in hid.py).
 
 Each device is polled once per frame and returns raw control events; it never raises into the
 performance. A device that goes away is reported on the console and reopened about once a
@@ -14,7 +14,6 @@ import time
 from ..errors import UserError
 from ..runtime.console import Console
 from .events import ControlEvent
-from .hid import HidInput  # noqa: F401  (HID devices: decoded from their report descriptor)
 
 RETRY_SECONDS = 1.0
 
