@@ -100,6 +100,12 @@ def test_output_reports_come_from_the_descriptor():
     assert leds[0] == 2 and [(f.page, f.usage, f.bit, f.size) for f in leds[1]] == [(0x08, 0x4B, 8, 1)]
 
 
+def test_a_one_byte_maximum_after_a_minimum_of_zero_is_unsigned():
+    # "Logical Maximum (255)" written in one byte (25 FF): -1 by the letter of the spec, 255 as meant
+    parsed = parse_descriptor(bytes.fromhex("05 01 09 04 a1 01 15 00 25 ff 75 08 95 01 09 30 81 02 c0"))
+    assert [(c.name, c.minimum, c.maximum) for c in parsed.controls] == [("X", 0, 255)]
+
+
 def test_a_descriptor_that_cannot_be_parsed_is_a_clear_error():
     with pytest.raises(UserError, match="cannot parse the HID report descriptor"):
         parse_descriptor(b"\x05\x01\x09\x05\xa1\x01\x85")  # cut inside an item

@@ -8,9 +8,10 @@ logical range (a stick at rest is near 0.5), a button 0 or 1, a hat switch `Hat`
 0..1, or -1 when released) and the four buttons `Hat/up`, `Hat/right`, `Hat/down`, `Hat/left`.
 
 A control's name is its usage: `X Y Z Rx Ry Rz Slider Dial Wheel Hat`, `Accelerator Brake ...`
-(simulation page), `AC Home`, `AC Back` (consumer page), `Button <n>`, or `PPPP:UUUU` (usage page and usage, hexadecimal) for any other;
-a usage met again on the same device is `<name>#2`, `#3`, ... Vendor-defined pages (FF00 and up),
-constant (padding) fields and array fields (keyboard-style key lists) are not controls.
+(simulation page), `AC Home`, `AC Back` (consumer page), `Button <n>`, or `PPPP:UUUU` (usage page
+and usage, hexadecimal) for any other; a usage met again on the same device is `<name>#2`, `#3`,
+... Vendor-defined pages (FF00 and up), constant (padding) fields and array fields (keyboard-style
+key lists) are not controls.
 
 Reports that do not fit the descriptor are dropped and counted: unknown report id, shorter than
 the descriptor says, or garbage (a value outside its logical range in a field without a null state).
@@ -187,7 +188,10 @@ def parse_descriptor(data: bytes | list[int]) -> Descriptor:
             seen[name] = seen.get(name, 0) + 1
             if seen[name] > 1:
                 name = f"{name}#{seen[name]}"
-            controls.append(HidControl(name, page, usage, number, f.start, f.size, f.logical_min, f.logical_max,
+            maximum = f.logical_max
+            if f.logical_min >= 0 > maximum:  # "25 FF" after a minimum of 0 means 255, as the kernel reads it
+                maximum &= (1 << f.size) - 1
+            controls.append(HidControl(name, page, usage, number, f.start, f.size, f.logical_min, maximum,
                                        relative=bool(f.type & 0x04), null_state=bool(f.type & 0x40)))
         if controls:
             layouts[number] = ReportLayout(number, report.size, controls)
