@@ -13,7 +13,7 @@ from typing import ClassVar
 
 import pytest
 from conftest import REPO
-from hid_descriptors import DUALSENSE_USB, DUALSHOCK4_USB, SPACENAVIGATOR_USB, SWITCH_PRO_USB, XBOX_WIRELESS_BT
+from hid_descriptors import DUALSENSE_USB, DUALSHOCK4_BT, DUALSHOCK4_USB, SPACENAVIGATOR_USB, SWITCH_PRO_USB, XBOX_WIRELESS_BT
 from hid_sim import SimulatedDevice, SimulatedHid
 
 from instrument.control import hid as hid_module
@@ -82,9 +82,11 @@ def spacenav_buttons(pressed: int) -> bytes:
 @pytest.mark.parametrize("descriptor,lengths,names", [
     (DUALSHOCK4_USB, {1: 64}, ["X", "Y", "Z", "Rz", "Hat"] + [f"Button {k}" for k in range(1, 15)] + ["Rx", "Ry"]),
     (DUALSENSE_USB, {1: 64}, ["X", "Y", "Z", "Rz", "Rx", "Ry", "Hat"] + [f"Button {k}" for k in range(1, 16)]),
-    (XBOX_WIRELESS_BT, {1: 17, 2: 2, 4: 2},
-     ["X", "Y", "Z", "Rz", "Brake", "Accelerator", "Hat"] + [f"Button {k}" for k in range(1, 16)] + ["AC Back", "AC Home", "0006:0020"]),
-    (SWITCH_PRO_USB, {0x30: 64}, [f"Button {k}" for k in range(1, 15)] + ["X", "Y", "Z", "Rz", "Hat"] + [f"Button {k}" for k in range(15, 19)]),
+    (XBOX_WIRELESS_BT, {1: 17, 2: 2, 4: 2}, ["X", "Y", "Z", "Rz", "Brake", "Accelerator", "Hat"]
+     + [f"Button {k}" for k in range(1, 16)] + ["AC Back", "AC Home", "0006:0020"]),
+    (SWITCH_PRO_USB, {0x30: 64}, [f"Button {k}" for k in range(1, 15)] + ["X", "Y", "Z", "Rz", "Hat"]
+     + [f"Button {k}" for k in range(15, 19)]),
+    (DUALSHOCK4_BT, {1: 10}, ["X", "Y", "Z", "Rz", "Hat"] + [f"Button {k}" for k in range(1, 15)] + ["Rx", "Ry"]),
     (SPACENAVIGATOR_USB, {1: 7, 2: 7, 3: 3}, ["X", "Y", "Z", "Rx", "Ry", "Rz", "Button 1", "Button 2"]),
 ])
 def test_real_descriptors_give_the_published_controls(descriptor, lengths, names):
@@ -175,7 +177,7 @@ def test_short_unknown_and_garbage_reports_are_counted_and_dropped():
              bytes([0x11, 0xC0, 0x00]) + bytes(75),  # its Bluetooth report 0x11: an id this descriptor lacks
              ds4_report(lx=0))
     assert dict(device.read_raw())["X"] == 0.0  # the good report after the bad ones still counts
-    assert device.dropped == {"short": 1, "unknown id": 1, "garbage": 0}
+    assert device.dropped == {"short": 1, "unknown id": 1, "garbage": 0, "vendor-only": 0}
     mouse = SimulatedDevice(SPACENAVIGATOR_USB, 0x046D, 0xC626)
     nav = HidInput(Console(stream=console_text), 0x046D, 0xC626, hid=SimulatedHid(mouse))
     mouse.send(spacenav_report(1, 0x7FFF, 0, 0), spacenav_report(1, 100, 0, 0))  # 32767: outside -350..350
@@ -183,6 +185,16 @@ def test_short_unknown_and_garbage_reports_are_counted_and_dropped():
     assert nav.dropped["garbage"] == 1
     assert "dropped reports that do not fit its descriptor" in console_text.getvalue()
     assert "(1 reports dropped)" in nav.describe()
+
+
+def test_dualshock4_over_bluetooth_basic_reports_play_and_vendor_mode_reports_are_counted():
+    text = io.StringIO()
+    pad = SimulatedDevice(DUALSHOCK4_BT, 0x054C, 0x05C4)
+    device = HidInput(Console(stream=text), 0x054C, 0x05C4, hid=SimulatedHid(pad))
+    pad.send(ds4_report(lx=0)[:10],  # report 1 over Bluetooth: the same fields as over USB, 10 bytes
+             bytes([0x11, 0xC0, 0x00]) + bytes(75))  # report 0x11, once a driver has switched it over: vendor data
+    assert dict(device.read_raw())["X"] == 0.0
+    assert device.dropped["vendor-only"] == 1 and "1 vendor-only" in text.getvalue()
 
 
 def test_a_binding_without_the_descriptor_call_uses_hidraw_and_says_what_failed():
@@ -414,10 +426,9 @@ def test_instrument_devices_lists_each_hid_devices_controls_by_usage(monkeypatch
     assert "054c:09cc Wireless Controller  ->  " in out and "sony-dualshock4.toml (by vendor:product)" in out
     assert "X (0..255), Y (0..255), Z (0..255), Rz (0..255), Hat, Rx (0..255), Ry (0..255), Button 1-14" in out
     assert "X (-350..350 relative)" in out and "3dconnexion-spacemouse.toml" in out
-    assert "Slider (-127..127), Dial (-127..127), Hat, Button 1-12" in out
     lines = out.splitlines()
-    assert "generic-gamepad.toml (by its usages)" in lines[lines.index("    controls: X (0..1023), Y (0..1023), Slider (-127..127), "
-                                                                      "Dial (-127..127), Hat, Button 1-12") - 1]
+    knobs = lines.index("    controls: X (0..1023), Y (0..1023), Slider (-127..127), Dial (-127..127), Hat, Button 1-12")
+    assert "Knob box" in lines[knobs - 1] and "generic-gamepad.toml (by its usages)" in lines[knobs - 1]
     assert "generic-gamepad.toml (by its usages)" in next(line for line in lines if "DualSense" in line)
     assert "no shipped mapping" in next(line for line in lines if "Six axes" in line)
     assert "Mouse" not in out

@@ -14,7 +14,9 @@ and usage, hexadecimal) for any other; a usage met again on the same device is `
 key lists) are not controls.
 
 Reports that do not fit the descriptor are dropped and counted: unknown report id, shorter than
-the descriptor says, or garbage (a value outside its logical range in a field without a null state).
+the descriptor says, or garbage (a value outside its logical range in a field without a null state);
+so are vendor-only reports (declared, but with no control a performer plays: a DualShock 4 over
+Bluetooth switched by the kernel's driver into its report 0x11 mode sends only those).
 """
 
 from __future__ import annotations
@@ -45,7 +47,8 @@ HAT_EIGHT = (("up",), ("up", "right"), ("right",), ("down", "right"), ("down",),
 HAT_FOUR = (("up",), ("right",), ("down",), ("left",))
 
 _NAMED = "|".join(sorted((n for names in USAGE_NAMES.values() for n in names.values()), key=len, reverse=True))
-USAGE_NAME = re.compile(rf"(?:(?:{_NAMED})|Hat/(?:up|right|down|left)|Button [1-9][0-9]*|[0-9a-f]{{4}}:[0-9a-f]{{4}})(?:#[2-9]|#[1-9][0-9]+)?")
+USAGE_NAME = re.compile(rf"(?:(?:{_NAMED})|Hat/(?:up|right|down|left)|Button [1-9][0-9]*|[0-9a-f]{{4}}:[0-9a-f]{{4}})"
+                        r"(?:#[2-9]|#[1-9][0-9]+)?")
 
 # The DualShock 4's names before controls were named by usage (mapping files and recorded logs
 # written then still work): name -> (usage name, full scale of the old raw value)
@@ -157,6 +160,7 @@ class Descriptor:
 
     layouts: dict[int, ReportLayout]
     outputs: dict[int, tuple[int, list[OutputField]]] = field(default_factory=dict)  # report id -> (bytes, fields)
+    vendor_only: set[int] = field(default_factory=set)  # input reports declared with no controls (vendor data)
 
     @property
     def controls(self) -> list[HidControl]:
@@ -176,6 +180,7 @@ def parse_descriptor(data: bytes | list[int]) -> Descriptor:
     except Exception as error:  # hid-tools raises assorted errors on malformed descriptors
         raise UserError(f"cannot parse the HID report descriptor ({len(data)} bytes): {error}") from None
     layouts: dict[int, ReportLayout] = {}
+    vendor_only: set[int] = set()
     seen: dict[str, int] = {}
     for report_id, report in sorted(parsed.input_reports.items()):
         number = max(report_id, 0)
@@ -195,12 +200,14 @@ def parse_descriptor(data: bytes | list[int]) -> Descriptor:
                                        relative=bool(f.type & 0x04), null_state=bool(f.type & 0x40)))
         if controls:
             layouts[number] = ReportLayout(number, report.size, controls)
+        else:
+            vendor_only.add(number)
     outputs = {}
     for report_id, report in sorted(parsed.output_reports.items()):
         fields = [OutputField(f.usage >> 16, f.usage & 0xFFFF, max(report_id, 0), f.start, f.size, f.logical_min, f.logical_max)
                   for f in report if not f.is_const]
         outputs[max(report_id, 0)] = (report.size, fields)
-    return Descriptor(layouts, outputs)
+    return Descriptor(layouts, outputs, vendor_only)
 
 
 HIDIOCGRDESCSIZE = 0x80044801  # _IOR('H', 0x01, int)
@@ -279,7 +286,8 @@ class HidInput:
         self.hat_state: dict[str, float] = {}
         self.next_attempt = 0.0
         self.connections = 0  # how many times it was opened (feedback is sent again after each)
-        self.dropped = {"short": 0, "unknown id": 0, "garbage": 0}
+        # vendor-only: reports of a mode the descriptor leaves to the device's own driver
+        self.dropped = {"short": 0, "unknown id": 0, "garbage": 0, "vendor-only": 0}
         self.reports = 0
         self.read_size = 64
 
@@ -346,10 +354,11 @@ class HidInput:
         """One report's changed controls; a report that does not fit the descriptor is counted and dropped."""
         self.reports += 1
         descriptor = self.descriptor
-        layout = descriptor.layouts.get(report[0] if descriptor.numbered else 0)
+        report_id = report[0] if descriptor.numbered else 0
+        layout = descriptor.layouts.get(report_id)
         problem = None
         if layout is None:
-            problem = "unknown id"
+            problem = "vendor-only" if report_id in descriptor.vendor_only else "unknown id"
         elif len(report) < layout.length:
             problem = "short"
         else:
