@@ -42,6 +42,10 @@ def _colour(text: object) -> tuple[int, int, int] | None:
     return tuple(int(g, 16) for g in match.groups()) if match else None
 
 
+def _byte(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= 255
+
+
 def parse_feedback(table: object, fail) -> FeedbackSpec:
     """A mapping file's [feedback] table, checked; `fail(message, key)` makes the located error."""
     if not isinstance(table, dict):
@@ -52,15 +56,14 @@ def parse_feedback(table: object, fail) -> FeedbackSpec:
     leds = table.get("leds", False)
     if not isinstance(leds, bool):
         raise fail("must be true or false", "leds")
-    byte = lambda v: isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 255
     report, light_bar = table.get("report"), table.get("light-bar")
     for key, value in (("report", report), ("light-bar", light_bar)):
-        if value is not None and not byte(value):
+        if value is not None and not _byte(value):
             raise fail("must be a whole number 0 to 255", key)
     if (report is None) != (light_bar is None):
         raise fail("a light bar needs both report and light-bar", "light-bar" if light_bar is None else "report")
     fixed = table.get("fixed", {})
-    if not isinstance(fixed, dict) or not all(k.isdigit() and byte(int(k)) and byte(v) for k, v in fixed.items()):
+    if not isinstance(fixed, dict) or not all(k.isdigit() and _byte(int(k)) and _byte(v) for k, v in fixed.items()):
         raise fail("expected { byte = value, ... }, whole numbers 0 to 255", "fixed")
     colours = {}
     for name, text in (table.get("colours") or {}).items():
@@ -136,6 +139,7 @@ class HidFeedback:
     def send(self, reports: list[bytes]) -> None:
         for report in reports:
             if not self.device.write(report):
+                self.console.warn(self.name, f"{self.device.source} did not take a feedback report; trying again")
                 self.connection = 0  # not taken: send everything again next frame
                 self.colour = None
 
