@@ -82,7 +82,8 @@ class SimulatedHid:
             d.path = d.path or f"/dev/hidraw-sim{k}".encode()
 
     def enumerate(self, vendor=0, product=0):
-        wanted = [d for d in self.devices if d.plugged and (not vendor or d.vendor == vendor) and (not product or d.product == product)]
+        wanted = [d for d in self.devices
+                  if d.plugged and (not vendor or d.vendor == vendor) and (not product or d.product == product)]
         return [{"path": d.path, "vendor_id": d.vendor, "product_id": d.product, "product_string": d.name,
                  "usage_page": d.usage[0], "usage": d.usage[1], "interface_number": 0} for d in wanted]
 
