@@ -22,6 +22,7 @@ Bluetooth switched by the kernel's driver into its report 0x11 mode sends only t
 from __future__ import annotations
 
 import fcntl
+import functools
 import math
 import os
 import re
@@ -172,7 +173,13 @@ class Descriptor:
 
 
 def parse_descriptor(data: bytes | list[int]) -> Descriptor:
-    """Controls and output fields of a report descriptor; UserError if it cannot be parsed."""
+    """Controls and output fields of a report descriptor; UserError if it cannot be parsed.
+    Remembered: a device plugged back in mid-performance costs no parsing (ms) in the live loop."""
+    return _parse(bytes(data))
+
+
+@functools.lru_cache(maxsize=32)
+def _parse(data: bytes) -> Descriptor:
     from hidtools.hid import ReportDescriptor
 
     try:
@@ -278,6 +285,8 @@ class HidInput:
     on the console and reopened about once a second, while the walk goes on."""
 
     def __init__(self, console: Console, vendor: int, product: int, hid=None):
+        import hidtools.hid  # noqa: F401  (its usage tables take a quarter second to load: now, not in the live loop)
+
         self.hid = hid if hid is not None else hidapi()
         self.console, self.vendor, self.product = console, vendor, product
         self.device = None
@@ -290,6 +299,7 @@ class HidInput:
         self.dropped = {"short": 0, "unknown id": 0, "garbage": 0, "vendor-only": 0}
         self.reports = 0
         self.read_size = 64
+        self._open()  # before the performance starts: the first descriptor is parsed here, not in a frame
 
     @property
     def source(self) -> str:
@@ -315,7 +325,7 @@ class HidInput:
                 device.close()
                 problems.append("its report descriptor declares no controls")
                 continue
-            self.device, self.descriptor, self.last = device, descriptor, {}
+            self.device, self.descriptor, self.last, self.hat_state = device, descriptor, {}, {}
             self.read_size = max(64, *(layout.length for layout in descriptor.layouts.values()))  # hidraw cuts longer reports
             self.console.say(f"HID device {self.source} {'reconnected' if self.connections else 'connected'}: "
                              f"{describe_controls(descriptor.controls)}")
