@@ -18,7 +18,7 @@ from ..errors import UserError
 from ..tomlfile import read_toml
 from .events import ControlEvent
 from .hid import DS4_NAMES, canonical_input, legacy_event, unit_with_deadzone
-from .hid_feedback import parse_feedback
+from .hid_feedback import FeedbackSpec, parse_feedback
 from .state import ControlState
 
 MESSAGES = ("cc", "cc14", "nrpn", "note", "pitchbend", "hid")
@@ -59,7 +59,7 @@ class Mapping:
     presets: dict[str, dict[str, float]] = field(default_factory=dict)
     morph: float = 0.0  # default seconds to morph into a recalled preset
     hid_usages: tuple[str, ...] = ()  # a HID device exposing all these usages fits, whatever its ids
-    feedback: object = None  # HID feedback (control/hid_feedback.py's LightBar), from [feedback]
+    feedback: FeedbackSpec | None = None  # HID output reports (LEDs, a light bar), from [feedback]
 
 
 def parse_hid_id(text: object, fail=None) -> tuple[int, int]:
@@ -125,7 +125,7 @@ def load_mapping(path: str | Path, state: ControlState | None = None) -> Mapping
     morph = data.get("morph", 0.0)
     if not isinstance(morph, (int, float)) or morph < 0:
         raise fail("must be a number of seconds, 0 or more", "morph")
-    feedback = parse_feedback(data["feedback"], lambda m, k: fail(m, k)) if "feedback" in data else None
+    feedback = parse_feedback(data["feedback"], fail) if "feedback" in data else None
     return Mapping(str(data.get("name", path.stem)), str(path), midi, hid_ids, tuple(controls), presets, float(morph),
                    tuple(usages), feedback)
 
