@@ -453,3 +453,14 @@ def test_instrument_run_plays_a_hid_device_through_its_mapping_with_feedback(mon
     assert light.written and light.written[-1][:2] == bytes([5, 2])  # the light bar was set
     assert main(["run", "--hid", "1234:0001", "--seconds", "1", "--no-osc", "--quiet"]) == 1
     assert "--hid 1234:0001: no mapping names this device, and it is not here to read its usages from" in capsys.readouterr().err
+
+
+def test_hidraw_ioctl_numbers_follow_the_kernels_ioc_macro():
+    # include/uapi/asm-generic/ioctl.h: _IOR(type, nr, size) = 2 << 30 | size << 16 | type << 8 | nr;
+    # include/uapi/linux/hidraw.h: HIDIOCGRDESCSIZE _IOR('H', 0x01, int), HIDIOCGRDESC _IOR('H', 0x02,
+    # struct hidraw_report_descriptor { __u32 size; __u8 value[HID_MAX_DESCRIPTOR_SIZE = 4096]; })
+    def ior(kind: str, number: int, size: int) -> int:
+        return 2 << 30 | size << 16 | ord(kind) << 8 | number
+
+    assert hid_module.HIDIOCGRDESCSIZE == ior("H", 0x01, 4)
+    assert hid_module.HIDIOCGRDESC == ior("H", 0x02, 4 + 4096)
