@@ -152,6 +152,16 @@ def test_switch_pro_report_by_usage():
     assert values["Hat/down"] == 1.0
 
 
+def test_switch_pro_sticks_decode_from_their_extended_usages():
+    # its descriptor names the sticks with 4-byte usages (`0B 30 00 01 00`: Generic Desktop X) while
+    # the Usage Page in effect is Buttons; a parser that ignores the high half loses them
+    sticks = {c.name: c.page for c in parse_descriptor(SWITCH_PRO_USB).controls if c.size == 16}
+    assert sticks == {"X": 0x01, "Y": 0x01, "Z": 0x01, "Rz": 0x01}
+    values = decoded(SWITCH_PRO_USB, switch_pro_report(x=0, y=65535, z=16384, rz=49152))
+    assert values["X"] == 0.0 and values["Y"] == 1.0
+    assert values["Z"] == pytest.approx(16384 / 65535) and values["Rz"] == pytest.approx(49152 / 65535)
+
+
 def test_spacenavigator_reports_by_usage():
     values = decoded(SPACENAVIGATOR_USB, spacenav_report(1, 350, -350, 0), bytes.fromhex("02 00 00 e2 ff 00 00"),
                      spacenav_buttons(0b10))

@@ -1,11 +1,11 @@
 """Any HID controller: its controls read from the device's own report descriptor, named by usage.
 
 The descriptor (hidapi's get_report_descriptor, or the hidraw ioctl where the binding lacks it)
-is parsed once with hid-tools, the Linux HID maintainers' parser that the kernel's HID selftests
-use. Each input report is then decoded with a precomputed table of bit positions and
-normalised the same way for every device: an axis, trigger, dial or slider reads 0..1 over its
-logical range (a stick at rest is near 0.5), a button 0 or 1, a hat switch `Hat` (its position,
-0..1, or -1 when released) and the four buttons `Hat/up`, `Hat/right`, `Hat/down`, `Hat/left`.
+is parsed once by hid_report_descriptor.py (the project's own parser; why, it says there). Each
+input report is then decoded with a precomputed table of bit positions and normalised the same
+way for every device: an axis, trigger, dial or slider reads 0..1 over its logical range (a
+stick at rest is near 0.5), a button 0 or 1, a hat switch `Hat` (its position, 0..1, or -1 when
+released) and the four buttons `Hat/up`, `Hat/right`, `Hat/down`, `Hat/left`.
 
 A control's name is its usage: `X Y Z Rx Ry Rz Slider Dial Wheel Hat`, `Accelerator Brake ...`
 (simulation page), `AC Home`, `AC Back` (consumer page), `Button <n>`, or `PPPP:UUUU` (usage page
@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from ..errors import UserError
 from ..runtime.console import Console
 from .events import ControlEvent
+from .hid_report_descriptor import DescriptorError, parse_report_descriptor
 
 RETRY_SECONDS = 1.0
 READS_PER_POLL = 64  # reports drained per frame at most: a flood is read over several frames, never blocks one
@@ -180,40 +181,36 @@ def parse_descriptor(data: bytes | list[int]) -> Descriptor:
 
 @functools.lru_cache(maxsize=32)
 def _parse(data: bytes) -> Descriptor:
-    from hidtools.hid import ReportDescriptor
-
     try:
-        parsed = ReportDescriptor.from_bytes(list(data))
-    except Exception as error:  # hid-tools raises assorted errors on malformed descriptors
+        parsed = parse_report_descriptor(data)
+    except DescriptorError as error:
         raise UserError(f"cannot parse the HID report descriptor ({len(data)} bytes): {error}") from None
     layouts: dict[int, ReportLayout] = {}
     vendor_only: set[int] = set()
     seen: dict[str, int] = {}
-    for report_id, report in sorted(parsed.input_reports.items()):
-        number = max(report_id, 0)
+    for report_id, report in sorted(parsed.inputs.items()):
         controls = []
-        for f in report:
-            page, usage = f.usage >> 16, f.usage & 0xFFFF
-            if f.is_const or f.is_array or page >= 0xFF00 or page == 0 or f.size > 32:
+        for f in report.fields:
+            if f.constant or not f.variable or f.page >= 0xFF00 or f.page == 0 or f.size > 32:
                 continue
-            name = usage_name(page, usage)
+            name = usage_name(f.page, f.usage)
             seen[name] = seen.get(name, 0) + 1
             if seen[name] > 1:
                 name = f"{name}#{seen[name]}"
             maximum = f.logical_max
             if f.logical_min >= 0 > maximum:  # "25 FF" after a minimum of 0 means 255, as the kernel reads it
                 maximum &= (1 << f.size) - 1
-            controls.append(HidControl(name, page, usage, number, f.start, f.size, f.logical_min, maximum,
-                                       relative=bool(f.type & 0x04), null_state=bool(f.type & 0x40)))
+            controls.append(HidControl(name, f.page, f.usage, report_id, f.bit, f.size, f.logical_min, maximum,
+                                       relative=f.relative, null_state=f.null_state))
         if controls:
-            layouts[number] = ReportLayout(number, report.size, controls)
+            layouts[report_id] = ReportLayout(report_id, report.length, controls)
         else:
-            vendor_only.add(number)
+            vendor_only.add(report_id)
     outputs = {}
-    for report_id, report in sorted(parsed.output_reports.items()):
-        fields = [OutputField(f.usage >> 16, f.usage & 0xFFFF, max(report_id, 0), f.start, f.size, f.logical_min, f.logical_max)
-                  for f in report if not f.is_const]
-        outputs[max(report_id, 0)] = (report.size, fields)
+    for report_id, report in sorted(parsed.outputs.items()):
+        fields = [OutputField(f.page, f.usage, report_id, f.bit, f.size, f.logical_min, f.logical_max)
+                  for f in report.fields if not f.constant]
+        outputs[report_id] = (report.length, fields)
     return Descriptor(layouts, outputs, vendor_only)
 
 
@@ -285,8 +282,6 @@ class HidInput:
     on the console and reopened about once a second, while the walk goes on."""
 
     def __init__(self, console: Console, vendor: int, product: int, hid=None):
-        import hidtools.hid  # noqa: F401  (its usage tables take a quarter second to load: now, not in the live loop)
-
         self.hid = hid if hid is not None else hidapi()
         self.console, self.vendor, self.product = console, vendor, product
         self.device = None
