@@ -21,7 +21,10 @@ from dataclasses import dataclass, field
 INPUT, OUTPUT, FEATURE = "input", "output", "feature"
 _MAIN_KINDS = {0x8: INPUT, 0x9: OUTPUT, 0xB: FEATURE}
 _COLLECTION, _END_COLLECTION = 0xA, 0xC
-_MAIN, _GLOBAL, _LOCAL = 0, 1, 2
+_MAIN, _GLOBAL, _LOCAL = 0, 1, 2  # item types
+_USAGE_PAGE, _LOGICAL_MINIMUM, _LOGICAL_MAXIMUM, _REPORT_SIZE, _REPORT_ID, _REPORT_COUNT, _PUSH, _POP = (
+    0x0, 0x1, 0x2, 0x7, 0x8, 0x9, 0xA, 0xB)  # global item tags read (physical range, unit: not needed)
+_USAGE, _USAGE_MINIMUM, _USAGE_MAXIMUM, _DELIMITER = 0x0, 0x1, 0x2, 0xA  # local item tags read
 MAX_REPORT_SIZE = 256  # bits in one field: the kernel's limit too
 MAX_REPORT_BYTES = 16384  # one report at most (the kernel's HID_MAX_BUFFER_SIZE)
 
@@ -129,7 +132,7 @@ def parse_report_descriptor(data: bytes) -> ReportDescriptor:
     state, stack = _Globals(), []
     usages: list[tuple[int, int]] = []  # (page, usage) declared since the last main item
     usage_min: tuple[int, int] | None = None
-    delimiter_depth, delimited_usage_taken = 0, False
+    in_delimited_set, set_has_usage = False, False  # alternative usages for one control: the first counts
     collections = 0
     for at, kind, tag, size, value, signed in _items(data):
         if kind == _MAIN:
@@ -143,43 +146,41 @@ def parse_report_descriptor(data: bytes) -> ReportDescriptor:
                     raise DescriptorError(f"byte {at}: End Collection without a Collection")
             usages, usage_min = [], None  # locals last until the next main item
         elif kind == _GLOBAL:
-            if tag == 0x0:
+            if tag == _USAGE_PAGE:
                 state.page = value
-            elif tag == 0x1:
+            elif tag == _LOGICAL_MINIMUM:
                 state.logical_min = signed
-            elif tag == 0x2:
+            elif tag == _LOGICAL_MAXIMUM:
                 state.logical_max = signed
-            elif tag == 0x7:
+            elif tag == _REPORT_SIZE:
                 if not 0 < value <= MAX_REPORT_SIZE:
                     raise DescriptorError(f"byte {at}: Report Size {value} (1 to {MAX_REPORT_SIZE} bits)")
                 state.size = value
-            elif tag == 0x8:
+            elif tag == _REPORT_ID:
                 if not 0 < value <= 255:
                     raise DescriptorError(f"byte {at}: Report ID {value} (1 to 255)")
                 if not out.numbered and (out.inputs or out.outputs or out.features):
                     raise DescriptorError(f"byte {at}: a Report ID after fields declared without one")
                 out.numbered, state.report_id = True, value
-            elif tag == 0x9:
+            elif tag == _REPORT_COUNT:
                 state.count = value
-            elif tag == 0xA:
+            elif tag == _PUSH:
                 stack.append(_Globals(**vars(state)))
-            elif tag == 0xB:
+            elif tag == _POP:
                 if not stack:
                     raise DescriptorError(f"byte {at}: Pop without a Push")
                 state = stack.pop()
         elif kind == _LOCAL:
-            if tag == 0xA:  # Delimiter: alternative usages for one control; the first is kept
-                delimiter_depth, delimited_usage_taken = (1, False) if value else (0, False)
+            if tag == _DELIMITER:  # opens (1) or closes (0) a set of alternative usages
+                in_delimited_set, set_has_usage = bool(value), False
                 continue
-            if tag not in (0x0, 0x1, 0x2):
+            if tag not in (_USAGE, _USAGE_MINIMUM, _USAGE_MAXIMUM) or (in_delimited_set and set_has_usage):
                 continue
-            if delimiter_depth and delimited_usage_taken:
-                continue
-            delimited_usage_taken = bool(delimiter_depth)
+            set_has_usage = in_delimited_set
             usage = (value >> 16, value & 0xFFFF) if size == 4 else (state.page, value)  # 4 bytes: extended usage
-            if tag == 0x0:
+            if tag == _USAGE:
                 usages.append(usage)
-            elif tag == 0x1:
+            elif tag == _USAGE_MINIMUM:
                 usage_min = usage
             elif usage_min is None:
                 raise DescriptorError(f"byte {at}: Usage Maximum without a Usage Minimum")
