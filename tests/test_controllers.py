@@ -9,7 +9,8 @@ import mido
 import pytest
 
 from conftest import REPO
-from instrument.control.devices import HidInput
+from hid_descriptors import DUALSHOCK4_USB
+from instrument.control.hid import HidInput
 from instrument.control.hub import ControlHub
 from instrument.control.mapping import load_mapping
 from instrument.control.state import ControlState
@@ -139,6 +140,9 @@ class SimulatedDualShock4:
 
             def set_nonblocking(self, flag):
                 pass
+
+            def get_report_descriptor(self, size=4096):
+                return list(DUALSHOCK4_USB)  # the real one: the device is decoded from it
 
             def read(self, size):
                 if not sim.plugged:

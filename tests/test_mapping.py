@@ -170,7 +170,7 @@ def test_every_shipped_mapping_loads_and_names_the_default_styles():
         mapping = load_mapping(f, state())
         assert not style_problems(mapping, state()), f
         styles = {c.target for c in mapping.controls if c.target.startswith("style/")}
-        assert len(styles) == 7 or f.stem == "sony-dualshock4", f
+        assert len(styles) == 7 or mapping.hid or mapping.hid_usages, f  # a gamepad has too few controls for all seven
         assert any(c.target == "speed" for c in mapping.controls), f
 
 

@@ -6,8 +6,12 @@ import argparse
 import re
 
 from ..control.devices import midi_backend
+from ..control.hid import choose_mapping as choose_hid_mapping
+from ..control.hid import describe_controls, device_controls, hidapi
 from ..control.mapping import load_mapping
 from ..shipped import shipped_mappings
+
+PLAYABLE = {(1, 4), (1, 5), (1, 8)}  # Generic Desktop joystick, gamepad, multi-axis controller
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -31,19 +35,25 @@ def run(args: argparse.Namespace) -> int:
         print("  none")
     print("HID devices:")
     try:
-        import hid
-
+        hid = hidapi()
         found = hid.enumerate()
     except Exception as error:
         found = []
         print(f"  (HID not available: {error})")
-    shown = 0
+    shown = set()
     for info in found:
         ids = (info.get("vendor_id", 0), info.get("product_id", 0))
-        fit = next((m for m in mappings if m.hid and ids in m.hid), None)
-        if fit or info.get("usage_page") in (1,):
-            shown += 1
-            print(f"  {ids[0]:04x}:{ids[1]:04x} {info.get('product_string') or ''}  ->  {fit.path if fit else 'no shipped mapping'}")
+        if ids in shown:  # one line per device, not per interface
+            continue
+        playable = (info.get("usage_page"), info.get("usage")) in PLAYABLE
+        if not playable and not any(m.hid and ids in m.hid for m in mappings):
+            continue  # keyboards, mice, UPSes...: nothing a performer plays
+        controls = device_controls(hid, *ids)
+        shown.add(ids)
+        fit, why = choose_hid_mapping(mappings, *ids, hid=hid)
+        print(f"  {ids[0]:04x}:{ids[1]:04x} {info.get('product_string') or ''}  ->  "
+              f"{f'{fit.path} ({why})' if fit else 'no shipped mapping (instrument learn --hid writes one)'}")
+        print(f"    controls: {describe_controls(controls) if controls else '(cannot read its report descriptor)'}")
     if not shown:
         print("  none")
     return 0

@@ -1,4 +1,4 @@
-"""`instrument learn`: MIDI learn in the terminal, written out as a mapping file."""
+"""`instrument learn`: MIDI or HID learn in the terminal, written out as a mapping file."""
 
 from __future__ import annotations
 
@@ -8,7 +8,9 @@ import time
 from pathlib import Path
 
 from ..control.devices import MidiInput
+from ..control.hid import HidInput, detect_hid
 from ..control.learn import detect
+from ..control.mapping import parse_hid_id
 from ..control.state import ControlState
 from ..errors import UserError
 from ..models.modelfile import load_model
@@ -16,28 +18,34 @@ from ..runtime.console import Console
 from ..shipped import default_model_path
 
 QUIET_AFTER = 0.8  # seconds without messages that end a capture
+HID_JITTER = 0.02  # share of an axis's range a HID control must move by to count as moving
 RANGES = {"style": (-1.0, 2.0), "part": (-1.0, 2.0), "speed": (0.5, 2.0), "phase": (0.5, 2.0), "turn": (-1.0, 1.0),
           "liveliness": (0.0, 1.0)}
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("learn", help="MIDI learn: pick a target, move a control, write a mapping file")
+    p = sub.add_parser("learn", help="MIDI or HID learn: pick a target, move a control, write a mapping file")
     p.add_argument("--out", required=True, metavar="MY.toml")
     p.add_argument("--model", help="model whose styles are offered (default: the shipped default model)")
     p.add_argument("--midi", metavar="PATTERN", help="MIDI input port (regular expression)")
     p.add_argument("--midi-virtual", metavar="NAME", help="create a virtual MIDI input port NAME instead")
     p.add_argument("--midi-api", choices=("alsa", "jack"))
+    p.add_argument("--hid", metavar="VVVV:PPPP", help="HID device by vendor and product id (hexadecimal), e.g. 054c:09cc")
     p.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for a control to move (default 30)")
     p.set_defaults(run=run)
 
 
-def capture(device: MidiInput, timeout: float) -> list[tuple[str, float]]:
+def capture(device: MidiInput | HidInput, timeout: float) -> list[tuple[str, float]]:
     """Raw events from the first message until the control rests for a moment."""
     device.read_raw()  # forget anything that came before the question
     raw: list[tuple[str, float]] = []
     deadline, last = time.monotonic() + timeout, None
+    moved: dict[str, float] = {}  # HID: where each control last moved to (a resting stick jitters)
     while time.monotonic() < deadline:
         fresh = device.read_raw()
+        if isinstance(device, HidInput):
+            fresh = [(n, v) for n, v in fresh if n.startswith(("Button ", "Hat/")) or abs(v - moved.setdefault(n, v)) > HID_JITTER]
+            moved.update(fresh)
         if fresh:
             raw += fresh
             last = time.monotonic()
@@ -51,12 +59,13 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists():
         raise UserError(f"{out}: already exists (nothing is overwritten)")
-    if not (args.midi or args.midi_virtual):
-        raise UserError("give --midi PATTERN (a port to listen to) or --midi-virtual NAME")
+    if not (args.midi or args.midi_virtual or args.hid):
+        raise UserError("give --midi PATTERN (a port to listen to), --midi-virtual NAME or --hid VVVV:PPPP")
+    hid_ids = parse_hid_id(args.hid) if args.hid else None
     model = load_model(args.model or default_model_path())
     targets = ControlState(model.style_names, model.states).targets()
     targets = [t for t in targets if not t.startswith("part/")] + [f"preset/{n}" for n in ("1", "2", "3", "4")]
-    device = MidiInput(Console(), args.midi, args.midi_virtual, args.midi_api)
+    device = HidInput(Console(), *hid_ids) if hid_ids else MidiInput(Console(), args.midi, args.midi_virtual, args.midi_api)
     port = args.midi_virtual or args.midi
     blocks: list[str] = []
     print("targets: " + ", ".join(f"{k + 1}) {t}" for k, t in enumerate(targets)), flush=True)
@@ -72,17 +81,21 @@ def run(args: argparse.Namespace) -> int:
                 print(f"not a target: {choice}", flush=True)
                 continue
             print(f"move the control for {target} (an encoder: turn it up, then down)", flush=True)
-            learned = detect(capture(device, args.timeout))
+            learned = (detect_hid if hid_ids else detect)(capture(device, args.timeout))
             if learned is None:
                 print("nothing arrived; skipped", flush=True)
                 continue
-            print(f"learned {learned.message} channel {learned.channel} number {learned.number} ({learned.mode}) -> {target}", flush=True)
+            if hid_ids:
+                print(f"learned HID {learned.input} ({'button' if learned.button else 'axis'}) -> {target}", flush=True)
+            else:
+                print(f"learned {learned.message} channel {learned.channel} number {learned.number} ({learned.mode}) -> {target}", flush=True)
             blocks.append(learned.toml(target, RANGES.get(target.split("/")[0])))
     finally:
         device.close()
     if not blocks:
         print("nothing learned; no file written", file=sys.stderr)
         return 0
-    out.write_text(f'# Learned with instrument learn\nname = "{out.stem}"\n\n[device]\nmidi = "{port}"\n\n' + "\n".join(blocks))
+    device_line = f'hid = "{args.hid.lower()}"' if hid_ids else f'midi = "{port}"'
+    out.write_text(f'# Learned with instrument learn\nname = "{out.stem}"\n\n[device]\n{device_line}\n\n' + "\n".join(blocks))
     print(f"wrote {len(blocks)} controls to {out}", file=sys.stderr)
     return 0

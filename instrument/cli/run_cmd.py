@@ -6,9 +6,12 @@ import argparse
 import re
 from pathlib import Path
 
-from ..control.devices import HidInput, MidiInput, OscInput
+from ..control.devices import MidiInput, OscInput
 from ..control.events import LogReplay, read_log
 from ..control.feedback import MidiFeedback
+from ..control.hid import HidInput
+from ..control.hid import choose_mapping as choose_hid_mapping
+from ..control.hid_feedback import HidFeedback
 from ..control.hub import ControlHub
 from ..control.mapping import load_mapping, parse_hid_id, style_problems
 from ..control.state import ControlState
@@ -126,14 +129,13 @@ def choose_mappings(args: argparse.Namespace, state: ControlState, console: Cons
         if chosen:
             console.say(f"MIDI mapping: {chosen[0].name} ({chosen[0].path})")
         mappings += chosen
-    if args.hid and not any(m.hid for m in mappings):
-        ids = parse_hid_id(args.hid)
+    if args.hid and not any(m.hid or m.hid_usages for m in mappings):
         shipped = [load_mapping(p, state) for p in shipped_mappings()]
-        chosen = [m for m in shipped if m.hid and ids in m.hid][:1]
-        if not chosen:
-            raise UserError(f"--hid {args.hid}: no shipped mapping for this device; give --mapping")
-        console.say(f"HID mapping: {chosen[0].name} ({chosen[0].path})")
-        mappings += chosen
+        chosen, why = choose_hid_mapping(shipped, *parse_hid_id(args.hid))
+        if chosen is None:
+            raise UserError(f"--hid {args.hid}: {why}; give --mapping (instrument learn --hid writes one)")
+        console.say(f"HID mapping: {chosen.name} ({chosen.path}), {why}")
+        mappings.append(chosen)
     for mapping in mappings:
         for target in style_problems(mapping, state):
             console.warn(f"style {mapping.path} {target}", f"{mapping.path}: {target}: the model has no such style; that control does nothing")
@@ -175,6 +177,8 @@ def run(args: argparse.Namespace) -> int:
         if args.hid:
             vendor, product = parse_hid_id(args.hid)
             devices.append(HidInput(console, vendor, product))
+            if hub.hid is not None and hub.hid.mapping.feedback is not None and not args.no_feedback:
+                outputs.append(HidFeedback(devices[-1], hub.hid.mapping.feedback, console))
         if args.osc_in:
             devices.append(OscInput(console, args.osc_in if ":" in args.osc_in else f"127.0.0.1:{args.osc_in}"))
         if args.bvh:

@@ -1,4 +1,4 @@
-"""Input devices: MIDI ports (mido + python-rtmidi), HID game controllers (hidapi), OSC surfaces.
+"""Input devices: MIDI ports (mido + python-rtmidi) and OSC surfaces (HID controllers are in hid.py).
 
 Each device is polled once per frame and returns raw control events; it never raises into the
 performance. A device that goes away is reported on the console and reopened about once a
@@ -136,107 +136,6 @@ class MidiInput:
             self.port.close_port()
             self.open = False
         self.port.delete()
-
-
-DS4_IDS = ((0x054C, 0x05C4), (0x054C, 0x09CC))
-DS4_FACE = ("square", "cross", "circle", "triangle")
-DS4_SHOULDER = ("l1", "r1", "l2", "r2", "share", "options", "l3", "r3")
-HAT = {0: ("up",), 1: ("up", "right"), 2: ("right",), 3: ("down", "right"), 4: ("down",), 5: ("down", "left"),
-       6: ("left",), 7: ("up", "left")}
-
-
-def ds4_values(report: list[int]) -> dict[str, float] | None:
-    """Controls of a DualShock 4 USB input report (id 0x01), or None for other reports."""
-    if len(report) < 10 or report[0] != 0x01:
-        return None
-    values = {"lx": report[1], "ly": report[2], "rx": report[3], "ry": report[4], "l2": report[8], "r2": report[9]}
-    hat = report[5] & 0x0F
-    values["hat"] = hat
-    for direction in ("up", "down", "left", "right"):
-        values[f"button/{direction}"] = float(direction in HAT.get(hat, ()))
-    for bit, name in enumerate(DS4_FACE):
-        values[f"button/{name}"] = float(bool(report[5] & (0x10 << bit)))
-    for bit, name in enumerate(DS4_SHOULDER):
-        values[f"button/{name}"] = float(bool(report[6] & (1 << bit)))
-    return {k: float(v) for k, v in values.items()}
-
-
-class HidInput:
-    """A HID game controller by vendor and product id, polled without blocking.
-
-    `hid` is the hidapi module (or a stand-in with the same `enumerate` and `device`)."""
-
-    def __init__(self, console: Console, vendor: int, product: int, hid=None):
-        if hid is None:
-            try:
-                import hid
-            except ImportError as error:
-                raise UserError(f"HID is not available: {error} (pip install hidapi)") from None
-        self.hid, self.console, self.vendor, self.product = hid, console, vendor, product
-        self.device = None
-        self.values: dict[str, float] = {}
-        self.next_attempt = 0.0
-        self.connected_once = False
-
-    @property
-    def source(self) -> str:
-        return f"hid:{self.vendor:04x}:{self.product:04x}"
-
-    def _open(self) -> None:
-        now = time.monotonic()
-        if now < self.next_attempt:
-            return
-        self.next_attempt = now + RETRY_SECONDS
-        found = self.hid.enumerate(self.vendor, self.product)
-        if not found:
-            self.console.warn(f"hid {self.source}", f"HID device {self.vendor:04x}:{self.product:04x} not found; waiting for it")
-            return
-        try:
-            device = self.hid.device()
-            device.open_path(found[0]["path"])
-            device.set_nonblocking(1)
-        except OSError as error:
-            self.console.warn(f"hid {self.source}", f"cannot open HID device {self.source}: {error}")
-            return
-        self.device = device
-        self.console.say(f"HID device {self.source} {'reconnected' if self.connected_once else 'connected'}")
-        self.connected_once = True
-
-    def poll(self, now: float) -> list[ControlEvent]:
-        if self.device is None:
-            self._open()
-            if self.device is None:
-                return []
-        events = []
-        for _ in range(64):  # drain what is pending, bounded
-            try:
-                report = self.device.read(64)
-            except OSError as error:  # unplugged: close, say so, reopen later
-                self.console.warn(f"hid gone {self.source}", f"HID device {self.source} lost ({error}); the walk goes on, reconnecting")
-                try:
-                    self.device.close()
-                finally:
-                    self.device = None
-                    self.next_attempt = time.monotonic() + RETRY_SECONDS
-                break
-            if not report:
-                break
-            values = ds4_values(list(report))
-            if values is None:
-                continue
-            for control, value in values.items():
-                if self.values.get(control) != value:
-                    self.values[control] = value
-                    events.append(ControlEvent(now, self.source, control, value))
-        return events
-
-    def describe(self) -> str:
-        return f"{self.source} {'on' if self.device else 'waiting'}"
-
-    def close(self) -> None:
-        if self.device is not None:
-            self.device.close()
-            self.device = None
 
 
 class OscInput:

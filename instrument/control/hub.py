@@ -21,7 +21,7 @@ class ControlHub:
         self.presets.update(presets or {})  # a show file's presets win over a mapping's
         self.morph = morph or max([m.morph for m in mappings], default=0.0)
         self.midi = next((Mapper(m, self.presets, self.morph) for m in mappings if m.midi is not None), None)
-        self.hid = next((Mapper(m, self.presets, self.morph) for m in mappings if m.hid is not None), None)
+        self.hid = next((Mapper(m, self.presets, self.morph) for m in mappings if m.hid is not None or m.hid_usages), None)
         self.record_fd = None
         if record:
             try:

@@ -17,15 +17,14 @@ from pathlib import Path
 from ..errors import UserError
 from ..tomlfile import read_toml
 from .events import ControlEvent
+from .hid import DS4_NAMES, canonical_input, legacy_event, unit_with_deadzone
+from .hid_feedback import FeedbackSpec, parse_feedback
 from .state import ControlState
 
 MESSAGES = ("cc", "cc14", "nrpn", "note", "pitchbend", "hid")
 MODES = ("absolute", "toggle", "momentary", "relative-twos", "relative-signed", "relative-signed2", "relative-offset")
 TAKEOVERS = ("none", "pickup", "scale")
 CURVES = ("linear", "exp")
-HID_INPUTS = ("lx", "ly", "rx", "ry", "l2", "r2", "hat") + tuple(
-    f"button/{b}" for b in ("square", "cross", "circle", "triangle", "l1", "r1", "l2", "r2", "share", "options", "l3", "r3",
-                            "up", "down", "left", "right"))
 PICKUP_THRESHOLD = 3.0 / 128.0  # of the target's range (Mixxx)
 FAST_SWEEP = 0.050  # seconds: a value this soon after an accepted one is accepted too (Mixxx)
 
@@ -36,13 +35,13 @@ class ControlSpec:
     target: str
     channel: int = 1  # 1 to 16
     number: int = 0  # CC number, NRPN parameter, note; for cc14 the MSB's CC (the LSB is number + 32)
-    input: str = ""  # for hid: lx, ly, rx, ry, l2, r2, hat, button/<name>
+    input: str = ""  # for hid: the control's usage name (X, Rz, Hat/up, Button 3, ...; see control/hid.py)
     mode: str = "absolute"
     range: tuple[float, float] = (0.0, 1.0)
     curve: str = "linear"
     takeover: str = "none"
     step: float = 0.01  # relative encoders: target units per tick
-    deadzone: float = 0.0  # hid sticks: share of the half-range around the centre that reads as centre
+    deadzone: float = 0.0  # hid axes: share of the half-range around the centre that reads as centre
     invert: bool = False
 
     @property
@@ -59,6 +58,8 @@ class Mapping:
     controls: tuple[ControlSpec, ...]
     presets: dict[str, dict[str, float]] = field(default_factory=dict)
     morph: float = 0.0  # default seconds to morph into a recalled preset
+    hid_usages: tuple[str, ...] = ()  # a HID device exposing all these usages fits, whatever its ids
+    feedback: FeedbackSpec | None = None  # HID output reports (LEDs, a light bar), from [feedback]
 
 
 def parse_hid_id(text: object, fail=None) -> tuple[int, int]:
@@ -85,7 +86,7 @@ def load_mapping(path: str | Path, state: ControlState | None = None) -> Mapping
         line = _line_of(text, key, begin) or (_line_of(text, "[[control]]", begin) if index is not None else 1)
         return UserError(f"{path}:{line}: {key}: {message}")
 
-    allowed_top = {"name", "device", "control", "presets", "morph"}
+    allowed_top = {"name", "device", "control", "presets", "morph", "feedback"}
     for key in data:
         if key not in allowed_top:
             raise fail(f"unknown key (expected one of {', '.join(sorted(allowed_top))})", key)
@@ -94,8 +95,11 @@ def load_mapping(path: str | Path, state: ControlState | None = None) -> Mapping
         raise fail("must be a table", "device")
     midi, hid = device.get("midi"), device.get("hid")
     for key in device:
-        if key not in ("midi", "hid"):
-            raise fail("unknown key in [device] (midi or hid)", key)
+        if key not in ("midi", "hid", "hid-usages"):
+            raise fail("unknown key in [device] (midi, hid or hid-usages)", key)
+    usages = device.get("hid-usages", [])
+    if not (isinstance(usages, list) and all(isinstance(u, str) and canonical_input(u) == u for u in usages)):
+        raise fail("expected a list of HID usage names (X, Rz, Hat, Button 1, ...)", "hid-usages")
     if midi is not None:
         if not isinstance(midi, str):
             raise fail("must be a string (a port name pattern)", "midi")
@@ -121,7 +125,9 @@ def load_mapping(path: str | Path, state: ControlState | None = None) -> Mapping
     morph = data.get("morph", 0.0)
     if not isinstance(morph, (int, float)) or morph < 0:
         raise fail("must be a number of seconds, 0 or more", "morph")
-    return Mapping(str(data.get("name", path.stem)), str(path), midi, hid_ids, tuple(controls), presets, float(morph))
+    feedback = parse_feedback(data["feedback"], fail) if "feedback" in data else None
+    return Mapping(str(data.get("name", path.stem)), str(path), midi, hid_ids, tuple(controls), presets, float(morph),
+                   tuple(usages), feedback)
 
 
 def _control(item: dict, index: int, fail, state: ControlState | None) -> ControlSpec:
@@ -156,8 +162,11 @@ def _control(item: dict, index: int, fail, state: ControlState | None) -> Contro
         raise fail(f"must be a whole number 0 to {limit}", "number", index)
     if message == "cc14" and values["number"] > 31:
         raise fail("a 14-bit pair has its MSB on CC 0 to 31 (the LSB is number + 32)", "number", index)
-    if message == "hid" and values.get("input") not in HID_INPUTS:
-        raise fail(f"{values.get('input')!r} is not one of {', '.join(HID_INPUTS[:7])}, button/...", "input", index)
+    if message == "hid":
+        values["input"] = canonical_input(str(values.get("input")))
+        if values["input"] is None:
+            raise fail(f"{item.get('input')!r} is not a HID usage name (X, Y, Z, Rx, Ry, Rz, Slider, Dial, Wheel, Hat/up, "
+                       "Button 1, PPPP:UUUU, ...)", "input", index)
     for key in ("step", "deadzone"):
         if key in values and not isinstance(values[key], (int, float)):
             raise fail("must be a number", key, index)
@@ -205,6 +214,8 @@ class Mapper:
 
     def apply(self, state: ControlState, event: ControlEvent) -> bool:
         """Apply one raw event; False if no control of the mapping uses it."""
+        if event.control in DS4_NAMES:  # recorded before HID controls were named by usage
+            event = ControlEvent(event.time, event.source, *legacy_event(event.control, event.value))
         parts = event.control.split("/")
         if parts[0] == "cc" and len(parts) == 3 and parts[2] in ("99", "98", "6", "38", "96", "97"):
             if self._nrpn(state, int(parts[1]), int(parts[2]), int(event.value), event.time):
@@ -270,7 +281,7 @@ class Mapper:
         if spec.message == "pitchbend":
             return self._scale(spec, raw / 16383.0)
         if spec.message == "hid":
-            return self._scale(spec, _hid_unit(spec, raw))
+            return self._scale(spec, unit_with_deadzone(raw, spec.deadzone))
         return self._scale(spec, raw / 127.0)
 
     def _scale(self, spec: ControlSpec, unit: float) -> float:
@@ -335,16 +346,3 @@ def _ticks(mode: str, value: int) -> int:
     if mode == "relative-signed2":  # bit 6 set means up: 65..127 up, 1..63 down
         return value - 64 if value >= 64 else -value
     return value - 64  # relative-offset: 64 is no change
-
-
-def _hid_unit(spec: ControlSpec, raw: float) -> float:
-    """A HID reading (0..255, centre 128 for sticks) as 0..1, with the deadzone around the centre."""
-    if spec.input in ("lx", "ly", "rx", "ry"):
-        centred = (raw - 128.0) / 127.0
-        centred = max(-1.0, min(1.0, centred))
-        if abs(centred) <= spec.deadzone:
-            centred = 0.0
-        else:
-            centred = math.copysign((abs(centred) - spec.deadzone) / (1.0 - spec.deadzone), centred)
-        return (centred + 1.0) / 2.0
-    return raw / 255.0 if spec.input in ("l2", "r2") else float(raw > 0)
