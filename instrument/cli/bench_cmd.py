@@ -28,6 +28,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="instead: run the live loop this long (demo, both OSC profiles to 127.0.0.1) and measure "
                         "how far each frame's send time is from its deadline")
     p.add_argument("--fps", type=float, default=60.0, help="frame rate for --pacing (default 60)")
+    p.add_argument("--startup", action="store_true",
+                   help="instead: how long `instrument --version`, `--help` and each `COMMAND --help` take to start, "
+                        "against `python -c pass` in the same run")
     p.set_defaults(run=run)
 
 
@@ -141,6 +144,15 @@ def measure(model_path: str | None, repeat: int) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.startup:
+        from .startup import measure_startup
+
+        figures = measure_startup(max(1, args.repeat))
+        if args.json:
+            print(json.dumps(figures, indent=1))
+        for line, f in figures.items() if not args.json else ():
+            print(f"{line:32s} {f['seconds']:6.2f} s  (python -c pass {f['bare_seconds']:.2f} s: x{f['ratio']:.1f})")
+        return 0
     if args.pacing:
         f = measure_pacing(args.model, args.pacing, args.fps)
         if args.json:

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import uniform_filter1d
-from scipy.signal import find_peaks
 
 from .bvh import Motion
 from .features import FeatureLayout, choose_layout, heading_angle
@@ -91,6 +90,8 @@ def _lowest(height: np.ndarray, allowed: np.ndarray) -> int:
 
 def _alternating_extrema(signal: np.ndarray, fps: float, prominence: float) -> list[tuple[int, int]]:
     """(frame, +1 for a peak / -1 for a dip), alternating; of two alike in a row the stronger stays."""
+    from scipy.signal import find_peaks  # here, not at the top: scipy.signal takes a second to import
+
     distance = max(1, int(round(MIN_STEP_SECONDS * fps)))
     peaks, _ = find_peaks(signal, prominence=prominence, distance=distance)
     dips, _ = find_peaks(-signal, prominence=prominence, distance=distance)
