@@ -333,7 +333,7 @@ def test_log_replay_and_its_errors(tmp_path):
 
 
 @pytest.mark.parametrize("args,message", [
-    (["--fps", "200"], "--fps must be between 24 and 120"),
+    (["--fps", "200"], "--fps: expected a number from 24 to 120, not '200'"),
     (["--osc", "localhost"], "expected HOST:PORT"),
     (["--osc", "127.0.0.1:99999"], "port must be 1 to 65535"),
     (["--osc", "127.0.0.1:9000/midi"], "unknown profile"),

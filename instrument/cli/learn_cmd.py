@@ -27,7 +27,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--midi", metavar="PATTERN", help="MIDI input port (regular expression)")
     p.add_argument("--midi-virtual", metavar="NAME", help="create a virtual MIDI input port NAME instead")
     p.add_argument("--midi-api", choices=("alsa", "jack"))
-    p.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for a control to move (default 30)")
+    p.add_argument("--timeout", type=checked("learn --timeout"), default=30.0, help="seconds to wait for a control to move (default 30)")
     p.set_defaults(run=run)
 
 

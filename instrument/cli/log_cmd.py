@@ -9,6 +9,7 @@ from pathlib import Path
 from ..control.events import read_log
 from ..control.smf import export_smf, import_smf
 from ..errors import UserError
+from .arguments import checked
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -16,7 +17,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("action", choices=("export", "import"), help="export LOG.jsonl to a .mid, or import a .mid as LOG.jsonl")
     p.add_argument("source", metavar="FILE")
     p.add_argument("--out", required=True, metavar="FILE")
-    p.add_argument("--fps", type=float, default=30.0, help="import: the frame rate whose frames events land on (default 30)")
+    p.add_argument("--fps", type=checked("log --fps"), default=30.0, help="import: the frame rate whose frames events land on (default 30)")
     p.set_defaults(run=run)
 
 

@@ -39,9 +39,16 @@ def chosen_command(argv: list[str]) -> str | None:
     return words[0] if words and words[0] in COMMANDS else None
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line naming the option, and a pointer to --help; exit 2."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser(load: str | None = EVERY) -> argparse.ArgumentParser:
     """The parser; subcommands other than `load` are listed by name and summary only."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="instrument",
         description="A realtime stylistic walk synthesizer: style models from motion capture, live control, OSC out.",
         epilog="Exit status: 0 done, 1 a bad file or value (one line naming it), 2 a usage error, 130 interrupted.",

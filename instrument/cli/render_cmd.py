@@ -12,13 +12,14 @@ from ..errors import UserError
 from ..motion.bvh import read_bvh
 from ..motion.kinematics import world_positions
 from ..output.drawing import draw_framed, drawn_parents, pyplot, side_projection
+from .arguments import checked
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("render", help="draw a BVH recording: contact sheet (.png) or animation (.gif)")
     p.add_argument("--bvh", required=True, metavar="FILE.bvh")
     p.add_argument("--out", required=True, metavar="walk.png|walk.gif")
-    p.add_argument("--every", type=int, default=0, help="draw every Nth frame (default: 12 figures for a PNG, 15 fps for a GIF)")
+    p.add_argument("--every", type=checked("render --every"), help="draw every Nth frame (default: 12 figures for a PNG, 15 fps for a GIF)")
     p.set_defaults(run=run)
 
 

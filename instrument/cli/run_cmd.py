@@ -21,7 +21,8 @@ from ..runtime.performance import perform
 from ..runtime.priority import realtime_scheduling
 from ..shipped import default_model_path, demo_log_path, shipped_mappings
 from ..tomlfile import read_toml
-from .arguments import number
+from .arguments import OPTIONS
+from .arguments import value as option_value
 
 DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
 DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "fast": False, "quiet": False,
@@ -85,6 +86,9 @@ def apply_show_file(args: argparse.Namespace) -> dict:
             raise UserError(f"{path}:{line}: {key}: expected a string or a number")
         else:
             value = str(value)
+        option = f"run --{dest.replace('_', '-')}"
+        if option in OPTIONS:  # the same table as the command line, the error naming file, line and key
+            option_value(option, value.rpartition(":")[2] if dest == "osc_in" else value, where=f"{path}:{line}: {key}")
         if getattr(args, dest) is None:
             setattr(args, dest, value)
         if dest in PATHS:
@@ -145,13 +149,11 @@ def run(args: argparse.Namespace) -> int:
     for key, value in DEFAULTS.items():
         if getattr(args, key) is None:
             setattr(args, key, value)
-    fps = number("--fps", args.fps)
-    if not 24 <= fps <= 120:
-        raise UserError(f"--fps must be between 24 and 120, not {args.fps}")
-    seconds = None if args.seconds is None else number("--seconds", args.seconds)
-    if seconds is not None and seconds <= 0:
-        raise UserError(f"--seconds must be positive, not {args.seconds}")
-    morph = 0.0 if args.morph is None else number("--morph", args.morph)
+    fps = option_value("run --fps", args.fps)
+    seconds = None if args.seconds is None else option_value("run --seconds", args.seconds)
+    morph = 0.0 if args.morph is None else option_value("run --morph", args.morph)
+    if args.osc_in:
+        option_value("run --osc-in", args.osc_in.rpartition(":")[2], where=f"--osc-in {args.osc_in}: port")
     model = load_model(args.model or default_model_path())
     console = Console(quiet=args.quiet)
     state = ControlState(model.style_names, model.states)

@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from ..errors import UserError
-from .arguments import number
+from .arguments import value
 from ..models.modelfile import default_model_path, load_model
 from ..motion.bvh import write_bvh
 from ..synthesis.durations import MAX_SPEED, MIN_SPEED
@@ -35,29 +35,23 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def parse_weights(items: list[str], styles: list[str]) -> dict[str, float]:
     weights: dict[str, float] = {}
     for item in items:
-        name, sep, value = item.partition("=")
+        name, sep, text = item.partition("=")
         if not sep:
             raise UserError(f"--style {item!r}: expected NAME=WEIGHT, e.g. elderly=1.5")
         if name not in styles:
             raise UserError(f"--style {item!r}: the model has no style {name!r} (it has {', '.join(styles)})")
-        weights[name] = number(f"--style {name}", value)
+        weights[name] = value("synth --style", text, where=f"--style {name}")
     return weights
 
 
 def run(args: argparse.Namespace) -> int:
     model = load_model(args.model or default_model_path())
     weights = parse_weights(args.style, model.style_names)
-    speed = number("--speed", args.speed)
-    if speed <= 0:
-        raise UserError(f"--speed must be positive, not {args.speed}")
-    seconds = number("--seconds", args.seconds)
-    if seconds <= 0:
-        raise UserError(f"--seconds must be positive, not {args.seconds}")
-    lookahead = number("--lookahead", args.lookahead, int)
-    if lookahead < 1:
-        raise UserError(f"--lookahead must be at least 1 frame, not {args.lookahead}")
-    liveliness = number("--liveliness", args.liveliness)
-    seed = number("--seed", args.seed, int)
+    speed = value("synth --speed", args.speed)
+    seconds = value("synth --seconds", args.seconds)
+    lookahead = value("synth --lookahead", args.lookahead)
+    liveliness = value("synth --liveliness", args.liveliness)
+    seed = value("synth --seed", args.seed)
     frames = max(1, int(round(seconds * model.fps)))
     controls = default_controls(model, weights, speed=speed, liveliness=liveliness)
     static = synthesize(style_space(model), model.layout.dimension, controls, frames, args.method, lookahead, seed)

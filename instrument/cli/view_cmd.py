@@ -14,13 +14,14 @@ from ..models.modelfile import load_model
 from ..output.drawing import draw_framed, drawn_parents, pyplot
 from ..output.osc import FLAT_PORT
 from ..shipped import default_model_path
+from .arguments import checked
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("view", help="live stick figure of the flat OSC profile (needs matplotlib)")
     p.add_argument("--model", help="model file whose skeleton is drawn (default: the shipped default model)")
-    p.add_argument("--port", type=int, default=FLAT_PORT, help=f"UDP port to listen on, 127.0.0.1 (default {FLAT_PORT})")
-    p.add_argument("--frames", type=int, default=0, help="stop after this many frames (default: until the window closes)")
+    p.add_argument("--port", type=checked("view --port"), default=FLAT_PORT, help=f"UDP port to listen on, 127.0.0.1 (default {FLAT_PORT})")
+    p.add_argument("--frames", type=checked("view --frames"), help="stop after this many frames (default: until the window closes)")
     p.add_argument("--save", metavar="PNG", help="draw off screen and save the last frame here (no window)")
     p.set_defaults(run=run)
 
