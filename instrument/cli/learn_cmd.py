@@ -5,15 +5,17 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
 
 from ..control.devices import MidiInput
 from ..control.learn import detect
 from ..control.state import ControlState
 from ..errors import UserError
 from ..models.modelfile import load_model
+from ..outputfile import check_output, written
 from ..runtime.console import Console
 from ..shipped import default_model_path
+from ..tomlfile import toml_string
+from .arguments import checked
 
 QUIET_AFTER = 0.8  # seconds without messages that end a capture
 RANGES = {"style": (-1.0, 2.0), "part": (-1.0, 2.0), "speed": (0.5, 2.0), "phase": (0.5, 2.0), "turn": (-1.0, 1.0),
@@ -23,6 +25,7 @@ RANGES = {"style": (-1.0, 2.0), "part": (-1.0, 2.0), "speed": (0.5, 2.0), "phase
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("learn", help="MIDI learn: pick a target, move a control, write a mapping file")
     p.add_argument("--out", required=True, metavar="MY.toml")
+    p.add_argument("--force", action="store_true", help="overwrite OUT if it exists (default: refuse)")
     p.add_argument("--model", help="model whose styles are offered (default: the shipped default model)")
     p.add_argument("--midi", metavar="PATTERN", help="MIDI input port (regular expression)")
     p.add_argument("--midi-virtual", metavar="NAME", help="create a virtual MIDI input port NAME instead")
@@ -48,9 +51,7 @@ def capture(device: MidiInput, timeout: float) -> list[tuple[str, float]]:
 
 
 def run(args: argparse.Namespace) -> int:
-    out = Path(args.out)
-    if out.exists():
-        raise UserError(f"{out}: already exists (nothing is overwritten)")
+    out = check_output(args.out, args.force)
     if not (args.midi or args.midi_virtual):
         raise UserError("give --midi PATTERN (a port to listen to) or --midi-virtual NAME")
     model = load_model(args.model or default_model_path())
@@ -83,6 +84,8 @@ def run(args: argparse.Namespace) -> int:
     if not blocks:
         print("nothing learned; no file written", file=sys.stderr)
         return 0
-    out.write_text(f'# Learned with instrument learn\nname = "{out.stem}"\n\n[device]\nmidi = "{port}"\n\n' + "\n".join(blocks))
+    with written(out) as part:
+        part.write_text(f"# Learned with instrument learn\nname = {toml_string(out.stem)}\n\n[device]\nmidi = {toml_string(port)}\n\n"
+                        + "\n".join(blocks), encoding="utf-8")
     print(f"wrote {len(blocks)} controls to {out}", file=sys.stderr)
     return 0

@@ -12,6 +12,7 @@ from ..errors import UserError
 from ..motion.bvh import read_bvh
 from ..motion.kinematics import world_positions
 from ..output.drawing import draw_framed, drawn_parents, pyplot, side_projection
+from ..outputfile import check_output, written
 from .arguments import checked
 
 
@@ -19,6 +20,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("render", help="draw a BVH recording: contact sheet (.png) or animation (.gif)")
     p.add_argument("--bvh", required=True, metavar="FILE.bvh")
     p.add_argument("--out", required=True, metavar="walk.png|walk.gif")
+    p.add_argument("--force", action="store_true", help="overwrite OUT if it exists (default: refuse)")
     p.add_argument("--every", type=checked("render --every"), help="draw every Nth frame (default: 12 figures for a PNG, 15 fps for a GIF)")
     p.set_defaults(run=run)
 
@@ -27,6 +29,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.suffix.lower() not in (".png", ".gif"):
         raise UserError(f"--out {out}: give a .png (contact sheet) or a .gif (animation)")
+    check_output(out, args.force, inputs=(args.bvh,))
     motion = read_bvh(args.bvh)
     plt = pyplot("Agg")
     positions = world_positions(motion)
@@ -47,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
             draw_framed(ax, points[f], parents, low, high, 0.5 * height)
             ax.set_title(f"{f / motion.fps:.2f} s", fontsize=8)
         fig.tight_layout()
-        fig.savefig(out, dpi=80)
+        with written(out) as part:
+            fig.savefig(part, dpi=80, format="png")
     else:
         from matplotlib.animation import FuncAnimation, PillowWriter
 
@@ -59,7 +63,10 @@ def run(args: argparse.Namespace) -> int:
             ax.clear()
             draw_framed(ax, points[f], parents, low, high, 0.6 * height)
 
-        FuncAnimation(fig, draw, frames=frames).save(out, writer=PillowWriter(fps=motion.fps / every))
+        with written(out) as part:  # Pillow picks the format by the file name: give it one ending .gif
+            gif = part.with_name(part.name + ".gif")
+            FuncAnimation(fig, draw, frames=frames).save(gif, writer=PillowWriter(fps=motion.fps / every))
+            gif.replace(part)
     plt.close("all")
     print(f"wrote {out}", file=sys.stderr)
     return 0

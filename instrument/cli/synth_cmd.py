@@ -9,6 +9,7 @@ from ..errors import UserError
 from .arguments import value
 from ..models.modelfile import default_model_path, load_model
 from ..motion.bvh import write_bvh
+from ..outputfile import check_output
 from ..synthesis.durations import MAX_SPEED, MIN_SPEED
 from ..synthesis.interpolation import style_space
 from ..motion.features import restore
@@ -24,6 +25,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--speed", default="1", help=f"step rate relative to the model's ({MIN_SPEED:g} to {MAX_SPEED:g})")
     p.add_argument("--seconds", default="10", help="length of the walk (default 10)")
     p.add_argument("--out", required=True, metavar="FILE.bvh")
+    p.add_argument("--force", action="store_true", help="overwrite OUT if it exists (default: refuse)")
     p.add_argument("--method", choices=("stream", "full"), default="stream",
                    help="stream: frame by frame as live (default); full: one MLPG over the whole walk")
     p.add_argument("--lookahead", default=str(DEFAULT_LOOKAHEAD), metavar="FRAMES", help=f"streaming look-ahead (default {DEFAULT_LOOKAHEAD})")
@@ -45,6 +47,7 @@ def parse_weights(items: list[str], styles: list[str]) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_output(args.out, args.force)
     model = load_model(args.model or default_model_path())
     weights = parse_weights(args.style, model.style_names)
     speed = value("synth --speed", args.speed)

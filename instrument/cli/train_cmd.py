@@ -13,6 +13,7 @@ from ..errors import UserError
 from ..models.build import UNSPECIFIED_LICENCE, build_model
 from ..models.corpus import DEFAULT_STYLE_PATTERN, read_manifest, style_from_name
 from ..models.modelfile import save_model
+from ..outputfile import check_output
 from .arguments import checked
 from .inspect_cmd import bvh_files
 from .progress import Progress
@@ -22,6 +23,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("train", help="train style models from BVH takes")
     p.add_argument("data", nargs="*", metavar="DATA", help="BVH files or folders")
     p.add_argument("--out", required=True, metavar="MODEL.npz", help="where to write the model")
+    p.add_argument("--force", action="store_true", help="overwrite the model if it exists (default: refuse)")
     p.add_argument("--style-from", metavar="REGEX", default=DEFAULT_STYLE_PATTERN,
                    help="regular expression with one group that finds the style in a file name (without .bvh); "
                         f"default {DEFAULT_STYLE_PATTERN!r} reads names like dataset-2_walk_elderly_003.bvh")
@@ -52,6 +54,7 @@ def _pairs(args: argparse.Namespace) -> list[tuple[Path, str]]:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_output(args.out, args.force)
     pairs = _pairs(args)
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
     styles = sorted({s for _, s in pairs})

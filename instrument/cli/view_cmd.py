@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import os
 import socket
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -14,6 +16,7 @@ from ..models.modelfile import load_model
 from ..output.drawing import draw_framed, drawn_parents, pyplot
 from ..output.osc import FLAT_PORT
 from ..shipped import default_model_path
+from ..outputfile import check_output, written
 from .arguments import checked
 
 
@@ -23,6 +26,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--port", type=checked("view --port"), default=FLAT_PORT, help=f"UDP port to listen on, 127.0.0.1 (default {FLAT_PORT})")
     p.add_argument("--frames", type=checked("view --frames"), help="stop after this many frames (default: until the window closes)")
     p.add_argument("--save", metavar="PNG", help="draw off screen and save the last frame here (no window)")
+    p.add_argument("--force", action="store_true", help="overwrite the --save file if it exists (default: refuse)")
     p.set_defaults(run=run)
 
 
@@ -30,6 +34,12 @@ def run(args: argparse.Namespace) -> int:
     from pythonosc.osc_bundle import OscBundle
     from pythonosc.osc_message import OscMessage
 
+    if args.save:
+        if Path(args.save).suffix.lower() != ".png":
+            raise UserError(f"--save {args.save}: give a .png file")
+        check_output(args.save, args.force)
+    elif not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) and sys.platform.startswith("linux"):
+        raise UserError("no display to open a window on (DISPLAY is not set): give --save FRAME.png to draw off screen")
     skeleton = load_model(args.model or default_model_path()).layout.skeleton
     names, parents = skeleton.names, skeleton.parents
     index = {f"/walk/bone/{n}/pos": k for k, n in enumerate(names)}
@@ -72,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
     finally:
         sock.close()
     if args.save:
-        fig.savefig(args.save, dpi=80)
+        with written(args.save) as part:
+            fig.savefig(part, dpi=80, format="png")
         print(f"saved frame {shown - 1} to {args.save}", file=sys.stderr)
     return 0
 

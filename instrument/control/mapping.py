@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import UserError
-from ..tomlfile import read_toml
+from ..tomlfile import parse_toml, read_toml
 from .events import ControlEvent
 from .state import ControlState
 
@@ -59,6 +59,7 @@ class Mapping:
     controls: tuple[ControlSpec, ...]
     presets: dict[str, dict[str, float]] = field(default_factory=dict)
     morph: float = 0.0  # default seconds to morph into a recalled preset
+    text: str = ""  # the TOML it was read from: a recorded log carries it, so the replay reads events alike
 
 
 def parse_hid_id(text: object, fail=None) -> tuple[int, int]:
@@ -75,9 +76,10 @@ def _line_of(text: str, needle: str, start: int = 0) -> int:
     return text.count("\n", 0, at) + 1 if at >= 0 else 0
 
 
-def load_mapping(path: str | Path, state: ControlState | None = None) -> Mapping:
+def load_mapping(path: str | Path, state: ControlState | None = None, text: str | None = None) -> Mapping:
+    """The mapping file at `path` (or, given `text`, that TOML, with errors naming `path`)."""
     path = Path(path)
-    text, data = read_toml(path)
+    text, data = read_toml(path) if text is None else (text, parse_toml(text, path))
     starts = [m.start() for m in re.finditer(r"^\s*\[\[control\]\]", text, re.MULTILINE)]
 
     def fail(message: str, key: str, index: int | None = None) -> UserError:
@@ -121,7 +123,7 @@ def load_mapping(path: str | Path, state: ControlState | None = None) -> Mapping
     morph = data.get("morph", 0.0)
     if not isinstance(morph, (int, float)) or morph < 0:
         raise fail("must be a number of seconds, 0 or more", "morph")
-    return Mapping(str(data.get("name", path.stem)), str(path), midi, hid_ids, tuple(controls), presets, float(morph))
+    return Mapping(str(data.get("name", path.stem)), str(path), midi, hid_ids, tuple(controls), presets, float(morph), text)
 
 
 def _control(item: dict, index: int, fail, state: ControlState | None) -> ControlSpec:

@@ -108,6 +108,8 @@ def _alternating_extrema(signal: np.ndarray, fps: float, prominence: float) -> l
 
 def segment_steps(motion: Motion, layout: FeatureLayout | None = None) -> Segmentation:
     """Steps of a walk, with warnings about anything dropped or doubtful."""
+    if motion.frames < 2 * MIN_STEP_SECONDS * motion.fps:  # a rest pose (one frame) or a moment: no step fits
+        return Segmentation([], [f"{motion.frames} frame(s), {motion.duration:.2f} s: too short to hold a step"], ("", ""))
     names = motion.skeleton.names
     signal, (left_foot, right_foot), leg, travel = foot_signal(motion, layout)
     if left_foot < 0 or right_foot < 0:
