@@ -67,8 +67,8 @@ def run(args: argparse.Namespace) -> int:
         on_iteration=lambda i, ll: say(f"EM iteration {i:2d}: log-likelihood per frame {ll:.4f}"),
     )
     save_model(args.out, model)
-    for w in report.warnings:
-        say(f"warning: {w}")
+    for w in report.warnings:  # said even with --quiet: not progress, something to act on
+        print(f"warning: {w}", file=sys.stderr)
     steps = sum(len(t.steps) for t in takes)
     say(f"done in {time.perf_counter() - started:.1f} s: {len(takes)} takes, {steps} steps, "
         f"{len(model.style_names)} styles, {model.layout.dimension} features x 3 -> {args.out}")

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..errors import UserError
 from ..models.modelfile import load_model
-from ..output.drawing import draw_framed, drawn_parents, pyplot
+from ..output.drawing import bone_colours, draw_framed, drawn_parents, pyplot
 from ..output.osc import FLAT_PORT
 from ..shipped import default_model_path
 from ..outputfile import check_output, written
@@ -42,6 +42,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("no display to open a window on (DISPLAY is not set): give --save FRAME.png to draw off screen")
     skeleton = load_model(args.model or default_model_path()).layout.skeleton
     names, parents = skeleton.names, skeleton.parents
+    colours = bone_colours(names)
     index = {f"/walk/bone/{n}/pos": k for k, n in enumerate(names)}
     plt = pyplot("Agg" if args.save else None)
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -74,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
                     shown += 1
                     last_frame_at = time.monotonic()
                     first = positions.copy() if first is None else first
-                    _draw(ax, positions, drawn_parents(parents, np.stack([first, positions])), m.params[0])
+                    _draw(ax, positions, drawn_parents(parents, np.stack([first, positions])), m.params[0], colours)
                     if not args.save:
                         plt.pause(0.001)
     except KeyboardInterrupt:
@@ -88,9 +89,9 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _draw(ax, positions: np.ndarray, parents: np.ndarray, frame: int) -> None:
+def _draw(ax, positions: np.ndarray, parents: np.ndarray, frame: int, colours: list[str]) -> None:
     ax.clear()
     points = np.stack([positions[:, 2], positions[:, 1]], axis=1)  # side view: forward and up
     height = max(np.ptp(points[:, 1]), 1e-6)
-    draw_framed(ax, points, parents, points[:, 1].min() - 0.1 * height, points[:, 1].max() + 0.1 * height, 0.7 * height)
+    draw_framed(ax, points, parents, points[:, 1].min() - 0.1 * height, points[:, 1].max() + 0.1 * height, 0.7 * height, colours)
     ax.set_title(f"frame {frame}")

@@ -62,6 +62,8 @@ def recover(path: str | Path) -> tuple[int, int]:
     complete = lines[:-1] if not body.endswith("\n") else lines[:-1]  # a last line without newline is partial
     width = len(text[match.end():].split("\n", 1)[0].split()) if complete else 0
     good = [l for l in complete if len(l.split()) == width]
+    if int(match.group(1)) == len(good) == len(complete) and body.endswith("\n"):
+        return len(good), len(good)  # healthy: left exactly as it is
     fixed = text[: match.start(1)] + f"{len(good):0{COUNT_WIDTH}d}" + text[match.end(1): match.end()] + "".join(l + "\n" for l in good)
     tmp = path.with_name(path.name + ".part")
     tmp.write_text(fixed, encoding="utf-8")
