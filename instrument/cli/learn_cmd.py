@@ -25,7 +25,7 @@ RANGES = {"style": (-1.0, 2.0), "part": (-1.0, 2.0), "speed": (0.5, 2.0), "phase
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("learn", help="MIDI learn: pick a target, move a control, write a mapping file")
     p.add_argument("--out", required=True, metavar="MY.toml")
-    p.add_argument("--force", action="store_true", help="overwrite OUT if it exists (default: refuse)")
+    p.add_argument("--force", action="store_true", help="overwrite the --out file if it exists (default: refuse)")
     p.add_argument("--model", help="model whose styles are offered (default: the shipped default model)")
     p.add_argument("--midi", metavar="PATTERN", help="MIDI input port (regular expression)")
     p.add_argument("--midi-virtual", metavar="NAME", help="create a virtual MIDI input port NAME instead")

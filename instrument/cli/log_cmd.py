@@ -16,7 +16,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("action", choices=("export", "import"), help="export LOG.jsonl to a .mid, or import a .mid as LOG.jsonl")
     p.add_argument("source", metavar="FILE")
     p.add_argument("--out", required=True, metavar="FILE")
-    p.add_argument("--force", action="store_true", help="overwrite OUT if it exists (default: refuse)")
+    p.add_argument("--force", action="store_true", help="overwrite the --out file if it exists (default: refuse)")
     p.add_argument("--fps", type=checked("log --fps"), default=30.0, help="import: the frame rate whose frames events land on (default 30)")
     p.set_defaults(run=run)
 

@@ -22,7 +22,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("render", help="draw a BVH recording: contact sheet (.png) or animation (.gif)")
     p.add_argument("--bvh", required=True, metavar="FILE.bvh")
     p.add_argument("--out", required=True, metavar="walk.png|walk.gif")
-    p.add_argument("--force", action="store_true", help="overwrite OUT if it exists (default: refuse)")
+    p.add_argument("--force", action="store_true", help="overwrite the --out file if it exists (default: refuse)")
     p.add_argument("--every", type=checked("render --every"), help="draw every Nth frame (default: a PNG shows 12 figures 0.1 s apart, about one stride; a GIF plays at 15 fps)")
     p.set_defaults(run=run)
 

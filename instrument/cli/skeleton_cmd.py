@@ -17,7 +17,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("skeleton", help="write the model's skeleton (template pose) as a one-frame BVH")
     p.add_argument("--model", help="model file (default: the shipped default model)")
     p.add_argument("--out", required=True, metavar="REST.bvh")
-    p.add_argument("--force", action="store_true", help="overwrite OUT if it exists (default: refuse)")
+    p.add_argument("--force", action="store_true", help="overwrite the --out file if it exists (default: refuse)")
     p.set_defaults(run=run)
 
 

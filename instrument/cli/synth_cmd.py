@@ -28,7 +28,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--speed", default="1", help=f"step rate relative to the model's ({MIN_SPEED:g} to {MAX_SPEED:g})")
     p.add_argument("--seconds", default="10", help="length of the walk (default 10)")
     p.add_argument("--out", required=True, metavar="FILE.bvh")
-    p.add_argument("--force", action="store_true", help="overwrite OUT if it exists (default: refuse)")
+    p.add_argument("--force", action="store_true", help="overwrite the --out file if it exists (default: refuse)")
     p.add_argument("--method", choices=("stream", "full"), default="stream",
                    help="stream: frame by frame as live (default); full: one MLPG over the whole walk")
     p.add_argument("--lookahead", default=str(DEFAULT_LOOKAHEAD), metavar="FRAMES", help=f"streaming look-ahead (default {DEFAULT_LOOKAHEAD})")
