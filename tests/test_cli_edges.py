@@ -276,3 +276,12 @@ def test_synth_sets_one_body_part(capsys, tmp_path):
         assert status == 0, err
     none, legs, whole = (read_bvh(paths[k]).channels for k in ("none", "legs", "whole"))
     assert abs(legs - none).max() > 1.0 and abs(legs - whole).max() > 1.0
+
+
+def test_the_docs_say_what_every_option_accepts():
+    text = (REPO / "docs" / "cli.md").read_text()
+    for key, accepts in OPTIONS.items():
+        row = next((line for line in text.splitlines() if line.startswith(f"| `{key}")), None)
+        assert row is not None, key
+        bounds = [b for b in (accepts.low, accepts.high) if b is not None]
+        assert all((f"{b:g}" if accepts.kind is float else f"{int(b)}") in row for b in bounds), (key, row)

@@ -30,6 +30,7 @@ DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
 DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "fast": False, "quiet": False,
             "normal_priority": False, "force": False}
 LISTS = ("osc", "mapping")
+SHOW_FILE_CHECKS = {"osc": parse_target, "hid": parse_hid_id}  # checked as the file is read, so errors name its line
 PATHS = ("model", "bvh", "replay", "record", "humanoid", "presets", "mapping")  # relative to the show file
 
 
@@ -92,6 +93,11 @@ def apply_show_file(args: argparse.Namespace) -> dict:
         option = f"run --{dest.replace('_', '-')}"
         if option in OPTIONS:  # the same table as the command line, the error naming file, line and key
             option_value(option, value.rpartition(":")[2] if dest == "osc_in" else value, where=f"{path}:{line}: {key}")
+        for text in (value if isinstance(value, list) else [value]) if dest in SHOW_FILE_CHECKS else ():
+            try:
+                SHOW_FILE_CHECKS[dest](text)
+            except UserError as e:
+                raise UserError(f"{path}:{line}: {key}: {str(e).removeprefix('--osc ')}") from None
         if getattr(args, dest) is None:
             setattr(args, dest, value)
         if dest in PATHS:
