@@ -77,3 +77,13 @@ def test_the_help_summary_of_each_command_is_its_own():
     every = build_parser(EVERY)
     sub = next(a for a in every._actions if a.dest == "command")
     assert {a.dest: a.help for a in sub._choices_actions} == {name: summary for name, (_, summary) in COMMANDS.items()}
+
+
+def test_bench_startup_times_every_command_against_bare_python():
+    from instrument.cli.main import COMMANDS
+
+    result = run("bench", "--startup", "--repeat", "1", "--json")
+    assert result.returncode == 0, result.stderr
+    figures = json.loads(result.stdout)
+    assert set(figures) == {"instrument --version", "instrument --help"} | {f"instrument {c} --help" for c in COMMANDS}
+    assert all(f["seconds"] > 0 and f["bare_seconds"] > 0 and f["ratio"] == f["seconds"] / f["bare_seconds"] for f in figures.values())
