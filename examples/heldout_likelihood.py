@@ -24,6 +24,8 @@ def main() -> None:
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     files = sorted(Path(args.data).glob("*.bvh"))
+    if not files:
+        raise SystemExit(f"{args.data}: no .bvh takes there (the Bandai walks: see docs/testing.md)")
     pairs = [(f, style_from_name(f, DEFAULT_STYLE_PATTERN)) for f in files]
     train, held = split_holdout(pairs)
     started = time.perf_counter()

@@ -63,6 +63,8 @@ def main() -> None:
     parser.add_argument("--walks", type=int, default=4, help="synthesized walks per style (different seeds, liveliness 1)")
     args = parser.parse_args()
     files = sorted(Path(args.data).glob("*.bvh"))
+    if not files:
+        raise SystemExit(f"{args.data}: no .bvh takes there (the Bandai walks: see docs/testing.md)")
     pairs = [(f, style_from_name(f, DEFAULT_STYLE_PATTERN)) for f in files]
     train, held = split_holdout(pairs)
     model, _, train_takes = build_model(train)

@@ -49,3 +49,8 @@ def free_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+def frame_count(receiver: Receiver) -> int:
+    """How many /walk/frame messages (flat profile) have come in so far."""
+    return sum(d.count(b"/walk/frame\x00") for d in list(receiver.datagrams))

@@ -58,3 +58,32 @@ def test_missing_path_and_empty_folder_are_one_line_errors(tmp_path):
         assert result.returncode == 1
         assert len(result.stderr.strip().splitlines()) == 1
         assert str(tmp_path) in result.stderr
+
+
+def test_version_and_help_load_no_subcommand():
+    """Start-up stays fast: `--version` and `--help` import none of numpy, scipy, numba (timed in `instrument bench --startup`)."""
+    probe = ("import sys\nfrom instrument.cli.main import main\n"
+             "try:\n    main([sys.argv[1]])\nexcept SystemExit:\n    pass\n"
+             "print(sorted(m for m in ('numpy', 'scipy', 'numba', 'mido') if m in sys.modules))")
+    for flag in ("--version", "--help"):
+        result = subprocess.run([sys.executable, "-c", probe, flag], capture_output=True, text=True, timeout=120)
+        assert result.returncode == 0, result.stderr
+        assert result.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_the_help_summary_of_each_command_is_its_own():
+    from instrument.cli.main import COMMANDS, EVERY, build_parser
+
+    every = build_parser(EVERY)
+    sub = next(a for a in every._actions if a.dest == "command")
+    assert {a.dest: a.help for a in sub._choices_actions} == {name: summary for name, (_, summary) in COMMANDS.items()}
+
+
+def test_bench_startup_times_every_command_against_bare_python():
+    from instrument.cli.main import COMMANDS
+
+    result = run("bench", "--startup", "--repeat", "1", "--json")
+    assert result.returncode == 0, result.stderr
+    figures = json.loads(result.stdout)
+    assert set(figures) == {"instrument --version", "instrument --help"} | {f"instrument {c} --help" for c in COMMANDS}
+    assert all(f["seconds"] > 0 and f["bare_seconds"] > 0 and f["ratio"] == f["seconds"] / f["bare_seconds"] for f in figures.values())

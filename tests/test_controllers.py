@@ -17,7 +17,8 @@ from instrument.control.state import ControlState
 from instrument.models.modelfile import default_model_path, load_model
 from instrument.runtime.console import Console
 from instrument.runtime.performance import perform
-from oscrecv import Receiver, free_port
+from oscrecv import Receiver, frame_count, free_port
+from waiting import StderrLines, wait_until
 
 RUN = [sys.executable, "-m", "instrument", "run"]
 NANO = str(REPO / "mappings" / "korg-nanokontrol2.toml")
@@ -57,24 +58,27 @@ def test_nanokontrol2_faders_over_jack_with_pickup_and_exact_replay(jack, tmp_pa
                                       "--record", str(log), "--bvh", str(live_bvh)], stderr=subprocess.PIPE, text=True)
     try:
         out = jack.open_output(wait_for_port(jack, "instr-nano"))
-        while last_frame(receiver) < 15:
-            time.sleep(0.05)
+        wait_until(lambda: last_frame(receiver) >= 15, "15 frames")
 
         def cc(value, number=1):
             out.send(mido.Message("control_change", channel=0, control=number, value=value))
 
+        def frames_go_by(count=5):  # the instrument has read what was sent before
+            now = last_frame(receiver)
+            wait_until(lambda: last_frame(receiver) >= now + count, f"{count} more frames")
+
         cc(120)  # elderly fader, first value: only tells where the fader is
-        time.sleep(0.3)
+        frames_go_by()
         cc(110)  # far from the parameter (0 is at 42): not picked up
-        time.sleep(0.3)
+        frames_go_by()
         ignored_until = last_frame(receiver)
         sent_at = last_frame(receiver)
         cc(43)  # near the parameter: picked up
-        time.sleep(0.3)
+        frames_go_by()
         for value in range(44, 101, 2):  # a real fader move: small steps, milliseconds apart
             cc(value)
             time.sleep(0.005)
-        time.sleep(0.5)
+        frames_go_by()
         out.close()
     finally:
         stderr = process.communicate(timeout=60)[1]
@@ -87,30 +91,39 @@ def test_nanokontrol2_faders_over_jack_with_pickup_and_exact_replay(jack, tmp_pa
     assert first_change <= sent_at + 2  # the frame being sent, or the very next one
     assert echo[first_change][1] == pytest.approx(43 / 127 * 3 - 1, abs=1e-6)
     assert echo[-1][1] == pytest.approx(100 / 127 * 3 - 1, abs=1e-6)
-    # the recorded raw events replay to the same frames, byte for byte, as fast as the CPU allows
-    result = subprocess.run(RUN + ["--replay", str(log), "--mapping", NANO, "--no-osc", "--fast", "--seconds", "7",
+    # the recorded raw events replay to the same frames, byte for byte, as fast as the CPU allows; the log
+    # carries the mapping it was recorded with (its first line), so no --mapping is needed
+    result = subprocess.run(RUN + ["--replay", str(log), "--no-osc", "--fast", "--seconds", "7",
                                    "--bvh", str(replay_bvh), "--quiet"], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert filecmp.cmp(live_bvh, replay_bvh, shallow=False)
 
 
 def test_an_unplugged_midi_device_is_reported_and_reconnected(jack, tmp_path):
-    device = jack.open_output("FakeKontrol", virtual=True)
-    process = subprocess.Popen(RUN + ["--midi", "FakeKontrol", "--midi-api", "jack", "--no-osc", "--seconds", "8", "--quiet",
-                                      "--bvh", str(tmp_path / "walk.bvh")], stderr=subprocess.PIPE, text=True)
-    time.sleep(3)
-    device.close()  # unplugged
-    time.sleep(2.5)
-    device = jack.open_output("FakeKontrol", virtual=True)  # plugged back in
-    time.sleep(1.5)
-    device.send(mido.Message("control_change", channel=0, control=8, value=127))
-    stderr = process.communicate(timeout=60)[1]
-    device.close()
-    assert process.returncode == 0, stderr
-    assert "unplugged" in stderr and "connected" in stderr
+    device, receiver = jack.open_output("FakeKontrol", virtual=True), Receiver()
+    process = subprocess.Popen(RUN + ["--midi", "FakeKontrol", "--midi-api", "jack", "--osc", f"127.0.0.1:{receiver.port}/flat",
+                                      "--quiet", "--bvh", str(tmp_path / "walk.bvh")], stderr=subprocess.PIPE, text=True)
+    stderr = StderrLines(process)
+    try:
+        wait_until(lambda: frame_count(receiver) >= 30, "30 frames")
+        device.close()  # unplugged
+        stderr.wait_for("unplugged")
+        device = jack.open_output("FakeKontrol", virtual=True)  # plugged back in
+        stderr.wait_for("connected")
+        device.send(mido.Message("control_change", channel=0, control=8, value=127))
+        now = frame_count(receiver)
+        wait_until(lambda: frame_count(receiver) >= now + 10, "10 more frames")
+    finally:
+        process.terminate()  # a clean stop, like Ctrl-C
+        process.wait(60)
+        device.close()
+        receiver.close()
+    assert process.returncode == 0, stderr.text()
     from instrument.motion.bvh import read_bvh
 
-    assert read_bvh(tmp_path / "walk.bvh").frames == 240  # the walk never stopped
+    frames = [p[0] for a, p in receiver.messages() if a == "/walk/frame"]
+    assert frames == list(range(len(frames)))  # the walk never stopped
+    assert read_bvh(tmp_path / "walk.bvh").frames >= len(frames)
 
 
 class SimulatedDualShock4:
@@ -199,19 +212,26 @@ def test_osc_surface_controls_and_presets(tmp_path):
     control_port, receiver = free_port(), Receiver()
     presets = tmp_path / "presets.toml"
     presets.write_text('[presets.bold]\n"style/feminine" = 2.0\nspeed = 1.5\n')
-    process = subprocess.Popen(RUN + ["--osc-in", str(control_port), "--osc", f"127.0.0.1:{receiver.port}/flat", "--seconds", "4",
+    process = subprocess.Popen(RUN + ["--osc-in", str(control_port), "--osc", f"127.0.0.1:{receiver.port}/flat",
                                       "--presets", str(presets), "--quiet"], stderr=subprocess.PIPE, text=True)
     from pythonosc.udp_client import SimpleUDPClient
 
     client = SimpleUDPClient("127.0.0.1", control_port)
-    while last_frame(receiver) < 20:
-        time.sleep(0.05)
-    client.send_message("/walk/style/elderly", 1.5)
-    time.sleep(0.5)
-    client.send_message("/walk/preset/bold", 1.0)
-    time.sleep(0.5)
-    client.send_message("/walk/nonsense", 1.0)  # ignored
-    stderr = process.communicate(timeout=60)[1]
+
+    def echoed(address: str, value: float) -> bool:
+        echo = frames_and_echo(receiver, address)
+        return bool(echo) and echo[-1][1] == pytest.approx(value)
+
+    try:
+        wait_until(lambda: last_frame(receiver) >= 20, "20 frames")
+        client.send_message("/walk/style/elderly", 1.5)
+        wait_until(lambda: echoed("/walk/style/elderly", 1.5), "elderly 1.5 echoed")
+        client.send_message("/walk/preset/bold", 1.0)
+        wait_until(lambda: echoed("/walk/speed", 1.5), "the preset's speed echoed")
+        client.send_message("/walk/nonsense", 1.0)  # ignored
+    finally:
+        process.terminate()
+        stderr = process.communicate(timeout=60)[1]
     receiver.close()
     assert process.returncode == 0, stderr
     elderly = frames_and_echo(receiver, "/walk/style/elderly")
@@ -228,7 +248,7 @@ def test_show_file_starts_the_whole_setup(tmp_path):
                     f'replay = "cues.jsonl"\n[presets.calm]\n"style/elderly" = 0.5\n')
     (tmp_path / "cues.jsonl").write_text('{"t": 0.5, "source": "cue", "control": "preset/calm", "value": 1}\n')
     result = subprocess.run(RUN + ["--config", str(show)], capture_output=True, text=True, timeout=60)
-    time.sleep(0.2)
+    wait_until(lambda: frame_count(receiver) >= 60 or result.returncode, "60 frames")
     receiver.close()
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "take.bvh").exists()
@@ -239,6 +259,8 @@ def test_show_file_starts_the_whole_setup(tmp_path):
     ('seconds = 2\nvolume = 11\n', "show.toml:2: volume: unknown option"),
     ('seconds = 2\nquiet = "yes"\n', "show.toml:2: quiet: expected true or false"),
     ('seconds = [2]\n', "show.toml:1: seconds: expected a string or a number"),
+    ('seconds = 2\nfps = 200\n', "show.toml:2: fps: expected a number from 24 to 120, not '200'"),
+    ('seconds = 2\nosc = ["127.0.0.1:9000", "127.0.0.1:99999"]\n', "show.toml:2: osc: '127.0.0.1:99999': port must be 1 to 65535"),
     ('seconds = 2\n[presets.x]\n"style/sleepy" = 1\n', "presets.x: unknown target 'style/sleepy'"),
 ])
 def test_bad_show_files_are_one_line_errors(tmp_path, text, message):

@@ -404,7 +404,7 @@ def test_a_made_up_joystick_is_learnable(model, tmp_path, monkeypatch, capsys):
 
     monkeypatch.setattr(sys, "stdin", Performer())
     out = tmp_path / "stick.toml"
-    assert learn_cmd.run(Namespace(out=str(out), model=None, midi=None, midi_virtual=None, midi_api=None,
+    assert learn_cmd.run(Namespace(out=str(out), model=None, midi=None, midi_virtual=None, midi_api=None, force=False,
                                    hid="16C0:05DC", timeout=10.0)) == 0
     said = capsys.readouterr().out
     assert "learned HID Slider (axis) -> turn" in said and "learned HID Button 5 (button) -> style/elderly" in said

@@ -19,7 +19,8 @@ from instrument.output.recorder import BvhRecorder
 from instrument.runtime.clock import IDLE_EVERY, IDLE_UNTIL, FrameClock
 from instrument.runtime.console import Console
 from instrument.runtime.performance import perform
-from oscrecv import Receiver, free_port
+from oscrecv import Receiver, frame_count, free_port
+from waiting import wait_until
 
 RUN = [sys.executable, "-m", "instrument", "run"]
 
@@ -34,7 +35,7 @@ def test_flat_profile_sends_every_frame_consecutively_with_all_bones(model):
     try:
         result = subprocess.run(RUN + ["--seconds", "2", "--osc", f"127.0.0.1:{receiver.port}/flat", "--quiet"],
                                 capture_output=True, text=True, timeout=60)
-        time.sleep(0.3)
+        wait_until(lambda: frame_count(receiver) >= 60 or result.returncode, "60 frames")
     finally:
         receiver.close()
     assert result.returncode == 0, result.stderr
@@ -71,9 +72,11 @@ def test_vmc_profile_read_by_an_independent_parser(model):
         while process.poll() is None and time.monotonic() < deadline:
             osc.run()
             time.sleep(0.001)
-        for _ in range(200):
+        def drained() -> bool:  # what was sent before the process ended is still being read
             osc.run()
-            time.sleep(0.002)
+            return len(roots) >= 60 and len(times) >= 60 and len(bones) >= 60 * 21
+
+        wait_until(drained, "60 VMC frames", timeout=30, every=0.002)
     assert process.returncode == 0
     assert len(roots) == 60 and len(times) == 60
     expected = {"Hips", "Spine", "Chest", "Neck", "Head", "LeftUpperLeg", "LeftLowerLeg", "LeftFoot", "LeftToes",
@@ -109,7 +112,7 @@ def test_a_dead_target_leaves_the_run_and_the_recording_intact(tmp_path):
     try:
         result = subprocess.run(RUN + ["--seconds", "2", "--osc", f"127.0.0.1:{dead}/flat", "--osc", f"127.0.0.1:{receiver.port}/vmc",
                                        "--bvh", str(path), "--quiet"], capture_output=True, text=True, timeout=60)
-        time.sleep(0.3)
+        wait_until(lambda: sum(d.count(b"/VMC/Ext/OK\x00") for d in list(receiver.datagrams)) >= 60 or result.returncode, "60 frames")
     finally:
         receiver.close()
     assert result.returncode == 0, result.stderr
@@ -120,21 +123,29 @@ def test_a_dead_target_leaves_the_run_and_the_recording_intact(tmp_path):
 
 
 def test_ctrl_c_leaves_a_valid_recording(tmp_path):
-    path = tmp_path / "take.bvh"
-    process = subprocess.Popen(RUN + ["--no-osc", "--bvh", str(path), "--quiet"], stderr=subprocess.PIPE, text=True)
-    time.sleep(3)
-    process.send_signal(signal.SIGINT)
-    assert process.wait(20) == 0
-    motion = read_bvh(path)
-    assert 30 <= motion.frames <= 120
+    path, receiver = tmp_path / "take.bvh", Receiver()
+    process = subprocess.Popen(RUN + ["--osc", f"127.0.0.1:{receiver.port}/flat", "--bvh", str(path), "--quiet"],
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        wait_until(lambda: frame_count(receiver) >= 30, "30 frames")  # however long start-up takes
+        sent = frame_count(receiver)
+        process.send_signal(signal.SIGINT)
+        stderr = process.communicate(timeout=60)[1]
+    finally:
+        receiver.close()
+    assert process.returncode == 0, stderr
+    assert read_bvh(path).frames >= sent >= 30  # every frame sent was recorded
 
 
 def test_a_killed_run_is_recovered(tmp_path):
-    path = tmp_path / "take.bvh"
-    process = subprocess.Popen(RUN + ["--no-osc", "--bvh", str(path), "--quiet"])
-    time.sleep(3)
-    process.kill()
-    process.wait(20)
+    path, receiver = tmp_path / "take.bvh", Receiver()
+    process = subprocess.Popen(RUN + ["--osc", f"127.0.0.1:{receiver.port}/flat", "--bvh", str(path), "--quiet"])
+    try:
+        wait_until(lambda: frame_count(receiver) >= 30, "30 frames")
+        process.kill()
+        process.wait(60)
+    finally:
+        receiver.close()
     result = subprocess.run([sys.executable, "-m", "instrument", "recover", str(path)], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
     assert read_bvh(path).frames >= 30
@@ -322,7 +333,7 @@ def test_log_replay_and_its_errors(tmp_path):
 
 
 @pytest.mark.parametrize("args,message", [
-    (["--fps", "200"], "--fps must be between 24 and 120"),
+    (["--fps", "200"], "--fps: expected a number from 24 to 120, not '200'"),
     (["--osc", "localhost"], "expected HOST:PORT"),
     (["--osc", "127.0.0.1:99999"], "port must be 1 to 65535"),
     (["--osc", "127.0.0.1:9000/midi"], "unknown profile"),
@@ -357,7 +368,7 @@ def test_a_python_osc_server_receives_consecutive_frames():
     try:
         result = subprocess.run(RUN + ["--seconds", "10", "--osc", f"127.0.0.1:{server.server_address[1]}/flat", "--quiet"],
                                 capture_output=True, text=True, timeout=60)
-        time.sleep(0.3)
+        wait_until(lambda: len(frames) >= 300 or result.returncode, "300 frames")
     finally:
         server.shutdown()
     assert result.returncode == 0, result.stderr

@@ -44,12 +44,12 @@ def test_slower_speed_gives_longer_steps(tmp_path):
     "args,message",
     [
         (["--style", "sleepy=1"], "the model has no style 'sleepy'"),
-        (["--style", "elderly=lots"], "not a number: 'lots'"),
+        (["--style", "elderly=lots"], "--style elderly: expected a number from -10 to 10, not 'lots'"),
         (["--style", "elderly"], "expected NAME=WEIGHT"),
-        (["--speed", "0"], "--speed must be positive"),
-        (["--speed", "-2"], "--speed must be positive"),
-        (["--seconds", "ten"], "--seconds: not a number"),
-        (["--lookahead", "0"], "--lookahead must be at least 1"),
+        (["--speed", "0"], "--speed: expected a number from 0.25 to 4, not '0'"),
+        (["--speed", "-2"], "--speed: expected a number from 0.25 to 4"),
+        (["--seconds", "ten"], "--seconds: expected a number above 0"),
+        (["--lookahead", "0"], "--lookahead: expected a whole number from 1 to 1000"),
         (["--model", "missing.npz"], "missing.npz: no such model file"),
     ],
 )

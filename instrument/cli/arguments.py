@@ -1,16 +1,109 @@
-"""Reading option values the way every subcommand does: a bad value is one line naming the option."""
+"""What each command-line option accepts, in one table, and the one way every value is read.
+
+Every numeric option of every subcommand is listed in OPTIONS with its type and range. Values
+given on the command line go through `checked(KEY)` (argparse's type=: a bad value is a usage
+error, exit 2) or `value(KEY, text)` (for options that a show file can also give, exit 1);
+show files go through `value(KEY, text, where="show.toml:3: fps")`, so their errors name the
+file, line and key. A value out of range is refused, never clamped silently.
+"""
 
 from __future__ import annotations
 
+import argparse
+import math
+from dataclasses import dataclass
+
 from ..errors import UserError
+from ..synthesis.durations import MAX_SPEED, MIN_SPEED
+
+MAX_SECONDS = 7 * 24 * 3600.0  # a week: longer is a typo
+WEIGHT_LIMIT = 10.0  # as far as a style weight goes: control.state.WEIGHT_LIMIT (a test keeps them equal)
+
+
+@dataclass(frozen=True)
+class Accepts:
+    """A whole or real number in [low, high]; `above_low` makes low itself refused (> low)."""
+
+    kind: type = float
+    low: float | None = None
+    high: float | None = None
+    above_low: bool = False
+
+    def describe(self) -> str:
+        word = "a whole number" if self.kind is int else "a number"
+        low, high = (f"{x:g}" if self.kind is float else f"{x:d}" for x in (self.low or 0, self.high or 0))
+        if self.low is not None and self.high is not None:
+            return f"{word} {'above' if self.above_low else 'from'} {low} {'up ' if self.above_low else ''}to {high}"
+        if self.low is not None:
+            return f"{word} {'above' if self.above_low else 'of at least'} {low}"
+        return word
+
+    def read(self, text: object):
+        """The value, or ValueError with a message saying what is accepted."""
+        try:
+            number = self.kind(text) if not isinstance(text, float) or self.kind is float else None
+        except (TypeError, ValueError, OverflowError):
+            number = None
+        if number is None or (self.kind is float and not math.isfinite(number)):
+            raise ValueError(f"expected {self.describe()}, not {text!r}")
+        too_low = self.low is not None and (number <= self.low if self.above_low else number < self.low)
+        if too_low or (self.high is not None and number > self.high):
+            raise ValueError(f"expected {self.describe()}, not {text!r}")
+        return number
+
+
+PORT = Accepts(int, 1, 65535)
+POSITIVE_SECONDS = Accepts(float, 0, MAX_SECONDS, above_low=True)
+
+# "COMMAND --option": what it accepts. Options not listed are names, paths or choices.
+OPTIONS: dict[str, Accepts] = {
+    "run --fps": Accepts(float, 24, 120),
+    "run --seconds": POSITIVE_SECONDS,
+    "run --morph": Accepts(float, 0, 600),
+    "run --osc-in": PORT,  # the port of [HOST:]PORT
+    "view --port": PORT,
+    "view --frames": Accepts(int, 1, None),
+    "learn --timeout": POSITIVE_SECONDS,
+    "log --fps": Accepts(float, 0, 1000, above_low=True),
+    "train --fps": Accepts(float, 1, 1000),
+    "train --states": Accepts(int, 1, 12),
+    "synth --style": Accepts(float, -WEIGHT_LIMIT, WEIGHT_LIMIT),  # the weight of NAME=W
+    "synth --speed": Accepts(float, MIN_SPEED, MAX_SPEED),
+    "synth --seconds": Accepts(float, 0, 3600, above_low=True),
+    "synth --lookahead": Accepts(int, 1, 1000),
+    "synth --liveliness": Accepts(float, 0, 1),
+    "synth --seed": Accepts(int, 0, 2**32 - 1),
+    "bench --repeat": Accepts(int, 1, 1000),
+    "bench --pacing": POSITIVE_SECONDS,
+    "bench --fps": Accepts(float, 1, 1000),
+    "render --every": Accepts(int, 1, None),
+}
+
+
+def value(key: str, text: object, where: str | None = None):
+    """`text` read as OPTIONS[key] says, or a one-line UserError naming the option (or `where`)."""
+    try:
+        return OPTIONS[key].read(text)
+    except ValueError as e:
+        raise UserError(f"{where or key.split(' ', 1)[1]}: {e}") from None
+
+
+def checked(key: str):
+    """An argparse type= that reads OPTIONS[key]: a bad value is a usage error naming the option."""
+
+    def read(text: str):
+        try:
+            return OPTIONS[key].read(text)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+
+    read.__name__ = key.split(" --", 1)[1]  # argparse names the type in some messages
+    return read
 
 
 def number(option: str, text: str, kind=float):
-    """`text` as a finite float (or int with kind=int), or a UserError naming `option`."""
+    """`text` as a finite float (or int with kind=int), or a UserError naming `option` (no range)."""
     try:
-        value = kind(text)
-    except ValueError:
-        raise UserError(f"{option}: not a {'whole ' if kind is int else ''}number: {text!r}") from None
-    if kind is float and value != value or value in (float("inf"), float("-inf")):
-        raise UserError(f"{option}: not a finite number: {text!r}")
-    return value
+        return Accepts(kind).read(text)
+    except ValueError as e:
+        raise UserError(f"{option}: {e}") from None

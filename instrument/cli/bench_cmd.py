@@ -14,6 +14,7 @@ from ..motion.features import choose_layout, extract
 from ..synthesis.interpolation import interpolate, style_space
 from ..synthesis.mlpg import mlpg
 from ..synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Walker, state_plan, step
+from .arguments import checked
 
 MLPG_FRAMES = 10_000
 BATCH = 100
@@ -23,11 +24,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("bench", help="measure parsing and synthesis speed on this machine")
     p.add_argument("--model", help="model file (default: the shipped default model)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--repeat", type=int, default=15, help="timed repetitions per figure (the median is reported)")
-    p.add_argument("--pacing", type=float, metavar="SECONDS",
+    p.add_argument("--repeat", type=checked("bench --repeat"), default=15, help="timed repetitions per figure (the median is reported)")
+    p.add_argument("--pacing", type=checked("bench --pacing"), metavar="SECONDS",
                    help="instead: run the live loop this long (demo, both OSC profiles to 127.0.0.1) and measure "
                         "how far each frame's send time is from its deadline")
-    p.add_argument("--fps", type=float, default=60.0, help="frame rate for --pacing (default 60)")
+    p.add_argument("--fps", type=checked("bench --fps"), default=60.0, help="frame rate for --pacing (default 60)")
+    p.add_argument("--startup", action="store_true",
+                   help="instead: how long `instrument --version`, `--help` and each `COMMAND --help` take to start, "
+                        "against `python -c pass` in the same run")
     p.set_defaults(run=run)
 
 
@@ -141,6 +145,15 @@ def measure(model_path: str | None, repeat: int) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.startup:
+        from .startup import measure_startup
+
+        figures = measure_startup(max(1, args.repeat))
+        if args.json:
+            print(json.dumps(figures, indent=1))
+        for line, f in figures.items() if not args.json else ():
+            print(f"{line:32s} {f['seconds']:6.2f} s  (python -c pass {f['bare_seconds']:.2f} s: x{f['ratio']:.1f})")
+        return 0
     if args.pacing:
         f = measure_pacing(args.model, args.pacing, args.fps)
         if args.json:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
 
 from ..control.devices import MidiInput
 from ..control.hid import HidInput, detect_hid
@@ -14,8 +13,11 @@ from ..control.mapping import parse_hid_id
 from ..control.state import ControlState
 from ..errors import UserError
 from ..models.modelfile import load_model
+from ..outputfile import check_output, written
 from ..runtime.console import Console
 from ..shipped import default_model_path
+from ..tomlfile import toml_string
+from .arguments import checked
 
 QUIET_AFTER = 0.8  # seconds without messages that end a capture
 HID_JITTER = 0.02  # share of an axis's range a HID control must move by to count as moving
@@ -26,12 +28,13 @@ RANGES = {"style": (-1.0, 2.0), "part": (-1.0, 2.0), "speed": (0.5, 2.0), "phase
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("learn", help="MIDI or HID learn: pick a target, move a control, write a mapping file")
     p.add_argument("--out", required=True, metavar="MY.toml")
+    p.add_argument("--force", action="store_true", help="overwrite the --out file if it exists (default: refuse)")
     p.add_argument("--model", help="model whose styles are offered (default: the shipped default model)")
     p.add_argument("--midi", metavar="PATTERN", help="MIDI input port (regular expression)")
     p.add_argument("--midi-virtual", metavar="NAME", help="create a virtual MIDI input port NAME instead")
     p.add_argument("--midi-api", choices=("alsa", "jack"))
     p.add_argument("--hid", metavar="VVVV:PPPP", help="HID device by vendor and product id (hexadecimal), e.g. 054c:09cc")
-    p.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for a control to move (default 30)")
+    p.add_argument("--timeout", type=checked("learn --timeout"), default=30.0, help="seconds to wait for a control to move (default 30)")
     p.set_defaults(run=run)
 
 
@@ -56,9 +59,7 @@ def capture(device: MidiInput | HidInput, timeout: float) -> list[tuple[str, flo
 
 
 def run(args: argparse.Namespace) -> int:
-    out = Path(args.out)
-    if out.exists():
-        raise UserError(f"{out}: already exists (nothing is overwritten)")
+    out = check_output(args.out, args.force)
     if not (args.midi or args.midi_virtual or args.hid):
         raise UserError("give --midi PATTERN (a port to listen to), --midi-virtual NAME or --hid VVVV:PPPP")
     hid_ids = parse_hid_id(args.hid) if args.hid else None
@@ -95,7 +96,9 @@ def run(args: argparse.Namespace) -> int:
     if not blocks:
         print("nothing learned; no file written", file=sys.stderr)
         return 0
-    device_line = f'hid = "{args.hid.lower()}"' if hid_ids else f'midi = "{port}"'
-    out.write_text(f'# Learned with instrument learn\nname = "{out.stem}"\n\n[device]\n{device_line}\n\n' + "\n".join(blocks))
+    device_line = f"hid = {toml_string(args.hid.lower())}" if hid_ids else f"midi = {toml_string(port)}"
+    with written(out) as part:
+        part.write_text(f"# Learned with instrument learn\nname = {toml_string(out.stem)}\n\n[device]\n{device_line}\n\n"
+                        + "\n".join(blocks), encoding="utf-8")
     print(f"wrote {len(blocks)} controls to {out}", file=sys.stderr)
     return 0

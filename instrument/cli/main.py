@@ -1,31 +1,71 @@
-"""Entry point: parse the subcommand, run it, turn a user's mistake into one line and exit 1."""
+"""Entry point: parse the subcommand, run it, turn a user's mistake into one line and exit 1.
+
+Only the chosen subcommand's module is imported (numpy, scipy and numba take seconds to load),
+so `instrument --version`, `instrument --help` and each command start without the others' cost.
+Usage errors (an unknown option, a missing argument) are argparse's: one line, exit 2.
+"""
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 
 from .. import __version__
 from ..errors import UserError
-from . import bench_cmd, devices_cmd, info_cmd, inspect_cmd, learn_cmd, log_cmd, recover_cmd, render_cmd, run_cmd, skeleton_cmd, synth_cmd, train_cmd, view_cmd
 
-COMMANDS = (run_cmd, view_cmd, devices_cmd, learn_cmd, log_cmd, inspect_cmd, train_cmd, info_cmd, synth_cmd, bench_cmd, skeleton_cmd, render_cmd, recover_cmd)
+# name: (module in instrument.cli, the line `instrument --help` shows; the module's own help says the same)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "run": ("run_cmd", "the live instrument: walk, listen to controls, send OSC (default: the demo performance)"),
+    "view": ("view_cmd", "live stick figure of the flat OSC profile (needs matplotlib)"),
+    "devices": ("devices_cmd", "list MIDI ports and HID devices, with the shipped mapping for each"),
+    "learn": ("learn_cmd", "MIDI or HID learn: pick a target, move a control, write a mapping file"),
+    "log": ("log_cmd", "controller logs: export to / import from Standard MIDI Files"),
+    "inspect": ("inspect_cmd", "check BVH files: skeleton, frames, steps found, warnings"),
+    "train": ("train_cmd", "train style models from BVH takes"),
+    "info": ("info_cmd", "describe a model file: styles, states, durations, provenance, licence"),
+    "synth": ("synth_cmd", "synthesize a walk with given style weights and write it as BVH"),
+    "bench": ("bench_cmd", "measure parsing and synthesis speed on this machine"),
+    "skeleton": ("skeleton_cmd", "write the model's skeleton (template pose) as a one-frame BVH"),
+    "render": ("render_cmd", "draw a BVH recording: contact sheet (.png) or animation (.gif)"),
+    "recover": ("recover_cmd", "repair the frame count of a BVH recording left by a killed run"),
+}
+EVERY = "*"  # build_parser(EVERY): import every subcommand (the tests check them all)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+def chosen_command(argv: list[str]) -> str | None:
+    """The subcommand named on the command line: the first word that is not an option."""
+    words = [a for a in argv if not a.startswith("-")]
+    return words[0] if words and words[0] in COMMANDS else None
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line naming the option, and a pointer to --help; exit 2."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def build_parser(load: str | None = EVERY) -> argparse.ArgumentParser:
+    """The parser; subcommands other than `load` are listed by name and summary only."""
+    parser = OneLineParser(
         prog="instrument",
         description="A realtime stylistic walk synthesizer: style models from motion capture, live control, OSC out.",
+        epilog="Exit status: 0 done, 1 a bad file or value (one line naming it), 2 a usage error, 130 interrupted.",
     )
     parser.add_argument("--version", action="version", version=f"instrument {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for command in COMMANDS:
-        command.add_parser(sub)
+    for name, (module, summary) in COMMANDS.items():
+        if load in (EVERY, name):
+            importlib.import_module(f"{__package__}.{module}").add_parser(sub)
+        else:
+            sub.add_parser(name, help=summary)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else argv
+    parser = build_parser(chosen_command(argv))
     args = parser.parse_args(argv)
     if args.command is None:
         parser.print_help()

@@ -17,5 +17,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     before, after = recover(args.bvh)
     read_bvh(args.bvh)  # proves the result reads
-    print(f"{args.bvh}: {after} frames (the header said {before})")
+    if before == after:
+        print(f"{args.bvh}: {after} frames, as the header says; left as it is")
+    else:
+        print(f"{args.bvh}: {after} frames (the header said {before})")
     return 0

@@ -11,14 +11,19 @@ import numpy as np
 from ..errors import UserError
 from ..motion.bvh import read_bvh
 from ..motion.kinematics import world_positions
-from ..output.drawing import draw_framed, drawn_parents, pyplot, side_projection
+from ..output.drawing import bone_colours, draw_framed, drawn_parents, pyplot, side_projection
+from ..outputfile import check_output, written
+from .arguments import checked
+
+SHEET_FIGURES, SHEET_SPACING = 12, 0.1  # the default contact sheet: 12 figures, 0.1 s apart
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("render", help="draw a BVH recording: contact sheet (.png) or animation (.gif)")
     p.add_argument("--bvh", required=True, metavar="FILE.bvh")
     p.add_argument("--out", required=True, metavar="walk.png|walk.gif")
-    p.add_argument("--every", type=int, default=0, help="draw every Nth frame (default: 12 figures for a PNG, 15 fps for a GIF)")
+    p.add_argument("--force", action="store_true", help="overwrite the --out file if it exists (default: refuse)")
+    p.add_argument("--every", type=checked("render --every"), help="draw every Nth frame (default: a PNG shows 12 figures 0.1 s apart, about one stride; a GIF plays at 15 fps)")
     p.set_defaults(run=run)
 
 
@@ -26,6 +31,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.suffix.lower() not in (".png", ".gif"):
         raise UserError(f"--out {out}: give a .png (contact sheet) or a .gif (animation)")
+    check_output(out, args.force, inputs=(args.bvh,))
     motion = read_bvh(args.bvh)
     plt = pyplot("Agg")
     positions = world_positions(motion)
@@ -34,19 +40,22 @@ def run(args: argparse.Namespace) -> int:
     points = side_projection(positions, path if np.linalg.norm(path[[0, 2]]) > 1e-6 else np.array([0.0, 0.0, 1.0]))
     height = np.ptp(points[..., 1]) or 1.0
     low, high = points[..., 1].min() - 0.05 * height, points[..., 1].max() + 0.05 * height
+    colours = bone_colours(motion.skeleton.names)  # left limbs blue, right red
     if out.suffix.lower() == ".png":
-        every = args.every or max(1, motion.frames // 12)
-        frames = list(range(0, motion.frames, every))
+        # figures a stride apart all look alike (the walk seems frozen): a tenth of a second apart they show the gait
+        every = args.every or max(1, int(round(motion.fps * SHEET_SPACING)))
+        frames = list(range(0, motion.frames, every))[: None if args.every else SHEET_FIGURES]
         columns = min(6, len(frames))
         rows = (len(frames) + columns - 1) // columns
         fig, axes = plt.subplots(rows, columns, figsize=(2 * columns, 3 * rows), squeeze=False)
         for ax in axes.ravel():
             ax.axis("off")
         for ax, f in zip(axes.ravel(), frames):
-            draw_framed(ax, points[f], parents, low, high, 0.5 * height)
+            draw_framed(ax, points[f], parents, low, high, 0.5 * height, colours)
             ax.set_title(f"{f / motion.fps:.2f} s", fontsize=8)
         fig.tight_layout()
-        fig.savefig(out, dpi=80)
+        with written(out) as part:
+            fig.savefig(part, dpi=80, format="png")
     else:
         from matplotlib.animation import FuncAnimation, PillowWriter
 
@@ -56,9 +65,12 @@ def run(args: argparse.Namespace) -> int:
 
         def draw(f):
             ax.clear()
-            draw_framed(ax, points[f], parents, low, high, 0.6 * height)
+            draw_framed(ax, points[f], parents, low, high, 0.6 * height, colours)
 
-        FuncAnimation(fig, draw, frames=frames).save(out, writer=PillowWriter(fps=motion.fps / every))
+        with written(out) as part:  # Pillow picks the format by the file name: give it one ending .gif
+            gif = part.with_name(part.name + ".gif")
+            FuncAnimation(fig, draw, frames=frames).save(gif, writer=PillowWriter(fps=motion.fps / every))
+            gif.replace(part)
     plt.close("all")
     print(f"wrote {out}", file=sys.stderr)
     return 0

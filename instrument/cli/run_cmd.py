@@ -13,10 +13,12 @@ from ..control.hid import HidInput
 from ..control.hid import choose_mapping as choose_hid_mapping
 from ..control.hid_feedback import HidFeedback
 from ..control.hub import ControlHub
+from ..control.loghead import header_line, logged_mappings, unreadable_sources
 from ..control.mapping import load_mapping, parse_hid_id, style_problems
 from ..control.state import ControlState
 from ..errors import UserError
 from ..models.modelfile import load_model
+from ..outputfile import check_output
 from ..output.osc import FLAT_PORT, VMC_PORT, parse_target
 from ..output.outputs import OscOutput, RecorderOutput, make_profile
 from ..runtime.console import Console
@@ -24,12 +26,14 @@ from ..runtime.performance import perform
 from ..runtime.priority import realtime_scheduling
 from ..shipped import default_model_path, demo_log_path, shipped_mappings
 from ..tomlfile import read_toml
-from .arguments import number
+from .arguments import OPTIONS
+from .arguments import value as option_value
 
 DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
 DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "fast": False, "quiet": False,
-            "normal_priority": False}
+            "normal_priority": False, "force": False}
 LISTS = ("osc", "mapping")
+SHOW_FILE_CHECKS = {"osc": parse_target, "hid": parse_hid_id}  # checked as the file is read, so errors name its line
 PATHS = ("model", "bvh", "replay", "record", "humanoid", "presets", "mapping")  # relative to the show file
 
 
@@ -63,6 +67,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--normal-priority", action="store_true", default=None,
                    help="do not ask for realtime scheduling (default: asked for, so frames stay on time on a busy machine)")
     p.add_argument("--quiet", action="store_true", default=None, help="no status line")
+    p.add_argument("--force", action="store_true", default=None, help="let --bvh and --record replace existing files (default: refuse)")
     p.set_defaults(run=run)
 
 
@@ -88,6 +93,14 @@ def apply_show_file(args: argparse.Namespace) -> dict:
             raise UserError(f"{path}:{line}: {key}: expected a string or a number")
         else:
             value = str(value)
+        option = f"run --{dest.replace('_', '-')}"
+        if option in OPTIONS:  # the same table as the command line, the error naming file, line and key
+            option_value(option, value.rpartition(":")[2] if dest == "osc_in" else value, where=f"{path}:{line}: {key}")
+        for text in (value if isinstance(value, list) else [value]) if dest in SHOW_FILE_CHECKS else ():
+            try:
+                SHOW_FILE_CHECKS[dest](text)
+            except UserError as e:
+                raise UserError(f"{path}:{line}: {key}: {str(e).removeprefix('--osc ')}") from None
         if getattr(args, dest) is None:
             setattr(args, dest, value)
         if dest in PATHS:
@@ -142,34 +155,47 @@ def choose_mappings(args: argparse.Namespace, state: ControlState, console: Cons
     return mappings
 
 
+def check_recordings(args: argparse.Namespace) -> None:
+    """--bvh and --record may be written (the output rule), and are two different files."""
+    if args.bvh and args.record and Path(args.bvh).resolve() == Path(args.record).resolve():
+        raise UserError(f"--bvh and --record both name {args.bvh}: give two files")
+    for path in (args.bvh, args.record):
+        if path:
+            check_output(path, args.force, inputs=(args.replay,))
+
+
 def run(args: argparse.Namespace) -> int:
     show_presets = apply_show_file(args) if args.config else {}
     for key, value in DEFAULTS.items():
         if getattr(args, key) is None:
             setattr(args, key, value)
-    fps = number("--fps", args.fps)
-    if not 24 <= fps <= 120:
-        raise UserError(f"--fps must be between 24 and 120, not {args.fps}")
-    seconds = None if args.seconds is None else number("--seconds", args.seconds)
-    if seconds is not None and seconds <= 0:
-        raise UserError(f"--seconds must be positive, not {args.seconds}")
-    morph = 0.0 if args.morph is None else number("--morph", args.morph)
+    fps = option_value("run --fps", args.fps)
+    seconds = None if args.seconds is None else option_value("run --seconds", args.seconds)
+    morph = 0.0 if args.morph is None else option_value("run --morph", args.morph)
+    if args.osc_in:
+        option_value("run --osc-in", args.osc_in.rpartition(":")[2], where=f"--osc-in {args.osc_in}: port")
     model = load_model(args.model or default_model_path())
     console = Console(quiet=args.quiet)
     state = ControlState(model.style_names, model.states)
     presets = check_presets(show_presets, state, args.config or "show file")
     if args.presets:
         presets.update(check_presets(read_toml(args.presets)[1].get("presets", {}), state, args.presets))
-    mappings = choose_mappings(args, state, console)
+    check_recordings(args)
+    logged = logged_mappings(args.replay, state) if args.replay and not args.mapping else []  # as recorded
+    mappings = logged + choose_mappings(args, state, console)
     live = bool(args.midi or args.midi_virtual or args.hid or args.osc_in)
     replay_path = args.replay or (None if live else demo_log_path())
     replay = LogReplay(read_log(replay_path), loop=args.loop or not args.replay) if replay_path else None
+    missing = unreadable_sources(replay.events, mappings) if replay else []
+    if missing:
+        raise UserError(f"{replay_path}: has {' and '.join(missing)} events but no mapping to read them "
+                        "(the log has no mapping header): give the --mapping it was recorded with")
     targets = [] if args.no_osc else [parse_target(t) for t in (args.osc or DEFAULT_TARGETS)]
     if args.fast and seconds is None and (replay is None or replay.loop or not replay.events):
         raise UserError("--fast needs an end: give --seconds, or a --replay log (played once)")
-    outputs, devices, hub = [], [], None
+    outputs, devices, hub, created = [], [], None, []
     try:
-        hub = ControlHub(mappings, presets, args.record, morph)
+        hub = ControlHub(mappings, presets, None, morph)
         if args.midi or args.midi_virtual:
             devices.append(MidiInput(console, args.midi, args.midi_virtual, args.midi_api))
             if hub.midi is not None and not args.no_feedback:
@@ -181,13 +207,19 @@ def run(args: argparse.Namespace) -> int:
                 outputs.append(HidFeedback(devices[-1], hub.hid.mapping.feedback, console))
         if args.osc_in:
             devices.append(OscInput(console, args.osc_in if ":" in args.osc_in else f"127.0.0.1:{args.osc_in}"))
-        if args.bvh:
-            outputs.append(RecorderOutput(args.bvh, model, fps))
         profiles = {kind: make_profile(kind, model, args.humanoid) for kind in {t.profile for t in targets}}
         outputs += [OscOutput(t, profiles[t.profile], console) for t in targets]
+        # files last: a start-up that fails leaves nothing behind, so the corrected command runs
+        if args.bvh:
+            outputs.append(RecorderOutput(args.bvh, model, fps, replace=args.force))
+            created.append(args.bvh)
+        if args.record:
+            hub.start_recording(args.record, header_line(mappings), replace=args.force)
     except UserError:
         for thing in outputs + devices + ([hub] if hub else []):
             thing.close()
+        for path in created:
+            Path(path).unlink(missing_ok=True)
         raise
     if not args.quiet:
         sources = [d.describe() for d in devices] + ([f"log {replay_path}"] if replay_path else [])

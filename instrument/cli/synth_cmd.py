@@ -5,12 +5,15 @@ from __future__ import annotations
 import argparse
 import sys
 
+import numpy as np
+
 from ..errors import UserError
-from .arguments import number
+from .arguments import value
 from ..models.modelfile import default_model_path, load_model
 from ..motion.bvh import write_bvh
+from ..outputfile import check_output
 from ..synthesis.durations import MAX_SPEED, MIN_SPEED
-from ..synthesis.interpolation import style_space
+from ..synthesis.interpolation import GROUPS, style_space
 from ..motion.features import restore
 from ..synthesis.offline import default_controls, synthesize
 from ..synthesis.stream import DEFAULT_LOOKAHEAD
@@ -19,11 +22,13 @@ from ..synthesis.stream import DEFAULT_LOOKAHEAD
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("synth", help="synthesize a walk with given style weights and write it as BVH")
     p.add_argument("--model", help="model file (default: the shipped default model)")
-    p.add_argument("--style", action="append", default=[], metavar="NAME=W",
-                   help="style weight, repeatable: 1 the style, 2 exaggerated, 0.5 inhibited, -1 inverted")
+    p.add_argument("--style", action="append", default=[], metavar="NAME[.PART]=W",
+                   help="style weight, repeatable: 1 the style, 2 exaggerated, 0.5 inhibited, -1 inverted; "
+                        f"NAME.PART=W sets it for one body part ({', '.join(GROUPS)}), e.g. elderly.legs=1")
     p.add_argument("--speed", default="1", help=f"step rate relative to the model's ({MIN_SPEED:g} to {MAX_SPEED:g})")
     p.add_argument("--seconds", default="10", help="length of the walk (default 10)")
     p.add_argument("--out", required=True, metavar="FILE.bvh")
+    p.add_argument("--force", action="store_true", help="overwrite the --out file if it exists (default: refuse)")
     p.add_argument("--method", choices=("stream", "full"), default="stream",
                    help="stream: frame by frame as live (default); full: one MLPG over the whole walk")
     p.add_argument("--lookahead", default=str(DEFAULT_LOOKAHEAD), metavar="FRAMES", help=f"streaming look-ahead (default {DEFAULT_LOOKAHEAD})")
@@ -32,34 +37,38 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def parse_weights(items: list[str], styles: list[str]) -> dict[str, float]:
+def parse_weights(items: list[str], styles: list[str]) -> tuple[dict[str, float], np.ndarray | None]:
+    """Whole-body weights by style, and per-part weights (styles, parts; NaN: as the whole body) if any."""
     weights: dict[str, float] = {}
+    parts = np.full((len(styles), len(GROUPS)), np.nan)
     for item in items:
-        name, sep, value = item.partition("=")
+        key, sep, text = item.partition("=")
+        name, dot, part = key.partition(".")
         if not sep:
-            raise UserError(f"--style {item!r}: expected NAME=WEIGHT, e.g. elderly=1.5")
+            raise UserError(f"--style {item!r}: expected NAME=WEIGHT or NAME.PART=WEIGHT, e.g. elderly=1.5")
         if name not in styles:
             raise UserError(f"--style {item!r}: the model has no style {name!r} (it has {', '.join(styles)})")
-        weights[name] = number(f"--style {name}", value)
-    return weights
+        if dot and part not in GROUPS:
+            raise UserError(f"--style {item!r}: no body part {part!r} (the parts are {', '.join(GROUPS)})")
+        weight = value("synth --style", text, where=f"--style {key}")
+        if dot:
+            parts[styles.index(name), GROUPS.index(part)] = weight
+        else:
+            weights[name] = weight
+    return weights, (None if np.isnan(parts).all() else parts)
 
 
 def run(args: argparse.Namespace) -> int:
+    check_output(args.out, args.force)
     model = load_model(args.model or default_model_path())
-    weights = parse_weights(args.style, model.style_names)
-    speed = number("--speed", args.speed)
-    if speed <= 0:
-        raise UserError(f"--speed must be positive, not {args.speed}")
-    seconds = number("--seconds", args.seconds)
-    if seconds <= 0:
-        raise UserError(f"--seconds must be positive, not {args.seconds}")
-    lookahead = number("--lookahead", args.lookahead, int)
-    if lookahead < 1:
-        raise UserError(f"--lookahead must be at least 1 frame, not {args.lookahead}")
-    liveliness = number("--liveliness", args.liveliness)
-    seed = number("--seed", args.seed, int)
+    weights, part_weights = parse_weights(args.style, model.style_names)
+    speed = value("synth --speed", args.speed)
+    seconds = value("synth --seconds", args.seconds)
+    lookahead = value("synth --lookahead", args.lookahead)
+    liveliness = value("synth --liveliness", args.liveliness)
+    seed = value("synth --seed", args.seed)
     frames = max(1, int(round(seconds * model.fps)))
-    controls = default_controls(model, weights, speed=speed, liveliness=liveliness)
+    controls = default_controls(model, weights, part_weights=part_weights, speed=speed, liveliness=liveliness)
     static = synthesize(style_space(model), model.layout.dimension, controls, frames, args.method, lookahead, seed)
     write_bvh(args.out, restore(static, model.layout, model.fps))  # from the origin, heading 0
     print(f"wrote {frames} frames ({seconds:g} s) to {args.out}", file=sys.stderr)

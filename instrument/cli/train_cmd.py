@@ -13,6 +13,8 @@ from ..errors import UserError
 from ..models.build import UNSPECIFIED_LICENCE, build_model
 from ..models.corpus import DEFAULT_STYLE_PATTERN, read_manifest, style_from_name
 from ..models.modelfile import save_model
+from ..outputfile import check_output
+from .arguments import checked
 from .inspect_cmd import bvh_files
 from .progress import Progress
 
@@ -21,12 +23,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("train", help="train style models from BVH takes")
     p.add_argument("data", nargs="*", metavar="DATA", help="BVH files or folders")
     p.add_argument("--out", required=True, metavar="MODEL.npz", help="where to write the model")
+    p.add_argument("--force", action="store_true", help="overwrite the model if it exists (default: refuse)")
     p.add_argument("--style-from", metavar="REGEX", default=DEFAULT_STYLE_PATTERN,
                    help="regular expression with one group that finds the style in a file name (without .bvh); "
                         f"default {DEFAULT_STYLE_PATTERN!r} reads names like dataset-2_walk_elderly_003.bvh")
     p.add_argument("--manifest", metavar="FILE", help="CSV (file,style) or TOML ([[take]] file, style) naming takes and styles")
-    p.add_argument("--fps", type=float, default=30.0, help="frame rate the model works at (default 30)")
-    p.add_argument("--states", type=int, default=5, help="states per step model (default 5)")
+    p.add_argument("--fps", type=checked("train --fps"), default=30.0, help="frame rate the model works at (default 30)")
+    p.add_argument("--states", type=checked("train --states"), default=5, help="states per step model (default 5)")
     p.add_argument("--licence", default=UNSPECIFIED_LICENCE, help="licence of the model (that of the training data)")
     p.add_argument("--attribution", default="", help="attribution the licence requires")
     p.add_argument("--quiet", action="store_true", help="no progress output")
@@ -51,10 +54,7 @@ def _pairs(args: argparse.Namespace) -> list[tuple[Path, str]]:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.states < 1:
-        raise UserError(f"--states must be at least 1, not {args.states}")
-    if not args.fps > 0:
-        raise UserError(f"--fps must be positive, not {args.fps}")
+    check_output(args.out, args.force)
     pairs = _pairs(args)
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
     styles = sorted({s for _, s in pairs})
@@ -67,8 +67,8 @@ def run(args: argparse.Namespace) -> int:
         on_iteration=lambda i, ll: say(f"EM iteration {i:2d}: log-likelihood per frame {ll:.4f}"),
     )
     save_model(args.out, model)
-    for w in report.warnings:
-        say(f"warning: {w}")
+    for w in report.warnings:  # said even with --quiet: not progress, something to act on
+        print(f"warning: {w}", file=sys.stderr)
     steps = sum(len(t.steps) for t in takes)
     say(f"done in {time.perf_counter() - started:.1f} s: {len(takes)} takes, {steps} steps, "
         f"{len(model.style_names)} styles, {model.layout.dimension} features x 3 -> {args.out}")

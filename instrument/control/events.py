@@ -7,7 +7,8 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import UserError, located
+from ..errors import located
+from ..textfile import read_text
 
 
 @dataclass(frozen=True)
@@ -24,10 +25,7 @@ class ControlEvent:
 def read_log(path: str | Path) -> list[ControlEvent]:
     """Every event of a log, in time order; a bad line is a one-line error naming file and line."""
     path = Path(path)
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except OSError as e:
-        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
+    lines = read_text(path).splitlines()
     events = []
     for number, line in enumerate(lines, 1):
         if not line.strip() or line.lstrip().startswith("#"):
@@ -36,6 +34,8 @@ def read_log(path: str | Path) -> list[ControlEvent]:
             item = json.loads(line)
         except json.JSONDecodeError as e:
             raise located(path, f"not JSON: {e.msg}", number) from None
+        if isinstance(item, dict) and "instrument_log" in item:
+            continue  # the header line: the mappings in force (control.loghead)
         if not isinstance(item, dict):
             raise located(path, "expected an object with t, source, control, value", number)
         missing = [k for k in ("t", "source", "control", "value") if k not in item]

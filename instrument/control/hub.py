@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ..errors import UserError
 from .events import ControlEvent
+from .loghead import header_line
 from .mapping import Mapper, Mapping
 from .state import ControlState
 
@@ -24,12 +25,18 @@ class ControlHub:
         self.hid = next((Mapper(m, self.presets, self.morph) for m in mappings if m.hid is not None or m.hid_usages), None)
         self.record_fd = None
         if record:
-            try:
-                self.record_fd = os.open(record, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
-            except FileExistsError:
-                raise UserError(f"{record}: already exists; record to a new file (nothing is overwritten)") from None
-            except OSError as e:
-                raise UserError(f"{record}: cannot record: {e.strerror or e}") from None
+            self.start_recording(record, header_line(mappings))
+
+    def start_recording(self, path: str | Path, header: str, replace: bool = False) -> None:
+        """Record every raw event from now on to a new log at `path` (an existing one only with `replace`)."""
+        exclusive = os.O_TRUNC if replace else os.O_EXCL
+        try:
+            self.record_fd = os.open(path, os.O_WRONLY | os.O_CREAT | exclusive, 0o644)
+        except FileExistsError:
+            raise UserError(f"{path}: already exists; record to a new file, or give --force") from None
+        except OSError as e:
+            raise UserError(f"{path}: cannot record: {e.strerror or e}") from None
+        os.write(self.record_fd, (header + "\n").encode("utf-8"))
 
     def apply(self, state: ControlState, event: ControlEvent) -> bool:
         """Record the raw event, then apply it; False if nothing knows what it means."""

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import UserError
-from ..tomlfile import read_toml
+from ..tomlfile import parse_toml, read_toml
 from .events import ControlEvent
 from .hid import DS4_NAMES, canonical_input, legacy_event, unit_with_deadzone
 from .hid_feedback import FeedbackSpec, parse_feedback
@@ -60,6 +60,7 @@ class Mapping:
     morph: float = 0.0  # default seconds to morph into a recalled preset
     hid_usages: tuple[str, ...] = ()  # a HID device exposing all these usages fits, whatever its ids
     feedback: FeedbackSpec | None = None  # HID output reports (LEDs, a light bar), from [feedback]
+    text: str = ""  # the TOML it was read from: a recorded log carries it, so the replay reads events alike
 
 
 def parse_hid_id(text: object, fail=None) -> tuple[int, int]:
@@ -76,9 +77,10 @@ def _line_of(text: str, needle: str, start: int = 0) -> int:
     return text.count("\n", 0, at) + 1 if at >= 0 else 0
 
 
-def load_mapping(path: str | Path, state: ControlState | None = None) -> Mapping:
+def load_mapping(path: str | Path, state: ControlState | None = None, text: str | None = None) -> Mapping:
+    """The mapping file at `path` (or, given `text`, that TOML, with errors naming `path`)."""
     path = Path(path)
-    text, data = read_toml(path)
+    text, data = read_toml(path) if text is None else (text, parse_toml(text, path))
     starts = [m.start() for m in re.finditer(r"^\s*\[\[control\]\]", text, re.MULTILINE)]
 
     def fail(message: str, key: str, index: int | None = None) -> UserError:
@@ -127,7 +129,7 @@ def load_mapping(path: str | Path, state: ControlState | None = None) -> Mapping
         raise fail("must be a number of seconds, 0 or more", "morph")
     feedback = parse_feedback(data["feedback"], fail) if "feedback" in data else None
     return Mapping(str(data.get("name", path.stem)), str(path), midi, hid_ids, tuple(controls), presets, float(morph),
-                   tuple(usages), feedback)
+                   tuple(usages), feedback, text)
 
 
 def _control(item: dict, index: int, fail, state: ControlState | None) -> ControlSpec:

@@ -14,6 +14,7 @@ from ..errors import UserError, located
 from ..motion.bvh import Motion, read_bvh
 from ..motion.features import FeatureLayout, choose_layout, extract, resample, with_deltas
 from ..motion.steps import LABELS, segment_steps
+from ..textfile import read_text
 from ..tomlfile import read_toml
 
 DEFAULT_STYLE_PATTERN = r"_([A-Za-z]+)_[^_]*$"  # dataset-2_walk_elderly_003 -> elderly
@@ -56,10 +57,7 @@ def read_manifest(path: Path) -> list[tuple[Path, str]]:
                 raise UserError(f"{path}: take {k}: needs string keys 'file' and 'style'")
             pairs.append((base / take["file"], take["style"]))
         return pairs
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as e:
-        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
+    text = read_text(path)
     rows = list(csv.reader(text.splitlines()))
     if not rows or [c.strip().lower() for c in rows[0][:2]] != ["file", "style"]:
         raise located(path, "a CSV manifest starts with the header 'file,style'", 1)

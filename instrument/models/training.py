@@ -8,7 +8,6 @@ is what makes interpolating and extrapolating between them meaningful.
 
 from __future__ import annotations
 
-import warnings as _warnings
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -97,7 +96,6 @@ def adapt_styles(
         fewest = min(len(label) for label in segments)
         if fewest < MIN_STEPS_PER_LABEL:
             message = f"style {style!r} has only {fewest} steps of one label: it stays close to the average model"
-            report.warnings.append(message)
-            _warnings.warn(message, stacklevel=2)
+            report.warnings.append(message)  # said once, by whoever reads the report (train prints it unless --quiet)
         models.append(adapt(average, segments, floors, tau, tau_duration))
     return HSMM(*(np.stack([getattr(m, name) for m in models]) for name in ("means", "variances", "duration_means", "duration_variances")))

@@ -247,8 +247,9 @@ def parse_bvh(text: str, path: str = "<text>") -> Motion:
         frame_time = float(tokens[2])
     except ValueError:
         raise lines.error("Frame Time is not a number") from None
-    if not frame_time > 0 or not math.isfinite(frame_time):
-        raise lines.error("Frame Time must be positive")
+    if not MIN_FRAME_TIME <= frame_time <= MAX_FRAME_TIME:  # also refuses nan and inf
+        raise lines.error(f"Frame Time must be {MIN_FRAME_TIME:g} to {MAX_FRAME_TIME:g} s (1000 to 1 frames per second), "
+                          f"not {tokens[2]}")
     first_line = lines.pos + 1  # 1-based number of the first frame line
     rows = [row for row in lines.lines[lines.pos :]]
     while rows and not rows[-1].strip():
@@ -268,6 +269,9 @@ def parse_bvh(text: str, path: str = "<text>") -> Motion:
     if values is None or values.size != frame_count * width or not np.isfinite(values).all():
         _raise_frame_error(path, rows, first_line, width)
     return Motion(skeleton, values.reshape(frame_count, width), _fps_from_frame_time(frame_time), source=path)
+
+
+MIN_FRAME_TIME, MAX_FRAME_TIME = 0.001, 1.0  # seconds: motion capture runs at 1 to 1000 frames per second
 
 
 def _fps_from_frame_time(frame_time: float) -> float:
@@ -300,7 +304,7 @@ def read_bvh(path: str | Path) -> Motion:
     except OSError as e:
         raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
     try:
-        text = raw.decode("utf-8")
+        text = raw.decode("utf-8-sig")  # a byte-order mark is not part of the text
     except UnicodeDecodeError:
         text = raw.decode("latin-1")
     return parse_bvh(text, str(path))

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import uniform_filter1d
-from scipy.signal import find_peaks
 
 from .bvh import Motion
 from .features import FeatureLayout, choose_layout, heading_angle
@@ -91,6 +90,8 @@ def _lowest(height: np.ndarray, allowed: np.ndarray) -> int:
 
 def _alternating_extrema(signal: np.ndarray, fps: float, prominence: float) -> list[tuple[int, int]]:
     """(frame, +1 for a peak / -1 for a dip), alternating; of two alike in a row the stronger stays."""
+    from scipy.signal import find_peaks  # here, not at the top: scipy.signal takes a second to import
+
     distance = max(1, int(round(MIN_STEP_SECONDS * fps)))
     peaks, _ = find_peaks(signal, prominence=prominence, distance=distance)
     dips, _ = find_peaks(-signal, prominence=prominence, distance=distance)
@@ -107,6 +108,8 @@ def _alternating_extrema(signal: np.ndarray, fps: float, prominence: float) -> l
 
 def segment_steps(motion: Motion, layout: FeatureLayout | None = None) -> Segmentation:
     """Steps of a walk, with warnings about anything dropped or doubtful."""
+    if motion.frames < 2 * MIN_STEP_SECONDS * motion.fps:  # a rest pose (one frame) or a moment: no step fits
+        return Segmentation([], [f"{motion.frames} frame(s), {motion.duration:.2f} s: too short to hold a step"], ("", ""))
     names = motion.skeleton.names
     signal, (left_foot, right_foot), leg, travel = foot_signal(motion, layout)
     if left_foot < 0 or right_foot < 0:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from ..errors import UserError
@@ -37,17 +39,37 @@ def drawn_parents(parents: np.ndarray, positions: np.ndarray) -> np.ndarray:
     return parents
 
 
-def draw_framed(ax, points: np.ndarray, parents: np.ndarray, low: float, high: float, half_width: float) -> None:
+SIDE_COLOURS = {"left": "tab:blue", "right": "tab:red", "": "black"}
+_WORDS = re.compile(r"[^A-Za-z]+|(?<=[a-z])(?=[A-Z])|(?<=[A-Z])(?=[A-Z][a-z])")  # UpperLeg_L, lHand, LHip
+
+
+def side_of(name: str) -> str:
+    """"left", "right" or "" (the middle) from a joint name: LeftFoot, UpperLeg_L, l_hip, lHand, LHip."""
+    lower = name.lower()
+    if "left" in lower or "right" in lower:
+        return "left" if "left" in lower else "right"
+    words = {w.lower() for w in _WORDS.split(name)}
+    return "left" if "l" in words else "right" if "r" in words else ""
+
+
+def bone_colours(names: list[str]) -> list[str]:
+    """Each joint's bone colour (the bone from its parent): left blue, right red, middle black."""
+    return [SIDE_COLOURS[side_of(n)] for n in names]
+
+
+def draw_framed(ax, points: np.ndarray, parents: np.ndarray, low: float, high: float, half_width: float,
+                colours: list[str] | None = None) -> None:
     """A stick figure centred across the axes, heights from `low` to `high`, no axis lines."""
     ax.axis("off")
-    draw_figure(ax, points, parents)
+    draw_figure(ax, points, parents, colours)
     centre = points[:, 0].mean()
     ax.set_xlim(centre - half_width, centre + half_width)
     ax.set_ylim(low, high)
     ax.set_aspect("equal")
 
 
-def draw_figure(ax, points: np.ndarray, parents: np.ndarray, color: str = "black") -> None:
+def draw_figure(ax, points: np.ndarray, parents: np.ndarray, colours: list[str] | None = None) -> None:
     for j, p in enumerate(parents):
         if p >= 0:
-            ax.plot(points[[p, j], 0], points[[p, j], 1], color=color, linewidth=2, solid_capstyle="round")
+            colour = colours[j] if colours else "black"
+            ax.plot(points[[p, j], 0], points[[p, j], 1], color=colour, linewidth=2, solid_capstyle="round")

@@ -29,10 +29,10 @@ class OscOutput:
 
 
 class RecorderOutput:
-    def __init__(self, path: str, model: Model, fps: float):
+    def __init__(self, path: str, model: Model, fps: float, replace: bool = False):
         self.name = f"bvh {path}"
         self.skeleton = model.layout.skeleton
-        self.recorder = BvhRecorder(path, model.layout.skeleton, fps)
+        self.recorder = BvhRecorder(path, model.layout.skeleton, fps, replace)
 
     def prepare(self, pose: Pose, echo: dict[str, float]):
         return pose_channels(self.skeleton, pose)

@@ -1,0 +1,69 @@
+"""The first line of a recorded controller log: the mappings in force while it was recorded.
+
+A log holds raw device events (`midi:...` cc/1/1 = 64); only a mapping says what they mean. The
+header line carries each mapping's name, its TOML and that text's SHA-256, so `run --replay LOG`
+reads the events exactly as the recording did, with no --mapping given and even after the
+mapping file has changed or gone. A log of device events with no mapping to read them is an
+error, not a silent replay of nothing.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+from ..errors import located
+from ..textfile import read_text
+from .events import ControlEvent
+from .mapping import Mapping, load_mapping
+from .state import ControlState
+
+HEADER_KEY = "instrument_log"  # {"instrument_log": 1, "mappings": [...]}
+VERSION = 1
+
+
+def header_line(mappings: list[Mapping]) -> str:
+    """The JSON header line (no newline) for a log recorded with these mappings."""
+    entries = [{"name": m.name, "file": m.path, "sha256": hashlib.sha256(m.text.encode("utf-8")).hexdigest(), "toml": m.text}
+               for m in mappings]
+    return json.dumps({HEADER_KEY: VERSION, "mappings": entries}, ensure_ascii=False)
+
+
+def is_header(item: object) -> bool:
+    return isinstance(item, dict) and HEADER_KEY in item
+
+
+def logged_mappings(path: str | Path, state: ControlState | None = None) -> list[Mapping]:
+    """The mappings a log's header carries (none for a log without a header)."""
+    for number, line in enumerate(read_text(path).splitlines(), 1):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        try:
+            item = json.loads(line)
+        except json.JSONDecodeError:
+            return []  # not a header: read_log names the bad line
+        if not is_header(item):
+            return []
+        entries = item.get("mappings")
+        if not isinstance(entries, list) or not all(isinstance(e, dict) and isinstance(e.get("toml"), str) for e in entries):
+            raise located(path, "header: 'mappings' must be a list of objects with a 'toml' text", number)
+        mappings = []
+        for entry in entries:
+            text = entry["toml"]
+            if entry.get("sha256") != hashlib.sha256(text.encode("utf-8")).hexdigest():
+                raise located(path, f"header: mapping {entry.get('name')!r} does not match its sha256 (the log was edited)", number)
+            mappings.append(load_mapping(f"{path}:{number}: mapping {entry.get('name', '?')}", state, text=text))
+        return mappings
+    return []
+
+
+def unreadable_sources(events: list[ControlEvent], mappings: list[Mapping]) -> list[str]:
+    """Device kinds ("MIDI", "HID") that have events in the log but no mapping to read them."""
+    kinds = {e.source.split(":", 1)[0] for e in events}
+    missing = []
+    if "midi" in kinds and not any(m.midi is not None for m in mappings):
+        missing.append("MIDI")
+    if "hid" in kinds and not any(m.hid is not None for m in mappings):
+        missing.append("HID")
+    return missing

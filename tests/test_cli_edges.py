@@ -1,0 +1,287 @@
+"""Every command, every edge: bad values, bad files and outputs give one line (exit 1, or 2 for
+a usage error) naming the option or the file, line and key; never a traceback.
+
+The bad option values are made from the option table itself (instrument.cli.arguments.OPTIONS),
+so an option added to the table is tested here without a new line in this file.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from conftest import REPO
+from instrument.cli.arguments import OPTIONS, WEIGHT_LIMIT
+from instrument.cli.main import main
+from instrument.control.events import ControlEvent, read_log
+from instrument.control.hub import ControlHub
+from instrument.control.loghead import logged_mappings
+from instrument.control.mapping import load_mapping
+from instrument.control.state import WEIGHT_LIMIT as STATE_WEIGHT_LIMIT
+from instrument.control.state import ControlState
+from instrument.errors import UserError
+from instrument.motion.bvh import read_bvh
+from instrument.tomlfile import tomllib, toml_string
+from samples import cmu_style_walk
+
+NANO = REPO / "mappings" / "korg-nanokontrol2.toml"
+STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "musical", "youthful"]
+
+
+def cli(capsys, *argv: str) -> tuple[int, str]:
+    """Run the command line in this process: (exit status, stderr). An exception other than
+    SystemExit fails the test with its traceback: that is what these tests guard against."""
+    capsys.readouterr()
+    try:
+        status = main([str(a) for a in argv])
+    except SystemExit as done:
+        status = done.code
+    return status, capsys.readouterr().err
+
+
+def one_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    return lines[0]
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """Small real inputs: a walk, a one-frame BVH, a model-less npz, a MIDI file."""
+    folder = tmp_path_factory.mktemp("inputs")
+    walk, _ = cmu_style_walk(fps=30)
+    (folder / "walk.bvh").write_text(walk)
+    (folder / "mid.jsonl").write_text(ControlEvent(0.5, "midi:x", "cc/1/1", 64).to_json() + "\n")
+    return folder
+
+
+def bad_values(key: str) -> list[str]:
+    """Values the table says are wrong for `key`: not a number, nan, just outside the range."""
+    accepts = OPTIONS[key]
+    values = ["x", "nan", "inf"]
+    if accepts.low is not None:
+        values.append(f"{accepts.low:g}" if accepts.above_low else f"{accepts.low - 1:g}")
+    if accepts.high is not None:
+        values.append(f"{accepts.high * 10 + 1:g}")
+    if accepts.kind is int:
+        values.append("1.5")
+    return values
+
+
+def required(command: str, files, tmp_path) -> list[str]:
+    """Whatever else the command needs to get as far as reading the option."""
+    out = tmp_path / "out"
+    return {
+        "run": ["--no-osc", "--seconds", "1"] if command != "run --seconds" else ["--no-osc"],
+        "view": ["--save", tmp_path / "v.png"],
+        "learn": ["--out", out, "--midi-virtual", "x"],
+        "log": ["import", files / "x.mid", "--out", out],
+        "train": [files / "walk.bvh", "--out", tmp_path / "m.npz"],
+        "synth": ["--out", tmp_path / "s.bvh"],
+        "bench": [],
+        "render": ["--bvh", files / "walk.bvh", "--out", tmp_path / "r.png"],
+    }[command.split()[0]]
+
+
+@pytest.mark.parametrize("key", sorted(OPTIONS))
+def test_every_bad_option_value_is_one_line(capsys, files, tmp_path, key):
+    command, option = key.split()
+    for bad in bad_values(key):
+        argv = [command, *required(key, files, tmp_path)]
+        if key == "synth --style":
+            argv += ["--style", f"elderly={bad}"]
+        else:
+            argv += [option, bad]
+        status, err = cli(capsys, *argv)
+        line = one_line(err)
+        assert status in (1, 2), (argv, err)
+        assert option in line and repr(bad) in line, (argv, line)
+    assert not list(tmp_path.iterdir())  # nothing written
+
+
+def test_usage_errors_exit_2_in_one_line(capsys):
+    for argv in (["synth"], ["run", "--no-such-option"], ["nosuch"], ["log", "sideways", "x", "--out", "y"]):
+        status, err = cli(capsys, *argv)
+        assert status == 2
+        assert "--help" in one_line(err)
+
+
+def test_the_option_table_and_the_control_state_agree():
+    assert WEIGHT_LIMIT == STATE_WEIGHT_LIMIT
+    assert OPTIONS["synth --style"].high == STATE_WEIGHT_LIMIT
+
+
+@pytest.mark.parametrize("kind", ["garbage", "utf16"])
+def test_text_files_that_are_not_utf8_are_one_line(capsys, tmp_path, kind):
+    data = b"\x80\x81 not text\n" if kind == "garbage" else '{"t": 0}\n'.encode("utf-16")
+    cases = {
+        "log.jsonl": ["run", "--replay", "{f}", "--no-osc", "--seconds", "1"],
+        "map.toml": ["run", "--mapping", "{f}", "--no-osc", "--seconds", "1"],
+        "show.toml": ["run", "--config", "{f}"],
+        "presets.toml": ["run", "--presets", "{f}", "--no-osc", "--seconds", "1"],
+        "manifest.csv": ["train", "--manifest", "{f}", "--out", str(tmp_path / "m.npz")],
+        "export.jsonl": ["log", "export", "{f}", "--out", str(tmp_path / "x.mid")],
+    }
+    for name, argv in cases.items():
+        path = tmp_path / name
+        path.write_bytes(data)
+        status, err = cli(capsys, *[a.replace("{f}", str(path)) for a in argv])
+        line = one_line(err)
+        assert status == 1 and f"{path}:1: not UTF-8 text" in line, line
+        assert ("UTF-16" in line) == (kind == "utf16")
+    assert not (tmp_path / "m.npz").exists() and not (tmp_path / "x.mid").exists()
+
+
+def test_a_bvh_with_a_byte_order_mark_reads(capsys, tmp_path):
+    text, _ = cmu_style_walk(fps=30)
+    path = tmp_path / "bom.bvh"
+    path.write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+    assert read_bvh(path).frames == 132
+    status, err = cli(capsys, "inspect", path)
+    assert status == 0, err
+
+
+@pytest.mark.parametrize("frame_time", ["1000000000", "0.000001", "33.3", "nan"])
+def test_a_frame_time_out_of_range_is_one_line(capsys, tmp_path, frame_time):
+    text, _ = cmu_style_walk(fps=30)
+    path = tmp_path / "walk_odd_001.bvh"
+    path.write_text(text.replace("Frame Time: 0.03333333", f"Frame Time: {frame_time}"))
+    assert f"Frame Time: {frame_time}" in path.read_text()
+    for argv in (["render", "--bvh", path, "--out", tmp_path / "r.png"], ["train", path, "--out", tmp_path / "m.npz", "--quiet"],
+                 ["inspect", path]):
+        status, err = cli(capsys, *argv)
+        assert status == 1 and f"{path}:" in one_line(err) and "Frame Time" in err, err
+    assert not (tmp_path / "r.png").exists() and not (tmp_path / "m.npz").exists()
+
+
+def test_a_one_frame_bvh_is_inspected_with_the_others(capsys, tmp_path):
+    assert cli(capsys, "skeleton", "--out", tmp_path / "rest.bvh")[0] == 0
+    text, _ = cmu_style_walk(fps=30)
+    (tmp_path / "walk.bvh").write_text(text)
+    capsys.readouterr()
+    status = main(["inspect", "--json", str(tmp_path / "rest.bvh"), str(tmp_path / "walk.bvh")])
+    document = json.loads(capsys.readouterr().out)
+    assert status == 0
+    assert [len(d["steps"]) > 0 for d in document] == [False, True]
+    assert "too short to hold a step" in document[0]["warnings"][0]
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["render", "--bvh", "{walk}", "--out", "/nonexistent/x.gif"], "/nonexistent/x.gif: the folder /nonexistent does not exist"),
+    (["render", "--bvh", "{walk}", "--out", "{walk}.png", "--every", "3"], None),
+    (["log", "export", "{log}", "--out", "/proc/x.mid"], "/proc/x.mid: cannot write"),
+    (["log", "import", "{walk}", "--out", "/nonexistent/x.jsonl"], "/nonexistent/x.jsonl: the folder"),
+    (["view", "--save", "/proc/v.png"], "/proc/v.png: cannot write"),
+    (["view", "--save", "{tmp}/v.txt"], "--save {tmp}/v.txt: give a .png file"),
+    (["train", "{walk}", "--out", "/nonexistent/x.npz"], "/nonexistent/x.npz: the folder /nonexistent does not exist"),
+    (["train", "{walk}", "--out", "{tmp}"], "{tmp}: is a folder"),
+    (["synth", "--out", "{walk}"], "{walk}: already exists; give --force"),
+    (["skeleton", "--out", "{walk}"], "{walk}: already exists; give --force"),
+    (["log", "import", "{walk}", "--out", "{walk}", "--force"], "{walk}: is also the input"),
+    (["info", "{walk}"], "{walk}: not a model file"),
+    (["synth", "--out", "{tmp}/s.bvh", "--style", "elderly.arms=1"], "no body part 'arms'"),
+])
+def test_outputs_and_inputs_are_one_line(capsys, files, tmp_path, argv, message):
+    fill = {"{walk}": str(files / "walk.bvh"), "{log}": str(files / "mid.jsonl"), "{tmp}": str(tmp_path)}
+
+    def filled(text: str) -> str:
+        for key, value in fill.items():
+            text = text.replace(key, value)
+        return text
+
+    before = {p.name: p.stat().st_mtime_ns for p in files.iterdir()}
+    status, err = cli(capsys, *map(filled, argv))
+    if message is None:  # the control case: this one works
+        assert status == 0, err
+        (files / "walk.bvh.png").unlink()
+        return
+    assert status == 1 and filled(message) in one_line(err), err
+    assert {p.name: p.stat().st_mtime_ns for p in files.iterdir()} == before  # inputs untouched
+    assert not list(tmp_path.iterdir())
+
+
+def test_force_overwrites_through_a_part_file(capsys, tmp_path):
+    out = tmp_path / "rest.bvh"
+    out.write_text("precious")
+    status, err = cli(capsys, "skeleton", "--out", out)
+    assert status == 1 and out.read_text() == "precious"
+    status, err = cli(capsys, "skeleton", "--out", out, "--force")
+    assert status == 0, err
+    assert read_bvh(out).frames == 1 and sorted(p.name for p in tmp_path.iterdir()) == ["rest.bvh"]
+
+
+def test_view_with_no_display_says_so(tmp_path):
+    env = {k: v for k, v in __import__("os").environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    result = subprocess.run([sys.executable, "-m", "instrument", "view"], capture_output=True, text=True, timeout=120, env=env)
+    assert result.returncode == 1
+    assert "no display" in one_line(result.stderr) and "--save" in result.stderr
+
+
+def test_a_failed_start_creates_no_recording(capsys, tmp_path):
+    log, bvh = tmp_path / "new.jsonl", tmp_path / "take.bvh"
+    status, err = cli(capsys, "run", "--record", log, "--bvh", "/proc/x.bvh", "--no-osc", "--seconds", "1")
+    assert status == 1 and "/proc/x.bvh" in one_line(err)
+    status, err = cli(capsys, "run", "--record", log, "--humanoid", tmp_path / "none.toml", "--bvh", bvh, "--seconds", "1",
+                      "--osc", "127.0.0.1:9/vmc")
+    assert status == 1 and "none.toml" in one_line(err)
+    assert not list(tmp_path.iterdir())  # the corrected command can run
+    status, err = cli(capsys, "run", "--record", log, "--bvh", log, "--no-osc", "--seconds", "1")
+    assert status == 1 and "both name" in one_line(err)
+
+
+def test_recover_leaves_a_healthy_recording_alone(capsys, tmp_path):
+    path = tmp_path / "rest.bvh"
+    assert cli(capsys, "skeleton", "--out", path)[0] == 0
+    before = path.read_bytes()
+    status, err = cli(capsys, "recover", path)
+    assert status == 0, err
+    assert path.read_bytes() == before
+
+
+def test_a_recorded_log_carries_its_mappings(tmp_path):
+    state = ControlState(STYLES, 5)
+    mapping = load_mapping(NANO, state)
+    log = tmp_path / "take.jsonl"
+    hub = ControlHub([mapping], record=log)
+    hub.apply(state, ControlEvent(0.25, "midi:nano", "cc/1/0", 127.0))
+    hub.close()
+    assert [e.control for e in read_log(log)] == ["cc/1/0"]  # the header is not an event
+    (carried,) = logged_mappings(log, state)
+    assert repr(carried.controls) == repr(mapping.controls) and carried.midi == mapping.midi and carried.text == NANO.read_text()
+    header = json.loads(log.read_text().splitlines()[0])
+    header["mappings"][0]["toml"] = header["mappings"][0]["toml"].replace("cc", "note", 1)  # edited by hand
+    log.write_text(json.dumps(header) + "\n")
+    with pytest.raises(UserError, match="does not match its sha256"):
+        logged_mappings(log, state)
+
+
+def test_a_log_of_midi_events_without_a_mapping_is_an_error(capsys, files):
+    status, err = cli(capsys, "run", "--replay", files / "mid.jsonl", "--no-osc", "--fast")
+    assert status == 1 and "has MIDI events but no mapping to read them" in one_line(err)
+
+
+def test_learned_names_are_escaped_for_toml():
+    for name in ['Port\\1 "A"', "caf\u00e9:0\t"]:
+        assert tomllib.loads(f"midi = {toml_string(name)}")["midi"] == name
+
+
+def test_synth_sets_one_body_part(capsys, tmp_path):
+    paths = {k: tmp_path / f"{k}.bvh" for k in ("none", "legs", "whole")}
+    for kind, style in (("none", []), ("legs", ["--style", "elderly.legs=2"]), ("whole", ["--style", "elderly=2"])):
+        status, err = cli(capsys, "synth", "--seconds", "2", "--out", paths[kind], *style)
+        assert status == 0, err
+    none, legs, whole = (read_bvh(paths[k]).channels for k in ("none", "legs", "whole"))
+    assert abs(legs - none).max() > 1.0 and abs(legs - whole).max() > 1.0
+
+
+def test_the_docs_say_what_every_option_accepts():
+    text = (REPO / "docs" / "cli.md").read_text()
+    for key, accepts in OPTIONS.items():
+        row = next((line for line in text.splitlines() if line.startswith(f"| `{key}")), None)
+        assert row is not None, key
+        bounds = [b for b in (accepts.low, accepts.high) if b is not None]
+        assert all((f"{b:g}" if accepts.kind is float else f"{int(b)}") in row for b in bounds), (key, row)
