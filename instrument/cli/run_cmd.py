@@ -16,6 +16,7 @@ from ..errors import UserError
 from ..models.modelfile import load_model
 from ..output.osc import FLAT_PORT, VMC_PORT, parse_target
 from ..output.outputs import OscOutput, RecorderOutput, make_profile
+from ..output.vmc import ROOT_CONVENTIONS
 from ..runtime.console import Console
 from ..runtime.performance import perform
 from ..runtime.priority import realtime_scheduling
@@ -25,7 +26,7 @@ from .arguments import number
 
 DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
 DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "fast": False, "quiet": False,
-            "normal_priority": False}
+            "normal_priority": False, "vmc_root": "hips", "no_relaxed_hands": False}
 LISTS = ("osc", "mapping")
 PATHS = ("model", "bvh", "replay", "record", "humanoid", "presets", "mapping")  # relative to the show file
 
@@ -56,6 +57,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--replay", metavar="LOG.jsonl", help="play a controller log once (default with no controllers: the demo, looped)")
     p.add_argument("--loop", action="store_true", default=None, help="play the --replay log over and over")
     p.add_argument("--humanoid", metavar="BONES.toml", help="joint-to-humanoid-bone map for the VMC profile")
+    p.add_argument("--vmc-root", metavar="hips|path", help="VMC: the hips carry the walk under a fixed root (default, as "
+                   "VirtualMotionCapture sends), or /VMC/Ext/Root/Pos carries the path and heading")
+    p.add_argument("--no-relaxed-hands", action="store_true", default=None,
+                   help="VMC: send no finger bones (default: a relaxed hand pose)")
     p.add_argument("--fast", action="store_true", default=None, help="no realtime pacing: as fast as the CPU allows (offline rendering)")
     p.add_argument("--normal-priority", action="store_true", default=None,
                    help="do not ask for realtime scheduling (default: asked for, so frames stay on time on a busy machine)")
@@ -152,6 +157,8 @@ def run(args: argparse.Namespace) -> int:
     if seconds is not None and seconds <= 0:
         raise UserError(f"--seconds must be positive, not {args.seconds}")
     morph = 0.0 if args.morph is None else number("--morph", args.morph)
+    if args.vmc_root not in ROOT_CONVENTIONS:
+        raise UserError(f"--vmc-root must be {' or '.join(ROOT_CONVENTIONS)}, not {args.vmc_root!r}")
     model = load_model(args.model or default_model_path())
     console = Console(quiet=args.quiet)
     state = ControlState(model.style_names, model.states)
@@ -179,7 +186,8 @@ def run(args: argparse.Namespace) -> int:
             devices.append(OscInput(console, args.osc_in if ":" in args.osc_in else f"127.0.0.1:{args.osc_in}"))
         if args.bvh:
             outputs.append(RecorderOutput(args.bvh, model, fps))
-        profiles = {kind: make_profile(kind, model, args.humanoid) for kind in {t.profile for t in targets}}
+        profiles = {kind: make_profile(kind, model, args.humanoid, args.vmc_root, not args.no_relaxed_hands)
+                    for kind in {t.profile for t in targets}}
         outputs += [OscOutput(t, profiles[t.profile], console) for t in targets]
     except UserError:
         for thing in outputs + devices + ([hub] if hub else []):
