@@ -87,6 +87,7 @@ class VmcProfile:
         stance_rot, stance_pos = _standing_world(layout, template_features if stance is None else stance)
         self.scale = units_to_metres(float(world_pos[layout.root][1])) if scale is None else scale
         tpose = TPose(skeleton, self.joints, self.bones, world_rot, world_pos, self.turn @ stance_rot, stance_pos @ self.turn.T)
+        self.tpose = tpose
         self.rest_inverse = np.transpose(np.array([tpose.rotations[b] for b in self.bones]), (0, 2, 1))
         self.parents = np.array([self._mapped_parent(skeleton, j) for j in self.joints])
         self.has_parent = self.parents >= 0
