@@ -22,8 +22,6 @@ polls the socket):
 Self-contained: a small OSC decoder is included, so Blender needs no extra Python packages.
 """
 
-from __future__ import annotations
-
 import builtins
 import math
 import queue
@@ -146,8 +144,17 @@ def import_rest(path: str):
     # Blender 3.4's importer opens files with mode 'rU', which Python 3.11 rejects
     import_bvh.open = lambda p, mode="r", *a, **k: builtins.open(p, mode.replace("U", ""), *a, **k)
     bpy.ops.import_anim.bvh(filepath=path, global_scale=0.01, rotate_mode="QUATERNION", update_scene_fps=True)
+    render = bpy.context.scene.render
+    rate = render.fps / render.fps_base
+    if abs(rate - round(rate)) < 1e-3:  # the file's frame time has six decimals: 30 fps reads as 30.00003
+        render.fps, render.fps_base = round(rate), 1.0
     armature = bpy.context.active_object
     armature.animation_data_clear()  # the rest frame's keys: recording makes an Action of its own
+    bpy.ops.object.mode_set(mode="EDIT")
+    for bone in armature.data.edit_bones:  # the importer connects the hips to the root joint's tail: they could not move
+        if bone.name == "Hips":
+            bone.use_connect = False
+    bpy.ops.object.mode_set(mode="OBJECT")
     return armature
 
 
@@ -179,6 +186,9 @@ class VmcDriver:
                 self.targets[human] = bone.name
         if "Hips" not in self.targets:
             raise ValueError(f"armature {armature.name!r} has no hips bone for the {preset} names ({PRESETS[preset]['Hips']})")
+        if armature.data.bones[self.targets["Hips"]].use_connect:
+            raise ValueError(f"the hips bone {self.targets['Hips']!r} is connected to its parent, so it cannot move: "
+                             "disconnect it (Edit Mode, Bone properties, Relations)")
         self.human_of = {name: human for human, name in self.targets.items()}
         self.rest = {b.name: b.matrix_local.copy() for b in armature.data.bones}
         self.tpose = self._tpose_rotations()
