@@ -27,8 +27,8 @@ UNITY_TO_BLENDER = np.array([[-1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
 pytestmark = pytest.mark.skipif(BLENDER is None, reason="blender is not installed (apt-get install blender)")
 
 
-def sent_pose(rest_path: Path, messages: list) -> dict[str, np.ndarray]:
-    """Joint positions (Unity metres) of the rest skeleton posed the VMC way by the messages."""
+def sent_pose(rest_path: Path, messages: list) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Joint and End Site positions (Unity metres) of the rest skeleton posed the VMC way by the messages."""
     skeleton = read_bvh(rest_path).skeleton
     bones = {args[0]: (np.array(args[1:4]), Rotation.from_quat(args[4:8]).as_matrix())
              for address, args in messages if address == "/VMC/Ext/Bone/Pos"}
@@ -47,7 +47,10 @@ def sent_pose(rest_path: Path, messages: list) -> dict[str, np.ndarray]:
             world_pos[j] = root_pos + root_rot @ bones["Hips"][0]
         else:
             world_pos[j] = world_pos[parent] + world_rot[parent] @ (np.array(joint.offset) * mirror)
-    return {joint.name: world_pos[j] for j, joint in enumerate(skeleton.joints)}
+    positions = {joint.name: world_pos[j] for j, joint in enumerate(skeleton.joints)}
+    ends = {joint.name: world_pos[j] + world_rot[j] @ (np.array(joint.end_site) * mirror)
+            for j, joint in enumerate(skeleton.joints) if joint.end_site is not None}
+    return positions, ends
 
 
 def test_addon_drives_someone_elses_rig_and_records_it(tmp_path):
@@ -71,12 +74,15 @@ def test_addon_drives_someone_elses_rig_and_records_it(tmp_path):
     assert result["count"] == frames
     assert result["fps"] == 30.0  # the scene took the rest file's rate
 
-    expected = sent_pose(rest, result["messages"])
-    heads = result["heads"]
-    assert len(heads) == 21
+    expected, ends = sent_pose(rest, result["messages"])
+    heads, tails = result["heads"], result["tails"]
+    assert len(heads) == 21 and set(tails) == {"Head", "LeftHand", "RightHand", "LeftToes", "RightToes"}
     for bone, head in heads.items():
         ours = UNITY_TO_BLENDER @ expected[bone]
         assert np.linalg.norm(np.array(head) / scale - ours) < 0.01, (bone, head, ours)
+    for bone, tail in tails.items():  # the end bones point the sent way too
+        ours = UNITY_TO_BLENDER @ ends[bone]
+        assert np.linalg.norm(np.array(tail) / scale - ours) < 0.01, (bone, tail, ours)
 
     # one key per received frame, on consecutive frames, for every driven bone
     assert result["action"] and len(result["keys"]) == 21

@@ -66,6 +66,8 @@ if driver.last_frame is not None:
 bpy.context.view_layer.update()
 human_of = {name: human for human, name in mixamo.items()}
 heads = {human_of[b.name]: list(armature.matrix_world @ b.head) for b in armature.pose.bones if b.name in human_of}
+tails = {human_of[b.name]: list(armature.matrix_world @ b.tail) for b in armature.pose.bones
+         if b.name in human_of and not b.children}
 action = armature.animation_data.action if armature.animation_data else None
 keys = {}
 if action is not None:
@@ -73,6 +75,6 @@ if action is not None:
         if curve.data_path.endswith("rotation_quaternion") and curve.array_index == 0:
             keys[curve.group.name if curve.group else curve.data_path] = [k.co.x for k in curve.keyframe_points]
 with open(report, "w") as f:
-    json.dump({"count": driver.count, "fps": fps, "messages": last.get("messages", []), "heads": heads, "keys": keys,
+    json.dump({"count": driver.count, "fps": fps, "messages": last.get("messages", []), "heads": heads, "tails": tails, "keys": keys,
                "action": action.name if action else None}, f)
 print(f"applied {driver.count} frames", flush=True)
