@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..motion.bvh import Motion
-from ..motion.features import FeatureLayout, extract, heading_angle, restore_local
+from ..motion.features import FeatureLayout, extract, restore_local
 from ..motion.kinematics import forward_kinematics
 from ..motion.rotations import axis_angle_matrix
 from ..runtime.pose import Pose, quaternions
@@ -107,17 +107,20 @@ class VmcProfile:
             p = skeleton.parents[p]
         return -1
 
-    def root_transform(self, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
-        """The avatar origin's rotation and position in the turned source frame (model units)."""
+    def root_transform(self, pose: Pose) -> tuple[float, np.ndarray]:
+        """The avatar origin's heading (radians about Y) and position in the turned source frame
+        (model units): the identity, or the root joint's heading and its path on the floor."""
         if self.root_convention == "hips":
-            return np.eye(3), np.zeros(3)
-        yaw = heading_angle(pose.world_rotations[self.root_joint][None])[0]
+            return 0.0, np.zeros(3)
+        r = pose.world_rotations[self.root_joint]
+        yaw = 2.0 * np.arctan2(r[0, 2] - r[2, 0], 1.0 + r[0, 0] + r[1, 1] + r[2, 2])  # its twist about Y
         position = self.turn @ pose.world_positions[self.root_joint]
-        return self.turn @ axis_angle_matrix("y", yaw) @ self.turn.T, position * np.array([1.0, 0.0, 1.0])
+        return float(yaw), position * np.array([1.0, 0.0, 1.0])  # turning about Y commutes with the turn
 
-    def bone_transforms(self, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
+    def bone_transforms(self, pose: Pose, root: tuple[float, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Per mapped bone: Unity quaternion (x, y, z, w) and Unity local position (metres)."""
-        root_rot, root_pos = self.root_transform(pose)
+        yaw, root_pos = self.root_transform(pose) if root is None else root
+        root_rot = axis_angle_matrix("y", yaw)
         normalised = self.turn @ pose.world_rotations[self.joints] @ self.rest_inverse  # world deltas from the T-pose
         # in the frame of the humanoid parent; a bone without one (the hips) in the avatar origin's
         parent_frames = np.where(self.has_parent[:, None, None], normalised[self.parent_rows], root_rot)
@@ -127,15 +130,16 @@ class VmcProfile:
         positions = np.einsum("kji,kj->ki", parent_frames, offsets) * self.scale * np.array([1.0, 1.0, -1.0])
         return quaternions(local) * UNITY, positions
 
-    def root_message(self, pose: Pose) -> bytes:
-        root_rot, root_pos = self.root_transform(pose)
+    def root_message(self, root: tuple[float, np.ndarray]) -> bytes:
+        yaw, root_pos = root
         position = root_pos * self.scale * np.array([1.0, 1.0, -1.0])
-        quat = quaternions(root_rot) * UNITY
+        quat = np.array([0.0, np.sin(yaw / 2.0), 0.0, np.cos(yaw / 2.0)]) * UNITY  # w >= 0: |yaw| <= pi
         return message("/VMC/Ext/Root/Pos", "root", *position.tolist(), *quat.tolist())
 
     def datagrams(self, pose: Pose, echo: dict[str, float]) -> list[bytes]:
-        quats, positions = self.bone_transforms(pose)
-        messages = [self.root_message(pose)]
+        root = self.root_transform(pose)
+        quats, positions = self.bone_transforms(pose, root)
+        messages = [self.root_message(root)]
         messages += float_messages(self.bone_prefixes, np.hstack([positions, quats]))
         messages += self.finger_messages
         messages += [message("/VMC/Ext/OK", 1), message("/VMC/Ext/T", float(pose.time))]
