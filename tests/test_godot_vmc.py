@@ -3,7 +3,7 @@ the example receiver code in examples/godot.
 
 The Skeleton is built from the rest skeleton `instrument skeleton` writes, changed the way
 another character differs: Mixamo names, 1.3 times the size, arms lowered 40 degrees into an
-A-pose, every bone's rest frame turned arbitrarily (Godot bones have no direction of their own).
+A-pose, the feet turned out, every bone's rest frame turned arbitrarily (Godot bones have no direction of their own).
 Its joints must land where the sent pose puts them, rebuilt here from the received messages.
 """
 
@@ -40,7 +40,7 @@ def mixamo_name(bone: str) -> str:
 
 
 def another_rig(rest_path: Path, scale: float) -> tuple[dict, list[str]]:
-    """The rest skeleton as someone else's Godot Skeleton: names, size, A-pose, bone frames."""
+    """The rest skeleton as someone else's Godot Skeleton: names, size, A-pose, feet, bone frames."""
     skeleton = read_bvh(rest_path).skeleton
     names = skeleton.names
     positions = np.zeros((len(names), 3))
@@ -52,6 +52,11 @@ def another_rig(rest_path: Path, scale: float) -> tuple[dict, list[str]]:
         for bone in ("LowerArm", "Hand"):
             k = names.index(f"{side}{bone}")
             positions[k] = pivot + turn @ (positions[k] - pivot)
+    for side, angle in (("Left", 15.0), ("Right", -15.0)):  # the feet turned out at rest
+        pivot = positions[names.index(f"{side}Foot")]
+        turn = Rotation.from_euler("y", angle, degrees=True).as_matrix()
+        k = names.index(f"{side}Toes")
+        positions[k] = pivot + turn @ (positions[k] - pivot)
     frames = Rotation.random(len(names), random_state=3).as_matrix()  # each bone's rest frame, anyhow turned
     humanoid = [n for n in names if n != "joint_Root"]
     bones = []

@@ -42,8 +42,10 @@ AVATAR = {
 }
 for _side, _x in (("Left", -1.0), ("Right", 1.0)):
     AVATAR.update({
-        f"{_side}Shoulder": ("UpperChest", (_x * 0.02, 0.09, 0.0)), f"{_side}UpperArm": (f"{_side}Shoulder", (_x * 0.10, 0.0, 0.0)),
-        f"{_side}LowerArm": (f"{_side}UpperArm", (_x * 0.27, 0.0, 0.0)), f"{_side}Hand": (f"{_side}LowerArm", (_x * 0.25, 0.0, 0.0)),
+        f"{_side}Shoulder": ("UpperChest", (_x * 0.02, 0.09, 0.0)),
+        f"{_side}UpperArm": (f"{_side}Shoulder", (_x * 0.10, 0.0, 0.0)),
+        f"{_side}LowerArm": (f"{_side}UpperArm", (_x * 0.27, 0.0, 0.0)),
+        f"{_side}Hand": (f"{_side}LowerArm", (_x * 0.25, 0.0, 0.0)),
         f"{_side}UpperLeg": ("Hips", (_x * 0.09, -0.06, 0.0)), f"{_side}LowerLeg": (f"{_side}UpperLeg", (0.0, -0.43, 0.0)),
         f"{_side}Foot": (f"{_side}LowerLeg", (0.0, -0.42, 0.0)), f"{_side}Toes": (f"{_side}Foot", (0.0, -0.07, 0.12)),
     })
@@ -182,7 +184,8 @@ def compare(profile: VmcProfile, motion: Motion, mapping: dict[str, str]) -> dic
 
 def assert_close(worst: dict[str, float]) -> None:
     bad = {name: round(w, 1) for name, w in worst.items() if not w <= TOLERANCE}
-    assert not bad, f"avatar and BVH differ by more than {TOLERANCE} deg: {bad} (all: { {k: round(v, 1) for k, v in worst.items()} })"
+    everything = {k: round(v, 1) for k, v in worst.items()}
+    assert not bad, f"avatar and BVH differ by more than {TOLERANCE} deg: {bad} (all: {everything})"
 
 
 @pytest.mark.parametrize("walk", WALKS, ids=[w.stem for w in WALKS])
@@ -196,7 +199,8 @@ def test_normalised_avatar_matches_the_bvh_with_the_shipped_model(walk):
 
 
 # Another skeleton: Mixamo's names, in metres, resting in a T-pose (facing +Z, left = +X) with
-# every bone's frame rolled about itself by its own angle. The same walk re-expressed on it (every joint's frame changed, the motion unchanged).
+# every bone's frame rolled about itself by its own angle. The same walk re-expressed on it
+# (every joint's frame changed, the motion unchanged).
 MIXAMO = {"joint_Root": "Root", "Hips": "mixamorig:Hips", "Spine": "mixamorig:Spine", "Chest": "mixamorig:Spine1",
           "Neck": "mixamorig:Neck", "Head": "mixamorig:Head"}
 for _side, _s in (("Left", "L"), ("Right", "R")):

@@ -43,7 +43,8 @@ bl_info = {
 }
 
 PORT = 39539
-UNITY_TO_BLENDER = Matrix(((-1, 0, 0), (0, 0, -1), (0, 1, 0)))  # Unity (left-handed, Y up, facing +Z) -> Blender (Z up, facing -Y)
+# Unity (left-handed, Y up, the character facing +Z) -> Blender (Z up, facing -Y)
+UNITY_TO_BLENDER = Matrix(((-1, 0, 0), (0, 0, -1), (0, 1, 0)))
 FINGERS = ("Thumb", "Index", "Middle", "Ring", "Little")
 PHALANGES = ("Proximal", "Intermediate", "Distal")
 HUMAN_PARENT = {"Hips": None, "Spine": "Hips", "Chest": "Spine", "UpperChest": "Chest", "Neck": "UpperChest", "Head": "Neck"}
@@ -213,7 +214,8 @@ class VmcDriver:
             if human in TPOSE_DIRECTION and TPOSE_DIRECTION[human] is not None:
                 swings[human] = swing(along, TPOSE_DIRECTION[human])
             elif human in TPOSE_DIRECTION:  # feet and toes: only turned to point ahead (-Y)
-                swings[human] = Matrix.Rotation(math.atan2(along.x, -along.y), 3, "Z") if along.xy.length > 1e-6 else Matrix.Identity(3)
+                ahead = along.xy.length > 1e-6
+                swings[human] = Matrix.Rotation(-math.atan2(along.x, -along.y), 3, "Z") if ahead else Matrix.Identity(3)
             else:
                 swings[human] = swings.get(parent, Matrix.Identity(3)) if parent else Matrix.Identity(3)
             out[human] = swings[human] @ rest

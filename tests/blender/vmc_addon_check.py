@@ -4,7 +4,8 @@
         ADDON.py REST.bvh PORT FRAMES SCALE REPORT.json
 
 The rest skeleton is imported, then made into someone else's rig: Mixamo names, every bone
-scaled by SCALE, the arms lowered 40 degrees into an A-pose, every bone's roll changed. The
+scaled by SCALE, the arms lowered 40 degrees into an A-pose, the feet turned out 15 degrees,
+every bone's roll changed. The
 add-on's Mixamo map drives it (recording an Action) until FRAMES frames came in; the report
 holds the last frame's messages as received, the bones' heads and the recorded keys.
 """
@@ -37,6 +38,12 @@ for side, angle in (("Left", 40.0), ("Right", -40.0)):
     pivot = edit[f"{side}UpperArm"].head.copy()
     turn = Matrix.Rotation(math.radians(angle), 3, "Y")
     for name in (f"{side}UpperArm", f"{side}LowerArm", f"{side}Hand"):
+        bone = edit[name]
+        bone.head, bone.tail = pivot + turn @ (bone.head - pivot), pivot + turn @ (bone.tail - pivot)
+for side, angle in (("Left", 15.0), ("Right", -15.0)):  # the feet turned out at rest
+    pivot = edit[f"{side}Foot"].head.copy()
+    turn = Matrix.Rotation(math.radians(angle), 3, "Z")
+    for name in (f"{side}Foot", f"{side}Toes"):
         bone = edit[name]
         bone.head, bone.tail = pivot + turn @ (bone.head - pivot), pivot + turn @ (bone.tail - pivot)
 for bone in edit:
@@ -75,6 +82,6 @@ if action is not None:
         if curve.data_path.endswith("rotation_quaternion") and curve.array_index == 0:
             keys[curve.group.name if curve.group else curve.data_path] = [k.co.x for k in curve.keyframe_points]
 with open(report, "w") as f:
-    json.dump({"count": driver.count, "fps": fps, "messages": last.get("messages", []), "heads": heads, "tails": tails, "keys": keys,
-               "action": action.name if action else None}, f)
+    json.dump({"count": driver.count, "fps": fps, "messages": last.get("messages", []), "heads": heads, "tails": tails,
+               "keys": keys, "action": action.name if action else None}, f)
 print(f"applied {driver.count} frames", flush=True)
