@@ -277,3 +277,21 @@ def test_run_sends_the_path_in_the_root_and_leaves_the_fingers_out_on_request():
     assert np.all(np.abs(hips[:, [0, 2]]) < 0.3) and np.all((0.6 < hips[:, 1]) & (hips[:, 1] < 1.3))  # hips over the root
     assert all(len(p) <= 1400 for p in receiver.datagrams)
     assert not any(a == "/VMC/Ext/Bone/Pos" and "Index" in p[0] for a, p in messages)
+
+
+def test_relaxed_hand_curls_every_finger_towards_the_palm():
+    model = load_model(default_model_path())
+    motion = read_bvh(WALKS[0])
+    rotations, translations = local_transforms(motion)
+    world_rot, world_pos = forward_kinematics(motion.skeleton, rotations, translations)
+    pose = Pose(0, 0.0, rotations[0], translations[0], world_rot[0], world_pos[0])
+    _, bones = decode(make_profile("vmc", model).datagrams(pose, {}))
+    fingers = [b for b in bones if any(f in b for f in ("Thumb", "Index", "Middle", "Ring", "Little"))]
+    assert len(fingers) == 30
+    for bone in fingers:
+        along = np.array([-1.0 if bone.startswith("Left") else 1.0, 0.0, 0.0])  # the T-pose finger, Unity axes
+        curled = Rotation.from_quat(bones[bone][1]).as_matrix() @ along
+        bend = np.degrees(np.arccos(np.clip(curled @ along, -1.0, 1.0)))
+        assert curled[1] < 0.0 and 5.0 <= bend <= 35.0, (bone, curled, bend)  # down, towards the palm
+    _, without = decode(make_profile("vmc", model, fingers=False).datagrams(pose, {}))
+    assert set(without) == set(bones) - set(fingers)
