@@ -295,3 +295,30 @@ def test_relaxed_hand_curls_every_finger_towards_the_palm():
         assert curled[1] < 0.0 and 5.0 <= bend <= 35.0, (bone, curled, bend)  # down, towards the palm
     _, without = decode(make_profile("vmc", model, fingers=False).datagrams(pose, {}))
     assert set(without) == set(bones) - set(fingers)
+
+
+@pytest.mark.parametrize("walk", WALKS, ids=[w.stem for w in WALKS])
+def test_limb_roll_is_normalised_elbows_bend_about_the_vertical_and_knees_across(walk):
+    """Palms down in the T-pose means an elbow bends the forearm forward, about the vertical;
+    a knee bends about the left-right axis. A roll left in the reference shows as a tilted axis."""
+    model = load_model(default_model_path())
+    motion = read_bvh(walk)
+    rotations, translations = local_transforms(motion)
+    world_rot, world_pos = forward_kinematics(motion.skeleton, rotations, translations)
+    profile = make_profile("vmc", model)
+    local = {b: [] for b in ("LeftLowerArm", "RightLowerArm", "LeftLowerLeg", "RightLowerLeg")}
+    for t in range(motion.frames):
+        _, bones = decode(profile.datagrams(Pose(t, t / motion.fps, rotations[t], translations[t], world_rot[t], world_pos[t]), {}))
+        for bone in local:
+            local[bone].append(bones[bone][1])
+    for bone, quats in local.items():
+        q = np.array(quats)
+        if "Arm" in bone:  # the bend only: the forearm's twist about itself (X) taken out
+            twist = np.zeros_like(q)
+            twist[:, 0], twist[:, 3] = q[:, 0], q[:, 3]
+            q = (Rotation.from_quat(q) * Rotation.from_quat(twist).inv()).as_quat()  # q = swing * twist
+        vector = Rotation.from_quat(q).as_rotvec()
+        bent = np.linalg.norm(vector, axis=1) > np.radians(10.0)
+        axis = np.abs(vector[bent] / np.linalg.norm(vector[bent], axis=1, keepdims=True))
+        expected = 1 if "Arm" in bone else 0  # Unity's Y, or X
+        assert bent.sum() > 10 and np.median(axis[:, expected]) > 0.97, (bone, np.median(axis, axis=0))

@@ -12,7 +12,9 @@ The references are found in the source frame (right-handed, Y up, the walk headi
 - torso (Hips, Spine, Chest, UpperChest, Neck, Head): the template pose's joint turned so the
   bone points up and the hip line (the shoulder line above the spine) runs across;
 - Shoulder, UpperArm, UpperLeg: the template's joint swung by the smallest rotation onto the
-  T-pose direction (an arm hanging palm-in becomes an arm held out palm-down);
+  T-pose direction, then turned about it so the hinge below (elbow, knee), as bent in the
+  template, turns about its T-pose axis: the vertical for an elbow (palms down), the left-right
+  axis for a knee;
 - LowerArm, Hand, LowerLeg: the parent's reference carried on at the skeleton's rest (identity
   local rotations, the straight limb of every BVH convention) and swung onto the T-pose
   direction, so forearm twist and wrist bend read as they do in the data;
@@ -42,6 +44,11 @@ CARRIED = ("LowerArm", "Hand", "LowerLeg")  # after the side prefix
 CHAIN_NEXT = {"Hips": ("Spine",), "Spine": ("Chest", "UpperChest", "Neck"), "Chest": ("UpperChest", "Neck"),
               "UpperChest": ("Neck",), "Neck": ("Head",)}
 TIP = {"LeftHand", "RightHand", "Head", "LeftToes", "RightToes"}  # point along their own offset
+# a limb's root, the hinge below it, and the axis that hinge turns about in the T-pose: an elbow
+# bends the forearm forward (palms down: about the vertical), a knee the shin back (across)
+HINGES = {"LeftUpperArm": ("LeftLowerArm", UP), "RightUpperArm": ("RightLowerArm", UP),
+          "LeftUpperLeg": ("LeftLowerLeg", RIGHT), "RightUpperLeg": ("RightLowerLeg", RIGHT)}
+MIN_HINGE_BEND = np.radians(8.0)  # a straighter limb in the template tells nothing about its hinge
 
 
 def swing(source: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -148,7 +155,28 @@ class TPose:
         across = self._across(bone) if bone in TORSO else None
         if across is not None:
             return square(world_direction, across, target, LEFT) @ carried
-        return swing(world_direction, target) @ carried
+        reference = swing(world_direction, target) @ carried
+        return self._hinge_roll(joint, bone, reference) @ reference
+
+    def _hinge_roll(self, joint: int, bone: str, reference: np.ndarray) -> np.ndarray:
+        """The turn about a limb's T-pose direction that lines up the hinge below it (elbow,
+        knee), as bent in the template, with its T-pose axis: the limb's roll, normalised."""
+        if bone not in HINGES or HINGES[bone][0] not in self.by_bone:
+            return np.eye(3)
+        lower_bone, hinge_axis = HINGES[bone]
+        lower = self.by_bone[lower_bone]
+        direction = self.local_direction(lower, lower_bone)
+        if direction is None:
+            return np.eye(3)
+        upper_vector = self.template_pos[lower] - self.template_pos[joint]
+        lower_vector = self.template_rot[lower] @ direction
+        hinge = np.cross(upper_vector, lower_vector)
+        if np.linalg.norm(hinge) < np.sin(MIN_HINGE_BEND) * np.linalg.norm(upper_vector) * np.linalg.norm(lower_vector):
+            return np.eye(3)
+        target = DIRECTIONS[bone]
+        hinge = reference @ self.template_rot[joint].T @ hinge  # where the hinge lies once the limb is in the T-pose
+        hinge -= target * np.dot(hinge, target)
+        return swing(hinge, hinge_axis if np.dot(hinge, hinge_axis) >= 0 else -hinge_axis)
 
     def _flat_foot(self, joint: int, bone: str) -> np.ndarray:
         side = "Left" if bone.startswith("Left") else "Right"
