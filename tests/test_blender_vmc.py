@@ -46,6 +46,7 @@ def test_addon_drives_someone_elses_rig_and_records_it(tmp_path):
     result = json.loads(report.read_text())
     assert result["count"] == frames
     assert result["fps"] == 30.0  # the scene took the rest file's rate
+    assert result["operators"]  # Start and Stop from the panel work
 
     expected, ends = sent_pose(rest, result["messages"])
     heads, tails = result["heads"], result["tails"]

@@ -328,7 +328,8 @@ def start(armature, port: int, preset: str, scale: float, record: bool) -> None:
 
     threading.Thread(target=listen, daemon=True).start()
     _running["state"] = {"socket": sock, "inbox": inbox, "driver": driver}
-    bpy.app.timers.register(_drain, persistent=True)
+    if not bpy.app.timers.is_registered(_drain):
+        bpy.app.timers.register(_drain, persistent=True)
 
 
 def stop() -> None:

@@ -81,7 +81,13 @@ if action is not None:
     for curve in action.fcurves:
         if curve.data_path.endswith("rotation_quaternion") and curve.array_index == 0:
             keys[curve.group.name if curve.group else curve.data_path] = [k.co.x for k in curve.keyframe_points]
+# the panel's operators: Start listens with the scene's settings, Stop closes the socket
+scene = bpy.context.scene
+scene.instrument_armature, scene.instrument_preset, scene.instrument_port = armature, "MIXAMO", port
+started = bpy.ops.instrument.start() == {"FINISHED"} and "state" in addon._running
+stopped = bpy.ops.instrument.stop() == {"FINISHED"} and "state" not in addon._running
+addon.unregister()
 with open(report, "w") as f:
     json.dump({"count": driver.count, "fps": fps, "messages": last.get("messages", []), "heads": heads, "tails": tails,
-               "keys": keys, "action": action.name if action else None}, f)
+               "keys": keys, "action": action.name if action else None, "operators": started and stopped}, f)
 print(f"applied {driver.count} frames", flush=True)
