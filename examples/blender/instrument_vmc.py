@@ -308,7 +308,7 @@ def _drain() -> float | None:
         for address, args in parse_osc(inbox.get_nowait()):
             try:
                 driver.handle(address, args)
-            except (KeyError, ValueError, ReferenceError) as error:  # a bad message or a deleted armature
+            except (KeyError, ValueError, TypeError, ReferenceError) as error:  # a bad message or a deleted armature
                 print(f"instrument receiver: skipped {address}: {error}")
     return 0.005
 
