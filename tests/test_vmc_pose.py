@@ -23,12 +23,11 @@ from scipy.spatial.transform import Rotation
 from oscrecv import Receiver
 
 from instrument.models.modelfile import load_model
-from instrument.motion.bvh import Joint, Motion, Skeleton, read_bvh
-from instrument.motion.features import choose_layout, extract
+from instrument.motion.bvh import Joint, Motion, Skeleton, read_bvh, write_bvh
 from instrument.motion.kinematics import channels_from_local, forward_kinematics, local_transforms
 from instrument.output.humanoid import guess_humanoid
 from instrument.output.outputs import make_profile
-from instrument.output.vmc import VmcProfile, forward_direction
+from instrument.output.vmc import VmcProfile
 from instrument.runtime.pose import Pose
 from instrument.shipped import default_model_path
 
@@ -240,19 +239,39 @@ def on_another_skeleton(motion: Motion, seed: int = 7) -> Motion:
     return Motion(other, channels_from_local(other, new_rot, new_trans), motion.fps)
 
 
+@pytest.fixture(scope="module")
+def other_skeleton(tmp_path_factory):
+    """Both walks re-expressed on the other skeleton, a model trained on them with `instrument
+    train`, and the humanoid map as a --humanoid file: (model path, map path, {walk: motion})."""
+    folder = tmp_path_factory.mktemp("other")
+    motions, paths = {}, []
+    for walk in WALKS:
+        original = read_bvh(walk)
+        motion = on_another_skeleton(original)
+        # the same walk: the joints are where they were (in metres now)
+        assert np.allclose(forward_kinematics(motion.skeleton, *local_transforms(motion))[1] * 100.0,
+                           forward_kinematics(original.skeleton, *local_transforms(original))[1], atol=1e-4)
+        path = folder / walk.name
+        write_bvh(path, motion)
+        motions[walk.stem], paths = read_bvh(path), paths + [str(path)]
+    model = folder / "other.npz"
+    result = subprocess.run([sys.executable, "-m", "instrument", "train", *paths, "--out", str(model), "--quiet"],
+                            capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr
+    humanoid = folder / "bones.toml"
+    mapping = {MIXAMO[name]: bone for name, bone in guess_humanoid(read_bvh(WALKS[0]).skeleton).items()}
+    humanoid.write_text("[bones]\n" + "".join(f'"{joint}" = "{bone}"\n' for joint, bone in mapping.items()))
+    return model, humanoid, motions, mapping
+
+
 @pytest.mark.parametrize("walk", WALKS, ids=[w.stem for w in WALKS])
-def test_normalised_avatar_matches_the_bvh_on_another_skeleton(walk):
-    original = read_bvh(walk)
-    motion = on_another_skeleton(original)
-    # the same walk: the joints are where they were (in metres now)
-    assert np.allclose(forward_kinematics(motion.skeleton, *local_transforms(motion))[1][:, 2:] * 100.0,
-                       forward_kinematics(original.skeleton, *local_transforms(original))[1][:, 2:], atol=1e-4)
-    layout = choose_layout([motion])
-    features = extract(motion, layout)[0]
-    mapping = {MIXAMO[name]: bone for name, bone in guess_humanoid(original.skeleton).items()}
+def test_normalised_avatar_matches_the_bvh_with_a_model_on_another_skeleton(walk, other_skeleton):
+    model_path, humanoid, motions, mapping = other_skeleton
+    model = load_model(model_path)
+    motion = motions[walk.stem]
     for root in ("hips", "path"):
-        profile = VmcProfile(layout, mapping, forward_direction(features), stance=features, root=root)
-        assert profile.scale == 1.0
+        profile = make_profile("vmc", model, str(humanoid), vmc_root=root)
+        assert profile.scale == 1.0  # metres, recognised
         assert_close(compare(profile, motion, mapping))
 
 
