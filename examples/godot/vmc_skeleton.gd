@@ -24,6 +24,8 @@ var received := {}  # humanoid bone -> [position, basis] (Unity axes)
 var root_position := Vector3()
 var root_basis := Basis()
 var count := 0
+var last_frame := []  # the messages of the last frame applied, as [address, args]
+var _pending := []
 
 
 func _init(target: Skeleton, names: Dictionary, units: float = 0.0) -> void:
@@ -118,6 +120,7 @@ static func to_godot(basis: Basis) -> Basis:
 
 func handle(address: String, args: Array) -> bool:
 	"""Take one message; true when a frame was applied (on /VMC/Ext/T, which the instrument sends last)."""
+	_pending.append([address, args])
 	if address == "/VMC/Ext/Bone/Pos" and args.size() >= 8:
 		received[args[0]] = [Vector3(args[1], args[2], args[3]), Basis(Quat(args[4], args[5], args[6], args[7]).normalized())]
 	elif address == "/VMC/Ext/Root/Pos" and args.size() >= 8:
@@ -125,6 +128,8 @@ func handle(address: String, args: Array) -> bool:
 		root_basis = Basis(Quat(args[4], args[5], args[6], args[7]).normalized())
 	elif address == "/VMC/Ext/T":
 		apply()
+		last_frame = _pending
+		_pending = []
 		return true
 	return false
 

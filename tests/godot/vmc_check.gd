@@ -1,7 +1,7 @@
 # Run by tests/test_godot_vmc.py inside headless Godot 3 (godot3-server):
 #   VMC_RIG=rig.json VMC_PORT=N VMC_FRAMES=N VMC_REPORT=out.json VMC_SCALE=s \
 #   godot3-server --path examples/godot -s tests/godot/vmc_check.gd
-# Builds the Skeleton the rig file describes, drives it with the example's VMC code until
+# Builds the Skeleton the rig file describes, drives it with the example's receiver node until
 # VMC_FRAMES frames came in, and reports the last frame's messages and every bone's position.
 extends SceneTree
 
@@ -20,28 +20,23 @@ func _init() -> void:
 		skeleton.set_bone_rest(index, Transform(Vector3(r[0], r[1], r[2]), Vector3(r[3], r[4], r[5]), Vector3(r[6], r[7], r[8]),
 				Vector3(r[9], r[10], r[11])))
 	get_root().add_child(skeleton)
-	var driver = load("res://vmc_skeleton.gd").new(skeleton, rig["names"], float(OS.get_environment("VMC_SCALE")))
-	var socket := PacketPeerUDP.new()
-	var port := int(OS.get_environment("VMC_PORT"))
-	if socket.listen(port, "127.0.0.1") != OK:
-		print("cannot listen on %d" % port)
-		quit(1)
-		return
-	print("listening on 127.0.0.1:%d" % port)
+	# the example's receiver node, as a user would add it, pointed at the skeleton
+	var receiver := Node.new()
+	receiver.set_script(load("res://vmc_receiver.gd"))
+	receiver.skeleton = skeleton.get_path()
+	receiver.port = int(OS.get_environment("VMC_PORT"))
+	receiver.bone_names = rig["names"]
+	receiver.scale = float(OS.get_environment("VMC_SCALE"))
+	get_root().add_child(receiver)  # _ready: listens
+	print("listening on 127.0.0.1:%d" % receiver.port)
 	var frames := int(OS.get_environment("VMC_FRAMES"))
 	var deadline := OS.get_ticks_msec() + 120000
-	var pending := []
-	var last := []
-	while driver.count < frames and OS.get_ticks_msec() < deadline:
-		if socket.get_available_packet_count() == 0:
-			OS.delay_msec(1)
-			continue
-		for message in driver.parse_osc(socket.get_packet()):
-			pending.append(message)
-			if driver.handle(message[0], message[1]):
-				last = pending
-				pending = []
-	socket.close()
+	while receiver.driver.count < frames and OS.get_ticks_msec() < deadline:
+		receiver._process(0.0)  # the main loop does not run inside _init: call what it would
+		OS.delay_msec(1)
+	var driver = receiver.driver
+	var last: Array = driver.last_frame
+	receiver.socket.close()
 	var positions := {}
 	for i in skeleton.get_bone_count():
 		var origin: Vector3 = skeleton.get_bone_global_pose(i).origin
