@@ -22,6 +22,7 @@ from scipy.spatial.transform import Rotation
 
 from oscrecv import Receiver
 
+from instrument.control.events import ControlEvent
 from instrument.models.modelfile import load_model
 from instrument.motion.bvh import Joint, Motion, Skeleton, read_bvh, write_bvh
 from instrument.motion.kinematics import channels_from_local, forward_kinematics, local_transforms
@@ -275,12 +276,14 @@ def test_normalised_avatar_matches_the_bvh_with_a_model_on_another_skeleton(walk
         assert_close(compare(profile, motion, mapping))
 
 
-def test_run_sends_the_path_in_the_root_and_leaves_the_fingers_out_on_request():
+def test_run_sends_the_path_in_the_root_and_leaves_the_fingers_out_on_request(tmp_path):
+    log = tmp_path / "turning.jsonl"  # walking in a curve, so the heading changes
+    log.write_text(ControlEvent(0.1, "test", "turn", 0.8).to_json() + "\n")
     receiver = Receiver()
     try:
         result = subprocess.run([sys.executable, "-m", "instrument", "run", "--seconds", "2", "--fast", "--quiet",
-                                 "--osc", f"127.0.0.1:{receiver.port}/vmc", "--vmc-root", "path", "--no-relaxed-hands"],
-                                capture_output=True, text=True, timeout=120)
+                                 "--replay", str(log), "--osc", f"127.0.0.1:{receiver.port}/vmc", "--vmc-root", "path",
+                                 "--no-relaxed-hands"], capture_output=True, text=True, timeout=120)
         assert result.returncode == 0, result.stderr
         deadline = time.monotonic() + 10
         while sum(1 for a, _ in receiver.messages() if a == "/VMC/Ext/OK") < 60 and time.monotonic() < deadline:
@@ -294,6 +297,14 @@ def test_run_sends_the_path_in_the_root_and_leaves_the_fingers_out_on_request():
     assert np.all(roots[:, 1] == 0.0)  # on the floor
     assert np.linalg.norm(roots[-1] - roots[0]) > 1.0  # two seconds of walking: over a metre of path
     assert np.all(np.abs(hips[:, [0, 2]]) < 0.3) and np.all((0.6 < hips[:, 1]) & (hips[:, 1] < 1.3))  # hips over the root
+    # the root faces where it goes: its forward (+Z) along the path's direction
+    turns = np.array([p[4:8] for a, p in messages if a == "/VMC/Ext/Root/Pos"])
+    forward = Rotation.from_quat(turns).apply([0.0, 0.0, 1.0])
+    travel = roots[10:] - roots[:-10]  # a third of a second of walking
+    along = np.sum(forward[5:-5] * travel, axis=1) / np.linalg.norm(travel, axis=1)
+    assert np.median(along) > np.cos(np.radians(20.0)), np.median(along)
+    heading = np.degrees(np.unwrap(np.arctan2(forward[:, 0], forward[:, 2])))
+    assert abs(heading[-1] - heading[0]) > 20.0  # it did turn
     assert all(len(p) <= 1400 for p in receiver.datagrams)
     assert not any(a == "/VMC/Ext/Bone/Pos" and "Index" in p[0] for a, p in messages)
 
