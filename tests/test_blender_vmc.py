@@ -38,7 +38,8 @@ def test_addon_drives_someone_elses_rig_and_records_it(tmp_path):
     for line in blender.stdout:  # wait until it listens
         if "listening on" in line:
             break
-    run = subprocess.run(instrument + ["run", "--seconds", "3", "--osc", f"127.0.0.1:{port}/vmc", "--quiet"],
+    run = subprocess.run(instrument + ["run", "--seconds", "3", "--osc", f"127.0.0.1:{port}/vmc", "--vmc-root", "path",
+                                       "--quiet"],
                          capture_output=True, text=True, timeout=120)
     output = blender.communicate(timeout=180)[0]
     assert run.returncode == 0, run.stderr
