@@ -338,7 +338,8 @@ def test_limb_roll_is_normalised_elbows_bend_about_the_vertical_and_knees_across
     profile = make_profile("vmc", model)
     local = {b: [] for b in ("LeftLowerArm", "RightLowerArm", "LeftLowerLeg", "RightLowerLeg")}
     for t in range(motion.frames):
-        _, bones = decode(profile.datagrams(Pose(t, t / motion.fps, rotations[t], translations[t], world_rot[t], world_pos[t]), {}))
+        pose = Pose(t, t / motion.fps, rotations[t], translations[t], world_rot[t], world_pos[t])
+        _, bones = decode(profile.datagrams(pose, {}))
         for bone in local:
             local[bone].append(bones[bone][1])
     for bone, quats in local.items():
