@@ -22,7 +22,7 @@ pytestmark = pytest.mark.skipif(BLENDER is None, reason="blender is not installe
 def test_blender_applies_what_the_instrument_sends(tmp_path):
     rest, report, recording = tmp_path / "rest.bvh", tmp_path / "applied.json", tmp_path / "sent.bvh"
     instrument = [sys.executable, "-m", "instrument"]
-    assert subprocess.run(instrument + ["skeleton", "--out", str(rest)], capture_output=True).returncode == 0
+    assert subprocess.run(instrument + ["skeleton", "--template", "--out", str(rest)], capture_output=True).returncode == 0
     port = free_port()
     blender = subprocess.Popen(
         [BLENDER, "-b", "--factory-startup", "--python-exit-code", "1", "--python", str(RECEIVER), "--",

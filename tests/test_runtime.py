@@ -82,6 +82,8 @@ def test_vmc_profile_read_by_an_independent_parser(model):
     expected = {"Hips", "Spine", "Chest", "Neck", "Head", "LeftUpperLeg", "LeftLowerLeg", "LeftFoot", "LeftToes",
                 "RightUpperLeg", "RightLowerLeg", "RightFoot", "RightToes", "LeftShoulder", "LeftUpperArm",
                 "LeftLowerArm", "LeftHand", "RightShoulder", "RightUpperArm", "RightLowerArm", "RightHand"}
+    expected |= {f"{side}{finger}{phalanx}" for side in ("Left", "Right") for finger in ("Thumb", "Index", "Middle", "Ring", "Little")
+                 for phalanx in ("Proximal", "Intermediate", "Distal")}  # the relaxed hand
     counts = {}
     for event in bones:
         counts[event.joint.value] = counts.get(event.joint.value, 0) + 1

@@ -1,6 +1,6 @@
 """Blender receiver for the instrument's flat OSC profile: the walk, live, on an armature.
 
-1. Write the skeleton:      instrument skeleton --out rest.bvh
+1. Write the skeleton:      instrument skeleton --template --out rest.bvh
 2. In Blender's UI:         blender --python examples/blender/walk_receiver.py -- --rest rest.bvh
    (or open this file in the Text Editor, set REST below, and Run Script)
 3. Start the instrument:    instrument run --osc 127.0.0.1:9000/flat
@@ -70,7 +70,10 @@ def import_rest(path: str):
 
     # Blender 3.4's importer opens files with mode 'rU', which Python 3.11 rejects
     import_bvh.open = lambda p, mode="r", *a, **k: builtins.open(p, mode.replace("U", ""), *a, **k)
-    bpy.ops.import_anim.bvh(filepath=path, global_scale=1.0, rotate_mode="QUATERNION")
+    bpy.ops.import_anim.bvh(filepath=path, global_scale=1.0, rotate_mode="QUATERNION", update_scene_fps=True)
+    render = bpy.context.scene.render
+    if abs(render.fps / render.fps_base - round(render.fps / render.fps_base)) < 1e-3:  # 0.0333333 s reads as 30.00003 fps
+        render.fps, render.fps_base = round(render.fps / render.fps_base), 1.0
     return next(o for o in bpy.context.scene.objects if o.type == "ARMATURE")
 
 

@@ -26,7 +26,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "info": ("info_cmd", "describe a model file: styles, states, durations, provenance, licence"),
     "synth": ("synth_cmd", "synthesize a walk with given style weights and write it as BVH"),
     "bench": ("bench_cmd", "measure parsing and synthesis speed on this machine"),
-    "skeleton": ("skeleton_cmd", "write the model's skeleton (template pose) as a one-frame BVH"),
+    "skeleton": ("skeleton_cmd", "write the model's skeleton as a one-frame BVH: a T-pose rest to rig, or the template"),
     "render": ("render_cmd", "draw a BVH recording: contact sheet (.png) or animation (.gif)"),
     "recover": ("recover_cmd", "repair the frame count of a BVH recording left by a killed run"),
 }

@@ -21,6 +21,7 @@ from ..models.modelfile import load_model
 from ..outputfile import check_output
 from ..output.osc import FLAT_PORT, VMC_PORT, parse_target
 from ..output.outputs import OscOutput, RecorderOutput, make_profile
+from ..output.vmc import ROOT_CONVENTIONS
 from ..runtime.console import Console
 from ..runtime.performance import perform
 from ..runtime.priority import realtime_scheduling
@@ -31,7 +32,7 @@ from .arguments import value as option_value
 
 DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
 DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "fast": False, "quiet": False,
-            "normal_priority": False, "force": False}
+            "normal_priority": False, "force": False, "vmc_root": "hips", "no_relaxed_hands": False}
 LISTS = ("osc", "mapping")
 SHOW_FILE_CHECKS = {"osc": parse_target, "hid": parse_hid_id}  # checked as the file is read, so errors name its line
 PATHS = ("model", "bvh", "replay", "record", "humanoid", "presets", "mapping")  # relative to the show file
@@ -63,6 +64,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--replay", metavar="LOG.jsonl", help="play a controller log once (default with no controllers: the demo, looped)")
     p.add_argument("--loop", action="store_true", default=None, help="play the --replay log over and over")
     p.add_argument("--humanoid", metavar="BONES.toml", help="joint-to-humanoid-bone map for the VMC profile")
+    p.add_argument("--vmc-root", metavar="hips|path", help="VMC: the hips carry the walk under a fixed root (default, as "
+                   "VirtualMotionCapture sends), or /VMC/Ext/Root/Pos carries the path and heading")
+    p.add_argument("--no-relaxed-hands", action="store_true", default=None,
+                   help="VMC: send no finger bones (default: a relaxed hand pose)")
     p.add_argument("--fast", action="store_true", default=None, help="no realtime pacing: as fast as the CPU allows (offline rendering)")
     p.add_argument("--normal-priority", action="store_true", default=None,
                    help="do not ask for realtime scheduling (default: asked for, so frames stay on time on a busy machine)")
@@ -174,6 +179,8 @@ def run(args: argparse.Namespace) -> int:
     morph = 0.0 if args.morph is None else option_value("run --morph", args.morph)
     if args.osc_in:
         option_value("run --osc-in", args.osc_in.rpartition(":")[2], where=f"--osc-in {args.osc_in}: port")
+    if args.vmc_root not in ROOT_CONVENTIONS:
+        raise UserError(f"--vmc-root must be {' or '.join(ROOT_CONVENTIONS)}, not {args.vmc_root!r}")
     model = load_model(args.model or default_model_path())
     console = Console(quiet=args.quiet)
     state = ControlState(model.style_names, model.states)
@@ -207,7 +214,8 @@ def run(args: argparse.Namespace) -> int:
                 outputs.append(HidFeedback(devices[-1], hub.hid.mapping.feedback, console))
         if args.osc_in:
             devices.append(OscInput(console, args.osc_in if ":" in args.osc_in else f"127.0.0.1:{args.osc_in}"))
-        profiles = {kind: make_profile(kind, model, args.humanoid) for kind in {t.profile for t in targets}}
+        profiles = {kind: make_profile(kind, model, args.humanoid, args.vmc_root, not args.no_relaxed_hands)
+                    for kind in {t.profile for t in targets}}
         outputs += [OscOutput(t, profiles[t.profile], console) for t in targets]
         # files last: a start-up that fails leaves nothing behind, so the corrected command runs
         if args.bvh:

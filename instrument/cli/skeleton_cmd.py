@@ -14,10 +14,13 @@ from ..shipped import default_model_path
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("skeleton", help="write the model's skeleton (template pose) as a one-frame BVH")
+    p = sub.add_parser("skeleton", help="write the model's skeleton as a one-frame BVH: a T-pose rest to rig, or the template")
     p.add_argument("--model", help="model file (default: the shipped default model)")
     p.add_argument("--out", required=True, metavar="REST.bvh")
     p.add_argument("--force", action="store_true", help="overwrite the --out file if it exists (default: refuse)")
+    p.add_argument("--template", action="store_true",
+                   help="the model's own skeleton in its template pose (for the flat-profile receiver), not the T-pose rest")
+    p.add_argument("--humanoid", metavar="BONES.toml", help="joint-to-humanoid-bone map (default: guessed from the names)")
     p.set_defaults(run=run)
 
 
@@ -25,6 +28,13 @@ def run(args: argparse.Namespace) -> int:
     check_output(args.out, args.force)
     model = load_model(args.model or default_model_path())
     layout = model.layout
-    write_bvh(args.out, Motion(layout.skeleton, np.asarray(layout.template)[None], model.fps))
-    print(f"wrote the skeleton of {len(layout.skeleton.joints)} joints to {args.out}", file=sys.stderr)
+    if args.template:
+        write_bvh(args.out, Motion(layout.skeleton, np.asarray(layout.template)[None], model.fps))
+        print(f"wrote the skeleton of {len(layout.skeleton.joints)} joints (template pose) to {args.out}", file=sys.stderr)
+    else:
+        from ..output.rest import tpose_rest
+
+        write_bvh(args.out, tpose_rest(model, args.humanoid))
+        print(f"wrote the skeleton of {len(layout.skeleton.joints)} joints (T-pose rest, facing +Z, at {model.fps:g} fps) "
+              f"to {args.out}", file=sys.stderr)
     return 0

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..models.modelfile import Model
 from ..runtime.console import Console
 from ..runtime.pose import Pose, pose_channels
@@ -44,9 +46,11 @@ class RecorderOutput:
         self.recorder.close()
 
 
-def make_profile(kind: str, model: Model, humanoid_file: str | None = None):
+def make_profile(kind: str, model: Model, humanoid_file: str | None = None, vmc_root: str = "hips", fingers: bool = True):
     layout = model.layout
     if kind == "flat":
         return FlatProfile(layout.skeleton.names, layout.root)
     mapping = read_humanoid(humanoid_file, layout.skeleton) if humanoid_file else guess_humanoid(layout.skeleton)
-    return VmcProfile(layout, mapping, forward_direction(model.average.means[..., : layout.dimension]))
+    means = [m.means[..., : layout.dimension].reshape(-1, layout.dimension) for m in (model.average, model.styles)]
+    return VmcProfile(layout, mapping, forward_direction(model.average.means[..., : layout.dimension]),
+                      stance=np.concatenate(means), root=vmc_root, fingers=fingers)
