@@ -14,9 +14,9 @@ re-estimates in two layers:
 2. MAP on top: each state's parameters pulled toward the transformed model with a weight of
    `tau` frames, so with plenty of data every state follows its own statistics.
 
-The tree depth and `tau` are chosen per style by held-out likelihood (two-fold, on halves of the
-style's steps), so a user never tunes them. State durations never fall below a floor taken from
-the data: half the share of lambda 0's state in this style's mean step length.
+The tree depth and `tau` are chosen per style by two-fold held-out likelihood (alternate takes,
+or the halves of a single take), so a user never tunes them. State durations never fall below a floor taken from
+the data (see duration_floor).
 """
 
 from __future__ import annotations
@@ -29,8 +29,10 @@ import numpy as np
 from .hsmm import HSMM, Floors, Statistics, expected_statistics, log_likelihood, map_update
 
 DEPTHS = (None, 0, 1, 2)  # None: no transform (MAP only); 0: one class; 1: one per label; 2: one per state
-TAUS = (4.0, 16.0, 64.0, 256.0)  # MAP prior weights tried, in frames
+TAUS = (16.0, 64.0, 256.0)  # MAP prior weights tried, in frames
+ONE_TAKE_MIN_TAU = 64.0  # with a single take, no smaller weight (see choose_settings)
 FLOOR_SHARE = 0.5  # a state's duration stays above this share of its lambda 0 share of the style's step
+MIN_STATE_FRAMES = 2.0  # and above this, where the style's steps are long enough
 MIN_STEPS_TO_CHOOSE = 4  # fewer steps of a label than this: no held-out choice, DEFAULT settings
 TOLERANCE = 0.05  # EM stops when the log-likelihood per frame gains less than this (it is in the hundreds)
 
@@ -38,7 +40,7 @@ TOLERANCE = 0.05  # EM stops when the log-likelihood per frame gains less than t
 @dataclass(frozen=True)
 class Settings:
     depth: int | None = 0  # regression class tree level of the transforms (see DEPTHS)
-    tau: float = 16.0  # MAP weight on top of the transforms (frames); also the structural prior weight
+    tau: float = 64.0  # MAP weight on top of the transforms (frames); also the structural prior weight
     iterations: int = 10  # EM iterations at most (1: one pass on lambda 0's alignment)
     floor_share: float = FLOOR_SHARE  # 0: no duration floor
 
@@ -135,12 +137,15 @@ def transformed(average: HSMM, stats: list[Statistics], depth: int, weight: floa
 
 
 def duration_floor(average: HSMM, segments: list[list[np.ndarray]], share: float) -> np.ndarray:
-    """(labels, states): `share` of each state's lambda 0 share of this style's mean step length."""
+    """(labels, states), in frames: the larger of `share` of each state's lambda 0 share of this
+    style's mean step, and MIN_STATE_FRAMES unless the style's short steps (10th percentile of
+    length) cannot give every state that many. 0 where `share` is 0."""
     floor = np.zeros_like(average.duration_means)
     for k, label in enumerate(segments):
-        if label:
-            step = np.mean([len(s) for s in label])
-            floor[k] = share * average.duration_means[k] * step / average.duration_means[k].sum()
+        if label and share > 0:
+            lengths = np.array([len(s) for s in label], dtype=np.float64)
+            proportional = share * average.duration_means[k] * lengths.mean() / average.duration_means[k].sum()
+            floor[k] = np.maximum(proportional, min(MIN_STATE_FRAMES, np.percentile(lengths, 10) / floor.shape[1]))
     return floor
 
 
@@ -195,38 +200,52 @@ def heldout_score(model: HSMM, segments: list[list[np.ndarray]]) -> tuple[float,
     return total, frames
 
 
-def choose_settings(average: HSMM, segments: list[list[np.ndarray]], floors: Floors) -> tuple[Settings, float]:
+def _merge(takes: list[list[list[np.ndarray]]]) -> list[list[np.ndarray]]:
+    """Per-take segments (take, label, segment) as one list of segments per label."""
+    return [[seg for take in takes for seg in take[k]] for k in range(len(takes[0]))]
+
+
+def choose_settings(average: HSMM, takes: list[list[list[np.ndarray]]], floors: Floors) -> tuple[Settings, float]:
     """The tree depth, then tau, with the best two-fold held-out log-likelihood per frame.
 
-    The folds are the first and second half of each label's steps (in take order), so with
-    several takes the halves are mostly different takes."""
-    halves = [[label[: len(label) // 2] for label in segments], [label[len(label) // 2 :] for label in segments]]
-    quick = replace(DEFAULT, iterations=2)
+    With two takes or more, the folds are alternate takes, so the choice is judged on takes the
+    adaptation never saw. With one take, they are its first and second half of steps; those
+    halves are alike (one performer, one session), which rewards fitting the take, so tau is
+    not let below ONE_TAKE_MIN_TAU there."""
+    if len(takes) >= 2:
+        folds = [_merge(takes[0::2]), _merge(takes[1::2])]
+        taus = TAUS
+    else:
+        folds = [[label[: len(label) // 2] for label in takes[0]], [label[len(label) // 2 :] for label in takes[0]]]
+        taus = tuple(t for t in TAUS if t >= ONE_TAKE_MIN_TAU)
+    quick = replace(DEFAULT, iterations=2, tau=taus[0])
 
     def score(settings: Settings) -> float:
         total, frames = 0.0, 0
-        for train, test in ((halves[0], halves[1]), (halves[1], halves[0])):
+        for train, test in ((folds[0], folds[1]), (folds[1], folds[0])):
             ll, n = heldout_score(adapt(average, train, floors, settings), test)
             total, frames = total + ll, frames + n
-        return total / frames
+        return total / max(frames, 1)
 
     scores = {depth: score(replace(quick, depth=depth)) for depth in DEPTHS}
     depth = max(scores, key=scores.get)
-    by_tau = {tau: scores[depth] if tau == quick.tau else score(replace(quick, depth=depth, tau=tau)) for tau in TAUS}
+    by_tau = {tau: scores[depth] if tau == quick.tau else score(replace(quick, depth=depth, tau=tau)) for tau in taus}
     tau = max(by_tau, key=by_tau.get)
     return replace(DEFAULT, depth=depth, tau=tau), by_tau[tau]
 
 
-def adapt_styles(average: HSMM, segments_per_style: dict[str, list[list[np.ndarray]]], floors: Floors,
+def adapt_styles(average: HSMM, takes_per_style: dict[str, list[list[list[np.ndarray]]]], floors: Floors,
                  warnings: list[str], fixed: Settings | None = None) -> tuple[HSMM, dict[str, StyleReport]]:
-    """All style models stacked on a leading style axis (in the order of `segments_per_style`),
-    with what was chosen and measured for each. `fixed` skips the held-out choice."""
+    """All style models stacked on a leading style axis (in the order of `takes_per_style`, whose
+    values are per take, per label, the step segments), with what was chosen and measured for
+    each. `fixed` skips the held-out choice."""
     models, reports = [], {}
-    for style, segments in segments_per_style.items():
+    for style, takes in takes_per_style.items():
+        segments = _merge(takes)
         fewest = min(len(label) for label in segments)
         settings, heldout = fixed or DEFAULT, None
         if fixed is None and fewest >= MIN_STEPS_TO_CHOOSE:
-            settings, heldout = choose_settings(average, segments, floors)
+            settings, heldout = choose_settings(average, takes, floors)
         elif fixed is None:
             message = (f"style {style!r} has only {fewest} steps of one label: too few to choose the adaptation "
                        f"by held-out likelihood, one shared transform is used")
