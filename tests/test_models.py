@@ -150,7 +150,10 @@ def test_manifest_names_styles_and_other_conventions_train(tmp_path, kind):
     model = load_model(out)
     assert model.style_names == ["quick", "slow"] and model.states == 3
     assert model.metadata["skeleton"]["joints"][2]["channels"] == ["Xrotation", "Yrotation", "Zrotation"]
-    assert any("stays close to the average" in w for w in model.metadata["warnings"])
+    adaptation = model.metadata["training"]["adaptation"]  # what was chosen for each style, and its shortest state
+    assert set(adaptation) == {"quick", "slow"}
+    for style, chosen in adaptation.items():
+        assert chosen["min_duration"] == pytest.approx(model.style(style).duration_means.min())
 
 
 def test_bad_manifest_names_file_and_line(tmp_path):

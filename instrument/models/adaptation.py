@@ -40,7 +40,7 @@ TOLERANCE = 0.05  # EM stops when the log-likelihood per frame gains less than t
 @dataclass(frozen=True)
 class Settings:
     depth: int | None = 0  # regression class tree level of the transforms (see DEPTHS)
-    tau: float = 64.0  # MAP weight on top of the transforms (frames); also the structural prior weight
+    tau: float = 64.0  # MAP weight on top of the transforms (frames), also each class's prior weight on its parent's transform
     iterations: int = 10  # EM iterations at most (1: one pass on lambda 0's alignment)
     floor_share: float = FLOOR_SHARE  # 0: no duration floor
 
