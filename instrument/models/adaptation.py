@@ -41,7 +41,7 @@ TOLERANCE = 0.05  # EM stops when the log-likelihood per frame gains less than t
 class Settings:
     depth: int | None = 0  # regression class tree level of the transforms (see DEPTHS)
     tau: float = 64.0  # MAP weight on top of the transforms (frames), also each class's prior weight on its parent's transform
-    iterations: int = 10  # EM iterations at most (1: one pass on lambda 0's alignment)
+    iterations: int = 6  # EM iterations at most (1: one pass on lambda 0's alignment)
     floor_share: float = FLOOR_SHARE  # 0: no duration floor
 
     @property
@@ -167,28 +167,48 @@ def _empty(average: HSMM) -> Statistics:
     return Statistics(0.0, 0, z, np.zeros((states, features)), np.zeros((states, features)), z, z, z)
 
 
+def alignment(model: HSMM, segments: list[list[np.ndarray]]) -> list[Statistics | None]:
+    """E-step statistics of each label's segments under `model` (None for a label without any)."""
+    return [expected_statistics(model, k, label) if label else None for k, label in enumerate(segments)]
+
+
+def combined(a: list[Statistics | None], b: list[Statistics | None]) -> list[Statistics | None]:
+    """Statistics of two sets of segments together (they add up)."""
+    out = []
+    for x, y in zip(a, b):
+        if x is None or y is None:
+            out.append(x or y)
+        else:
+            out.append(Statistics(*(getattr(x, f) + getattr(y, f) for f in Statistics.__dataclass_fields__)))
+    return out
+
+
 def adapt(average: HSMM, segments: list[list[np.ndarray]], floors: Floors, settings: Settings = DEFAULT,
-          trace: list[float] | None = None) -> HSMM:
+          trace: list[float] | None = None, first: list[Statistics | None] | None = None) -> HSMM:
     """A style model by EM from lambda 0, each iteration re-aligning the style's steps under the
-    style's current model, until its log-likelihood per frame stops rising. No segments: lambda 0."""
+    style's current model, until its log-likelihood per frame stops rising. No segments: lambda 0.
+
+    `first` is lambda 0's alignment of the segments if already computed. Without `trace` the
+    last iteration is not scored (the held-out choice scores on other data)."""
     if not any(segments):
         return average
     floor = duration_floor(average, segments, settings.floor_share)
-    model, best, previous = average, average, -np.inf
-    for iteration in range(settings.iterations + 1):
-        stats = [expected_statistics(model, k, label) if label else None for k, label in enumerate(segments)]
-        per_frame = sum(s.loglik for s in stats if s) / sum(s.frames for s in stats if s)
-        if iteration:  # lambda 0's own score is not the style model's
-            if trace is not None:
-                trace.append(per_frame)
-            if per_frame < previous:
-                return best  # the floor or the prior cost likelihood: keep the better model
-            best = model
-            if per_frame - previous < TOLERANCE or iteration == settings.iterations:
-                return model
-            previous = per_frame
+    stats = first or alignment(average, segments)
+    best, previous = average, -np.inf
+    for iteration in range(1, settings.iterations + 1):
         model = m_step(average, stats, settings, floors, floor)
-    return model
+        if trace is None and iteration == settings.iterations:
+            return model
+        stats = alignment(model, segments)
+        per_frame = sum(s.loglik for s in stats if s) / sum(s.frames for s in stats if s)
+        if trace is not None:
+            trace.append(per_frame)
+        if per_frame < previous:
+            return best  # the floor or the prior cost likelihood: keep the better model
+        if per_frame - previous < TOLERANCE:
+            return model
+        best, previous = model, per_frame
+    return best
 
 
 def heldout_score(model: HSMM, segments: list[list[np.ndarray]]) -> tuple[float, int]:
@@ -205,7 +225,7 @@ def _merge(takes: list[list[list[np.ndarray]]]) -> list[list[np.ndarray]]:
     return [[seg for take in takes for seg in take[k]] for k in range(len(takes[0]))]
 
 
-def choose_settings(average: HSMM, takes: list[list[list[np.ndarray]]], floors: Floors) -> tuple[Settings, float]:
+def choose_settings(average: HSMM, takes: list[list[list[np.ndarray]]], floors: Floors) -> tuple[Settings, float, list[Statistics | None]]:
     """The tree depth, then tau, with the best two-fold held-out log-likelihood per frame.
 
     With two takes or more, the folds are alternate takes, so the choice is judged on takes the
@@ -219,11 +239,12 @@ def choose_settings(average: HSMM, takes: list[list[list[np.ndarray]]], floors: 
         folds = [[label[: len(label) // 2] for label in takes[0]], [label[len(label) // 2 :] for label in takes[0]]]
         taus = tuple(t for t in TAUS if t >= ONE_TAKE_MIN_TAU)
     quick = replace(DEFAULT, iterations=2, tau=taus[0])
+    firsts = [alignment(average, fold) for fold in folds]  # lambda 0's alignment, the same for every candidate
 
     def score(settings: Settings) -> float:
         total, frames = 0.0, 0
-        for train, test in ((folds[0], folds[1]), (folds[1], folds[0])):
-            ll, n = heldout_score(adapt(average, train, floors, settings), test)
+        for train, test in ((0, 1), (1, 0)):
+            ll, n = heldout_score(adapt(average, folds[train], floors, settings, first=firsts[train]), folds[test])
             total, frames = total + ll, frames + n
         return total / max(frames, 1)
 
@@ -231,7 +252,7 @@ def choose_settings(average: HSMM, takes: list[list[list[np.ndarray]]], floors: 
     depth = max(scores, key=scores.get)
     by_tau = {tau: scores[depth] if tau == quick.tau else score(replace(quick, depth=depth, tau=tau)) for tau in taus}
     tau = max(by_tau, key=by_tau.get)
-    return replace(DEFAULT, depth=depth, tau=tau), by_tau[tau]
+    return replace(DEFAULT, depth=depth, tau=tau), by_tau[tau], combined(*firsts)
 
 
 def adapt_styles(average: HSMM, takes_per_style: dict[str, list[list[list[np.ndarray]]]], floors: Floors,
@@ -243,16 +264,16 @@ def adapt_styles(average: HSMM, takes_per_style: dict[str, list[list[list[np.nda
     for style, takes in takes_per_style.items():
         segments = _merge(takes)
         fewest = min(len(label) for label in segments)
-        settings, heldout = fixed or DEFAULT, None
+        settings, heldout, first = fixed or DEFAULT, None, None
         if fixed is None and fewest >= MIN_STEPS_TO_CHOOSE:
-            settings, heldout = choose_settings(average, takes, floors)
+            settings, heldout, first = choose_settings(average, takes, floors)
         elif fixed is None:
             message = (f"style {style!r} has only {fewest} steps of one label: too few to choose the adaptation "
                        f"by held-out likelihood, one shared transform is used")
             warnings.append(message)
             _warnings.warn(message, stacklevel=2)
         trace: list[float] = []
-        model = adapt(average, segments, floors, settings, trace)
+        model = adapt(average, segments, floors, settings, trace, first)
         models.append(model)
         reports[style] = StyleReport(settings, heldout, trace, float(model.duration_means.min()))
     stacked = HSMM(*(np.stack([getattr(m, name) for m in models]) for name in ("means", "variances", "duration_means", "duration_variances")))
