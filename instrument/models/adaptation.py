@@ -51,7 +51,7 @@ class Settings:
 
 
 DEFAULT = Settings()
-ONE_PASS_MAP = Settings(depth=None, tau=10.0, iterations=1, floor_share=0.0)  # the adaptation before issue 11
+ONE_PASS_MAP = Settings(depth=None, tau=10.0, iterations=1, floor_share=0.0)  # the adaptation re-aligned EM replaced, for comparisons
 
 
 @dataclass
