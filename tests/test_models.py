@@ -68,6 +68,8 @@ def test_info_json(small_model):
     # the model's expected step length (sum of state duration means) matches the data's
     for style in info["styles"]:
         assert info["model_step_frames"][style] == pytest.approx(info["mean_step_frames"][style], rel=0.05)
+    # no style state collapses: the floor is 2 frames where the steps are long enough (these are)
+    assert min(info["shortest_state_frames"].values()) >= 2.0 - 1e-9
 
 
 def test_save_and_load_round_trip(small_model, tmp_path):
