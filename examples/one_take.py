@@ -78,7 +78,8 @@ def main() -> None:
         real_takes.append(classifier.take_label(x) == t.style)
         real_steps += [label == t.style for label in classifier.step_labels(x)]
     print(f"trained on {len(first)} takes (the first of each style); classifier and held-out scores on the other {len(others)}")
-    print(f"real training takes recognised: takes {sum(real_takes)}/{len(real_takes)}, steps {100 * np.mean(real_steps):.0f}% of {len(real_steps)}")
+    print(f"real training takes recognised: takes {sum(real_takes)}/{len(real_takes)}, "
+          f"steps {100 * np.mean(real_steps):.0f}% of {len(real_steps)}")
 
     for name, (model, _, seconds) in results.items():
         table = heldout_table(model, others)

@@ -67,7 +67,7 @@ def test_a_shared_transform_moves_every_state_from_a_few_steps(average):
 def test_durations_never_fall_below_the_floor(average):
     rng = np.random.default_rng(4)
     # steps whose first state lasts a single frame: plain EM would shrink that state to ~1 frame
-    data = [[np.vstack([s[-1:] * 0 + s[0], s[TRUE_DURATION_MEANS[k, 0].astype(int) - 1 :]]) for s in sample(k, 60, rng)] for k in range(2)]
+    data = [[np.vstack([s[:1], s[int(TRUE_DURATION_MEANS[k, 0]) :]]) for s in sample(k, 60, rng)] for k in range(2)]
     floor = duration_floor(average, data, DEFAULT.floor_share)
     assert (floor >= 1.0).all()
     free = adapt(average, data, FLOORS, Settings(depth=None, tau=1.0, floor_share=0.0))

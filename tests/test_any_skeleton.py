@@ -62,7 +62,8 @@ ARM = ["LeftShoulder", "LeftUpperArm", "LeftLowerArm", "LeftHand"]
 CONVENTIONS = {
     "CMU": _body("Hips", ["LowerBack", "Spine", "Spine1"], "Neck", "Head",
                  ["LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase"], ["LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand"]),
-    "Mixamo": _body("mixamorig:Hips", ["mixamorig:Spine", "mixamorig:Spine1", "mixamorig:Spine2"], "mixamorig:Neck", "mixamorig:Head",
+    "Mixamo": _body("mixamorig:Hips", ["mixamorig:Spine", "mixamorig:Spine1", "mixamorig:Spine2"],
+                    "mixamorig:Neck", "mixamorig:Head",
                     ["mixamorig:LeftUpLeg", "mixamorig:LeftLeg", "mixamorig:LeftFoot", "mixamorig:LeftToeBase"],
                     ["mixamorig:LeftShoulder", "mixamorig:LeftArm", "mixamorig:LeftForeArm", "mixamorig:LeftHand"]),
     "Unreal": _body("pelvis", ["spine_01", "spine_02", "spine_03"], "neck_01", "head",
@@ -127,8 +128,9 @@ def test_cmu_style_model_synthesises_on_its_own_skeleton(cmu_model, tmp_path):
 def test_cmu_style_model_streams_vmc_with_guessed_bones(cmu_model):
     receiver = Receiver()
     try:
-        result = subprocess.run([sys.executable, "-m", "instrument", "run", "--model", str(cmu_model[0]), "--seconds", "2",
-                                 "--osc", f"127.0.0.1:{receiver.port}/vmc", "--quiet"], capture_output=True, text=True, timeout=120)
+        command = [sys.executable, "-m", "instrument", "run", "--model", str(cmu_model[0]), "--seconds", "2",
+                   "--osc", f"127.0.0.1:{receiver.port}/vmc", "--quiet"]
+        result = subprocess.run(command, capture_output=True, text=True, timeout=120)
         deadline = time.monotonic() + 10
         while time.monotonic() < deadline and sum(1 for a, _ in receiver.messages() if a == "/VMC/Ext/OK") < 60:
             time.sleep(0.1)

@@ -51,7 +51,8 @@ class Settings:
 
 
 DEFAULT = Settings()
-ONE_PASS_MAP = Settings(depth=None, tau=10.0, iterations=1, floor_share=0.0)  # the adaptation re-aligned EM replaced, for comparisons
+# the adaptation re-aligned EM replaced, for comparisons
+ONE_PASS_MAP = Settings(depth=None, tau=10.0, iterations=1, floor_share=0.0)
 
 
 @dataclass
@@ -70,7 +71,8 @@ def _classes(depth: int, labels: int, states: int) -> list[list[np.ndarray]]:
     """The regression class tree down to `depth`: per level, a list of index arrays over the
     flattened (label, state) axis."""
     everything = np.arange(labels * states)
-    levels = [[everything], [everything[k * states : (k + 1) * states] for k in range(labels)], [np.array([i]) for i in everything]]
+    per_label = [everything[k * states : (k + 1) * states] for k in range(labels)]
+    levels = [[everything], per_label, [np.array([i]) for i in everything]]
     return levels[: depth + 1]
 
 
@@ -225,8 +227,10 @@ def _merge(takes: list[list[list[np.ndarray]]]) -> list[list[np.ndarray]]:
     return [[seg for take in takes for seg in take[k]] for k in range(len(takes[0]))]
 
 
-def choose_settings(average: HSMM, takes: list[list[list[np.ndarray]]], floors: Floors) -> tuple[Settings, float, list[Statistics | None]]:
-    """The tree depth, then tau, with the best two-fold held-out log-likelihood per frame.
+def choose_settings(average: HSMM, takes: list[list[list[np.ndarray]]],
+                    floors: Floors) -> tuple[Settings, float, list[Statistics | None]]:
+    """The tree depth, then tau, with the best two-fold held-out log-likelihood per frame (and
+    lambda 0's alignment of all the style's steps, computed on the way).
 
     With two takes or more, the folds are alternate takes, so the choice is judged on takes the
     adaptation never saw. With one take, they are its first and second half of steps; those
@@ -276,5 +280,6 @@ def adapt_styles(average: HSMM, takes_per_style: dict[str, list[list[list[np.nda
         model = adapt(average, segments, floors, settings, trace, first)
         models.append(model)
         reports[style] = StyleReport(settings, heldout, trace, float(model.duration_means.min()))
-    stacked = HSMM(*(np.stack([getattr(m, name) for m in models]) for name in ("means", "variances", "duration_means", "duration_variances")))
+    fields = ("means", "variances", "duration_means", "duration_variances")
+    stacked = HSMM(*(np.stack([getattr(m, f) for m in models]) for f in fields))
     return stacked, reports

@@ -88,7 +88,8 @@ def skeleton_difference(expected: Skeleton, found: Skeleton) -> str:
         return f"{len(found.names)} joints against {len(expected.names)}; it " + " and ".join(parts)
     for a, b in zip(expected.joints, found.joints):
         if (a.name, a.channels) != (b.name, b.channels) or expected.names[a.parent] != found.names[b.parent]:
-            return f"joint {a.name!r} differs in its parent, place or channels ({' '.join(b.channels)} against {' '.join(a.channels)})"
+            return (f"joint {a.name!r} differs in its parent, place or channels "
+                    f"({' '.join(b.channels)} against {' '.join(a.channels)})")
     return "same joints"
 
 
