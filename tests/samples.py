@@ -131,3 +131,27 @@ def reorder_bvh(text: str, order: str, drop_joint_positions: bool = False) -> st
     data = np.hstack(columns)
     body = [" ".join(f"{v:.6f}" for v in row) for row in data]
     return "\n".join(new_header + lines[motion_at : motion_at + 3] + body) + "\n"
+
+
+BANDAI_TO_CMU = {
+    "Chest": "Spine1", "Shoulder_L": "LeftShoulder", "UpperArm_L": "LeftArm", "LowerArm_L": "LeftForeArm",
+    "Hand_L": "LeftHand", "Shoulder_R": "RightShoulder", "UpperArm_R": "RightArm", "LowerArm_R": "RightForeArm",
+    "Hand_R": "RightHand", "UpperLeg_L": "LeftUpLeg", "LowerLeg_L": "LeftLeg", "Foot_L": "LeftFoot",
+    "Toes_L": "LeftToeBase", "UpperLeg_R": "RightUpLeg", "LowerLeg_R": "RightLeg", "Foot_R": "RightFoot",
+    "Toes_R": "RightToeBase",
+}
+
+
+def cmu_named_walk(path) -> str:
+    """A shared walk as a CMU-style file: joints renamed as in the CMU conversions, re-rooted at
+    Hips (the static `joint_Root` above it removed), 3 rotation channels per joint in ZYX order."""
+    from instrument.motion.bvh import Joint, Motion, Skeleton, bvh_text, read_bvh
+
+    motion = read_bvh(path)
+    top = motion.skeleton.joints[0]
+    width = len(top.channels)
+    assert top.name == "joint_Root" and not np.any(motion.channels[:, :width]), "re-rooting assumes a static identity root"
+    joints = tuple(Joint(BANDAI_TO_CMU.get(j.name, j.name), j.parent - 1, j.offset, j.channels, j.end_site)
+                   for j in motion.skeleton.joints[1:])
+    text = bvh_text(Motion(Skeleton(joints), motion.channels[:, width:], motion.fps))
+    return reorder_bvh(text, "ZYX", drop_joint_positions=True)

@@ -1,12 +1,10 @@
 """The HSMM trainer against sequences sampled from models with known parameters."""
 
-import warnings
-
 import numpy as np
 import pytest
 
 from instrument.models.hsmm import HSMM, Floors, expected_statistics, forward_backward, pad_segments
-from instrument.models.training import TrainingReport, adapt, adapt_styles, train_average
+from instrument.models.training import TrainingReport, train_average
 
 STATES = 4
 TRUE_MEANS = np.array([[[0.0, 5.0], [4.0, -3.0], [8.0, 2.0], [-4.0, 0.0]], [[1.0, -5.0], [-3.0, 3.0], [6.0, 6.0], [2.0, -8.0]]])
@@ -82,29 +80,3 @@ def test_padded_batches_score_like_single_segments(trained):
     apart = sum(expected_statistics(model, 0, [s]).loglik for s in some)
     assert together.loglik == pytest.approx(apart, rel=1e-12)
     assert together.frames == sum(len(s) for s in some)
-
-
-def test_adaptation_with_no_data_returns_the_average(trained):
-    model, _, _ = trained
-    adapted = adapt(model, [[], []], Floors(np.full(2, 1e-3)))
-    for name in ("means", "variances", "duration_means", "duration_variances"):
-        np.testing.assert_array_equal(getattr(adapted, name), getattr(model, name))
-
-
-def test_adaptation_moves_toward_a_shifted_style_and_a_small_style_stays_near_average(trained):
-    model, _, _ = trained
-    rng = np.random.default_rng(5)
-    shift = np.array([2.0, -1.0])
-    many = [[s + shift for s in sample(0, 200, rng)], [s + shift for s in sample(1, 200, rng)]]
-    few = [[s + shift for s in sample(0, 3, rng)], [s + shift for s in sample(1, 3, rng)]]
-    report = TrainingReport()
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        styles = adapt_styles(model, {"many": many, "few": few}, Floors(np.full(2, 1e-3)), report)
-    assert any("'few'" in str(w.message) for w in caught)
-    assert any("'few'" in w for w in report.warnings) and not any("'many'" in w for w in report.warnings)
-    moved_many = styles.means[0] - model.means
-    moved_few = styles.means[1] - model.means
-    np.testing.assert_allclose(moved_many, np.broadcast_to(shift, moved_many.shape), atol=0.25)
-    assert np.abs(moved_few).mean() < np.abs(moved_many).mean()
-    assert np.isfinite(styles.variances).all() and (styles.variances > 0).all()

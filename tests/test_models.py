@@ -68,6 +68,8 @@ def test_info_json(small_model):
     # the model's expected step length (sum of state duration means) matches the data's
     for style in info["styles"]:
         assert info["model_step_frames"][style] == pytest.approx(info["mean_step_frames"][style], rel=0.05)
+    # no style state collapses: the floor is 2 frames where the steps are long enough (these are)
+    assert min(info["shortest_state_frames"].values()) >= 2.0 - 1e-9
 
 
 def test_save_and_load_round_trip(small_model, tmp_path):
@@ -150,7 +152,10 @@ def test_manifest_names_styles_and_other_conventions_train(tmp_path, kind):
     model = load_model(out)
     assert model.style_names == ["quick", "slow"] and model.states == 3
     assert model.metadata["skeleton"]["joints"][2]["channels"] == ["Xrotation", "Yrotation", "Zrotation"]
-    assert any("stays close to the average" in w for w in model.metadata["warnings"])
+    adaptation = model.metadata["training"]["adaptation"]  # what was chosen for each style, and its shortest state
+    assert set(adaptation) == {"quick", "slow"}
+    for style, chosen in adaptation.items():
+        assert chosen["min_duration"] == pytest.approx(model.style(style).duration_means.min())
 
 
 def test_bad_manifest_names_file_and_line(tmp_path):

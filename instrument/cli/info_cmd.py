@@ -33,6 +33,7 @@ def summary(path: str) -> dict:
         "model_step_frames": {
             name: float(model.style(name).duration_means.sum(axis=1).mean()) for name in model.style_names
         } | {"(average)": float(model.average.duration_means.sum(axis=1).mean())},
+        "shortest_state_frames": {name: float(model.style(name).duration_means.min()) for name in model.style_names},
         "takes": len(meta.get("data", [])),
         "frames": sum(d["frames"] for d in meta.get("data", [])),
         "licence": meta.get("licence", ""),
@@ -51,9 +52,10 @@ def run(args: argparse.Namespace) -> int:
     print(f"  labels     {', '.join(info['labels'])}; {info['states']} states each; {info['fps']:g} fps")
     print(f"  features   {info['static_dimension']} static ({info['modelled_joints']} of {info['joints']} joints), "
           f"{info['observation_dimension']} with deltas")
-    print("  step       mean frames per step (data / model):")
+    print("  step       mean frames per step (data / model), shortest state of the model:")
     for name in info["styles"]:
-        print(f"    {name:<12} {info['mean_step_frames'].get(name, float('nan')):5.1f} / {info['model_step_frames'][name]:5.1f}")
+        print(f"    {name:<12} {info['mean_step_frames'].get(name, float('nan')):5.1f} / {info['model_step_frames'][name]:5.1f}"
+              f"   {info['shortest_state_frames'][name]:4.1f}")
     print(f"  data       {info['takes']} takes, {info['frames']} frames")
     print(f"  trained    {info['training'].get('command', '')!s} ({info['training'].get('seconds', '?')} s)")
     print(f"  licence    {info['licence']}")

@@ -12,9 +12,10 @@ import numpy as np
 from .. import __version__
 from ..motion.features import WINDOWS
 from ..motion.steps import LABELS
+from .adaptation import Settings, adapt_styles
 from .corpus import Take, load_corpus, segments_by_label
 from .modelfile import Model
-from .training import TrainingReport, adapt_styles, train_average, variance_floors
+from .training import TrainingReport, train_average, variance_floors
 
 UNSPECIFIED_LICENCE = "unspecified: the licence of the training data applies"
 
@@ -28,7 +29,10 @@ def build_model(
     attribution: str = "",
     progress: Callable[[int, int, str], None] | None = None,
     on_iteration: Callable[[int, float], None] | None = None,
+    adaptation: Settings | None = None,
 ) -> tuple[Model, TrainingReport, list[Take]]:
+    """`adaptation` fixes the style adaptation's settings (for comparisons); None chooses them per
+    style by held-out likelihood."""
     started = time.perf_counter()
     layout, takes, warnings = load_corpus(pairs, fps, progress)
     report = TrainingReport(warnings=list(warnings))
@@ -36,8 +40,8 @@ def build_model(
     floors = variance_floors(segments)
     average = train_average(segments, states, floors, report=report, on_iteration=on_iteration)
     style_names = sorted({t.style for t in takes})
-    per_style = {s: segments_by_label([t for t in takes if t.style == s], states) for s in style_names}
-    styles = adapt_styles(average, per_style, floors, report)
+    per_style = {s: [segments_by_label([t], states) for t in takes if t.style == s] for s in style_names}
+    styles, adapted = adapt_styles(average, per_style, floors, report.warnings, adaptation)
     dimension = layout.dimension
     step_max = np.max([np.abs(np.diff(t.observations[:, :dimension], axis=0)).max(axis=0) for t in takes], axis=0)
     static_std = np.vstack([t.observations[:, :dimension] for t in takes]).std(axis=0)
@@ -58,6 +62,7 @@ def build_model(
             "iterations": len(report.loglik_per_frame),
             "loglik_per_frame": report.loglik_per_frame,
             "variance_floor_ratio": 0.01,
+            "adaptation": {style: r.to_dict() for style, r in adapted.items()},
             "seconds": round(time.perf_counter() - started, 1),
             "instrument_version": __version__,
             "python": platform.python_version(),

@@ -11,13 +11,15 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError, located
-from ..motion.bvh import Motion, read_bvh
+from ..motion.bvh import Motion, Skeleton, read_bvh
 from ..motion.features import FeatureLayout, choose_layout, extract, resample, with_deltas
 from ..motion.steps import LABELS, segment_steps
 from ..textfile import read_text
 from ..tomlfile import read_toml
 
-DEFAULT_STYLE_PATTERN = r"_([A-Za-z]+)_[^_]*$"  # dataset-2_walk_elderly_003 -> elderly
+# the last but one "_"-separated part, starting with a letter: dataset-2_walk_elderly_003 -> elderly,
+# walk_not-confident_001 -> not-confident, style2_take3 -> style2
+DEFAULT_STYLE_PATTERN = r"(?:^|_)([A-Za-z][A-Za-z0-9-]*)_[^_]*$"
 
 
 @dataclass
@@ -74,6 +76,21 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+def skeleton_difference(expected: Skeleton, found: Skeleton) -> str:
+    """What differs between two skeletons, in a few words for an error message."""
+    missing = [n for n in expected.names if n not in found.names]
+    extra = [n for n in found.names if n not in expected.names]
+    if missing or extra:
+        parts = ([f"lacks {', '.join(missing[:4])}" + (" ..." if len(missing) > 4 else "")] if missing else []) + (
+            [f"has {', '.join(extra[:4])}" + (" ..." if len(extra) > 4 else "") + " instead"] if extra else [])
+        return f"{len(found.names)} joints against {len(expected.names)}; it " + " and ".join(parts)
+    for a, b in zip(expected.joints, found.joints):
+        if (a.name, a.channels) != (b.name, b.channels) or expected.names[a.parent] != found.names[b.parent]:
+            return (f"joint {a.name!r} differs in its parent, place or channels "
+                    f"({' '.join(b.channels)} against {' '.join(a.channels)})")
+    return "same joints"
+
+
 def read_motions(pairs: list[tuple[Path, str]], fps: float, progress=None) -> list[Motion]:
     """Read and resample every take; an error names the files whose skeleton differs from the first."""
     motions: list[Motion] = []
@@ -84,11 +101,12 @@ def read_motions(pairs: list[tuple[Path, str]], fps: float, progress=None) -> li
         if progress:
             progress(k + 1, len(pairs), "reading")
     first = motions[0].skeleton
-    different = [str(p) for (p, _), m in zip(pairs, motions) if not m.skeleton.same_layout(first)]
+    different = [(p, m) for (p, _), m in zip(pairs, motions) if not m.skeleton.same_layout(first)]
     if different:
         raise UserError(
-            f"skeleton differs from the first file's ({pairs[0][0]}): {', '.join(different[:5])}"
+            f"skeleton differs from the first file's ({pairs[0][0]}): {', '.join(str(p) for p, _ in different[:5])}"
             + (f" and {len(different) - 5} more" if len(different) > 5 else "")
+            + f" ({different[0][0].name}: {skeleton_difference(first, different[0][1].skeleton)})"
         )
     return motions
 
@@ -99,7 +117,8 @@ def make_takes(pairs: list[tuple[Path, str]], motions: list[Motion], layout: Fea
     warnings: list[str] = []
     for k, ((path, style), motion) in enumerate(zip(pairs, motions)):
         if not motion.skeleton.same_layout(layout.skeleton):
-            raise UserError(f"{path}: skeleton differs from the model's")
+            raise UserError(f"{path}: the model was trained on another skeleton: this file's "
+                            f"{skeleton_difference(layout.skeleton, motion.skeleton)}")
         static, _, _ = extract(motion, layout)
         segmentation = segment_steps(motion, layout)
         warnings += [f"{path}: {w}" for w in segmentation.warnings]

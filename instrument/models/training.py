@@ -1,9 +1,6 @@
-"""Training: the average model by EM, then one MAP-adapted model per style.
+"""Training the average model (lambda 0) by EM on every style at once.
 
-The average model (lambda 0) learns from every style at once. Each style model is then adapted
-from lambda 0 using lambda 0's own alignment of that style's steps, so every style shares lambda
-0's states: state 3 of "elderly" and state 3 of "youthful" are the same phase of the step, which
-is what makes interpolating and extrapolating between them meaningful.
+The style models are adapted from it in adaptation.py.
 """
 
 from __future__ import annotations
@@ -16,7 +13,6 @@ import numpy as np
 from .hsmm import HSMM, Floors, expected_statistics, map_update, uniform_statistics
 
 VARIANCE_FLOOR_RATIO = 0.01  # of the global variance of each feature, as in HTS
-MIN_STEPS_PER_LABEL = 10  # fewer steps than this for a style: warn, it stays near lambda 0
 
 
 @dataclass
@@ -58,44 +54,3 @@ def train_average(
             break
         previous = per_frame
     return model
-
-
-def adapt(
-    average: HSMM,
-    segments: list[list[np.ndarray]],
-    floors: Floors,
-    tau: float = 10.0,
-    tau_duration: float = 5.0,
-) -> HSMM:
-    """A style model: MAP estimates from lambda 0's alignment of the style's steps, lambda 0 as prior.
-
-    With no segments at all the result is lambda 0 itself.
-    """
-    parameters = []
-    for k, label in enumerate(segments):
-        prior = (average.means[k], average.variances[k], average.duration_means[k], average.duration_variances[k])
-        if not label:
-            parameters.append(prior)
-            continue
-        stats = expected_statistics(average, k, label)
-        parameters.append(map_update(stats, prior, floors, tau, tau_duration))
-    return _stack(parameters)
-
-
-def adapt_styles(
-    average: HSMM,
-    segments_per_style: dict[str, list[list[np.ndarray]]],
-    floors: Floors,
-    report: TrainingReport,
-    tau: float = 10.0,
-    tau_duration: float = 5.0,
-) -> HSMM:
-    """All style models stacked on a leading style axis, in the order of `segments_per_style`."""
-    models = []
-    for style, segments in segments_per_style.items():
-        fewest = min(len(label) for label in segments)
-        if fewest < MIN_STEPS_PER_LABEL:
-            message = f"style {style!r} has only {fewest} steps of one label: it stays close to the average model"
-            report.warnings.append(message)  # said once, by whoever reads the report (train prints it unless --quiet)
-        models.append(adapt(average, segments, floors, tau, tau_duration))
-    return HSMM(*(np.stack([getattr(m, name) for m in models]) for name in ("means", "variances", "duration_means", "duration_variances")))

@@ -1,7 +1,8 @@
 """Which joint of a skeleton is which humanoid bone (Unity's HumanBodyBones names, used by VMC).
 
 `guess_humanoid` reads common naming conventions (the shipped model's `UpperLeg_L`, CMU's
-`LeftUpLeg`, Mixamo's `mixamorig:LeftUpLeg`, `thigh_l`, ...). For anything else, a TOML file
+`LeftUpLeg`, Mixamo's `mixamorig:LeftUpLeg`, Unreal's `thigh_l` / `ball_l`, Rigify's `thigh.L`,
+VRoid's `J_Bip_L_UpperLeg`, 3ds Max Biped's `Bip01 L Thigh`, ...). For anything else, a TOML file
 maps joint names to bone names:
 
     [bones]
@@ -35,7 +36,7 @@ LIMB_PATTERNS = [
     (r"(hand|wrist)", "Hand"),
     (r"(upleg|upperleg|thigh)", "UpperLeg"),
     (r"(lowerleg|^leg$|shin|knee|calf)", "LowerLeg"),
-    (r"(toe)", "Toes"),
+    (r"(toe|ball)", "Toes"),
     (r"(foot|ankle)", "Foot"),
     (r"(hipjoint)", None),
 ]
@@ -69,11 +70,11 @@ def guess_humanoid(skeleton: Skeleton) -> dict[str, str]:
                     if bone and f"{side}{bone}" not in mapping.values():
                         mapping[name] = f"{side}{bone}"
                     break
-        elif core in ("hips", "pelvis", "hip") and "Hips" not in mapping.values():
+        elif re.search(r"(hips?|pelvis)$", core) and "Hips" not in mapping.values():
             mapping[name] = "Hips"
-        elif core.startswith("neck") and "Neck" not in mapping.values():
+        elif re.search(r"neck", core) and "Neck" not in mapping.values():
             mapping[name] = "Neck"
-        elif core.startswith("head") and "Head" not in mapping.values():
+        elif re.search(r"head", core) and "Head" not in mapping.values():
             mapping[name] = "Head"
     # the spine: joints between the hips and the neck, the last three as Spine, Chest, UpperChest
     hips = next((n for n, b in mapping.items() if b == "Hips"), None)
@@ -97,7 +98,8 @@ def read_humanoid(path: str | Path, skeleton: Skeleton) -> dict[str, str]:
         raise UserError(f"{path}: expected a [bones] table of \"joint\" = \"HumanBone\"")
     for joint, bone in bones.items():
         if joint not in skeleton.names:
-            raise UserError(f"{path}: [bones] key {joint!r}: the skeleton has no such joint")
+            raise UserError(f"{path}: [bones] key {joint!r}: the model's skeleton has no such joint (it has "
+                            f"{', '.join(skeleton.names[:6])}, ...): this map is for another skeleton")
         if bone not in HUMAN_BONES:
             raise UserError(f"{path}: [bones] {joint!r} = {bone!r}: not a humanoid bone ({', '.join(HUMAN_BONES[:4])}, ...)")
     return dict(bones)

@@ -1,0 +1,283 @@
+"""Style adaptation: each style model from the average model lambda 0, by EM on the style's own data.
+
+Every style keeps lambda 0's states (state 3 of "elderly" and of "youthful" are the same phase of
+the step), which is what makes interpolating and extrapolating between styles meaningful. Each
+EM iteration re-aligns the style's steps under the style's current model (not lambda 0's), then
+re-estimates in two layers:
+
+1. Shared linear transforms (CSMAPLR-like, diagonal): every feature's mean moves as
+   a * mu + b and its variance scales by s, and every state duration by r, with one (a, b, s, r)
+   shared by a class of states. The classes form a tree: all states, then each label's states,
+   then each state alone. A node's transform is estimated with its parent's as prior (structural
+   MAP), so a node with little data keeps its parent's transform. With one take per style this
+   moves all states together from a few steps, where per-state MAP has almost nothing to move.
+2. MAP on top: each state's parameters pulled toward the transformed model with a weight of
+   `tau` frames, so with plenty of data every state follows its own statistics.
+
+The tree depth and `tau` are chosen per style by two-fold held-out likelihood (alternate takes,
+or the halves of a single take), so a user never tunes them. State durations never fall below a floor taken from
+the data (see duration_floor).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from .hsmm import HSMM, Floors, Statistics, expected_statistics, log_likelihood, map_update
+
+DEPTHS = (None, 0, 1, 2)  # None: no transform (MAP only); 0: one class; 1: one per label; 2: one per state
+TAUS = (16.0, 64.0, 256.0)  # MAP prior weights tried, in frames
+ONE_TAKE_MIN_TAU = 64.0  # with a single take, no smaller weight (see choose_settings)
+FLOOR_SHARE = 0.5  # a state's duration stays above this share of its lambda 0 share of the style's step
+MIN_STATE_FRAMES = 2.0  # and above this, where the style's steps are long enough
+MIN_STEPS_TO_CHOOSE = 4  # fewer steps of a label than this: no held-out choice, DEFAULT settings
+TOLERANCE = 0.05  # EM stops when the log-likelihood per frame gains less than this (it is in the hundreds)
+
+
+@dataclass(frozen=True)
+class Settings:
+    depth: int | None = 0  # regression class tree level of the transforms (see DEPTHS)
+    tau: float = 64.0  # MAP weight on top of the transforms (frames), also each class's prior weight on its parent's transform
+    iterations: int = 6  # EM iterations at most (1: one pass on lambda 0's alignment)
+    floor_share: float = FLOOR_SHARE  # 0: no duration floor
+
+    @property
+    def tau_duration(self) -> float:
+        """Prior weight of durations, in steps: tau / 2, the ratio of the original one-pass MAP (10, 5)."""
+        return self.tau / 2.0
+
+
+DEFAULT = Settings()
+# the adaptation re-aligned EM replaced, for comparisons
+ONE_PASS_MAP = Settings(depth=None, tau=10.0, iterations=1, floor_share=0.0)
+
+
+@dataclass
+class StyleReport:
+    settings: Settings
+    heldout_loglik_per_frame: float | None  # of the chosen settings, None if not chosen by held-out
+    loglik_per_frame: list[float] = field(default_factory=list)  # per EM iteration, full data
+    min_duration: float = 0.0  # shortest state duration mean of the adapted model (frames)
+
+    def to_dict(self) -> dict:
+        return {**asdict(self.settings), "heldout_loglik_per_frame": self.heldout_loglik_per_frame,
+                "loglik_per_frame": self.loglik_per_frame, "min_duration": self.min_duration}
+
+
+def _classes(depth: int, labels: int, states: int) -> list[list[np.ndarray]]:
+    """The regression class tree down to `depth`: per level, a list of index arrays over the
+    flattened (label, state) axis."""
+    everything = np.arange(labels * states)
+    per_label = [everything[k * states : (k + 1) * states] for k in range(labels)]
+    levels = [[everything], per_label, [np.array([i]) for i in everything]]
+    return levels[: depth + 1]
+
+
+def _transform_node(mu, var, dmu, dvar, occ, first, second, dcount, dfirst, parent, weight, spread):
+    """One class's (a, b, s, r) from its states' statistics with the parent's transform as prior.
+
+    mu, var, first, second: (n, F); occ, dmu, dvar, dcount, dfirst: (n,). `weight` is the prior's
+    weight in frames (spread over the class's states as pseudo-data drawn from the parent's
+    transformed model); `spread` (F,) keeps the slope's prior from vanishing when the class's
+    means are all alike (one state)."""
+    a_p, b_p, s_p, r_p = parent
+    n = len(occ)
+    pseudo = weight / n
+    count = occ + pseudo  # (n,)
+    target = first + pseudo * (a_p * mu + b_p)  # pseudo-frames sit at the parent's transformed means
+    g = count[:, None] / var
+    g00 = (g * mu**2).sum(0) + weight * spread
+    g01 = (g * mu).sum(0)
+    g11 = g.sum(0)
+    k0 = (mu * target / var).sum(0) + weight * spread * a_p
+    k1 = (target / var).sum(0)
+    det = g00 * g11 - g01**2
+    a = (g11 * k0 - g01 * k1) / det
+    b = (g00 * k1 - g01 * k0) / det
+    moved = a * mu + b
+    residual = ((second - 2 * moved * first + occ[:, None] * moved**2) / var).sum(0)
+    s = (residual + weight * s_p) / (occ.sum() + weight)
+    dpseudo = weight / 2.0 / n  # durations: steps, as tau_duration
+    r = ((dmu * dfirst / dvar).sum() + dpseudo * r_p * (dmu**2 / dvar).sum()) / (
+        (dmu**2 * dcount / dvar).sum() + dpseudo * (dmu**2 / dvar).sum())
+    return a, b, s, r
+
+
+def transformed(average: HSMM, stats: list[Statistics], depth: int, weight: float, floors: Floors) -> HSMM:
+    """lambda 0 moved by the structural-MAP transforms of the class tree down to `depth`."""
+    labels, states, features = average.means.shape
+    mu = average.means.reshape(-1, features)
+    var = average.variances.reshape(-1, features)
+    dmu, dvar = average.duration_means.ravel(), average.duration_variances.ravel()
+    occ = np.concatenate([s.occupancy for s in stats])
+    first = np.concatenate([s.first for s in stats])
+    second = np.concatenate([s.second for s in stats])
+    dcount = np.concatenate([s.duration_count for s in stats])
+    dfirst = np.concatenate([s.duration_first for s in stats])
+    spread = ((mu - mu.mean(0)) ** 2 / var).mean(0) + 1e-6
+    identity = (np.ones(features), np.zeros(features), np.ones(features), 1.0)
+    node_of = [identity] * (labels * states)  # the transform each state gets from the deepest level so far
+    for level in _classes(depth, labels, states):
+        fresh = list(node_of)
+        for members in level:
+            parent = node_of[members[0]]  # every member of a class shares its parent class
+            t = _transform_node(mu[members], var[members], dmu[members], dvar[members], occ[members], first[members],
+                                second[members], dcount[members], dfirst[members], parent, weight, spread)
+            for i in members:
+                fresh[i] = t
+        node_of = fresh
+    a, b, s = (np.stack([t[k] for t in node_of]) for k in range(3))
+    r = np.array([t[3] for t in node_of])
+    means = (a * mu + b).reshape(average.means.shape)
+    variances = np.maximum(s * var, floors.variance).reshape(average.variances.shape)
+    dmeans = (r * dmu).reshape(average.duration_means.shape)
+    dvars = np.maximum(r**2 * dvar, floors.duration_variance).reshape(average.duration_variances.shape)
+    return HSMM(means, variances, dmeans, dvars)
+
+
+def duration_floor(average: HSMM, segments: list[list[np.ndarray]], share: float) -> np.ndarray:
+    """(labels, states), in frames: the larger of `share` of each state's lambda 0 share of this
+    style's mean step, and MIN_STATE_FRAMES unless the style's short steps (10th percentile of
+    length) cannot give every state that many. 0 where `share` is 0."""
+    floor = np.zeros_like(average.duration_means)
+    for k, label in enumerate(segments):
+        if label and share > 0:
+            lengths = np.array([len(s) for s in label], dtype=np.float64)
+            proportional = share * average.duration_means[k] * lengths.mean() / average.duration_means[k].sum()
+            floor[k] = np.maximum(proportional, min(MIN_STATE_FRAMES, np.percentile(lengths, 10) / floor.shape[1]))
+    return floor
+
+
+def m_step(average: HSMM, stats: list[Statistics | None], settings: Settings, floors: Floors, floor: np.ndarray) -> HSMM:
+    """Transforms over the class tree, then MAP toward the transformed model, then the duration floor."""
+    complete = [s if s is not None else _empty(average) for s in stats]
+    prior = average if settings.depth is None else transformed(average, complete, settings.depth, settings.tau, floors)
+    parameters = []
+    for k, s in enumerate(complete):
+        p = (prior.means[k], prior.variances[k], prior.duration_means[k], prior.duration_variances[k])
+        parameters.append(map_update(s, p, floors, settings.tau, settings.tau_duration) if s.frames else p)
+    means, variances, dmeans, dvars = (np.stack([p[i] for p in parameters]) for i in range(4))
+    return HSMM(means, variances, np.maximum(dmeans, floor), dvars)
+
+
+def _empty(average: HSMM) -> Statistics:
+    states, features = average.means.shape[1:]
+    z = np.zeros(states)
+    return Statistics(0.0, 0, z, np.zeros((states, features)), np.zeros((states, features)), z, z, z)
+
+
+def alignment(model: HSMM, segments: list[list[np.ndarray]]) -> list[Statistics | None]:
+    """E-step statistics of each label's segments under `model` (None for a label without any)."""
+    return [expected_statistics(model, k, label) if label else None for k, label in enumerate(segments)]
+
+
+def combined(a: list[Statistics | None], b: list[Statistics | None]) -> list[Statistics | None]:
+    """Statistics of two sets of segments together (they add up)."""
+    out = []
+    for x, y in zip(a, b):
+        if x is None or y is None:
+            out.append(x or y)
+        else:
+            out.append(Statistics(*(getattr(x, f) + getattr(y, f) for f in Statistics.__dataclass_fields__)))
+    return out
+
+
+def adapt(average: HSMM, segments: list[list[np.ndarray]], floors: Floors, settings: Settings = DEFAULT,
+          trace: list[float] | None = None, first: list[Statistics | None] | None = None) -> HSMM:
+    """A style model by EM from lambda 0, each iteration re-aligning the style's steps under the
+    style's current model, until its log-likelihood per frame stops rising. No segments: lambda 0.
+
+    `first` is lambda 0's alignment of the segments if already computed. Without `trace` the
+    last iteration is not scored (the held-out choice scores on other data)."""
+    if not any(segments):
+        return average
+    floor = duration_floor(average, segments, settings.floor_share)
+    stats = first or alignment(average, segments)
+    best, previous = average, -np.inf
+    for iteration in range(1, settings.iterations + 1):
+        model = m_step(average, stats, settings, floors, floor)
+        if trace is None and iteration == settings.iterations:
+            return model
+        stats = alignment(model, segments)
+        per_frame = sum(s.loglik for s in stats if s) / sum(s.frames for s in stats if s)
+        if trace is not None:
+            trace.append(per_frame)
+        if per_frame < previous:
+            return best  # the floor or the prior cost likelihood: keep the better model
+        if per_frame - previous < TOLERANCE:
+            return model
+        best, previous = model, per_frame
+    return best
+
+
+def heldout_score(model: HSMM, segments: list[list[np.ndarray]]) -> tuple[float, int]:
+    total, frames = 0.0, 0
+    for k, label in enumerate(segments):
+        if label:
+            ll, n = log_likelihood(model, k, label)
+            total, frames = total + ll, frames + n
+    return total, frames
+
+
+def _merge(takes: list[list[list[np.ndarray]]]) -> list[list[np.ndarray]]:
+    """Per-take segments (take, label, segment) as one list of segments per label."""
+    return [[seg for take in takes for seg in take[k]] for k in range(len(takes[0]))]
+
+
+def choose_settings(average: HSMM, takes: list[list[list[np.ndarray]]],
+                    floors: Floors) -> tuple[Settings, float, list[Statistics | None]]:
+    """The tree depth, then tau, with the best two-fold held-out log-likelihood per frame (and
+    lambda 0's alignment of all the style's steps, computed on the way).
+
+    With two takes or more, the folds are alternate takes, so the choice is judged on takes the
+    adaptation never saw. With one take, they are its first and second half of steps; those
+    halves are alike (one performer, one session), which rewards fitting the take, so tau is
+    not let below ONE_TAKE_MIN_TAU there."""
+    if len(takes) >= 2:
+        folds = [_merge(takes[0::2]), _merge(takes[1::2])]
+        taus = TAUS
+    else:
+        folds = [[label[: len(label) // 2] for label in takes[0]], [label[len(label) // 2 :] for label in takes[0]]]
+        taus = tuple(t for t in TAUS if t >= ONE_TAKE_MIN_TAU)
+    quick = replace(DEFAULT, iterations=2, tau=taus[0])
+    firsts = [alignment(average, fold) for fold in folds]  # lambda 0's alignment, the same for every candidate
+
+    def score(settings: Settings) -> float:
+        total, frames = 0.0, 0
+        for train, test in ((0, 1), (1, 0)):
+            ll, n = heldout_score(adapt(average, folds[train], floors, settings, first=firsts[train]), folds[test])
+            total, frames = total + ll, frames + n
+        return total / max(frames, 1)
+
+    scores = {depth: score(replace(quick, depth=depth)) for depth in DEPTHS}
+    depth = max(scores, key=scores.get)
+    by_tau = {tau: scores[depth] if tau == quick.tau else score(replace(quick, depth=depth, tau=tau)) for tau in taus}
+    tau = max(by_tau, key=by_tau.get)
+    return replace(DEFAULT, depth=depth, tau=tau), by_tau[tau], combined(*firsts)
+
+
+def adapt_styles(average: HSMM, takes_per_style: dict[str, list[list[list[np.ndarray]]]], floors: Floors,
+                 warnings: list[str], fixed: Settings | None = None) -> tuple[HSMM, dict[str, StyleReport]]:
+    """All style models stacked on a leading style axis (in the order of `takes_per_style`, whose
+    values are per take, per label, the step segments), with what was chosen and measured for
+    each. `fixed` skips the held-out choice."""
+    models, reports = [], {}
+    for style, takes in takes_per_style.items():
+        segments = _merge(takes)
+        fewest = min(len(label) for label in segments)
+        settings, heldout, first = fixed or DEFAULT, None, None
+        if fixed is None and fewest >= MIN_STEPS_TO_CHOOSE:
+            settings, heldout, first = choose_settings(average, takes, floors)
+        elif fixed is None:
+            message = (f"style {style!r} has only {fewest} steps of one label: too few to choose the adaptation "
+                       f"by held-out likelihood, one shared transform is used")
+            warnings.append(message)
+        trace: list[float] = []
+        model = adapt(average, segments, floors, settings, trace, first)
+        models.append(model)
+        reports[style] = StyleReport(settings, heldout, trace, float(model.duration_means.min()))
+    fields = ("means", "variances", "duration_means", "duration_variances")
+    stacked = HSMM(*(np.stack([getattr(m, f) for m in models]) for f in fields))
+    return stacked, reports

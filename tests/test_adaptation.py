@@ -1,0 +1,90 @@
+"""Style adaptation against styles sampled from known models: re-aligned EM, shared transforms,
+the duration floor, and settings chosen by held-out likelihood."""
+
+
+import numpy as np
+import pytest
+
+from instrument.models.adaptation import DEFAULT, ONE_PASS_MAP, Settings, adapt, adapt_styles, duration_floor, heldout_score
+from instrument.models.hsmm import Floors
+from instrument.models.training import train_average
+from test_hsmm import STATES, TRUE_DURATION_MEANS, sample
+
+FLOORS = Floors(np.full(2, 1e-3))
+SHIFT = np.array([2.0, -1.0])
+
+
+@pytest.fixture(scope="module")
+def average():
+    rng = np.random.default_rng(11)
+    return train_average([sample(0, 200, rng), sample(1, 200, rng)], STATES, FLOORS, iterations=40, tolerance=1e-6)
+
+
+def shifted(count: int, seed: int, stretch: int = 0) -> list[list[np.ndarray]]:
+    """A style: every output shifted by SHIFT, and (with `stretch`) state 2 of each step held
+    `stretch` frames longer, so lambda 0's alignment of it is wrong."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for label in range(2):
+        steps = []
+        for s in sample(label, count, rng):
+            if stretch:
+                s = np.vstack([s[:1]] * stretch + [s])
+            steps.append(s + SHIFT)
+        out.append(steps)
+    return out
+
+
+def test_no_data_gives_the_average(average):
+    adapted = adapt(average, [[], []], FLOORS)
+    for name in ("means", "variances", "duration_means", "duration_variances"):
+        np.testing.assert_array_equal(getattr(adapted, name), getattr(average, name))
+
+
+def test_re_aligned_em_explains_the_style_better_than_one_pass(average):
+    data, held = shifted(100, 1, stretch=4), shifted(50, 2, stretch=4)
+    trace: list[float] = []
+    realigned = adapt(average, data, FLOORS, Settings(depth=None, tau=10.0), trace)
+    one_pass = adapt(average, data, FLOORS, ONE_PASS_MAP)
+    assert len(trace) >= 2 and trace[-1] > trace[0]
+    assert all(b >= a - 1e-6 for a, b in zip(trace, trace[1:]))
+    ll_realigned, frames = heldout_score(realigned, held)
+    ll_one_pass, _ = heldout_score(one_pass, held)
+    assert ll_realigned / frames > ll_one_pass / frames
+    np.testing.assert_allclose(realigned.means - average.means, np.broadcast_to(SHIFT, average.means.shape), atol=0.3)
+
+
+def test_a_shared_transform_moves_every_state_from_a_few_steps(average):
+    few = shifted(3, 3)
+    transformed = adapt(average, few, FLOORS, Settings(depth=0, tau=16.0))
+    map_only = adapt(average, few, FLOORS, ONE_PASS_MAP)
+    error = lambda m: np.abs(m.means - average.means - SHIFT).mean()  # noqa: E731
+    assert error(transformed) < 0.5 * error(map_only)
+    assert error(transformed) < 0.3
+
+
+def test_durations_never_fall_below_the_floor(average):
+    rng = np.random.default_rng(4)
+    # steps whose first state lasts a single frame: plain EM would shrink that state to ~1 frame
+    data = [[np.vstack([s[:1], s[int(TRUE_DURATION_MEANS[k, 0]) :]]) for s in sample(k, 60, rng)] for k in range(2)]
+    floor = duration_floor(average, data, DEFAULT.floor_share)
+    assert (floor >= 1.0).all()
+    free = adapt(average, data, FLOORS, Settings(depth=None, tau=1.0, floor_share=0.0))
+    floored = adapt(average, data, FLOORS, Settings(depth=None, tau=1.0))
+    assert free.duration_means.min() < floor.min()
+    assert (floored.duration_means >= floor - 1e-12).all()
+
+
+def test_styles_choose_their_settings_and_tiny_styles_warn(average):
+    many = [shifted(20, 5 + k) for k in range(4)]  # four takes
+    tiny = [shifted(2, 9)]  # one take, two steps a label
+    report: list[str] = []
+    styles, chosen = adapt_styles(average, {"many": many, "tiny": tiny}, FLOORS, report)
+    assert any("'tiny'" in w for w in report)  # said once, by whoever reads the report
+    assert not any("'many'" in w for w in report)
+    assert chosen["many"].heldout_loglik_per_frame is not None and chosen["tiny"].heldout_loglik_per_frame is None
+    assert chosen["tiny"].settings == DEFAULT
+    assert styles.means.shape == (2,) + average.means.shape
+    for k in range(2):  # both styles move toward the shift, the one with data closer
+        assert np.abs(styles.means[k] - average.means - SHIFT).mean() < np.abs(SHIFT).mean()
+    assert np.isfinite(styles.variances).all() and (styles.variances > 0).all()

@@ -1,0 +1,167 @@
+"""Any capture a user brings: style names in file names, other skeletons and joint names, and a
+model that says so when it meets a skeleton it was not trained on."""
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from instrument.errors import UserError
+from instrument.models.corpus import DEFAULT_STYLE_PATTERN, make_takes, read_motions, style_from_name
+from instrument.models.modelfile import default_model_path, load_model
+from instrument.motion.bvh import Joint, Skeleton, read_bvh
+from instrument.output.humanoid import guess_humanoid, read_humanoid
+from oscrecv import Receiver
+from samples import cmu_named_walk
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "instrument", *args], capture_output=True, text=True, timeout=600)
+
+
+@pytest.mark.parametrize("name, style", [
+    ("dataset-2_walk_elderly_003", "elderly"),
+    ("walk_not-confident_001", "not-confident"),
+    ("style2_take3", "style2"),
+    ("Capture_Old-Man_12", "old-man"),
+])
+def test_default_pattern_reads_styles_with_hyphens_and_digits(name, style):
+    assert style_from_name(Path(name + ".bvh"), DEFAULT_STYLE_PATTERN) == style
+
+
+@pytest.mark.parametrize("name", ["walk", "walk_001_002"])
+def test_names_without_a_style_are_one_line_errors(name):
+    with pytest.raises(UserError, match="cannot read a style"):
+        style_from_name(Path(name + ".bvh"), DEFAULT_STYLE_PATTERN)
+
+
+def _skeleton(pairs: list[tuple[str, str | None]]) -> Skeleton:
+    names = [n for n, _ in pairs]
+    rotation = ("Zrotation", "Xrotation", "Yrotation")
+    return Skeleton(tuple(Joint(n, names.index(p) if p else -1, (0.0, 0.0, 0.0), rotation) for n, p in pairs))
+
+
+def _body(hips: str, spine: list[str], neck: str, head: str, left: list[str], arm: list[str]) -> list[tuple[str, str | None]]:
+    """A left half-body (enough to check the names): hips, a spine chain, neck, head, the left
+    leg chain (thigh, shin, foot, toes) from the hips and the left arm chain from the spine's top."""
+    out, parent = [(hips, None)], hips
+    for joint in spine + [neck, head]:
+        out.append((joint, parent))
+        parent = joint
+    for chain, root in ((left, hips), (arm, spine[-1])):
+        for joint in chain:
+            out.append((joint, root))
+            root = joint
+    return out
+
+
+LEG = ["LeftUpperLeg", "LeftLowerLeg", "LeftFoot", "LeftToes"]
+ARM = ["LeftShoulder", "LeftUpperArm", "LeftLowerArm", "LeftHand"]
+CONVENTIONS = {
+    "CMU": _body("Hips", ["LowerBack", "Spine", "Spine1"], "Neck", "Head",
+                 ["LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase"], ["LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand"]),
+    "Mixamo": _body("mixamorig:Hips", ["mixamorig:Spine", "mixamorig:Spine1", "mixamorig:Spine2"],
+                    "mixamorig:Neck", "mixamorig:Head",
+                    ["mixamorig:LeftUpLeg", "mixamorig:LeftLeg", "mixamorig:LeftFoot", "mixamorig:LeftToeBase"],
+                    ["mixamorig:LeftShoulder", "mixamorig:LeftArm", "mixamorig:LeftForeArm", "mixamorig:LeftHand"]),
+    "Unreal": _body("pelvis", ["spine_01", "spine_02", "spine_03"], "neck_01", "head",
+                    ["thigh_l", "calf_l", "foot_l", "ball_l"], ["clavicle_l", "upperarm_l", "lowerarm_l", "hand_l"]),
+    "Rigify": _body("hips", ["spine", "chest", "upper_chest"], "neck", "head",
+                    ["thigh.L", "shin.L", "foot.L", "toe.L"], ["shoulder.L", "upper_arm.L", "forearm.L", "hand.L"]),
+    "VRoid": _body("J_Bip_C_Hips", ["J_Bip_C_Spine", "J_Bip_C_Chest", "J_Bip_C_UpperChest"], "J_Bip_C_Neck", "J_Bip_C_Head",
+                   ["J_Bip_L_UpperLeg", "J_Bip_L_LowerLeg", "J_Bip_L_Foot", "J_Bip_L_ToeBase"],
+                   ["J_Bip_L_Shoulder", "J_Bip_L_UpperArm", "J_Bip_L_LowerArm", "J_Bip_L_Hand"]),
+    "3ds Max Biped": _body("Bip01 Pelvis", ["Bip01 Spine", "Bip01 Spine1", "Bip01 Spine2"], "Bip01 Neck", "Bip01 Head",
+                           ["Bip01 L Thigh", "Bip01 L Calf", "Bip01 L Foot", "Bip01 L Toe0"],
+                           ["Bip01 L Clavicle", "Bip01 L UpperArm", "Bip01 L Forearm", "Bip01 L Hand"]),
+}
+
+
+@pytest.mark.parametrize("convention", CONVENTIONS)
+def test_humanoid_bones_are_guessed_from_common_naming_conventions(convention):
+    pairs = CONVENTIONS[convention]
+    names = [n for n, _ in pairs]
+    guessed = guess_humanoid(_skeleton(pairs))
+    expected = dict(zip(names, ["Hips", "Spine", "Chest", "UpperChest", "Neck", "Head"] + LEG + ARM))
+    assert guessed == expected
+
+
+def test_humanoid_guess_of_the_shipped_skeleton():
+    guessed = guess_humanoid(load_model(default_model_path()).layout.skeleton)
+    assert {guessed[n] for n in ("Hips", "UpperLeg_L", "LowerLeg_R", "Toes_L", "UpperArm_R", "Chest")} == {
+        "Hips", "LeftUpperLeg", "RightLowerLeg", "LeftToes", "RightUpperArm", "Chest"}
+
+
+@pytest.fixture(scope="module")
+def cmu_model(real_walks, tmp_path_factory):
+    """A model trained on the shared walks rewritten as a CMU-style capture (renamed, re-rooted,
+    3-channel ZYX joints), files named with hyphenated and numbered styles."""
+    folder = tmp_path_factory.mktemp("cmu")
+    for style, source in (("old-man", "_elderly_"), ("style2", "_active_")):
+        for k, path in enumerate([p for p in real_walks if source in p.name][:2]):
+            (folder / f"capture_{style}_{k + 1:03d}.bvh").write_text(cmu_named_walk(path))
+    out = folder / "cmu.npz"
+    result = cli("train", str(folder), "--out", str(out), "--quiet")
+    assert result.returncode == 0, result.stderr
+    return out, folder
+
+
+def test_cmu_style_capture_trains(cmu_model):
+    model = load_model(cmu_model[0])
+    assert model.style_names == ["old-man", "style2"]
+    joints = model.metadata["skeleton"]["joints"]
+    assert joints[0]["name"] == "Hips" and "joint_Root" not in [j["name"] for j in joints]
+    assert all(j["channels"] == ["Zrotation", "Yrotation", "Xrotation"] for j in joints[1:])
+    assert model.metadata["features"]["root"] == "Hips"
+
+
+def test_cmu_style_model_synthesises_on_its_own_skeleton(cmu_model, tmp_path):
+    out = tmp_path / "walk.bvh"
+    result = cli("synth", "--model", str(cmu_model[0]), "--style", "old-man=1", "--seconds", "3", "--out", str(out))
+    assert result.returncode == 0, result.stderr
+    walk = read_bvh(out)
+    assert walk.frames == 90 and walk.skeleton.names == load_model(cmu_model[0]).layout.skeleton.names
+
+
+def test_cmu_style_model_streams_vmc_with_guessed_bones(cmu_model):
+    receiver = Receiver()
+    try:
+        command = [sys.executable, "-m", "instrument", "run", "--model", str(cmu_model[0]), "--seconds", "2",
+                   "--osc", f"127.0.0.1:{receiver.port}/vmc", "--quiet"]
+        result = subprocess.run(command, capture_output=True, text=True, timeout=120)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and sum(1 for a, _ in receiver.messages() if a == "/VMC/Ext/OK") < 60:
+            time.sleep(0.1)
+    finally:
+        receiver.close()
+    assert result.returncode == 0, result.stderr
+    messages = receiver.messages()
+    bones = {p[0] for a, p in messages if a == "/VMC/Ext/Bone/Pos"}
+    assert {"Hips", "Spine", "Chest", "Neck", "Head", "LeftUpperLeg", "RightLowerLeg", "LeftFoot", "RightToes",
+            "LeftUpperArm", "RightLowerArm", "LeftHand"} <= bones
+    assert sum(1 for a, _ in messages if a == "/VMC/Ext/OK") == 60
+
+
+def test_a_model_says_so_when_it_meets_another_skeleton(cmu_model, real_walks, tmp_path):
+    model = load_model(cmu_model[0])
+    bandai = real_walks[0]
+    with pytest.raises(UserError) as error:
+        make_takes([(bandai, "normal")], read_motions([(bandai, "normal")], model.fps), model.layout)
+    message = str(error.value)
+    assert str(bandai) in message and "another skeleton" in message and "joint_Root" in message
+    bones = tmp_path / "bones.toml"
+    bones.write_text('[bones]\n"UpperLeg_L" = "LeftUpperLeg"\n')
+    with pytest.raises(UserError, match="another skeleton"):
+        read_humanoid(bones, model.layout.skeleton)
+    result = cli("run", "--model", str(cmu_model[0]), "--seconds", "1", "--osc", "127.0.0.1:9/vmc", "--humanoid", str(bones))
+    assert result.returncode == 1 and "another skeleton" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_mixed_skeletons_in_one_training_name_the_difference(cmu_model, real_walks, tmp_path):
+    _, folder = cmu_model
+    first = sorted(folder.glob("*.bvh"))[0]
+    result = cli("train", str(first), str(real_walks[0]), "--out", str(tmp_path / "x.npz"), "--quiet")
+    assert result.returncode == 1 and real_walks[0].name in result.stderr and "joint_Root" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
