@@ -8,7 +8,7 @@ from instrument.synthesis.durations import state_durations, whole_frames
 from instrument.synthesis.interpolation import GROUPS, interpolate, style_space
 from instrument.synthesis.mlpg import mlpg, mlpg_continued
 from instrument.synthesis.offline import default_controls, synthesize
-from instrument.synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Walker, state_plan, step
+from instrument.synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Crowd
 
 WINDOWS = [(0, 0, np.array([1.0])), (1, 1, np.array([-0.5, 0.0, 0.5])), (1, 1, np.array([1.0, -2.0, 1.0]))]
 
@@ -72,8 +72,8 @@ def test_variances_stay_positive_for_extreme_weights(model, space, weight):
     lam = interpolate(space, weights)
     assert np.isfinite(lam.precisions).all() and (lam.precisions > 0).all()
     assert (lam.duration_variances > 0).all()
-    walker = Walker(model.layout.dimension)
-    frames = np.vstack([step(space, [walker], [Controls(weights)]) for _ in range(40)])
+    walker = Crowd(space)
+    frames = np.vstack([walker.step([Controls(weights)]) for _ in range(40)])
     assert np.isfinite(frames).all()
 
 
@@ -120,15 +120,15 @@ def test_fractional_durations_never_drift():
 
 @pytest.mark.parametrize("speed", [0.5, 1.0, 2.0])
 def test_the_state_plan_follows_the_real_valued_durations(model, space, speed):
-    walker = Walker(model.layout.dimension)
-    plan = state_plan(space, walker, default_controls(model, speed=speed), 6000)
+    walker = Crowd(space)
+    plan = walker.state_plan(default_controls(model, speed=speed), 6000)
     states_entered = np.count_nonzero(np.diff(plan) != 0) + 1
-    mean_duration = np.mean(walker.base)  # real-valued frames per state after speed control
+    mean_duration = np.mean(walker.base[0])  # real-valued frames per state after speed control
     assert 6000 / states_entered == pytest.approx(mean_duration, rel=0.01)
     if speed == 0.5:  # no state is near the one-frame floor: the step takes exactly twice as long
-        natural = Walker(model.layout.dimension)
-        state_plan(space, natural, default_controls(model), 10)
-        assert np.sum(walker.base) == pytest.approx(2 * np.sum(natural.base))
+        natural = Crowd(space)
+        natural.state_plan(default_controls(model), 10)
+        assert np.sum(walker.base[0]) == pytest.approx(2 * np.sum(natural.base[0]))
 
 
 @pytest.mark.parametrize("style", ["elderly", "youthful", None])
@@ -154,13 +154,13 @@ def test_short_lookahead_is_measurably_worse(model, space):
 def test_abrupt_weight_change_stays_within_recorded_pace(model, space, target):
     names = model.style_names
     for name in names:
-        walker = Walker(model.layout.dimension)
+        walker = Crowd(space)
         frames = []
         for n in range(150):
             weights = np.zeros(len(names))
             if n >= 80:
                 weights[names.index(name)] = target
-            frames.append(step(space, [walker], [Controls(weights)])[0])
+            frames.append(walker.step([Controls(weights)])[0])
         change = np.abs(np.diff(np.array(frames), axis=0))
         assert (change <= model.static_step_max * (1 + 1e-9)).all(), name
 
@@ -169,23 +169,23 @@ def test_without_the_rate_limit_an_abrupt_change_can_exceed_the_recorded_pace(mo
     names = model.style_names
     worst = 0.0
     for name in ("active", "youthful"):
-        walker = Walker(model.layout.dimension, max_step_ratio=0.0)
-        frames = [step(space, [walker], [Controls(2.0 * (np.arange(len(names)) == names.index(name)) * (n >= 80))])[0]
+        walker = Crowd(space, max_step_ratio=0.0)
+        frames = [walker.step([Controls(2.0 * (np.arange(len(names)) == names.index(name)) * (n >= 80))])[0]
                   for n in range(100)]
         worst = max(worst, (np.abs(np.diff(np.array(frames), axis=0)) / model.static_step_max).max())
     assert worst > 1.0  # so the limit in the test above is doing real work
 
 
 def test_a_control_change_shows_in_the_very_next_frame(model, space):
-    d, names = model.layout.dimension, model.style_names
-    steady, changed = Walker(d), Walker(d)
+    names = model.style_names
+    steady, changed = Crowd(space), Crowd(space)
     calm = Controls(np.zeros(len(names)))
     for _ in range(45):
-        a = step(space, [steady], [calm])
-        b = step(space, [changed], [calm])
+        a = steady.step([calm])
+        b = changed.step([calm])
         np.testing.assert_array_equal(a, b)
     bold = Controls(np.eye(len(names))[names.index("feminine")] * 2.0)
-    assert np.abs(step(space, [changed], [bold]) - step(space, [steady], [calm])).max() > 1e-3
+    assert np.abs(changed.step([bold]) - steady.step([calm])).max() > 1e-3
 
 
 def test_liveliness_is_deterministic_per_seed(model, space):
@@ -200,11 +200,47 @@ def test_liveliness_is_deterministic_per_seed(model, space):
 
 
 def test_a_crowd_step_equals_each_walker_alone(model, space):
-    d, names = model.layout.dimension, model.style_names
+    names = model.style_names
     controls = [Controls(np.eye(len(names))[k % len(names)] * (0.5 + k)) for k in range(5)]
-    crowd = [Walker(d, seed=k) for k in range(5)]
-    alone = [Walker(d, seed=k) for k in range(5)]
+    crowd = Crowd(space, 5)
+    alone = [Crowd(space, seeds=[k]) for k in range(5)]
     for _ in range(40):
-        together = step(space, crowd, controls)
-        separate = np.vstack([step(space, [w], [c]) for w, c in zip(alone, controls)])
+        together = crowd.step(controls)
+        separate = np.vstack([w.step([c]) for w, c in zip(alone, controls)])
         np.testing.assert_allclose(together, separate, atol=1e-12)
+
+
+def _performance(names, states, frame):
+    """Controls that move every way a performer can: weights in and out of the data, per-part
+    weights, speed, phase stretch and liveliness switched on and off mid-walk."""
+    weights = np.zeros(len(names))
+    weights[frame // 40 % len(names)] = (-1.0, 0.5, 1.0, 2.0)[frame // 25 % 4]
+    parts = None
+    if 100 <= frame < 160:
+        parts = np.full((len(names), len(GROUPS)), np.nan)
+        parts[0] = [0.0, 1.5, -0.5]
+    scale = np.ones(states)
+    scale[frame // 30 % states] = 1.0 + (frame % 90) / 30.0
+    return Controls(weights, parts, speed=0.5 + (frame // 50 % 5) * 0.6, state_scale=scale,
+                    liveliness=(0.0, 1.0, 0.4)[frame // 70 % 3])
+
+
+def test_the_compiled_path_makes_the_frames_the_python_path_made(model, space):
+    """The per-frame path compiled as one kernel gives the frames (and state plans) of the plain
+    Python implementation it replaced (tests/reference_stream.py), for one character and a crowd
+    with different seeds, rate limits and controls."""
+    import reference_stream as reference
+
+    names, d = model.style_names, model.layout.dimension
+    ratios = [1.0, 0.0, 0.5]
+    crowd = Crowd(space, 3, seeds=[3, 11, 0], max_step_ratio=np.array(ratios))
+    walkers = [reference.Walker(d, seed=s, max_step_ratio=r) for s, r in zip([3, 11, 0], ratios)]
+    for frame in range(400):
+        controls = [_performance(names, space.states, frame + 17 * n) for n in range(3)]
+        new = crowd.step(controls)
+        old = reference.step(space, walkers, controls)
+        np.testing.assert_allclose(new, old, atol=1e-12, rtol=0, err_msg=f"frame {frame}")
+        np.testing.assert_allclose(crowd.cadence, [w.cadence for w in walkers], rtol=1e-15)
+    lively = default_controls(model, {"elderly": 1.0}, liveliness=1.0, speed=1.7)
+    np.testing.assert_array_equal(Crowd(space, seeds=[9]).state_plan(lively, 3000),
+                                  reference.state_plan(space, reference.Walker(d, seed=9), lively, 3000))

@@ -22,7 +22,7 @@ from ..control.state import ControlState
 from ..models.modelfile import Model
 from ..synthesis.interpolation import style_space
 from ..synthesis.offline import drive
-from ..synthesis.stream import DEFAULT_LOOKAHEAD, Walker, step
+from ..synthesis.stream import DEFAULT_LOOKAHEAD, Crowd
 from .clock import FrameClock
 from .console import Console
 from .pose import Pose, PoseStream
@@ -49,7 +49,7 @@ class Engine:
     def __init__(self, model: Model, lookahead: int = DEFAULT_LOOKAHEAD, seed: int = 0):
         self.model = model
         self.space = style_space(model)
-        self.walker = Walker(model.layout.dimension, lookahead=lookahead, seed=seed)
+        self.walker = Crowd(self.space, 1, lookahead, seeds=[seed])
         self.frames: list[np.ndarray] = []  # the last two model frames, driven
         self.made = 0  # model frames made
 
@@ -62,8 +62,8 @@ class Engine:
         position = time_s * self.model.fps
         newest = int(np.ceil(position - 1e-9))
         while self.made <= newest:
-            frame = step(self.space, [self.walker], [controls])[0]
-            self.frames = (self.frames + [drive(frame, self.walker.cadence, controls.turn)])[-2:]
+            frame = self.walker.step([controls])[0]
+            self.frames = (self.frames + [drive(frame, self.walker.cadence[0], controls.turn)])[-2:]
             self.made += 1
         fraction = position - (newest - 1)
         if fraction >= 1.0 - 1e-9 or len(self.frames) == 1:

@@ -33,16 +33,19 @@ def _precision_row(second, k, as_variance, row):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
-def _solve(means, second, as_variance, fixed, count, out, l1, l2):  # pragma: no cover - compiled
-    """means and `second` (precisions, or variances when as_variance): (N, M, 3D); fixed:
-    (N, max(F, 1), D) holding F = count known frames; out: (N, M - F, D); l1, l2: (M, D) work.
+def _solve(means, second, rows, as_variance, fixed, count, out, l1, l2):  # pragma: no cover - compiled
+    """means and `second` (precisions, or variances when as_variance): (N, R, 3D) tables whose
+    rows[n, t] is frame t of window n (rows: (N, M), so a stream reads its model's few state rows
+    in place instead of copying a window); fixed: (N, max(F, 1), D) holding F = count known
+    frames; out: (N, M - F, D); l1, l2: (M, D) work.
 
     One forward sweep forms row t of W'PW (from the windows centred on t-1, t and t+1) and
     eliminates it at once (LDL'); one backward sweep substitutes. Precisions and pivots live in
     three-row rolling buffers, so nothing the size of the input is allocated; the branches are
     per frame, so the loop over dimensions is straight-line code the compiler can vectorise.
     """
-    n_seq, frames, width = means.shape
+    n_seq, frames = rows.shape
+    width = means.shape[2]
     dim = width // 3
     prec_rows = np.empty((3, width))
     pivots = np.ones((3, dim))
@@ -51,12 +54,13 @@ def _solve(means, second, as_variance, fixed, count, out, l1, l2):  # pragma: no
     for n in range(n_seq):
         z = out[n]  # the forward sweep's values, overwritten by the solution
         mu = means[n]
-        _precision_row(second[n], max(count - 1, 0), as_variance, prec_rows[max(count - 1, 0) % 3])
-        _precision_row(second[n], count, as_variance, prec_rows[count % 3])
+        row = rows[n]
+        _precision_row(second[n], row[max(count - 1, 0)], as_variance, prec_rows[max(count - 1, 0) % 3])
+        _precision_row(second[n], row[count], as_variance, prec_rows[count % 3])
         for t in range(count, frames):
             tp, tn, tpp = max(t - 1, 0), min(t + 1, frames - 1), max(t - 2, 0)
             if t + 1 < frames:
-                _precision_row(second[n], t + 1, as_variance, prec_rows[(t + 1) % 3])
+                _precision_row(second[n], row[t + 1], as_variance, prec_rows[(t + 1) % 3])
             # dynamic windows centred on the first or last frame have zero precision
             w_here = 1.0 if 0 < t < frames - 1 else 0.0
             w_prev = 1.0 if 0 < t - 1 else 0.0
@@ -70,6 +74,7 @@ def _solve(means, second, as_variance, fixed, count, out, l1, l2):  # pragma: no
             rt, rp, rn = t % 3, tp % 3, tn % 3  # rows of the rolling precision buffer
             qt, qp, qpp = t % 3, tp % 3, tpp % 3  # rows of the rolling pivot buffers
             zt, zp, zpp = t - count, max(tp - count, 0), max(tpp - count, 0)
+            mt, mp, mn = row[t], row[tp], row[tn]  # the table rows of frames t, t - 1, t + 1
             for d in range(dim):
                 p0 = prec_rows[rt, d]
                 p2_here = prec_rows[rt, 2 * dim + d] * w_here
@@ -79,9 +84,9 @@ def _solve(means, second, as_variance, fixed, count, out, l1, l2):  # pragma: no
                 p2_next = prec_rows[rn, 2 * dim + d] * w_next
                 diag = (p0 + D_PREV * D_PREV * p1_next + D_NEXT * D_NEXT * p1_prev
                         + A_PREV * A_PREV * p2_next + A_MID * A_MID * p2_here + A_NEXT * A_NEXT * p2_prev)
-                rhs = (p0 * mu[t, d] + A_MID * p2_here * mu[t, 2 * dim + d]
-                       + D_PREV * p1_next * mu[tn, dim + d] + A_PREV * p2_next * mu[tn, 2 * dim + d]
-                       + D_NEXT * p1_prev * mu[tp, dim + d] + A_NEXT * p2_prev * mu[tp, 2 * dim + d])
+                rhs = (p0 * mu[mt, d] + A_MID * p2_here * mu[mt, 2 * dim + d]
+                       + D_PREV * p1_next * mu[mn, dim + d] + A_PREV * p2_next * mu[mn, 2 * dim + d]
+                       + D_NEXT * p1_prev * mu[mp, dim + d] + A_NEXT * p2_prev * mu[mp, 2 * dim + d])
                 a1 = A_PREV * A_MID * p2_here + A_MID * A_NEXT * p2_prev  # A[t-1, t]
                 a2 = D_PREV * D_NEXT * p1_prev + A_PREV * A_NEXT * p2_prev  # A[t-2, t]
                 rhs -= known1 * a1 * fixed[n, fp, d] + known2 * a2 * fixed[n, fpp, d]
@@ -125,7 +130,8 @@ def mlpg_continued(means: np.ndarray, precisions: np.ndarray, fixed: np.ndarray,
     # work arrays come from numpy, whose allocator reuses memory: fresh pages cost more than the solve
     l1 = np.zeros((frames, width // 3))
     l2 = np.zeros((frames, width // 3))
-    _solve(means, precisions, as_variance, fixed, count, out, l1, l2)
+    rows = np.broadcast_to(np.arange(frames), (sequences, frames))
+    _solve(means, precisions, rows, as_variance, fixed, count, out, l1, l2)
     return out
 
 

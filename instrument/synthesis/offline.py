@@ -7,7 +7,7 @@ import numpy as np
 from ..models.modelfile import Model
 from .interpolation import StyleSpace
 from .mlpg import mlpg_continued
-from .stream import DEFAULT_LOOKAHEAD, Controls, Walker, state_plan, step
+from .stream import DEFAULT_LOOKAHEAD, Controls, Crowd
 
 ROOT_RATES = slice(1, 4)  # root.vx, root.vz, root.yaw_rate in the static features
 
@@ -31,14 +31,14 @@ def synthesize(
     seed: int = 0,
 ) -> np.ndarray:
     """Static features (frames, D) of a walk with constant controls, root speeds driven."""
-    walker = Walker(dimension, lookahead=lookahead, seed=seed)
+    walker = Crowd(space, 1, lookahead, seeds=[seed])
     if method == "full":
-        ids = state_plan(space, walker, controls, frames)
-        lam = walker.lam
+        ids = walker.state_plan(controls, frames)
+        lam = walker.lams[0]
         static = mlpg_continued(lam.means[ids][None], lam.precisions[ids][None], np.zeros((1, 0, dimension)))[0]
     else:
-        static = np.vstack([step(space, [walker], [controls]) for _ in range(frames)])
-    return drive(static, walker.cadence, controls.turn)
+        static = np.vstack([walker.step([controls]) for _ in range(frames)])
+    return drive(static, walker.cadence[0], controls.turn)
 
 
 def default_controls(model: Model, weights: dict[str, float] | None = None, **kwargs) -> Controls:

@@ -6,22 +6,28 @@ current lambda* and durations. Controls are read every frame, so any change show
 next frame; the fixed past and a rate limit at the pace of the recorded data keep it from
 jumping.
 
-A `Walker` is one character's running state: where it is in its step, what it has sent, its
-random draws. `step` advances any number of walkers by one frame in a single batched solve.
+A `Crowd` is the running state of N characters held in arrays: where each is in its step, what
+it has sent, its random draws. One compiled call per frame plans every character's look-ahead,
+gathers its window, solves all windows, limits the rate and commits the frame; Python only
+swaps a character's lambda* and duration tables when its controls change. One character is a
+crowd of one.
 """
 
 from __future__ import annotations
 
-from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
-from .durations import MIN_FRAMES, state_durations, whole_frames
+from .durations import MIN_FRAMES, state_durations
 from .interpolation import Lambda, StyleSpace, interpolate
-from .mlpg import mlpg_continued
+from .mlpg import _solve
 
 DEFAULT_LOOKAHEAD = 32  # frames: one stride (two steps) at 30 fps; see the README for the trade-off
+
+# rows of Crowd.counters
+LABEL, STATE, ELAPSED, HEAD, TAIL, FILLED = range(6)
 
 
 @dataclass
@@ -42,142 +48,207 @@ class Controls:
         return (np.asarray(self.weights, dtype=np.float64).tobytes(), parts, float(self.speed), scale, float(self.liveliness))
 
 
-@dataclass
-class Walker:
-    """One character's position in the walk and what it has sent."""
+class Crowd:
+    """N characters walking, each with its own controls, seed and random draws.
 
-    dimension: int
-    lookahead: int = DEFAULT_LOOKAHEAD
-    seed: int = 0
-    max_step_ratio: float = 1.0  # frame-to-frame change limited to this times the data's largest; 0: no limit
-    label: int = 0  # 0 right step, 1 left step
-    state: int = 0
-    elapsed: int = 0  # frames already sent in the current state
-    carry: float = 0.0  # fractional frames carried into the current state
-    sent: int = 0
-    history: np.ndarray = field(default=None)  # (2, D): the last two frames sent, oldest first
-    history_ids: list = field(default_factory=lambda: [0, 0])  # their (label, state) indices
-    cadence: float = 1.0  # model step length / planned step length (scales root speeds)
-    draws: deque = field(default_factory=deque)  # liveliness draws for the current and coming states
-    rng: np.random.Generator = field(default=None)
-    lam: Lambda | None = None
-    lam_key: tuple | None = None
-    base: list | None = None  # [label][state] durations before liveliness (lists: read per frame)
-    sigma: list | None = None  # [label][state] duration standard deviations times liveliness
+    Liveliness draws come from each character's own generator in a fixed order, pre-drawn into
+    a pool (`pool[n, head:tail]` are the draws of the current and coming states; the numbers
+    after `tail` are drawn but not yet used), so the same seed gives the same walk however the
+    pool is refilled.
+    """
 
-    def __post_init__(self) -> None:
-        if self.history is None:
-            self.history = np.zeros((2, self.dimension))
-        if self.rng is None:
-            self.rng = np.random.default_rng(self.seed)
+    def __init__(self, space: StyleSpace, count: int = 1, lookahead: int = DEFAULT_LOOKAHEAD,
+                 seeds: list[int] | None = None, max_step_ratio: float | np.ndarray = 1.0):
+        seeds = list(range(count)) if seeds is None else list(seeds)
+        if len(seeds) != count:
+            raise ValueError("one seed per character")
+        self.space = space
+        self.count = count
+        self.lookahead = lookahead
+        labels_states, width = space.base.shape[1], space.base.shape[2]
+        dimension = width // 3
+        self.sent = 0
+        self.counters = np.zeros((count, 6), dtype=np.int64)
+        self.carry = np.zeros(count)
+        self.history = np.zeros((count, 2, dimension))
+        self.history_ids = np.zeros((count, 2), dtype=np.int64)
+        # a frame's change is limited to this times the data's largest (0: no limit)
+        self.max_step_ratio = np.broadcast_to(np.asarray(max_step_ratio, dtype=np.float64), (count,)).copy()
+        self.means = np.zeros((count, labels_states, width))
+        self.precisions = np.ones((count, labels_states, width))
+        self.base = np.ones((count, space.labels, space.states))  # frames per state before liveliness
+        self.sigma = np.zeros((count, space.labels, space.states))  # duration sd times liveliness
+        self.cadence = np.ones(count)  # model step length / planned step length (scales root speeds)
+        self.lams: list[Lambda | None] = [None] * count
+        self._keys: list[tuple | None] = [None] * count
+        self._last: list[Controls | None] = [None] * count
+        self.rngs = [np.random.default_rng(seed) for seed in seeds]
+        self.pool = np.zeros((count, 4 * (lookahead + 8)))
+        self._buffers: dict[int, tuple] = {}
 
-    def draw(self, k: int) -> float:
-        """The liveliness draw of the k-th state from the current one (deterministic per seed)."""
-        while len(self.draws) <= k:
-            self.draws.append(float(self.rng.standard_normal()))
-        return self.draws[k]
+    def refresh(self, controls: list[Controls]) -> None:
+        """Recompute lambda* and the durations of the characters whose controls changed."""
+        for n, control in enumerate(controls):
+            if control is self._last[n]:
+                continue
+            self._last[n] = control
+            key = control.key()
+            if key == self._keys[n]:
+                continue
+            space = self.space
+            lam = interpolate(space, control.weights, control.part_weights)
+            scale = np.ones(space.states) if control.state_scale is None else np.asarray(control.state_scale, dtype=np.float64)
+            base = state_durations(lam.duration_means, lam.duration_variances, control.speed, scale)
+            self.lams[n], self._keys[n] = lam, key
+            self.means[n], self.precisions[n] = lam.means, lam.precisions
+            self.base[n] = base
+            self.sigma[n] = control.liveliness * np.sqrt(lam.duration_variances) * scale
+            self.cadence[n] = float(np.maximum(lam.duration_means, MIN_FRAMES).sum() / base.sum())
+
+    def _draws_for(self, frames: int) -> None:
+        """Make sure every character has draws for a plan over `frames` frames (at most one state
+        instance a frame, plus the one being left)."""
+        need = frames + 3
+        counters = self.counters
+        if (counters[:, FILLED] - counters[:, TAIL]).min() >= need:
+            return
+        if self.pool.shape[1] < 2 * need:
+            grown = np.zeros((self.count, 2 * need + self.pool.shape[1]))
+            grown[:, : self.pool.shape[1]] = self.pool
+            self.pool = grown
+        for n, rng in enumerate(self.rngs):
+            head, filled = counters[n, HEAD], counters[n, FILLED]
+            if filled - counters[n, TAIL] >= need:
+                continue
+            kept = filled - head  # draws in use or drawn ahead, in order
+            self.pool[n, :kept] = self.pool[n, head:filled]
+            self.pool[n, kept:] = rng.standard_normal(self.pool.shape[1] - kept)
+            counters[n, HEAD] -= head
+            counters[n, TAIL] -= head
+            counters[n, FILLED] = self.pool.shape[1]
+
+    def _window_buffers(self, fixed: int) -> tuple:
+        if fixed not in self._buffers:
+            window = fixed + self.lookahead + 1
+            width = self.means.shape[2]
+            self._buffers[fixed] = (
+                np.zeros((self.count, window), dtype=np.int64),  # each window's rows of the lambda* tables
+                np.zeros((self.count, window - fixed, width // 3)),  # solved frames
+                np.zeros((window, width // 3)), np.zeros((window, width // 3)),  # solver work
+                np.zeros((self.count, self.lookahead + 1), dtype=np.int64),  # planned ids
+                np.zeros((self.count, self.lookahead + 3), dtype=np.int64),  # state instances: frames
+                np.zeros((self.count, self.lookahead + 3)),  # and carries
+            )
+        return self._buffers[fixed]
+
+    def step(self, controls: list[Controls]) -> np.ndarray:
+        """One frame for each character, (N, D)."""
+        self.refresh(controls)
+        self._draws_for(self.lookahead + 1)
+        fixed = min(self.sent, 2)
+        frames = np.empty((self.count, self.means.shape[2] // 3))
+        _advance(self.means, self.precisions, self.base, self.sigma, self.counters, self.carry, self.pool,
+                 self.history, self.history_ids, self.max_step_ratio, self.space.max_step, fixed,
+                 *self._window_buffers(fixed), frames)
+        self.sent += 1
+        return frames
+
+    def state_plan(self, controls: Controls, frames: int) -> np.ndarray:
+        """The state indices character 0 would pass through over `frames` frames with constant
+        controls, without generating anything (the plan full-sequence MLPG uses)."""
+        self.refresh([controls] * self.count)
+        self._draws_for(frames)
+        ids = np.zeros(frames, dtype=np.int64)
+        counts = np.zeros(frames + 3, dtype=np.int64)
+        carries = np.zeros(frames + 3)
+        tail = _plan(self.base[0], self.sigma[0], self.counters[0], self.carry[0], self.pool[0], ids, counts, carries)[1]
+        self.counters[0, TAIL] = tail  # the draws the plan made stay the character's (as if drawn now)
+        return ids
 
 
-def refresh(space: StyleSpace, walker: Walker, controls: Controls) -> None:
-    """Recompute lambda* and the durations when the controls they depend on have changed."""
-    key = controls.key()
-    if key == walker.lam_key:
-        return
-    lam = interpolate(space, controls.weights, controls.part_weights)
-    scale = np.ones(space.states) if controls.state_scale is None else np.asarray(controls.state_scale, dtype=np.float64)
-    walker.lam, walker.lam_key = lam, key
-    base = state_durations(lam.duration_means, lam.duration_variances, controls.speed, scale)
-    walker.base = base.tolist()
-    walker.sigma = (controls.liveliness * np.sqrt(lam.duration_variances) * scale).tolist()
-    walker.cadence = float(np.maximum(lam.duration_means, MIN_FRAMES).sum() / base.sum())
+@njit(cache=True, nogil=True)
+def _plan(base, sigma, counter, carry, pool, ids, counts, carries):  # pragma: no cover - compiled
+    """Fill ids (label * states + state) for len(ids) frames and the frames and carry-out of each
+    state instance the plan passes through, from the current one; returns (instances, tail).
 
-
-def _duration(walker: Walker, label: int, state: int, k: int) -> float:
-    d = walker.base[label][state]
-    sigma = walker.sigma[label][state]
-    return max(MIN_FRAMES, d + sigma * walker.draw(k)) if sigma else d
-
-
-def plan(walker: Walker, states: int, frames: int) -> tuple[list[int], list[tuple[int, float]]]:
-    """(label * states + state) for the next `frames` frames, and (frames, carry-out) of the
-    state instances the plan passes through, starting with the current one."""
-    ids: list[int] = []
-    instances: list[tuple[int, float]] = []
-    label, state, elapsed, carry, k = walker.label, walker.state, walker.elapsed, walker.carry, 0
-    while len(ids) < frames:
-        count, carry_out = whole_frames(_duration(walker, label, state, k), carry)
-        instances.append((count, carry_out))
-        ids.extend([label * states + state] * max(count - elapsed, 0))
-        carry, elapsed, k = carry_out, 0, k + 1
+    Durations are real-valued: each instance takes floor(duration + carry) frames (at least
+    one) and carries the rest on, so a long performance never drifts."""
+    states = base.shape[1]
+    label, state, elapsed = counter[LABEL], counter[STATE], counter[ELAPSED]
+    head, tail = counter[HEAD], counter[TAIL]
+    frames = ids.shape[0]
+    filled, k = 0, 0
+    while filled < frames:
+        duration = base[label, state]
+        spread = sigma[label, state]
+        if spread != 0.0:
+            if head + k >= tail:
+                tail = head + k + 1
+            duration = max(MIN_FRAMES, duration + spread * pool[head + k])
+        count = max(1, int(np.floor(duration + carry)))
+        carry = duration + carry - count
+        counts[k], carries[k] = count, carry
+        for _ in range(max(count - elapsed, 0)):
+            if filled < frames:
+                ids[filled] = label * states + state
+                filled += 1
+        elapsed, k = 0, k + 1
         state += 1
         if state == states:
             state, label = 0, 1 - label
-    return ids[:frames], instances
+    return k, tail
 
 
-def _commit(walker: Walker, states: int, instances: list[tuple[int, float]]) -> None:
-    """Advance the walker by the one frame just sent."""
-    k = 0
-    if walker.elapsed >= instances[0][0]:  # the current state was shortened below what it already had
-        _finish(walker, states, instances[0][1])
-        k = 1
-    walker.elapsed += 1
-    if walker.elapsed >= instances[k][0]:
-        _finish(walker, states, instances[k][1])
+@njit(cache=True, nogil=True)
+def _finish(counter, carry, n, carry_out, states):  # pragma: no cover - compiled
+    carry[n] = carry_out
+    counter[ELAPSED] = 0
+    if counter[TAIL] > counter[HEAD]:
+        counter[HEAD] += 1
+    counter[STATE] += 1
+    if counter[STATE] == states:
+        counter[STATE], counter[LABEL] = 0, 1 - counter[LABEL]
 
 
-def _finish(walker: Walker, states: int, carry_out: float) -> None:
-    walker.carry, walker.elapsed = carry_out, 0
-    if walker.draws:
-        walker.draws.popleft()
-    walker.state += 1
-    if walker.state == states:
-        walker.state, walker.label = 0, 1 - walker.label
-
-
-def step(space: StyleSpace, walkers: list[Walker], controls: list[Controls]) -> np.ndarray:
-    """One frame for each walker, (N, D), solved together. All walkers share one look-ahead and
-    have sent the same number of frames (a crowd starts together)."""
-    lookahead = walkers[0].lookahead
-    fixed = min(walkers[0].sent, 2)
-    width = space.base.shape[2]
-    means = np.empty((len(walkers), fixed + lookahead + 1, width))
-    precisions = np.empty_like(means)
-    plans = []
-    for n, (walker, control) in enumerate(zip(walkers, controls)):
-        refresh(space, walker, control)
-        ids, instances = plan(walker, space.states, lookahead + 1)
-        window = walker.history_ids[2 - fixed :] + ids
-        means[n] = walker.lam.means[window]
-        precisions[n] = walker.lam.precisions[window]
-        plans.append((ids[0], instances))
-    history = np.stack([w.history[2 - fixed :] for w in walkers])
-    frames = mlpg_continued(means, precisions, history)[:, 0]
-    if fixed:
-        frames = _limit_rate(space, walkers, frames)
-    for walker, frame, (sent_id, instances) in zip(walkers, frames, plans):
-        walker.history = np.vstack([walker.history[1:], frame])
-        walker.history_ids = [walker.history_ids[1], sent_id]
-        walker.sent += 1
-        _commit(walker, space.states, instances)
-    return frames
-
-
-def _limit_rate(space: StyleSpace, walkers: list[Walker], frames: np.ndarray) -> np.ndarray:
-    """No dimension moves further in one frame than the recorded data ever did (times the
-    walker's ratio): an abrupt control change becomes a fast but humanly possible transition,
-    and the next frames re-plan from where this one really is."""
-    ratios = np.array([w.max_step_ratio for w in walkers])
-    if not ratios.any():
-        return frames
-    previous = np.stack([w.history[1] for w in walkers])
-    limit = np.where(ratios[:, None] > 0, ratios[:, None] * space.max_step, np.inf)
-    return previous + np.clip(frames - previous, -limit, limit)
-
-
-def state_plan(space: StyleSpace, walker: Walker, controls: Controls, frames: int) -> np.ndarray:
-    """The state indices a walker would pass through over `frames` frames with constant
-    controls, without generating anything (the plan full-sequence MLPG uses)."""
-    refresh(space, walker, controls)
-    ids, _ = plan(walker, space.states, frames)
-    return np.asarray(ids)
+@njit(cache=True, nogil=True)
+def _advance(means, precisions, base, sigma, counters, carry, pool, history, history_ids, ratios, max_step, fixed,
+             rows, solved, work1, work2, ids, counts, carries, frames):  # pragma: no cover - compiled
+    """Plan, solve, rate-limit and commit one frame for every character, in place. The solver
+    reads each window's means and precisions from the character's lambda* tables (`rows`)."""
+    count, states = means.shape[0], base.shape[2]
+    dimension = history.shape[2]
+    for n in range(count):
+        counters[n, TAIL] = _plan(base[n], sigma[n], counters[n], carry[n], pool[n], ids[n], counts[n], carries[n])[1]
+        for m in range(fixed):
+            rows[n, m] = history_ids[n, 2 - fixed + m]
+        for m in range(ids.shape[1]):
+            rows[n, fixed + m] = ids[n, m]
+    known = history[:, 2 - fixed:] if fixed else np.zeros((count, 1, dimension))
+    work1[:] = 0.0
+    work2[:] = 0.0
+    solved[:] = 0.0
+    _solve(means, precisions, rows, False, np.ascontiguousarray(known), fixed, solved, work1, work2)
+    limit_any = False
+    for n in range(count):
+        limit_any = limit_any or ratios[n] > 0
+    for n in range(count):
+        for d in range(dimension):
+            value = solved[n, 0, d]
+            if fixed and limit_any:  # no feature moves further in a frame than the data ever did
+                previous = history[n, 1, d]
+                bound = ratios[n] * max_step[d] if ratios[n] > 0 else np.inf
+                value = previous + min(max(value - previous, -bound), bound)
+            frames[n, d] = value
+        history[n, 0] = history[n, 1]
+        history[n, 1] = frames[n]
+        history_ids[n, 0] = history_ids[n, 1]
+        history_ids[n, 1] = ids[n, 0]
+        # advance by the frame just sent; the current state may have been shortened below what it had
+        counter = counters[n]
+        k = 0
+        if counter[ELAPSED] >= counts[n, 0]:
+            _finish(counter, carry, n, carries[n, 0], states)
+            k = 1
+        counter[ELAPSED] += 1
+        if counter[ELAPSED] >= counts[n, k]:
+            _finish(counter, carry, n, carries[n, k], states)
