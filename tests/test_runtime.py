@@ -2,6 +2,7 @@
 
 import filecmp
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -119,10 +120,21 @@ def test_a_dead_target_leaves_the_run_and_the_recording_intact(tmp_path):
     assert sum(1 for a, _ in receiver.messages() if a == "/VMC/Ext/OK") == 60
 
 
+def wait_for_frames(path, frames: int, deadline: float = 120.0) -> None:
+    """Poll a BVH being recorded until its header counts `frames` (start-up time varies with load)."""
+    until = time.monotonic() + deadline
+    while time.monotonic() < until:
+        counted = re.search(rb"\nFrames: (\d+)", path.read_bytes()) if path.exists() else None
+        if counted and int(counted.group(1)) >= frames:
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"{path} never reached {frames} frames")
+
+
 def test_ctrl_c_leaves_a_valid_recording(tmp_path):
     path = tmp_path / "take.bvh"
     process = subprocess.Popen(RUN + ["--no-osc", "--bvh", str(path), "--quiet"], stderr=subprocess.PIPE, text=True)
-    time.sleep(3)
+    wait_for_frames(path, 30)
     process.send_signal(signal.SIGINT)
     assert process.wait(20) == 0
     motion = read_bvh(path)
@@ -132,7 +144,7 @@ def test_ctrl_c_leaves_a_valid_recording(tmp_path):
 def test_a_killed_run_is_recovered(tmp_path):
     path = tmp_path / "take.bvh"
     process = subprocess.Popen(RUN + ["--no-osc", "--bvh", str(path), "--quiet"])
-    time.sleep(3)
+    wait_for_frames(path, 30)
     process.kill()
     process.wait(20)
     result = subprocess.run([sys.executable, "-m", "instrument", "recover", str(path)], capture_output=True, text=True)
