@@ -20,6 +20,8 @@ def read_toml(path: str | Path) -> tuple[str, dict]:
         text = path.read_text(encoding="utf-8")
     except OSError as e:
         raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
+    except UnicodeDecodeError as e:
+        raise UserError(f"{path}: not UTF-8 text (byte {e.start})") from None
     try:
         return text, tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:

@@ -101,11 +101,14 @@ def apply_show_file(args: argparse.Namespace) -> dict:
 def check_presets(presets: dict, state: ControlState, where: str) -> dict[str, dict[str, float]]:
     out = {}
     for name, values in presets.items():
-        if not isinstance(values, dict) or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values.values()):
+        if not isinstance(values, dict):
             raise UserError(f"{where}: presets.{name}: expected target = number pairs")
-        for target in values:
-            if not state.knows(target):
+        for target, value in values.items():
+            why = state.problem(target, value)  # the table of targets: control/targets.py
+            if why == "unknown target":
                 raise UserError(f"{where}: presets.{name}: unknown target {target!r}")
+            if why is not None:
+                raise UserError(f"{where}: presets.{name}: {target}: {why}, not {value!r}")
         out[name] = {k: float(v) for k, v in values.items()}
     return out
 

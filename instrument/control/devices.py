@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import re
 import socket
+import threading
 import time
 from typing import Iterator
 
@@ -16,6 +17,7 @@ from ..errors import UserError
 from ..runtime.console import Console
 from . import oscparse
 from .events import ControlEvent
+from .jackwatch import JackWatch
 
 RETRY_SECONDS = 1.0
 POLL_BUDGET = 0.0005  # seconds a device's poll may spend decoding; the rest stays queued for the next
@@ -60,6 +62,10 @@ class MidiInput:
     python-rtmidi queues incoming messages in C++; the performance loop drains the queue each
     frame. No Python callback thread competes with the clock for the interpreter, so a flood of
     messages costs only their decoding.
+
+    On JACK, a restart of the server kills our client with it: a `JackWatch` notices, and a
+    background thread makes a new client (and virtual port) once the server is back, while the
+    walk goes on and the status line says "waiting".
     """
 
     def __init__(self, console: Console, pattern: str | None = None, virtual: str | None = None, api: str | None = None):
@@ -69,15 +75,57 @@ class MidiInput:
         self.console, self.pattern, self.virtual = console, pattern, virtual
         self.api = getattr(rtmidi, RTMIDI_APIS[api])
         try:
-            self.port = rtmidi.MidiIn(self.api, name="instrument", queue_size_limit=QUEUE_LIMIT)
+            self.port = self._new_port()
         except Exception as error:  # no MIDI system at all (no ALSA, no JACK server)
             raise UserError(f"MIDI is not available ({api or 'default'} API): {error}") from None
-        self.port.ignore_types(sysex=True, timing=True, active_sense=True)
         self.open = False
         self.port_name = ""
         self.next_attempt = 0.0
         self.received = 0
+        self.watch = JackWatch() if api == "jack" else None
+        self.rebuilding: threading.Thread | None = None  # making a new client after a server restart
+        self.rebuilt = None  # the new client, handed over by that thread
+        self.closing = threading.Event()
         self._open(first=True)
+
+    def _new_port(self):
+        port = self.rtmidi.MidiIn(self.api, name="instrument", queue_size_limit=QUEUE_LIMIT)
+        port.ignore_types(sysex=True, timing=True, active_sense=True)
+        return port
+
+    def _server_lost(self) -> None:
+        """The JACK server went away: drop the dead client, make a new one in the background."""
+        self.open = False
+        self.console.warn(f"midi server {self.source}", f"the JACK server went away: {self.source} waits for it; the walk goes on")
+        old, self.port = self.port, None
+        self.rebuilding = threading.Thread(target=self._rebuild, args=(old,), name="midi-rebuild", daemon=True)
+        self.rebuilding.start()
+
+    def _rebuild(self, old) -> None:
+        try:
+            old.delete()
+        except Exception:
+            pass
+        while not self.closing.wait(RETRY_SECONDS):
+            if not self.watch.reconnect():
+                continue
+            try:
+                port = self._new_port()
+                if self.virtual:
+                    port.open_virtual_port(self.virtual)
+            except Exception:
+                continue
+            self.rebuilt = port
+            return
+
+    def _take_rebuilt(self) -> None:
+        self.port, self.rebuilt, self.rebuilding = self.rebuilt, None, None
+        self.next_attempt = 0.0
+        if self.virtual:
+            self.open = True
+            self.console.say(f"the JACK server is back: MIDI input {self.source} on again")
+        else:
+            self._open()
 
     @property
     def source(self) -> str:
@@ -124,6 +172,13 @@ class MidiInput:
         return out
 
     def poll(self, now: float) -> list[ControlEvent]:
+        if self.rebuilding is not None:
+            if self.rebuilt is None:
+                return []
+            self._take_rebuilt()
+        elif self.watch is not None and self.watch.lost.is_set():
+            self._server_lost()
+            return []
         if not self.open:
             self._open()
         elif not self.virtual and time.monotonic() >= self.next_attempt:
@@ -137,13 +192,23 @@ class MidiInput:
         return events
 
     def describe(self) -> str:
+        if self.rebuilding is not None:
+            return f"{self.source} waiting for the JACK server"
         return f"{self.source} {'on' if self.open else 'waiting'}"
 
     def close(self) -> None:
-        if self.open:
-            self.port.close_port()
-            self.open = False
-        self.port.delete()
+        self.closing.set()
+        if self.rebuilding is not None:
+            self.rebuilding.join(5)
+            if self.rebuilt is not None:
+                self.rebuilt.delete()
+        if self.port is not None:
+            if self.open:
+                self.port.close_port()
+            self.port.delete()
+        self.open = False
+        if self.watch is not None:
+            self.watch.close()
 
 
 DS4_IDS = ((0x054C, 0x05C4), (0x054C, 0x09CC))
