@@ -516,3 +516,41 @@ def test_a_storm_of_60_kb_bundles_is_taken_whole_without_stopping_the_show(tmp_p
 def _lines(path: Path) -> int:
     with open(path, "rb") as f:
         return f.read().count(b"\n")
+
+
+# --- a renderer whose name resolves only later -------------------------------------------------
+
+
+def test_a_target_name_that_does_not_resolve_yet_is_tried_until_it_does(capsys):
+    """The network's name service is the one stand-in here (a test must not send DNS queries
+    off the machine): it answers as glibc does for an unknown name until the renderer is "on"."""
+    from instrument.output.osc import OscTarget, UdpOut
+    from instrument.runtime.console import Console
+
+    receiver = Receiver()
+    switched_on = [False]
+    asked = []
+
+    def lookup(host, port, type=0):
+        asked.append(host)
+        if not switched_on[0]:
+            raise socket.gaierror(socket.EAI_NONAME, "Name or service not known")
+        return socket.getaddrinfo("127.0.0.1", port, type=type)
+
+    out = UdpOut(OscTarget("renderer.venue", receiver.port, "flat"), Console(), lookup=lookup)
+    try:
+        for _ in range(20):
+            out.send([osc_message("/walk/frame", 0)])  # dropped, never raised
+        assert "cannot resolve 'renderer.venue' yet" in capsys.readouterr().err
+        wait_until(lambda: len(asked) >= 2, "a second try of the name", deadline=30)
+        switched_on[0] = True
+
+        def arrived():
+            out.send([osc_message("/walk/frame", 1)])
+            return any(a == "/walk/frame" and p == [1] for a, p in receiver.messages())
+        wait_until(arrived, "frames reaching the renderer once its name resolves", deadline=30)
+    finally:
+        out.close()
+        receiver.close()
+    assert not any(p == [0] for a, p in receiver.messages() if a == "/walk/frame")
+    assert "resolved to 127.0.0.1" in capsys.readouterr().err
