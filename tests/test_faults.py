@@ -435,7 +435,7 @@ def test_a_jack_server_restart_mid_show_is_recovered(tmp_path, monkeypatch):
     try:
         wait_until(lambda: server.poll() is None and port_listed() is None and _server_up(rtmidi), "the private JACK server")
         process = subprocess.Popen(RUN + ["--midi-virtual", "fault-restart", "--midi-api", "jack", "--mapping", str(mapping),
-                                          "--no-feedback", "--osc", f"127.0.0.1:{receiver.port}/flat", "--seconds", "60",
+                                          "--osc", f"127.0.0.1:{receiver.port}/flat", "--seconds", "60",
                                           "--record", str(log)], stderr=subprocess.PIPE, text=True)
 
         def speed_becomes(value: float) -> None:
@@ -459,6 +459,14 @@ def test_a_jack_server_restart_mid_show_is_recovered(tmp_path, monkeypatch):
         server.wait(30)
         server = start_server()
         speed_becomes(0.25)  # the virtual port was made again on the new server
+
+        def feedback_listed() -> bool:
+            probe = rtmidi.MidiIn(rtmidi.API_UNIX_JACK, name="fault-probe")
+            try:
+                return any("fault-restart feedback" in n for n in probe.get_ports())
+            finally:
+                probe.delete()
+        wait_until(feedback_listed, "the feedback port made again", deadline=60)
         frames_before_end = len([1 for a, _ in receiver.messages() if a == "/walk/frame"])
         process.send_signal(signal.SIGTERM)
         stderr = process.communicate(timeout=60)[1]

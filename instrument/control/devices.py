@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import re
 import socket
-import threading
 import time
 from typing import Iterator
 
@@ -17,7 +16,7 @@ from ..errors import UserError
 from ..runtime.console import Console
 from . import oscparse
 from .events import ControlEvent
-from .jackwatch import JackWatch
+from .jackwatch import Remaker
 
 RETRY_SECONDS = 1.0
 POLL_BUDGET = 0.0005  # seconds a device's poll may spend decoding; the rest stays queued for the next
@@ -82,10 +81,7 @@ class MidiInput:
         self.port_name = ""
         self.next_attempt = 0.0
         self.received = 0
-        self.watch = JackWatch() if api == "jack" else None
-        self.rebuilding: threading.Thread | None = None  # making a new client after a server restart
-        self.rebuilt = None  # the new client, handed over by that thread
-        self.closing = threading.Event()
+        self.remaker = Remaker(self._remake, lambda port: port.delete()) if api == "jack" else None
         self._open(first=True)
 
     def _new_port(self):
@@ -93,39 +89,33 @@ class MidiInput:
         port.ignore_types(sysex=True, timing=True, active_sense=True)
         return port
 
-    def _server_lost(self) -> None:
-        """The JACK server went away: drop the dead client, make a new one in the background."""
-        self.open = False
-        self.console.warn(f"midi server {self.source}", f"the JACK server went away: {self.source} waits for it; the walk goes on")
-        old, self.port = self.port, None
-        self.rebuilding = threading.Thread(target=self._rebuild, args=(old,), name="midi-rebuild", daemon=True)
-        self.rebuilding.start()
-
-    def _rebuild(self, old) -> None:
-        try:
-            old.delete()
-        except Exception:
-            pass
-        while not self.closing.wait(RETRY_SECONDS):
-            if not self.watch.reconnect():
-                continue
-            try:
-                port = self._new_port()
-                if self.virtual:
-                    port.open_virtual_port(self.virtual)
-            except Exception:
-                continue
-            self.rebuilt = port
-            return
-
-    def _take_rebuilt(self) -> None:
-        self.port, self.rebuilt, self.rebuilding = self.rebuilt, None, None
-        self.next_attempt = 0.0
+    def _remake(self):
+        """A new client (and virtual port) on a JACK server that came back (background thread)."""
+        port = self._new_port()
         if self.virtual:
-            self.open = True
-            self.console.say(f"the JACK server is back: MIDI input {self.source} on again")
-        else:
-            self._open()
+            port.open_virtual_port(self.virtual)
+        return port
+
+    def _restarts(self) -> bool:
+        """Follow a JACK server restart; True while there is no port to read."""
+        if self.remaker is None:
+            return False
+        if self.remaker.busy:
+            port = self.remaker.take()
+            if port is None:
+                return True
+            self.port, self.next_attempt = port, 0.0
+            if self.virtual:
+                self.open = True
+                self.console.say(f"the JACK server is back: MIDI input {self.source} on again")
+            return False
+        if self.remaker.lost():
+            self.open = False
+            self.console.warn(f"midi server {self.source}", f"the JACK server went away: {self.source} waits for it; the walk goes on")
+            old, self.port = self.port, None
+            self.remaker.start(old)
+            return True
+        return False
 
     @property
     def source(self) -> str:
@@ -172,12 +162,7 @@ class MidiInput:
         return out
 
     def poll(self, now: float) -> list[ControlEvent]:
-        if self.rebuilding is not None:
-            if self.rebuilt is None:
-                return []
-            self._take_rebuilt()
-        elif self.watch is not None and self.watch.lost.is_set():
-            self._server_lost()
+        if self._restarts():
             return []
         if not self.open:
             self._open()
@@ -192,23 +177,18 @@ class MidiInput:
         return events
 
     def describe(self) -> str:
-        if self.rebuilding is not None:
+        if self.remaker is not None and self.remaker.busy:
             return f"{self.source} waiting for the JACK server"
         return f"{self.source} {'on' if self.open else 'waiting'}"
 
     def close(self) -> None:
-        self.closing.set()
-        if self.rebuilding is not None:
-            self.rebuilding.join(5)
-            if self.rebuilt is not None:
-                self.rebuilt.delete()
+        if self.remaker is not None:
+            self.remaker.close()
         if self.port is not None:
             if self.open:
                 self.port.close_port()
             self.port.delete()
         self.open = False
-        if self.watch is not None:
-            self.watch.close()
 
 
 DS4_IDS = ((0x054C, 0x05C4), (0x054C, 0x09CC))

@@ -13,17 +13,36 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import threading
+from pathlib import Path
+from typing import Callable
 
 NO_START_SERVER = 0x01  # JackNoStartServer: never start a server of our own
 _SHUTDOWN = ctypes.CFUNCTYPE(None, ctypes.c_void_p)
 _MESSAGE = ctypes.CFUNCTYPE(None, ctypes.c_char_p)
 
 
-def _library():
-    name = ctypes.util.find_library("jack") or "libjack.so.0"
+RETRY_SECONDS = 1.0
+
+
+def _candidates() -> list[str]:
+    """python-rtmidi's own copy of libjack first (its clients live there), then the system's."""
     try:
-        lib = ctypes.CDLL(name)
-    except OSError:
+        import rtmidi
+
+        bundled = sorted(str(p) for p in Path(rtmidi.__file__).parent.parent.glob("python_rtmidi*/libjack*.so*"))
+    except ImportError:
+        bundled = []
+    return bundled + [ctypes.util.find_library("jack") or "libjack.so.0"]
+
+
+def _library():
+    for name in _candidates():
+        try:
+            lib = ctypes.CDLL(name)
+            break
+        except OSError:
+            continue
+    else:
         return None
     lib.jack_client_open.restype = ctypes.c_void_p
     lib.jack_client_open.argtypes = [ctypes.c_char_p, ctypes.c_int, ctypes.POINTER(ctypes.c_int)]
@@ -35,7 +54,20 @@ def _library():
     return lib
 
 
-_QUIET = _MESSAGE(lambda text: None)  # kept alive for as long as libjack may call it
+def _quiet():
+    """A C function taking a string and doing nothing visible (libc's strlen: its result is
+    ignored), for libjack's error and info messages. Not a Python callback: libjack calls it
+    from inside its own locks, where waiting for the interpreter could deadlock the process."""
+    libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+    return ctypes.cast(libc.strlen, _MESSAGE)
+
+
+# libjack's complaints would reach the console from whichever thread made a call (the frame
+# loop's included) and, on a stalled stderr, block it: the console says what matters instead
+_QUIET = _quiet()
+# the remaking threads (one per device) call libjack one at a time: taking a dead client apart
+# while another thread opens a new one has crashed libjack
+JACK_CALLS = threading.Lock()
 
 
 class JackWatch:
@@ -57,7 +89,7 @@ class JackWatch:
         """Open the watch client again; True if the server is there."""
         if self.lib is None:
             return False
-        self.close()
+        self._drop()
         status = ctypes.c_int(0)
         client = self.lib.jack_client_open(b"instrument-watch", NO_START_SERVER, ctypes.byref(status))
         if not client:
@@ -71,6 +103,74 @@ class JackWatch:
         return True
 
     def close(self) -> None:
-        if self.client is not None and self.lib is not None:
-            self.lib.jack_client_close(self.client)  # after a shutdown this only frees what is left
+        with JACK_CALLS:
+            self._drop()
+
+    def _drop(self) -> None:
+        """Close the watch client; one the server shut down under is left alone (libjack has
+        taken it apart already, and closing it again can crash the process)."""
+        if self.client is not None and self.lib is not None and not self.lost.is_set():
+            self.lib.jack_client_close(self.client)
         self.client = None
+
+
+def abandon(port: object) -> None:
+    """Leave a port whose server died alone for good: never closed, never freed. Taking it apart
+    holds the interpreter for about a second (the frame loop with it) or crashes libjack, and
+    freeing it would do the same later; what it keeps is a few kilobytes per restart."""
+    ctypes.pythonapi.Py_IncRef(ctypes.py_object(port))
+
+
+class Remaker:
+    """Makes a device's JACK port again after a server restart, in a background thread.
+
+    `lost()` says the server went away; `start(old)` abandons the dead port and waits for the
+    server to come back, then calls `make()`; `take()` hands the new port over once it exists."""
+
+    def __init__(self, make: Callable[[], object], discard: Callable[[object], None]):
+        self.watch = JackWatch()
+        self.make, self.discard = make, discard  # discard: for a port made after closing began
+        self.thread: threading.Thread | None = None
+        self.made: object | None = None
+        self.closing = threading.Event()
+
+    def lost(self) -> bool:
+        return self.thread is None and self.watch.lost.is_set()
+
+    @property
+    def busy(self) -> bool:
+        return self.thread is not None
+
+    def start(self, old: object) -> None:
+        self.thread = threading.Thread(target=self._run, args=(old,), name="jack-remake", daemon=True)
+        self.thread.start()
+
+    def _run(self, old: object) -> None:
+        if old is not None:
+            abandon(old)
+        while not self.closing.wait(RETRY_SECONDS):
+            with JACK_CALLS:
+                if not self.watch.reconnect():
+                    continue
+                try:
+                    made = self.make()
+                except Exception:
+                    continue
+            if made is not None:  # None: the server is back, the device not yet
+                self.made = made
+                return
+
+    def take(self) -> object | None:
+        """The new port, once made (then the Remaker watches again)."""
+        if self.made is None:
+            return None
+        made, self.made, self.thread = self.made, None, None
+        return made
+
+    def close(self) -> None:
+        self.closing.set()
+        if self.thread is not None:
+            self.thread.join(5)
+            if self.made is not None:
+                self.discard(self.made)
+        self.watch.close()
