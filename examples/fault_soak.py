@@ -27,7 +27,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from test_faults import RUN, SEED, assert_valid_bvh, bvh_frames, mutate, valid_packets  # noqa: E402
+from test_faults import RUN, SEED, assert_valid_bvh, bvh_frames, mutate, random_stop_moment, valid_packets  # noqa: E402
 
 from instrument.control.events import read_log  # noqa: E402
 from instrument.models.modelfile import default_model_path, load_model  # noqa: E402
@@ -61,7 +61,7 @@ def soak(minutes: float, rate: int, folder: Path) -> bool:
     port = free_port()
     bvh, log = folder / "soak.bvh", folder / "soak.jsonl"
     jack = subprocess.run(["pgrep", "-x", "jackd"], capture_output=True).returncode == 0
-    command = RUN + ["--osc-in", str(port), "--no-osc", "--bvh", str(bvh), "--record", str(log), "--quiet"]
+    command = RUN + ["--osc-in", str(port), "--no-osc", "--bvh", str(bvh), "--record", str(log)]
     if jack:
         command += ["--midi-virtual", "soak-in", "--midi-api", "jack", "--mapping", str(ROOT / "mappings" / "korg-nanokontrol2.toml")]
     process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True)
@@ -162,7 +162,7 @@ def storm_figures(folder: Path) -> bool:
         stderr = process.communicate(timeout=120)[1]
         receiver.close()
         sock.close()
-        arrivals = [stamp for stamp, datagram in receiver.stamped if b"/walk/frame" in datagram]
+        arrivals = [stamp for stamp, datagram in receiver.stamped if b"/walk/frame" in datagram][30:]  # after warming up
         seen = len(read_log(log))
         summary = next((l for l in reversed(stderr.splitlines()) if l.startswith("stopped after")), "(no summary line)")
         gap = max((b - a for a, b in zip(arrivals, arrivals[1:])), default=float("nan")) * 1000
@@ -181,7 +181,7 @@ def signal_trials(count: int, folder: Path) -> bool:
         path = folder / f"signal{trial}.bvh"
         process = subprocess.Popen(RUN + ["--no-osc", "--bvh", str(path), "--fast", "--seconds", "600", "--quiet"],
                                    stderr=subprocess.PIPE, text=True)
-        time.sleep(rng.uniform(0.0, 4.0))
+        random_stop_moment(rng, path)
         process.send_signal(rng.choice([signal.SIGINT, signal.SIGTERM]))
         stderr = process.communicate(timeout=120)[1]
         if path.exists():

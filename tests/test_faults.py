@@ -340,13 +340,23 @@ def test_mutated_show_files_give_a_one_line_error_or_a_show(model, tmp_path, cap
 # --- signals at random times, start-up included -------------------------------------------------
 
 
+def random_stop_moment(rng: random.Random, path: Path) -> None:
+    """Wait until a random moment: half the time during start-up (Python loading, the model,
+    the first frame's compilation), half the time into the show (up to a second of frames)."""
+    if rng.random() < 0.5:
+        time.sleep(rng.uniform(0.0, 3.0))
+    else:
+        wait_until(lambda: bvh_frames(path) >= 1, "the first frame", deadline=120)
+        time.sleep(rng.uniform(0.0, 1.0))
+
+
 def test_signals_at_random_times_leave_a_valid_bvh_or_none(tmp_path):
     rng = random.Random(SEED + 5)
     for trial in range(8):
         path = tmp_path / f"take{trial}.bvh"
         process = subprocess.Popen(RUN + ["--no-osc", "--bvh", str(path), "--fast", "--seconds", "600", "--quiet"],
                                    stderr=subprocess.PIPE, text=True)
-        time.sleep(rng.uniform(0.0, 4.0))  # anywhere from Python's start through start-up into the show
+        random_stop_moment(rng, path)
         process.send_signal(rng.choice([signal.SIGINT, signal.SIGTERM]))
         stderr = process.communicate(timeout=120)[1]
         assert "Traceback" not in stderr, stderr

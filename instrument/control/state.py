@@ -1,6 +1,6 @@
 """Control state: what the performer has set, as named targets, snapshotted once per frame.
 
-Targets:
+Targets (what each accepts, and the one check every input goes through: control/targets.py):
     style/<name>            weight of a style (0 absent, 1 the style, >1 exaggerated, <0 inverted)
     part/<style>/<group>    weight of a style for one body part (root, legs, upper); NaN follows style/<name>
     speed                   step rate relative to the model's (0.25 to 4)
