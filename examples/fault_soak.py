@@ -63,7 +63,8 @@ def soak(minutes: float, rate: int, folder: Path) -> bool:
     jack = subprocess.run(["pgrep", "-x", "jackd"], capture_output=True).returncode == 0
     command = RUN + ["--osc-in", str(port), "--no-osc", "--bvh", str(bvh), "--record", str(log)]
     if jack:
-        command += ["--midi-virtual", "soak-in", "--midi-api", "jack", "--mapping", str(ROOT / "mappings" / "korg-nanokontrol2.toml")]
+        nano = str(ROOT / "mappings" / "korg-nanokontrol2.toml")
+        command += ["--midi-virtual", "soak-in", "--midi-api", "jack", "--mapping", nano]
     process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True)
     midi = midi_sender("soak-in") if jack else None
     packets = valid_packets(model)

@@ -8,7 +8,6 @@ for as long as one likes.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import random
@@ -31,7 +30,6 @@ from instrument.control.events import ControlEvent, read_log
 from instrument.control.hub import ControlHub
 from instrument.control.state import ControlState
 from instrument.control.targets import TABLE, problem, raw_problem
-from instrument.errors import UserError
 from instrument.models.modelfile import default_model_path, load_model
 from instrument.motion.bvh import read_bvh
 from instrument.output.osc import message as osc_message
@@ -201,7 +199,8 @@ def test_a_live_show_survives_an_osc_packet_fuzzer(model, tmp_path):
         wait_until(lambda: bvh_frames(bvh) >= 10, "the show's first frames")
         while process.poll() is None and sent < 6000:
             for _ in range(50):
-                sender.sendto(mutate(rng, rng.choice(packets)) if rng.random() < 0.9 else rng.choice(packets), ("127.0.0.1", port))
+                packet = rng.choice(packets)
+                sender.sendto(mutate(rng, packet) if rng.random() < 0.9 else packet, ("127.0.0.1", port))
                 sent += 1
             time.sleep(0.01)
         stderr = process.communicate(timeout=120)[1]

@@ -170,7 +170,8 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     mappings = choose_mappings(args, state, console)
     live = bool(args.midi or args.midi_virtual or args.hid or args.osc_in)
     replay_path = args.replay or (None if live else demo_log_path())
-    replay = LogReplay(read_log(replay_path, warn=lambda m: console.warn("log cut", m)), loop=args.loop or not args.replay) if replay_path else None
+    replay = (LogReplay(read_log(replay_path, warn=lambda m: console.warn("log cut", m)), loop=args.loop or not args.replay)
+              if replay_path else None)
     targets = [] if args.no_osc else [parse_target(t) for t in (args.osc or DEFAULT_TARGETS)]
     if args.fast and seconds is None and (replay is None or replay.loop or not replay.events):
         raise UserError("--fast needs an end: give --seconds, or a --replay log (played once)")

@@ -111,7 +111,8 @@ class MidiInput:
             return False
         if self.remaker.lost():
             self.open = False
-            self.console.warn(f"midi server {self.source}", f"the JACK server went away: {self.source} waits for it; the walk goes on")
+            self.console.warn(f"midi server {self.source}",
+                              f"the JACK server went away: {self.source} waits for it; the walk goes on")
             old, self.port = self.port, None
             self.remaker.start(old)
             return True

@@ -46,7 +46,8 @@ def read_log(path: str | Path, warn: Callable[[str], None] | None = None) -> lis
         except (json.JSONDecodeError, RecursionError) as e:
             if cut and number == len(lines):
                 if warn is not None:
-                    warn(f"{path}:{number}: the last line is cut off (a killed run?): replaying the {len(events)} events before it")
+                    warn(f"{path}:{number}: the last line is cut off (a killed run?): "
+                         f"replaying the {len(events)} events before it")
                 break
             raise located(path, f"not JSON: {getattr(e, 'msg', 'nested too deeply')}", number) from None
         if not isinstance(item, dict):

@@ -135,7 +135,8 @@ class UdpOut:
         self.resolver.start()
         self.resolver.join(RESOLVE_WAIT)  # a name that resolves at once is ready for the first frame
         if self.resolved is None:
-            console.warn(f"osc {target}", f"OSC target {target}: cannot resolve {target.host!r} yet; the show goes on, still trying")
+            console.warn(f"osc {target}",
+                         f"OSC target {target}: cannot resolve {target.host!r} yet; the show goes on, still trying")
         else:
             self._open()
 
