@@ -571,3 +571,46 @@ def test_a_target_name_that_does_not_resolve_yet_is_tried_until_it_does(capsys):
         receiver.close()
     assert not any(p == [0] for a, p in receiver.messages() if a == "/walk/frame")
     assert "resolved to 127.0.0.1" in capsys.readouterr().err
+
+
+# --- the console and the log in-process ---------------------------------------------------------
+
+
+def test_console_lines_to_a_stalled_pipe_are_queued_then_dropped_never_blocking():
+    import threading
+
+    from instrument.runtime import console as console_module
+    from instrument.runtime.console import Console
+
+    read_end, write_end = stalled_pipe()
+    stream = os.fdopen(write_end, "w")
+    console = Console(stream=stream)
+    finished = threading.Event()
+
+    def speak():
+        for k in range(console_module.QUEUE_LIMIT + 500):
+            console.say(f"line {k}")
+        finished.set()
+
+    threading.Thread(target=speak, daemon=True).start()
+    assert finished.wait(60), "the console blocked its caller"
+    assert console.dropped > 0 and len(console.pending) == console_module.QUEUE_LIMIT  # the rest: dropped, counted
+    assert not console.flush(timeout=0.2)  # still stuck: the lines wait in the writer, not in the caller
+    os.close(read_end)  # the reader goes away: the writer finds the pipe closed and gives up quietly
+    wait_until(lambda: console.closed, "the console noticing the closed pipe")
+    console.say("after")  # dropped, not raised
+
+
+def test_the_event_log_stops_at_its_limit_and_counts_what_it_lost(tmp_path, monkeypatch):
+    from instrument.control import eventlog
+
+    monkeypatch.setattr(eventlog, "LIMIT", 10_000)
+    log = eventlog.EventLog(tmp_path / "take.jsonl")
+    events = [ControlEvent(k / 30, "osc", "speed", 1.0 + k / 1000) for k in range(1000)]
+    for event in events:
+        log.write(event)
+    log.close()
+    kept = read_log(tmp_path / "take.jsonl")
+    assert (tmp_path / "take.jsonl").stat().st_size <= 10_000
+    assert len(kept) + log.lost == len(events) and log.lost > 0 and "limit" in log.error
+    assert kept == events[: len(kept)]  # what was kept is the start, in order, whole lines
