@@ -20,7 +20,7 @@ from instrument.control.events import ControlEvent, read_log
 from instrument.control.hub import ControlHub
 from instrument.control.loghead import logged_mappings
 from instrument.control.mapping import load_mapping
-from instrument.control.state import WEIGHT_LIMIT as STATE_WEIGHT_LIMIT
+from instrument.control.targets import WEIGHT_LIMIT as STATE_WEIGHT_LIMIT
 from instrument.control.state import ControlState
 from instrument.errors import UserError
 from instrument.motion.bvh import read_bvh

@@ -17,7 +17,7 @@ from ..errors import UserError
 from ..synthesis.durations import MAX_SPEED, MIN_SPEED
 
 MAX_SECONDS = 7 * 24 * 3600.0  # a week: longer is a typo
-WEIGHT_LIMIT = 10.0  # as far as a style weight goes: control.state.WEIGHT_LIMIT (a test keeps them equal)
+WEIGHT_LIMIT = 10.0  # as far as a style weight goes: control.targets.WEIGHT_LIMIT (a test keeps them equal)
 
 
 @dataclass(frozen=True)

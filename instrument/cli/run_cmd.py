@@ -25,6 +25,7 @@ from ..output.vmc import ROOT_CONVENTIONS
 from ..runtime.console import Console
 from ..runtime.performance import perform
 from ..runtime.priority import realtime_scheduling
+from ..runtime.stopping import StopFlag
 from ..shipped import default_model_path, demo_log_path, shipped_mappings
 from ..tomlfile import read_toml
 from .arguments import OPTIONS
@@ -121,11 +122,14 @@ def apply_show_file(args: argparse.Namespace) -> dict:
 def check_presets(presets: dict, state: ControlState, where: str) -> dict[str, dict[str, float]]:
     out = {}
     for name, values in presets.items():
-        if not isinstance(values, dict) or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values.values()):
+        if not isinstance(values, dict):
             raise UserError(f"{where}: presets.{name}: expected target = number pairs")
-        for target in values:
-            if not state.knows(target):
+        for target, value in values.items():
+            why = state.problem(target, value)  # the table of targets: control/targets.py
+            if why == "unknown target":
                 raise UserError(f"{where}: presets.{name}: unknown target {target!r}")
+            if why is not None:
+                raise UserError(f"{where}: presets.{name}: {target}: {why}, not {value!r}")
         out[name] = {k: float(v) for k, v in values.items()}
     return out
 
@@ -170,6 +174,11 @@ def check_recordings(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    with StopFlag() as stop:  # Ctrl-C and SIGTERM from here on, start-up included, only ask to stop
+        return _run(args, stop)
+
+
+def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     show_presets = apply_show_file(args) if args.config else {}
     for key, value in DEFAULTS.items():
         if getattr(args, key) is None:
@@ -192,7 +201,8 @@ def run(args: argparse.Namespace) -> int:
     mappings = logged + choose_mappings(args, state, console)
     live = bool(args.midi or args.midi_virtual or args.hid or args.osc_in)
     replay_path = args.replay or (None if live else demo_log_path())
-    replay = LogReplay(read_log(replay_path), loop=args.loop or not args.replay) if replay_path else None
+    replay = (LogReplay(read_log(replay_path, warn=lambda m: console.warn("log cut", m)), loop=args.loop or not args.replay)
+              if replay_path else None)
     missing = unreadable_sources(replay.events, mappings) if replay else []
     if missing:
         raise UserError(f"{replay_path}: has {' and '.join(missing)} events but no mapping to read them "
@@ -202,7 +212,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--fast needs an end: give --seconds, or a --replay log (played once)")
     outputs, devices, hub, created = [], [], None, []
     try:
-        hub = ControlHub(mappings, presets, None, morph)
+        hub = ControlHub(mappings, presets, None, morph, console)
         if args.midi or args.midi_virtual:
             devices.append(MidiInput(console, args.midi, args.midi_virtual, args.midi_api))
             if hub.midi is not None and not args.no_feedback:
@@ -238,13 +248,26 @@ def run(args: argparse.Namespace) -> int:
         if refused and not args.quiet:
             console.say(f"realtime scheduling {refused}: running at normal priority (frames may be late on a busy machine)")
     try:
+        if stop:  # asked to stop during start-up: close everything (a BVH with no frame is removed)
+            for output in outputs:
+                output.close()
+            console.say(f"stopped by {stop.by} before the first frame")
+            return 0
         summary = perform(model, outputs, console, fps, seconds, replay, live_sources=[d.poll for d in devices], fast=args.fast,
                           apply=hub.apply, describe_sources=lambda: ", ".join(d.describe() for d in devices) or "replay",
-                          state=state)
+                          state=state, stop=stop)
     finally:
         for thing in devices + [hub]:
             thing.close()
+        console.flush()
+    refused = dict(hub.refused)
+    for device in devices:
+        for kind, count in getattr(device, "refused", {}).items():
+            refused[kind] = refused.get(kind, 0) + count
     if not args.quiet:
         console.say(f"stopped after {summary.frames} frames; late {summary.late}, dropped {summary.dropped}"
-                    + (f"; output errors {summary.output_errors}" if summary.output_errors else ""))
+                    + (f"; output errors {summary.output_errors}" if summary.output_errors else "")
+                    + (f"; input errors {summary.input_errors}" if summary.input_errors else "")
+                    + (f"; refused {refused}" if refused else ""))
+        console.flush()
     return 0

@@ -10,12 +10,16 @@ from __future__ import annotations
 import re
 import socket
 import time
+from typing import Iterator
 
 from ..errors import UserError
 from ..runtime.console import Console
+from . import oscparse
 from .events import ControlEvent
+from .jackwatch import Remaker
 
 RETRY_SECONDS = 1.0
+POLL_BUDGET = 0.0005  # seconds a device's poll may spend decoding; the rest stays queued for the next
 
 
 def midi_backend(api: str | None = None):
@@ -57,6 +61,10 @@ class MidiInput:
     python-rtmidi queues incoming messages in C++; the performance loop drains the queue each
     frame. No Python callback thread competes with the clock for the interpreter, so a flood of
     messages costs only their decoding.
+
+    On JACK, a restart of the server kills our client with it: a `JackWatch` notices, and a
+    background thread makes a new client (and virtual port) once the server is back, while the
+    walk goes on and the status line says "waiting".
     """
 
     def __init__(self, console: Console, pattern: str | None = None, virtual: str | None = None, api: str | None = None):
@@ -66,15 +74,49 @@ class MidiInput:
         self.console, self.pattern, self.virtual = console, pattern, virtual
         self.api = getattr(rtmidi, RTMIDI_APIS[api])
         try:
-            self.port = rtmidi.MidiIn(self.api, name="instrument", queue_size_limit=QUEUE_LIMIT)
+            self.port = self._new_port()
         except Exception as error:  # no MIDI system at all (no ALSA, no JACK server)
             raise UserError(f"MIDI is not available ({api or 'default'} API): {error}") from None
-        self.port.ignore_types(sysex=True, timing=True, active_sense=True)
         self.open = False
         self.port_name = ""
         self.next_attempt = 0.0
         self.received = 0
+        self.remaker = Remaker(self._remake, lambda port: port.delete()) if api == "jack" else None
         self._open(first=True)
+
+    def _new_port(self):
+        port = self.rtmidi.MidiIn(self.api, name="instrument", queue_size_limit=QUEUE_LIMIT)
+        port.ignore_types(sysex=True, timing=True, active_sense=True)
+        return port
+
+    def _remake(self):
+        """A new client (and virtual port) on a JACK server that came back (background thread)."""
+        port = self._new_port()
+        if self.virtual:
+            port.open_virtual_port(self.virtual)
+        return port
+
+    def _restarts(self) -> bool:
+        """Follow a JACK server restart; True while there is no port to read."""
+        if self.remaker is None:
+            return False
+        if self.remaker.busy:
+            port = self.remaker.take()
+            if port is None:
+                return True
+            self.port, self.next_attempt = port, 0.0
+            if self.virtual:
+                self.open = True
+                self.console.say(f"the JACK server is back: MIDI input {self.source} on again")
+            return False
+        if self.remaker.lost():
+            self.open = False
+            self.console.warn(f"midi server {self.source}",
+                              f"the JACK server went away: {self.source} waits for it; the walk goes on")
+            old, self.port = self.port, None
+            self.remaker.start(old)
+            return True
+        return False
 
     @property
     def source(self) -> str:
@@ -105,17 +147,24 @@ class MidiInput:
             self.console.warn(f"midi {self.pattern or self.virtual}", f"cannot open MIDI input: {error}")
 
     def read_raw(self) -> list[tuple[str, float]]:
-        """Every message queued since the last read, decoded."""
+        """The messages queued since the last read, decoded, for at most POLL_BUDGET seconds
+        (the rest stays in rtmidi's queue for the next read)."""
         out = []
-        while True:
+        until = time.monotonic() + POLL_BUDGET
+        taken = 0
+        while taken % 64 or time.monotonic() < until:  # the clock is read every 64 messages
             item = self.port.get_message()
             if item is None:
                 return out
+            taken += 1
             raw = raw_from_bytes(item[0])
             if raw is not None:
                 out.append(raw)
+        return out
 
     def poll(self, now: float) -> list[ControlEvent]:
+        if self._restarts():
+            return []
         if not self.open:
             self._open()
         elif not self.virtual and time.monotonic() >= self.next_attempt:
@@ -129,13 +178,18 @@ class MidiInput:
         return events
 
     def describe(self) -> str:
+        if self.remaker is not None and self.remaker.busy:
+            return f"{self.source} waiting for the JACK server"
         return f"{self.source} {'on' if self.open else 'waiting'}"
 
     def close(self) -> None:
-        if self.open:
-            self.port.close_port()
-            self.open = False
-        self.port.delete()
+        if self.remaker is not None:
+            self.remaker.close()
+        if self.port is not None:
+            if self.open:
+                self.port.close_port()
+            self.port.delete()
+        self.open = False
 
 
 class OscInput:
@@ -158,27 +212,47 @@ class OscInput:
         self.sock.setblocking(False)
         self.console = console
         self.address = f"{host or '127.0.0.1'}:{number}"
+        self.walking: Iterator[bytes] | None = None  # the messages of a packet not yet taken
+        self.refused: dict[str, int] = {}  # kind -> messages refused before they became events
 
     def poll(self, now: float) -> list[ControlEvent]:
-        from pythonosc.osc_bundle import OscBundle
-        from pythonosc.osc_message import OscMessage
-
+        """What arrived, for at most POLL_BUDGET seconds of parsing: the rest of a big bundle
+        and later packets wait for the next poll (the socket's buffer holds them)."""
         events = []
-        for _ in range(1000):
+        until = time.monotonic() + POLL_BUDGET
+        while time.monotonic() < until:
+            if self.walking is None:
+                try:
+                    self.walking = oscparse.messages(self.sock.recv(65536))
+                except OSError:  # nothing more (BlockingIOError), or the socket is gone
+                    break
             try:
-                data = self.sock.recv(65536)
-            except (BlockingIOError, OSError):
-                break
-            try:
-                messages = list(OscBundle(data)) if OscBundle.dgram_is_bundle(data) else [OscMessage(data)]
-            except Exception:
-                self.console.warn("osc-in bad", f"ignored a malformed OSC packet on {self.address}")
-                continue
-            for m in messages:
-                if isinstance(m, OscMessage) and m.address.startswith("/walk/"):
-                    value = m.params[0] if m.params and isinstance(m.params[0], (int, float)) else 1.0
-                    events.append(ControlEvent(now, self.source, m.address[len("/walk/"):], float(value)))
+                for _ in range(64):
+                    self._take(next(self.walking), now, events)
+            except StopIteration:
+                self.walking = None
+            except oscparse.Malformed as error:
+                self.walking = None
+                self._refuse("malformed", f"ignored a malformed OSC packet on {self.address} ({error})")
         return events
+
+    def _take(self, message: bytes, now: float, events: list[ControlEvent]) -> None:
+        try:
+            address, value, tag = oscparse.first_number(message)
+        except oscparse.Malformed as error:
+            self._refuse("malformed", f"ignored a malformed OSC message on {self.address} ({error})")
+            return
+        if not address.startswith("/walk/"):
+            self._refuse("address", f"ignored OSC address {address[:60]!r} on {self.address}: controls are /walk/...")
+        elif value is None:
+            self._refuse("argument", f"ignored {address[:60]} on {self.address}: "
+                         + (f"its argument (type {tag!r}) is not a number" if tag else "it has no argument (a number is needed)"))
+        else:
+            events.append(ControlEvent(now, self.source, address[len("/walk/"):], value))
+
+    def _refuse(self, kind: str, message: str) -> None:
+        self.refused[kind] = self.refused.get(kind, 0) + 1
+        self.console.warn(f"osc-in {kind}", message + " (such messages are counted; the next is shown in a minute)")
 
     def describe(self) -> str:
         return f"osc-in {self.address}"

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 from ..errors import located
 from ..textfile import read_text
+from .targets import is_number
 
 
 @dataclass(frozen=True)
@@ -22,18 +23,29 @@ class ControlEvent:
         return json.dumps({"t": self.time, "source": self.source, "control": self.control, "value": self.value})  # exact: replays hit the same frame
 
 
-def read_log(path: str | Path) -> list[ControlEvent]:
-    """Every event of a log, in time order; a bad line is a one-line error naming file and line."""
+def read_log(path: str | Path, warn: Callable[[str], None] | None = None) -> list[ControlEvent]:
+    """Every event of a log, in time order; a bad line is a one-line error naming file and line.
+
+    A last line without its newline that does not parse was cut by a killed run: the events
+    before it are kept, and `warn` is told (what each event means is checked when it is applied).
+    """
     path = Path(path)
-    lines = read_text(path).splitlines()
+    text = read_text(path)
+    lines = text.splitlines()
+    cut = bool(text) and not text.endswith(("\n", "\r"))
     events = []
     for number, line in enumerate(lines, 1):
         if not line.strip() or line.lstrip().startswith("#"):
             continue
         try:
             item = json.loads(line)
-        except json.JSONDecodeError as e:
-            raise located(path, f"not JSON: {e.msg}", number) from None
+        except (json.JSONDecodeError, RecursionError) as e:
+            if cut and number == len(lines):
+                if warn is not None:
+                    warn(f"{path}:{number}: the last line is cut off (a killed run?): "
+                         f"replaying the {len(events)} events before it")
+                break
+            raise located(path, f"not JSON: {getattr(e, 'msg', 'nested too deeply')}", number) from None
         if isinstance(item, dict) and "instrument_log" in item:
             continue  # the header line: the mappings in force (control.loghead)
         if not isinstance(item, dict):
@@ -42,7 +54,7 @@ def read_log(path: str | Path) -> list[ControlEvent]:
         if missing:
             raise located(path, f"missing key {missing[0]!r}", number)
         t, value = item["t"], item["value"]
-        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in (t, value)) or t < 0:
+        if not (is_number(t) and is_number(value)) or t < 0:
             raise located(path, "'t' and 'value' must be finite numbers, 't' not negative", number)
         events.append(ControlEvent(float(t), str(item["source"]), str(item["control"]), float(value)))
     events.sort(key=lambda e: e.time)

@@ -9,10 +9,12 @@ It is an output of the live loop: a device that is gone is reported and the perf
 
 from __future__ import annotations
 
+import math
 import re
 
 from ..runtime.console import Console
 from .devices import midi_backend
+from .jackwatch import Remaker
 from .mapping import ControlSpec, Mapper
 from .state import ControlState
 
@@ -48,17 +50,35 @@ class MidiFeedback:
         self.controls = [c for c in mapping.controls
                          if c.message in ("cc", "cc14", "pitchbend", "note") and c.mode in ("absolute", "toggle")
                          and state.knows(c.target)]
-        backend = midi_backend(api)
-        self.port = None
-        if virtual:
-            self.port = backend.open_output(f"{virtual} feedback", virtual=True)
-        else:
-            names = [n for n in backend.get_output_names() if re.search(pattern, n, re.IGNORECASE)]
-            if names:
-                self.port = backend.open_output(names[0])
-            else:
-                console.warn(self.name, f"no MIDI output matches {pattern!r}: no feedback to the controller")
+        self.backend, self.pattern, self.virtual = midi_backend(api), pattern, virtual
+        self.port = self._open_port()
+        if self.port is None:
+            console.warn(self.name, f"no MIDI output matches {pattern!r}: no feedback to the controller")
+        self.remaker = Remaker(self._open_port, lambda port: port.close()) if api == "jack" else None
         self.sent: dict[ControlSpec, float] = {c: state.get(c.target) for c in self.controls}
+
+    def _open_port(self):
+        if self.virtual:
+            return self.backend.open_output(f"{self.virtual} feedback", virtual=True)
+        names = [n for n in self.backend.get_output_names() if re.search(self.pattern, n, re.IGNORECASE)]
+        return self.backend.open_output(names[0]) if names else None
+
+    def _restarts(self) -> bool:
+        """Follow a JACK server restart (port made again in the background); True while there is none."""
+        if self.remaker is None:
+            return False
+        if self.remaker.busy:
+            port = self.remaker.take()
+            if port is None:
+                return True
+            self.port = port
+            self.sent = {c: math.nan for c in self.controls}  # a new port: show every value again
+            return False
+        if self.remaker.lost():
+            old, self.port = self.port, None
+            self.remaker.start(old)
+            return True
+        return False
 
     def prepare(self, pose, echo) -> list:
         messages = []
@@ -78,11 +98,15 @@ class MidiFeedback:
         return messages
 
     def send(self, messages: list) -> None:
+        if self._restarts():
+            return
         if self.port is not None:
             for message in messages:
                 self.port.send(message)
 
     def close(self) -> None:
+        if self.remaker is not None:
+            self.remaker.close()
         if self.port is not None:
             self.port.close()
             self.port = None

@@ -20,6 +20,7 @@ from .events import ControlEvent
 from .hid import DS4_NAMES, canonical_input, legacy_event, unit_with_deadzone
 from .hid_feedback import FeedbackSpec, parse_feedback
 from .state import ControlState
+from .targets import is_number
 
 MESSAGES = ("cc", "cc14", "nrpn", "note", "pitchbend", "hid")
 MODES = ("absolute", "toggle", "momentary", "relative-twos", "relative-signed", "relative-signed2", "relative-offset")
@@ -118,8 +119,8 @@ def load_mapping(path: str | Path, state: ControlState | None = None, text: str 
     controls = [_control(item, k, fail, state) for k, item in enumerate(raw_controls)]
     presets = {}
     for name, values in (data.get("presets") or {}).items():
-        if not isinstance(values, dict) or not all(isinstance(v, (int, float)) for v in values.values()):
-            raise fail("a preset is a table of target = number", name)
+        if not isinstance(values, dict) or not all(is_number(v) for v in values.values()):
+            raise fail("a preset is a table of target = finite number", name)
         for target in values:
             if state is not None and not state.knows(target) and target.split("/")[0] not in ("style", "part"):
                 raise fail(f"unknown target {target!r}", target)

@@ -1,6 +1,6 @@
 """Control state: what the performer has set, as named targets, snapshotted once per frame.
 
-Targets:
+Targets (what each accepts, and the one check every input goes through: control/targets.py):
     style/<name>            weight of a style (0 absent, 1 the style, >1 exaggerated, <0 inverted)
     part/<style>/<group>    weight of a style for one body part (root, legs, upper); NaN follows style/<name>
     speed                   step rate relative to the model's (0.25 to 4)
@@ -15,20 +15,11 @@ time, by performance time (so a replayed performance morphs identically).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from ..synthesis.durations import MAX_SPEED, MIN_SPEED
 from ..synthesis.interpolation import GROUPS
 from ..synthesis.stream import Controls
-
-MAX_TURN = 3.0  # rad/s
-WEIGHT_LIMIT = 10.0
-
-
-def _clamp(value: float, low: float, high: float) -> float:
-    return float(min(max(value, low), high))
+from .targets import clamped, kind_of, problem
 
 
 class ControlState:
@@ -54,30 +45,31 @@ class ControlState:
         return names
 
     def knows(self, target: str) -> bool:
-        return target in set(self.targets())
+        return kind_of(target, self.style_index, self.states) is not None
+
+    def problem(self, target: object, value: object) -> str | None:
+        """Why this state would refuse (target, value) (see control/targets.py), or None."""
+        return problem(target, value, self.style_index, self.states)
 
     def set(self, target: str, value: float) -> bool:
-        """Apply one value; False (and nothing changes) for an unknown target or a non-number."""
-        if not isinstance(value, (int, float)) or not math.isfinite(value):
+        """Apply one value, clamped to the target's range; False (and nothing changes) for an
+        unknown target or a value that is not a finite number."""
+        if self.problem(target, value) is not None:
             return False
+        kind = kind_of(target, self.style_index, self.states)
         parts = target.split("/")
-        if parts[0] == "style" and len(parts) == 2 and parts[1] in self.style_index:
-            self.weights[self.style_index[parts[1]]] = _clamp(value, -WEIGHT_LIMIT, WEIGHT_LIMIT)
-        elif parts[0] == "part" and len(parts) == 3 and parts[1] in self.style_index and parts[2] in GROUPS:
-            self.part_weights[self.style_index[parts[1]], GROUPS.index(parts[2])] = _clamp(value, -WEIGHT_LIMIT, WEIGHT_LIMIT)
-        elif target == "speed":
-            self.speed = _clamp(value, MIN_SPEED, MAX_SPEED)
-        elif target == "turn":
-            self.turn = _clamp(value, -MAX_TURN, MAX_TURN)
-        elif target == "liveliness":
-            self.liveliness = _clamp(value, 0.0, 1.0)
-        elif parts[0] == "phase" and len(parts) == 2 and parts[1].isdigit() and 1 <= int(parts[1]) <= self.states:
-            self.state_scale[int(parts[1]) - 1] = _clamp(value, MIN_SPEED, MAX_SPEED)
-        elif target == "reset":
+        value = clamped(kind, value)
+        if kind == "style":
+            self.weights[self.style_index[parts[1]]] = value
+        elif kind == "part":
+            self.part_weights[self.style_index[parts[1]], GROUPS.index(parts[2])] = value
+        elif kind == "phase":
+            self.state_scale[int(parts[1]) - 1] = value
+        elif kind == "reset":
             if value > 0:  # a button's press, not its release
                 self.reset()
-        else:
-            return False
+        else:  # speed, turn, liveliness
+            setattr(self, kind, value)
         return True
 
     def get(self, target: str) -> float:

@@ -1,15 +1,17 @@
 """OSC over UDP: targets given as HOST:PORT[/profile], datagrams packed into small bundles.
 
-A target that is down or unreachable never stops the instrument: the error is reported (once a
-minute per target) and sending goes on, so the renderer picks up as soon as it is back.
+A target that is down, unreachable or whose name does not resolve yet never stops the
+instrument: the error is reported (once a minute per target) and sending goes on, so the
+renderer picks up as soon as it is back.
 """
 
 from __future__ import annotations
 
 import ipaddress
 import socket
-import time
 import struct
+import threading
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,6 +21,8 @@ from ..runtime.console import Console
 
 VMC_PORT = 39539
 FLAT_PORT = 9000
+RESOLVE_WAIT = 1.0  # seconds the start waits for a host name before going on without it
+RESOLVE_EVERY = 2.0  # seconds between two tries of a name that does not resolve
 MAX_BUNDLE = 1400  # bytes: receivers read 8 KB at most, and one Ethernet frame is safest
 PROFILES = ("flat", "vmc")
 
@@ -111,15 +115,42 @@ def _bundle(messages: list[bytes]) -> bytes:
 
 
 class UdpOut:
-    """One socket per target; errors are reported, never raised."""
+    """One socket per target; errors are reported, never raised.
 
-    def __init__(self, target: OscTarget, console: Console):
-        self.target, self.console = target, console
-        try:
-            info = socket.getaddrinfo(target.host, target.port, type=socket.SOCK_DGRAM)[0]
-        except socket.gaierror as e:
-            raise UserError(f"--osc {target}: cannot resolve {target.host!r}: {e.strerror}") from None
-        family, _, _, _, self.address = info
+    A host name is resolved in a background thread, tried again every RESOLVE_EVERY seconds
+    until it resolves: a show starts even when the renderer's machine is not on the network yet,
+    and sends to it from the frame after its name resolves. Until then its frames are dropped.
+    """
+
+    def __init__(self, target: OscTarget, console: Console, lookup=socket.getaddrinfo):
+        self.target, self.console, self.lookup = target, console, lookup
+        self.sock: socket.socket | None = None
+        self.connected = False
+        self.next_attempt = 0.0
+        self.sent = 0
+        self.failed = 0
+        self.resolved: tuple | None = None  # getaddrinfo's first answer, set by the resolver
+        self.closing = threading.Event()
+        self.resolver = threading.Thread(target=self._resolve, name=f"resolve {target.host}", daemon=True)
+        self.resolver.start()
+        self.resolver.join(RESOLVE_WAIT)  # a name that resolves at once is ready for the first frame
+        if self.resolved is None:
+            console.warn(f"osc {target}",
+                         f"OSC target {target}: cannot resolve {target.host!r} yet; the show goes on, still trying")
+        else:
+            self._open()
+
+    def _resolve(self) -> None:
+        while True:
+            try:
+                self.resolved = self.lookup(self.target.host, self.target.port, type=socket.SOCK_DGRAM)[0]
+                return
+            except (socket.gaierror, UnicodeError, OSError):
+                if self.closing.wait(RESOLVE_EVERY):
+                    return
+
+    def _open(self) -> None:
+        family, _, _, _, self.address = self.resolved
         self.sock = socket.socket(family, socket.SOCK_DGRAM)
         self.sock.setblocking(False)
         ip = ipaddress.ip_address(self.address[0])
@@ -127,10 +158,6 @@ class UdpOut:
             self.sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, 1)
         elif family == socket.AF_INET and (str(ip) == "255.255.255.255" or str(ip).endswith(".255")):
             self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
-        self.connected = False
-        self.next_attempt = 0.0
-        self.sent = 0
-        self.failed = 0
         self._connect()
 
     def _connect(self) -> None:
@@ -151,6 +178,11 @@ class UdpOut:
         self.console.warn(f"osc {self.target}", f"OSC target {self.target}: {error.strerror or error} (still trying)")
 
     def send(self, datagrams: list[bytes]) -> None:
+        if self.sock is None:
+            if self.resolved is None:
+                return
+            self.console.say(f"OSC target {self.target}: {self.target.host!r} resolved to {self.resolved[4][0]}; sending")
+            self._open()
         if not self.connected:
             self._connect()
             if not self.connected:
@@ -164,4 +196,6 @@ class UdpOut:
                 return
 
     def close(self) -> None:
-        self.sock.close()
+        self.closing.set()
+        if self.sock is not None:
+            self.sock.close()

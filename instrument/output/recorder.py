@@ -42,9 +42,13 @@ class BvhRecorder:
         os.pwrite(self.fd, f"{self.frames:0{COUNT_WIDTH}d}".encode("ascii"), self.count_offset)
 
     def close(self) -> None:
+        """Close the file; a recording stopped before its first frame is removed (no file is
+        better than a BVH with no motion, which no reader takes)."""
         if self.fd is not None:
             os.close(self.fd)
             self.fd = None
+            if self.frames == 0:
+                self.path.unlink(missing_ok=True)
 
 
 def recover(path: str | Path) -> tuple[int, int]:

@@ -9,7 +9,6 @@ are interpolated from its frames.
 from __future__ import annotations
 
 import gc
-import signal
 import time
 from collections import deque
 from dataclasses import dataclass, field
@@ -18,17 +17,20 @@ from typing import Callable, Protocol
 import numpy as np
 
 from ..control.events import ControlEvent, LogReplay
+from ..control.hub import ControlHub
 from ..control.state import ControlState
 from ..models.modelfile import Model
 from ..synthesis.interpolation import style_space
 from ..synthesis.offline import drive
 from ..synthesis.stream import DEFAULT_LOOKAHEAD, Crowd
-from .clock import FrameClock
+from .clock import IDLE_UNTIL, FrameClock
 from .console import Console
 from .pose import Pose, PoseStream
+from .stopping import StopFlag
 
 STATUS_EVERY = 0.5  # seconds of wall time
 LEAD_MARGIN = 0.0005  # seconds added to the expected work of a frame when waking before its deadline
+INPUT_BUDGET = IDLE_UNTIL  # seconds of input handling per look: what is left waits for the next look
 
 
 class Output(Protocol):
@@ -77,6 +79,7 @@ class Summary:
     late: int = 0
     dropped: int = 0
     output_errors: dict[str, int] = field(default_factory=dict)
+    input_errors: dict[str, int] = field(default_factory=dict)  # a device's poll or an event's apply that raised
     seconds: float = 0.0
 
 
@@ -94,29 +97,49 @@ def perform(
     lookahead: int = DEFAULT_LOOKAHEAD,
     timing: list[float] | None = None,
     state: ControlState | None = None,
+    stop: StopFlag | None = None,
 ) -> Summary:
     """Run until `seconds` of performance time, the end of a non-looping replay, or Ctrl-C.
 
-    `timing`, when given, receives each frame's send time minus its deadline (seconds)."""
+    `timing`, when given, receives each frame's send time minus its deadline (seconds).
+    `stop` is the flag Ctrl-C and SIGTERM set (installed here unless the caller did, so that a
+    stop during its start-up is kept too)."""
     state = state or ControlState(model.style_names, model.states)
-    apply = apply or (lambda s, e: s.set(e.control, e.value))
+    apply = apply or ControlHub([], console=console).apply  # checked, counted and warned as a show's events are
     engine = Engine(model, lookahead)
     poses = PoseStream(model.layout, fps)
     clock = FrameClock(fps, realtime=not fast)
     summary = Summary()
-    stop = {"now": False}
-    previous = signal.signal(signal.SIGTERM, lambda *_: stop.__setitem__("now", True))
+    own_stop = stop is None
+    stop = StopFlag().install() if own_stop else stop
     last_status = 0.0
     started = time.monotonic()
     work_times: deque[float] = deque(maxlen=300)  # how long making a frame took, recently
+    backlog: deque[ControlEvent] = deque()  # taken from devices, not yet applied (over the budget)
+
+    def guarded_apply(event: ControlEvent) -> bool:
+        try:
+            return apply(state, event)
+        except Exception as error:  # a bad event never stops the show
+            _count(console, summary.input_errors, f"apply {event.source.split(':')[0]}", error)
+            return False
 
     def take_live(now: float) -> None:
-        for source in live_sources:
-            for event in source(now):
-                apply(state, event)
+        """Apply what devices sent, for at most INPUT_BUDGET seconds; the rest waits its turn
+        (stamped with the time it is applied at, so a replay of the record hits the same frame)."""
+        until = time.monotonic() + INPUT_BUDGET
+        if not backlog:
+            for source in live_sources:
+                try:
+                    backlog.extend(source(now))
+                except Exception as error:  # a device that fails is reported; the walk goes on
+                    _count(console, summary.input_errors, f"poll {getattr(source, '__qualname__', 'device')}", error)
+        while backlog and time.monotonic() < until:
+            event = backlog.popleft()
+            guarded_apply(event if event.time == now else ControlEvent(now, event.source, event.control, event.value))
 
     try:
-        while not stop["now"]:
+        while not stop:
             index = clock.frame
             now = index / fps
             if seconds is not None and now >= seconds:
@@ -126,8 +149,7 @@ def perform(
                 if replay.finished and seconds is None:
                     break
                 for event in replay.due(now):
-                    if not apply(state, event):
-                        console.warn(f"unknown {event.control}", f"ignored an event for unknown control {event.control!r}")
+                    guarded_apply(event)
             take_live(now)  # what came since the last look, while the loop waited
             state.advance(now)
             controls = state.snapshot()
@@ -160,10 +182,11 @@ def perform(
             upcoming = (index + 1) / fps
             clock.advance(lead=min(expected + LEAD_MARGIN, 0.5 / fps),
                           idle=(lambda: take_live(upcoming)) if live_sources else None)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # a caller that kept Python's own SIGINT handler
         pass
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        if own_stop:
+            stop.restore()
         for output in outputs:
             try:
                 output.close()
@@ -182,6 +205,11 @@ def _attempt(console: Console, summary: Summary, output: Output, method, *args):
         summary.output_errors[output.name] = summary.output_errors.get(output.name, 0) + 1
         console.warn(f"output {output.name}", f"output {output.name} failed: {type(error).__name__}: {error}")
         return None
+
+
+def _count(console: Console, counts: dict[str, int], key: str, error: Exception) -> None:
+    counts[key] = counts.get(key, 0) + 1
+    console.warn(key, f"{key} failed: {type(error).__name__}: {str(error)[:200]} (the walk goes on)")
 
 
 def _status(index: int, fps: float, clock: FrameClock, state: ControlState, sources: str) -> str:

@@ -1,0 +1,84 @@
+"""The --record controller log, written off the frame thread in batches, bounded in size.
+
+The frame loop only appends an accepted event's line to a list; a writer thread takes the list
+about every WRITE_EVERY seconds and writes it with one `os.write`, so whole lines reach the
+file in order and a flood of events costs the frame loop no system calls. Closing writes what
+is left. A run killed outright loses at most the last WRITE_EVERY seconds, and a line it cut
+is dropped with a warning when the log is read. The file stops growing at LIMIT bytes (about
+2.5 hours of a 10,000 messages a second flood): the run goes on, and says so.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from pathlib import Path
+
+from ..errors import UserError
+from .events import ControlEvent
+
+WRITE_EVERY = 0.1  # seconds between two batches
+LIMIT = 1 << 30  # bytes: a log never grows past this
+PENDING_LIMIT = 1_000_000  # lines waiting for a stuck disk; more are counted as not recorded
+
+
+class EventLog:
+    def __init__(self, path: str | Path, header: str, replace: bool = False):
+        """A new log at `path` (an existing file only with `replace`), starting with `header`: the
+        line that tells a replay what it needs (control.loghead)."""
+        self.path = Path(path)
+        try:
+            self.fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | (os.O_TRUNC if replace else os.O_EXCL), 0o644)
+            os.write(self.fd, (header + "\n").encode("utf-8"))
+        except FileExistsError:
+            raise UserError(f"{self.path}: already exists; record to a new file, or give --force") from None
+        except OSError as e:
+            raise UserError(f"{self.path}: cannot record: {e.strerror or e}") from None
+        self.pending: list[str] = []
+        self.written = 0  # bytes in the file
+        self.lost = 0  # events not recorded: the size limit reached, the disk stuck or failing
+        self.error: str | None = None  # why recording stopped, once it has
+        self.lock = threading.Lock()
+        self.done = threading.Event()
+        self.writer = threading.Thread(target=self._run, name="record", daemon=True)
+        self.writer.start()
+
+    def write(self, event: ControlEvent) -> None:
+        """Queue one event's line (frame thread: no system call)."""
+        if self.error is not None or len(self.pending) >= PENDING_LIMIT:
+            self.lost += 1
+            return
+        line = event.to_json() + "\n"
+        with self.lock:
+            self.pending.append(line)
+
+    def _run(self) -> None:
+        while not self.done.wait(WRITE_EVERY):
+            self._write_batch()
+        self._write_batch()
+
+    def _write_batch(self) -> None:
+        with self.lock:
+            batch, self.pending = self.pending, []
+        if not batch or self.error is not None:
+            self.lost += len(batch) if self.error is not None else 0
+            return
+        data = "".join(batch).encode("utf-8")
+        if self.written + len(data) > LIMIT:
+            self.error = f"the log reached its limit of {LIMIT >> 20} MiB"
+            self.lost += len(batch)
+            return
+        try:
+            os.write(self.fd, data)  # one write: a kill cuts at most the last line
+            self.written += len(data)
+        except OSError as e:
+            self.error = f"cannot write: {e.strerror or e}"
+            self.lost += len(batch)
+
+    def close(self) -> None:
+        if self.fd is None:
+            return
+        self.done.set()
+        self.writer.join()
+        os.close(self.fd)
+        self.fd = None
