@@ -50,6 +50,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--mapping", action="append", metavar="FILE.toml",
                    help="mapping file, repeatable (default: the shipped mapping that matches the device)")
     p.add_argument("--osc-in", metavar="[HOST:]PORT", help="accept control from OSC surfaces (bound to 127.0.0.1 unless HOST is given)")
+    p.add_argument("--console", metavar="[HOST:]PORT",
+                   help="serve the browser console (style mixer + live character) on PORT, bound to 127.0.0.1 unless "
+                        "HOST is given; with a HOST the printed URL carries a token the page needs (docs/console.md)")
+    p.add_argument("--console-token", metavar="TOKEN", help="the console's token (default: a new random one when HOST is given)")
     p.add_argument("--presets", metavar="FILE.toml", help="[presets.NAME] tables of target = value, recalled by preset/NAME")
     p.add_argument("--morph", help="seconds to morph into a recalled preset (default: the mapping's)")
     p.add_argument("--record", metavar="LOG.jsonl", help="record every raw control event with its time")
@@ -156,10 +160,10 @@ def run(args: argparse.Namespace) -> int:
     console = Console(quiet=args.quiet)
     state = ControlState(model.style_names, model.states)
     presets = check_presets(show_presets, state, args.config or "show file")
-    if args.presets:
+    if args.presets and (Path(args.presets).exists() or not args.console):  # the console may save to a new file
         presets.update(check_presets(read_toml(args.presets)[1].get("presets", {}), state, args.presets))
     mappings = choose_mappings(args, state, console)
-    live = bool(args.midi or args.midi_virtual or args.hid or args.osc_in)
+    live = bool(args.midi or args.midi_virtual or args.hid or args.osc_in or args.console)
     replay_path = args.replay or (None if live else demo_log_path())
     replay = LogReplay(read_log(replay_path), loop=args.loop or not args.replay) if replay_path else None
     targets = [] if args.no_osc else [parse_target(t) for t in (args.osc or DEFAULT_TARGETS)]
@@ -177,6 +181,14 @@ def run(args: argparse.Namespace) -> int:
             devices.append(HidInput(console, vendor, product))
         if args.osc_in:
             devices.append(OscInput(console, args.osc_in if ":" in args.osc_in else f"127.0.0.1:{args.osc_in}"))
+        if args.console:
+            from ..console.link import ConsoleLink
+
+            link = ConsoleLink(args.console, model, state, hub.presets, console, fps, hub.morph, args.console_token,
+                               args.presets, sources=lambda: ", ".join([d.describe() for d in devices] + [f"log {replay_path}"] * bool(replay_path)))
+            devices.append(link.input)
+            outputs.append(link.output)
+            console.say(f"console: {link.server.url}")
         if args.bvh:
             outputs.append(RecorderOutput(args.bvh, model, fps))
         profiles = {kind: make_profile(kind, model, args.humanoid) for kind in {t.profile for t in targets}}

@@ -10,6 +10,7 @@ from ..errors import UserError
 from .events import ControlEvent
 from .mapping import Mapper, Mapping
 from .state import ControlState
+from .values import preset_values
 
 
 class ControlHub:
@@ -44,6 +45,9 @@ class ControlHub:
             if preset is None:
                 return False
             state.recall(preset, event.time, self.morph)
+            return True
+        if event.control.startswith("store/"):  # a console's "store": the current values as a preset
+            self.presets[event.control[len("store/"):]] = preset_values(state)
             return True
         return state.set(event.control, event.value)
 

@@ -103,6 +103,9 @@ def perform(
     engine = Engine(model, lookahead)
     poses = PoseStream(model.layout, fps)
     clock = FrameClock(fps, realtime=not fast)
+    for output in outputs:
+        if hasattr(output, "watch"):  # an output that shows late frames (the console)
+            output.watch(clock)
     summary = Summary()
     stop = {"now": False}
     previous = signal.signal(signal.SIGTERM, lambda *_: stop.__setitem__("now", True))
