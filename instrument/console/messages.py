@@ -49,6 +49,6 @@ def parse(text: str, targets: frozenset[str]) -> tuple[str, str, float]:
         if not isinstance(name, str) or not NAME.match(name):
             raise Refused(f"{kind}: a name of 1 to 40 letters, digits, '_', '.', '-'")
         return "event", f"{kind}/{name}", 1.0
-    if item == {"save": True}:
+    if set(item) == {"save"} and item["save"] is True:
         return "save", "", 0.0
     raise Refused(f"unknown message {sorted(item)[:4]}")

@@ -177,7 +177,7 @@ class ConsoleServer:
 
         if not self._allowed(request):
             return web.Response(status=403, text="forbidden")
-        ws = web.WebSocketResponse(max_msg_size=MAX_MESSAGE, heartbeat=10.0)
+        ws = web.WebSocketResponse(max_msg_size=MAX_MESSAGE)  # no heartbeat: a stalled page is found by its frames
         await ws.prepare(request)
         page = Page(ws, request.transport)
         self.pages.add(page)
