@@ -121,8 +121,8 @@ class ConsoleServer:
         return out
 
     def close(self) -> None:
-        if self.thread.is_alive() and self.loop.is_running():
-            self.loop.call_soon_threadsafe(self.loop.stop)
+        if self.thread.is_alive() and not self.loop.is_closed():
+            self.loop.call_soon_threadsafe(self.loop.stop)  # run_forever stops at once, or as soon as it starts
         self.thread.join(10)
 
     # --- the server thread -------------------------------------------------------------------
@@ -144,8 +144,9 @@ class ConsoleServer:
             self.port = site._server.sockets[0].getsockname()[1]  # the port chosen when 0 was asked for
         except OSError as e:
             self.error = e.strerror or str(e)
-            self.started.set()
             self.loop.run_until_complete(runner.cleanup())
+            self.loop.close()
+            self.started.set()
             return
         self.started.set()
         try:
