@@ -183,8 +183,8 @@ def run(args: argparse.Namespace) -> int:
             print(json.dumps(f, indent=1))
         else:
             with_console = f", the console with {f['pacing_console_pages']} pages" if args.console else ""
-            print(f"live loop at {f['pacing_fps']:g} fps for {f['pacing_seconds']:g} s ({f['pacing_frames']} frames, 2 OSC outputs"
-                  f"{with_console}, {f['pacing_scheduling']} scheduling):")
+            print(f"live loop at {f['pacing_fps']:g} fps for {f['pacing_seconds']:g} s ({f['pacing_frames']} frames, "
+                  f"2 OSC outputs{with_console}, {f['pacing_scheduling']} scheduling):")
             print(f"send time minus deadline: p50 {f['pacing_p50_ms']:.3f} ms, p99 {f['pacing_p99_ms']:.3f} ms, "
                   f"max {f['pacing_max_ms']:.3f} ms; late frames {f['pacing_late_frames']}, dropped {f['pacing_dropped_frames']}")
         return 0

@@ -184,15 +184,19 @@ def run(args: argparse.Namespace) -> int:
         if args.console:
             from ..console.link import ConsoleLink
 
+            def sources() -> str:
+                return ", ".join([d.describe() for d in devices] + ([f"log {replay_path}"] if replay_path else []))
+
             link = ConsoleLink(args.console, model, state, hub.presets, console, fps, hub.morph, args.console_token,
-                               args.presets, sources=lambda: ", ".join([d.describe() for d in devices] + [f"log {replay_path}"] * bool(replay_path)))
+                               args.presets, sources)
             devices.append(link.input)
-            outputs.append(link.output)
             console.say(f"console: {link.server.url}")
         if args.bvh:
             outputs.append(RecorderOutput(args.bvh, model, fps))
         profiles = {kind: make_profile(kind, model, args.humanoid) for kind in {t.profile for t in targets}}
         outputs += [OscOutput(t, profiles[t.profile], console) for t in targets]
+        if args.console:
+            outputs.append(link.output)  # last: the OSC targets' datagrams leave first at the deadline
     except UserError:
         for thing in outputs + devices + ([hub] if hub else []):
             thing.close()
