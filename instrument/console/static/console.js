@@ -167,12 +167,14 @@ $("save").addEventListener("click", () => send({ save: true }));
 
 // ---- keyboard: arrows steer and change speed, digits recall presets ---------------------
 
+let steering = false;  // an arrow key is held: the page set a turn it must take back
 const typing = (event) => ["INPUT", "SELECT", "TEXTAREA"].includes(event.target.tagName);
 window.addEventListener("keydown", (event) => {
   if (typing(event) || !latest || event.ctrlKey || event.metaKey || event.altKey) return;
   const key = event.key;
   if (key === "ArrowLeft" || key === "ArrowRight") {
     if (!event.repeat) setTarget("turn", key === "ArrowLeft" ? 1.0 : -1.0);  // positive turns left
+    steering = true;
   } else if (key === "ArrowUp" || key === "ArrowDown") {
     setTarget("speed", Math.round((latest.v.speed + (key === "ArrowUp" ? 0.1 : -0.1)) * 100) / 100);
   } else if (/^[1-9]$/.test(key)) {
@@ -182,8 +184,9 @@ window.addEventListener("keydown", (event) => {
   event.preventDefault();
 });
 window.addEventListener("keyup", (event) => {
-  if (!typing(event) && (event.key === "ArrowLeft" || event.key === "ArrowRight")) setTarget("turn", 0);
+  if (!typing(event) && (event.key === "ArrowLeft" || event.key === "ArrowRight")) { steering = false; setTarget("turn", 0); }
 });
+window.addEventListener("blur", () => { if (steering) { steering = false; setTarget("turn", 0); } });  // a key released elsewhere
 
 // ---- the XY pad: two styles (blend across, amount up) or three (a triangle) -------------
 
