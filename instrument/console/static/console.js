@@ -288,7 +288,7 @@ const figure = {
   canvas: $("view"),
   camera: { yaw: 0.7, pitch: 0.28, distance: 520, target: [0, 90, 0], follow: true },
   joints: [], parents: [], first: 0,
-  positions: null, floor: Infinity, prints: [], feet: [], drawn: -1, frames: 0,
+  positions: null, floor: Infinity, prints: [], feet: [], frames: 0, dirty: true, size: "",
 
   setup(hello) {
     this.parents = hello.parents;
@@ -312,6 +312,7 @@ const figure = {
     for (let k = 0; k < n; k++) positions.push([flat[3 * k], flat[3 * k + 1], flat[3 * k + 2]]);
     const previous = this.positions;
     this.positions = positions;
+    this.dirty = true;
     this.frames++;
     let lowest = Infinity;
     for (const p of positions) lowest = Math.min(lowest, p[1]);
@@ -475,8 +476,11 @@ const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + (a.length > 2 ? a[2] * b[2] : 
 const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
 const norm = (a) => { const n = Math.hypot(...a) || 1; return a.map((x) => x / n); };
 
-function animate() {
-  figure.draw();
+function animate() {  // draws only when there is something new: a frame, a camera move, a resize
+  const size = figure.canvas.clientWidth + "x" + figure.canvas.clientHeight;
+  if (figure.dirty || size !== figure.size) figure.draw();
+  figure.dirty = false;
+  figure.size = size;
   requestAnimationFrame(animate);
 }
 requestAnimationFrame(animate);
@@ -493,6 +497,7 @@ figure.canvas.addEventListener("pointermove", (event) => {
   if (!before) return;
   pointers.set(event.pointerId, [event.clientX, event.clientY]);
   const c = figure.camera;
+  figure.dirty = true;
   if (pointers.size === 1) {
     c.yaw -= (event.clientX - before[0]) * 0.008;
     c.pitch = Math.min(Math.max(c.pitch + (event.clientY - before[1]) * 0.006, 0.02), 1.45);
@@ -509,11 +514,16 @@ figure.canvas.addEventListener("pointercancel", release);
 figure.canvas.addEventListener("wheel", (event) => {
   event.preventDefault();
   figure.camera.distance = Math.min(Math.max(figure.camera.distance * Math.exp(event.deltaY * 0.001), 120), 3000);
+  figure.dirty = true;
 }, { passive: false });
 $("follow").addEventListener("click", () => {
   figure.camera.follow = !figure.camera.follow;
+  figure.dirty = true;
   $("follow").setAttribute("aria-pressed", String(figure.camera.follow));
 });
-$("home").addEventListener("click", () => Object.assign(figure.camera, { yaw: 0.7, pitch: 0.28, distance: 520 }));
+$("home").addEventListener("click", () => {
+  Object.assign(figure.camera, { yaw: 0.7, pitch: 0.28, distance: 520 });
+  figure.dirty = true;
+});
 
 connect();
