@@ -68,7 +68,7 @@ def measure_pacing(model_path: str | None, seconds: float, fps: float, console_a
                           live_sources=live_sources, state=link.output.state if link else None)
     finally:
         if link:
-            open_pages = len(link.server.pages)
+            open_pages = link.pages
             link.input.close()
     for s in sinks:
         s.close()
@@ -95,14 +95,14 @@ def _console_for_pacing(address: str, model, console, outputs: list, fps: float,
 
     link = ConsoleLink(address, model, ControlState(model.style_names, model.states), {}, console, fps)
     outputs.append(link.output)
-    print(f"console: {link.server.url}", file=sys.stderr, flush=True)
+    print(f"console: {link.url}", file=sys.stderr, flush=True)
     deadline = time.monotonic() + 300
-    while len(link.server.pages) < pages:
+    while link.pages < pages:
         if time.monotonic() > deadline:
             link.input.close()
-            raise UserError(f"--console-pages {pages}: only {len(link.server.pages)} pages opened in 5 minutes")
+            raise UserError(f"--console-pages {pages}: only {link.pages} pages opened in 5 minutes")
+        link.input.poll(0.0)  # takes the page count (and says the pages' connections)
         time.sleep(0.1)
-    link.server.notes.clear()  # "a page connected": not for a benchmark's output
     return link
 
 

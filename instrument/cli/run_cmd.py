@@ -190,7 +190,7 @@ def run(args: argparse.Namespace) -> int:
             link = ConsoleLink(args.console, model, state, hub.presets, console, fps, hub.morph, args.console_token,
                                args.presets, sources)
             devices.append(link.input)
-            console.say(f"console: {link.server.url}")
+            console.say(f"console: {link.url}")
         if args.bvh:
             outputs.append(RecorderOutput(args.bvh, model, fps))
         profiles = {kind: make_profile(kind, model, args.humanoid) for kind in {t.profile for t in targets}}

@@ -1,14 +1,18 @@
-"""The console's web server: the page and one WebSocket per page, in a thread of its own.
+"""The console's web server: the page and one WebSocket per page, in a process of its own.
 
 aiohttp serves both the page's files and the WebSockets from one asyncio loop (the websockets
 library would need its HTTP hook to serve files), and its writer applies back-pressure per
 connection, which is how a slow page is found and dropped.
 
-The frame loop never waits for this thread: it hands each frame over with one thread-safe call
-(`publish`) and takes the pages' events from a deque (`take`). Each page has a sender task that
-always sends the newest frame: a page that cannot keep up skips frames, and one that has not
-taken a frame for SLOW_SECONDS is dropped. Nothing here writes to the terminal: notes for the
-performer are queued and said by the frame loop's side (link.py).
+It runs in its own process (`python -m instrument.console.server FD`), not in a thread: a
+thread would share the interpreter lock with the realtime frame loop, and when the machine is
+busy a preempted server thread holding the lock keeps the frame loop waiting (measured: five
+browser pages on the same two cores made a tenth of the frames late in a thread, none from a
+process). The frame loop talks to it over a socket pair of whole packets (link.py): it sends
+each frame without waiting and reads the pages' events when it polls.
+
+Each page has a sender task that always sends the newest frame: a page that cannot keep up
+skips frames, and one that has not taken a frame for SLOW_SECONDS is dropped.
 """
 
 from __future__ import annotations
@@ -17,43 +21,43 @@ import asyncio
 import json
 import math
 import secrets
-import threading
-from collections import deque
+import signal
+import socket
+import struct
+import sys
 from dataclasses import dataclass, field
 from importlib import resources
-from typing import Callable
 from urllib.parse import urlsplit
 
 import numpy as np
 
 from ..errors import UserError
 from .messages import MAX_MESSAGE, Refused, parse
+from .presets import save_presets
 
 SLOW_SECONDS = 5.0  # a page that has not taken a frame for this long is dropped
-INBOX_LIMIT = 10_000  # events waiting for the frame loop; beyond this a flood is refused
 STATIC = {"/": ("index.html", "text/html"), "/console.js": ("console.js", "text/javascript"),
           "/console.css": ("console.css", "text/css")}
 SECURITY = {"Content-Security-Policy": "default-src 'self'; img-src 'self' data:; connect-src 'self'",
             "Cache-Control": "no-store", "X-Content-Type-Options": "nosniff", "Referrer-Policy": "no-referrer"}
+HEADER = struct.Struct("<qii")  # a frame packet: index, late frames, dropped frames; then float32 positions, float64 values
+FRAME, JSON = b"F", b"J"  # the first byte of every packet between the frame loop and the server
 
 
-@dataclass
-class Frame:
-    """What a page is sent each frame: the character's joints and every control value."""
+def frame_packet(index: int, late: int, dropped: int, positions: np.ndarray, values: np.ndarray) -> bytes:
+    """A frame as one packet (made by the frame loop: a few microseconds, no JSON)."""
+    return FRAME + HEADER.pack(index, late, dropped) + positions.astype("<f4").tobytes() + values.astype("<f8").tobytes()
 
-    index: int
-    positions: np.ndarray  # (J, 3) world positions, model units
-    values: dict[str, float]  # every target's value (NaN: a part weight following its style)
-    late: int
-    dropped: int
-    presets: list[str]
-    sources: str
 
-    def json(self, pages: int) -> str:
-        values = {k: (None if math.isnan(v) else round(v, 4)) for k, v in self.values.items()}
-        return json.dumps({"type": "frame", "frame": self.index, "late": self.late, "dropped": self.dropped,
-                           "p": np.round(self.positions, 2).ravel().tolist(), "v": values, "presets": self.presets,
-                           "sources": self.sources, "pages": pages}, separators=(",", ":"))
+def frame_json(packet: bytes, joints: int, order: list[str], extra: dict) -> str:
+    """A frame packet as the JSON a page is sent: the joints' positions and every control value."""
+    index, late, dropped = HEADER.unpack_from(packet, 1)
+    start = 1 + HEADER.size
+    positions = np.frombuffer(packet, "<f4", joints * 3, start)
+    values = np.frombuffer(packet, "<f8", len(order), start + joints * 12)
+    shown = {t: (None if math.isnan(v) else round(v, 4)) for t, v in zip(order, values.tolist())}
+    return json.dumps({"type": "frame", "frame": index, "late": late, "dropped": dropped,
+                       "p": np.round(positions.astype(float), 2).tolist(), "v": shown, **extra}, separators=(",", ":"))
 
 
 @dataclass(eq=False)
@@ -65,69 +69,26 @@ class Page:
     sending_since: float | None = None
 
 
-def split_address(address: str) -> tuple[str, int, bool]:
-    """`[HOST:]PORT` as (host, port, host named); one-line error for anything else."""
-    host, _, port = address.rpartition(":")
-    try:
-        number = int(port)
-    except ValueError:
-        raise UserError(f"--console {address!r}: expected [HOST:]PORT") from None
-    if not 0 <= number <= 65535:
-        raise UserError(f"--console {address!r}: port must be 0 to 65535")
-    return host or "127.0.0.1", number, bool(host)
-
-
 class ConsoleServer:
-    def __init__(self, address: str, hello: dict, targets: frozenset[str], token: str | None = None,
-                 save: Callable[[], str] | None = None):
-        import aiohttp  # noqa: F401  (imported here: only `run --console` needs it)
+    """The server, in its own process. `link` is its end of the socket pair to the frame loop;
+    `config` holds the address, the token, the page's hello, the targets and the preset file."""
 
-        self.host, port, named = split_address(address)
-        # a named host may be reached from the network: then the page needs the token
-        self.token = token or (secrets.token_urlsafe(16) if named else None)
-        self.hello, self.targets, self.save = hello, targets, save
+    def __init__(self, link: socket.socket, config: dict):
+        self.link = link
+        self.host, self.port = config["host"], config["port"]
+        self.token: str | None = config["token"]
+        self.hello, self.order = config["hello"], config["hello"]["order"]
+        self.joints = len(self.hello["joints"])
+        self.targets = frozenset(config["targets"])
+        self.save_path: str | None = config["save"]
+        self.presets: dict[str, dict[str, float]] = {}
+        self.extra = {"presets": self.hello["presets"], "sources": "", "pages": 0}  # sent with every frame
         self.files = {route: (resources.files(__package__).joinpath("static", name).read_bytes(), kind)
                       for route, (name, kind) in STATIC.items()}
-        self.inbox: deque[tuple[str, float]] = deque()  # (control, value), taken by the frame loop
-        self.notes: deque[tuple[str, str]] = deque()  # (key, text) for the performer; key "" = say, else warn
-        self.refused = 0
         self.pages: set[Page] = set()
         self.loop = asyncio.new_event_loop()
-        self.started = threading.Event()
-        self.error: str | None = None
-        self.port = port
-        self.thread = threading.Thread(target=self._run, args=(port,), name="console", daemon=True)
-        self.thread.start()
-        self.started.wait(30)
-        if self.error or not self.started.is_set():
-            self.close()
-            raise UserError(f"--console {address!r}: cannot listen: {self.error or 'the server did not start'}")
 
-    @property
-    def url(self) -> str:
-        return f"http://{self.host}:{self.port}/" + (f"?token={self.token}" if self.token else "")
-
-    # --- the frame loop's side (any thread) -------------------------------------------------
-
-    def publish(self, frame: Frame) -> None:
-        """Hand a frame to every page; returns at once."""
-        if self.pages:
-            self.loop.call_soon_threadsafe(self._broadcast, frame)
-
-    def take(self) -> list[tuple[str, float]]:
-        out = []
-        while self.inbox:
-            out.append(self.inbox.popleft())
-        return out
-
-    def close(self) -> None:
-        if self.thread.is_alive() and not self.loop.is_closed():
-            self.loop.call_soon_threadsafe(self.loop.stop)  # run_forever stops at once, or as soon as it starts
-        self.thread.join(10)
-
-    # --- the server thread -------------------------------------------------------------------
-
-    def _run(self, port: int) -> None:
+    def run(self) -> None:
         from aiohttp import web
 
         asyncio.set_event_loop(self.loop)
@@ -137,25 +98,64 @@ class ConsoleServer:
             app.router.add_get(route, self._file)
         app.router.add_get("/favicon.ico", lambda request: web.Response(status=204))
         runner = web.AppRunner(app, handle_signals=False, access_log=None)
+        self.loop.run_until_complete(runner.setup())
         try:
-            self.loop.run_until_complete(runner.setup())
-            site = web.TCPSite(runner, self.host, port)
+            site = web.TCPSite(runner, self.host, self.port)
             self.loop.run_until_complete(site.start())
-            self.port = site._server.sockets[0].getsockname()[1]  # the port chosen when 0 was asked for
         except OSError as e:
-            self.error = e.strerror or str(e)
+            self._tell_instrument({"error": e.strerror or str(e)})
             self.loop.run_until_complete(runner.cleanup())
-            self.loop.close()
-            self.started.set()
             return
-        self.started.set()
+        self.port = site._server.sockets[0].getsockname()[1]  # the port chosen when 0 was asked for
+        self._tell_instrument({"ready": self.port})
+        self.link.setblocking(False)
+        self.loop.add_reader(self.link.fileno(), self._from_instrument)
         try:
-            self.loop.run_forever()
+            self.loop.run_forever()  # until the instrument closes its end
         finally:
             for page in list(self.pages):
                 self._drop(page)
             self.loop.run_until_complete(runner.cleanup())
-            self.loop.close()
+
+    # --- the frame loop's side ----------------------------------------------------------------
+
+    def _from_instrument(self) -> None:
+        """Read every packet waiting; only the newest frame is sent on (a backlog is skipped)."""
+        newest = None
+        while True:
+            try:
+                packet = self.link.recv(1 << 20)
+            except BlockingIOError:
+                break
+            except OSError:
+                packet = b""
+            if not packet:  # the instrument has stopped
+                self.loop.remove_reader(self.link.fileno())
+                self.loop.stop()
+                return
+            if packet[:1] == FRAME:
+                newest = packet
+            else:
+                item = json.loads(packet[1:])
+                if "presets" in item:
+                    self.presets = item["presets"]
+                    self.extra["presets"] = sorted(self.presets)
+                if "sources" in item:
+                    self.extra["sources"] = item["sources"]
+        if newest is not None and self.pages:
+            self._broadcast(newest)
+
+    def _tell_instrument(self, item: dict) -> None:
+        try:
+            self.link.send(JSON + json.dumps(item).encode("utf-8"))
+        except OSError:  # the instrument is stopping (it reads us every frame otherwise)
+            pass
+
+    def _note(self, text: str, key: str = "") -> None:
+        """Something for the performer's terminal; with a key, a warning said at most once a minute."""
+        self._tell_instrument({"note": [key, text]})
+
+    # --- the pages' side ----------------------------------------------------------------------
 
     def _allowed(self, request) -> bool:
         """The token when one is needed, and no page of another site talking to us (a browser
@@ -181,11 +181,11 @@ class ConsoleServer:
         ws = web.WebSocketResponse(max_msg_size=MAX_MESSAGE)  # no heartbeat: a stalled page is found by its frames
         await ws.prepare(request)
         page = Page(ws, request.transport)
-        self.pages.add(page)
-        self.notes.append(("", f"console: a page connected from {request.remote} ({len(self.pages)} open)"))
+        self._count(page, add=True)
+        self._note(f"console: a page connected from {request.remote} ({len(self.pages)} open)")
         sender = asyncio.ensure_future(self._sender(page))
         try:
-            await ws.send_str(json.dumps(self.hello))
+            await ws.send_str(json.dumps({**self.hello, "presets": self.extra["presets"]}))
             async for message in ws:
                 if message.type == WSMsgType.TEXT:
                     self._receive(page, message.data)
@@ -196,9 +196,14 @@ class ConsoleServer:
         finally:
             sender.cancel()
             if page in self.pages:
-                self.pages.discard(page)
-                self.notes.append(("", f"console: a page closed ({len(self.pages)} open)"))
+                self._count(page, add=False)
+                self._note(f"console: a page closed ({len(self.pages)} open)")
         return ws
+
+    def _count(self, page: Page, add: bool) -> None:
+        (self.pages.add if add else self.pages.discard)(page)
+        self.extra["pages"] = len(self.pages)
+        self._tell_instrument({"pages": len(self.pages)})
 
     def _receive(self, page: Page, text: str) -> None:
         try:
@@ -208,27 +213,25 @@ class ConsoleServer:
             return
         if kind == "save":
             self._save(page)
-        elif len(self.inbox) >= INBOX_LIMIT:
-            self._refuse(page, "too many messages at once")
         else:
-            self.inbox.append((control, value))
+            self._tell_instrument({"event": [control, value]})
 
     def _refuse(self, page: Page, reason: str) -> None:
-        self.refused += 1
-        self.notes.append(("console refused", f"console: refused a page's message: {reason}"))
+        self._note(f"console: refused a page's message: {reason}", "console refused")
         self._tell(page, {"type": "refused", "reason": reason})
 
     def _save(self, page: Page) -> None:
-        if self.save is None:
+        if self.save_path is None:
             self._tell(page, {"type": "saved", "error": "no preset file: start with --presets FILE"})
             return
         try:
-            said = self.save()
+            save_presets(self.save_path, self.presets)
         except UserError as error:
-            self.notes.append(("console save", f"console: {error}"))
+            self._note(f"console: {error}", "console save")
             self._tell(page, {"type": "saved", "error": str(error)})
             return
-        self.notes.append(("", f"console: {said}"))
+        said = f"saved {len(self.presets)} presets to {self.save_path}"
+        self._note(f"console: {said}")
         for other in self.pages:
             self._tell(other, {"type": "saved", "text": said})
 
@@ -243,13 +246,13 @@ class ConsoleServer:
         except (ConnectionError, RuntimeError):
             pass
 
-    def _broadcast(self, frame: Frame) -> None:
-        text = frame.json(len(self.pages))  # once for all pages
+    def _broadcast(self, packet: bytes) -> None:
+        text = frame_json(packet, self.joints, self.order, self.extra)  # once for all pages
         now = self.loop.time()
         for page in list(self.pages):
             if page.sending_since is not None and now - page.sending_since > SLOW_SECONDS:
                 self._drop(page)
-                self.notes.append(("console slow", f"console: dropped a page that took no frame for {SLOW_SECONDS:g} s"))
+                self._note(f"console: dropped a page that took no frame for {SLOW_SECONDS:g} s", "console slow")
                 continue
             page.newest = text
             page.ready.set()
@@ -267,6 +270,20 @@ class ConsoleServer:
             self._drop(page)
 
     def _drop(self, page: Page) -> None:
-        self.pages.discard(page)
+        if page in self.pages:
+            self._count(page, add=False)
         if page.transport is not None:
             page.transport.abort()
+
+
+def main() -> None:
+    """The server process: its end of the socket pair is file descriptor argv[1]; the first
+    packet on it is the configuration."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the instrument's: it closes the pair, and we end
+    link = socket.socket(fileno=int(sys.argv[1]))
+    config = json.loads(link.recv(1 << 20)[1:])
+    ConsoleServer(link, config).run()
+
+
+if __name__ == "__main__":
+    main()
