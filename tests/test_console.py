@@ -28,7 +28,8 @@ RUN = [sys.executable, "-m", "instrument", "run"]
 NANO = str(REPO / "mappings" / "korg-nanokontrol2.toml")
 CHROMIUM, CHROMEDRIVER = shutil.which("chromium") or "/usr/bin/chromium", shutil.which("chromedriver") or "/usr/bin/chromedriver"
 needs_browser = pytest.mark.skipif(not (os.path.exists(CHROMIUM) and os.path.exists(CHROMEDRIVER)),
-                                   reason="chromium and chromium-driver are not installed (apt-get install chromium chromium-driver)")
+                                   reason="chromium and chromium-driver are not installed (apt-get install chromium "
+                                          "chromium-driver)")
 
 
 class Instrument:
@@ -87,7 +88,8 @@ def browser(tmp_path):
     options = webdriver.ChromeOptions()
     options.binary_location = CHROMIUM
     for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--window-size=1400,900", f"--user-data-dir={tmp_path / 'chromium'}"):
+                 "--disable-component-update", "--disable-sync", "--window-size=1400,900",
+                 f"--user-data-dir={tmp_path / 'chromium'}"):
         options.add_argument(flag)
     driver = webdriver.Chrome(options=options, service=Service(CHROMEDRIVER))
     driver.set_page_load_timeout(60)
@@ -220,7 +222,8 @@ def test_store_recall_and_save_presets_that_the_cli_reads(browser, tmp_path):
         box.send_keys("1.25", Keys.ENTER)  # typed over the whole value
         until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [pytest.approx(1.25)], what="the typed weight")
         browser.find_element("id", "store-name").send_keys("graceful", Keys.ENTER)
-        button = until(lambda: browser.find_elements("css selector", '[data-preset="graceful"]'), what="the stored preset's button")[0]
+        button = until(lambda: browser.find_elements("css selector", '[data-preset="graceful"]'),
+                       what="the stored preset's button")[0]
         browser.find_element("id", "reset").click()
         until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [0.0], what="the reset")
         button.click()
@@ -279,14 +282,19 @@ def test_the_view_draws_the_walking_figure(browser):
 
 # ---- the WebSocket itself, without a browser: tokens, validation, slow pages --------------------
 
+def socket_url(page_url: str) -> str:
+    """The WebSocket address of a page's URL (its token kept)."""
+    base, _, query = page_url.partition("?")
+    return base.replace("http://", "ws://") + "ws" + (f"?{query}" if query else "")
+
+
 async def talk(url: str, messages: list[str], origin: str | None = None, wait_for: int = 0) -> list[dict]:
     """Connect to a console's WebSocket, send `messages`, collect replies until `wait_for` refusals."""
     import aiohttp
 
     replies = []
-    address = url.replace("http://", "ws://").replace("/?", "/ws?") if "?" in url else url.replace("http://", "ws://") + "ws"
     async with aiohttp.ClientSession() as session:
-        async with session.ws_connect(address, headers={"Origin": origin} if origin else None) as ws:
+        async with session.ws_connect(socket_url(url), headers={"Origin": origin} if origin else None) as ws:
             replies.append(json.loads((await ws.receive()).data))
             for text in messages:
                 await ws.send_str(text)
@@ -303,8 +311,7 @@ def status_of(url: str, origin: str | None = None) -> int:
 
         try:
             async with aiohttp.ClientSession() as session:
-                address = url.replace("http://", "ws://").replace("/?", "/ws?") if "?" in url else url.replace("http://", "ws://") + "ws"
-                async with session.ws_connect(address, headers={"Origin": origin} if origin else None):
+                async with session.ws_connect(socket_url(url), headers={"Origin": origin} if origin else None):
                     return 101
         except aiohttp.WSServerHandshakeError as error:
             return error.status
@@ -318,7 +325,8 @@ def test_a_named_host_needs_the_token_and_bad_messages_never_stop_the_show(tmp_p
 
     receiver = Receiver()
     show_file = tmp_path / "show.toml"
-    show_file.write_text(f'console = "127.0.0.1:0"\nconsole-token = "tok3n"\nquiet = true\nosc = ["127.0.0.1:{receiver.port}/flat"]\n')
+    show_file.write_text(f'console = "127.0.0.1:0"\nconsole-token = "tok3n"\nquiet = true\n'
+                         f'osc = ["127.0.0.1:{receiver.port}/flat"]\n')
     show = Instrument("--config", str(show_file))
     try:
         assert show.url.endswith("?token=tok3n")
@@ -370,7 +378,7 @@ def test_a_page_that_stops_reading_is_dropped_and_the_others_go_on():
             import aiohttp
 
             async with aiohttp.ClientSession() as session:
-                async with session.ws_connect(show.url.replace("http://", "ws://") + "ws") as ws:
+                async with session.ws_connect(socket_url(show.url)) as ws:
                     deadline = time.monotonic() + 90
                     while time.monotonic() < deadline and not any("dropped a page" in line for line in show.lines):
                         message = json.loads((await ws.receive(timeout=30)).data)
@@ -392,7 +400,8 @@ def test_a_page_that_stops_reading_is_dropped_and_the_others_go_on():
 @pytest.mark.parametrize("address,message", [("nowhere:abc", "--console 'nowhere:abc': expected [HOST:]PORT"),
                                              ("70000", "port must be 0 to 65535")])
 def test_bad_console_addresses_are_one_line_errors(address, message):
-    result = subprocess.run(RUN + ["--console", address, "--no-osc", "--seconds", "1"], capture_output=True, text=True, timeout=60)
+    result = subprocess.run(RUN + ["--console", address, "--no-osc", "--seconds", "1"], capture_output=True, text=True,
+                            timeout=60)
     assert result.returncode == 1
     assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
@@ -404,6 +413,7 @@ def test_a_taken_port_is_a_one_line_error():
         taken.bind(("127.0.0.1", 0))
         taken.listen()
         port = taken.getsockname()[1]
-        result = subprocess.run(RUN + ["--console", str(port), "--no-osc", "--seconds", "1"], capture_output=True, text=True, timeout=60)
+        result = subprocess.run(RUN + ["--console", str(port), "--no-osc", "--seconds", "1"], capture_output=True, text=True,
+                                timeout=60)
     assert result.returncode == 1
     assert f"--console '{port}': cannot listen" in result.stderr and len(result.stderr.strip().splitlines()) == 1
