@@ -358,6 +358,21 @@ def test_a_named_host_needs_the_token_and_bad_messages_never_stop_the_show(tmp_p
     assert "Traceback" not in stderr
 
 
+def test_a_flood_of_page_messages_never_stops_the_show():
+    receiver = Receiver()
+    show = Instrument("--console", "0", "--quiet", "--osc", f"127.0.0.1:{receiver.port}/flat")
+    try:
+        flood = [json.dumps({"set": "speed", "value": 1 + (k % 100) / 100}) for k in range(20000)]
+        asyncio.run(talk(show.url, flood))  # as fast as the socket takes them; some may be refused, none is fatal
+        asyncio.run(talk(show.url, ['{"set": "style/active", "value": 0.7}']))
+        until(lambda: echoed(receiver, "/walk/style/active")[-1:] == [pytest.approx(0.7)], what="a message after the flood")
+    finally:
+        stderr = show.stop()
+        receiver.close()
+    assert show.process.returncode == 0, stderr
+    assert "Traceback" not in stderr
+
+
 def test_a_page_that_stops_reading_is_dropped_and_the_others_go_on():
     import base64
     import socket

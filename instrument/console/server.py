@@ -86,6 +86,7 @@ class ConsoleServer:
         self.files = {route: (resources.files(__package__).joinpath("static", name).read_bytes(), kind)
                       for route, (name, kind) in STATIC.items()}
         self.pages: set[Page] = set()
+        self.unsaid = 0  # refusals not yet said on the terminal
         self.loop = asyncio.new_event_loop()
 
     def run(self) -> None:
@@ -142,18 +143,23 @@ class ConsoleServer:
                     self.extra["presets"] = sorted(self.presets)
                 if "sources" in item:
                     self.extra["sources"] = item["sources"]
+        if self.unsaid and self._note(f"console: refused {self.unsaid} page messages (too many at once)", "console flood"):
+            self.unsaid = 0
         if newest is not None and self.pages:
             self._broadcast(newest)
 
-    def _tell_instrument(self, item: dict) -> None:
+    def _tell_instrument(self, item: dict) -> bool:
+        """False if it could not be sent: the instrument's queue is full (it reads it every frame
+        and while it waits for the next, so only a flood fills it) or it is stopping."""
         try:
             self.link.send(JSON + json.dumps(item).encode("utf-8"))
-        except OSError:  # the instrument is stopping (it reads us every frame otherwise)
-            pass
+            return True
+        except OSError:
+            return False
 
-    def _note(self, text: str, key: str = "") -> None:
+    def _note(self, text: str, key: str = "") -> bool:
         """Something for the performer's terminal; with a key, a warning said at most once a minute."""
-        self._tell_instrument({"note": [key, text]})
+        return self._tell_instrument({"note": [key, text]})
 
     # --- the pages' side ----------------------------------------------------------------------
 
@@ -213,11 +219,12 @@ class ConsoleServer:
             return
         if kind == "save":
             self._save(page)
-        else:
-            self._tell_instrument({"event": [control, value]})
+        elif not self._tell_instrument({"event": [control, value]}):
+            self._refuse(page, "too many messages at once")
 
     def _refuse(self, page: Page, reason: str) -> None:
-        self._note(f"console: refused a page's message: {reason}", "console refused")
+        if not self._note(f"console: refused a page's message: {reason}", "console refused"):
+            self.unsaid += 1  # the instrument's queue is full: said with the next frame
         self._tell(page, {"type": "refused", "reason": reason})
 
     def _save(self, page: Page) -> None:
