@@ -101,13 +101,13 @@ class ConsoleServer:
         runner = web.AppRunner(app, handle_signals=False, access_log=None)
         self.loop.run_until_complete(runner.setup())
         try:
-            site = web.TCPSite(runner, self.host, self.port)
-            self.loop.run_until_complete(site.start())
+            listener = socket.create_server((self.host, self.port))
         except OSError as e:
             self._tell_instrument({"error": e.strerror or str(e)})
             self.loop.run_until_complete(runner.cleanup())
             return
-        self.port = site._server.sockets[0].getsockname()[1]  # the port chosen when 0 was asked for
+        self.port = listener.getsockname()[1]  # the port chosen when 0 was asked for
+        self.loop.run_until_complete(web.SockSite(runner, listener).start())
         self._tell_instrument({"ready": self.port})
         self.link.setblocking(False)
         self.loop.add_reader(self.link.fileno(), self._from_instrument)

@@ -33,7 +33,11 @@ function send(item) {
   if (socket && socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify(item));
 }
 
-const setTarget = (target, value) => send({ set: target, value: Number(value) });
+const sent = new Map();  // target -> {value, until}: a value this page sent, not yet seen back
+function setTarget(target, value) {
+  send({ set: target, value: Number(value) });
+  sent.set(target, { value: Number(value), until: performance.now() + 500 });
+}
 const say = (text) => { $("status").textContent = text; };
 const fmt = (value) => (value === null || value === undefined ? "–" : Number(value).toFixed(2));
 
@@ -134,6 +138,11 @@ function onFrame(message) {
     if (follows) value = message.v["style/" + target.split("/")[1]];
     row.classList.toggle("follows", follows);
     if (target === held || value === undefined) continue;
+    const mine = sent.get(target);
+    if (mine) {  // until the instrument shows this page's own move, an older frame does not undo it
+      if (Math.abs(value - mine.value) > 1e-4 && performance.now() < mine.until) continue;
+      sent.delete(target);
+    }
     if (Number(input.value) !== value) input.value = value;
     if (document.activeElement !== box) box.value = fmt(value);
   }
