@@ -250,6 +250,38 @@ def test_store_recall_and_save_presets_that_the_cli_reads(browser, tmp_path):
     assert echoed(again, "/walk/style/feminine")[-1] == pytest.approx(1.25)
 
 
+@needs_browser
+def test_the_xy_pad_blends_the_chosen_styles(browser):
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.support.ui import Select
+
+    receiver = Receiver()
+    show = Instrument("--console", "0", "--osc", f"127.0.0.1:{receiver.port}/flat", "--quiet")
+    try:
+        open_page(browser, show.url)
+        first, second, third = (Select(e) for e in browser.find_elements("css selector", "#pad-styles select"))
+        first.select_by_value("normal")
+        second.select_by_value("youthful")
+        third.select_by_value("")  # two styles: across blends, up is the amount
+        pad = browser.find_element("id", "pad")
+        # the right edge, half way up: all the second style, at its own weight
+        ActionChains(browser).move_to_element_with_offset(pad, pad.size["width"] // 2 - 2, 0).click().perform()
+        until(lambda: echoed(receiver, "/walk/style/youthful")[-1:] == [pytest.approx(1.0, abs=0.02)]
+              and echoed(receiver, "/walk/style/normal")[-1:] == [pytest.approx(0.0, abs=0.02)], what="the pad's blend")
+        third.select_by_value("elderly")  # three styles: a triangle, the first at the top, the third bottom right
+        ActionChains(browser).move_to_element_with_offset(pad, 0, -pad.size["height"] // 2 + 3).click().perform()
+        until(lambda: echoed(receiver, "/walk/style/normal")[-1:] == [pytest.approx(1.0, abs=0.02)]
+              and echoed(receiver, "/walk/style/elderly")[-1:] == [pytest.approx(0.0, abs=0.02)], what="the triangle's top")
+        corner = (pad.size["width"] // 2 - 2, pad.size["height"] // 2 - 2)
+        ActionChains(browser).move_to_element_with_offset(pad, *corner).click().perform()
+        until(lambda: echoed(receiver, "/walk/style/elderly")[-1:] == [pytest.approx(1.0, abs=0.02)]
+              and echoed(receiver, "/walk/style/normal")[-1:] == [pytest.approx(0.0, abs=0.02)], what="the bottom right corner")
+    finally:
+        stderr = show.stop()
+        receiver.close()
+    assert show.process.returncode == 0, stderr
+
+
 def screenshot(element) -> np.ndarray:
     from PIL import Image
 
