@@ -45,7 +45,7 @@ def bench(seconds: float, fps: float, pages: int | None, browsers: bool = True) 
     if pages is not None:
         command += ["--console", "0", "--console-pages", str(pages)]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    clients = []
+    clients, profiles = [], []
     try:
         if pages:
             url = None
@@ -57,6 +57,7 @@ def bench(seconds: float, fps: float, pages: int | None, browsers: bool = True) 
                 chromium = shutil.which("chromium") or "/usr/bin/chromium"
                 for _ in range(pages):
                     profile = tempfile.mkdtemp(prefix="console-pacing-")
+                    profiles.append(profile)
                     clients.append(subprocess.Popen([chromium, *FLAGS, f"--user-data-dir={profile}", url],
                                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
             else:
@@ -66,6 +67,8 @@ def bench(seconds: float, fps: float, pages: int | None, browsers: bool = True) 
         for client in clients:
             client.terminate()
             client.wait(30)
+        for profile in profiles:
+            shutil.rmtree(profile, ignore_errors=True)
     if process.returncode != 0:
         raise SystemExit(f"bench failed: {err}")
     return json.loads(out)
