@@ -76,6 +76,7 @@ OPTIONS: dict[str, Accepts] = {
     "bench --repeat": Accepts(int, 1, 1000),
     "bench --pacing": POSITIVE_SECONDS,
     "bench --fps": Accepts(float, 1, 1000),
+    "bench --console-pages": Accepts(int, 0, 100),
     "render --every": Accepts(int, 1, None),
 }
 

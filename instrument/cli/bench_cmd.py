@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 
 import numpy as np
@@ -29,14 +30,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="instead: run the live loop this long (demo, both OSC profiles to 127.0.0.1) and measure "
                         "how far each frame's send time is from its deadline")
     p.add_argument("--fps", type=checked("bench --fps"), default=60.0, help="frame rate for --pacing (default 60)")
+    p.add_argument("--console", metavar="[HOST:]PORT", help="for --pacing: serve the browser console meanwhile")
+    p.add_argument("--console-pages", type=checked("bench --console-pages"), default=0, metavar="N",
+                   help="for --pacing with --console: wait until N pages are open before measuring")
     p.add_argument("--startup", action="store_true",
                    help="instead: how long `instrument --version`, `--help` and each `COMMAND --help` take to start, "
                         "against `python -c pass` in the same run")
     p.set_defaults(run=run)
 
 
-def measure_pacing(model_path: str | None, seconds: float, fps: float) -> dict:
-    """Send-time deviation from the schedule of the live loop, with real UDP outputs."""
+def measure_pacing(model_path: str | None, seconds: float, fps: float, console_address: str | None = None,
+                   pages: int = 0) -> dict:
+    """Send-time deviation from the schedule of the live loop, with real UDP outputs (and the
+    browser console with `pages` pages open, when asked)."""
     import socket
 
     from ..control.events import LogReplay, read_log
@@ -55,9 +61,19 @@ def measure_pacing(model_path: str | None, seconds: float, fps: float) -> dict:
     console = Console(quiet=True)
     outputs = [OscOutput(OscTarget("127.0.0.1", s.getsockname()[1], kind), make_profile(kind, model), console)
                for s, kind in zip(sinks, ("vmc", "flat"))]
+    live_sources, link = [], None
+    if console_address:
+        link = _console_for_pacing(console_address, model, console, outputs, fps, pages)
+        live_sources = [link.input.poll]
     timing: list[float] = []
     refused = realtime_scheduling()  # as `instrument run` does
-    summary = perform(model, outputs, console, fps, seconds, LogReplay(read_log(demo_log_path()), loop=True), timing=timing)
+    try:
+        summary = perform(model, outputs, console, fps, seconds, LogReplay(read_log(demo_log_path()), loop=True), timing=timing,
+                          live_sources=live_sources, state=link.output.state if link else None)
+    finally:
+        if link:
+            open_pages = link.pages
+            link.input.close()
     for s in sinks:
         s.close()
     deviation = np.abs(np.array(timing[1:])) * 1000.0
@@ -71,7 +87,27 @@ def measure_pacing(model_path: str | None, seconds: float, fps: float) -> dict:
         "pacing_late_frames": summary.late,
         "pacing_dropped_frames": summary.dropped,
         "pacing_scheduling": "realtime" if refused is None else f"normal ({refused})",
+        "pacing_console_pages": open_pages if console_address else None,
     }
+
+
+def _console_for_pacing(address: str, model, console, outputs: list, fps: float, pages: int):
+    """The console beside the measured loop; waits (up to 5 minutes) for `pages` pages to open."""
+    from ..console.link import ConsoleLink
+    from ..control.state import ControlState
+    from ..errors import UserError
+
+    link = ConsoleLink(address, model, ControlState(model.style_names, model.states), {}, console, fps)
+    outputs.append(link.output)
+    print(f"console: {link.url}", file=sys.stderr, flush=True)
+    deadline = time.monotonic() + 300
+    while link.pages < pages:
+        if time.monotonic() > deadline:
+            link.input.close()
+            raise UserError(f"--console-pages {pages}: only {link.pages} pages opened in 5 minutes")
+        link.input.poll(0.0)  # takes the page count (and says the pages' connections)
+        time.sleep(0.1)
+    return link
 
 
 def median_seconds(work, repeat: int) -> float:
@@ -162,12 +198,13 @@ def run(args: argparse.Namespace) -> int:
             print(f"{line:32s} {f['seconds']:6.2f} s  (python -c pass {f['bare_seconds']:.2f} s: x{f['ratio']:.1f})")
         return 0
     if args.pacing:
-        f = measure_pacing(args.model, args.pacing, args.fps)
+        f = measure_pacing(args.model, args.pacing, args.fps, args.console, args.console_pages)
         if args.json:
             print(json.dumps(f, indent=1))
         else:
-            print(f"live loop at {f['pacing_fps']:g} fps for {f['pacing_seconds']:g} s ({f['pacing_frames']} frames, 2 OSC outputs, "
-                  f"{f['pacing_scheduling']} scheduling):")
+            with_console = f", the console with {f['pacing_console_pages']} pages" if args.console else ""
+            print(f"live loop at {f['pacing_fps']:g} fps for {f['pacing_seconds']:g} s ({f['pacing_frames']} frames, "
+                  f"2 OSC outputs{with_console}, {f['pacing_scheduling']} scheduling):")
             print(f"send time minus deadline: p50 {f['pacing_p50_ms']:.3f} ms, p99 {f['pacing_p99_ms']:.3f} ms, "
                   f"max {f['pacing_max_ms']:.3f} ms; late frames {f['pacing_late_frames']}, dropped {f['pacing_dropped_frames']}")
         return 0

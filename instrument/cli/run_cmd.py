@@ -59,6 +59,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--mapping", action="append", metavar="FILE.toml",
                    help="mapping file, repeatable (default: the shipped mapping that matches the device)")
     p.add_argument("--osc-in", metavar="[HOST:]PORT", help="accept control from OSC surfaces (bound to 127.0.0.1 unless HOST is given)")
+    p.add_argument("--console", metavar="[HOST:]PORT",
+                   help="serve the browser console (style mixer + live character) on PORT, bound to 127.0.0.1 unless "
+                        "HOST is given; with a HOST the printed URL carries a token the page needs (docs/console.md)")
+    p.add_argument("--console-token", metavar="TOKEN", help="the console's token (default: a new random one when HOST is given)")
     p.add_argument("--presets", metavar="FILE.toml", help="[presets.NAME] tables of target = value, recalled by preset/NAME")
     p.add_argument("--morph", help="seconds to morph into a recalled preset (default: the mapping's)")
     p.add_argument("--record", metavar="LOG.jsonl", help="record every raw control event with its time")
@@ -194,12 +198,12 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     console = Console(quiet=args.quiet)
     state = ControlState(model.style_names, model.states)
     presets = check_presets(show_presets, state, args.config or "show file")
-    if args.presets:
+    if args.presets and (Path(args.presets).exists() or not args.console):  # the console may save to a new file
         presets.update(check_presets(read_toml(args.presets)[1].get("presets", {}), state, args.presets))
     check_recordings(args)
     logged = logged_mappings(args.replay, state) if args.replay and not args.mapping else []  # as recorded
     mappings = logged + choose_mappings(args, state, console)
-    live = bool(args.midi or args.midi_virtual or args.hid or args.osc_in)
+    live = bool(args.midi or args.midi_virtual or args.hid or args.osc_in or args.console)
     replay_path = args.replay or (None if live else demo_log_path())
     replay = (LogReplay(read_log(replay_path, warn=lambda m: console.warn("log cut", m)), loop=args.loop or not args.replay)
               if replay_path else None)
@@ -224,9 +228,21 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
                 outputs.append(HidFeedback(devices[-1], hub.hid.mapping.feedback, console))
         if args.osc_in:
             devices.append(OscInput(console, args.osc_in if ":" in args.osc_in else f"127.0.0.1:{args.osc_in}"))
+        if args.console:
+            from ..console.link import ConsoleLink
+
+            def sources() -> str:
+                return ", ".join([d.describe() for d in devices] + ([f"log {replay_path}"] if replay_path else []))
+
+            link = ConsoleLink(args.console, model, state, hub.presets, console, fps, hub.morph, args.console_token,
+                               args.presets, sources)
+            devices.append(link.input)
+            console.say(f"console: {link.url}")
         profiles = {kind: make_profile(kind, model, args.humanoid, args.vmc_root, not args.no_relaxed_hands)
                     for kind in {t.profile for t in targets}}
         outputs += [OscOutput(t, profiles[t.profile], console) for t in targets]
+        if args.console:
+            outputs.append(link.output)  # after the OSC targets: their datagrams leave first at the deadline
         # files last: a start-up that fails leaves nothing behind, so the corrected command runs
         if args.bvh:
             outputs.append(RecorderOutput(args.bvh, model, fps, replace=args.force))

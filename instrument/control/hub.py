@@ -16,7 +16,8 @@ from .events import ControlEvent
 from .loghead import header_line
 from .mapping import Mapper, Mapping
 from .state import ControlState
-from .targets import raw_problem
+from .targets import PRESET_NAME, raw_problem
+from .values import preset_values
 
 
 class ControlHub:
@@ -73,6 +74,12 @@ class ControlHub:
             if preset is None:
                 return "unknown preset"
             state.recall(preset, event.time, self.morph)
+            return None
+        if isinstance(event.control, str) and event.control.startswith("store/"):  # the current values as a new preset
+            name = event.control[len("store/"):]
+            if not PRESET_NAME.match(name):
+                return "bad preset name"
+            self.presets[name] = preset_values(state)
             return None
         why = state.problem(event.control, event.value)
         if why is None:

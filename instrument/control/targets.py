@@ -46,6 +46,7 @@ TABLE: dict[str, Target] = {
 }
 
 # raw controls of devices as they appear in events and logs: id pattern -> highest raw value
+PRESET_NAME = re.compile(r"^[A-Za-z0-9_.-]{1,40}$")  # preset names: plain TOML keys, safe in a URL and on screen
 MIDI_RAW = re.compile(r"(cc|note|pitchbend)/([0-9]{1,2})/([0-9]{1,3})", re.ASCII)
 HID_RAW_HIGH = 255.0
 

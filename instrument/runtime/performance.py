@@ -109,6 +109,9 @@ def perform(
     engine = Engine(model, lookahead)
     poses = PoseStream(model.layout, fps)
     clock = FrameClock(fps, realtime=not fast)
+    for output in outputs:
+        if hasattr(output, "watch"):  # an output that shows late frames (the console)
+            output.watch(clock)
     summary = Summary()
     own_stop = stop is None
     stop = StopFlag().install() if own_stop else stop

@@ -1,0 +1,467 @@
+"""The browser console end to end: the page in Debian's headless chromium (Selenium with the
+system chromedriver), the instrument as a real process, the flat OSC stream over real UDP,
+MIDI through JACK, and page messages over a real WebSocket."""
+
+from __future__ import annotations
+
+import asyncio
+import filecmp
+import io
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import threading
+import time
+
+import mido
+import numpy as np
+import pytest
+
+from conftest import REPO
+from instrument.motion.bvh import read_bvh
+from oscrecv import Receiver
+
+RUN = [sys.executable, "-m", "instrument", "run"]
+NANO = str(REPO / "mappings" / "korg-nanokontrol2.toml")
+CHROMIUM, CHROMEDRIVER = shutil.which("chromium") or "/usr/bin/chromium", shutil.which("chromedriver") or "/usr/bin/chromedriver"
+needs_browser = pytest.mark.skipif(not (os.path.exists(CHROMIUM) and os.path.exists(CHROMEDRIVER)),
+                                   reason="chromium and chromium-driver are not installed (apt-get install chromium "
+                                          "chromium-driver)")
+
+
+class Instrument:
+    """`instrument run --console ...` as a process; its stderr is read as it comes."""
+
+    def __init__(self, *args: str):
+        self.process = subprocess.Popen(RUN + list(args), stderr=subprocess.PIPE, text=True)
+        self.lines: list[str] = []
+        self.reader = threading.Thread(target=self._read, daemon=True)
+        self.reader.start()
+        self.url = self.wait_for(r"console: (http://\S+)").group(1)
+
+    def _read(self) -> None:
+        for line in self.process.stderr:
+            self.lines.append(line)
+
+    def wait_for(self, pattern: str, timeout: float = 60.0) -> re.Match:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            for line in list(self.lines):
+                if found := re.search(pattern, line):
+                    return found
+            if self.process.poll() is not None and not self.reader.is_alive():
+                break
+            time.sleep(0.05)
+        raise AssertionError(f"never said {pattern!r}:\n{''.join(self.lines)}")
+
+    def stop(self) -> str:
+        if self.process.poll() is None:
+            self.process.terminate()  # a clean stop, like Ctrl-C
+        self.process.wait(60)
+        self.reader.join(10)
+        return "".join(self.lines)
+
+
+def until(condition, timeout: float = 30.0, what: str = "condition"):
+    """Poll `condition` until it is true (returned) or fail after a generous deadline."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = condition()
+        if value:
+            return value
+        time.sleep(0.05)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def echoed(receiver: Receiver, address: str) -> list[float]:
+    return [params[0] for a, params in receiver.messages() if a == address]
+
+
+@pytest.fixture
+def browser(tmp_path):
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = CHROMIUM
+    for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", "--window-size=1400,900",
+                 f"--user-data-dir={tmp_path / 'chromium'}"):
+        options.add_argument(flag)
+    driver = webdriver.Chrome(options=options, service=Service(CHROMEDRIVER))
+    driver.set_page_load_timeout(60)
+    yield driver
+    driver.quit()
+
+
+def open_page(driver, url: str) -> None:
+    driver.get(url)
+    until(lambda: frame_number(driver) > 5, 60, "frames on the page")
+
+
+def frame_number(driver) -> int:
+    text = driver.find_element("id", "frame").text
+    return int(text.split()[-1]) if text.split()[-1].isdigit() else -1
+
+
+def slider_value(driver, target: str) -> float:
+    return float(driver.execute_script(f"return document.querySelector('[data-target=\"{target}\"] input[type=range]').value"))
+
+
+def press(driver, key: str) -> None:
+    """A key pressed on the page itself (not into a field)."""
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    driver.execute_script("document.activeElement && document.activeElement.blur()")
+    ActionChains(driver).send_keys(key).perform()
+
+
+def slider(driver, target: str):
+    return driver.find_element("css selector", f'[data-target="{target}"] input[type=range]')
+
+
+@needs_browser
+def test_a_slider_and_the_keys_move_the_walk_in_the_osc_stream_and_replay_exactly(browser, tmp_path):
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.keys import Keys
+
+    receiver = Receiver()
+    log, live_bvh, replay_bvh = tmp_path / "take.jsonl", tmp_path / "live.bvh", tmp_path / "replay.bvh"
+    show = Instrument("--console", "0", "--osc", f"127.0.0.1:{receiver.port}/flat", "--quiet", "--record", str(log),
+                      "--bvh", str(live_bvh))
+    try:
+        open_page(browser, show.url)
+        elderly = slider(browser, "style/elderly")
+        # a real pointer press at 80 % of the slider's width (the travel is -2 .. 4)
+        ActionChains(browser).move_to_element_with_offset(elderly, int(elderly.size["width"] * 0.3), 0).click().perform()
+        wanted = slider_value(browser, "style/elderly")
+        assert wanted > 1.5  # the click landed in the exaggerated part of the slider
+        until(lambda: echoed(receiver, "/walk/style/elderly")[-1:] == [pytest.approx(wanted, abs=1e-6)], what="the weight in OSC")
+        press(browser, Keys.ARROW_UP)  # a step faster
+        until(lambda: echoed(receiver, "/walk/speed")[-1:] == [pytest.approx(1.1)], what="the speed in OSC")
+    finally:
+        stderr = show.stop()
+        receiver.close()
+    assert show.process.returncode == 0, stderr
+    header, *recorded = [json.loads(line) for line in log.read_text().splitlines()]
+    assert "instrument_log" in header  # what a replay needs comes first (control.loghead)
+    assert {e["source"] for e in recorded} == {"console"}
+    assert {"style/elderly", "speed"} <= {e["control"] for e in recorded}
+    # the page's events, recorded like any controller's, replay to the same frames byte for byte
+    frames = read_bvh(live_bvh).frames
+    result = subprocess.run(RUN + ["--replay", str(log), "--no-osc", "--fast", "--seconds", repr(frames / 30), "--quiet",
+                                   "--bvh", str(replay_bvh)], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert filecmp.cmp(live_bvh, replay_bvh, shallow=False)
+
+
+@needs_browser
+def test_a_midi_fader_moves_the_slider_on_every_page_and_pages_stay_in_sync(jack, browser):
+    show = Instrument("--console", "0", "--midi-virtual", "instr-console", "--midi-api", "jack", "--mapping", NANO, "--no-osc",
+                      "--quiet", "--no-feedback")
+    try:
+        names = until(lambda: [n for n in jack.get_output_names() if "instr-console" in n], 30, "the virtual MIDI port")
+        fader = jack.open_output(names[0])
+        open_page(browser, show.url)
+        first = browser.current_window_handle
+        browser.switch_to.new_window("window")
+        open_page(browser, show.url)
+        second = browser.current_window_handle
+
+        def cc(value):
+            fader.send(mido.Message("control_change", channel=0, control=1, value=value))  # the elderly fader
+
+        expected = 100 / 127 * 3 - 1  # the mapping's range -1 .. 2
+
+        def followed() -> bool:
+            return abs(slider_value(browser, "style/elderly") - expected) < 0.006
+
+        for attempt in range(3):  # a connection made while the JACK dummy server stalls can come to nothing: again
+            browser.switch_to.window(first)
+            start = round((slider_value(browser, "style/elderly") + 1) / 3 * 127)  # where the fader picks the parameter up
+            for value in range(start, 101, 4 if start < 100 else 1):
+                cc(value)
+                time.sleep(0.01)
+            cc(100)
+            try:
+                until(followed, 10, "the slider to follow the fader")
+                break
+            except AssertionError:
+                fader.close()
+                fader = jack.open_output(names[0])
+        for window in (first, second):
+            browser.switch_to.window(window)
+            until(followed, what="the slider to follow the fader on every page")
+        # one page's move shows on the other
+        browser.switch_to.window(first)
+        browser.execute_script("const box = document.querySelector('[data-target=\"turn\"] input[type=number]');"
+                               "box.value = '-0.75'; box.dispatchEvent(new Event('change'));")
+        browser.switch_to.window(second)
+        until(lambda: slider_value(browser, "turn") == -0.75, what="the other page to follow")
+        fader.close()
+    finally:
+        stderr = show.stop()
+    assert show.process.returncode == 0, stderr
+    assert stderr.count("a page connected") == 2
+
+
+@needs_browser
+def test_store_recall_and_save_presets_that_the_cli_reads(browser, tmp_path):
+    from selenium.webdriver.common.keys import Keys
+
+    receiver = Receiver()
+    saved = tmp_path / "saved.toml"  # does not exist yet: the console's Save writes it
+    show = Instrument("--console", "0", "--osc", f"127.0.0.1:{receiver.port}/flat", "--quiet", "--presets", str(saved))
+    try:
+        open_page(browser, show.url)
+        box = browser.find_element("css selector", '[data-target="style/feminine"] input[type=number]')
+        box.click()
+        box.send_keys(Keys.CONTROL, "a")
+        box.send_keys("1.25", Keys.ENTER)  # typed over the whole value
+        until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [pytest.approx(1.25)], what="the typed weight")
+        browser.find_element("id", "store-name").send_keys("graceful", Keys.ENTER)
+        button = until(lambda: browser.find_elements("css selector", '[data-preset="graceful"]'),
+                       what="the stored preset's button")[0]
+        browser.find_element("id", "reset").click()
+        until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [0.0], what="the reset")
+        button.click()
+        until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [pytest.approx(1.25)], what="the recalled preset")
+        browser.find_element("id", "reset").click()
+        until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [0.0], what="the second reset")
+        press(browser, "1")  # number keys recall presets
+        until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [pytest.approx(1.25)], what="the preset by key")
+        browser.find_element("id", "save").click()
+        until(lambda: "saved 1 presets" in browser.find_element("id", "saved").text, what="the save")
+    finally:
+        stderr = show.stop()
+        receiver.close()
+    assert show.process.returncode == 0, stderr
+    # the saved file is a preset file the CLI reads: a cue recalls the preset in a new run
+    cue = tmp_path / "cue.jsonl"
+    cue.write_text('{"t": 0.2, "source": "cue", "control": "preset/graceful", "value": 1}\n')
+    again = Receiver()
+    result = subprocess.run(RUN + ["--presets", str(saved), "--replay", str(cue), "--seconds", "1", "--fast", "--quiet",
+                                   "--osc", f"127.0.0.1:{again.port}/flat"], capture_output=True, text=True, timeout=60)
+    until(lambda: len(echoed(again, "/walk/style/feminine")) == 30, what="the second run's frames")
+    again.close()
+    assert result.returncode == 0, result.stderr
+    assert echoed(again, "/walk/style/feminine")[-1] == pytest.approx(1.25)
+
+
+@needs_browser
+def test_the_xy_pad_blends_the_chosen_styles(browser):
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.support.ui import Select
+
+    receiver = Receiver()
+    show = Instrument("--console", "0", "--osc", f"127.0.0.1:{receiver.port}/flat", "--quiet")
+    try:
+        open_page(browser, show.url)
+        first, second, third = (Select(e) for e in browser.find_elements("css selector", "#pad-styles select"))
+        first.select_by_value("normal")
+        second.select_by_value("youthful")
+        third.select_by_value("")  # two styles: across blends, up is the amount
+        pad = browser.find_element("id", "pad")
+        # the right edge, half way up: all the second style, at its own weight
+        ActionChains(browser).move_to_element_with_offset(pad, pad.size["width"] // 2 - 2, 0).click().perform()
+        until(lambda: echoed(receiver, "/walk/style/youthful")[-1:] == [pytest.approx(1.0, abs=0.02)]
+              and echoed(receiver, "/walk/style/normal")[-1:] == [pytest.approx(0.0, abs=0.02)], what="the pad's blend")
+        third.select_by_value("elderly")  # three styles: a triangle, the first at the top, the third bottom right
+        ActionChains(browser).move_to_element_with_offset(pad, 0, -pad.size["height"] // 2 + 3).click().perform()
+        until(lambda: echoed(receiver, "/walk/style/normal")[-1:] == [pytest.approx(1.0, abs=0.02)]
+              and echoed(receiver, "/walk/style/elderly")[-1:] == [pytest.approx(0.0, abs=0.02)], what="the triangle's top")
+        corner = (pad.size["width"] // 2 - 2, pad.size["height"] // 2 - 2)
+        ActionChains(browser).move_to_element_with_offset(pad, *corner).click().perform()
+        until(lambda: echoed(receiver, "/walk/style/elderly")[-1:] == [pytest.approx(1.0, abs=0.02)]
+              and echoed(receiver, "/walk/style/normal")[-1:] == [pytest.approx(0.0, abs=0.02)], what="the bottom right corner")
+    finally:
+        stderr = show.stop()
+        receiver.close()
+    assert show.process.returncode == 0, stderr
+
+
+def screenshot(element) -> np.ndarray:
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(element.screenshot_as_png)).convert("RGB")).astype(float)
+
+
+@needs_browser
+def test_the_view_draws_the_walking_figure(browser):
+    show = Instrument("--console", "0", "--no-osc", "--quiet")
+    try:
+        open_page(browser, show.url)
+        view = browser.find_element("id", "view")
+        first = screenshot(view)
+        start = frame_number(browser)
+        until(lambda: frame_number(browser) > start + 15, what="half a second of frames")
+        second = screenshot(view)
+        if os.environ.get("INSTRUMENT_DOCS_SCREENSHOT"):  # the docs' picture: INSTRUMENT_DOCS_SCREENSHOT=1 pytest ...
+            browser.save_screenshot(str(REPO / "docs" / "console.png"))
+    finally:
+        stderr = show.stop()
+    assert show.process.returncode == 0, stderr
+    assert first.shape[0] > 200 and first.shape[1] > 200
+    # not blank: the sky is a smooth gradient; the figure and the grid add many distinct colours
+    assert len(np.unique(first.reshape(-1, 3), axis=0)) > 500
+    # a lit figure is drawn: bright pixels (the head, lit limbs) far above the dark background
+    assert (first.max(axis=2) > 180).sum() > 100
+    # the figure moves: many pixels differ between two screenshots half a second apart
+    assert (np.abs(first - second).max(axis=2) > 40).sum() > 200
+
+
+# ---- the WebSocket itself, without a browser: tokens, validation, slow pages --------------------
+
+def socket_url(page_url: str) -> str:
+    """The WebSocket address of a page's URL (its token kept)."""
+    base, _, query = page_url.partition("?")
+    return base.replace("http://", "ws://") + "ws" + (f"?{query}" if query else "")
+
+
+async def talk(url: str, messages: list[str], origin: str | None = None, wait_for: int = 0) -> list[dict]:
+    """Connect to a console's WebSocket, send `messages`, collect replies until `wait_for` refusals."""
+    import aiohttp
+
+    replies = []
+    async with aiohttp.ClientSession() as session:
+        async with session.ws_connect(socket_url(url), headers={"Origin": origin} if origin else None) as ws:
+            replies.append(json.loads((await ws.receive()).data))
+            for text in messages:
+                await ws.send_str(text)
+            deadline = time.monotonic() + 30
+            while sum(r["type"] == "refused" for r in replies) < wait_for and time.monotonic() < deadline:
+                message = await ws.receive(timeout=30)
+                replies.append(json.loads(message.data))
+    return replies
+
+
+def status_of(url: str, origin: str | None = None) -> int:
+    async def get():
+        import aiohttp
+
+        try:
+            async with aiohttp.ClientSession() as session:
+                async with session.ws_connect(socket_url(url), headers={"Origin": origin} if origin else None):
+                    return 101
+        except aiohttp.WSServerHandshakeError as error:
+            return error.status
+
+    return asyncio.run(get())
+
+
+def test_a_named_host_needs_the_token_and_bad_messages_never_stop_the_show(tmp_path):
+    import urllib.error
+    import urllib.request
+
+    receiver = Receiver()
+    show_file = tmp_path / "show.toml"
+    show_file.write_text(f'console = "127.0.0.1:0"\nconsole-token = "tok3n"\nquiet = true\n'
+                         f'osc = ["127.0.0.1:{receiver.port}/flat"]\n')
+    show = Instrument("--config", str(show_file))
+    try:
+        assert show.url.endswith("?token=tok3n")
+        bare = show.url.split("?")[0]
+        with pytest.raises(urllib.error.HTTPError) as refused:
+            urllib.request.urlopen(bare, timeout=30)
+        assert refused.value.code == 403
+        assert urllib.request.urlopen(show.url, timeout=30).status == 200
+        assert status_of(bare) == 403  # the WebSocket without the token
+        assert status_of(show.url.replace("tok3n", "guess")) == 403
+        assert status_of(show.url, origin="http://evil.example") == 403  # another site's page in the user's browser
+        assert status_of(show.url) == 101
+        bad = ["not json", "[1, 2]", '{"set": "style/sleepy", "value": 1}', '{"set": "speed", "value": "fast"}',
+               '{"set": "speed", "value": true}', '{"set": "speed", "value": NaN}', '{"set": "speed"}',
+               '{"preset": "../../etc"}', '{"store": ""}', '{"save": 1}', '{"launch": "rockets"}', '{"set": 7, "value": 1}']
+        good = ['{"set": "speed", "value": 100}', '{"set": "style/youthful", "value": -0.5}']
+        replies = asyncio.run(talk(show.url, bad + good, wait_for=len(bad)))
+        assert replies[0]["type"] == "hello" and "youthful" in replies[0]["styles"]
+        assert sum(r["type"] == "refused" for r in replies) == len(bad)
+        until(lambda: echoed(receiver, "/walk/speed")[-1:] == [4.0], what="the speed, clamped")  # 100 is clamped to the top
+        until(lambda: echoed(receiver, "/walk/style/youthful")[-1:] == [-0.5], what="the good message")
+        frames = len(echoed(receiver, "/walk/speed"))
+        until(lambda: len(echoed(receiver, "/walk/speed")) > frames + 10, what="the show to go on")
+    finally:
+        stderr = show.stop()
+        receiver.close()
+    assert show.process.returncode == 0, stderr
+    assert "console: refused a page's message" in stderr
+    assert "Traceback" not in stderr
+
+
+def test_a_flood_of_page_messages_never_stops_the_show():
+    receiver = Receiver()
+    show = Instrument("--console", "0", "--quiet", "--osc", f"127.0.0.1:{receiver.port}/flat")
+    try:
+        flood = [json.dumps({"set": "speed", "value": 1 + (k % 100) / 100}) for k in range(20000)]
+        asyncio.run(talk(show.url, flood))  # as fast as the socket takes them; some may be refused, none is fatal
+        asyncio.run(talk(show.url, ['{"set": "style/active", "value": 0.7}']))
+        until(lambda: echoed(receiver, "/walk/style/active")[-1:] == [pytest.approx(0.7)], what="a message after the flood")
+    finally:
+        stderr = show.stop()
+        receiver.close()
+    assert show.process.returncode == 0, stderr
+    assert "Traceback" not in stderr
+
+
+def test_a_page_that_stops_reading_is_dropped_and_the_others_go_on():
+    import base64
+    import socket
+
+    show = Instrument("--console", "0", "--no-osc", "--quiet")
+    stuck = socket.socket()
+    try:
+        stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # a page that takes nothing: its window fills at once
+        port = int(show.url.rsplit(":", 1)[1].strip("/"))
+        stuck.connect(("127.0.0.1", port))
+        key = base64.b64encode(os.urandom(16)).decode()
+        stuck.sendall(f"GET /ws HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                      f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n".encode())
+        show.wait_for("a page connected")
+        replies = []
+
+        async def reading_page():  # a page that keeps up, meanwhile
+            import aiohttp
+
+            async with aiohttp.ClientSession() as session:
+                async with session.ws_connect(socket_url(show.url)) as ws:
+                    deadline = time.monotonic() + 90
+                    while time.monotonic() < deadline and not any("dropped a page" in line for line in show.lines):
+                        message = json.loads((await ws.receive(timeout=30)).data)
+                        if message["type"] == "frame":
+                            replies.append(message["frame"])
+                    for _ in range(30):  # and frames keep coming after the drop
+                        message = json.loads((await ws.receive(timeout=30)).data)
+                        replies.append(message["frame"])
+
+        asyncio.run(reading_page())
+    finally:
+        stuck.close()
+        stderr = show.stop()
+    assert show.process.returncode == 0, stderr
+    assert "dropped a page that took no frame" in stderr
+    assert len(replies) > 60 and replies == sorted(replies)
+
+
+@pytest.mark.parametrize("address,message", [("nowhere:abc", "--console 'nowhere:abc': expected [HOST:]PORT"),
+                                             ("70000", "port must be 0 to 65535")])
+def test_bad_console_addresses_are_one_line_errors(address, message):
+    result = subprocess.run(RUN + ["--console", address, "--no-osc", "--seconds", "1"], capture_output=True, text=True,
+                            timeout=60)
+    assert result.returncode == 1
+    assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_a_taken_port_is_a_one_line_error():
+    import socket
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        result = subprocess.run(RUN + ["--console", str(port), "--no-osc", "--seconds", "1"], capture_output=True, text=True,
+                                timeout=60)
+    assert result.returncode == 1
+    assert f"--console '{port}': cannot listen" in result.stderr and len(result.stderr.strip().splitlines()) == 1
