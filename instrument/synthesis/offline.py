@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..models.modelfile import Model
+from ..motion.bvh import Motion
+from ..motion.features import restore
 from .interpolation import StyleSpace
 from .mlpg import mlpg_continued
 from .stream import DEFAULT_LOOKAHEAD, Controls, Walker, state_plan, step
@@ -46,3 +48,10 @@ def default_controls(model: Model, weights: dict[str, float] | None = None, **kw
     for name, value in (weights or {}).items():
         vector[model.style_names.index(name)] = value
     return Controls(vector, **kwargs)
+
+
+def synthesize_motion(model: Model, space: StyleSpace, controls: Controls, frames: int, method: str = "stream",
+                      lookahead: int = DEFAULT_LOOKAHEAD, seed: int = 0) -> Motion:
+    """A walk as a Motion on the model's skeleton, from the origin, heading 0."""
+    static = synthesize(space, model.layout.dimension, controls, frames, method, lookahead, seed)
+    return restore(static, model.layout, model.fps)
