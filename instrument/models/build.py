@@ -14,6 +14,7 @@ from ..motion.features import WINDOWS
 from ..motion.steps import LABELS
 from .corpus import Take, load_corpus, segments_by_label
 from .modelfile import Model
+from ..synthesis.contact import train_contact
 from .training import TrainingReport, adapt_styles, train_average, variance_floors
 
 UNSPECIFIED_LICENCE = "unspecified: the licence of the training data applies"
@@ -38,6 +39,7 @@ def build_model(
     style_names = sorted({t.style for t in takes})
     per_style = {s: segments_by_label([t for t in takes if t.style == s], states) for s in style_names}
     styles = adapt_styles(average, per_style, floors, report)
+    contact, contact_metadata = train_contact(layout, takes, average, styles, style_names, fps, states)
     dimension = layout.dimension
     step_max = np.max([np.abs(np.diff(t.observations[:, :dimension], axis=0)).max(axis=0) for t in takes], axis=0)
     static_std = np.vstack([t.observations[:, :dimension] for t in takes]).std(axis=0)
@@ -71,4 +73,6 @@ def build_model(
         },
         "warnings": report.warnings,
     }
-    return Model(metadata, average, styles, static_std, step_max), report, takes
+    if contact_metadata:
+        metadata["contact"] = contact_metadata
+    return Model(metadata, average, styles, static_std, step_max, contact), report, takes

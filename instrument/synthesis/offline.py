@@ -7,6 +7,9 @@ import numpy as np
 from ..models.modelfile import Model
 from ..motion.bvh import Motion
 from ..motion.features import restore
+from ..motion.kinematics import channels_from_local
+from ..runtime.pose import PoseStream
+from .contact import FootLock, contact_space
 from .interpolation import StyleSpace
 from .mlpg import mlpg_continued
 from .stream import DEFAULT_LOOKAHEAD, Controls, Walker, state_plan, step
@@ -33,14 +36,24 @@ def synthesize(
     seed: int = 0,
 ) -> np.ndarray:
     """Static features (frames, D) of a walk with constant controls, root speeds driven."""
+    return _generate(space, dimension, controls, frames, method, lookahead, seed)[0]
+
+
+def _generate(space: StyleSpace, dimension: int, controls: Controls, frames: int, method: str, lookahead: int,
+              seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Driven static features (frames, D) and the (label * states + state) of each frame."""
     walker = Walker(dimension, lookahead=lookahead, seed=seed)
     if method == "full":
         ids = state_plan(space, walker, controls, frames)
         lam = walker.lam
         static = mlpg_continued(lam.means[ids][None], lam.precisions[ids][None], np.zeros((1, 0, dimension)))[0]
     else:
-        static = np.vstack([step(space, [walker], [controls]) for _ in range(frames)])
-    return drive(static, walker.cadence, controls.turn)
+        rows, ids = [], []
+        for _ in range(frames):
+            rows.append(step(space, [walker], [controls])[0])
+            ids.append(walker.history_ids[1])
+        static, ids = np.vstack(rows), np.asarray(ids)
+    return drive(static, walker.cadence, controls.turn), ids
 
 
 def default_controls(model: Model, weights: dict[str, float] | None = None, **kwargs) -> Controls:
@@ -52,6 +65,15 @@ def default_controls(model: Model, weights: dict[str, float] | None = None, **kw
 
 def synthesize_motion(model: Model, space: StyleSpace, controls: Controls, frames: int, method: str = "stream",
                       lookahead: int = DEFAULT_LOOKAHEAD, seed: int = 0) -> Motion:
-    """A walk as a Motion on the model's skeleton, from the origin, heading 0."""
-    static = synthesize(space, model.layout.dimension, controls, frames, method, lookahead, seed)
-    return restore(static, model.layout, model.fps)
+    """A walk as a Motion on the model's skeleton, from the origin, heading 0, its feet planted
+    frame by frame as live when the model has contact statistics."""
+    static, ids = _generate(space, model.layout.dimension, controls, frames, method, lookahead, seed)
+    contact = contact_space(model)
+    if contact is None:
+        return restore(static, model.layout, model.fps)
+    planted = contact.planted(controls.weights, controls.part_weights)[ids]
+    poses = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance))
+    frames_out = [poses.next(row, flags) for row, flags in zip(static, planted)]
+    rotations = np.stack([p.rotations for p in frames_out])
+    translations = np.stack([p.translations for p in frames_out])
+    return Motion(model.layout.skeleton, channels_from_local(model.layout.skeleton, rotations, translations), model.fps)

@@ -1,0 +1,264 @@
+"""Feet that stay planted: contact learnt per state from the data, enforced frame by frame.
+
+Training labels each foot of each frame as in contact when its lowest joint is within
+CONTACT_CM of its ground clearance and moves slower than CONTACT_SPEED_CM_S horizontally, and
+stores per (label, state) the share of frames in contact, for the average model and each style
+(aligned by each model's own state posteriors). Live, the probabilities move with the style
+weights like every other parameter (offsets from the average, so they blend and extrapolate)
+and a foot counts as planted in a state whose probability is at least one half.
+
+`FootLock` enforces it causally, one frame at a time, on the pose the features give:
+- when a foot lands, the point it lands on (its lowest joint, horizontally) is locked;
+- the body is shifted so the planted foot stays there (the root follows the stance foot; the
+  shift accumulates, the path is the feet's);
+- each leg is solved by analytic two-bone IK (law of cosines for the knee, the knee's pole kept
+  from the generated pose), the foot keeping its generated world orientation, towards: the lock
+  horizontally, its lowest joint on the floor vertically; the lock blends in and out over
+  BLEND_FRAMES frames, so nothing pops;
+- no foot joint goes below its clearance, planted or not.
+Nothing looks ahead beyond what the frame's state already says, so live and `synth` agree.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..models.hsmm import HSMM, forward_backward, pad_segments
+from ..motion.features import FeatureLayout, restore_local
+from ..motion.kinematics import forward_kinematics
+from ..motion.limbs import Limbs, find_limbs
+from ..motion.quality import centimetres_per_unit, clearance
+
+CONTACT_CM = 2.0
+CONTACT_SPEED_CM_S = 30.0
+BLEND_FRAMES = 4
+PLANTED = 0.5
+
+
+# ---- training -------------------------------------------------------------------------------
+
+def _take_positions(static: np.ndarray, layout: FeatureLayout, fps: float) -> np.ndarray:
+    rotations, translations, _ = restore_local(static, layout, fps)
+    return forward_kinematics(layout.skeleton, rotations, translations)[1]
+
+
+def contact_labels(positions: np.ndarray, limbs: Limbs, ground: np.ndarray, cm: float, fps: float) -> np.ndarray:
+    """(frames, 2) 1.0 where a foot is planted: low (near its clearance) and nearly still."""
+    out = np.zeros((positions.shape[0], 2))
+    for f, foot in enumerate(limbs.feet):
+        joints = positions[:, list(foot)] * cm
+        lift = joints[..., 1] - ground[f] * cm
+        lowest = np.argmin(lift, axis=1)
+        rows = np.arange(len(lift))
+        speed = np.linalg.norm(np.gradient(joints[..., [0, 2]], axis=0), axis=2)[rows, lowest] * fps
+        out[:, f] = (lift[rows, lowest] < CONTACT_CM) & (speed < CONTACT_SPEED_CM_S)
+    return out
+
+
+def _state_contact(model: HSMM, segments: list[list[np.ndarray]], flags: list[list[np.ndarray]], fallback: np.ndarray) -> np.ndarray:
+    """(labels, states, 2): posterior-weighted share of contact frames in each state."""
+    out = fallback.copy()
+    for label, (segs, contact) in enumerate(zip(segments, flags)):
+        if not segs:
+            continue
+        obs, lengths = pad_segments(segs)
+        padded, _ = pad_segments(contact)
+        _, occupancy, _ = forward_backward(obs, lengths, model.means[label], model.variances[label],
+                                           model.duration_means[label], model.duration_variances[label])
+        mass = occupancy.sum(axis=(0, 1))
+        out[label] = np.einsum("ktn,ktf->nf", occupancy, padded) / np.maximum(mass[:, None], 1e-9)
+    return out
+
+
+def train_contact(layout: FeatureLayout, takes, average: HSMM, styles: HSMM, style_names: list[str], fps: float,
+                  states: int) -> tuple[dict[str, np.ndarray], dict]:
+    """Model-file arrays `contact_average` (labels, states, 2) and `contact_styles` (styles,
+    labels, states, 2), and the metadata entry describing them; empty when the skeleton has no
+    two legs."""
+    limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
+    if limbs is None:
+        return {}, {}
+    positions = [_take_positions(t.observations[:, : layout.dimension], layout, fps) for t in takes]
+    cm = centimetres_per_unit(layout, positions[0][0])
+    ground = clearance(positions, limbs)
+    labels = [contact_labels(p, limbs, ground, cm, fps) for p in positions]
+
+    def split(chosen):
+        segs = [[], []]
+        flags = [[], []]
+        for k in chosen:
+            for step in takes[k].steps:
+                if step.frames >= states:
+                    index = 0 if step.label == "right" else 1
+                    segs[index].append(takes[k].observations[step.start : step.end])
+                    flags[index].append(labels[k][step.start : step.end])
+        return segs, flags
+
+    everything = split(range(len(takes)))
+    neutral = np.full(average.duration_means.shape + (2,), 0.5)
+    base = _state_contact(average, *everything, neutral)
+    per_style = []
+    for s, name in enumerate(style_names):
+        model = HSMM(*(getattr(styles, p)[s] for p in ("means", "variances", "duration_means", "duration_variances")))
+        per_style.append(_state_contact(model, *split([k for k, t in enumerate(takes) if t.style == name]), base))
+    names = layout.skeleton.names
+    metadata = {
+        "feet": [[names[j] for j in foot] for foot in limbs.feet],
+        "clearance": ground.tolist(),
+        "contact_cm": CONTACT_CM,
+        "contact_speed_cm_s": CONTACT_SPEED_CM_S,
+    }
+    return {"contact_average": base, "contact_styles": np.stack(per_style)}, metadata
+
+
+# ---- generation -----------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ContactSpace:
+    """Contact probabilities as lambda 0 plus style offsets, flattened over (label, state)."""
+
+    base: np.ndarray  # (labels * states, 2)
+    offsets: np.ndarray  # (styles, labels * states, 2)
+    clearance: np.ndarray  # (2, foot joints)
+    legs: int  # index of the legs' body group in per-part weights
+
+    def planted(self, weights: np.ndarray, part_weights: np.ndarray | None = None) -> np.ndarray:
+        """(labels * states, 2) booleans: which foot is planted in each state at these weights
+        (the legs' own weights when given per body part)."""
+        weights = np.asarray(weights, dtype=np.float64)
+        if part_weights is not None:
+            legs = np.asarray(part_weights, dtype=np.float64)[:, self.legs]
+            weights = np.where(np.isnan(legs), weights, legs)
+        return self.base + np.einsum("s,sif->if", weights, self.offsets) >= PLANTED
+
+
+def contact_space(model) -> ContactSpace | None:
+    """None for a model trained without contact statistics (it then runs as before)."""
+    from .interpolation import GROUPS
+
+    extras = getattr(model, "extras", {}) or {}
+    base, styles = extras.get("contact_average"), extras.get("contact_styles")
+    stored = model.metadata.get("contact", {}).get("clearance")
+    layout = model.layout
+    limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
+    labels, states = len(model.labels), model.states
+    if base is None or styles is None or stored is None or limbs is None:
+        return None
+    if base.shape != (labels, states, 2) or styles.shape != (len(model.style_names), labels, states, 2):
+        return None
+    flat = base.reshape(-1, 2)
+    return ContactSpace(flat, styles.reshape(len(model.style_names), -1, 2) - flat, np.asarray(stored), GROUPS.index("legs"))
+
+
+def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The smallest rotation taking direction a to direction b (Rodrigues)."""
+    a = a / np.linalg.norm(a)
+    b = b / np.linalg.norm(b)
+    axis = np.cross(a, b)
+    s, c = np.linalg.norm(axis), float(np.dot(a, b))
+    if s < 1e-12:
+        return np.eye(3)
+    k = axis / s
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
+
+
+class FootLock:
+    """One character's planted feet, carried from frame to frame (see the module's docstring)."""
+
+    def __init__(self, layout: FeatureLayout, ground: np.ndarray):
+        self.layout = layout
+        self.limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
+        self.ground = np.asarray(ground, dtype=np.float64)
+        self.parents = layout.skeleton.parents
+        self.parent_rot = layout.template_pose[2]
+        self.offset = np.zeros(3)  # accumulated horizontal shift of the whole body (world)
+        self.weight = np.zeros(2)  # how far each foot's lock is blended in
+        self.lock = np.full((2, 3), np.nan)  # world point each foot is locked to
+        self.pivot = [int(foot[-1]) for foot in self.limbs.feet]  # the joint whose landing point is locked
+
+    def apply(self, rotations: np.ndarray, translations: np.ndarray, planted: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Local rotations (J, 3, 3) and translations (J, 3) of one frame, adjusted; and their
+        world rotations and positions."""
+        rotations, translations = rotations.copy(), translations.copy()
+        root = self.layout.root
+        world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
+        world_rot, world_pos = world_rot[0], world_pos[0] + self.offset
+        step = 1.0 / BLEND_FRAMES
+        for f in range(2):
+            if planted[f] and self.weight[f] == 0.0:
+                self.lock[f] = world_pos[self.pivot[f]]
+            self.weight[f] = min(1.0, self.weight[f] + step) if planted[f] else max(0.0, self.weight[f] - step)
+        # the root follows the planted feet: shift the body by their weighted mean slide
+        slide = np.zeros(3)
+        if self.weight.sum() > 0:
+            for f in range(2):
+                if self.weight[f] > 0:
+                    slide += self.weight[f] * (self.lock[f] - world_pos[self.pivot[f]])
+            slide /= max(self.weight.sum(), 1.0)
+            slide[1] = 0.0
+        self.offset += slide
+        world_pos += slide
+        for f, leg in enumerate(self.limbs.legs):
+            foot = list(leg.foot)
+            lift = np.min(world_pos[foot, 1] - self.ground[f])
+            target = world_pos[leg.ankle].copy()
+            w = self.weight[f]
+            if w > 0:
+                pull = self.lock[f] - world_pos[self.pivot[f]]
+                target[[0, 2]] += w * pull[[0, 2]]
+                target[1] -= w * lift
+            lowest_after = lift - (w * lift if w > 0 else 0.0)
+            if lowest_after < 0:  # never under the floor
+                target[1] -= lowest_after
+            if np.linalg.norm(target - world_pos[leg.ankle]) > 1e-9:
+                self._solve(leg, rotations, world_rot, world_pos, target)
+        translations[root] += self.offset @ self.parent_rot  # the body shifted in the root's parent frame
+        world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
+        return rotations, translations, world_rot[0], world_pos[0]
+
+    def _solve(self, leg, rotations: np.ndarray, world_rot: np.ndarray, world_pos: np.ndarray, target: np.ndarray) -> None:
+        """Two-bone IK: rotate the hip and knee joints so the ankle reaches `target` (as near as
+        the leg allows), the knee bending in its generated plane; the ankle keeps its world rotation."""
+        hip, knee, ankle = world_pos[leg.hip], world_pos[leg.knee], world_pos[leg.ankle]
+        upper, lower = np.linalg.norm(knee - hip), np.linalg.norm(ankle - knee)
+        reach = target - hip
+        distance = np.clip(np.linalg.norm(reach), abs(upper - lower) + 1e-6, (upper + lower) * 0.9999)
+        u = reach / max(np.linalg.norm(reach), 1e-9)
+        bend = (knee - hip) - np.dot(knee - hip, u) * u  # the knee's pole, from the generated pose
+        if np.linalg.norm(bend) < 1e-9:
+            bend = np.cross(u, np.cross(ankle - hip, u))
+        v = bend / max(np.linalg.norm(bend), 1e-9)
+        cos_a = np.clip((upper**2 + distance**2 - lower**2) / (2 * upper * distance), -1.0, 1.0)
+        new_knee = hip + upper * (cos_a * u + np.sqrt(1 - cos_a**2) * v)
+        new_ankle = hip + distance * u
+        ankle_world = world_rot[leg.ankle].copy()
+        swing_hip = _rotation_between(knee - hip, new_knee - hip)
+        hip_world = swing_hip @ world_rot[leg.hip]
+        chain = self._between(leg.hip, leg.knee)  # joints from below the hip to the knee, usually just the knee
+        rotations[leg.hip] = self._parent_world(leg.hip, world_rot).T @ hip_world
+        parent_world = hip_world
+        for j in chain[:-1]:
+            parent_world = parent_world @ rotations[j]
+        knee_world = parent_world @ rotations[leg.knee]
+        moved_ankle = new_knee + swing_hip @ (ankle - knee)
+        swing_knee = _rotation_between(moved_ankle - new_knee, new_ankle - new_knee)
+        knee_world = swing_knee @ knee_world
+        rotations[leg.knee] = parent_world.T @ knee_world
+        parent_world = knee_world
+        for j in self._between(leg.knee, leg.ankle)[:-1]:
+            parent_world = parent_world @ rotations[j]
+        rotations[leg.ankle] = parent_world.T @ ankle_world
+
+    def _between(self, top: int, bottom: int) -> list[int]:
+        out = []
+        while bottom != top and bottom >= 0:
+            out.append(bottom)
+            bottom = int(self.parents[bottom])
+        return out[::-1]
+
+    def _parent_world(self, joint: int, world_rot: np.ndarray) -> np.ndarray:
+        parent = int(self.parents[joint])
+        return world_rot[parent] if parent >= 0 else np.eye(3)
