@@ -20,6 +20,7 @@ import numpy as np
 from ..control.events import ControlEvent, LogReplay
 from ..control.state import ControlState
 from ..models.modelfile import Model
+from ..synthesis.contact import FootLock, contact_space
 from ..synthesis.interpolation import style_space
 from ..synthesis.offline import drive
 from ..synthesis.stream import DEFAULT_LOOKAHEAD, Walker, step
@@ -52,6 +53,11 @@ class Engine:
         self.walker = Walker(model.layout.dimension, lookahead=lookahead, seed=seed)
         self.frames: list[np.ndarray] = []  # the last two model frames, driven
         self.made = 0  # model frames made
+        self.contact = contact_space(model)  # None: the model has no contact statistics
+        self.planted: np.ndarray | None = None  # (2,) which feet the newest model frame has planted
+
+    def foot_lock(self) -> FootLock | None:
+        return None if self.contact is None else FootLock(self.model.layout, self.contact.clearance)
 
     def sample(self, time_s: float, controls) -> np.ndarray:
         """Static features at performance time `time_s`, making model frames as needed.
@@ -65,6 +71,8 @@ class Engine:
             frame = step(self.space, [self.walker], [controls])[0]
             self.frames = (self.frames + [drive(frame, self.walker.cadence, controls.turn)])[-2:]
             self.made += 1
+            if self.contact is not None:
+                self.planted = self.contact.planted(controls.weights, controls.part_weights)[self.walker.history_ids[1]]
         fraction = position - (newest - 1)
         if fraction >= 1.0 - 1e-9 or len(self.frames) == 1:
             return self.frames[-1]
@@ -101,7 +109,7 @@ def perform(
     state = state or ControlState(model.style_names, model.states)
     apply = apply or (lambda s, e: s.set(e.control, e.value))
     engine = Engine(model, lookahead)
-    poses = PoseStream(model.layout, fps)
+    poses = PoseStream(model.layout, fps, engine.foot_lock())
     clock = FrameClock(fps, realtime=not fast)
     summary = Summary()
     stop = {"now": False}
@@ -131,7 +139,7 @@ def perform(
             take_live(now)  # what came since the last look, while the loop waited
             state.advance(now)
             controls = state.snapshot()
-            pose = poses.next(engine.sample(now, controls))
+            pose = poses.next(engine.sample(now, controls), engine.planted)
             echo = state.echo()
             prepared = [_attempt(console, summary, output, output.prepare, pose, echo) for output in outputs]
             if index > 0:

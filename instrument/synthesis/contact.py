@@ -24,6 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ..models.hsmm import HSMM, forward_backward, pad_segments
 from ..motion.features import FeatureLayout, restore_local
@@ -34,7 +35,13 @@ from ..motion.quality import centimetres_per_unit, clearance
 CONTACT_CM = 2.0
 CONTACT_SPEED_CM_S = 30.0
 BLEND_FRAMES = 4
+SWING_CM = 1.0  # a foot in the air keeps its lowest joint this far above its clearance
+ROOT_FOLLOW = 0.0  # share of a planted foot's slide the body takes up (the legs' IK takes the rest)
 PLANTED = 0.5
+
+
+def EASE(x: float) -> float:
+    return x * x * (3.0 - 2.0 * x)  # smoothstep: the lock starts and ends with zero speed
 
 
 # ---- training -------------------------------------------------------------------------------
@@ -152,17 +159,41 @@ def contact_space(model) -> ContactSpace | None:
     return ContactSpace(flat, styles.reshape(len(model.style_names), -1, 2) - flat, np.asarray(stored), GROUPS.index("legs"))
 
 
-def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+@njit(cache=True)
+def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
     """The smallest rotation taking direction a to direction b (Rodrigues)."""
-    a = a / np.linalg.norm(a)
-    b = b / np.linalg.norm(b)
+    a = a / np.sqrt(np.sum(a * a))
+    b = b / np.sqrt(np.sum(b * b))
     axis = np.cross(a, b)
-    s, c = np.linalg.norm(axis), float(np.dot(a, b))
+    s = np.sqrt(np.sum(axis * axis))
+    c = np.sum(a * b)
     if s < 1e-12:
         return np.eye(3)
     k = axis / s
     K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
     return np.eye(3) + s * K + (1.0 - c) * (K @ K)
+
+
+@njit(cache=True)
+def _leg_swings(hip, knee, ankle, target):  # pragma: no cover - compiled
+    """Two-bone IK: the world rotations that swing the thigh (about the hip) and then the shin
+    (about the knee) so the ankle reaches `target`, or as near as the leg allows; the knee bends
+    in the plane it had (its pole kept from the generated pose)."""
+    upper = np.sqrt(np.sum((knee - hip) ** 2))
+    lower = np.sqrt(np.sum((ankle - knee) ** 2))
+    reach = target - hip
+    length = np.sqrt(np.sum(reach * reach))
+    distance = min(max(length, abs(upper - lower) + 1e-6), (upper + lower) * 0.9999)
+    u = reach / max(length, 1e-9)
+    bend = (knee - hip) - np.sum((knee - hip) * u) * u
+    if np.sqrt(np.sum(bend * bend)) < 1e-9:
+        bend = np.cross(u, np.cross(ankle - hip, u))
+    v = bend / max(np.sqrt(np.sum(bend * bend)), 1e-9)
+    cos_a = min(max((upper**2 + distance**2 - lower**2) / (2.0 * upper * distance), -1.0), 1.0)
+    new_knee = hip + upper * (cos_a * u + np.sqrt(1.0 - cos_a**2) * v)
+    thigh = _rotation_between(knee - hip, new_knee - hip)
+    shin = _rotation_between(thigh @ (ankle - knee), hip + distance * u - new_knee)
+    return thigh, shin
 
 
 class FootLock:
@@ -178,6 +209,8 @@ class FootLock:
         self.weight = np.zeros(2)  # how far each foot's lock is blended in
         self.lock = np.full((2, 3), np.nan)  # world point each foot is locked to
         self.pivot = [int(foot[-1]) for foot in self.limbs.feet]  # the joint whose landing point is locked
+        template = forward_kinematics(layout.skeleton, layout.template_pose[0][None], layout.template_pose[1][None])[1][0]
+        self.swing_lift = SWING_CM / centimetres_per_unit(layout, template)  # in the skeleton's units
 
     def apply(self, rotations: np.ndarray, translations: np.ndarray, planted: np.ndarray) -> tuple[np.ndarray, ...]:
         """Local rotations (J, 3, 3) and translations (J, 3) of one frame, adjusted; and their
@@ -191,13 +224,13 @@ class FootLock:
             if planted[f] and self.weight[f] == 0.0:
                 self.lock[f] = world_pos[self.pivot[f]]
             self.weight[f] = min(1.0, self.weight[f] + step) if planted[f] else max(0.0, self.weight[f] - step)
-        # the root follows the planted feet: shift the body by their weighted mean slide
+        # the root follows the planted feet (not a foot being lifted off): shift the body by their mean slide
+        follow = self.weight * planted
         slide = np.zeros(3)
-        if self.weight.sum() > 0:
-            for f in range(2):
-                if self.weight[f] > 0:
-                    slide += self.weight[f] * (self.lock[f] - world_pos[self.pivot[f]])
-            slide /= max(self.weight.sum(), 1.0)
+        if follow.sum() > 0:
+            for f in np.flatnonzero(follow):
+                slide += follow[f] * (self.lock[f] - world_pos[self.pivot[f]])
+            slide *= ROOT_FOLLOW / max(follow.sum(), 1.0)
             slide[1] = 0.0
         self.offset += slide
         world_pos += slide
@@ -205,14 +238,15 @@ class FootLock:
             foot = list(leg.foot)
             lift = np.min(world_pos[foot, 1] - self.ground[f])
             target = world_pos[leg.ankle].copy()
-            w = self.weight[f]
+            w = EASE(self.weight[f])
             if w > 0:
                 pull = self.lock[f] - world_pos[self.pivot[f]]
                 target[[0, 2]] += w * pull[[0, 2]]
                 target[1] -= w * lift
             lowest_after = lift - (w * lift if w > 0 else 0.0)
-            if lowest_after < 0:  # never under the floor
-                target[1] -= lowest_after
+            floor = 0.0 if planted[f] else (1.0 - w) * self.swing_lift  # a swinging foot clears the floor
+            if lowest_after < floor:
+                target[1] += floor - lowest_after
             if np.linalg.norm(target - world_pos[leg.ankle]) > 1e-9:
                 self._solve(leg, rotations, world_rot, world_pos, target)
         translations[root] += self.offset @ self.parent_rot  # the body shifted in the root's parent frame
@@ -220,44 +254,15 @@ class FootLock:
         return rotations, translations, world_rot[0], world_pos[0]
 
     def _solve(self, leg, rotations: np.ndarray, world_rot: np.ndarray, world_pos: np.ndarray, target: np.ndarray) -> None:
-        """Two-bone IK: rotate the hip and knee joints so the ankle reaches `target` (as near as
-        the leg allows), the knee bending in its generated plane; the ankle keeps its world rotation."""
-        hip, knee, ankle = world_pos[leg.hip], world_pos[leg.knee], world_pos[leg.ankle]
-        upper, lower = np.linalg.norm(knee - hip), np.linalg.norm(ankle - knee)
-        reach = target - hip
-        distance = np.clip(np.linalg.norm(reach), abs(upper - lower) + 1e-6, (upper + lower) * 0.9999)
-        u = reach / max(np.linalg.norm(reach), 1e-9)
-        bend = (knee - hip) - np.dot(knee - hip, u) * u  # the knee's pole, from the generated pose
-        if np.linalg.norm(bend) < 1e-9:
-            bend = np.cross(u, np.cross(ankle - hip, u))
-        v = bend / max(np.linalg.norm(bend), 1e-9)
-        cos_a = np.clip((upper**2 + distance**2 - lower**2) / (2 * upper * distance), -1.0, 1.0)
-        new_knee = hip + upper * (cos_a * u + np.sqrt(1 - cos_a**2) * v)
-        new_ankle = hip + distance * u
-        ankle_world = world_rot[leg.ankle].copy()
-        swing_hip = _rotation_between(knee - hip, new_knee - hip)
-        hip_world = swing_hip @ world_rot[leg.hip]
-        chain = self._between(leg.hip, leg.knee)  # joints from below the hip to the knee, usually just the knee
+        """Leg IK in place on the local rotations: hip and knee swung, the ankle keeping its world rotation."""
+        thigh, shin = _leg_swings(world_pos[leg.hip], world_pos[leg.knee], world_pos[leg.ankle], target)
+        # the hip is the knee's parent and the knee the ankle's (limbs.py): below the hip everything
+        # turns with the thigh, below the knee also with the shin
+        hip_world = thigh @ world_rot[leg.hip]
+        knee_world = shin @ thigh @ world_rot[leg.knee]
         rotations[leg.hip] = self._parent_world(leg.hip, world_rot).T @ hip_world
-        parent_world = hip_world
-        for j in chain[:-1]:
-            parent_world = parent_world @ rotations[j]
-        knee_world = parent_world @ rotations[leg.knee]
-        moved_ankle = new_knee + swing_hip @ (ankle - knee)
-        swing_knee = _rotation_between(moved_ankle - new_knee, new_ankle - new_knee)
-        knee_world = swing_knee @ knee_world
-        rotations[leg.knee] = parent_world.T @ knee_world
-        parent_world = knee_world
-        for j in self._between(leg.knee, leg.ankle)[:-1]:
-            parent_world = parent_world @ rotations[j]
-        rotations[leg.ankle] = parent_world.T @ ankle_world
-
-    def _between(self, top: int, bottom: int) -> list[int]:
-        out = []
-        while bottom != top and bottom >= 0:
-            out.append(bottom)
-            bottom = int(self.parents[bottom])
-        return out[::-1]
+        rotations[leg.knee] = hip_world.T @ knee_world
+        rotations[leg.ankle] = knee_world.T @ world_rot[leg.ankle]
 
     def _parent_world(self, joint: int, world_rot: np.ndarray) -> np.ndarray:
         parent = int(self.parents[joint])

@@ -36,10 +36,10 @@ def synthesize(
     seed: int = 0,
 ) -> np.ndarray:
     """Static features (frames, D) of a walk with constant controls, root speeds driven."""
-    return _generate(space, dimension, controls, frames, method, lookahead, seed)[0]
+    return generate_with_states(space, dimension, controls, frames, method, lookahead, seed)[0]
 
 
-def _generate(space: StyleSpace, dimension: int, controls: Controls, frames: int, method: str, lookahead: int,
+def generate_with_states(space: StyleSpace, dimension: int, controls: Controls, frames: int, method: str, lookahead: int,
               seed: int) -> tuple[np.ndarray, np.ndarray]:
     """Driven static features (frames, D) and the (label * states + state) of each frame."""
     walker = Walker(dimension, lookahead=lookahead, seed=seed)
@@ -67,7 +67,7 @@ def synthesize_motion(model: Model, space: StyleSpace, controls: Controls, frame
                       lookahead: int = DEFAULT_LOOKAHEAD, seed: int = 0) -> Motion:
     """A walk as a Motion on the model's skeleton, from the origin, heading 0, its feet planted
     frame by frame as live when the model has contact statistics."""
-    static, ids = _generate(space, model.layout.dimension, controls, frames, method, lookahead, seed)
+    static, ids = generate_with_states(space, model.layout.dimension, controls, frames, method, lookahead, seed)
     contact = contact_space(model)
     if contact is None:
         return restore(static, model.layout, model.fps)
