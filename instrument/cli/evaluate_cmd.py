@@ -52,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
     unknown = [s for s in styles if s not in model.style_names]
     if unknown:
         raise UserError(f"--styles: the model has no style {unknown[0]!r} (it has {', '.join(model.style_names)})")
+    styles = [s for s in model.style_names if s in styles]  # the model's order, whatever the command line's
     kinds = tuple(k.strip() for k in args.variants.split(",") if k.strip())
     wrong = [k for k in kinds if k not in VARIANT_KINDS]
     if wrong or not kinds:

@@ -86,8 +86,8 @@ def assess(
     result = Assessment(weights=variants(styles, kinds))
     classifier = None
     real_static: list[tuple[str, np.ndarray]] = []
-    if real is not None:
-        pairs = [p for p in real_pairs(model, real) if p[1] in styles]
+    if real is not None:  # every style's takes: the classifier must know all the styles to tell them apart
+        pairs = real_pairs(model, real)
         motions = read_motions(pairs, model.fps)
         positions = [world_positions(m) for m in motions]
         ground = clearance(positions, limbs)
@@ -97,7 +97,8 @@ def assess(
         recognised = _cross_validated(takes, features)
         for style in styles:
             mine = [walk_figures(m, layout, limbs, ground, cm) for m, (_, s) in zip(motions, pairs) if s == style]
-            result.real[style] = pooled(mine) | {"recognised": recognised.get(style, float("nan"))}
+            if mine:
+                result.real[style] = pooled(mine) | {"recognised": recognised.get(style, float("nan"))}
             if progress:
                 progress(f"{style} (real)")
     else:
