@@ -156,10 +156,10 @@ def measure_contact(model, space, controls: Controls, blocks: int) -> dict:
     def poses(lock):
         stream = PoseStream(model.layout, model.fps, lock)
         for row, state in zip(static, ids):
-            stream.next(row, contact.planted(controls.weights, controls.part_weights)[state] if lock else None)
+            stream.next(row, contact.shares(controls.weights, controls.part_weights)[state] if lock else None)
 
     plain = 1e6 / frames * median_seconds(lambda: poses(None), blocks)
-    planted = 1e6 / frames * median_seconds(lambda: poses(FootLock(model.layout, contact.clearance)), blocks)
+    planted = 1e6 / frames * median_seconds(lambda: poses(FootLock(model.layout, contact.clearance, model.fps)), blocks)
     return {"pose_us_per_frame": plain, "contact_us_per_frame": planted - plain}
 
 

@@ -15,6 +15,7 @@ from ..motion.steps import LABELS
 from .corpus import Take, load_corpus, segments_by_label
 from .modelfile import Model
 from ..synthesis.contact import train_contact
+from .symmetry import symmetric_models
 from .training import TrainingReport, adapt_styles, train_average, variance_floors
 
 UNSPECIFIED_LICENCE = "unspecified: the licence of the training data applies"
@@ -40,6 +41,7 @@ def build_model(
     per_style = {s: segments_by_label([t for t in takes if t.style == s], states) for s in style_names}
     styles = adapt_styles(average, per_style, floors, report)
     contact, contact_metadata = train_contact(layout, takes, average, styles, style_names, fps, states)
+    average, styles = symmetric_models(average, styles, layout.dimension)  # straight at turn = 0
     dimension = layout.dimension
     step_max = np.max([np.abs(np.diff(t.observations[:, :dimension], axis=0)).max(axis=0) for t in takes], axis=0)
     static_std = np.vstack([t.observations[:, :dimension] for t in takes]).std(axis=0)
@@ -60,6 +62,7 @@ def build_model(
             "iterations": len(report.loglik_per_frame),
             "loglik_per_frame": report.loglik_per_frame,
             "variance_floor_ratio": 0.01,
+            "mirror_image_steps": True,
             "seconds": round(time.perf_counter() - started, 1),
             "instrument_version": __version__,
             "python": platform.python_version(),

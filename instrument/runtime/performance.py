@@ -54,10 +54,10 @@ class Engine:
         self.frames: list[np.ndarray] = []  # the last two model frames, driven
         self.made = 0  # model frames made
         self.contact = contact_space(model)  # None: the model has no contact statistics
-        self.planted: np.ndarray | None = None  # (2,) which feet the newest model frame has planted
+        self.contact_shares: np.ndarray | None = None  # (2,) how surely the newest model frame has each foot planted
 
-    def foot_lock(self) -> FootLock | None:
-        return None if self.contact is None else FootLock(self.model.layout, self.contact.clearance)
+    def foot_lock(self, fps: float) -> FootLock | None:
+        return None if self.contact is None else FootLock(self.model.layout, self.contact.clearance, fps)
 
     def sample(self, time_s: float, controls) -> np.ndarray:
         """Static features at performance time `time_s`, making model frames as needed.
@@ -72,7 +72,7 @@ class Engine:
             self.frames = (self.frames + [drive(frame, self.walker.cadence, controls.turn)])[-2:]
             self.made += 1
             if self.contact is not None:
-                self.planted = self.contact.planted(controls.weights, controls.part_weights)[self.walker.history_ids[1]]
+                self.contact_shares = self.contact.shares(controls.weights, controls.part_weights)[self.walker.history_ids[1]]
         fraction = position - (newest - 1)
         if fraction >= 1.0 - 1e-9 or len(self.frames) == 1:
             return self.frames[-1]
@@ -109,7 +109,7 @@ def perform(
     state = state or ControlState(model.style_names, model.states)
     apply = apply or (lambda s, e: s.set(e.control, e.value))
     engine = Engine(model, lookahead)
-    poses = PoseStream(model.layout, fps, engine.foot_lock())
+    poses = PoseStream(model.layout, fps, engine.foot_lock(fps))
     clock = FrameClock(fps, realtime=not fast)
     summary = Summary()
     stop = {"now": False}
@@ -139,7 +139,7 @@ def perform(
             take_live(now)  # what came since the last look, while the loop waited
             state.advance(now)
             controls = state.snapshot()
-            pose = poses.next(engine.sample(now, controls), engine.planted)
+            pose = poses.next(engine.sample(now, controls), engine.contact_shares)
             echo = state.echo()
             prepared = [_attempt(console, summary, output, output.prepare, pose, echo) for output in outputs]
             if index > 0:

@@ -38,17 +38,17 @@ class PoseStream:
 
     def __init__(self, layout: FeatureLayout, fps: float, lock: FootLock | None = None):
         self.layout, self.fps = layout, fps
-        self.lock = lock  # plants the feet when the frame says which are planted
+        self.lock = lock  # plants the feet when the frame says how surely each is planted
         self.position = np.zeros(3)
         self.heading = 0.0
         self.index = 0
 
-    def next(self, static: np.ndarray, planted: np.ndarray | None = None) -> Pose:
+    def next(self, static: np.ndarray, contact_shares: np.ndarray | None = None) -> Pose:
         rotations, translations, (self.position, self.heading) = restore_local(
             static[None], self.layout, self.fps, self.position, self.heading
         )
-        if self.lock is not None and planted is not None:
-            pose = Pose(self.index, self.index / self.fps, *self.lock.apply(rotations[0], translations[0], planted))
+        if self.lock is not None and contact_shares is not None:
+            pose = Pose(self.index, self.index / self.fps, *self.lock.apply(rotations[0], translations[0], contact_shares))
         else:
             world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations, translations)
             pose = Pose(self.index, self.index / self.fps, rotations[0], translations[0], world_rot[0], world_pos[0])

@@ -5,7 +5,8 @@ CONTACT_CM of its ground clearance and moves slower than CONTACT_SPEED_CM_S hori
 stores per (label, state) the share of frames in contact, for the average model and each style
 (aligned by each model's own state posteriors). Live, the probabilities move with the style
 weights like every other parameter (offsets from the average, so they blend and extrapolate)
-and a foot counts as planted in a state whose probability is at least one half.
+and a foot counts as planted in a state whose share is at least PLANTED, or at least POSSIBLE
+when the generated foot is on the floor and nearly still (as the data was labelled).
 
 `FootLock` enforces it causally, one frame at a time, on the pose the features give:
 - when a foot lands, the point it lands on (its lowest joint, horizontally) is locked;
@@ -35,9 +36,11 @@ from ..motion.quality import centimetres_per_unit, clearance
 CONTACT_CM = 2.0
 CONTACT_SPEED_CM_S = 30.0
 BLEND_FRAMES = 4
-SWING_CM = 1.0  # a foot in the air keeps its lowest joint this far above its clearance
-ROOT_FOLLOW = 0.0  # share of a planted foot's slide the body takes up (the legs' IK takes the rest)
-PLANTED = 0.5
+SWING_CM = 2.0  # a foot in the air keeps its lowest joint this far above its clearance
+REACH = 0.98  # a leg stretched further than this share of its length is out of reach
+MAX_DROP = 0.15  # the body lowers by at most this share of the leg's length for a foot to reach
+PLANTED = 0.5  # a state this sure of a foot's contact plants it
+POSSIBLE = 0.2  # a state this sure plants a foot that is on the floor and still
 
 
 def EASE(x: float) -> float:
@@ -131,14 +134,14 @@ class ContactSpace:
     clearance: np.ndarray  # (2, foot joints)
     legs: int  # index of the legs' body group in per-part weights
 
-    def planted(self, weights: np.ndarray, part_weights: np.ndarray | None = None) -> np.ndarray:
-        """(labels * states, 2) booleans: which foot is planted in each state at these weights
-        (the legs' own weights when given per body part)."""
+    def shares(self, weights: np.ndarray, part_weights: np.ndarray | None = None) -> np.ndarray:
+        """(labels * states, 2): how surely each foot is planted in each state at these weights
+        (the legs' own weights when given per body part), 0 to 1."""
         weights = np.asarray(weights, dtype=np.float64)
         if part_weights is not None:
             legs = np.asarray(part_weights, dtype=np.float64)[:, self.legs]
             weights = np.where(np.isnan(legs), weights, legs)
-        return self.base + np.einsum("s,sif->if", weights, self.offsets) >= PLANTED
+        return np.clip(self.base + np.einsum("s,sif->if", weights, self.offsets), 0.0, 1.0)
 
 
 def contact_space(model) -> ContactSpace | None:
@@ -199,8 +202,8 @@ def _leg_swings(hip, knee, ankle, target):  # pragma: no cover - compiled
 class FootLock:
     """One character's planted feet, carried from frame to frame (see the module's docstring)."""
 
-    def __init__(self, layout: FeatureLayout, ground: np.ndarray):
-        self.layout = layout
+    def __init__(self, layout: FeatureLayout, ground: np.ndarray, fps: float):
+        self.layout, self.fps = layout, fps
         self.limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
         self.ground = np.asarray(ground, dtype=np.float64)
         self.parents = layout.skeleton.parents
@@ -210,48 +213,88 @@ class FootLock:
         self.lock = np.full((2, 3), np.nan)  # world point each foot is locked to
         self.pivot = [int(foot[-1]) for foot in self.limbs.feet]  # the joint whose landing point is locked
         template = forward_kinematics(layout.skeleton, layout.template_pose[0][None], layout.template_pose[1][None])[1][0]
-        self.swing_lift = SWING_CM / centimetres_per_unit(layout, template)  # in the skeleton's units
+        self.cm = centimetres_per_unit(layout, template)
+        self.swing_lift = SWING_CM / self.cm  # in the skeleton's units
+        self.previous = np.full((2, 3), np.nan)  # each pivot's generated position in the frame before
 
-    def apply(self, rotations: np.ndarray, translations: np.ndarray, planted: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Local rotations (J, 3, 3) and translations (J, 3) of one frame, adjusted; and their
-        world rotations and positions."""
+    def apply(self, rotations: np.ndarray, translations: np.ndarray, shares: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Local rotations (J, 3, 3) and translations (J, 3) of one frame, adjusted, and their
+        world rotations and positions; `shares` (2,) says how surely each foot is planted in
+        the frame's state."""
         rotations, translations = rotations.copy(), translations.copy()
         root = self.layout.root
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
-        world_rot, world_pos = world_rot[0], world_pos[0] + self.offset
+        world_rot, world_pos = world_rot[0], world_pos[0]
+        planted = self._planted(shares, world_pos)
+        world_pos = world_pos + self.offset
         step = 1.0 / BLEND_FRAMES
         for f in range(2):
             if planted[f] and self.weight[f] == 0.0:
                 self.lock[f] = world_pos[self.pivot[f]]
             self.weight[f] = min(1.0, self.weight[f] + step) if planted[f] else max(0.0, self.weight[f] - step)
-        # the root follows the planted feet (not a foot being lifted off): shift the body by their mean slide
-        follow = self.weight * planted
-        slide = np.zeros(3)
-        if follow.sum() > 0:
-            for f in np.flatnonzero(follow):
-                slide += follow[f] * (self.lock[f] - world_pos[self.pivot[f]])
-            slide *= ROOT_FOLLOW / max(follow.sum(), 1.0)
-            slide[1] = 0.0
-        self.offset += slide
-        world_pos += slide
+        targets = [self._target(f, leg, world_pos, planted[f]) for f, leg in enumerate(self.limbs.legs)]
+        # where a planted leg cannot reach its lock, the body gives way: down first (the stance
+        # knee bends), then along (the root follows the stance foot); the drop lasts one frame,
+        # the shift stays (it is where the walk now is)
+        drop, shift = 0.0, np.zeros(3)
         for f, leg in enumerate(self.limbs.legs):
-            foot = list(leg.foot)
-            lift = np.min(world_pos[foot, 1] - self.ground[f])
-            target = world_pos[leg.ankle].copy()
             w = EASE(self.weight[f])
-            if w > 0:
-                pull = self.lock[f] - world_pos[self.pivot[f]]
-                target[[0, 2]] += w * pull[[0, 2]]
-                target[1] -= w * lift
-            lowest_after = lift - (w * lift if w > 0 else 0.0)
-            floor = 0.0 if planted[f] else (1.0 - w) * self.swing_lift  # a swinging foot clears the floor
-            if lowest_after < floor:
-                target[1] += floor - lowest_after
-            if np.linalg.norm(target - world_pos[leg.ankle]) > 1e-9:
-                self._solve(leg, rotations, world_rot, world_pos, target)
-        translations[root] += self.offset @ self.parent_rot  # the body shifted in the root's parent frame
+            if w == 0.0:
+                continue
+            longest = REACH * (leg.thigh + leg.shin)
+            apart = targets[f] - world_pos[leg.hip]
+            across = np.hypot(apart[0], apart[2])
+            need = -apart[1] - (np.sqrt(longest**2 - across**2) if across < longest else 0.0)
+            drop = max(drop, w * min(max(need, 0.0), MAX_DROP * longest))
+        world_pos[:, 1] -= drop
+        for f, leg in enumerate(self.limbs.legs):
+            w = EASE(self.weight[f])
+            if w == 0.0 or not planted[f]:
+                continue
+            longest = REACH * (leg.thigh + leg.shin)
+            apart = targets[f] - world_pos[leg.hip]
+            distance = np.linalg.norm(apart)
+            if distance > longest:
+                excess = apart * (1.0 - longest / distance) * w
+                excess[1] = 0.0
+                shift = shift if np.dot(shift, shift) >= np.dot(excess, excess) else excess
+        self.offset += shift
+        world_pos += shift
+        for f, leg in enumerate(self.limbs.legs):
+            if np.linalg.norm(targets[f] - world_pos[leg.ankle]) > 1e-9:
+                self._solve(leg, rotations, world_rot, world_pos, targets[f])
+        translations[root] += (self.offset - np.array([0.0, drop, 0.0])) @ self.parent_rot  # in the root's parent frame
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
         return rotations, translations, world_rot[0], world_pos[0]
+
+    def _planted(self, shares: np.ndarray, world_pos: np.ndarray) -> np.ndarray:
+        """A foot is planted where its state says so, or where the state allows it and the
+        generated foot is on the floor and nearly still (as the data's contact was labelled)."""
+        planted = shares >= PLANTED
+        pivots = world_pos[self.pivot]
+        speed = np.hypot(*(pivots - self.previous)[:, [0, 2]].T) * self.fps * self.cm
+        self.previous = pivots
+        for f, leg in enumerate(self.limbs.legs):
+            if not planted[f] and shares[f] >= POSSIBLE:
+                lift = np.min(world_pos[list(leg.foot), 1] - self.ground[f]) * self.cm
+                planted[f] = lift < CONTACT_CM and speed[f] < CONTACT_SPEED_CM_S  # NaN speed (first frame): False
+        return planted
+
+    def _target(self, f: int, leg, world_pos: np.ndarray, planted: bool) -> np.ndarray:
+        """Where the ankle should be: the lock blended in horizontally, the lowest foot joint on
+        the floor while planted, never below it, and a little above it while swinging."""
+        lift = np.min(world_pos[list(leg.foot), 1] - self.ground[f])
+        target = world_pos[leg.ankle].copy()
+        w = EASE(self.weight[f])
+        if w > 0:
+            pull = self.lock[f] - world_pos[self.pivot[f]]
+            target[[0, 2]] += w * pull[[0, 2]]
+            target[1] -= w * lift
+        lowest_after = lift - w * lift
+        floor = 0.0 if planted else (1.0 - w) * self.swing_lift
+        if lowest_after < floor:
+            target[1] += floor - lowest_after
+        return target
 
     def _solve(self, leg, rotations: np.ndarray, world_rot: np.ndarray, world_pos: np.ndarray, target: np.ndarray) -> None:
         """Leg IK in place on the local rotations: hip and knee swung, the ankle keeping its world rotation."""

@@ -71,9 +71,9 @@ def synthesize_motion(model: Model, space: StyleSpace, controls: Controls, frame
     contact = contact_space(model)
     if contact is None:
         return restore(static, model.layout, model.fps)
-    planted = contact.planted(controls.weights, controls.part_weights)[ids]
-    poses = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance))
-    frames_out = [poses.next(row, flags) for row, flags in zip(static, planted)]
+    shares = contact.shares(controls.weights, controls.part_weights)[ids]
+    poses = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps))
+    frames_out = [poses.next(row, frame_shares) for row, frame_shares in zip(static, shares)]
     rotations = np.stack([p.rotations for p in frames_out])
     translations = np.stack([p.translations for p in frames_out])
     return Motion(model.layout.skeleton, channels_from_local(model.layout.skeleton, rotations, translations), model.fps)
