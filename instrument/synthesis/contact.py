@@ -10,8 +10,6 @@ when the generated foot is on the floor and nearly still (as the data was labell
 
 `FootLock` enforces it causally, one frame at a time, on the pose the features give:
 - when a foot lands, the point it lands on (its lowest joint, horizontally) is locked;
-- the body is shifted so the planted foot stays there (the root follows the stance foot; the
-  shift accumulates, the path is the feet's);
 - each leg is solved by analytic two-bone IK (law of cosines for the knee, the knee's pole kept
   from the generated pose), the foot keeping its generated world orientation, towards: the lock
   horizontally, its lowest joint on the floor vertically; the lock blends in and out over
@@ -37,8 +35,6 @@ CONTACT_CM = 2.0
 CONTACT_SPEED_CM_S = 30.0
 BLEND_FRAMES = 4
 SWING_CM = 2.0  # a foot in the air keeps its lowest joint this far above its clearance
-REACH = 0.98  # a leg stretched further than this share of its length is out of reach
-MAX_DROP = 0.15  # the body lowers by at most this share of the leg's length for a foot to reach
 PLANTED = 0.5  # a state this sure of a foot's contact plants it
 POSSIBLE = 0.2  # a state this sure plants a foot that is on the floor and still
 
@@ -178,10 +174,11 @@ def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:  # pragma: no
 
 
 @njit(cache=True)
-def _leg_swings(hip, knee, ankle, target):  # pragma: no cover - compiled
+def _leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
     """Two-bone IK: the world rotations that swing the thigh (about the hip) and then the shin
     (about the knee) so the ankle reaches `target`, or as near as the leg allows; the knee bends
-    in the plane it had (its pole kept from the generated pose)."""
+    in the plane it had (its pole kept from the generated pose), leaning towards the toes so a
+    nearly straight leg does not flip its knee backwards."""
     upper = np.sqrt(np.sum((knee - hip) ** 2))
     lower = np.sqrt(np.sum((ankle - knee) ** 2))
     reach = target - hip
@@ -189,8 +186,8 @@ def _leg_swings(hip, knee, ankle, target):  # pragma: no cover - compiled
     distance = min(max(length, abs(upper - lower) + 1e-6), (upper + lower) * 0.9999)
     u = reach / max(length, 1e-9)
     bend = (knee - hip) - np.sum((knee - hip) * u) * u
-    if np.sqrt(np.sum(bend * bend)) < 1e-9:
-        bend = np.cross(u, np.cross(ankle - hip, u))
+    ahead = toes - np.sum(toes * u) * u
+    bend = bend + 0.1 * upper * ahead / max(np.sqrt(np.sum(ahead * ahead)), 1e-9)
     v = bend / max(np.sqrt(np.sum(bend * bend)), 1e-9)
     cos_a = min(max((upper**2 + distance**2 - lower**2) / (2.0 * upper * distance), -1.0), 1.0)
     new_knee = hip + upper * (cos_a * u + np.sqrt(1.0 - cos_a**2) * v)
@@ -207,8 +204,6 @@ class FootLock:
         self.limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
         self.ground = np.asarray(ground, dtype=np.float64)
         self.parents = layout.skeleton.parents
-        self.parent_rot = layout.template_pose[2]
-        self.offset = np.zeros(3)  # accumulated horizontal shift of the whole body (world)
         self.weight = np.zeros(2)  # how far each foot's lock is blended in
         self.lock = np.full((2, 3), np.nan)  # world point each foot is locked to
         self.pivot = [int(foot[-1]) for foot in self.limbs.feet]  # the joint whose landing point is locked
@@ -218,52 +213,22 @@ class FootLock:
         self.previous = np.full((2, 3), np.nan)  # each pivot's generated position in the frame before
 
     def apply(self, rotations: np.ndarray, translations: np.ndarray, shares: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Local rotations (J, 3, 3) and translations (J, 3) of one frame, adjusted, and their
+        """Local rotations (J, 3, 3) of one frame, adjusted, the translations (J, 3), and their
         world rotations and positions; `shares` (2,) says how surely each foot is planted in
         the frame's state."""
-        rotations, translations = rotations.copy(), translations.copy()
-        root = self.layout.root
+        rotations = rotations.copy()
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
         world_rot, world_pos = world_rot[0], world_pos[0]
         planted = self._planted(shares, world_pos)
-        world_pos = world_pos + self.offset
         step = 1.0 / BLEND_FRAMES
         for f in range(2):
             if planted[f] and self.weight[f] == 0.0:
                 self.lock[f] = world_pos[self.pivot[f]]
             self.weight[f] = min(1.0, self.weight[f] + step) if planted[f] else max(0.0, self.weight[f] - step)
-        targets = [self._target(f, leg, world_pos, planted[f]) for f, leg in enumerate(self.limbs.legs)]
-        # where a planted leg cannot reach its lock, the body gives way: down first (the stance
-        # knee bends), then along (the root follows the stance foot); the drop lasts one frame,
-        # the shift stays (it is where the walk now is)
-        drop, shift = 0.0, np.zeros(3)
         for f, leg in enumerate(self.limbs.legs):
-            w = EASE(self.weight[f])
-            if w == 0.0:
-                continue
-            longest = REACH * (leg.thigh + leg.shin)
-            apart = targets[f] - world_pos[leg.hip]
-            across = np.hypot(apart[0], apart[2])
-            need = -apart[1] - (np.sqrt(longest**2 - across**2) if across < longest else 0.0)
-            drop = max(drop, w * min(max(need, 0.0), MAX_DROP * longest))
-        world_pos[:, 1] -= drop
-        for f, leg in enumerate(self.limbs.legs):
-            w = EASE(self.weight[f])
-            if w == 0.0 or not planted[f]:
-                continue
-            longest = REACH * (leg.thigh + leg.shin)
-            apart = targets[f] - world_pos[leg.hip]
-            distance = np.linalg.norm(apart)
-            if distance > longest:
-                excess = apart * (1.0 - longest / distance) * w
-                excess[1] = 0.0
-                shift = shift if np.dot(shift, shift) >= np.dot(excess, excess) else excess
-        self.offset += shift
-        world_pos += shift
-        for f, leg in enumerate(self.limbs.legs):
-            if np.linalg.norm(targets[f] - world_pos[leg.ankle]) > 1e-9:
-                self._solve(leg, rotations, world_rot, world_pos, targets[f])
-        translations[root] += (self.offset - np.array([0.0, drop, 0.0])) @ self.parent_rot  # in the root's parent frame
+            target = self._target(f, leg, world_pos, planted[f])
+            if np.linalg.norm(target - world_pos[leg.ankle]) > 1e-9:
+                self._solve(leg, rotations, world_rot, world_pos, target)
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
         return rotations, translations, world_rot[0], world_pos[0]
 
@@ -298,7 +263,8 @@ class FootLock:
 
     def _solve(self, leg, rotations: np.ndarray, world_rot: np.ndarray, world_pos: np.ndarray, target: np.ndarray) -> None:
         """Leg IK in place on the local rotations: hip and knee swung, the ankle keeping its world rotation."""
-        thigh, shin = _leg_swings(world_pos[leg.hip], world_pos[leg.knee], world_pos[leg.ankle], target)
+        toes = world_pos[leg.foot[-1]] - world_pos[leg.ankle]
+        thigh, shin = _leg_swings(world_pos[leg.hip], world_pos[leg.knee], world_pos[leg.ankle], target, toes)
         # the hip is the knee's parent and the knee the ankle's (limbs.py): below the hip everything
         # turns with the thigh, below the knee also with the shin
         hip_world = thigh @ world_rot[leg.hip]
