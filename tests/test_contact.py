@@ -42,10 +42,10 @@ def test_two_bone_ik_reaches_a_reachable_target_and_keeps_the_bones():
         new_knee = hip + thigh @ (knee - hip)
         new_ankle = new_knee + shin @ thigh @ (ankle - knee)
         np.testing.assert_allclose(new_ankle, target, atol=1e-6)
-        # the knee bends towards the side it was on (its pole, across the line from hip to target)
-        u = (target - hip) / np.linalg.norm(target - hip)
-        pole = (knee - hip) - np.dot(knee - hip, u) * u
-        assert np.dot(new_knee - hip, pole) > 0 or np.linalg.norm(pole) < 1e-6
+        # the knee bends about its own hinge: the bend's axis turns with the thigh, nothing else
+        hinge = np.cross(knee - hip, ankle - knee)
+        new_hinge = np.cross(new_knee - hip, new_ankle - new_knee)
+        np.testing.assert_allclose(new_hinge / np.linalg.norm(new_hinge), thigh @ hinge / np.linalg.norm(hinge), atol=1e-6)
 
 
 def _walk(model, space, weights_per_frame, fps=None):

@@ -10,9 +10,21 @@ from __future__ import annotations
 import numpy as np
 
 
+SPEEDS, YAW_RATE = [1, 2], 3  # root.vx, root.vz and root.yaw_rate among the static features
+
+
 def step_features(static: np.ndarray, steps) -> np.ndarray:
-    """(steps, 2D + 1): mean and standard deviation of each static feature over each step, and its frames."""
-    rows = [np.concatenate([static[s.start : s.end].mean(axis=0), static[s.start : s.end].std(axis=0), [s.frames]]) for s in steps]
+    """(steps, 2D + 1): mean and standard deviation of each static feature over each step, and
+    its frames. Where the walk is heading is no part of its style (takes of one style may all
+    curve one way): the mean speeds become the mean horizontal speed and the mean yaw rate is
+    left out, so a walk and its mirror image look alike."""
+    rows = []
+    for s in steps:
+        part = static[s.start : s.end]
+        mean = part.mean(axis=0)
+        mean[SPEEDS] = np.hypot(part[:, SPEEDS[0]], part[:, SPEEDS[1]]).mean()
+        mean[YAW_RATE] = 0.0
+        rows.append(np.concatenate([mean, part.std(axis=0), [s.frames]]))
     return np.array(rows).reshape(len(rows), 2 * static.shape[1] + 1)
 
 

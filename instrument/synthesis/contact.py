@@ -10,8 +10,8 @@ when the generated foot is on the floor and nearly still (as the data was labell
 
 `FootLock` enforces it causally, one frame at a time, on the pose the features give:
 - when a foot lands, the point it lands on (its lowest joint, horizontally) is locked;
-- each leg is solved by analytic two-bone IK (law of cosines for the knee, the knee's pole kept
-  from the generated pose), the foot keeping its generated world orientation, towards: the lock
+- each leg is solved by analytic two-bone IK (law of cosines for the knee, bent about its own
+  hinge; then the hip swings the leg), the foot keeping its generated world orientation, towards: the lock
   horizontally, its lowest joint on the floor vertically; the lock blends in and out over
   BLEND_FRAMES frames, so nothing pops;
 - no foot joint goes below its clearance, planted or not.
@@ -174,26 +174,34 @@ def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:  # pragma: no
 
 
 @njit(cache=True)
+def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:  # pragma: no cover - compiled
+    k = axis / np.sqrt(np.sum(axis * axis))
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
+
+
+@njit(cache=True)
 def _leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
-    """Two-bone IK: the world rotations that swing the thigh (about the hip) and then the shin
-    (about the knee) so the ankle reaches `target`, or as near as the leg allows; the knee bends
-    in the plane it had (its pole kept from the generated pose), leaning towards the toes so a
-    nearly straight leg does not flip its knee backwards."""
-    upper = np.sqrt(np.sum((knee - hip) ** 2))
-    lower = np.sqrt(np.sum((ankle - knee) ** 2))
+    """Two-bone IK, as world rotations of the thigh (about the hip) and the shin (about the
+    knee, applied after the thigh's) that take the ankle to `target`, or as near as the leg
+    allows: the knee bends about its own hinge (the axis across its generated bend; for a
+    straight leg, across the line to the toes) to the angle the law of cosines gives, then the
+    hip swings the leg onto the target."""
+    thigh_vector, shin_vector = knee - hip, ankle - knee
+    upper = np.sqrt(np.sum(thigh_vector**2))
+    lower = np.sqrt(np.sum(shin_vector**2))
     reach = target - hip
-    length = np.sqrt(np.sum(reach * reach))
-    distance = min(max(length, abs(upper - lower) + 1e-6), (upper + lower) * 0.9999)
-    u = reach / max(length, 1e-9)
-    bend = (knee - hip) - np.sum((knee - hip) * u) * u
-    ahead = toes - np.sum(toes * u) * u
-    bend = bend + 0.1 * upper * ahead / max(np.sqrt(np.sum(ahead * ahead)), 1e-9)
-    v = bend / max(np.sqrt(np.sum(bend * bend)), 1e-9)
-    cos_a = min(max((upper**2 + distance**2 - lower**2) / (2.0 * upper * distance), -1.0), 1.0)
-    new_knee = hip + upper * (cos_a * u + np.sqrt(1.0 - cos_a**2) * v)
-    thigh = _rotation_between(knee - hip, new_knee - hip)
-    shin = _rotation_between(thigh @ (ankle - knee), hip + distance * u - new_knee)
-    return thigh, shin
+    distance = min(max(np.sqrt(np.sum(reach * reach)), abs(upper - lower) + 1e-6), (upper + lower) * 0.9999)
+    hinge = np.cross(thigh_vector, shin_vector)
+    if np.sqrt(np.sum(hinge * hinge)) < 1e-3 * upper * lower:  # straight: the knee bends towards the toes
+        hinge = np.cross(thigh_vector, toes)
+    if np.sqrt(np.sum(hinge * hinge)) < 1e-12:
+        return np.eye(3), np.eye(3)
+    cos_now = min(max(np.sum(-thigh_vector * shin_vector) / (upper * lower), -1.0), 1.0)
+    cos_new = min(max((upper**2 + lower**2 - distance**2) / (2.0 * upper * lower), -1.0), 1.0)
+    bend = _axis_rotation(hinge, np.arccos(cos_now) - np.arccos(cos_new))
+    swing = _rotation_between(thigh_vector + bend @ shin_vector, reach)
+    return swing, swing @ bend @ swing.T
 
 
 class FootLock:
