@@ -214,6 +214,8 @@ class FootLock:
         self.parents = layout.skeleton.parents
         self.weight = np.zeros(2)  # how far each foot's lock is blended in
         self.lock = np.full((2, 3), np.nan)  # world point each foot is locked to
+        self.drop = 0.0  # how far the body is lowered for a planted leg to reach the floor
+        self.parent_rot = layout.template_pose[2]  # the root's parent's world rotation
         self.pivot = [int(foot[-1]) for foot in self.limbs.feet]  # the joint whose landing point is locked
         template = forward_kinematics(layout.skeleton, layout.template_pose[0][None], layout.template_pose[1][None])[1][0]
         self.cm = centimetres_per_unit(layout, template)
@@ -233,8 +235,22 @@ class FootLock:
             if planted[f] and self.weight[f] == 0.0:
                 self.lock[f] = world_pos[self.pivot[f]]
             self.weight[f] = min(1.0, self.weight[f] + step) if planted[f] else max(0.0, self.weight[f] - step)
+        targets = [self._target(f, leg, world_pos, planted[f]) for f, leg in enumerate(self.limbs.legs)]
+        # a planted leg too short for the floor below it (an exaggerated style can lift the
+        # hips): the body comes down, eased over a few frames so it does not bob
+        need = 0.0
         for f, leg in enumerate(self.limbs.legs):
-            target = self._target(f, leg, world_pos, planted[f])
+            if planted[f]:
+                below = world_pos[leg.hip] - np.array([world_pos[leg.ankle][0], targets[f][1], world_pos[leg.ankle][2]])
+                need = max(need, np.linalg.norm(below) - 0.98 * (leg.thigh + leg.shin))
+        self.drop += (max(need, 0.0) - self.drop) / BLEND_FRAMES
+        if self.drop > 1e-9:
+            translations = translations.copy()
+            translations[self.layout.root] -= np.array([0.0, self.drop, 0.0]) @ self.parent_rot
+            world_pos = world_pos - np.array([0.0, self.drop, 0.0])
+            targets = [self._target(f, leg, world_pos, planted[f]) for f, leg in enumerate(self.limbs.legs)]
+        for f, leg in enumerate(self.limbs.legs):
+            target = targets[f]
             if np.linalg.norm(target - world_pos[leg.ankle]) > 1e-9:
                 self._solve(leg, rotations, world_rot, world_pos, target)
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
@@ -251,6 +267,8 @@ class FootLock:
             if not planted[f] and shares[f] >= POSSIBLE:
                 lift = np.min(world_pos[list(leg.foot), 1] - self.ground[f]) * self.cm
                 planted[f] = lift < CONTACT_CM and speed[f] < CONTACT_SPEED_CM_S  # NaN speed (first frame): False
+        if not planted.any() and shares.max() > 0.0:  # a walk has a foot on the floor: the likelier one
+            planted[int(np.argmax(shares))] = True
         return planted
 
     def _target(self, f: int, leg, world_pos: np.ndarray, planted: bool) -> np.ndarray:
