@@ -143,3 +143,23 @@ def test_a_straight_walk_keeps_its_heading(model, space):
             yaw = np.cumsum(static[:, 3]) / model.fps  # heading, radians
             seconds = (len(yaw) - 31) / model.fps
             assert abs(np.degrees(yaw[-1] - yaw[30])) / seconds < 1.0, (style, weight)  # deg/s; was 1.8-7.4
+
+
+@pytest.mark.parametrize("fps", ["30", "60"])
+def test_a_live_performance_keeps_its_feet_on_and_above_the_floor(model, tmp_path, fps):
+    """`instrument run` (the demo performance: styles changing, extrapolated, blended) recorded to BVH."""
+    import subprocess
+    import sys
+
+    from instrument.motion.bvh import read_bvh
+
+    path = tmp_path / "live.bvh"
+    result = subprocess.run([sys.executable, "-m", "instrument", "run", "--fast", "--seconds", "20", "--fps", fps,
+                             "--no-osc", "--quiet", "--bvh", str(path)], capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr
+    positions = world_positions(read_bvh(path))
+    contact = contact_space(model)
+    limbs = FootLock(model.layout, contact.clearance, model.fps).limbs
+    lowest = np.stack([(positions[:, list(foot), 1] - contact.clearance[f]).min(axis=1) for f, foot in enumerate(limbs.feet)])
+    assert lowest.min() > -1e-3  # nothing under the floor (the BVH keeps 6 decimals)
+    assert (lowest.min(axis=0) < 0.5).mean() > 0.95  # and some foot on it almost always
