@@ -12,8 +12,8 @@ from conftest import SHARED_WALKS, needs_walks
 from instrument.motion.bvh import Motion, Skeleton, parse_bvh, read_bvh
 from instrument.motion.features import choose_layout
 from instrument.motion.kinematics import world_positions
-from instrument.motion.limbs import find_limbs
-from instrument.motion.quality import centimetres_per_unit, clearance, walk_figures
+from instrument.motion.limbs import centimetres_per_unit, clearance, find_limbs
+from instrument.motion.quality import walk_figures
 from samples import cmu_style_walk
 
 

@@ -11,7 +11,8 @@ from pathlib import Path
 from ..errors import UserError
 from .arguments import number
 from ..models.modelfile import default_model_path, load_model
-from ..synthesis.assessment import VARIANT_KINDS, Assessment, assess
+
+VARIANT_KINDS = ("one", "x2", "inverted", "pairs")  # as synthesis.assessment names them (imported when run: it is slow to load)
 
 COLUMNS = (  # (figure, heading, scale, format)
     ("step_s", "step s", 1.0, "{:.3f}"),
@@ -57,6 +58,8 @@ def run(args: argparse.Namespace) -> int:
     wrong = [k for k in kinds if k not in VARIANT_KINDS]
     if wrong or not kinds:
         raise UserError(f"--variants {args.variants!r}: expected some of {', '.join(VARIANT_KINDS)}")
+    from ..synthesis.assessment import assess
+
     progress = None if args.json else (lambda name: print(f"  measured {name}", file=sys.stderr))
     result = assess(model, seconds, Path(args.real) if args.real else None, styles, kinds, progress)
     if args.json:
@@ -80,8 +83,8 @@ def _row(name: str, figures: dict) -> str:
     return "| " + " | ".join([name] + cells) + " |"
 
 
-def table(result: Assessment) -> str:
-    """A Markdown table: for each style with real takes, the real row first."""
+def table(result) -> str:
+    """A Markdown table of an `Assessment`: for each style with real takes, the real row first."""
     lines = ["| walk | " + " | ".join(h for _, h, _, _ in COLUMNS) + " |", "|---" * (len(COLUMNS) + 1) + "|"]
     for style, figures in result.real.items():
         lines.append(_row(f"{style} (real)", figures))

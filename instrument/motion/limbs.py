@@ -14,7 +14,9 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..output.vmc import units_to_metres
 from .bvh import Motion, Skeleton
+from .features import FeatureLayout
 from .kinematics import forward_kinematics, local_transforms
 
 UP = np.array([0.0, 1.0, 0.0])
@@ -118,3 +120,16 @@ def _find_limbs(skeleton: Skeleton, root: int, template: tuple[float, ...]) -> L
                 pass
     leg_length = float(np.mean([leg.thigh + leg.shin for leg in legs]))
     return Limbs(root, tuple(legs), tuple(arms), leg_length)
+
+
+def centimetres_per_unit(layout: FeatureLayout, world_template: np.ndarray) -> float:
+    return 100.0 * units_to_metres(float(world_template[layout.root, 1]))
+
+
+def clearance(positions: list[np.ndarray], limbs: Limbs) -> np.ndarray:
+    """(2, foot joints) ground clearance of each foot joint: its 1st-percentile height over
+    the takes, shared by both feet (the lower of the two), so a foot that never quite lands in
+    the data does not move the floor."""
+    heights = np.vstack([p[:, list(foot), 1] for p in positions for foot in limbs.feet])
+    per_joint = np.percentile(heights, 1.0, axis=0)
+    return np.broadcast_to(per_joint, (2, len(per_joint))).copy()

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..output.vmc import units_to_metres
 from .bvh import Motion
 from .features import FeatureLayout, heading_angle
 from .kinematics import forward_kinematics, local_transforms
@@ -38,19 +37,6 @@ FIGURES = (
     "step_s", "step_sd_s", "stride_cm", "speed_cm_s", "skate_cm_s", "under_frac", "under_depth_cm",
     "air_frac", "contact_skate_cm_s", "knee_deg", "hip_deg", "shoulder_deg", "jitter_m_s3", "drift_deg_s",
 )
-
-
-def centimetres_per_unit(layout: FeatureLayout, world_template: np.ndarray) -> float:
-    return 100.0 * units_to_metres(float(world_template[layout.root, 1]))
-
-
-def clearance(positions: list[np.ndarray], limbs: Limbs) -> np.ndarray:
-    """(2, foot joints) ground clearance of each foot joint: its 1st-percentile height over
-    the takes, shared by both feet (the lower of the two), so a foot that never quite lands in
-    the data does not move the floor."""
-    heights = np.vstack([p[:, list(foot), 1] for p in positions for foot in limbs.feet])
-    per_joint = np.percentile(heights, 1.0, axis=0)
-    return np.broadcast_to(per_joint, (2, len(per_joint))).copy()
 
 
 def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -20,13 +20,13 @@ from ..models.recognition import LinearDiscriminant, step_features
 from ..motion.bvh import Motion
 from ..motion.features import extract
 from ..motion.kinematics import world_positions
-from ..motion.limbs import Limbs, find_limbs
-from ..motion.quality import centimetres_per_unit, clearance, pooled, walk_figures
+from ..motion.limbs import Limbs, centimetres_per_unit, clearance, find_limbs
+from ..motion.quality import pooled, walk_figures
 from ..motion.steps import segment_steps
 from .interpolation import style_space
 from .offline import default_controls, synthesize_motion
 
-VARIANT_KINDS = ("one", "x2", "inverted", "pairs")
+VARIANT_KINDS = ("one", "x2", "inverted", "pairs")  # also in cli/evaluate_cmd.py
 SETTLE_SECONDS = 0.5
 FOLDS = 5
 

@@ -28,8 +28,7 @@ from numba import njit
 from ..models.hsmm import HSMM, forward_backward, pad_segments
 from ..motion.features import FeatureLayout, restore_local
 from ..motion.kinematics import forward_kinematics
-from ..motion.limbs import Limbs, find_limbs
-from ..motion.quality import centimetres_per_unit, clearance
+from ..motion.limbs import Limbs, centimetres_per_unit, clearance, find_limbs
 
 CONTACT_CM = 2.0
 CONTACT_SPEED_CM_S = 30.0
