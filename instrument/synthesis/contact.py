@@ -14,7 +14,11 @@ when the generated foot is on the floor and nearly still (as the data was labell
   hinge; then the hip swings the leg), the foot keeping its generated world orientation, towards: the lock
   horizontally, its lowest joint on the floor vertically; the lock blends in and out over
   BLEND_FRAMES frames, so nothing pops;
-- no foot joint goes below its clearance, planted or not.
+- no foot joint goes below its clearance, planted or not, and a swinging foot keeps SWING_CM
+  above it;
+- a walk always has a foot on the floor: when no state plants either, the likelier one is;
+- where a planted leg is too short to reach the floor below it (an exaggerated style can lift
+  the hips), the body comes down by the difference, eased over BLEND_FRAMES frames.
 Nothing looks ahead beyond what the frame's state already says, so live and `synth` agree.
 """
 
