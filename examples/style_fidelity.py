@@ -18,42 +18,11 @@ import numpy as np
 from instrument.models.build import build_model
 from instrument.models.corpus import DEFAULT_STYLE_PATTERN, make_takes, read_motions, style_from_name
 from instrument.models.evaluation import split_holdout
+from instrument.models.recognition import LinearDiscriminant, step_features
 from instrument.motion.features import extract, restore
 from instrument.motion.steps import segment_steps
 from instrument.synthesis.interpolation import style_space
 from instrument.synthesis.offline import default_controls, synthesize
-
-
-def step_features(static: np.ndarray, steps) -> np.ndarray:
-    rows = []
-    for s in steps:
-        part = static[s.start : s.end]
-        rows.append(np.concatenate([part.mean(axis=0), part.std(axis=0), [s.frames]]))
-    return np.array(rows)
-
-
-class LinearDiscriminant:
-    def __init__(self, features: np.ndarray, labels: list[str], shrinkage: float = 0.3):
-        self.classes = sorted(set(labels))
-        self.center, self.scale = features.mean(axis=0), features.std(axis=0) + 1e-9
-        x = (features - self.center) / self.scale
-        y = np.array(labels)
-        self.means = np.array([x[y == c].mean(axis=0) for c in self.classes])
-        within = np.vstack([x[y == c] - m for c, m in zip(self.classes, self.means)])
-        covariance = np.cov(within.T)
-        covariance = (1 - shrinkage) * covariance + shrinkage * np.eye(len(covariance))
-        self.precision = np.linalg.inv(covariance)
-
-    def scores(self, features: np.ndarray) -> np.ndarray:
-        x = (features - self.center) / self.scale
-        diff = x[:, None, :] - self.means[None]
-        return -0.5 * np.einsum("nci,ij,ncj->nc", diff, self.precision, diff)
-
-    def step_labels(self, features: np.ndarray) -> list[str]:
-        return [self.classes[k] for k in np.argmax(self.scores(features), axis=1)]
-
-    def take_label(self, features: np.ndarray) -> str:
-        return self.classes[int(np.argmax(self.scores(features).sum(axis=0)))]
 
 
 def main() -> None:

@@ -12,8 +12,11 @@ import numpy as np
 from ..models.modelfile import default_model_path, load_model
 from ..motion.bvh import Joint, Motion, Skeleton, bvh_text, parse_bvh
 from ..motion.features import choose_layout, extract
+from ..runtime.pose import PoseStream
+from ..synthesis.contact import FootLock, contact_space
 from ..synthesis.interpolation import interpolate, style_space
 from ..synthesis.mlpg import mlpg, mlpg_continued
+from ..synthesis.offline import generate_with_states
 from ..synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Crowd
 from .arguments import checked
 
@@ -181,10 +184,30 @@ def measure(model_path: str | None, repeat: int) -> dict:
     figures["stream_to_window_solve"] = figures["stream_us_per_frame"] / figures["window_solve_us"]
     figures["stream_batch_to_window_solve"] = figures["stream_us_per_frame_batch"] / figures["window_solve_us"]
     figures["lookahead"] = DEFAULT_LOOKAHEAD
+    figures |= measure_contact(model, space, all_styles, blocks)
     per_character = figures["stream_us_per_frame_batch"]
     figures["characters_at_30fps"] = int(1e6 / 30 / per_character)
     figures["characters_at_60fps"] = int(1e6 / 60 / per_character)
     return figures
+
+
+def measure_contact(model, space, controls: Controls, blocks: int) -> dict:
+    """The pose path per frame (features to world pose) with and without planting the feet;
+    the difference is what contact, IK and the floor cost. None without contact statistics."""
+    contact = contact_space(model)
+    if contact is None:
+        return {"pose_us_per_frame": None, "contact_us_per_frame": None}
+    frames = 100
+    static, ids = generate_with_states(space, model.layout.dimension, controls, frames, "stream", DEFAULT_LOOKAHEAD, 0)
+
+    def poses(lock):
+        stream = PoseStream(model.layout, model.fps, lock)
+        for row, state in zip(static, ids):
+            stream.next(row, contact.shares(controls.weights, controls.part_weights)[state] if lock else None)
+
+    plain = 1e6 / frames * median_seconds(lambda: poses(None), blocks)
+    planted = 1e6 / frames * median_seconds(lambda: poses(FootLock(model.layout, contact.clearance, model.fps)), blocks)
+    return {"pose_us_per_frame": plain, "contact_us_per_frame": planted - plain}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -223,6 +246,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"one window's bare solve ({2 + f['lookahead'] + 1} frames):    {f['window_solve_us']:8.1f} us (the yardstick below)")
     print(f"streaming, one character:               {f['stream_us_per_frame']:8.1f} us/frame "
           f"(x{f['stream_to_window_solve']:.2f} the window solve; look-ahead {f['lookahead']})")
+    if f["contact_us_per_frame"] is not None:
+        print(f"planting the feet (contact, IK, floor):  {f['contact_us_per_frame']:8.1f} us/frame "
+              f"(on top of {f['pose_us_per_frame']:.1f} us for the pose)")
     print(f"streaming, per character in a crowd of {BATCH}: {f['stream_us_per_frame_batch']:6.1f} us/frame "
           f"(x{f['stream_batch_to_window_solve']:.2f} the window solve)")
     print(f"characters in realtime on one core:     {f['characters_at_30fps']} at 30 fps, {f['characters_at_60fps']} at 60 fps")

@@ -15,6 +15,8 @@ from ..motion.steps import LABELS
 from .adaptation import Settings, adapt_styles
 from .corpus import Take, load_corpus, segments_by_label
 from .modelfile import Model
+from ..synthesis.contact import train_contact
+from .symmetry import symmetric_models
 from .training import TrainingReport, train_average, variance_floors
 
 UNSPECIFIED_LICENCE = "unspecified: the licence of the training data applies"
@@ -42,6 +44,8 @@ def build_model(
     style_names = sorted({t.style for t in takes})
     per_style = {s: [segments_by_label([t], states) for t in takes if t.style == s] for s in style_names}
     styles, adapted = adapt_styles(average, per_style, floors, report.warnings, adaptation)
+    contact, contact_metadata = train_contact(layout, takes, average, styles, style_names, fps, states)
+    average, styles = symmetric_models(average, styles, layout.dimension)  # straight at turn = 0
     dimension = layout.dimension
     step_max = np.max([np.abs(np.diff(t.observations[:, :dimension], axis=0)).max(axis=0) for t in takes], axis=0)
     static_std = np.vstack([t.observations[:, :dimension] for t in takes]).std(axis=0)
@@ -63,6 +67,7 @@ def build_model(
             "loglik_per_frame": report.loglik_per_frame,
             "variance_floor_ratio": 0.01,
             "adaptation": {style: r.to_dict() for style, r in adapted.items()},
+            "mirror_image_steps": True,
             "seconds": round(time.perf_counter() - started, 1),
             "instrument_version": __version__,
             "python": platform.python_version(),
@@ -76,4 +81,6 @@ def build_model(
         },
         "warnings": report.warnings,
     }
-    return Model(metadata, average, styles, static_std, step_max), report, takes
+    if contact_metadata:
+        metadata["contact"] = contact_metadata
+    return Model(metadata, average, styles, static_std, step_max, contact), report, takes

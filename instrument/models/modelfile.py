@@ -7,6 +7,8 @@ Arrays:
     style_duration_means, style_duration_variances       (styles, labels, states)
     static_std                                  (D,) standard deviation of each static feature in the data
     static_step_max                             (D,) largest frame-to-frame change of each static feature in the data
+    contact_average, contact_styles             optional (synthesis/contact.py): share of frames with each foot
+                                                planted per (label, state), (labels, states, 2) and (styles, ...)
     metadata                                    a 0-d string array holding JSON
 """
 
@@ -14,7 +16,7 @@ from __future__ import annotations
 
 import json
 import zipfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +30,7 @@ from .hsmm import HSMM
 FORMAT = "instrument-style-model"
 FORMAT_VERSION = 1
 PARAMETERS = ("means", "variances", "duration_means", "duration_variances")
+OPTIONAL = ("contact_average", "contact_styles")  # arrays a model may hold; their users check their shapes
 
 
 @dataclass(frozen=True)
@@ -39,6 +42,7 @@ class Model:
     styles: HSMM  # each array has a leading axis over metadata["styles"]
     static_std: np.ndarray
     static_step_max: np.ndarray
+    extras: dict = field(default_factory=dict)  # optional arrays (contact statistics); a model without them runs as before
 
     @property
     def style_names(self) -> list[str]:
@@ -72,6 +76,7 @@ def save_model(path: str | Path, model: Model) -> None:
     arrays |= {f"style_{p}": getattr(model.styles, p) for p in PARAMETERS}
     arrays["static_std"] = model.static_std
     arrays["static_step_max"] = model.static_step_max
+    arrays |= {name: np.asarray(value) for name, value in model.extras.items() if name in OPTIONAL}
     metadata = dict(model.metadata, format=FORMAT, format_version=FORMAT_VERSION)
     arrays["metadata"] = np.array(json.dumps(metadata, indent=1))
     tmp = path.with_name(path.name + ".part")
@@ -108,7 +113,8 @@ def load_model(path: str | Path) -> Model:
     _check_shapes(path, metadata, arrays)
     average = HSMM(*(arrays[f"average_{p}"] for p in PARAMETERS))
     styles = HSMM(*(arrays[f"style_{p}"] for p in PARAMETERS))
-    return Model(metadata, average, styles, arrays["static_std"], arrays["static_step_max"])
+    extras = {name: arrays[name] for name in OPTIONAL if name in arrays and np.isfinite(arrays[name]).all()}
+    return Model(metadata, average, styles, arrays["static_std"], arrays["static_step_max"], extras)
 
 
 def _check_shapes(path: Path, metadata: dict, arrays: dict) -> None:

@@ -20,6 +20,7 @@ from ..control.events import ControlEvent, LogReplay
 from ..control.hub import ControlHub
 from ..control.state import ControlState
 from ..models.modelfile import Model
+from ..synthesis.contact import FootLock, contact_space
 from ..synthesis.interpolation import style_space
 from ..synthesis.offline import drive
 from ..synthesis.stream import DEFAULT_LOOKAHEAD, Crowd
@@ -54,6 +55,11 @@ class Engine:
         self.walker = Crowd(self.space, 1, lookahead, seeds=[seed])
         self.frames: list[np.ndarray] = []  # the last two model frames, driven
         self.made = 0  # model frames made
+        self.contact = contact_space(model)  # None: the model has no contact statistics
+        self.contact_shares: np.ndarray | None = None  # (2,) how surely the newest model frame has each foot planted
+
+    def foot_lock(self, fps: float) -> FootLock | None:
+        return None if self.contact is None else FootLock(self.model.layout, self.contact.clearance, fps)
 
     def sample(self, time_s: float, controls) -> np.ndarray:
         """Static features at performance time `time_s`, making model frames as needed.
@@ -67,6 +73,8 @@ class Engine:
             frame = self.walker.step([controls])[0]
             self.frames = (self.frames + [drive(frame, self.walker.cadence[0], controls.turn)])[-2:]
             self.made += 1
+            if self.contact is not None:
+                self.contact_shares = self.contact.shares(controls.weights, controls.part_weights)[self.walker.history_ids[0, 1]]
         fraction = position - (newest - 1)
         if fraction >= 1.0 - 1e-9 or len(self.frames) == 1:
             return self.frames[-1]
@@ -107,7 +115,7 @@ def perform(
     state = state or ControlState(model.style_names, model.states)
     apply = apply or ControlHub([], console=console).apply  # checked, counted and warned as a show's events are
     engine = Engine(model, lookahead)
-    poses = PoseStream(model.layout, fps)
+    poses = PoseStream(model.layout, fps, engine.foot_lock(fps))
     clock = FrameClock(fps, realtime=not fast)
     for output in outputs:
         if hasattr(output, "watch"):  # an output that shows late frames (the console)
@@ -156,7 +164,7 @@ def perform(
             take_live(now)  # what came since the last look, while the loop waited
             state.advance(now)
             controls = state.snapshot()
-            pose = poses.next(engine.sample(now, controls))
+            pose = poses.next(engine.sample(now, controls), engine.contact_shares)
             echo = state.echo()
             prepared = [_attempt(console, summary, output, output.prepare, pose, echo) for output in outputs]
             if index > 0:

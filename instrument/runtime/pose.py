@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..motion.features import FeatureLayout, restore_local
 from ..motion.kinematics import channels_from_local, forward_kinematics
 from ..motion.rotations import matrix_to_quat
+
+if TYPE_CHECKING:
+    from ..synthesis.contact import FootLock
 
 
 @dataclass
@@ -32,18 +36,22 @@ def quaternions(rotations: np.ndarray) -> np.ndarray:
 class PoseStream:
     """Turns each frame of static features into a Pose, carrying the root's path across frames."""
 
-    def __init__(self, layout: FeatureLayout, fps: float):
+    def __init__(self, layout: FeatureLayout, fps: float, lock: FootLock | None = None):
         self.layout, self.fps = layout, fps
+        self.lock = lock  # plants the feet when the frame says how surely each is planted
         self.position = np.zeros(3)
         self.heading = 0.0
         self.index = 0
 
-    def next(self, static: np.ndarray) -> Pose:
+    def next(self, static: np.ndarray, contact_shares: np.ndarray | None = None) -> Pose:
         rotations, translations, (self.position, self.heading) = restore_local(
             static[None], self.layout, self.fps, self.position, self.heading
         )
-        world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations, translations)
-        pose = Pose(self.index, self.index / self.fps, rotations[0], translations[0], world_rot[0], world_pos[0])
+        if self.lock is not None and contact_shares is not None:
+            pose = Pose(self.index, self.index / self.fps, *self.lock.apply(rotations[0], translations[0], contact_shares))
+        else:
+            world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations, translations)
+            pose = Pose(self.index, self.index / self.fps, rotations[0], translations[0], world_rot[0], world_pos[0])
         self.index += 1
         return pose
 

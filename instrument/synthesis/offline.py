@@ -5,6 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..models.modelfile import Model
+from ..motion.bvh import Motion
+from ..motion.features import restore
+from ..motion.kinematics import channels_from_local
+from ..runtime.pose import PoseStream
+from .contact import FootLock, contact_space
 from .interpolation import StyleSpace
 from .mlpg import mlpg_continued
 from .stream import DEFAULT_LOOKAHEAD, Controls, Crowd
@@ -31,14 +36,24 @@ def synthesize(
     seed: int = 0,
 ) -> np.ndarray:
     """Static features (frames, D) of a walk with constant controls, root speeds driven."""
+    return generate_with_states(space, dimension, controls, frames, method, lookahead, seed)[0]
+
+
+def generate_with_states(space: StyleSpace, dimension: int, controls: Controls, frames: int, method: str, lookahead: int,
+                         seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Driven static features (frames, D) and the (label * states + state) of each frame."""
     walker = Crowd(space, 1, lookahead, seeds=[seed])
     if method == "full":
         ids = walker.state_plan(controls, frames)
         lam = walker.lams[0]
         static = mlpg_continued(lam.means[ids][None], lam.precisions[ids][None], np.zeros((1, 0, dimension)))[0]
     else:
-        static = np.vstack([walker.step([controls]) for _ in range(frames)])
-    return drive(static, walker.cadence[0], controls.turn)
+        rows, ids = [], []
+        for _ in range(frames):
+            rows.append(walker.step([controls])[0])
+            ids.append(walker.history_ids[0, 1])
+        static, ids = np.vstack(rows), np.asarray(ids)
+    return drive(static, walker.cadence[0], controls.turn), ids
 
 
 def default_controls(model: Model, weights: dict[str, float] | None = None, **kwargs) -> Controls:
@@ -46,3 +61,19 @@ def default_controls(model: Model, weights: dict[str, float] | None = None, **kw
     for name, value in (weights or {}).items():
         vector[model.style_names.index(name)] = value
     return Controls(vector, **kwargs)
+
+
+def synthesize_motion(model: Model, space: StyleSpace, controls: Controls, frames: int, method: str = "stream",
+                      lookahead: int = DEFAULT_LOOKAHEAD, seed: int = 0) -> Motion:
+    """A walk as a Motion on the model's skeleton, from the origin, heading 0, its feet planted
+    frame by frame as live when the model has contact statistics."""
+    static, ids = generate_with_states(space, model.layout.dimension, controls, frames, method, lookahead, seed)
+    contact = contact_space(model)
+    if contact is None:
+        return restore(static, model.layout, model.fps)
+    shares = contact.shares(controls.weights, controls.part_weights)[ids]
+    poses = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps))
+    frames_out = [poses.next(row, frame_shares) for row, frame_shares in zip(static, shares)]
+    rotations = np.stack([p.rotations for p in frames_out])
+    translations = np.stack([p.translations for p in frames_out])
+    return Motion(model.layout.skeleton, channels_from_local(model.layout.skeleton, rotations, translations), model.fps)

@@ -1,0 +1,94 @@
+"""`instrument evaluate`: the figures of a model's walks, beside those of the real takes."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+from ..errors import UserError
+from .arguments import number
+from ..models.modelfile import default_model_path, load_model
+
+VARIANT_KINDS = ("one", "x2", "inverted", "pairs")  # as synthesis.assessment names them (imported when run: it is slow to load)
+
+COLUMNS = (  # (figure, heading, scale, format)
+    ("step_s", "step s", 1.0, "{:.3f}"),
+    ("step_sd_s", "sd", 1.0, "{:.3f}"),
+    ("stride_cm", "stride cm", 1.0, "{:.1f}"),
+    ("speed_cm_s", "speed cm/s", 1.0, "{:.1f}"),
+    ("skate_cm_s", "skate cm/s", 1.0, "{:.1f}"),
+    ("under_frac", "under %", 100.0, "{:.1f}"),
+    ("under_depth_cm", "depth cm", 1.0, "{:.1f}"),
+    ("air_frac", "air %", 100.0, "{:.1f}"),
+    ("knee_deg", "knee", 1.0, "{:.0f}"),
+    ("hip_deg", "hip", 1.0, "{:.0f}"),
+    ("shoulder_deg", "shoulder", 1.0, "{:.0f}"),
+    ("jitter_m_s3", "jitter", 1.0, "{:.1f}"),
+    ("drift_deg_s", "drift deg/s", 1.0, "{:.2f}"),
+    ("recognised", "recognised %", 100.0, "{:.0f}"),
+)
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("evaluate", help="measure a model's walks (skate, floor, ranges, drift, recognisability) against real takes")
+    p.add_argument("model", nargs="?", metavar="MODEL", help="model file (default: the shipped default model)")
+    p.add_argument("--real", metavar="DIR", help="folder holding the takes the model was trained on (its provenance names them)")
+    p.add_argument("--seconds", default="12", help="length of each generated walk (default 12)")
+    p.add_argument("--styles", nargs="+", metavar="NAME", help="only these styles (default: all)")
+    p.add_argument("--variants", default=",".join(VARIANT_KINDS),
+                   help=f"which weightings, comma-separated from {', '.join(VARIANT_KINDS)} (default: all)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    model = load_model(args.model or default_model_path())
+    seconds = number("--seconds", args.seconds)
+    if not 2.0 <= seconds <= 600.0:
+        raise UserError(f"--seconds must be between 2 and 600, not {args.seconds}")
+    styles = args.styles or model.style_names
+    unknown = [s for s in styles if s not in model.style_names]
+    if unknown:
+        raise UserError(f"--styles: the model has no style {unknown[0]!r} (it has {', '.join(model.style_names)})")
+    styles = [s for s in model.style_names if s in styles]  # the model's order, whatever the command line's
+    kinds = tuple(k.strip() for k in args.variants.split(",") if k.strip())
+    wrong = [k for k in kinds if k not in VARIANT_KINDS]
+    if wrong or not kinds:
+        raise UserError(f"--variants {args.variants!r}: expected some of {', '.join(VARIANT_KINDS)}")
+    from ..synthesis.assessment import assess
+
+    progress = None if args.json else (lambda name: print(f"  measured {name}", file=sys.stderr))
+    result = assess(model, seconds, Path(args.real) if args.real else None, styles, kinds, progress)
+    if args.json:
+        print(json.dumps({"model": str(args.model or default_model_path()), "seconds": seconds, "weights": result.weights,
+                          "synth": _clean(result.synth), "real": _clean(result.real)}, indent=1))
+    else:
+        print(table(result))
+    return 0
+
+
+def _clean(figures: dict) -> dict:
+    """NaN (a figure a walk has too few steps for) as null, so the JSON is standard."""
+    return {k: {f: (None if isinstance(v, float) and math.isnan(v) else v) for f, v in d.items()} for k, d in figures.items()}
+
+
+def _row(name: str, figures: dict) -> str:
+    cells = []
+    for key, _, scale, fmt in COLUMNS:
+        value = figures.get(key, float("nan"))
+        cells.append("-" if value is None or math.isnan(value) else fmt.format(value * scale))
+    return "| " + " | ".join([name] + cells) + " |"
+
+
+def table(result) -> str:
+    """A Markdown table of an `Assessment`: for each style with real takes, the real row first."""
+    lines = ["| walk | " + " | ".join(h for _, h, _, _ in COLUMNS) + " |", "|---" * (len(COLUMNS) + 1) + "|"]
+    for style, figures in result.real.items():
+        lines.append(_row(f"{style} (real)", figures))
+        if style in result.synth:
+            lines.append(_row(style, result.synth[style]))
+    lines += [_row(name, figures) for name, figures in result.synth.items() if name not in result.real]
+    return "\n".join(lines)

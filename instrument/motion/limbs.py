@@ -1,0 +1,135 @@
+"""Legs and arms of any skeleton, found from the joint tree and the template pose (not from names).
+
+A leg is a subtree under the root that reaches near the ground; its thigh and shin are the two
+longest consecutive bones on the way from the root to its lowest joint, so hip, knee and ankle
+are where those bones start and end, and the foot is the ankle and what hangs below it. The
+arms are the chains to the joints furthest out on either side (across the line between the two
+hips); the upper arm is the longest bone past the point where the two arms part.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from ..output.vmc import units_to_metres
+from .bvh import Motion, Skeleton
+from .features import FeatureLayout
+from .kinematics import forward_kinematics, local_transforms
+
+UP = np.array([0.0, 1.0, 0.0])
+
+
+@dataclass(frozen=True)
+class Leg:
+    hip: int  # the joint whose rotation swings the thigh
+    knee: int
+    ankle: int
+    foot: tuple[int, ...]  # the ankle and every joint below it (toes, end joints)
+    thigh: float  # bone lengths in the skeleton's units
+    shin: float
+
+
+@dataclass(frozen=True)
+class Limbs:
+    root: int
+    legs: tuple[Leg, ...]  # two legs, in joint order
+    arms: tuple[tuple[int, int], ...]  # (shoulder joint that swings the upper arm, elbow) per arm
+    leg_length: float  # hip to ankle, fully stretched
+
+    @property
+    def feet(self) -> tuple[tuple[int, ...], ...]:
+        return tuple(leg.foot for leg in self.legs)
+
+
+def _chain(parents: np.ndarray, joint: int, top: int) -> list[int]:
+    """Joints from `top` (excluded) down to `joint` (included)."""
+    out = []
+    while joint >= 0 and joint != top:
+        out.append(joint)
+        joint = int(parents[joint])
+    return out[::-1]
+
+
+def _descendants(parents: np.ndarray, joint: int) -> list[int]:
+    out = [joint]
+    for j in range(joint + 1, len(parents)):  # a BVH lists parents before children
+        if parents[j] in out:
+            out.append(j)
+    return out
+
+
+def _two_longest(chain: list[int], lengths: np.ndarray) -> tuple[int, int, int]:
+    """(start, middle, end) joints of the two consecutive non-zero bones with the largest total
+    length; bone k of a chain ends at chain[k] and starts at its parent in the chain."""
+    bones = [(chain[k - 1], chain[k]) for k in range(1, len(chain)) if lengths[chain[k]] > 1e-6]
+    if len(bones) < 2:
+        raise ValueError("limb with fewer than two bones")
+    best = max(range(len(bones) - 1), key=lambda k: lengths[bones[k][1]] + lengths[bones[k + 1][1]])
+    return bones[best][0], bones[best][1], bones[best + 1][1]
+
+
+def find_limbs(skeleton: Skeleton, root: int, template: np.ndarray) -> Limbs | None:
+    """Legs and arms from one frame of channel values (the template pose); None when the
+    skeleton has no two legs below the root (then nothing about feet can be measured or fixed)."""
+    return _find_limbs(skeleton, root, tuple(float(v) for v in template))
+
+
+@lru_cache(maxsize=8)
+def _find_limbs(skeleton: Skeleton, root: int, template: tuple[float, ...]) -> Limbs | None:
+    rotations, translations = local_transforms(Motion(skeleton, np.asarray(template)[None], 30.0))
+    positions = forward_kinematics(skeleton, rotations, translations)[1][0]
+    parents = skeleton.parents
+    lengths = np.linalg.norm(translations[0], axis=1)
+    height = positions[:, 1] - positions[:, 1].min()
+    legs = []
+    for child in [j for j in range(len(parents)) if parents[j] == root]:
+        below = _descendants(parents, child)
+        lowest = below[int(np.argmin(height[below]))]
+        if height[lowest] >= height[root] / 3.0:
+            continue
+        try:
+            hip, knee, ankle = _two_longest([root] + _chain(parents, lowest, root), lengths)
+        except ValueError:
+            continue
+        legs.append(Leg(hip, knee, ankle, tuple(_descendants(parents, ankle)), float(lengths[knee]), float(lengths[ankle])))
+    if len(legs) != 2:
+        return None
+    across = positions[legs[0].hip] - positions[legs[1].hip]
+    across[1] = 0.0
+    across /= max(np.linalg.norm(across), 1e-9)
+    in_legs = {j for leg in legs for j in _descendants(parents, _chain(parents, leg.hip, root)[0])}
+    upper = [j for j in range(len(parents)) if j != root and j not in in_legs and root in _chain(parents, j, -1)[:-1]]
+    arms = []
+    leaves = [j for j in upper if not (parents == j).any()]
+    if leaves:
+        side = (positions[leaves] - positions[root]) @ across
+        ends = [leaves[int(np.argmax(side))], leaves[int(np.argmin(side))]]
+        chains = [_chain(parents, e, root) for e in ends]
+        shared = 0
+        while shared < min(map(len, chains)) and chains[0][shared] == chains[1][shared]:
+            shared += 1
+        for chain in chains:
+            own = chain[max(shared - 1, 0):]
+            try:
+                shoulder, elbow, _ = _two_longest(own, lengths)
+                arms.append((shoulder, elbow))
+            except ValueError:
+                pass
+    leg_length = float(np.mean([leg.thigh + leg.shin for leg in legs]))
+    return Limbs(root, tuple(legs), tuple(arms), leg_length)
+
+
+def centimetres_per_unit(layout: FeatureLayout, world_template: np.ndarray) -> float:
+    return 100.0 * units_to_metres(float(world_template[layout.root, 1]))
+
+
+def clearance(positions: list[np.ndarray], limbs: Limbs) -> np.ndarray:
+    """(2, foot joints) ground clearance of each foot joint: its 1st-percentile height over
+    the takes, shared by both feet (the lower of the two), so a foot that never quite lands in
+    the data does not move the floor."""
+    heights = np.vstack([p[:, list(foot), 1] for p in positions for foot in limbs.feet])
+    per_joint = np.percentile(heights, 1.0, axis=0)
+    return np.broadcast_to(per_joint, (2, len(per_joint))).copy()

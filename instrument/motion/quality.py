@@ -1,0 +1,134 @@
+"""Figures of a walk that a motion specialist would check, for real takes and generated walks alike.
+
+Everything is found from geometry and the joint tree (`limbs`), never from joint names, and is
+given in centimetres, seconds and degrees whatever the skeleton's units (guessed from the hips'
+height). A foot's height is measured against its ground clearance: how high each of its joints
+is when it stands on the floor (the lowest it comes in the real data), so "on the floor" means
+the same for a toe joint 4 cm above the sole and an ankle 12 cm above it.
+
+    skate     horizontal speed of the lowest foot joint in each frame, which carries the body (cm/s)
+    contact skate  the same of each foot while its lowest joint is within CONTACT_CM of its
+              clearance (also counts a shuffling swing foot, so it is only reported in --json)
+    under     frames where some foot joint is more than 1 cm below its clearance (fraction)
+    air       frames where both feet are more than 3 cm above their clearance (fraction)
+    ranges    1st to 99th percentile of the knee's flexion, and of the thigh's and upper arm's
+              swing in the plane of travel (degrees)
+    jitter    mean magnitude of the third difference of the joint positions (m/s^3)
+    drift     change of heading over whole strides per second (deg/s)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .bvh import Motion
+from .features import FeatureLayout, heading_angle
+from .kinematics import forward_kinematics, local_transforms
+from .limbs import Limbs
+from .rotations import axis_angle_matrix
+from .steps import segment_steps
+
+CONTACT_CM = 2.0
+UNDER_CM = 1.0
+AIR_CM = 3.0
+RANGE_PERCENTILES = (1.0, 99.0)
+
+FIGURES = (
+    "step_s", "step_sd_s", "stride_cm", "speed_cm_s", "skate_cm_s", "under_frac", "under_depth_cm",
+    "air_frac", "contact_skate_cm_s", "knee_deg", "hip_deg", "shoulder_deg", "jitter_m_s3", "drift_deg_s",
+)
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    cos = np.einsum("ti,ti->t", a, b) / (np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1) + 1e-12)
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def _spread(values: np.ndarray) -> float:
+    low, high = np.percentile(values, RANGE_PERCENTILES)
+    return float(high - low)
+
+
+def _swing(bone: np.ndarray, forward: np.ndarray) -> np.ndarray:
+    """Angle of a bone in the vertical plane of travel, from pointing down (degrees)."""
+    return np.degrees(np.arctan2(np.einsum("ti,ti->t", bone, forward), -bone[:, 1]))
+
+
+def walk_figures(motion: Motion, layout: FeatureLayout, limbs: Limbs, ground: np.ndarray, cm: float) -> dict[str, float]:
+    """The figures of one walk (see the module's docstring); NaN where a walk has too few steps."""
+    world_rot, world_pos = forward_kinematics(motion.skeleton, *local_transforms(motion))
+    pos = world_pos * cm
+    fps = motion.fps
+    seconds = motion.frames / fps
+    yaw = heading_angle(world_rot[:, layout.root])
+    root = pos[:, layout.root]
+    steps = segment_steps(motion, layout).steps
+    out = dict.fromkeys(FIGURES, float("nan"))
+    if steps:
+        durations = np.array([s.frames for s in steps]) / fps
+        travel = np.array([np.linalg.norm((root[s.end - 1] - root[s.start])[[0, 2]]) * s.frames / (s.frames - 1) for s in steps])
+        out["step_s"], out["step_sd_s"] = float(durations.mean()), float(durations.std())
+        out["stride_cm"] = float(2.0 * travel.mean())
+        out["speed_cm_s"] = float(travel.sum() / durations.sum())
+        same = [s for s in steps if s.label == steps[0].label]
+        if len(same) >= 2:
+            out["drift_deg_s"] = float(np.degrees(abs(yaw[same[-1].start] - yaw[same[0].start])) / ((same[-1].start - same[0].start) / fps))
+    # feet: lift above the ground clearance, contact, skate, floor
+    lifts, speeds = [], []
+    for f, foot in enumerate(limbs.feet):
+        heights = pos[:, list(foot), 1] - ground[f] * cm
+        lowest = np.argmin(heights, axis=1)
+        lifts.append(heights[np.arange(motion.frames), lowest])
+        horizontal = np.linalg.norm(np.gradient(pos[:, list(foot)][:, :, [0, 2]], axis=0), axis=2) * fps
+        speeds.append(horizontal[np.arange(motion.frames), lowest])
+    lift, speed = np.array(lifts), np.array(speeds)
+    feet = list(limbs.feet[0] + limbs.feet[1])
+    lowest = np.argmin(pos[:, feet, 1], axis=1)  # the lowest foot joint carries the body
+    moving = np.linalg.norm(np.gradient(pos[:, feet][:, :, [0, 2]], axis=0), axis=2) * fps
+    out["skate_cm_s"] = float(moving[np.arange(motion.frames), lowest].mean())
+    contact = lift < CONTACT_CM
+    out["contact_skate_cm_s"] = float(speed[contact].mean()) if contact.any() else float("nan")
+    out["under_frac"] = float((lift < -UNDER_CM).any(axis=0).mean())
+    out["under_depth_cm"] = float(max(0.0, -lift.min()))
+    out["air_frac"] = float((lift > AIR_CM).all(axis=0).mean())
+    # ranges
+    heading = axis_angle_matrix("y", yaw)
+    direction = np.median(np.einsum("tji,tj->ti", heading, np.gradient(root, axis=0)), axis=0) * [1, 0, 1]
+    norm = np.linalg.norm(direction)  # the way the walk goes, in the heading frame
+    forward = heading @ (direction / norm if norm > 1e-9 else np.array([0.0, 0.0, 1.0]))
+    knees, hips = [], []
+    for leg in limbs.legs:
+        thigh = pos[:, leg.knee] - pos[:, leg.hip]
+        shin = pos[:, leg.ankle] - pos[:, leg.knee]
+        knees.append(_spread(_angle(thigh, shin)))
+        hips.append(_spread(_swing(thigh, forward)))
+    out["knee_deg"], out["hip_deg"] = float(np.mean(knees)), float(np.mean(hips))
+    if limbs.arms:
+        out["shoulder_deg"] = float(np.mean([_spread(_swing(pos[:, e] - pos[:, s], forward)) for s, e in limbs.arms]))
+    body = pos[:, [j for j in range(pos.shape[1]) if j == layout.root or _below(motion, j, layout.root)]]
+    if motion.frames > 3:
+        out["jitter_m_s3"] = float(np.linalg.norm(np.diff(body, 3, axis=0), axis=2).mean() * fps**3 / 100.0)
+    out["seconds"] = seconds
+    return out
+
+
+def _below(motion: Motion, joint: int, ancestor: int) -> bool:
+    parents = motion.skeleton.parents
+    p = parents[joint]
+    while p >= 0:
+        if p == ancestor:
+            return True
+        p = parents[p]
+    return False
+
+
+def pooled(figures: list[dict[str, float]]) -> dict[str, float]:
+    """Figures of several walks as one, each weighted by its length."""
+    weights = np.array([f["seconds"] for f in figures])
+    out = {}
+    for key in FIGURES:
+        values = np.array([f[key] for f in figures])
+        ok = np.isfinite(values)
+        out[key] = float(np.average(values[ok], weights=weights[ok])) if ok.any() else float("nan")
+    out["seconds"] = float(weights.sum())
+    return out

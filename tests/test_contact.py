@@ -1,0 +1,165 @@
+"""Planted feet, mirror-image steps: on the shipped model (which holds contact statistics)."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from instrument.models.modelfile import default_model_path, load_model
+from instrument.models.symmetry import symmetric_models
+from instrument.motion.features import extract
+from instrument.motion.kinematics import world_positions
+from instrument.runtime.pose import PoseStream
+from instrument.synthesis.contact import FootLock, _leg_swings, contact_space
+from instrument.synthesis.interpolation import style_space
+from instrument.synthesis.offline import default_controls, generate_with_states, synthesize_motion
+from instrument.synthesis.stream import Controls, Crowd
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_model(default_model_path())
+
+
+@pytest.fixture(scope="module")
+def space(model):
+    return style_space(model)
+
+
+def test_two_bone_ik_reaches_a_reachable_target_and_keeps_the_bones():
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        hip = rng.normal(size=3)
+        knee = hip + np.array([0.0, -4.0, 0.3]) + 0.3 * rng.normal(size=3)
+        ankle = knee + np.array([0.0, -4.0, -0.3]) + 0.3 * rng.normal(size=3)
+        reach = np.linalg.norm(knee - hip) + np.linalg.norm(ankle - knee)
+        direction = rng.normal(size=3)
+        target = hip + direction / np.linalg.norm(direction) * reach * rng.uniform(0.3, 0.95)
+        thigh, shin = _leg_swings(hip, knee, ankle, target, np.array([0.0, 0.0, 1.0]))
+        for r in (thigh, shin):
+            np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-9)
+            assert np.linalg.det(r) == pytest.approx(1.0)
+        new_knee = hip + thigh @ (knee - hip)
+        new_ankle = new_knee + shin @ thigh @ (ankle - knee)
+        np.testing.assert_allclose(new_ankle, target, atol=1e-6)
+        # the knee bends about its own hinge: the bend's axis turns with the thigh, nothing else
+        hinge = np.cross(knee - hip, ankle - knee)
+        new_hinge = np.cross(new_knee - hip, new_ankle - new_knee)
+        np.testing.assert_allclose(new_hinge / np.linalg.norm(new_hinge), thigh @ hinge / np.linalg.norm(hinge), atol=1e-6)
+
+
+def _walk(model, space, weights_per_frame, fps=None):
+    """Poses of a live-style walk: one step and one pose per frame, weights changing as given."""
+    contact = contact_space(model)
+    walker = Crowd(space)
+    poses = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps))
+    plain = PoseStream(model.layout, model.fps)
+    out, raw, planted = [], [], []
+    for weights in weights_per_frame:
+        controls = Controls(np.asarray(weights, dtype=float))
+        frame = walker.step([controls])[0]
+        shares = contact.shares(controls.weights)[walker.history_ids[0, 1]]
+        out.append(poses.next(frame, shares))
+        raw.append(plain.next(frame))
+        planted.append(poses.lock.weight.copy())
+    return out, raw, np.array(planted)
+
+
+def test_the_shipped_model_holds_contact_statistics(model):
+    contact = contact_space(model)
+    assert contact is not None
+    shares = contact.shares(np.zeros(len(model.style_names))).reshape(2, model.states, 2)
+    # in a right step the left foot carries the body, in a left step the right one
+    assert shares[0, 1:, 0].min() > 0.5 and shares[1, 1:, 1].min() > 0.5
+    assert shares[0, 1:4, 1].max() < 0.5 and shares[1, 1:4, 0].max() < 0.5
+
+
+@pytest.mark.parametrize("style, weight", [("elderly", 1.0), ("masculine", 2.0), ("active", -1.0), ("feminine", 2.0)])
+def test_a_planted_foot_stays_put_and_nothing_goes_under_the_floor(model, space, style, weight):
+    weights = np.zeros(len(model.style_names))
+    weights[model.style_names.index(style)] = weight
+    poses, raw, lock = _walk(model, space, [weights] * 240)
+    contact = contact_space(model)
+    limbs = FootLock(model.layout, contact.clearance, model.fps).limbs
+    positions = np.array([p.world_positions for p in poses])[30:]
+    lock = lock[30:]
+    for f, foot in enumerate(limbs.feet):
+        heights = positions[:, list(foot), 1] - contact.clearance[f]
+        assert heights.min() > -1e-6  # no foot joint under the floor
+        pivot = positions[:, foot[-1]][:, [0, 2]]
+        held = (lock[1:, f] == 1.0) & (lock[:-1, f] == 1.0)
+        assert held.sum() > 40
+        slide = np.linalg.norm(np.diff(pivot, axis=0), axis=1)[held]
+        speed = slide * model.fps  # cm/s (unplanted, these walks skate at 6-50 cm/s)
+        assert speed.mean() < 6.0 and np.percentile(speed, 90) < 12.0  # held, as far as the leg reaches
+    assert np.isfinite(positions).all()
+
+
+def test_a_style_change_shows_in_the_next_frame_without_a_jump(model, space):
+    names = model.style_names
+    calm = np.zeros(len(names))
+    bold = np.eye(len(names))[names.index("feminine")] * 2.0
+    steady, _, _ = _walk(model, space, [calm] * 90)
+    changed, raw, _ = _walk(model, space, [calm] * 60 + [bold] * 30)
+    a = np.array([p.world_positions for p in steady])
+    b = np.array([p.world_positions for p in changed])
+    np.testing.assert_array_equal(a[:60], b[:60])
+    assert np.abs(a[60] - b[60]).max() > 1e-3
+    # joint speeds across the jump stay within what the unplanted walk itself does across it (plus 20%)
+    planted_moves = np.linalg.norm(np.diff(b[55:75], axis=0), axis=2).max()
+    raw_positions = np.array([p.world_positions for p in raw])
+    raw_moves = np.linalg.norm(np.diff(raw_positions[55:75], axis=0), axis=2).max()
+    assert planted_moves < 1.2 * raw_moves
+
+
+def test_synth_plants_the_feet_and_a_model_without_contact_still_walks(model, space):
+    controls = default_controls(model, {"normal": 1.0})
+    planted = synthesize_motion(model, space, controls, 90)
+    bare = dataclasses.replace(model, extras={})
+    assert contact_space(bare) is None
+    plain = synthesize_motion(bare, style_space(bare), controls, 90)
+    assert planted.channels.shape == plain.channels.shape and np.isfinite(plain.channels).all()
+    assert np.abs(planted.channels - plain.channels).max() > 1e-3  # the lock did something
+    static, _ = generate_with_states(space, model.layout.dimension, controls, 90, "stream", 32, 0)
+    assert np.isfinite(world_positions(planted)).all() and static.shape[0] == 90
+
+
+def test_step_models_are_mirror_images_in_the_root(model):
+    d = model.layout.dimension
+    for hsmm in (model.average, model.style("elderly")):
+        right, left = hsmm.means[0], hsmm.means[1]
+        np.testing.assert_allclose(right[:, [1, 3]], -left[:, [1, 3]], atol=1e-9)  # sideways speed, yaw rate
+        np.testing.assert_allclose(right[:, [0, 2]], left[:, [0, 2]], atol=1e-9)
+        np.testing.assert_allclose(hsmm.duration_means[0], hsmm.duration_means[1])
+    again, _ = symmetric_models(model.average, model.styles, d)  # already symmetric: unchanged
+    np.testing.assert_allclose(again.means, model.average.means, atol=1e-9)
+
+
+def test_a_straight_walk_keeps_its_heading(model, space):
+    for style in ("masculine", "elderly"):
+        for weight in (1.0, 2.0):
+            motion = synthesize_motion(model, space, default_controls(model, {style: weight}), 400)
+            static, _, _ = extract(motion, model.layout)
+            yaw = np.cumsum(static[:, 3]) / model.fps  # heading, radians
+            seconds = (len(yaw) - 31) / model.fps
+            assert abs(np.degrees(yaw[-1] - yaw[30])) / seconds < 1.0, (style, weight)  # deg/s; was 1.8-7.4
+
+
+@pytest.mark.parametrize("fps", ["30", "60"])
+def test_a_live_performance_keeps_its_feet_on_and_above_the_floor(model, tmp_path, fps):
+    """`instrument run` (the demo performance: styles changing, extrapolated, blended) recorded to BVH."""
+    import subprocess
+    import sys
+
+    from instrument.motion.bvh import read_bvh
+
+    path = tmp_path / "live.bvh"
+    result = subprocess.run([sys.executable, "-m", "instrument", "run", "--fast", "--seconds", "20", "--fps", fps,
+                             "--no-osc", "--quiet", "--bvh", str(path)], capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr
+    positions = world_positions(read_bvh(path))
+    contact = contact_space(model)
+    limbs = FootLock(model.layout, contact.clearance, model.fps).limbs
+    lowest = np.stack([(positions[:, list(foot), 1] - contact.clearance[f]).min(axis=1) for f, foot in enumerate(limbs.feet)])
+    assert lowest.min() > -1e-3  # nothing under the floor (the BVH keeps 6 decimals)
+    assert (lowest.min(axis=0) < 0.5).mean() > 0.95  # and some foot on it almost always

@@ -1,0 +1,113 @@
+"""`instrument evaluate` and what it stands on: limbs from the joint tree, walk figures on real takes."""
+
+import dataclasses
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import SHARED_WALKS, needs_walks
+from instrument.motion.bvh import Motion, Skeleton, parse_bvh, read_bvh
+from instrument.motion.features import choose_layout
+from instrument.motion.kinematics import world_positions
+from instrument.motion.limbs import centimetres_per_unit, clearance, find_limbs
+from instrument.motion.quality import walk_figures
+from samples import cmu_style_walk
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "instrument", *args], capture_output=True, text=True, timeout=900)
+
+
+def _renamed(skeleton: Skeleton) -> Skeleton:
+    """The same tree with meaningless names: nothing may depend on them."""
+    return Skeleton(tuple(dataclasses.replace(j, name=f"j{k}") for k, j in enumerate(skeleton.joints)))
+
+
+def _limbs_by_name(motion: Motion):
+    layout = choose_layout([motion])
+    limbs = find_limbs(motion.skeleton, layout.root, np.asarray(layout.template))
+    names = motion.skeleton.names
+    legs = sorted((names[l.hip], names[l.knee], names[l.ankle]) for l in limbs.legs)
+    return limbs, legs, sorted(names[s] for s, _ in limbs.arms)
+
+
+def test_legs_and_arms_of_a_cmu_style_skeleton_from_geometry():
+    text, _ = cmu_style_walk(fps=30.0)
+    motion = parse_bvh(text)
+    limbs, legs, shoulders = _limbs_by_name(motion)
+    assert legs == [("LeftUpLeg", "LeftLeg", "LeftFoot"), ("RightUpLeg", "RightLeg", "RightFoot")]
+    assert shoulders == ["LeftArm", "RightArm"]
+    renamed = Motion(_renamed(motion.skeleton), motion.channels, motion.fps)
+    assert _limbs_by_name(renamed)[0] == limbs
+
+
+@needs_walks
+def test_legs_of_the_shared_skeleton_and_figures_of_a_real_take():
+    motion = read_bvh(sorted(SHARED_WALKS.glob("*_normal_*.bvh"))[0])
+    limbs, legs, shoulders = _limbs_by_name(motion)
+    assert legs == [("UpperLeg_L", "LowerLeg_L", "Foot_L"), ("UpperLeg_R", "LowerLeg_R", "Foot_R")]
+    assert shoulders == ["UpperArm_L", "UpperArm_R"]
+    layout = choose_layout([motion])
+    positions = world_positions(motion)
+    ground = clearance([positions], limbs)
+    cm = centimetres_per_unit(layout, positions[0])
+    assert cm == 1.0  # the shared data is in centimetres
+    real = walk_figures(motion, layout, limbs, ground, cm)
+    assert real["under_frac"] < 0.02 and real["skate_cm_s"] < 15.0
+    assert 30 < real["knee_deg"] < 90 and 0.3 < real["step_s"] < 0.8
+    assert real["speed_cm_s"] == pytest.approx(real["stride_cm"] / (2 * real["step_s"]), rel=0.1)
+
+    sunk = motion.channels.copy()  # the whole body 3 cm lower: every frame under the floor
+    sunk[:, _y_channel(motion, layout.root)] -= 3.0
+    assert walk_figures(Motion(motion.skeleton, sunk, motion.fps), layout, limbs, ground, cm)["under_frac"] > 0.95
+
+    sliding = motion.channels.copy()  # the body sliding sideways at 50 cm/s: no foot stays put
+    sliding[:, _x_channel(motion, layout.root)] += 50.0 * np.arange(motion.frames) / motion.fps
+    slid = walk_figures(Motion(motion.skeleton, sliding, motion.fps), layout, limbs, ground, cm)
+    assert slid["skate_cm_s"] > 45.0 > real["skate_cm_s"]
+
+
+def _y_channel(motion: Motion, joint: int) -> int:
+    return int(motion.skeleton.channel_start()[joint]) + motion.skeleton.joints[joint].channels.index("Yposition")
+
+
+def _x_channel(motion: Motion, joint: int) -> int:
+    return int(motion.skeleton.channel_start()[joint]) + motion.skeleton.joints[joint].channels.index("Xposition")
+
+
+@needs_walks
+def test_evaluate_json_against_the_real_takes(tmp_path):
+    for style in ("elderly", "active"):  # a few of the takes the shipped model learnt from
+        for take in sorted(SHARED_WALKS.glob(f"*_{style}_*.bvh"))[:5]:
+            (tmp_path / take.name).symlink_to(take)
+    result = cli("evaluate", "--styles", "elderly", "--variants", "one,x2", "--seconds", "4", "--real", str(tmp_path), "--json")
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert set(report["synth"]) == {"elderly", "elderly x2"} and set(report["real"]) == {"elderly"}
+    real, synth = report["real"]["elderly"], report["synth"]["elderly"]
+    assert real["recognised"] > 0.8
+    assert synth["finite"] == 1.0 and synth["under_frac"] == 0.0
+    assert synth["step_s"] == pytest.approx(real["step_s"], rel=0.1)
+    assert report["weights"]["elderly x2"] == {"elderly": 2.0}
+
+
+def test_evaluate_table_without_real_takes():
+    result = cli("evaluate", "--styles", "normal", "feminine", "--variants", "pairs", "--seconds", "3")
+    assert result.returncode == 0, result.stderr
+    rows = [l for l in result.stdout.splitlines() if l.startswith("| ")]
+    assert rows[0].startswith("| walk | step s") and rows[1].startswith("| feminine+normal |")
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--styles", "sleepy"], "no style 'sleepy'"),
+    (["--variants", "one,sideways"], "--variants"),
+    (["--seconds", "0"], "--seconds"),
+    (["--real", "/nonexistent/folder"], "no such folder"),
+])
+def test_evaluate_errors_are_one_line(args, message):
+    result = cli("evaluate", *args)
+    assert result.returncode == 1
+    assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
