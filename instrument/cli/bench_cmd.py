@@ -35,13 +35,14 @@ def measure_pacing(model_path: str | None, seconds: float, fps: float) -> dict:
     """Send-time deviation from the schedule of the live loop, with real UDP outputs."""
     import socket
 
-    from ..control.events import LogReplay, read_log
     from ..output.osc import OscTarget
     from ..output.outputs import OscOutput, make_profile
     from ..runtime.console import Console
     from ..runtime.performance import perform
     from ..runtime.priority import realtime_scheduling
-    from ..shipped import demo_log_path
+    from ..control.score import ScorePlayer, load_score
+    from ..control.state import ControlState
+    from ..shipped import demo_score_path
 
     model = load_model(model_path or default_model_path())
     sinks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(2)]
@@ -53,7 +54,9 @@ def measure_pacing(model_path: str | None, seconds: float, fps: float) -> dict:
                for s, kind in zip(sinks, ("vmc", "flat"))]
     timing: list[float] = []
     refused = realtime_scheduling()  # as `instrument run` does
-    summary = perform(model, outputs, console, fps, seconds, LogReplay(read_log(demo_log_path()), loop=True), timing=timing)
+    state = ControlState(model.style_names, model.states)
+    demo = ScorePlayer(load_score(demo_score_path(), state, loop=True), state)
+    summary = perform(model, outputs, console, fps, seconds, demo, timing=timing, state=state)
     for s in sinks:
         s.close()
     deviation = np.abs(np.array(timing[1:])) * 1000.0

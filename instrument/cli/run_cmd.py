@@ -6,11 +6,13 @@ import argparse
 import re
 from pathlib import Path
 
+from ..control.attract import Attract, load_attract
 from ..control.devices import HidInput, MidiInput, OscInput
 from ..control.events import LogReplay, read_log
 from ..control.feedback import MidiFeedback
 from ..control.hub import ControlHub
 from ..control.mapping import load_mapping, parse_hid_id, style_problems
+from ..control.score import ScorePlayer, load_score
 from ..control.state import ControlState
 from ..errors import UserError
 from ..models.modelfile import load_model
@@ -19,7 +21,7 @@ from ..output.outputs import OscOutput, RecorderOutput, make_profile
 from ..runtime.console import Console
 from ..runtime.performance import perform
 from ..runtime.priority import realtime_scheduling
-from ..shipped import default_model_path, demo_log_path, shipped_mappings
+from ..shipped import default_model_path, demo_score_path, shipped_mappings
 from ..tomlfile import read_toml
 from .arguments import number
 
@@ -27,7 +29,7 @@ DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
 DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "fast": False, "quiet": False,
             "normal_priority": False}
 LISTS = ("osc", "mapping")
-PATHS = ("model", "bvh", "replay", "record", "humanoid", "presets", "mapping")  # relative to the show file
+PATHS = ("model", "bvh", "replay", "score", "record", "humanoid", "presets", "mapping")  # relative to the show file
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -54,7 +56,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--morph", help="seconds to morph into a recalled preset (default: the mapping's)")
     p.add_argument("--record", metavar="LOG.jsonl", help="record every raw control event with its time")
     p.add_argument("--replay", metavar="LOG.jsonl", help="play a controller log once (default with no controllers: the demo, looped)")
-    p.add_argument("--loop", action="store_true", default=None, help="play the --replay log over and over")
+    p.add_argument("--score", metavar="SCORE.toml", help="play a score of timed cues (docs/scores.md); live controls ride on top")
+    p.add_argument("--loop", action="store_true", default=None, help="play the --replay log or the --score over and over")
     p.add_argument("--humanoid", metavar="BONES.toml", help="joint-to-humanoid-bone map for the VMC profile")
     p.add_argument("--fast", action="store_true", default=None, help="no realtime pacing: as fast as the CPU allows (offline rendering)")
     p.add_argument("--normal-priority", action="store_true", default=None,
@@ -68,6 +71,7 @@ def apply_show_file(args: argparse.Namespace) -> dict:
     path = Path(args.config)
     text, data = read_toml(path)
     presets = data.pop("presets", {})
+    data.pop("attract", None)  # [attract]: read by the attract mode itself
     options = {a for a in vars(args) if a not in ("config", "run", "command")}
     for key, value in data.items():
         dest = key.replace("-", "_")
@@ -160,14 +164,22 @@ def run(args: argparse.Namespace) -> int:
         presets.update(check_presets(read_toml(args.presets)[1].get("presets", {}), state, args.presets))
     mappings = choose_mappings(args, state, console)
     live = bool(args.midi or args.midi_virtual or args.hid or args.osc_in)
-    replay_path = args.replay or (None if live else demo_log_path())
-    replay = LogReplay(read_log(replay_path), loop=args.loop or not args.replay) if replay_path else None
+    if args.replay and args.score:
+        raise UserError("give --replay or --score, not both")
+    replay = LogReplay(read_log(args.replay), loop=args.loop) if args.replay else None
+    score_path = args.score or (None if live or args.replay else demo_score_path())
     targets = [] if args.no_osc else [parse_target(t) for t in (args.osc or DEFAULT_TARGETS)]
-    if args.fast and seconds is None and (replay is None or replay.loop or not replay.events):
-        raise UserError("--fast needs an end: give --seconds, or a --replay log (played once)")
     outputs, devices, hub = [], [], None
     try:
         hub = ControlHub(mappings, presets, args.record, morph)
+        if score_path:  # checked against the model and every preset the hub knows
+            replay = ScorePlayer(load_score(score_path, state, hub.presets, loop=True if args.loop or not args.score else None),
+                                 state)
+        if args.fast and seconds is None and (replay is None or replay.loop or not replay.events):
+            raise UserError("--fast needs an end: give --seconds, or a --replay log or a --score (played once)")
+        attract = load_attract(args.config, state, hub.presets) if args.config else None
+        if attract and not live:
+            raise UserError(f"{args.config}: attract: needs a controller (midi, hid or osc-in) whose input it waits for")
         if args.midi or args.midi_virtual:
             devices.append(MidiInput(console, args.midi, args.midi_virtual, args.midi_api))
             if hub.midi is not None and not args.no_feedback:
@@ -186,15 +198,20 @@ def run(args: argparse.Namespace) -> int:
             thing.close()
         raise
     if not args.quiet:
-        sources = [d.describe() for d in devices] + ([f"log {replay_path}"] if replay_path else [])
+        sources = [d.describe() for d in devices] + ([f"log {args.replay}"] if args.replay else [])
+        sources += [f"score {score_path}"] if score_path else []
+        sources += [f"attract after {attract.after / 60:g} min of no input"] if attract else []
         console.say(f"model {args.model or default_model_path()}; {fps:g} fps; controls: {', '.join(sources) or 'none'}; "
                     f"OSC to {', '.join(map(str, targets)) or 'nowhere'}" + (f"; recording {args.bvh}" if args.bvh else ""))
     if not args.fast and not args.normal_priority:
         refused = realtime_scheduling()
         if refused and not args.quiet:
             console.say(f"realtime scheduling {refused}: running at normal priority (frames may be late on a busy machine)")
+    live_sources = [d.poll for d in devices]
+    if attract:
+        live_sources = [Attract(attract, live_sources, state, console).poll]
     try:
-        summary = perform(model, outputs, console, fps, seconds, replay, live_sources=[d.poll for d in devices], fast=args.fast,
+        summary = perform(model, outputs, console, fps, seconds, replay, live_sources=live_sources, fast=args.fast,
                           apply=hub.apply, describe_sources=lambda: ", ".join(d.describe() for d in devices) or "replay",
                           state=state)
     finally:
