@@ -7,9 +7,9 @@ import sys
 
 from .. import __version__
 from ..errors import UserError
-from . import bench_cmd, devices_cmd, info_cmd, inspect_cmd, learn_cmd, log_cmd, recover_cmd, render_cmd, run_cmd, skeleton_cmd, synth_cmd, train_cmd, view_cmd
+from . import bench_cmd, devices_cmd, info_cmd, inspect_cmd, learn_cmd, log_cmd, recover_cmd, render_cmd, run_cmd, service_cmd, skeleton_cmd, synth_cmd, train_cmd, view_cmd
 
-COMMANDS = (run_cmd, view_cmd, devices_cmd, learn_cmd, log_cmd, inspect_cmd, train_cmd, info_cmd, synth_cmd, bench_cmd, skeleton_cmd, render_cmd, recover_cmd)
+COMMANDS = (run_cmd, view_cmd, devices_cmd, learn_cmd, log_cmd, inspect_cmd, train_cmd, info_cmd, synth_cmd, bench_cmd, skeleton_cmd, render_cmd, recover_cmd, service_cmd)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -19,6 +19,8 @@ from ..models.modelfile import load_model
 from ..output.osc import FLAT_PORT, VMC_PORT, parse_target
 from ..output.outputs import OscOutput, RecorderOutput, make_profile
 from ..runtime.console import Console
+from ..runtime.health import Health
+from ..runtime.notify import SystemdNotifier
 from ..runtime.performance import perform
 from ..runtime.priority import realtime_scheduling
 from ..shipped import default_model_path, demo_score_path, shipped_mappings
@@ -62,7 +64,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--fast", action="store_true", default=None, help="no realtime pacing: as fast as the CPU allows (offline rendering)")
     p.add_argument("--normal-priority", action="store_true", default=None,
                    help="do not ask for realtime scheduling (default: asked for, so frames stay on time on a busy machine)")
-    p.add_argument("--quiet", action="store_true", default=None, help="no status line")
+    p.add_argument("--quiet", action="store_true", default=None, help="no status line (the health line stays)")
+    p.add_argument("--health-every", metavar="SECONDS",
+                   help="a health line (frames, late, outputs, devices, memory) this often, 0 for none (default 60)")
+    p.add_argument("--status-port", metavar="[HOST:]PORT",
+                   help="answer /walk/status (OSC) and 'status' (JSON) requests on this UDP port (bound to 127.0.0.1 unless HOST is given)")
     p.set_defaults(run=run)
 
 
@@ -156,6 +162,9 @@ def run(args: argparse.Namespace) -> int:
     if seconds is not None and seconds <= 0:
         raise UserError(f"--seconds must be positive, not {args.seconds}")
     morph = 0.0 if args.morph is None else number("--morph", args.morph)
+    health_every = 60.0 if args.health_every is None else number("--health-every", args.health_every)
+    if health_every < 0:
+        raise UserError(f"--health-every must be 0 or more, not {args.health_every}")
     model = load_model(args.model or default_model_path())
     console = Console(quiet=args.quiet)
     state = ControlState(model.style_names, model.states)
@@ -193,6 +202,7 @@ def run(args: argparse.Namespace) -> int:
             outputs.append(RecorderOutput(args.bvh, model, fps))
         profiles = {kind: make_profile(kind, model, args.humanoid) for kind in {t.profile for t in targets}}
         outputs += [OscOutput(t, profiles[t.profile], console) for t in targets]
+        health = Health(console, outputs, devices, SystemdNotifier(), health_every, args.status_port)
     except UserError:
         for thing in outputs + devices + ([hub] if hub else []):
             thing.close()
@@ -213,9 +223,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         summary = perform(model, outputs, console, fps, seconds, replay, live_sources=live_sources, fast=args.fast,
                           apply=hub.apply, describe_sources=lambda: ", ".join(d.describe() for d in devices) or "replay",
-                          state=state)
+                          state=state, on_frame=health.frame)
     finally:
-        for thing in devices + [hub]:
+        health.notifier.stopping()
+        for thing in devices + [hub, health, health.notifier]:
             thing.close()
     if not args.quiet:
         console.say(f"stopped after {summary.frames} frames; late {summary.late}, dropped {summary.dropped}"
