@@ -288,3 +288,54 @@ def test_attract_drifts_when_idle_and_a_fader_takes_over_with_pickup(model):
     assert [seen[k][0] for k in (160, 170, 180, 190)] == [1.0] * 4  # below the parameter: not picked up
     assert seen[200][0] == pytest.approx(1.2, abs=0.03)  # crossed it: the fader has the style
     assert not any(active for _, active in seen[150:225]) and seen[235][1]  # idle again a second after the last move
+
+
+def test_a_show_file_attract_mode_over_osc(tmp_path):
+    """The whole path: a show file's [attract] table, an OSC surface on real UDP, the flat echo."""
+    from pythonosc.udp_client import SimpleUDPClient
+
+    control_port, receiver = free_port(), Receiver()
+    show = tmp_path / "show.toml"
+    show.write_text(f'osc-in = "{control_port}"\nosc = ["127.0.0.1:{receiver.port}/flat"]\nseconds = 120\n'
+                    '[presets.old]\n"style/elderly" = 1.0\n[presets.young]\n"style/youthful" = 1.0\n'
+                    '[attract]\nafter = 0.02\npresets = ["old", "young"]\nmorph = 0.5\nhold = 600\n')
+    process = subprocess.Popen(RUN + ["--config", str(show)], stderr=subprocess.PIPE, text=True)
+    surface = SimpleUDPClient("127.0.0.1", control_port)
+
+    def echoed(address: str) -> list[float]:
+        return [p[0] for a, p in receiver.messages() if a == address]
+
+    try:
+        deadline = time.monotonic() + 90
+        while 1.0 not in echoed("/walk/style/elderly") and time.monotonic() < deadline:  # idle 1.2 s: the tour begins
+            time.sleep(0.05)
+        surface.send_message("/walk/speed", 1.3)  # a performer
+        while 1.3 not in [round(v, 3) for v in echoed("/walk/speed")] and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.3)
+        after_touch = len(echoed("/walk/style/elderly"))
+        time.sleep(0.6)  # less than the idle time: the tour stays off
+    finally:
+        process.terminate()
+        stderr = process.communicate(timeout=60)[1]
+        receiver.close()
+    assert process.returncode == 0, stderr
+    assert "attract mode on" in stderr and "attract mode off" in stderr
+    elderly = echoed("/walk/style/elderly")
+    assert len(set(elderly)) > 5 and max(elderly) == 1.0  # eased in, not jumped
+    assert set(elderly[after_touch:]) == {1.0} and set(echoed("/walk/style/youthful")) == {0.0}
+
+
+@pytest.mark.parametrize("table,message", [
+    ('[attract]\npresets = ["calm"]\n', "show.toml:4: attract.after: missing"),
+    ('[attract]\nafter = 5\npresets = ["nope"]\n', "show.toml:6: attract.presets: no preset 'nope'"),
+    ('[attract]\nafter = 5\n', "attract.score: give either score"),
+    ('[attract]\nafter = -1\npresets = ["calm"]\n', "show.toml:5: attract.after: expected a positive number of minutes"),
+    ('[attract]\nafter = 1\nscore = "missing.toml"\n', "missing.toml: cannot read"),
+])
+def test_bad_attract_tables_are_one_line_errors(tmp_path, table, message):
+    show = tmp_path / "show.toml"
+    show.write_text(f'osc-in = "{free_port()}"\n[presets.calm]\nspeed = 0.8\n' + table)
+    result = subprocess.run(RUN + ["--config", str(show), "--seconds", "1", "--no-osc"], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 1
+    assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
