@@ -234,6 +234,11 @@ def test_the_generated_unit_restarts_on_failure_with_a_watchdog(tmp_path):
         check = subprocess.run(["systemd-analyze", "verify", str(unit)], capture_output=True, text=True, timeout=60)
         assert check.returncode == 0, check.stderr
         assert "Unknown key" not in check.stderr and "Unknown section" not in check.stderr
+    user_unit = tmp_path / "user.service"
+    result = subprocess.run([sys.executable, "-m", "instrument", "service", "--config", str(show), "--out", str(user_unit), "--user"],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0 and "systemctl --user" in result.stdout
+    assert "WantedBy=default.target" in user_unit.read_text().splitlines() and "User=" not in user_unit.read_text()
     missing = subprocess.run([sys.executable, "-m", "instrument", "service", "--config", str(tmp_path / "nope.toml"), "--out",
                               str(tmp_path / "x.service")], capture_output=True, text=True, timeout=60)
     assert missing.returncode == 1 and "nope.toml" in missing.stderr and len(missing.stderr.strip().splitlines()) == 1

@@ -8,7 +8,6 @@ dies is restarted. It may use realtime scheduling at the priority `run` asks for
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
@@ -36,8 +35,7 @@ def unit_text(show: Path, watchdog: float, user_unit: bool, run_as: str | None, 
         f"# Written by `instrument service --config {show}`. Install: see docs/installations.md.",
         "[Unit]",
         f"Description=instrument: the walk of {show.name}",
-        "Wants=network-online.target" if not user_unit else "",
-        "After=network-online.target sound.target" if not user_unit else "After=sound.target",
+        *(["After=sound.target"] if user_unit else ["Wants=network-online.target", "After=network-online.target sound.target"]),
         "StartLimitIntervalSec=600",
         "StartLimitBurst=20",
         "",
@@ -57,7 +55,7 @@ def unit_text(show: Path, watchdog: float, user_unit: bool, run_as: str | None, 
     if run_as and not user_unit:
         lines += [f"User={run_as}", "SupplementaryGroups=audio"]
     lines += ["", "[Install]", f"WantedBy={'default.target' if user_unit else 'multi-user.target'}", ""]
-    return "\n".join(line for k, line in enumerate(lines) if line or (k and lines[k - 1])).strip() + "\n"
+    return "\n".join(lines).strip() + "\n"
 
 
 def run(args: argparse.Namespace) -> int:
@@ -82,4 +80,4 @@ def run(args: argparse.Namespace) -> int:
     where = "~/.config/systemd/user/" if args.user else "/etc/systemd/system/"
     control = "systemctl --user" if args.user else "systemctl"
     print(f"wrote {out}; install: cp {out} {where} && {control} daemon-reload && {control} enable --now {out.name}")
-    return 0 if os.path.exists(out) else 1
+    return 0
