@@ -222,7 +222,7 @@ def run(args: argparse.Namespace) -> int:
         live_sources = [Attract(attract, live_sources, state, console).poll]
     try:
         summary = perform(model, outputs, console, fps, seconds, replay, live_sources=live_sources, fast=args.fast,
-                          apply=hub.apply, describe_sources=lambda: ", ".join(d.describe() for d in devices) or "replay",
+                          apply=hub.apply, describe_sources=lambda: ", ".join(d.describe() for d in devices) or ("score" if score_path else "replay"),
                           state=state, on_frame=health.frame)
     finally:
         health.notifier.stopping()
