@@ -344,3 +344,22 @@ def test_bad_attract_tables_are_one_line_errors(tmp_path, table, message):
     result = subprocess.run(RUN + ["--config", str(show), "--seconds", "1", "--no-osc"], capture_output=True, text=True, timeout=60)
     assert result.returncode == 1
     assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_the_watchdog_is_only_for_the_process_systemd_named(tmp_path):
+    listener = NotifyListener(tmp_path)
+    try:
+        for env, interval in [({"WATCHDOG_USEC": "5000000"}, 5.0), ({"WATCHDOG_USEC": "5000000", "WATCHDOG_PID": str(os.getpid())}, 5.0),
+                              ({"WATCHDOG_USEC": "5000000", "WATCHDOG_PID": "1"}, None), ({"WATCHDOG_USEC": "soon"}, None),
+                              ({}, None)]:
+            notifier = SystemdNotifier({"NOTIFY_SOCKET": listener.env, **env})
+            assert notifier.interval == interval
+            notifier.pet()
+            notifier.close()
+        assert listener.wait_for("WATCHDOG=1", count=2, timeout=10)
+        time.sleep(0.3)
+        assert len(listener.times("WATCHDOG=1")) == 2  # only the two that named this process (or no one)
+    finally:
+        listener.close()
+    quiet = SystemdNotifier({})  # outside systemd: nothing to send to, nothing fails
+    assert not quiet.active and not quiet.send("READY=1")
