@@ -25,8 +25,8 @@ def default_model_path() -> Path:
     return shipped_file("models", "default.npz")
 
 
-def demo_log_path() -> Path:
-    return shipped_file("examples/demo", "demo.jsonl")
+def demo_score_path() -> Path:
+    return shipped_file("examples/demo", "demo.toml")
 
 
 def shipped_mappings() -> list[Path]:

@@ -61,6 +61,8 @@ OPTIONS: dict[str, Accepts] = {
     "run --seconds": POSITIVE_SECONDS,
     "run --morph": Accepts(float, 0, 600),
     "run --osc-in": PORT,  # the port of [HOST:]PORT
+    "run --status-port": PORT,  # the port of [HOST:]PORT
+    "run --health-every": Accepts(float, 0, 86400),  # seconds; 0: no health line
     "view --port": PORT,
     "view --frames": Accepts(int, 1, None),
     "learn --timeout": POSITIVE_SECONDS,

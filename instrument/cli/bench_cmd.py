@@ -48,13 +48,14 @@ def measure_pacing(model_path: str | None, seconds: float, fps: float, console_a
     browser console with `pages` pages open, when asked)."""
     import socket
 
-    from ..control.events import LogReplay, read_log
     from ..output.osc import OscTarget
     from ..output.outputs import OscOutput, make_profile
     from ..runtime.console import Console
     from ..runtime.performance import perform
     from ..runtime.priority import realtime_scheduling
-    from ..shipped import demo_log_path
+    from ..control.score import ScorePlayer, load_score
+    from ..control.state import ControlState
+    from ..shipped import demo_score_path
 
     model = load_model(model_path or default_model_path())
     sinks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(2)]
@@ -70,9 +71,10 @@ def measure_pacing(model_path: str | None, seconds: float, fps: float, console_a
         live_sources = [link.input.poll]
     timing: list[float] = []
     refused = realtime_scheduling()  # as `instrument run` does
+    state = link.output.state if link else ControlState(model.style_names, model.states)
+    demo = ScorePlayer(load_score(demo_score_path(), state, loop=True), state)
     try:
-        summary = perform(model, outputs, console, fps, seconds, LogReplay(read_log(demo_log_path()), loop=True), timing=timing,
-                          live_sources=live_sources, state=link.output.state if link else None)
+        summary = perform(model, outputs, console, fps, seconds, demo, timing=timing, live_sources=live_sources, state=state)
     finally:
         if link:
             open_pages = link.pages

@@ -30,6 +30,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "skeleton": ("skeleton_cmd", "write the model's skeleton as a one-frame BVH: a T-pose rest to rig, or the template"),
     "render": ("render_cmd", "draw a BVH recording: contact sheet (.png) or animation (.gif)"),
     "recover": ("recover_cmd", "repair the frame count of a BVH recording left by a killed run"),
+    "service": ("service_cmd", "write a systemd unit that runs a show file unattended (restart, watchdog)"),
 }
 EVERY = "*"  # build_parser(EVERY): import every subcommand (the tests check them all)
 

@@ -6,6 +6,7 @@ import argparse
 import re
 from pathlib import Path
 
+from ..control.attract import Attract, load_attract
 from ..control.devices import MidiInput, OscInput
 from ..control.events import LogReplay, read_log
 from ..control.feedback import MidiFeedback
@@ -15,6 +16,7 @@ from ..control.hid_feedback import HidFeedback
 from ..control.hub import ControlHub
 from ..control.loghead import header_line, logged_mappings, unreadable_sources
 from ..control.mapping import load_mapping, parse_hid_id, style_problems
+from ..control.score import ScorePlayer, load_score
 from ..control.state import ControlState
 from ..errors import UserError
 from ..models.modelfile import load_model
@@ -23,10 +25,12 @@ from ..output.osc import FLAT_PORT, VMC_PORT, parse_target
 from ..output.outputs import OscOutput, RecorderOutput, make_profile
 from ..output.vmc import ROOT_CONVENTIONS
 from ..runtime.console import Console
+from ..runtime.health import Health
+from ..runtime.notify import SystemdNotifier
 from ..runtime.performance import perform
 from ..runtime.priority import realtime_scheduling
 from ..runtime.stopping import StopFlag
-from ..shipped import default_model_path, demo_log_path, shipped_mappings
+from ..shipped import default_model_path, demo_score_path, shipped_mappings
 from ..tomlfile import read_toml
 from .arguments import OPTIONS
 from .arguments import value as option_value
@@ -36,7 +40,7 @@ DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "
             "normal_priority": False, "force": False, "vmc_root": "hips", "no_relaxed_hands": False}
 LISTS = ("osc", "mapping")
 SHOW_FILE_CHECKS = {"osc": parse_target, "hid": parse_hid_id}  # checked as the file is read, so errors name its line
-PATHS = ("model", "bvh", "replay", "record", "humanoid", "presets", "mapping")  # relative to the show file
+PATHS = ("model", "bvh", "replay", "score", "record", "humanoid", "presets", "mapping")  # relative to the show file
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -67,7 +71,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--morph", help="seconds to morph into a recalled preset (default: the mapping's)")
     p.add_argument("--record", metavar="LOG.jsonl", help="record every raw control event with its time")
     p.add_argument("--replay", metavar="LOG.jsonl", help="play a controller log once (default with no controllers: the demo, looped)")
-    p.add_argument("--loop", action="store_true", default=None, help="play the --replay log over and over")
+    p.add_argument("--score", metavar="SCORE.toml", help="play a score of timed cues (docs/scores.md); live controls ride on top")
+    p.add_argument("--loop", action="store_true", default=None, help="play the --replay log or the --score over and over")
     p.add_argument("--humanoid", metavar="BONES.toml", help="joint-to-humanoid-bone map for the VMC profile")
     p.add_argument("--vmc-root", metavar="hips|path", help="VMC: the hips carry the walk under a fixed root (default, as "
                    "VirtualMotionCapture sends), or /VMC/Ext/Root/Pos carries the path and heading")
@@ -76,8 +81,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--fast", action="store_true", default=None, help="no realtime pacing: as fast as the CPU allows (offline rendering)")
     p.add_argument("--normal-priority", action="store_true", default=None,
                    help="do not ask for realtime scheduling (default: asked for, so frames stay on time on a busy machine)")
-    p.add_argument("--quiet", action="store_true", default=None, help="no status line")
+    p.add_argument("--quiet", action="store_true", default=None, help="no status line (the health line stays)")
     p.add_argument("--force", action="store_true", default=None, help="let --bvh and --record replace existing files (default: refuse)")
+    p.add_argument("--health-every", metavar="SECONDS",
+                   help="a health line (frames, late, outputs, devices, memory) this often, 0 for none (default 60)")
+    p.add_argument("--status-port", metavar="[HOST:]PORT",
+                   help="answer /walk/status (OSC) and 'status' (JSON) requests on this UDP port (bound to 127.0.0.1 unless HOST is given)")
     p.set_defaults(run=run)
 
 
@@ -86,6 +95,7 @@ def apply_show_file(args: argparse.Namespace) -> dict:
     path = Path(args.config)
     text, data = read_toml(path)
     presets = data.pop("presets", {})
+    data.pop("attract", None)  # [attract]: read by the attract mode itself
     options = {a for a in vars(args) if a not in ("config", "run", "command")}
     for key, value in data.items():
         dest = key.replace("-", "_")
@@ -190,8 +200,11 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     fps = option_value("run --fps", args.fps)
     seconds = None if args.seconds is None else option_value("run --seconds", args.seconds)
     morph = 0.0 if args.morph is None else option_value("run --morph", args.morph)
+    health_every = 60.0 if args.health_every is None else option_value("run --health-every", args.health_every)
     if args.osc_in:
         option_value("run --osc-in", args.osc_in.rpartition(":")[2], where=f"--osc-in {args.osc_in}: port")
+    if args.status_port:
+        option_value("run --status-port", args.status_port.rpartition(":")[2], where=f"--status-port {args.status_port}: port")
     if args.vmc_root not in ROOT_CONVENTIONS:
         raise UserError(f"--vmc-root must be {' or '.join(ROOT_CONVENTIONS)}, not {args.vmc_root!r}")
     model = load_model(args.model or default_model_path())
@@ -204,19 +217,27 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     logged = logged_mappings(args.replay, state) if args.replay and not args.mapping else []  # as recorded
     mappings = logged + choose_mappings(args, state, console)
     live = bool(args.midi or args.midi_virtual or args.hid or args.osc_in or args.console)
-    replay_path = args.replay or (None if live else demo_log_path())
-    replay = (LogReplay(read_log(replay_path, warn=lambda m: console.warn("log cut", m)), loop=args.loop or not args.replay)
-              if replay_path else None)
+    if args.replay and args.score:
+        raise UserError("give --replay or --score, not both")
+    replay = (LogReplay(read_log(args.replay, warn=lambda m: console.warn("log cut", m)), loop=args.loop)
+              if args.replay else None)
     missing = unreadable_sources(replay.events, mappings) if replay else []
     if missing:
-        raise UserError(f"{replay_path}: has {' and '.join(missing)} events but no mapping to read them "
+        raise UserError(f"{args.replay}: has {' and '.join(missing)} events but no mapping to read them "
                         "(the log has no mapping header): give the --mapping it was recorded with")
+    score_path = args.score or (None if live or args.replay else demo_score_path())
     targets = [] if args.no_osc else [parse_target(t) for t in (args.osc or DEFAULT_TARGETS)]
-    if args.fast and seconds is None and (replay is None or replay.loop or not replay.events):
-        raise UserError("--fast needs an end: give --seconds, or a --replay log (played once)")
-    outputs, devices, hub, created = [], [], None, []
+    outputs, devices, hub, created, health = [], [], None, [], None
     try:
         hub = ControlHub(mappings, presets, None, morph, console)
+        if score_path:  # checked against the model and every preset the hub knows
+            replay = ScorePlayer(load_score(score_path, state, hub.presets, loop=True if args.loop or not args.score else None),
+                                 state)
+        if args.fast and seconds is None and (replay is None or replay.loop or not replay.events):
+            raise UserError("--fast needs an end: give --seconds, or a --replay log or a --score (played once)")
+        attract = load_attract(args.config, state, hub.presets) if args.config else None
+        if attract and not live:
+            raise UserError(f"{args.config}: attract: needs a controller (midi, hid or osc-in) whose input it waits for")
         if args.midi or args.midi_virtual:
             devices.append(MidiInput(console, args.midi, args.midi_virtual, args.midi_api))
             if hub.midi is not None and not args.no_feedback:
@@ -232,7 +253,8 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
             from ..console.link import ConsoleLink
 
             def sources() -> str:
-                return ", ".join([d.describe() for d in devices] + ([f"log {replay_path}"] if replay_path else []))
+                return ", ".join([d.describe() for d in devices] + ([f"log {args.replay}"] if args.replay else [])
+                                 + ([f"score {score_path}"] if score_path else []))
 
             link = ConsoleLink(args.console, model, state, hub.presets, console, fps, hub.morph, args.console_token,
                                args.presets, sources)
@@ -243,6 +265,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         outputs += [OscOutput(t, profiles[t.profile], console) for t in targets]
         if args.console:
             outputs.append(link.output)  # after the OSC targets: their datagrams leave first at the deadline
+        health = Health(console, outputs, devices, SystemdNotifier(), health_every, args.status_port)
         # files last: a start-up that fails leaves nothing behind, so the corrected command runs
         if args.bvh:
             outputs.append(RecorderOutput(args.bvh, model, fps, replace=args.force))
@@ -250,30 +273,37 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         if args.record:
             hub.start_recording(args.record, header_line(mappings), replace=args.force)
     except UserError:
-        for thing in outputs + devices + ([hub] if hub else []):
+        for thing in outputs + devices + [t for t in (hub, health) if t is not None]:
             thing.close()
         for path in created:
             Path(path).unlink(missing_ok=True)
         raise
     if not args.quiet:
-        sources = [d.describe() for d in devices] + ([f"log {replay_path}"] if replay_path else [])
+        sources = [d.describe() for d in devices] + ([f"log {args.replay}"] if args.replay else [])
+        sources += [f"score {score_path}"] if score_path else []
+        sources += [f"attract after {attract.after / 60:g} min of no input"] if attract else []
         console.say(f"model {args.model or default_model_path()}; {fps:g} fps; controls: {', '.join(sources) or 'none'}; "
                     f"OSC to {', '.join(map(str, targets)) or 'nowhere'}" + (f"; recording {args.bvh}" if args.bvh else ""))
     if not args.fast and not args.normal_priority:
         refused = realtime_scheduling()
         if refused and not args.quiet:
             console.say(f"realtime scheduling {refused}: running at normal priority (frames may be late on a busy machine)")
+    live_sources = [d.poll for d in devices]
+    if attract:
+        live_sources = [Attract(attract, live_sources, state, console).poll]
     try:
         if stop:  # asked to stop during start-up: close everything (a BVH with no frame is removed)
             for output in outputs:
                 output.close()
             console.say(f"stopped by {stop.by} before the first frame")
             return 0
-        summary = perform(model, outputs, console, fps, seconds, replay, live_sources=[d.poll for d in devices], fast=args.fast,
-                          apply=hub.apply, describe_sources=lambda: ", ".join(d.describe() for d in devices) or "replay",
-                          state=state, stop=stop)
+        summary = perform(model, outputs, console, fps, seconds, replay, live_sources=live_sources, fast=args.fast,
+                          apply=hub.apply,
+                          describe_sources=lambda: ", ".join(d.describe() for d in devices) or ("score" if score_path else "replay"),
+                          state=state, stop=stop, on_frame=health.frame)
     finally:
-        for thing in devices + [hub]:
+        health.notifier.stopping()
+        for thing in devices + [hub, health, health.notifier]:
             thing.close()
         console.flush()
     refused = dict(hub.refused)

@@ -8,6 +8,7 @@ Targets (what each accepts, and the one check every input goes through: control/
     turn                    steering, radians per second (positive turns left)
     liveliness              0: every step alike; 1: durations drawn from the model
     reset                   any value: everything back to the start
+    cue                     a press: a score waiting for the performer goes on
 
 Presets are named sets of target values; recalling one moves there at once or over a morph
 time, by performance time (so a replayed performance morphs identically).
@@ -27,6 +28,7 @@ class ControlState:
         self.style_names = list(style_names)
         self.style_index = {name: k for k, name in enumerate(self.style_names)}
         self.states = states
+        self.cue_presses = 0  # how often the performer pressed the score's cue button (a reset keeps it)
         self.reset()
 
     def reset(self) -> None:
@@ -41,7 +43,7 @@ class ControlState:
     def targets(self) -> list[str]:
         names = [f"style/{s}" for s in self.style_names]
         names += [f"part/{s}/{g}" for s in self.style_names for g in GROUPS]
-        names += ["speed", "turn", "liveliness", "reset"] + [f"phase/{k + 1}" for k in range(self.states)]
+        names += ["speed", "turn", "liveliness", "reset", "cue"] + [f"phase/{k + 1}" for k in range(self.states)]
         return names
 
     def knows(self, target: str) -> bool:
@@ -68,6 +70,8 @@ class ControlState:
         elif kind == "reset":
             if value > 0:  # a button's press, not its release
                 self.reset()
+        elif kind == "cue":
+            self.cue_presses += value > 0
         else:  # speed, turn, liveliness
             setattr(self, kind, value)
         return True
@@ -80,6 +84,8 @@ class ControlState:
             return float(self.part_weights[self.style_index[parts[1]], GROUPS.index(parts[2])])
         if parts[0] == "phase":
             return float(self.state_scale[int(parts[1]) - 1])
+        if target == "cue":  # a button with no value to show
+            return 0.0
         return float(getattr(self, target))
 
     def recall(self, preset: dict[str, float], now: float, seconds: float = 0.0) -> None:

@@ -43,6 +43,7 @@ TABLE: dict[str, Target] = {
     "turn": Target("turn", -MAX_TURN, MAX_TURN, "steering, radians per second (positive turns left)"),
     "liveliness": Target("liveliness", 0.0, 1.0, "0: every step alike; 1: durations drawn from the model"),
     "reset": Target("reset", -math.inf, math.inf, "a value above 0: everything back to the start"),
+    "cue": Target("cue", -math.inf, math.inf, "a value above 0: a score waiting for the performer goes on"),
 }
 
 # raw controls of devices as they appear in events and logs: id pattern -> highest raw value
@@ -74,7 +75,7 @@ def kind_of(target: object, style_index: dict[str, int], states: int) -> str | N
     if head == "phase" and len(parts) == 2 and re.fullmatch(r"[1-9][0-9]{0,3}", parts[1], re.ASCII) \
             and int(parts[1]) <= states:
         return head
-    if len(parts) == 1 and head in ("speed", "turn", "liveliness", "reset"):
+    if len(parts) == 1 and head in ("speed", "turn", "liveliness", "reset", "cue"):
         return head
     return None
 

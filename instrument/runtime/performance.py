@@ -106,12 +106,14 @@ def perform(
     timing: list[float] | None = None,
     state: ControlState | None = None,
     stop: StopFlag | None = None,
+    on_frame: Callable[[int, FrameClock, Summary], None] | None = None,
 ) -> Summary:
     """Run until `seconds` of performance time, the end of a non-looping replay, or Ctrl-C.
 
     `timing`, when given, receives each frame's send time minus its deadline (seconds).
     `stop` is the flag Ctrl-C and SIGTERM set (installed here unless the caller did, so that a
-    stop during its start-up is kept too)."""
+    stop during its start-up is kept too).
+    `on_frame`, when given, is called after each frame is sent (health, the systemd watchdog)."""
     state = state or ControlState(model.style_names, model.states)
     apply = apply or ControlHub([], console=console).apply  # checked, counted and warned as a show's events are
     engine = Engine(model, lookahead)
@@ -183,6 +185,8 @@ def perform(
             if timing is not None:
                 timing.append(sent_at - clock.deadline())
             summary.frames += 1
+            if on_frame is not None:
+                on_frame(index, clock, summary)
             if not fast and sent_at - last_status >= STATUS_EVERY:
                 last_status = sent_at
                 console.status(_status(index, fps, clock, state, describe_sources()))

@@ -1,0 +1,314 @@
+"""Scores: a TOML file of timed cues that plays a performance on its own (format in docs/scores.md).
+
+A score is a control source like a controller log: each frame it hands out control events
+("score" source, target = value), which go through the same hub as every other event. So live
+input rides on top of it, `--record` writes what it did as plain target values, and that log
+replays the performance byte for byte without the score.
+
+Cues run in file order. Each starts `at` a time of the score's clock or `after` the previous cue
+has finished, never before the previous cue has started. A ramp (or a preset's recall, a ramp
+of each of its targets) moves from where the target stands to its value over `over` seconds of
+performance time; a performer who moves a ramped target takes it over and the ramp lets go. A
+`wait` stops the score's clock until the performer presses the control mapped to `cue`; a
+`repeat` jumps back to a marked cue.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import UserError
+from ..tomlfile import read_toml
+from .events import ControlEvent
+from .state import ControlState
+
+SOURCE = "score"
+CURVES = ("linear", "ease")
+ACTIONS = ("ramp", "preset", "hold", "wait", "repeat")
+CUE_KEYS = ("at", "after", "mark", "over", "curve", "times") + ACTIONS
+TOP_KEYS = ("name", "loop", "presets", "cue")
+
+
+@dataclass(frozen=True)
+class Cue:
+    line: int  # where it starts in its file, for messages
+    at: float | None = None  # seconds of the score's clock
+    after: float = 0.0  # seconds after the previous cue finished (when `at` is not given)
+    ramp: dict[str, float] = field(default_factory=dict)  # target -> value (a preset's values too)
+    over: float = 0.0  # seconds a ramp takes
+    curve: str = "linear"
+    hold: float = 0.0
+    wait: bool = False
+    repeat: int | None = None  # index of the cue to go back to
+    times: int | None = None  # how many more times (None: for ever)
+    mark: str | None = None
+
+
+@dataclass(frozen=True)
+class Score:
+    name: str
+    path: str
+    cues: tuple[Cue, ...]
+    loop: bool = False
+
+
+def _number(value: object) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def load_score(path: str | Path, state: ControlState, presets: dict[str, dict[str, float]] | None = None,
+               loop: bool | None = None) -> Score:
+    """Read and check a score against the model's targets and the known presets; a mistake is
+    one line naming the file, the line and the key."""
+    path = Path(path)
+    text, data = read_toml(path)
+    starts = [m.start() for m in re.finditer(r"^\s*\[\[cue\]\]", text, re.MULTILINE)]
+
+    def line_of(key: str, begin: int = 0) -> int:
+        found = re.search(rf"(^|[{{,])\s*\"?{re.escape(key)}\"?\s*=", text[begin:], re.MULTILINE)  # also inside { }
+        return text.count("\n", 0, begin + found.start()) + 1 if found else text.count("\n", 0, begin) + 1
+
+    def fail(message: str, key: str, index: int | None = None) -> UserError:
+        begin = starts[index] if index is not None and index < len(starts) else 0
+        return UserError(f"{path}:{line_of(key, begin)}: {key}: {message}")
+
+    for key in data:
+        if key not in TOP_KEYS:
+            raise fail(f"unknown key (expected one of {', '.join(TOP_KEYS)})", key)
+    if not isinstance(data.get("loop", False), bool):
+        raise fail("expected true or false", "loop")
+    known = dict(presets or {})
+    own = data.get("presets", {})
+    if not isinstance(own, dict):
+        raise fail("expected [presets.NAME] tables", "presets")
+    for name, values in own.items():
+        if not isinstance(values, dict):
+            raise fail("a preset is a table of target = number", name)
+        known[name] = _values(values, state, lambda message, key: fail(message, key))
+    raw = data.get("cue", [])
+    if not isinstance(raw, list) or not raw:
+        raise UserError(f"{path}:1: cue: a score needs [[cue]] tables")
+    cues: list[Cue] = []
+    marks: dict[str, int] = {}
+    for index, item in enumerate(raw):
+        cue = _cue(item, index, state, known, marks, lambda message, key, i=index: fail(message, key, i),
+                   line=text.count("\n", 0, starts[index]) + 1 if index < len(starts) else 1)
+        if cue.at is not None:
+            earlier = [c.at for c in cues if c.at is not None]
+            if earlier and cue.at < earlier[-1]:
+                raise fail(f"{cue.at:g} is before the previous cue's at = {earlier[-1]:g} (cues run in order)", "at", index)
+        if cue.repeat is not None and not _lasts(cues[cue.repeat:], cues[cue.repeat].at or 0.0):
+            raise fail("the section from its mark takes no time (add a hold, a wait or a ramp's over)", "repeat", index)
+        if cue.mark is not None:
+            marks[cue.mark] = index
+        cues.append(cue)
+    if (data.get("loop", False) if loop is None else loop) and not _lasts(cues):
+        raise fail("a looping score must take some time (add a hold or a ramp's over)", "loop")
+    return Score(str(data.get("name", path.stem)), str(path), tuple(cues), data.get("loop", False) if loop is None else loop)
+
+
+def _lasts(cues: list[Cue], since: float = 0.0) -> bool:
+    """Whether playing these cues takes time from score clock `since` (so repeating them cannot spin)."""
+    return any(c.wait or c.hold > 0 or c.over > 0 or c.after > 0 or (c.at or 0.0) > since for c in cues)
+
+
+def _values(values: dict, state: ControlState, fail) -> dict[str, float]:
+    """target = number pairs, each a target the state knows and a value inside its range."""
+    probe = ControlState(state.style_names, state.states)
+    out = {}
+    for target, value in values.items():
+        if target in ("reset", "cue") or not state.knows(target):
+            raise fail("not a target a score can move (style/<name>, part/<style>/<group>, speed, turn, "
+                       "liveliness, phase/<k>)", target)
+        if not _number(value):
+            raise fail("expected a number", target)
+        probe.set(target, float(value))
+        if probe.get(target) != float(value):
+            raise fail(f"{value} is out of range (this target goes to {probe.get(target):g})", target)
+        out[target] = float(value)
+    return out
+
+
+def _cue(item: object, index: int, state: ControlState, presets: dict, marks: dict, fail, line: int) -> Cue:
+    if not isinstance(item, dict):
+        raise fail("must be a table", "cue")
+    for key in item:
+        if key not in CUE_KEYS:
+            raise fail(f"unknown key (expected one of {', '.join(CUE_KEYS)})", key)
+    actions = [a for a in ACTIONS if a in item]
+    if len(actions) != 1:
+        raise fail(f"a cue does one thing: one of {', '.join(ACTIONS)}" + (f", not {' and '.join(actions)}" if actions else ""),
+                   actions[1] if len(actions) > 1 else "cue")
+    action = actions[0]
+    if "at" in item and "after" in item:
+        raise fail("give at or after, not both", "after")
+    for key in ("at", "after", "over", "hold"):
+        if key in item and not (_number(item[key]) and item[key] >= 0):
+            raise fail("expected a number of seconds, 0 or more", key)
+    for key in ("over", "curve"):
+        if key in item and action not in ("ramp", "preset"):
+            raise fail(f"only for a ramp or a preset, not for {action}", key)
+    if "times" in item and action != "repeat":
+        raise fail("only for a repeat", "times")
+    curve = item.get("curve", "linear")
+    if curve not in CURVES:
+        raise fail(f"{curve!r} is not one of {', '.join(CURVES)}", "curve")
+    mark = item.get("mark")
+    if mark is not None and (not isinstance(mark, str) or mark in marks):
+        raise fail("expected a name no other cue has", "mark")
+    kwargs: dict = {}
+    if action == "ramp":
+        if not isinstance(item["ramp"], dict) or not item["ramp"]:
+            raise fail("expected a table of target = value, e.g. { \"style/elderly\" = 1.0 }", "ramp")
+        kwargs["ramp"] = _values(item["ramp"], state, fail)
+    elif action == "preset":
+        if item["preset"] not in presets:
+            raise fail(f"no preset {item['preset']!r} (known: {', '.join(sorted(presets)) or 'none'})", "preset")
+        kwargs["ramp"] = dict(presets[item["preset"]])
+    elif action == "hold":
+        if item["hold"] <= 0:
+            raise fail("expected a positive number of seconds", "hold")
+        kwargs["hold"] = float(item["hold"])
+    elif action == "wait":
+        if item["wait"] != "cue":
+            raise fail("the only thing to wait for is \"cue\" (the performer's control mapped to target cue)", "wait")
+        kwargs["wait"] = True
+    else:
+        if item["repeat"] not in marks:
+            raise fail(f"no earlier cue has mark = {item['repeat']!r}", "repeat")
+        times = item.get("times")
+        if times is not None and not (isinstance(times, int) and not isinstance(times, bool) and times >= 1):
+            raise fail("expected a whole number, 1 or more", "times")
+        kwargs.update(repeat=marks[item["repeat"]], times=times)
+    return Cue(line=line, at=float(item["at"]) if "at" in item else None, after=float(item.get("after", 0.0)),
+               over=float(item.get("over", 0.0)), curve=curve, mark=mark, **kwargs)
+
+
+def preset_tour(names: list[str], presets: dict[str, dict[str, float]], morph: float, hold: float) -> Score:
+    """A looping score that drifts through presets: morph into each, stay a while, go on."""
+    cues = []
+    for name in names:
+        cues.append(Cue(line=0, ramp=dict(presets[name]), over=morph, curve="ease"))
+        cues.append(Cue(line=0, hold=hold))
+    return Score("preset tour", "attract", tuple(cues), loop=True)
+
+
+def eased(share: float, curve: str) -> float:
+    """Share of a ramp done, shaped: linear, or ease (smoothstep: slow in, slow out)."""
+    return share if curve == "linear" else share * share * (3.0 - 2.0 * share)
+
+
+@dataclass
+class _Ramp:
+    start: float  # performance time
+    over: float
+    first: float
+    last: float
+    curve: str
+    sent: float | None = None  # the value last handed out
+
+    def value(self, now: float) -> float:
+        share = 1.0 if self.over <= 0 else min(max((now - self.start) / self.over, 0.0), 1.0)
+        return self.last if share >= 1.0 else self.first + (self.last - self.first) * eased(share, self.curve)
+
+
+class ScorePlayer:
+    """Plays a score by performance time: `due(now)` gives the events up to `now`.
+
+    It may be asked many times for the same `now` (the live loop reads sources while it
+    waits): a value is handed out once, when it changes. Same interface as LogReplay."""
+
+    def __init__(self, score: Score, state: ControlState, start: float = 0.0, source: str = SOURCE):
+        self.score, self.state, self.source = score, state, source
+        self.loop = score.loop
+        self.events = score.cues  # truthy: there is something to play
+        self.offset = start  # performance time = score clock + offset (grows while waiting)
+        self.index = 0  # the next cue to start
+        self.previous_start = self.previous_end = 0.0  # score clock
+        self.busy_until = 0.0  # score clock: when the cues started so far are all done
+        self.started: dict[int, float] = {}  # cue index -> score clock at its start (for repeats)
+        self.repeats_left: dict[int, int | None] = {}
+        self.waiting: float | None = None  # score clock of a running wait
+        self.presses = 0
+        self.ramps: dict[str, _Ramp] = {}
+        self.done = False
+
+    @property
+    def finished(self) -> bool:
+        return self.done
+
+    def due(self, now: float) -> list[ControlEvent]:
+        for target in [t for t, r in self.ramps.items() if r.sent is not None and self.state.get(t) != r.sent]:
+            del self.ramps[target]  # someone else moved it: the performer has it now
+        self._start_cues(now)
+        events = []
+        for target, ramp in list(self.ramps.items()):
+            value = ramp.value(now)
+            if value != ramp.sent:
+                ramp.sent = value
+                events.append(ControlEvent(now, self.source, target, value))
+            if now >= ramp.start + ramp.over:
+                del self.ramps[target]
+        return events
+
+    def _start_cues(self, now: float) -> None:
+        cues = self.score.cues
+        while not self.done:
+            if self.waiting is not None:
+                self.offset = now - self.waiting  # the score's clock stood still until now
+                if self.state.cue_presses == self.presses:
+                    return
+                self.previous_end = self.busy_until = max(self.busy_until, self.waiting)
+                self.waiting = None
+                self.index += 1
+                continue
+            clock = now - self.offset
+            if self.index >= len(cues):
+                if clock < self.busy_until or self.ramps:
+                    return
+                if not self.loop:
+                    self.done = True
+                    return
+                self.offset += self.busy_until  # the next pass starts where this one ended
+                self.index, self.previous_start, self.previous_end, self.busy_until = 0, 0.0, 0.0, 0.0
+                self.started.clear()
+                continue
+            cue = cues[self.index]
+            start = max(cue.at if cue.at is not None else self.previous_end + cue.after, self.previous_start)
+            if start > clock:
+                return
+            self.started[self.index] = start
+            self.previous_start = start
+            end = start
+            if cue.ramp:
+                begin = start + self.offset
+                for target, value in cue.ramp.items():
+                    if target in self.ramps:  # from where the ramp it replaces stands at this moment
+                        first = self.ramps[target].value(begin)
+                    else:
+                        first = self.state.get(target)
+                    if math.isnan(first):  # a part weight that follows its style
+                        first = self.state.get("style/" + target.split("/")[1])
+                    self.ramps[target] = _Ramp(begin, cue.over, first, value, cue.curve)
+                end = start + cue.over
+            elif cue.hold:
+                end = start + cue.hold
+            elif cue.wait:
+                self.waiting, self.presses = start, self.state.cue_presses
+                continue
+            elif cue.repeat is not None:
+                left = self.repeats_left.get(self.index, cue.times)
+                if left is None or left > 0:
+                    self.repeats_left[self.index] = None if left is None else left - 1
+                    back = cue.repeat
+                    self.offset += start - self.started[back]  # the section plays again from here, same spacing
+                    self.index, self.previous_start, self.previous_end = back, self.started[back], self.started[back]
+                    self.busy_until = self.started[back]
+                    continue
+                self.repeats_left.pop(self.index, None)  # done: counts afresh if the section comes round again
+            self.previous_end = end
+            self.busy_until = max(self.busy_until, end)
+            self.index += 1

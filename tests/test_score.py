@@ -1,0 +1,258 @@
+"""Scores: timed cues played by performance time, recorded as a log that replays byte for byte,
+live input on top, waits for the performer's cue button, and one-line errors for bad files."""
+
+import filecmp
+import subprocess
+import sys
+import time
+
+import pytest
+
+from conftest import REPO
+from instrument.control.events import ControlEvent
+from instrument.control.score import ScorePlayer, eased, load_score
+from instrument.control.state import ControlState
+from instrument.models.modelfile import default_model_path, load_model
+from instrument.motion.bvh import read_bvh
+from oscrecv import Receiver, free_port
+
+RUN = [sys.executable, "-m", "instrument", "run"]
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_model(default_model_path())
+
+
+def state_of(model) -> ControlState:
+    return ControlState(model.style_names, model.states)
+
+
+def play(player: ScorePlayer, state: ControlState, seconds: float, fps: float = 30.0, press_at=(), hands=None) -> dict:
+    """Frame by frame as the live loop does: the score's events applied to the state; returns
+    each frame's time -> (elderly, speed). `hands` moves targets at given frames, as a performer."""
+    seen = {}
+    for k in range(int(seconds * fps)):
+        now = k / fps
+        if k in press_at:
+            state.set("cue", 1.0)
+        for target, value in (hands or {}).get(k, {}).items():
+            state.set(target, value)
+        for event in player.due(now):
+            assert event.source == "score" and event.time == now
+            assert state.set(event.control, event.value)
+        seen[k] = (state.get("style/elderly"), state.speed)
+    return seen
+
+
+def write(tmp_path, text: str, name: str = "s.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_ramps_follow_their_curves_at_and_after_cues(model, tmp_path):
+    path = write(tmp_path, """
+[[cue]]
+at = 1
+ramp = { "style/elderly" = 1.0 }
+over = 2
+
+[[cue]]
+after = 1                       # one second after the ramp above has finished: at 4 s
+ramp = { "style/elderly" = 0.0, speed = 2.0 }
+over = 1
+curve = "ease"
+""")
+    state = state_of(model)
+    seen = play(ScorePlayer(load_score(path, state), state), state, 6.0)
+    assert seen[30] == (0.0, 1.0)
+    assert seen[60][0] == pytest.approx(0.5)  # halfway through the linear ramp
+    assert seen[90] == (1.0, 1.0) and seen[119] == (1.0, 1.0)
+    assert seen[128][0] == pytest.approx(1.0 - eased(8 / 30, "ease")) and seen[128][0] > 1.0 - 8 / 30  # slow in
+    assert eased(0.25, "ease") < 0.25 and eased(0.75, "ease") > 0.75 and eased(0.5, "ease") == 0.5
+    assert seen[150] == (0.0, 2.0) and seen[179] == (0.0, 2.0)
+
+
+def test_a_wait_stops_the_score_until_the_cue_button_and_a_repeat_plays_a_section_again(model, tmp_path):
+    path = write(tmp_path, """
+[presets.old]
+"style/elderly" = 1.0
+speed = 0.5
+
+[[cue]]
+wait = "cue"
+
+[[cue]]
+mark = "verse"
+preset = "old"
+over = 1
+
+[[cue]]
+ramp = { "style/elderly" = 0.0, speed = 1.0 }
+over = 1
+
+[[cue]]
+repeat = "verse"
+times = 1
+""")
+    state = state_of(model)
+    player = ScorePlayer(load_score(path, state), state)
+    state.set("cue", 1.0)  # a press before the score waits does not count
+    seen = play(player, state, 8.0, press_at={60})
+    assert all(seen[k] == (0.0, 1.0) for k in range(61))  # waiting for the performer
+    assert seen[75][0] == pytest.approx(0.5) and seen[90] == (1.0, 0.5)  # the preset, over a second
+    assert seen[120] == (0.0, 1.0)
+    assert seen[135][0] == pytest.approx(0.5) and seen[150] == (1.0, 0.5)  # the section again, once
+    assert seen[180] == (0.0, 1.0) and seen[239] == (0.0, 1.0)
+    assert player.finished
+
+
+def test_a_performer_takes_a_ramped_target_over_and_a_loop_starts_again(model, tmp_path):
+    path = write(tmp_path, """
+loop = true
+[[cue]]
+ramp = { "style/elderly" = 2.0, speed = 2.0 }
+over = 2
+[[cue]]
+hold = 1
+""")
+    state = state_of(model)
+    seen = play(ScorePlayer(load_score(path, state), state), state, 4.0, hands={30: {"style/elderly": -1.0}})
+    assert seen[29][0] > 0.9 and seen[30][0] == -1.0 and seen[59][0] == -1.0  # the performer has it now
+    assert seen[60] == (-1.0, 2.0)  # the score kept the other target
+    assert seen[90][0] == -1.0 and seen[105][0] == pytest.approx(-1.0 + 3.0 * 15 / 60)  # the loop ramps it from there again
+
+
+def test_demo_score_plays_the_demo(model):
+    state = state_of(model)
+    player = ScorePlayer(load_score(REPO / "examples" / "demo" / "demo.toml", state, loop=True), state)
+    seen = play(player, state, 130.0)
+    assert max(v[0] for v in seen.values()) == 1.0  # elderly up to 1 between 4 and 8 s
+    assert seen[8 * 30][0] == 1.0 and seen[63 * 30] == (0.0, 1.0) and seen[67 * 30][0] == 1.0  # and again after 59 s
+    assert not player.finished
+
+
+def test_score_and_its_recorded_log_give_the_same_bvh_byte_for_byte(tmp_path):
+    score = write(tmp_path, """
+[presets.tired]
+"style/exhausted" = 1.0
+speed = 0.7
+
+[[cue]]
+at = 0.5
+ramp = { "style/elderly" = 1.5, turn = 0.4 }
+over = 1.2
+curve = "ease"
+
+[[cue]]
+preset = "tired"
+over = 0.7
+
+[[cue]]
+hold = 0.5
+
+[[cue]]
+ramp = { "style/elderly" = -0.5, "part/feminine/upper" = 1.0 }
+over = 0.9
+""")
+    log, by_score, by_log, live = tmp_path / "take.jsonl", tmp_path / "score.bvh", tmp_path / "log.bvh", tmp_path / "live.bvh"
+    common = ["--no-osc", "--quiet", "--seconds", "4"]
+    first = subprocess.run(RUN + ["--score", str(score), "--fast", "--record", str(log), "--bvh", str(by_score)] + common,
+                           capture_output=True, text=True, timeout=120)
+    assert first.returncode == 0, first.stderr
+    second = subprocess.run(RUN + ["--replay", str(log), "--fast", "--bvh", str(by_log)] + common, capture_output=True, text=True,
+                            timeout=120)
+    assert second.returncode == 0, second.stderr
+    third = subprocess.run(RUN + ["--score", str(score), "--bvh", str(live)] + common, capture_output=True, text=True, timeout=120)
+    assert third.returncode == 0, third.stderr
+    lines = log.read_text().splitlines()
+    assert len(lines) > 60 and all('"source": "score"' in line for line in lines)
+    assert filecmp.cmp(by_score, by_log, shallow=False)
+    assert filecmp.cmp(by_score, live, shallow=False)  # realtime plays the same frames
+    assert read_bvh(by_score).frames == 120
+
+
+def test_a_score_played_once_ends_a_fast_render(tmp_path):
+    score = write(tmp_path, '[[cue]]\nat = 1\nramp = { speed = 1.5 }\nover = 1\n')
+    out = tmp_path / "walk.bvh"
+    result = subprocess.run(RUN + ["--score", str(score), "--fast", "--no-osc", "--quiet", "--bvh", str(out)],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert 60 <= read_bvh(out).frames <= 62  # the score's two seconds
+
+
+def messages_per_frame(receiver: Receiver, address: str) -> list[float]:
+    out, value = [], None
+    for a, params in receiver.messages():
+        if a == address:
+            value = params[0]
+        elif a == "/walk/frame":
+            out.append(value)
+    return out
+
+
+def test_live_osc_rides_on_top_and_the_cue_button_releases_a_wait(tmp_path):
+    """Real UDP both ways: the score waits for /walk/cue from a surface, while the surface moves
+    a target of its own that the score does not touch."""
+    from pythonosc.udp_client import SimpleUDPClient
+
+    score = write(tmp_path, '[[cue]]\nwait = "cue"\n[[cue]]\nramp = { "style/elderly" = 1.0 }\nover = 0.5\n'
+                            '[[cue]]\nhold = 600\n')
+    control_port, receiver = free_port(), Receiver()
+    process = subprocess.Popen(RUN + ["--score", str(score), "--osc-in", str(control_port), "--osc",
+                                      f"127.0.0.1:{receiver.port}/flat", "--seconds", "120", "--quiet"],
+                               stderr=subprocess.PIPE, text=True)
+    surface = SimpleUDPClient("127.0.0.1", control_port)
+    try:
+        deadline = time.monotonic() + 60
+        while len(messages_per_frame(receiver, "/walk/speed")) < 15 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        surface.send_message("/walk/speed", 1.6)
+        while 1.6 not in [round(v, 3) for v in messages_per_frame(receiver, "/walk/speed")] and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.5)
+        assert set(messages_per_frame(receiver, "/walk/style/elderly")) == {0.0}  # still waiting for the cue
+        surface.send_message("/walk/cue", 1.0)
+        while 1.0 not in messages_per_frame(receiver, "/walk/style/elderly") and time.monotonic() < deadline:
+            time.sleep(0.05)
+    finally:
+        process.terminate()
+        stderr = process.communicate(timeout=60)[1]
+        receiver.close()
+    assert process.returncode == 0, stderr
+    elderly = messages_per_frame(receiver, "/walk/style/elderly")
+    assert elderly[-1] == 1.0 and len(set(elderly)) > 5  # ramped, not jumped
+    assert messages_per_frame(receiver, "/walk/speed")[-1] == pytest.approx(1.6)  # the surface's value stayed
+
+
+@pytest.mark.parametrize("text,message", [
+    ('[[cue]]\nat = 1\nramp = { "style/sleepy" = 1 }\n', "s.toml:3: style/sleepy: not a target a score can move"),
+    ('[[cue]]\nramp = { speed = 1 }\n\n[[cue]]\nhold = 1\nover = 2\n', "s.toml:6: over: only for a ramp or a preset"),
+    ('[[cue]]\nramp = { speed = 9 }\n', "s.toml:2: speed: 9 is out of range"),
+    ('[[cue]]\npreset = "nowhere"\n', "s.toml:2: preset: no preset 'nowhere'"),
+    ('[[cue]]\nhold = 1\n[[cue]]\nrepeat = "x"\n', "s.toml:4: repeat: no earlier cue has mark = 'x'"),
+    ('[[cue]]\nhold = 1\nwait = "cue"\n', "s.toml:3: wait: a cue does one thing"),
+    ('[[cue]]\nat = 2\nhold = 1\n[[cue]]\nat = 1\nhold = 1\n', "s.toml:5: at: 1 is before the previous cue's at = 2"),
+    ('[[cue]]\nramp = { speed = 1 }\ncurve = "bouncy"\n', "s.toml:3: curve: 'bouncy' is not one of linear, ease"),
+    ('tempo = 120\n[[cue]]\nhold = 1\n', "s.toml:1: tempo: unknown key"),
+    ('loop = true\n[[cue]]\nramp = { speed = 1 }\n', "s.toml:1: loop: a looping score must take some time"),
+    ('[[cue]]\nwait = "applause"\n', "s.toml:2: wait: the only thing to wait for is \"cue\""),
+    ('[[cue]]\nhold = -1\n', "s.toml:2: hold: expected a number of seconds"),
+    ('[[cue\n', "s.toml: "),
+])
+def test_bad_scores_are_one_line_errors_with_file_line_and_key(tmp_path, text, message):
+    path = write(tmp_path, text)
+    result = subprocess.run(RUN + ["--score", str(path), "--no-osc", "--seconds", "1"], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 1
+    assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert "Traceback" not in result.stderr
+
+
+def test_a_show_file_plays_a_score(tmp_path):
+    write(tmp_path, '[[cue]]\nramp = { "style/elderly" = 0.5 }\nover = 0.5\n', "cues.toml")
+    show = write(tmp_path, 'seconds = 2\nno-osc = true\nquiet = true\nscore = "cues.toml"\nrecord = "take.jsonl"\n', "show.toml")
+    result = subprocess.run(RUN + ["--config", str(show)], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    last = (tmp_path / "take.jsonl").read_text().splitlines()[-1]
+    assert ControlEvent(0.5, "score", "style/elderly", 0.5).to_json() == last
