@@ -166,7 +166,8 @@ over = 0.9
     assert second.returncode == 0, second.stderr
     third = subprocess.run(RUN + ["--score", str(score), "--bvh", str(live)] + common, capture_output=True, text=True, timeout=120)
     assert third.returncode == 0, third.stderr
-    lines = log.read_text().splitlines()
+    header, *lines = log.read_text().splitlines()
+    assert "instrument_log" in header  # what a replay needs comes first (control.loghead)
     assert len(lines) > 60 and all('"source": "score"' in line for line in lines)
     assert filecmp.cmp(by_score, by_log, shallow=False)
     assert filecmp.cmp(by_score, live, shallow=False)  # realtime plays the same frames

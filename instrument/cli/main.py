@@ -25,7 +25,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "train": ("train_cmd", "train style models from BVH takes"),
     "info": ("info_cmd", "describe a model file: styles, states, durations, provenance, licence"),
     "synth": ("synth_cmd", "synthesize a walk with given style weights and write it as BVH"),
-    "evaluate": ("evaluate_cmd", "measure a model's walks against real takes"),
+    "evaluate": ("evaluate_cmd", "measure a model's walks (skate, floor, ranges, drift, recognisability) against real takes"),
     "bench": ("bench_cmd", "measure parsing and synthesis speed on this machine"),
     "skeleton": ("skeleton_cmd", "write the model's skeleton as a one-frame BVH: a T-pose rest to rig, or the template"),
     "render": ("render_cmd", "draw a BVH recording: contact sheet (.png) or animation (.gif)"),

@@ -265,13 +265,14 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         outputs += [OscOutput(t, profiles[t.profile], console) for t in targets]
         if args.console:
             outputs.append(link.output)  # after the OSC targets: their datagrams leave first at the deadline
-        health = Health(console, outputs, devices, SystemdNotifier(), health_every, args.status_port)
         # files last: a start-up that fails leaves nothing behind, so the corrected command runs
         if args.bvh:
             outputs.append(RecorderOutput(args.bvh, model, fps, replace=args.force))
             created.append(args.bvh)
         if args.record:
             hub.start_recording(args.record, header_line(mappings), replace=args.force)
+            created.append(args.record)
+        health = Health(console, outputs, devices, SystemdNotifier(), health_every, args.status_port)  # watches every output
     except UserError:
         for thing in outputs + devices + [t for t in (hub, health) if t is not None]:
             thing.close()

@@ -46,6 +46,8 @@ def build_model(
     styles, adapted = adapt_styles(average, per_style, floors, report.warnings, adaptation)
     contact, contact_metadata = train_contact(layout, takes, average, styles, style_names, fps, states)
     average, styles = symmetric_models(average, styles, layout.dimension)  # straight at turn = 0
+    for k, style in enumerate(style_names):  # the shortest state as the shipped model has it (mirroring shares durations)
+        adapted[style].min_duration = float(styles.duration_means[k].min())
     dimension = layout.dimension
     step_max = np.max([np.abs(np.diff(t.observations[:, :dimension], axis=0)).max(axis=0) for t in takes], axis=0)
     static_std = np.vstack([t.observations[:, :dimension] for t in takes]).std(axis=0)
