@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from instrument.models.modelfile import default_model_path, load_model
+from instrument.runtime.pose import PoseStream
 from instrument.synthesis.interpolation import style_space
 from instrument.synthesis.offline import default_controls, generate_with_states
 from instrument.synthesis.stream import Controls, Crowd
@@ -46,20 +47,26 @@ def test_a_widened_walk_has_the_variance_training_learnt_from_the_data(model, sp
         np.testing.assert_array_equal(factor[list(KEPT)], 1.0)
 
 
-def test_a_style_change_shows_in_the_next_frame_without_a_jump(model, space):
+@pytest.mark.parametrize("style, weight", [("feminine", 2.0), ("masculine", -1.0), ("elderly", 1.0), ("active", 1.0)])
+def test_a_style_change_shows_in_the_next_frame_without_a_jump(model, space, style, weight):
     names = model.style_names
     calm = np.zeros(len(names))
-    bold = np.eye(len(names))[names.index("feminine")] * 2.0
+    bold = np.eye(len(names))[names.index(style)] * weight
     steady, _ = _widened(model, space, [calm] * 90)
     changed, _ = _widened(model, space, [calm] * 60 + [bold] * 30)
     np.testing.assert_array_equal(steady[:60], changed[:60])
     assert np.abs(steady[60] - changed[60]).max() > 1e-3
-    # no feature moves further across the jump than the walk itself moves in a frame (plus 20%)
-    scale = model.static_std
-    moves = np.abs(np.diff(changed[55:75], axis=0)) / scale
-    before = np.abs(np.diff(steady[:60], axis=0)) / scale
-    after = np.abs(np.diff(changed[70:], axis=0)) / scale
-    assert moves.max() < 1.2 * max(before.max(), after.max())
+    # joints move across the change no further in a frame than the unwidened walk's do across it
+    # (plus 20%; measured 0.98-1.14x over every style at 1, 2 and -1)
+    walker = Crowd(space)
+    raw = [walker.step([Controls(w)])[0] for w in [calm] * 60 + [bold] * 30]
+
+    def largest_move(frames):
+        poses = PoseStream(model.layout, model.fps)
+        positions = np.array([poses.next(f).world_positions for f in frames])
+        return np.linalg.norm(np.diff(positions[55:75], axis=0), axis=2).max()
+
+    assert largest_move(changed) < 1.2 * largest_move(raw)
 
 
 def test_a_model_without_range_statistics_walks_as_before(model, space):
@@ -72,3 +79,21 @@ def test_a_model_without_range_statistics_walks_as_before(model, space):
     widened, _ = generate_with_states(space, model.layout.dimension, controls, 60, "stream", 32, 0, range_space(model))
     assert np.abs(widened - plain).max() > 1e-3
     np.testing.assert_array_equal(widened[:, list(KEPT)], plain[:, list(KEPT)])  # path and speed as made
+
+
+def test_blends_are_widened_and_extrapolations_walk_as_made(model):
+    rng = range_space(model)
+    names = model.style_names
+    one = np.eye(len(names))
+    pair = 0.5 * (one[0] + one[1])
+    np.testing.assert_allclose(np.log(rng.factors(pair)), 0.5 * np.log(rng.factors(one[0]) * rng.factors(one[1])))
+    for outside in (2.0 * one[0], -one[0], one[0] + one[1]):
+        np.testing.assert_array_equal(rng.factors(outside), 1.0)
+    halfway = np.log(rng.factors(-0.5 * one[0]))  # fading out, continuously
+    np.testing.assert_allclose(halfway, 0.5 * np.log(rng.factors(np.zeros(len(names)))))
+    parts = np.full((len(names), 3), np.nan)
+    parts[0, 1] = 2.0  # the legs of style 0 doubled: legs as made, the rest widened as at weight 1
+    legs = rng.group_masks[1] > 0
+    factors = rng.factors(one[0], parts)
+    np.testing.assert_array_equal(factors[legs], 1.0)
+    np.testing.assert_allclose(factors[~legs], rng.factors(one[0])[~legs])

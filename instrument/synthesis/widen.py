@@ -10,8 +10,9 @@ swing must grow (or shrink) to have the data's variance.
 Live, frame by frame, each feature is moved away from (or towards) the stride mean of the
 current lambda* (the state means weighted by the planned state durations: what the walk
 averages over a stride) by that factor. The log factors move with the style weights like every
-other parameter (offsets from the average, so they blend and extrapolate, per body part when
-part weights are given). Nothing looks ahead; a style change moves mean and factor a quarter of
+other parameter (offsets from the average, per body part when part weights are given) inside
+the styles' blends, and fade to no scaling outside them (see `RangeSpace.factors`). Nothing
+looks ahead; a style change moves mean and factor a quarter of
 the way per frame (EASE_FRAMES), so it shows in the next frame and never jumps. Root speeds and
 the yaw rate are left as made (the path, the cadence and the planted feet rely on them).
 """
@@ -21,7 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
 
 from .stream import Controls, Crowd
 
@@ -42,14 +42,25 @@ class RangeSpace:
     group_masks: np.ndarray  # (groups, D) which body part each feature belongs to
 
     def factors(self, weights: np.ndarray, part_weights: np.ndarray | None = None) -> np.ndarray:
-        """(D,) how far each feature's swing about the stride mean is scaled at these weights."""
+        """(D,) how far each feature's swing about the stride mean is scaled at these weights
+        (each feature by the weights of its body part when given per part).
+
+        Inside the styles' blends (weights 0..1 adding to at most 1) the log factors blend like
+        the other parameters. Outside, the learnt factors say nothing (an extrapolated walk's
+        smoothing was never measured, and extrapolating them widened inverted walks into
+        skating: elderly -1 from 23 to 85 cm/s), so the factor fades to 1 with the distance
+        from that region: by an inverted weight of 1 or a total of 2 the walk is as made."""
         weights = np.asarray(weights, dtype=np.float64)
-        if part_weights is None:
-            change = weights @ self.offsets
-        else:
+        per_dim = np.broadcast_to(weights[:, None], self.offsets.shape)
+        if part_weights is not None:
             per_group = np.where(np.isnan(part_weights), weights[:, None], part_weights)
-            change = np.einsum("sd,sd->d", per_group @ self.group_masks, self.offsets)
-        return np.exp(STRENGTH * np.clip(self.base + change, -LIMIT, LIMIT))
+            per_dim = per_group @ self.group_masks
+        positive = np.maximum(per_dim, 0.0)
+        total = positive.sum(axis=0)
+        outside = np.maximum(-per_dim, 0.0).sum(axis=0) + np.maximum(total - 1.0, 0.0)
+        inside = positive / np.maximum(total, 1.0)
+        blended = self.base + np.einsum("sd,sd->d", inside, self.offsets)
+        return np.exp(STRENGTH * np.clip(1.0 - outside, 0.0, 1.0) * np.clip(blended, -LIMIT, LIMIT))
 
 
 def range_space(model) -> RangeSpace | None:
@@ -79,18 +90,27 @@ class Widen:
         self.space = space
         self.mean: np.ndarray | None = None
         self.factor: np.ndarray | None = None
+        self._controls: Controls | None = None
+        self._key: tuple | None = None
+        self._targets: tuple[np.ndarray, np.ndarray] | None = None
+        self._kept = list(KEPT)
 
     def next(self, frame: np.ndarray, walker: Crowd, controls: Controls, n: int = 0) -> np.ndarray:
-        """The frame character n of `walker` just made, its swing scaled."""
-        mean = stride_mean(walker, n)
-        factor = self.space.factors(controls.weights, controls.part_weights)
+        """The frame character n of `walker` just made (after its controls were applied), its swing scaled."""
+        if controls is not self._controls:  # the targets change only with the controls (as lambda* does)
+            self._controls = controls
+            key = controls.key()
+            if key != self._key:
+                self._key = key
+                self._targets = stride_mean(walker, n), self.space.factors(controls.weights, controls.part_weights)
+        mean, factor = self._targets
         if self.mean is None:
             self.mean, self.factor = mean, factor
         else:
             self.mean = self.mean + (mean - self.mean) / EASE_FRAMES
             self.factor = self.factor + (factor - self.factor) / EASE_FRAMES
         out = self.mean + self.factor * (frame - self.mean)
-        out[list(KEPT)] = frame[list(KEPT)]
+        out[self._kept] = frame[self._kept]
         return out
 
 
@@ -107,6 +127,8 @@ def _real_variance(takes, dimension: int) -> np.ndarray:
     """Pooled variance of the walking frames (inside steps) about each one's stride mean (the
     average over the stride around it), as the made walk's is about its stride mean: a take's
     slower changes (turning, speeding up, settling) are not swing the model should make."""
+    from scipy.ndimage import uniform_filter1d  # training only: the live path does not load it
+
     squares, count = np.zeros(dimension), 0
     for take in takes:
         if not take.steps:
