@@ -38,7 +38,7 @@ def test_a_widened_walk_has_the_variance_training_learnt_from_the_data(model, sp
     for style in ("masculine", "normal", "elderly"):
         weights = np.eye(len(names))[names.index(style)]
         factor = rng.factors(weights)
-        made = _generated_variance(space, model.layout.dimension, weights)  # as training measured it
+        made = _generated_variance(space, weights)  # as training measured it
         frames, walker = _widened(model, space, [weights] * 600)
         widened = np.mean((frames[SETTLE:] - stride_mean(walker)) ** 2, axis=0)
         moving = made > 1e-3 * made.max()  # features that swing (a few are nearly still)

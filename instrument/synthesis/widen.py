@@ -23,12 +23,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..motion.features import ROOT_FEATURES
 from .stream import Controls, Crowd
 
 STRENGTH = 1.0  # share of the learnt log factor applied (chosen by `instrument evaluate`, docs/evaluate.md)
 LIMIT = np.log(2.0)  # no feature's swing is scaled by more than 2x or less than 1/2
 EASE_FRAMES = 4
-KEPT = (1, 2, 3)  # root.vx, root.vz, root.yaw_rate: never scaled
+KEPT = tuple(ROOT_FEATURES.index(name) for name in ("root.vx", "root.vz", "root.yaw_rate"))  # never scaled
 TRAINING_FRAMES = 600  # frames of each generated walk measured in training (the first SETTLE dropped)
 SETTLE = 60
 
@@ -116,7 +117,8 @@ class Widen:
 
 # ---- training -------------------------------------------------------------------------------
 
-def _generated_variance(space, dimension: int, weights: np.ndarray) -> np.ndarray:
+def _generated_variance(space, weights: np.ndarray) -> np.ndarray:
+    """Variance of each feature of a walk the model makes at `weights`, about its stride mean."""
     walker = Crowd(space)
     controls = Controls(weights)
     frames = np.array([walker.step([controls])[0] for _ in range(TRAINING_FRAMES)])[SETTLE:]
@@ -153,7 +155,7 @@ def train_range(model, takes) -> dict[str, np.ndarray]:
 
     def log_factor(chosen, weights):
         real = _real_variance(chosen, dimension)
-        made = _generated_variance(space, dimension, weights)
+        made = _generated_variance(space, weights)
         out = 0.5 * np.log(np.maximum(real, 1e-12) / np.maximum(made, 1e-12))
         out[list(KEPT)] = 0.0
         return np.clip(out, -LIMIT, LIMIT)
