@@ -10,7 +10,7 @@ from instrument.models.symmetry import symmetric_models
 from instrument.motion.features import extract
 from instrument.motion.kinematics import world_positions
 from instrument.runtime.pose import PoseStream
-from instrument.synthesis.contact import FootLock, _leg_swings, contact_space
+from instrument.synthesis.contact import NEARLY_STRAIGHT, FootLock, _leg_swings, contact_space
 from instrument.synthesis.interpolation import style_space
 from instrument.synthesis.offline import default_controls, generate_with_states, synthesize_motion
 from instrument.synthesis.stream import Controls, Crowd
@@ -43,9 +43,39 @@ def test_two_bone_ik_reaches_a_reachable_target_and_keeps_the_bones():
         new_ankle = new_knee + shin @ thigh @ (ankle - knee)
         np.testing.assert_allclose(new_ankle, target, atol=1e-6)
         # the knee bends about its own hinge: the bend's axis turns with the thigh, nothing else
+        # (a knee nearly straight and bent backwards of the toes' side is bent forward: its hinge turned round)
         hinge = np.cross(knee - hip, ankle - knee)
+        bend = np.arccos((knee - hip) @ (ankle - knee) / np.linalg.norm(knee - hip) / np.linalg.norm(ankle - knee))
+        if bend < NEARLY_STRAIGHT:
+            hinge *= np.sign(hinge @ np.cross(np.array([0.0, 0.0, 1.0]), knee - hip))
         new_hinge = np.cross(new_knee - hip, new_ankle - new_knee)
         np.testing.assert_allclose(new_hinge / np.linalg.norm(new_hinge), thigh @ hinge / np.linalg.norm(hinge), atol=1e-6)
+
+
+def test_a_nearly_straight_knee_bent_backwards_is_shortened_by_bending_forward():
+    """The pop the style-change test caught: a reaching leg whose generated knee is a degree
+    hyperextended, shortened by the IK, used to fold 30 degrees backwards and flip forward a frame later."""
+    hip = np.array([0.0, 85.0, 0.0])
+    toes = np.array([0.0, -2.0, 15.0])  # the foot points forward (+z)
+    for back in (-np.radians(1.5), 0.0, np.radians(1.5)):  # knee a little behind / on / ahead of the line
+        knee = hip + 40.0 * np.array([0.0, -np.cos(0.4), np.sin(0.4)])
+        shin = 40.0 * np.array([0.0, -np.cos(0.4 - back), np.sin(0.4 - back)])
+        ankle = knee + shin
+        target = hip + (ankle - hip) * 0.9  # shorter: the knee must bend
+        thigh, shin_turn = _leg_swings(hip, knee, ankle, target, toes)
+        new_knee = hip + thigh @ (knee - hip)
+        new_ankle = new_knee + shin_turn @ thigh @ (ankle - knee)
+        np.testing.assert_allclose(new_ankle, target, atol=1e-6)
+        line = hip + (target - hip) * (hip[1] - new_knee[1]) / (hip[1] - target[1])
+        assert new_knee[2] > line[2] + 5.0, back  # the knee comes forward of the hip-ankle line
+    # a clearly bent knee keeps its own bend whichever way the toes point (a swinging foot's may point back)
+    knee = hip + np.array([0.0, -40.0, 10.0])
+    ankle = knee + np.array([0.0, -30.0, -25.0])
+    target = hip + (ankle - hip) * 0.95
+    thigh, shin_turn = _leg_swings(hip, knee, ankle, target, np.array([0.0, -5.0, -10.0]))
+    new_knee = hip + thigh @ (knee - hip)
+    line = hip + (target - hip) * (hip[1] - new_knee[1]) / (hip[1] - target[1])
+    assert new_knee[2] > line[2] + 5.0
 
 
 def _walk(model, space, weights_per_frame, fps=None):

@@ -17,6 +17,7 @@ from ..synthesis.interpolation import GROUPS, style_space
 from ..motion.features import restore
 from ..synthesis.offline import default_controls, synthesize
 from ..synthesis.stream import DEFAULT_LOOKAHEAD
+from ..synthesis.widen import range_space
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -69,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
     seed = value("synth --seed", args.seed)
     frames = max(1, int(round(seconds * model.fps)))
     controls = default_controls(model, weights, part_weights=part_weights, speed=speed, liveliness=liveliness)
-    static = synthesize(style_space(model), model.layout.dimension, controls, frames, args.method, lookahead, seed)
+    static = synthesize(style_space(model), model.layout.dimension, controls, frames, args.method, lookahead, seed,
+                        range_space(model))
     write_bvh(args.out, restore(static, model.layout, model.fps))  # from the origin, heading 0
     print(f"wrote {frames} frames ({seconds:g} s) to {args.out}", file=sys.stderr)
     return 0

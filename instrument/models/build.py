@@ -16,6 +16,7 @@ from .adaptation import Settings, adapt_styles
 from .corpus import Take, load_corpus, segments_by_label
 from .modelfile import Model
 from ..synthesis.contact import train_contact
+from ..synthesis.widen import train_range
 from .symmetry import symmetric_models
 from .training import TrainingReport, train_average, variance_floors
 
@@ -85,4 +86,5 @@ def build_model(
     }
     if contact_metadata:
         metadata["contact"] = contact_metadata
-    return Model(metadata, average, styles, static_std, step_max, contact), report, takes
+    model = Model(metadata, average, styles, static_std, step_max, contact)
+    return Model(metadata, average, styles, static_std, step_max, contact | train_range(model, takes)), report, takes

@@ -24,6 +24,7 @@ from ..synthesis.contact import FootLock, contact_space
 from ..synthesis.interpolation import style_space
 from ..synthesis.offline import drive
 from ..synthesis.stream import DEFAULT_LOOKAHEAD, Crowd
+from ..synthesis.widen import Widen, range_space
 from .clock import IDLE_UNTIL, FrameClock
 from .console import Console
 from .pose import Pose, PoseStream
@@ -57,6 +58,8 @@ class Engine:
         self.made = 0  # model frames made
         self.contact = contact_space(model)  # None: the model has no contact statistics
         self.contact_shares: np.ndarray | None = None  # (2,) how surely the newest model frame has each foot planted
+        widen = range_space(model)
+        self.widen = None if widen is None else Widen(widen)  # None: the model has no range statistics
 
     def foot_lock(self, fps: float) -> FootLock | None:
         return None if self.contact is None else FootLock(self.model.layout, self.contact.clearance, fps)
@@ -71,6 +74,8 @@ class Engine:
         newest = int(np.ceil(position - 1e-9))
         while self.made <= newest:
             frame = self.walker.step([controls])[0]
+            if self.widen is not None:
+                frame = self.widen.next(frame, self.walker, controls)
             self.frames = (self.frames + [drive(frame, self.walker.cadence[0], controls.turn)])[-2:]
             self.made += 1
             if self.contact is not None:

@@ -40,6 +40,7 @@ BLEND_FRAMES = 4
 SWING_CM = 2.0  # a foot in the air keeps its lowest joint this far above its clearance
 PLANTED = 0.5  # a state this sure of a foot's contact plants it
 POSSIBLE = 0.2  # a state this sure plants a foot that is on the floor and still
+NEARLY_STRAIGHT = np.radians(10.0)  # a knee bent less than this may be bent the wrong way (see _leg_swings)
 
 
 def EASE(x: float) -> float:
@@ -189,20 +190,27 @@ def _leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
     knee, applied after the thigh's) that take the ankle to `target`, or as near as the leg
     allows: the knee bends about its own hinge (the axis across its generated bend; for a
     straight leg, across the line to the toes) to the angle the law of cosines gives, then the
-    hip swings the leg onto the target."""
+    hip swings the leg onto the target. A generated leg bent a little backwards (less than
+    NEARLY_STRAIGHT, the toes' side telling which way is forward) is bent forward through
+    straight, not further back, so a leg shortened from nearly straight never folds the wrong
+    way and flips back a frame later; a clearer bend is the knee's own (a swinging foot's toes
+    may point anywhere)."""
     thigh_vector, shin_vector = knee - hip, ankle - knee
     upper = np.sqrt(np.sum(thigh_vector**2))
     lower = np.sqrt(np.sum(shin_vector**2))
     reach = target - hip
     distance = min(max(np.sqrt(np.sum(reach * reach)), abs(upper - lower) + 1e-6), (upper + lower) * 0.9999)
+    forward = np.cross(toes, thigh_vector)  # the axis a knee bends forward about (the shin back, the knee towards the toes)
     hinge = np.cross(thigh_vector, shin_vector)
-    if np.sqrt(np.sum(hinge * hinge)) < 1e-3 * upper * lower:  # straight: the knee bends towards the toes
-        hinge = np.cross(thigh_vector, toes)
+    now = np.arccos(min(max(np.sum(thigh_vector * shin_vector) / (upper * lower), -1.0), 1.0))  # 0: straight
+    if np.sqrt(np.sum(hinge * hinge)) < 1e-3 * upper * lower:  # straight: the knee bends forward
+        hinge, now = forward, 0.0
+    elif now < NEARLY_STRAIGHT and np.sum(hinge * forward) < 0.0:  # bent a little backwards: bent forward through straight
+        hinge, now = -hinge, -now
     if np.sqrt(np.sum(hinge * hinge)) < 1e-12:
         return np.eye(3), np.eye(3)
-    cos_now = min(max(np.sum(-thigh_vector * shin_vector) / (upper * lower), -1.0), 1.0)
     cos_new = min(max((upper**2 + lower**2 - distance**2) / (2.0 * upper * lower), -1.0), 1.0)
-    bend = _axis_rotation(hinge, np.arccos(cos_now) - np.arccos(cos_new))
+    bend = _axis_rotation(hinge, np.pi - np.arccos(cos_new) - now)
     swing = _rotation_between(thigh_vector + bend @ shin_vector, reach)
     return swing, swing @ bend @ swing.T
 

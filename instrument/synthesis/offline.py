@@ -13,6 +13,7 @@ from .contact import FootLock, contact_space
 from .interpolation import StyleSpace
 from .mlpg import mlpg_continued
 from .stream import DEFAULT_LOOKAHEAD, Controls, Crowd
+from .widen import RangeSpace, Widen, range_space
 
 ROOT_RATES = slice(1, 4)  # root.vx, root.vz, root.yaw_rate in the static features
 
@@ -34,23 +35,30 @@ def synthesize(
     method: str = "stream",
     lookahead: int = DEFAULT_LOOKAHEAD,
     seed: int = 0,
+    widen: RangeSpace | None = None,
 ) -> np.ndarray:
     """Static features (frames, D) of a walk with constant controls, root speeds driven."""
-    return generate_with_states(space, dimension, controls, frames, method, lookahead, seed)[0]
+    return generate_with_states(space, dimension, controls, frames, method, lookahead, seed, widen)[0]
 
 
 def generate_with_states(space: StyleSpace, dimension: int, controls: Controls, frames: int, method: str, lookahead: int,
-                         seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Driven static features (frames, D) and the (label * states + state) of each frame."""
+                         seed: int, widen: RangeSpace | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Driven static features (frames, D) and the (label * states + state) of each frame, their
+    swing scaled to the data's frame by frame as live when `widen` is given."""
     walker = Crowd(space, 1, lookahead, seeds=[seed])
     if method == "full":
         ids = walker.state_plan(controls, frames)
         lam = walker.lams[0]
         static = mlpg_continued(lam.means[ids][None], lam.precisions[ids][None], np.zeros((1, 0, dimension)))[0]
+        if widen is not None:
+            scale = Widen(widen)
+            static = np.array([scale.next(row, walker, controls) for row in static])
     else:
         rows, ids = [], []
+        scale = None if widen is None else Widen(widen)
         for _ in range(frames):
-            rows.append(walker.step([controls])[0])
+            row = walker.step([controls])[0]
+            rows.append(row if scale is None else scale.next(row, walker, controls))
             ids.append(walker.history_ids[0, 1])
         static, ids = np.vstack(rows), np.asarray(ids)
     return drive(static, walker.cadence[0], controls.turn), ids
@@ -67,7 +75,8 @@ def synthesize_motion(model: Model, space: StyleSpace, controls: Controls, frame
                       lookahead: int = DEFAULT_LOOKAHEAD, seed: int = 0) -> Motion:
     """A walk as a Motion on the model's skeleton, from the origin, heading 0, its feet planted
     frame by frame as live when the model has contact statistics."""
-    static, ids = generate_with_states(space, model.layout.dimension, controls, frames, method, lookahead, seed)
+    static, ids = generate_with_states(space, model.layout.dimension, controls, frames, method, lookahead, seed,
+                                       range_space(model))
     contact = contact_space(model)
     if contact is None:
         return restore(static, model.layout, model.fps)
