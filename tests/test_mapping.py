@@ -5,7 +5,7 @@ import math
 import pytest
 
 from instrument.control.events import ControlEvent
-from instrument.control.mapping import Mapper, load_mapping
+from instrument.control.mapping import Mapper, load_mapping, preset_problems
 from instrument.control.state import ControlState
 from instrument.errors import UserError
 from conftest import REPO
@@ -191,6 +191,12 @@ def test_a_style_the_model_lacks_is_reported_not_fatal(tmp_path):
     ('[device]\nmidi = "x"\n\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\ncolour = "red"\n', 8, "colour"),
     ('[device]\nhid = "sony"\n', 2, "hid"),
     ('[device]\nmidi = "x"\n[[control]]\nmessage = "cc"\ntarget = "speed"\n', 3, "number"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\nrange = [nan, 1]\n', 7, "range"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\nrange = [0, inf]\n', 7, "range"),
+    ('[device]\nhid = "054c:09cc"\n[[control]]\nmessage = "hid"\ninput = "X"\ntarget = "turn"\ndeadzone = 5\n', 7, "deadzone"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\nmode = "relative-twos"\nstep = -1\n',
+     8, "step"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "note"\nnumber = 1\ntarget = "preset/no such"\n', 6, "target"),
 ])
 def test_mapping_errors_name_file_line_and_key(tmp_path, body, line, key):
     path = tmp_path / "bad.toml"
@@ -214,3 +220,17 @@ def test_state_ignores_non_numbers_and_unknown_targets():
     assert not s.set("style/elderly", math.nan)
     assert not s.set("nonsense", 1.0)
     assert s.set("speed", 99.0) and s.speed == 4.0
+
+
+def test_a_preset_button_with_no_such_preset_is_refused_at_start(tmp_path, capsys):
+    """A button whose preset nobody defines would do nothing on stage: `run` refuses it, naming the file."""
+    from instrument.cli.main import main
+
+    path = tmp_path / "m.toml"
+    path.write_text('[device]\nmidi = "x"\n[[control]]\nmessage = "note"\nnumber = 1\ntarget = "preset/nosuch"\n')
+    assert preset_problems(load_mapping(path, state()), {}) == ["preset/nosuch"]
+    assert preset_problems(load_mapping(path, state()), {"nosuch": {"speed": 1.0}}) == []
+    assert main(["run", "--mapping", str(path), "--no-osc", "--quiet", "--seconds", "0.1", "--normal-priority"]) == 1
+    error = capsys.readouterr().err.strip()
+    assert error.startswith("instrument run: error: ") and str(path) in error and "'preset/nosuch'" in error
+    assert "\n" not in error

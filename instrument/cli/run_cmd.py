@@ -15,7 +15,7 @@ from ..control.hid import choose_mapping as choose_hid_mapping
 from ..control.hid_feedback import HidFeedback
 from ..control.hub import ControlHub
 from ..control.loghead import header_line, logged_mappings, unreadable_sources
-from ..control.mapping import load_mapping, parse_hid_id, style_problems
+from ..control.mapping import load_mapping, parse_hid_id, preset_problems, style_problems
 from ..control.score import ScorePlayer, load_score
 from ..control.state import ControlState
 from ..errors import UserError
@@ -230,6 +230,10 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     outputs, devices, hub, created, health = [], [], None, [], None
     try:
         hub = ControlHub(mappings, presets, None, morph, console)
+        for mapping in mappings:
+            for target in preset_problems(mapping, hub.presets):
+                raise UserError(f"{mapping.path}: target {target!r}: no such preset (the mapping, the show file and --presets "
+                                "define none by that name)")
         if score_path:  # checked against the model and every preset the hub knows
             replay = ScorePlayer(load_score(score_path, state, hub.presets, loop=True if args.loop or not args.score else None),
                                  state)

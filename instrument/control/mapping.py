@@ -20,7 +20,7 @@ from .events import ControlEvent
 from .hid import DS4_NAMES, canonical_input, legacy_event, unit_with_deadzone
 from .hid_feedback import FeedbackSpec, parse_feedback
 from .state import ControlState
-from .targets import is_number
+from .targets import PRESET_NAME, is_number
 
 MESSAGES = ("cc", "cc14", "nrpn", "note", "pitchbend", "hid")
 MODES = ("absolute", "toggle", "momentary", "relative-twos", "relative-signed", "relative-signed2", "relative-offset")
@@ -149,8 +149,8 @@ def _control(item: dict, index: int, fail, state: ControlState | None) -> Contro
     values = dict(item)
     if "range" in values:
         r = values["range"]
-        if not (isinstance(r, list) and len(r) == 2 and all(isinstance(v, (int, float)) for v in r) and r[0] != r[1]):
-            raise fail("expected [low, high], two different numbers", "range", index)
+        if not (isinstance(r, list) and len(r) == 2 and all(is_number(v) for v in r) and r[0] != r[1]):
+            raise fail("expected [low, high], two different finite numbers", "range", index)
         values["range"] = (float(r[0]), float(r[1]))
     checks = [
         ("mode", MODES), ("takeover", TAKEOVERS), ("curve", CURVES),
@@ -170,15 +170,24 @@ def _control(item: dict, index: int, fail, state: ControlState | None) -> Contro
         if values["input"] is None:
             raise fail(f"{item.get('input')!r} is not a HID usage name (X, Y, Z, Rx, Ry, Rz, Slider, Dial, Wheel, Hat/up, "
                        "Button 1, PPPP:UUUU, ...)", "input", index)
-    for key in ("step", "deadzone"):
-        if key in values and not isinstance(values[key], (int, float)):
-            raise fail("must be a number", key, index)
+    if "step" in values and not (is_number(values["step"]) and values["step"] > 0):
+        raise fail("must be a number above 0", "step", index)
+    if "deadzone" in values and not (is_number(values["deadzone"]) and 0 <= values["deadzone"] < 1):
+        raise fail("must be a share of the half-travel, 0 or more and below 1", "deadzone", index)
     target = values["target"]
     style_target = isinstance(target, str) and target.split("/")[0] in ("style", "part")  # checked against the model later
     if not isinstance(target, str) or (state is not None and not style_target and not state.knows(target)
                                        and not target.startswith("preset/")):
         raise fail(f"unknown target {target!r}", "target", index)
+    if target.startswith("preset/") and not PRESET_NAME.match(target[len("preset/"):]):
+        raise fail(f"{target!r}: a preset name is 1 to 40 letters, digits, '_', '.', '-'", "target", index)
     return ControlSpec(**values)
+
+
+def preset_problems(mapping: Mapping, presets: dict[str, dict[str, float]]) -> list[str]:
+    """preset/NAME targets of a mapping that no preset answers (the mapping's own, the show
+    file's or a preset file's): a button that would do nothing, refused at start."""
+    return [c.target for c in mapping.controls if c.target.startswith("preset/") and c.target[len("preset/"):] not in presets]
 
 
 def style_problems(mapping: Mapping, state: ControlState) -> list[str]:
