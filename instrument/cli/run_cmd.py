@@ -234,9 +234,15 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
             for target in preset_problems(mapping, hub.presets):
                 raise UserError(f"{mapping.path}: target {target!r}: no such preset (the mapping, the show file and --presets "
                                 "define none by that name)")
-        if score_path:  # checked against the model and every preset the hub knows
-            replay = ScorePlayer(load_score(score_path, state, hub.presets, loop=True if args.loop or not args.score else None),
-                                 state)
+        if score_path and not args.score:  # the built-in demo, written for the shipped model's styles
+            try:
+                replay = ScorePlayer(load_score(score_path, state, hub.presets, loop=True), state)
+            except UserError as error:
+                console.say(f"the demo does not fit this model ({error}): the walk stays at the average; "
+                            "give --score or a controller to play it")
+                score_path = None
+        elif score_path:  # checked against the model and every preset the hub knows
+            replay = ScorePlayer(load_score(score_path, state, hub.presets, loop=True if args.loop else None), state)
         if args.fast and seconds is None and (replay is None or replay.loop or not replay.events):
             raise UserError("--fast needs an end: give --seconds, or a --replay log or a --score (played once)")
         attract = load_attract(args.config, state, hub.presets) if args.config else None
