@@ -26,7 +26,7 @@ from .features import FeatureLayout, heading_angle
 from .kinematics import forward_kinematics, local_transforms
 from .limbs import Limbs
 from .rotations import axis_angle_matrix
-from .steps import segment_steps
+from .steps import is_below, segment_steps
 
 CONTACT_CM = 2.0
 UNDER_CM = 1.0
@@ -105,21 +105,11 @@ def walk_figures(motion: Motion, layout: FeatureLayout, limbs: Limbs, ground: np
     out["knee_deg"], out["hip_deg"] = float(np.mean(knees)), float(np.mean(hips))
     if limbs.arms:
         out["shoulder_deg"] = float(np.mean([_spread(_swing(pos[:, e] - pos[:, s], forward)) for s, e in limbs.arms]))
-    body = pos[:, [j for j in range(pos.shape[1]) if j == layout.root or _below(motion, j, layout.root)]]
+    body = pos[:, [j for j in range(pos.shape[1]) if j == layout.root or is_below(motion, j, layout.root)]]
     if motion.frames > 3:
         out["jitter_m_s3"] = float(np.linalg.norm(np.diff(body, 3, axis=0), axis=2).mean() * fps**3 / 100.0)
     out["seconds"] = seconds
     return out
-
-
-def _below(motion: Motion, joint: int, ancestor: int) -> bool:
-    parents = motion.skeleton.parents
-    p = parents[joint]
-    while p >= 0:
-        if p == ancestor:
-            return True
-        p = parents[p]
-    return False
 
 
 def pooled(figures: list[dict[str, float]]) -> dict[str, float]:

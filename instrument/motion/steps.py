@@ -61,7 +61,7 @@ def foot_signal(motion: Motion, layout: FeatureLayout | None = None) -> tuple[np
     relative = world_pos - root_pos[:, None]
     side = np.einsum("tjk,tk->j", relative, left) / motion.frames
     height = relative[..., 1].mean(axis=0)
-    below_root = np.array([j != layout.root and _is_below(motion, j, layout.root) for j in range(len(side))])
+    below_root = np.array([j != layout.root and is_below(motion, j, layout.root) for j in range(len(side))])
     left_foot = _lowest(height, below_root & (side > 0))
     right_foot = _lowest(height, below_root & (side < 0))
     leg = float(-min(height[left_foot], height[right_foot])) if left_foot >= 0 and right_foot >= 0 else 0.0
@@ -72,7 +72,8 @@ def foot_signal(motion: Motion, layout: FeatureLayout | None = None) -> tuple[np
     return ahead, (left_foot, right_foot), leg, np.cumsum(travel)
 
 
-def _is_below(motion: Motion, joint: int, ancestor: int) -> bool:
+def is_below(motion: Motion, joint: int, ancestor: int) -> bool:
+    """Whether `ancestor` is on the path from `joint` up to the root of the skeleton."""
     parents = motion.skeleton.parents
     p = parents[joint]
     while p >= 0:
