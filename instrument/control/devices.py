@@ -100,23 +100,17 @@ class MidiInput:
         """Follow a JACK server restart; True while there is no port to read."""
         if self.remaker is None:
             return False
-        if self.remaker.busy:
-            port = self.remaker.take()
-            if port is None:
-                return True
-            self.port, self.next_attempt = port, 0.0
+        event, self.port = self.remaker.follow(self.port)
+        if event == "back":
+            self.next_attempt = 0.0
             if self.virtual:
                 self.open = True
                 self.console.say(f"the JACK server is back: MIDI input {self.source} on again")
-            return False
-        if self.remaker.lost():
+        elif event == "lost":
             self.open = False
             self.console.warn(f"midi server {self.source}",
                               f"the JACK server went away: {self.source} waits for it; the walk goes on")
-            old, self.port = self.port, None
-            self.remaker.start(old)
-            return True
-        return False
+        return event in ("lost", "waiting")
 
     @property
     def source(self) -> str:

@@ -67,18 +67,10 @@ class MidiFeedback:
         """Follow a JACK server restart (port made again in the background); True while there is none."""
         if self.remaker is None:
             return False
-        if self.remaker.busy:
-            port = self.remaker.take()
-            if port is None:
-                return True
-            self.port = port
+        event, self.port = self.remaker.follow(self.port)
+        if event == "back":
             self.sent = {c: math.nan for c in self.controls}  # a new port: show every value again
-            return False
-        if self.remaker.lost():
-            old, self.port = self.port, None
-            self.remaker.start(old)
-            return True
-        return False
+        return event in ("lost", "waiting")
 
     def prepare(self, pose, echo) -> list:
         messages = []

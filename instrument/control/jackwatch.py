@@ -160,6 +160,18 @@ class Remaker:
                 self.made = made
                 return
 
+    def follow(self, port: object) -> tuple[str, object | None]:
+        """One look, from the device's poll, at a server restart for the device holding `port`:
+        ("steady", port); ("lost", None) the server just went away and remaking began;
+        ("waiting", None); or ("back", the new port)."""
+        if self.busy:
+            made = self.take()
+            return ("waiting", None) if made is None else ("back", made)
+        if self.lost():
+            self.start(port)
+            return "lost", None
+        return "steady", port
+
     def take(self) -> object | None:
         """The new port, once made (then the Remaker watches again)."""
         if self.made is None:
