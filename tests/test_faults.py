@@ -421,9 +421,24 @@ def test_a_jack_server_restart_mid_show_is_recovered(tmp_path, monkeypatch):
     monkeypatch.setenv("JACK_DEFAULT_SERVER", server_name)
     monkeypatch.setenv("JACK_NO_START_SERVER", "1")
 
-    def start_server():
-        return subprocess.Popen(["jackd", "--no-realtime", "-n", server_name, "-d", "dummy", "-r", "48000", "-p", "256"],
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    jackd_log = tmp_path / "jackd.txt"
+
+    def start_server() -> subprocess.Popen:
+        """A running private server; a start that fails (a stale socket from the one just killed
+        can refuse it on a busy machine) is tried again: the server's restart is not under test."""
+        until = time.monotonic() + 90
+        while True:
+            with jackd_log.open("a") as sink:
+                server = subprocess.Popen(["jackd", "--no-realtime", "-n", server_name, "-d", "dummy", "-r", "48000",
+                                           "-p", "256"], stdout=sink, stderr=subprocess.STDOUT)
+            while server.poll() is None and time.monotonic() < until:
+                if _server_up(rtmidi):
+                    return server
+                time.sleep(0.1)
+            server.kill()
+            server.wait(30)
+            assert time.monotonic() < until, f"the private JACK server never started: {jackd_log.read_text()[-2000:]}"
+            time.sleep(1.0)
 
     def port_listed() -> str | None:
         try:
@@ -438,14 +453,15 @@ def test_a_jack_server_restart_mid_show_is_recovered(tmp_path, monkeypatch):
     mapping = tmp_path / "speed.toml"
     mapping.write_text('[device]\nmidi = "fault-restart"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\n'
                        'range = [0.25, 4.0]\n')
-    receiver, log = Receiver(), tmp_path / "take.jsonl"
+    receiver, log, errors = Receiver(), tmp_path / "take.jsonl", tmp_path / "stderr.txt"
     server = start_server()
     process = None
     try:
-        wait_until(lambda: server.poll() is None and port_listed() is None and _server_up(rtmidi), "the private JACK server")
-        process = subprocess.Popen(RUN + ["--midi-virtual", "fault-restart", "--midi-api", "jack", "--mapping", str(mapping),
-                                          "--osc", f"127.0.0.1:{receiver.port}/flat", "--seconds", "60",
-                                          "--record", str(log)], stderr=subprocess.PIPE, text=True)
+        assert port_listed() is None
+        with errors.open("w") as sink:  # a file, not a pipe: a pipe nobody reads would stall the show once full
+            process = subprocess.Popen(RUN + ["--midi-virtual", "fault-restart", "--midi-api", "jack", "--mapping",
+                                              str(mapping), "--osc", f"127.0.0.1:{receiver.port}/flat", "--seconds", "600",
+                                              "--record", str(log)], stderr=sink, text=True)
 
         def speed_becomes(value: float) -> None:
             def sent_and_seen():
@@ -461,7 +477,11 @@ def test_a_jack_server_restart_mid_show_is_recovered(tmp_path, monkeypatch):
                     out.delete()
                 speeds = [p[0] for a, p in receiver.messages() if a == "/walk/speed"]
                 return speeds and abs(speeds[-1] - value) < 1e-3
-            wait_until(sent_and_seen, f"speed {value} through JACK", deadline=90)
+            try:
+                wait_until(sent_and_seen, f"speed {value} through JACK", deadline=90)
+            except AssertionError as failure:
+                raise AssertionError(f"{failure}; the show is {'on' if process.poll() is None else 'over'}, "
+                                     f"it said: {errors.read_text()[-2000:]}") from None
 
         speed_becomes(4.0)
         server.terminate()
@@ -478,7 +498,8 @@ def test_a_jack_server_restart_mid_show_is_recovered(tmp_path, monkeypatch):
         wait_until(feedback_listed, "the feedback port made again", deadline=60)
         frames_before_end = len([1 for a, _ in receiver.messages() if a == "/walk/frame"])
         process.send_signal(signal.SIGTERM)
-        stderr = process.communicate(timeout=60)[1]
+        process.wait(timeout=60)
+        stderr = errors.read_text()
     finally:
         if process is not None and process.poll() is None:
             process.kill()
