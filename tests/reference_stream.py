@@ -38,7 +38,7 @@ class Walker:
     label: int = 0  # 0 right step, 1 left step
     state: int = 0
     elapsed: int = 0  # frames already sent in the current state
-    carry: float = 0.0  # fractional frames carried into the current state
+    carries: list = field(default_factory=lambda: [0.0, 0.0])  # fractional frames each label's states carry on
     sent: int = 0
     history: np.ndarray = field(default=None)  # (2, D): the last two frames sent, oldest first
     history_ids: list = field(default_factory=lambda: [0, 0])  # their (label, state) indices
@@ -88,12 +88,12 @@ def plan(walker: Walker, states: int, frames: int) -> tuple[list[int], list[tupl
     state instances the plan passes through, starting with the current one."""
     ids: list[int] = []
     instances: list[tuple[int, float]] = []
-    label, state, elapsed, carry, k = walker.label, walker.state, walker.elapsed, walker.carry, 0
+    label, state, elapsed, carries, k = walker.label, walker.state, walker.elapsed, list(walker.carries), 0
     while len(ids) < frames:
-        count, carry_out = whole_frames(_duration(walker, label, state, k), carry)
-        instances.append((count, carry_out))
+        count, carries[label] = whole_frames(_duration(walker, label, state, k), carries[label])
+        instances.append((count, carries[label]))
         ids.extend([label * states + state] * max(count - elapsed, 0))
-        carry, elapsed, k = carry_out, 0, k + 1
+        elapsed, k = 0, k + 1
         state += 1
         if state == states:
             state, label = 0, 1 - label
@@ -112,7 +112,7 @@ def _commit(walker: Walker, states: int, instances: list[tuple[int, float]]) -> 
 
 
 def _finish(walker: Walker, states: int, carry_out: float) -> None:
-    walker.carry, walker.elapsed = carry_out, 0
+    walker.carries[walker.label], walker.elapsed = carry_out, 0
     if walker.draws:
         walker.draws.popleft()
     walker.state += 1

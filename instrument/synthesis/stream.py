@@ -69,7 +69,7 @@ class Crowd:
         dimension = width // 3
         self.sent = 0
         self.counters = np.zeros((count, 6), dtype=np.int64)
-        self.carry = np.zeros(count)
+        self.carry = np.zeros((count, space.labels))  # the fraction of a frame each label's steps carry on
         self.history = np.zeros((count, 2, dimension))
         self.history_ids = np.zeros((count, 2), dtype=np.int64)
         # a frame's change is limited to this times the data's largest (0: no limit)
@@ -172,12 +172,18 @@ def _plan(base, sigma, counter, carry, pool, ids, counts, carries):  # pragma: n
     state instance the plan passes through, from the current one; returns (instances, tail).
 
     Durations are real-valued: each instance takes floor(duration + carry) frames (at least
-    one) and carries the rest on, so a long performance never drifts."""
+    one) and carries the rest on to the next state of the same label (from a step's last state
+    to the first of the label's next step), so a long performance never drifts in time, every
+    step stays within a frame of its real length, and a right step and the left step after it
+    get the same frames state by state. Their models are mirror images, so that keeps the walk
+    straight at turn = 0 (one carry passed on across labels gives the odd frame of a step 16.5
+    frames long always to the same label: the walk curves)."""
     states = base.shape[1]
     label, state, elapsed = counter[LABEL], counter[STATE], counter[ELAPSED]
     head, tail = counter[HEAD], counter[TAIL]
     frames = ids.shape[0]
     filled, k = 0, 0
+    remainders = carry.copy()  # (labels,), as the plan moves on
     while filled < frames:
         duration = base[label, state]
         spread = sigma[label, state]
@@ -185,9 +191,9 @@ def _plan(base, sigma, counter, carry, pool, ids, counts, carries):  # pragma: n
             if head + k >= tail:
                 tail = head + k + 1
             duration = max(MIN_FRAMES, duration + spread * pool[head + k])
-        count = max(1, int(np.floor(duration + carry)))
-        carry = duration + carry - count
-        counts[k], carries[k] = count, carry
+        count = max(1, int(np.floor(duration + remainders[label])))
+        remainders[label] += duration - count
+        counts[k], carries[k] = count, remainders[label]
         for _ in range(max(count - elapsed, 0)):
             if filled < frames:
                 ids[filled] = label * states + state
@@ -201,7 +207,7 @@ def _plan(base, sigma, counter, carry, pool, ids, counts, carries):  # pragma: n
 
 @njit(cache=True, nogil=True)
 def _finish(counter, carry, n, carry_out, states):  # pragma: no cover - compiled
-    carry[n] = carry_out
+    carry[n, counter[LABEL]] = carry_out
     counter[ELAPSED] = 0
     if counter[TAIL] > counter[HEAD]:
         counter[HEAD] += 1
