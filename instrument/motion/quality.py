@@ -14,7 +14,7 @@ the same for a toe joint 4 cm above the sole and an ankle 12 cm above it.
     ranges    1st to 99th percentile of the knee's flexion, and of the thigh's and upper arm's
               swing in the plane of travel (degrees)
     jitter    mean magnitude of the third difference of the joint positions (m/s^3)
-    drift     change of heading over whole strides per second (deg/s)
+    drift     change of heading per second, fitted over every stride's mean heading (deg/s)
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from .features import FeatureLayout, heading_angle
 from .kinematics import forward_kinematics, local_transforms
 from .limbs import Limbs
 from .rotations import axis_angle_matrix
-from .steps import is_below, segment_steps
+from .steps import Step, is_below, segment_steps
 
 CONTACT_CM = 2.0
 UNDER_CM = 1.0
@@ -54,6 +54,23 @@ def _swing(bone: np.ndarray, forward: np.ndarray) -> np.ndarray:
     return np.degrees(np.arctan2(np.einsum("ti,ti->t", bone, forward), -bone[:, 1]))
 
 
+def heading_drift(yaw: np.ndarray, steps: list[Step], fps: float) -> float:
+    """How fast a walk's heading turns (deg/s, unsigned): the slope of the straight line best
+    fitting the mean heading of each stride (every two steps in a row) against its time.
+
+    The hips sway their heading by up to 20 degrees within a step; a stride's mean heading does
+    not depend on where in that sway a step was found to start, so the figure neither follows
+    a frame's error in the step ends nor rests on the first and last step alone (the heading at
+    one step start against another's gave 0.00 to 0.16 deg/s for one 12 s walk measured from 30
+    start frames in a row, this 0.00 to 0.01)."""
+    strides = [(a.start, b.end) for a, b in zip(steps, steps[1:]) if b.start == a.end]
+    if len(strides) < 2:
+        return float("nan")
+    times = np.array([(start + end - 1) / 2.0 for start, end in strides]) / fps
+    headings = np.array([yaw[start:end].mean() for start, end in strides])
+    return float(abs(np.degrees(np.polyfit(times, headings, 1)[0])))
+
+
 def walk_figures(motion: Motion, layout: FeatureLayout, limbs: Limbs, ground: np.ndarray, cm: float) -> dict[str, float]:
     """The figures of one walk (see the module's docstring); NaN where a walk has too few steps."""
     world_rot, world_pos = forward_kinematics(motion.skeleton, *local_transforms(motion))
@@ -70,9 +87,7 @@ def walk_figures(motion: Motion, layout: FeatureLayout, limbs: Limbs, ground: np
         out["step_s"], out["step_sd_s"] = float(durations.mean()), float(durations.std())
         out["stride_cm"] = float(2.0 * travel.mean())
         out["speed_cm_s"] = float(travel.sum() / durations.sum())
-        same = [s for s in steps if s.label == steps[0].label]
-        if len(same) >= 2:
-            out["drift_deg_s"] = float(np.degrees(abs(yaw[same[-1].start] - yaw[same[0].start])) / ((same[-1].start - same[0].start) / fps))
+        out["drift_deg_s"] = heading_drift(yaw, steps, fps)
     # feet: lift above the ground clearance, contact, skate, floor
     lifts, speeds = [], []
     for f, foot in enumerate(limbs.feet):

@@ -1,0 +1,105 @@
+"""Straight when told: at turn = 0 a walk keeps its heading, even when trained on takes whose
+right and left steps turn unequally; and the drift figure of `instrument evaluate` measures it.
+
+The training case curves real walks from the shared takes (their right steps turn 6 deg/s
+more than their left ones), trains on them as `instrument train` does, and walks the model
+with steps a fractional number of frames long (x.5: the case where the odd frame alternates)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from instrument.models.build import build_model
+from instrument.motion.bvh import Motion, read_bvh, write_bvh
+from instrument.motion.features import choose_layout, extract, heading_angle, restore
+from instrument.motion.kinematics import forward_kinematics, local_transforms
+from instrument.motion.quality import heading_drift
+from instrument.motion.steps import segment_steps
+from instrument.synthesis.durations import state_durations
+from instrument.synthesis.interpolation import interpolate, style_space
+from instrument.synthesis.offline import default_controls, generate_with_states, synthesize_motion
+
+RIGHT_STEP_TURN = np.radians(6.0)  # rad/s added to the yaw rate of every right step of the takes
+
+
+def _drift(motion: Motion, root: int) -> float:
+    yaw = heading_angle(forward_kinematics(motion.skeleton, *local_transforms(motion))[0][:, root])
+    return heading_drift(yaw, segment_steps(motion).steps, motion.fps)
+
+
+def _curved(motion: Motion, layout) -> Motion:
+    """The take with every right step turning RIGHT_STEP_TURN faster (left steps as they were)."""
+    features, start, heading = extract(motion, layout)
+    for step in segment_steps(motion, layout).steps:
+        if step.label == "right":
+            features[step.start : step.end, 3] += RIGHT_STEP_TURN
+    return restore(features, layout, motion.fps, start, heading)
+
+
+@pytest.fixture(scope="module")
+def curved_model(real_walks, tmp_path_factory):
+    """A model of one style trained on three real takes made asymmetric, and those takes."""
+    folder = tmp_path_factory.mktemp("curved")
+    chosen = [p for p in real_walks if "_normal_" in p.name][:3]
+    motions = [read_bvh(p) for p in chosen]
+    layout = choose_layout(motions)
+    pairs = []
+    for path, motion in zip(chosen, motions):
+        out = folder / path.name
+        write_bvh(out, _curved(motion, layout))
+        pairs.append((out, "normal"))
+    model, _, _ = build_model(pairs)
+    return model, [read_bvh(p) for p, _ in pairs]
+
+
+def test_the_curved_takes_do_curve(curved_model):
+    """The training data is what the test says: its heading turns by about half the extra rate
+    of the right steps (which are half the walk), where the takes as recorded barely turn."""
+    model, takes = curved_model
+    root = model.layout.root
+    assert min(_drift(m, root) for m in takes) > 0.3 * np.degrees(RIGHT_STEP_TURN)
+
+
+def test_a_model_of_asymmetric_steps_walks_straight_at_turn_0(curved_model):
+    model, _ = curved_model
+    space = style_space(model)
+    right, left = model.style("normal").means  # labels
+    np.testing.assert_allclose(right[:, 3], -left[:, 3], atol=1e-12)  # mirror-image yaw rates
+    lam = interpolate(space, np.array([1.0]))
+    step = state_durations(lam.duration_means, lam.duration_variances)[0].sum()
+    for frames_per_step in (np.floor(step) + 0.5, np.floor(step) + 1.0, np.floor(step) + 1.3):
+        controls = default_controls(model, {"normal": 1.0}, speed=step / frames_per_step)
+        static, ids = generate_with_states(space, model.layout.dimension, controls, 600, "stream", 32, 0)
+        label = ids // model.states
+        starts = np.flatnonzero(np.diff(label) == -1) + 1  # each stride from a right step's first frame
+        yaw = np.degrees(np.concatenate([[0.0], np.cumsum(static[:, 3]) / model.fps]))
+        per_stride = np.diff(yaw[starts])
+        assert len(per_stride) >= 15
+        # one carry across labels turned this walk 0.17 degrees every stride at x.5 frames a step
+        assert abs(per_stride[2:].mean()) < 0.02, (frames_per_step, per_stride)
+        assert np.abs(per_stride[2:]).max() < 0.1, (frames_per_step, per_stride)
+
+
+def test_the_walk_with_its_feet_planted_keeps_its_heading(curved_model):
+    """The whole pose path (widen, foot lock, root integration) as `instrument evaluate` sees it."""
+    model, _ = curved_model
+    motion = synthesize_motion(model, style_space(model), default_controls(model, {"normal": 1.0}), 15 + 360)
+    motion = Motion(motion.skeleton, motion.channels[15:], motion.fps)
+    assert _drift(motion, model.layout.root) < 0.1  # deg/s (one carry across labels: 0.25)
+
+
+def test_the_drift_figure_follows_a_known_turn_and_not_where_the_walk_starts(real_walks):
+    """A real take turned at a known rate measures that rate (up to the take's own), and moving
+    the start of what is measured by a few frames hardly changes the figure."""
+    motion = read_bvh([p for p in real_walks if "_masculine_" in p.name][0])
+    layout = choose_layout([motion])
+    features, start, heading = extract(motion, layout)
+    turns = []
+    for sign in (1.0, -1.0):
+        turned = features.copy()
+        turned[:, 3] += sign * np.radians(4.0)
+        turns.append(_drift(restore(turned, layout, motion.fps, start, heading), layout.root))
+    assert np.mean(turns) == pytest.approx(4.0, abs=0.05)  # |own + 4| and |own - 4| average to 4
+    figures = [_drift(Motion(motion.skeleton, motion.channels[k:], motion.fps), layout.root) for k in range(0, 30, 3)]
+    assert max(figures) - min(figures) < 0.1
