@@ -4,8 +4,10 @@
 
 For each style at weight 1, x2 and -1: the step length the durations plan (frames), the frames
 the planner gave the first right and left steps, the heading each kind of step turns on
-average, and the drift of the heading the yaw-rate feature integrates to (deg/s, a line fitted
-to every stride's mean heading, as `instrument evaluate` measures the finished walk). The root
+average, the drift of the heading the yaw-rate feature integrates to (deg/s, a line fitted
+to every stride's mean heading, as `instrument evaluate` measures the finished walk) and the
+range those stride means cover (deg: a walk that weaves one way and back drifts little over
+a long time but covers a wide range). The root
 path is integrated from exactly this feature (motion/features.py restore_local), so a drift
 here is a drift of the walk.
 """
@@ -33,8 +35,8 @@ def main() -> None:
     model = load_model(args.model)
     space, fps, states = style_space(model), model.fps, model.states
     frames = SETTLE_FRAMES + int(round(args.seconds * fps))
-    print("| walk | planned step | right steps | left steps | turn per right / left step deg | drift deg/s |")
-    print("|---|---|---|---|---|---|")
+    print("| walk | planned step | right steps | left steps | turn per right / left step deg | drift deg/s | heading range deg |")
+    print("|---|---|---|---|---|---|---|")
     for weight in (1.0, 2.0, -1.0):
         for style in model.style_names:
             controls = default_controls(model, {style: weight})
@@ -54,7 +56,7 @@ def main() -> None:
             name = style if weight == 1.0 else f"{style} {'x2' if weight == 2.0 else '-1'}"
             print(f"| {name} | {planned:.2f} | {' '.join(map(str, lengths[kinds == 0][:6]))} | "
                   f"{' '.join(map(str, lengths[kinds == 1][:6]))} | {turns[kinds == 0].mean():+.2f} / "
-                  f"{turns[kinds == 1].mean():+.2f} | {drift:.2f} |")
+                  f"{turns[kinds == 1].mean():+.2f} | {drift:.2f} | {np.ptp(means):.1f} |")
 
 
 if __name__ == "__main__":

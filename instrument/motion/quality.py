@@ -58,7 +58,7 @@ def heading_drift(yaw: np.ndarray, steps: list[Step], fps: float) -> float:
     """How fast a walk's heading turns (deg/s, unsigned): the slope of the straight line best
     fitting the mean heading of each stride (every two steps in a row) against its time.
 
-    The hips sway their heading by up to 20 degrees within a step; a stride's mean heading does
+    The hips sway their heading by up to 24 degrees within a step; a stride's mean heading does
     not depend on where in that sway a step was found to start, so the figure neither follows
     a frame's error in the step ends nor rests on the first and last step alone (the heading at
     one step start against another's gave 0.00 to 0.16 deg/s for one 12 s walk measured from 30
