@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from instrument.models.build import build_model
+from instrument.models.modelfile import default_model_path, load_model
 from instrument.motion.bvh import Motion, read_bvh, write_bvh
 from instrument.motion.features import choose_layout, extract, heading_angle, restore
 from instrument.motion.kinematics import forward_kinematics, local_transforms
@@ -19,6 +20,7 @@ from instrument.motion.steps import segment_steps
 from instrument.synthesis.durations import state_durations
 from instrument.synthesis.interpolation import interpolate, style_space
 from instrument.synthesis.offline import default_controls, generate_with_states, synthesize_motion
+from instrument.synthesis.stream import Crowd
 
 RIGHT_STEP_TURN = np.radians(6.0)  # rad/s added to the yaw rate of every right step of the takes
 
@@ -103,3 +105,24 @@ def test_the_drift_figure_follows_a_known_turn_and_not_where_the_walk_starts(rea
     assert np.mean(turns) == pytest.approx(4.0, abs=0.05)  # |own + 4| and |own - 4| average to 4
     figures = [_drift(Motion(motion.skeleton, motion.channels[k:], motion.fps), layout.root) for k in range(0, 30, 3)]
     assert max(figures) - min(figures) < 0.1
+
+
+@pytest.mark.parametrize("style, speed", [("normal", 1.0), ("active", 1.0), ("youthful", 0.77), ("masculine", 1.9)])
+def test_a_left_step_gets_the_frames_of_the_right_step_before_it(style, speed):
+    """The plan on the shipped model: state by state, each left step lasts as long as the right
+    step before it; every step stays within a frame of its real-valued length, and the whole
+    plan within a frame per label of the sum of those lengths."""
+    model = load_model(default_model_path())
+    space = style_space(model)
+    controls = default_controls(model, {style: 1.0}, speed=speed)
+    ids = Crowd(space).state_plan(controls, 3000)
+    change = np.flatnonzero(np.diff(ids)) + 1
+    bounds = np.concatenate([[0], change])
+    counts = np.diff(np.concatenate([bounds, [len(ids)]]))[: (len(bounds) - 1) // 10 * 10]
+    assert ids[0] == 0 and ids[bounds[len(counts)] - 1] == 2 * model.states - 1  # whole strides from a right step
+    strides = counts.reshape(-1, 2, model.states)  # (stride, label, state) frames
+    np.testing.assert_array_equal(strides[:, 0], strides[:, 1])
+    lam = interpolate(space, controls.weights)
+    planned = state_durations(lam.duration_means, lam.duration_variances, speed)[0]
+    assert np.abs(strides[:, 0].sum(axis=1) - planned.sum()).max() < 1.0
+    assert abs(strides.sum() - len(strides) * 2 * planned.sum()) <= 2.0
