@@ -1,6 +1,7 @@
 """The whole-sequence MLPG kernel against a dense solve, against the windowed kernel (`_solve`,
 which streaming uses), and under repeated and concurrent calls (its work arrays are kept)."""
 
+import os
 import threading
 
 import numpy as np
@@ -120,3 +121,14 @@ def test_mlpg_takes_any_float_layout():
     np.testing.assert_array_equal(mlpg(np.asfortranarray(means), np.asfortranarray(variances)), expected)
     np.testing.assert_array_equal(mlpg(means[:, ::-1][:, ::-1], variances), expected)
     np.testing.assert_array_equal(mlpg(means.tolist(), variances.tolist()), expected)
+
+
+def test_bench_names_the_machine_its_figures_came_from():
+    from instrument.cli.bench_cmd import machine
+
+    figures = machine()
+    assert figures["cores"] == os.cpu_count()
+    with open("/proc/cpuinfo", encoding="utf-8") as info:
+        models = {line.split(":", 1)[1].strip() for line in info if line.startswith("model name")}
+    assert figures["cpu"] in models
+    assert figures["load_1min"] >= 0
