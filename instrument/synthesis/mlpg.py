@@ -213,8 +213,16 @@ def _solve_sequence(means, variances, y, l1, l2):  # pragma: no cover - compiled
         for d in range(dim):
             y[frames - 2, d] -= l1[frames - 1, d] * y[frames - 1, d]
     for t in range(frames - 3, -1, -1):
-        for d in range(dim):
-            y[t, d] = y[t, d] - l1[t + 1, d] * y[t + 1, d] - l2[t + 2, d] * y[t + 2, d]
+        _substitute_row(y[t], y[t + 1], y[t + 2], l1[t + 1], l2[t + 2])
+
+
+@njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
+def _substitute_row(x, x1, x2, l1, l2):  # pragma: no cover - compiled
+    """x[t] -= l1[t + 1] x[t + 1] + l2[t + 2] x[t + 2], given rows as vectors: indexed as one (T, D)
+    array the compiler cannot tell the row written from the rows read, and the loop stays
+    scalar (1.6 times slower)."""
+    for d in range(x.shape[0]):
+        x[d] = x[d] - l1[d] * x1[d] - l2[d] * x2[d]
 
 
 _scratch = threading.local()  # per thread: the kernels release the GIL, so threads may solve at once
