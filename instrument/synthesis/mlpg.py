@@ -241,8 +241,9 @@ _scratch = threading.local()  # per thread: the kernels release the GIL, so thre
 
 
 def _work(frames: int, dim: int) -> tuple[np.ndarray, np.ndarray]:
-    """Two (frames, dim) work arrays, kept between calls. Fresh arrays of this size come back from
-    the allocator as fresh pages, and faulting them in cost as much as a third of the solve."""
+    """Two (frames, dim) work arrays, kept between calls (growing only: each thread keeps 16 x T x D
+    bytes of its largest solve). Fresh arrays of this size came back from the allocator as fresh
+    pages, and faulting them in cost a quarter to a third of the solve."""
     size = 2 * frames * dim
     buffer = getattr(_scratch, "buffer", None)
     if buffer is None or buffer.size < size:
