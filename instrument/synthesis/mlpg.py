@@ -18,12 +18,13 @@ kernel of its own, `_solve_sequence`: the same elimination without the row table
 frames, its rolling buffers picked by reference instead of indexed by slot, and the back
 substitution on row vectors, which the compiler vectorises. Its work arrays are kept between
 calls: fresh ones of 10,000 x 66 came back from the allocator as fresh pages, about 1,000 page
-faults a call, a quarter to a third of the old path's time. Together 1.28-1.42 x the old path
+faults a call, a quarter to a third of the old path's time. Together 1.16-1.42 x the old path
 (10,000 frames x 66 dims, timed turn about in one process, 2 shared cores; docs/mlpg.md).
-Tried and dropped, by the same measure: prange over two halves of the dimensions (0.6-1.06 x
-on the shared cores: the halves wait on each other's time slices), blocks of dimensions (1.2-2.4 x
-slower: each block streams the whole input again), a vectorised forward sweep (0.99-1.03 x),
-one division instead of three per frame and dimension (no change: not bound by the divider).
+Tried and dropped, by the same measure: prange over two halves of the dimensions (the kernel
+over a runtime range of dimensions compiles to slower code, 0.67 x in all; under load the halves
+wait on each other's time slices), blocks of dimensions (1.2-2.4 x slower: each block streams
+the whole input again), a vectorised forward sweep (0.99-1.03 x), one division instead of three
+per frame and dimension (no change: not bound by the divider).
 """
 
 from __future__ import annotations
