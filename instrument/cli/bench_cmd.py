@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import platform
 import sys
 import time
 
@@ -143,6 +145,31 @@ def _nnmnkwii_mlpg():
     return lambda means, variances: reference(means, variances, windows)
 
 
+def machine() -> dict:
+    """The machine a figure came from: absolute speeds mean little without it."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as info:
+            cpu = next((line.split(":", 1)[1].strip() for line in info if line.startswith("model name")), cpu)
+    except OSError:
+        pass
+    return {"cores": os.cpu_count(), "cpu": cpu, "load_1min": os.getloadavg()[0] if hasattr(os, "getloadavg") else None}
+
+
+def paired_seconds(ours, theirs, repeat: int) -> tuple[float, float, float]:
+    """Median seconds of two solvers timed turn about, and the median of their per-turn ratio
+    (theirs / ours): on a shared machine the load changes within seconds, and a pair measured
+    back to back sees the same load where two separate runs of medians do not."""
+    ours(), theirs()  # warm up (and compile)
+    times = np.empty((repeat, 2))
+    for k in range(repeat):
+        for j, work in enumerate((ours, theirs)):
+            start = time.perf_counter()
+            work()
+            times[k, j] = time.perf_counter() - start
+    return float(np.median(times[:, 0])), float(np.median(times[:, 1])), float(np.median(times[:, 1] / times[:, 0]))
+
+
 def measure(model_path: str | None, repeat: int) -> dict:
     figures: dict = {}
     text = benchmark_walk()
@@ -160,14 +187,16 @@ def measure(model_path: str | None, repeat: int) -> dict:
     means, variances = lam.means[ids], 1.0 / lam.precisions[ids]
     figures["dimension"] = dimension
     figures["mlpg_frames"] = MLPG_FRAMES
-    figures["mlpg_frames_per_s"] = MLPG_FRAMES / median_seconds(lambda: mlpg(means, variances), repeat)
+    figures["machine"] = machine()
     reference = _nnmnkwii_mlpg()
-    figures["nnmnkwii_frames_per_s"] = (
-        MLPG_FRAMES / median_seconds(lambda: reference(means, variances), repeat) if reference else None
-    )
-    figures["mlpg_speedup_over_nnmnkwii"] = (
-        figures["mlpg_frames_per_s"] / figures["nnmnkwii_frames_per_s"] if reference else None
-    )
+    if reference:
+        ours, theirs, speedup = paired_seconds(lambda: mlpg(means, variances), lambda: reference(means, variances), repeat)
+        figures["mlpg_frames_per_s"] = MLPG_FRAMES / ours
+        figures["nnmnkwii_frames_per_s"] = MLPG_FRAMES / theirs
+        figures["mlpg_speedup_over_nnmnkwii"] = speedup
+    else:
+        figures["mlpg_frames_per_s"] = MLPG_FRAMES / median_seconds(lambda: mlpg(means, variances), repeat)
+        figures["nnmnkwii_frames_per_s"] = figures["mlpg_speedup_over_nnmnkwii"] = None
 
     # the yardstick of the streaming figures: the bare solve of one window of the same size
     frames, blocks = 100, max(3, min(repeat, 9))  # the median of several blocks: one busy moment is not the figure
@@ -239,10 +268,13 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(f"BVH parse, 500 frames x 22 joints:      {f['bvh_parse_ms_500x22']:8.1f} ms")
     print(f"feature extraction, same file:          {f['features_ms_500x22']:8.1f} ms")
+    m = f["machine"]
+    load = f", load {m['load_1min']:.1f}" if m["load_1min"] is not None else ""
+    print(f"machine: {m['cores']} cores, {m['cpu']}{load} (1-minute average at the MLPG figures)")
     print(f"full MLPG, {f['mlpg_frames']} frames x {f['dimension']} dims:  {f['mlpg_frames_per_s']:8.0f} frames/s")
     if f["nnmnkwii_frames_per_s"]:
-        print(f"nnmnkwii MLPG, same input:              {f['nnmnkwii_frames_per_s']:8.0f} frames/s "
-              f"(ours x{f['mlpg_speedup_over_nnmnkwii']:.2f})")
+        print(f"nnmnkwii MLPG, same input, turn about:  {f['nnmnkwii_frames_per_s']:8.0f} frames/s "
+              f"(ours x{f['mlpg_speedup_over_nnmnkwii']:.2f}, the median of per-turn ratios)")
     else:
         print("nnmnkwii MLPG:                          not installed (pip install nnmnkwii)")
     print(f"one window's bare solve ({2 + f['lookahead'] + 1} frames):    {f['window_solve_us']:8.1f} us (the yardstick below)")

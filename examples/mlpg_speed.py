@@ -1,0 +1,64 @@
+"""Full MLPG, the whole-sequence kernel against the windowed one and nnmnkwii (docs/mlpg.md).
+
+The bench's input (the shipped model, all styles mixed, 10,000 frames) solved three ways, timed
+turn about in one process so all three see the same load: `mlpg` (the whole-sequence kernel),
+the windowed kernel `mlpg` used before (`mlpg_continued` on variances, no fixed frames: the same
+call the old `mlpg` made) and nnmnkwii. Prints medians of wall and CPU time and the median of
+the per-turn ratios, with the machine and its load.
+
+    python examples/mlpg_speed.py [--turns 31] [--frames 10000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from instrument.cli.bench_cmd import _nnmnkwii_mlpg, machine
+from instrument.models.modelfile import default_model_path, load_model
+from instrument.synthesis.interpolation import interpolate, style_space
+from instrument.synthesis.mlpg import mlpg, mlpg_continued
+from instrument.synthesis.stream import Controls, Crowd
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--turns", type=int, default=31)
+    parser.add_argument("--frames", type=int, default=10_000)
+    args = parser.parse_args()
+    model = load_model(default_model_path())
+    space = style_space(model)
+    controls = Controls(np.full(len(model.style_names), 1.5 / len(model.style_names)))
+    ids = Crowd(space).state_plan(controls, args.frames)
+    lam = interpolate(space, controls.weights)
+    means, variances = lam.means[ids], 1.0 / lam.precisions[ids]
+    dim = means.shape[1] // 3
+    solvers = {
+        "whole-sequence": lambda: mlpg(means, variances),
+        "windowed": lambda: mlpg_continued(means[None], variances[None], np.zeros((1, 0, dim)), as_variance=True)[0],
+    }
+    reference = _nnmnkwii_mlpg()
+    if reference:
+        solvers["nnmnkwii"] = lambda: reference(means, variances)
+    for solve in solvers.values():
+        solve()  # compile, warm up
+    wall = np.empty((args.turns, len(solvers)))
+    cpu = np.empty((args.turns, len(solvers)))
+    for k in range(args.turns):
+        for j, solve in enumerate(solvers.values()):
+            start, start_cpu = time.perf_counter(), time.thread_time()
+            solve()
+            cpu[k, j], wall[k, j] = time.thread_time() - start_cpu, time.perf_counter() - start
+    m = machine()
+    print(f"{m['cores']} cores, {m['cpu']}, load {m['load_1min']:.1f}; {args.frames} frames x {dim} dims, {args.turns} turns")
+    for j, name in enumerate(solvers):
+        against_windowed = np.median(wall[:, 1] / wall[:, j]), np.median(cpu[:, 1] / cpu[:, j])
+        print(f"{name:15s} wall {1e3 * np.median(wall[:, j]):7.1f} ms  cpu {1e3 * np.median(cpu[:, j]):7.1f} ms  "
+              f"per turn: x{against_windowed[0]:.2f} the windowed kernel (cpu x{against_windowed[1]:.2f})"
+              + (f", x{np.median(wall[:, -1] / wall[:, j]):.2f} nnmnkwii" if reference else ""))
+
+
+if __name__ == "__main__":
+    main()

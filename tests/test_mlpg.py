@@ -1,0 +1,134 @@
+"""The whole-sequence MLPG kernel against a dense solve, against the windowed kernel (`_solve`,
+which streaming uses), and under repeated and concurrent calls (its work arrays are kept)."""
+
+import os
+import threading
+
+import numpy as np
+import pytest
+
+from instrument.models.modelfile import default_model_path, load_model
+from instrument.motion.features import WINDOWS
+from instrument.synthesis.interpolation import interpolate, style_space
+from instrument.synthesis.mlpg import mlpg, mlpg_continued
+from instrument.synthesis.stream import Controls, Crowd
+
+
+def dense_mlpg(means: np.ndarray, variances: np.ndarray) -> np.ndarray:
+    """c = (W'PW)^-1 W'P mu with W built row by row from the windows (zero precision for dynamic
+    windows that reach past either end), solved densely: the definition, not an algorithm."""
+    frames, width = means.shape
+    dim = width // 3
+    out = np.empty((frames, dim))
+    for d in range(dim):
+        rows, weights, targets = [], [], []
+        for k, window in enumerate(WINDOWS):
+            for t in range(frames):
+                row = np.zeros(frames)
+                inside = True
+                for offset, coefficient in zip((-1, 0, 1), window):
+                    if coefficient != 0.0:
+                        if not 0 <= t + offset < frames:
+                            inside = False
+                        else:
+                            row[t + offset] = coefficient
+                rows.append(row)
+                weights.append(1.0 / variances[t, k * dim + d] if inside or k == 0 else 0.0)
+                targets.append(means[t, k * dim + d])
+        w, p, mu = np.array(rows), np.array(weights), np.array(targets)
+        out[:, d] = np.linalg.solve(w.T @ (p[:, None] * w), w.T @ (p * mu))
+    return out
+
+
+def random_input(frames: int, dim: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return rng.normal(size=(frames, 3 * dim)), rng.uniform(0.01, 3.0, size=(frames, 3 * dim))
+
+
+def windowed_kernel(means: np.ndarray, variances: np.ndarray) -> np.ndarray:
+    """The solve `mlpg` used before it had a kernel of its own (and streaming still uses)."""
+    return mlpg_continued(means[None], variances[None], np.zeros((1, 0, means.shape[1] // 3)), as_variance=True)[0]
+
+
+@pytest.mark.parametrize("frames", [1, 2, 3, 4, 5, 6, 9, 40])
+def test_mlpg_equals_the_dense_solve(frames):
+    means, variances = random_input(frames, 5, frames)
+    expected = dense_mlpg(means, variances)
+    np.testing.assert_allclose(mlpg(means, variances), expected, rtol=0, atol=1e-10 * np.abs(expected).max())
+
+
+@pytest.fixture(scope="module")
+def model_input():
+    """A 3,000-frame state plan of the shipped model with all styles mixed, as `instrument bench` builds."""
+    model = load_model(default_model_path())
+    space = style_space(model)
+    controls = Controls(np.full(len(model.style_names), 1.5 / len(model.style_names)))
+    ids = Crowd(space).state_plan(controls, 3000)
+    lam = interpolate(space, controls.weights)
+    return lam.means[ids], 1.0 / lam.precisions[ids]
+
+
+def test_mlpg_equals_the_windowed_kernel_on_the_shipped_model(model_input):
+    means, variances = model_input
+    before = windowed_kernel(means, variances)
+    now = mlpg(means, variances)
+    scale = np.abs(before).max(axis=0)  # per dimension: features differ in size by orders of magnitude
+    assert np.all(np.abs(now - before) <= 1e-10 * scale)
+
+
+def test_mlpg_equals_the_windowed_kernel_on_random_input():
+    for frames, dim in ((2, 1), (7, 3), (500, 66)):
+        means, variances = random_input(frames, dim, frames * dim)
+        before = windowed_kernel(means, variances)
+        np.testing.assert_allclose(mlpg(means, variances), before, rtol=0, atol=1e-10 * np.abs(before).max())
+
+
+def test_kept_work_arrays_leave_no_trace_between_calls_of_other_sizes():
+    inputs = [random_input(frames, dim, frames + dim) for frames, dim in ((800, 9), (30, 9), (30, 4), (1200, 2), (3, 9))]
+    first = [mlpg(m, v) for m, v in inputs]
+    again = [mlpg(m, v) for m, v in reversed(inputs)][::-1]
+    for a, b, (m, v) in zip(first, again, inputs):
+        np.testing.assert_array_equal(a, b)
+        expected = windowed_kernel(m, v)
+        np.testing.assert_allclose(a, expected, rtol=0, atol=1e-10 * np.abs(expected).max())
+
+
+def test_threads_solving_at_once_each_get_their_own_answer():
+    inputs = [random_input(2000 + 100 * k, 12, k) for k in range(4)]
+    expected = [mlpg(m, v) for m, v in inputs]
+    results: dict[int, list[np.ndarray]] = {k: [] for k in range(len(inputs))}
+    start = threading.Barrier(len(inputs))
+
+    def solve(k: int) -> None:
+        start.wait()
+        for _ in range(20):
+            results[k].append(mlpg(*inputs[k]))
+
+    threads = [threading.Thread(target=solve, args=(k,)) for k in range(len(inputs))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    for k, runs in results.items():
+        assert len(runs) == 20
+        for run in runs:
+            np.testing.assert_array_equal(run, expected[k])
+
+
+def test_mlpg_takes_any_float_layout():
+    means, variances = random_input(60, 4, 3)
+    expected = mlpg(means, variances)
+    np.testing.assert_array_equal(mlpg(np.asfortranarray(means), np.asfortranarray(variances)), expected)
+    np.testing.assert_array_equal(mlpg(means[:, ::-1][:, ::-1], variances), expected)
+    np.testing.assert_array_equal(mlpg(means.tolist(), variances.tolist()), expected)
+
+
+def test_bench_names_the_machine_its_figures_came_from():
+    from instrument.cli.bench_cmd import machine
+
+    figures = machine()
+    assert figures["cores"] == os.cpu_count()
+    with open("/proc/cpuinfo", encoding="utf-8") as info:
+        models = {line.split(":", 1)[1].strip() for line in info if line.startswith("model name")}
+    assert figures["cpu"] in models
+    assert figures["load_1min"] >= 0
