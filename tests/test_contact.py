@@ -10,7 +10,8 @@ from instrument.models.symmetry import symmetric_models
 from instrument.motion.features import extract
 from instrument.motion.kinematics import world_positions
 from instrument.runtime.pose import PoseStream
-from instrument.synthesis.contact import NEARLY_STRAIGHT, FootLock, _leg_swings, contact_space
+from instrument.synthesis.contact import NEARLY_STRAIGHT, _leg_swings, contact_space
+from instrument.synthesis.footlock import FootLock
 from instrument.synthesis.interpolation import style_space
 from instrument.synthesis.offline import default_controls, generate_with_states, synthesize_motion
 from instrument.synthesis.stream import Controls, Crowd
@@ -91,7 +92,7 @@ def _walk(model, space, weights_per_frame, fps=None):
         shares = contact.shares(controls.weights)[walker.history_ids[0, 1]]
         out.append(poses.next(frame, shares))
         raw.append(plain.next(frame))
-        planted.append(poses.lock.weight.copy())
+        planted.append(poses.lock_weights.copy())
     return out, raw, np.array(planted)
 
 

@@ -13,7 +13,8 @@ from ..models.modelfile import default_model_path, load_model
 from ..motion.bvh import Joint, Motion, Skeleton, bvh_text, parse_bvh
 from ..motion.features import choose_layout, extract
 from ..runtime.pose import PoseStream
-from ..synthesis.contact import FootLock, contact_space
+from ..synthesis.contact import contact_space
+from ..synthesis.footlock import FootLock
 from ..synthesis.interpolation import interpolate, style_space
 from ..synthesis.mlpg import mlpg, mlpg_continued
 from ..synthesis.offline import generate_with_states
