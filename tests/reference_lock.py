@@ -6,13 +6,71 @@ See instrument.synthesis.contact's docstring for what the lock does."""
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from instrument.motion.features import FeatureLayout, restore_local
 from instrument.motion.kinematics import forward_kinematics
 from instrument.motion.limbs import centimetres_per_unit, find_limbs
 from instrument.runtime.pose import Pose
-from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, EASE, POSSIBLE, PLANTED,
-                                          SWING_CM, _leg_swings)
+from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, POSSIBLE,
+                                          PLANTED, SWING_CM)
+
+
+def EASE(x: float) -> float:
+    return x * x * (3.0 - 2.0 * x)  # smoothstep: the lock starts and ends with zero speed
+
+
+@njit
+def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """The smallest rotation taking direction a to direction b (Rodrigues)."""
+    a = a / np.sqrt(np.sum(a * a))
+    b = b / np.sqrt(np.sum(b * b))
+    axis = np.cross(a, b)
+    s = np.sqrt(np.sum(axis * axis))
+    c = np.sum(a * b)
+    if s < 1e-12:
+        return np.eye(3)
+    k = axis / s
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
+
+
+@njit
+def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:  # pragma: no cover - compiled
+    k = axis / np.sqrt(np.sum(axis * axis))
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
+
+
+@njit
+def _leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
+    """Two-bone IK, as world rotations of the thigh (about the hip) and the shin (about the
+    knee, applied after the thigh's) that take the ankle to `target`, or as near as the leg
+    allows: the knee bends about its own hinge (the axis across its generated bend; for a
+    straight leg, across the line to the toes) to the angle the law of cosines gives, then the
+    hip swings the leg onto the target. A generated leg bent a little backwards (less than
+    NEARLY_STRAIGHT, the toes' side telling which way is forward) is bent forward through
+    straight, not further back, so a leg shortened from nearly straight never folds the wrong
+    way and flips back a frame later; a clearer bend is the knee's own (a swinging foot's toes
+    may point anywhere)."""
+    thigh_vector, shin_vector = knee - hip, ankle - knee
+    upper = np.sqrt(np.sum(thigh_vector**2))
+    lower = np.sqrt(np.sum(shin_vector**2))
+    reach = target - hip
+    distance = min(max(np.sqrt(np.sum(reach * reach)), abs(upper - lower) + 1e-6), (upper + lower) * 0.9999)
+    forward = np.cross(toes, thigh_vector)  # the axis a knee bends forward about (the shin back, the knee towards the toes)
+    hinge = np.cross(thigh_vector, shin_vector)
+    now = np.arccos(min(max(np.sum(thigh_vector * shin_vector) / (upper * lower), -1.0), 1.0))  # 0: straight
+    if np.sqrt(np.sum(hinge * hinge)) < 1e-3 * upper * lower:  # straight: the knee bends forward
+        hinge, now = forward, 0.0
+    elif now < NEARLY_STRAIGHT and np.sum(hinge * forward) < 0.0:  # bent a little backwards: bent forward through straight
+        hinge, now = -hinge, -now
+    if np.sqrt(np.sum(hinge * hinge)) < 1e-12:
+        return np.eye(3), np.eye(3)
+    cos_new = min(max((upper**2 + lower**2 - distance**2) / (2.0 * upper * lower), -1.0), 1.0)
+    bend = _axis_rotation(hinge, np.pi - np.arccos(cos_new) - now)
+    swing = _rotation_between(thigh_vector + bend @ shin_vector, reach)
+    return swing, swing @ bend @ swing.T
 
 
 class FootLock:

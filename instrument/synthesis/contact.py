@@ -28,7 +28,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from ..models.hsmm import HSMM, forward_backward, pad_segments
 from ..motion.features import FeatureLayout, restore_local
@@ -42,10 +41,6 @@ SWING_CM = 2.0  # a foot in the air keeps its lowest joint this far above its cl
 PLANTED = 0.5  # a state this sure of a foot's contact plants it
 POSSIBLE = 0.2  # a state this sure plants a foot that is on the floor and still
 NEARLY_STRAIGHT = np.radians(10.0)  # a knee bent less than this may be bent the wrong way (see _leg_swings)
-
-
-def EASE(x: float) -> float:
-    return x * x * (3.0 - 2.0 * x)  # smoothstep: the lock starts and ends with zero speed
 
 
 # ---- training -------------------------------------------------------------------------------
@@ -161,56 +156,3 @@ def contact_space(model) -> ContactSpace | None:
         return None
     flat = base.reshape(-1, 2)
     return ContactSpace(flat, styles.reshape(len(model.style_names), -1, 2) - flat, np.asarray(stored), GROUPS.index("legs"))
-
-
-@njit(cache=True)
-def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
-    """The smallest rotation taking direction a to direction b (Rodrigues)."""
-    a = a / np.sqrt(np.sum(a * a))
-    b = b / np.sqrt(np.sum(b * b))
-    axis = np.cross(a, b)
-    s = np.sqrt(np.sum(axis * axis))
-    c = np.sum(a * b)
-    if s < 1e-12:
-        return np.eye(3)
-    k = axis / s
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
-
-
-@njit(cache=True)
-def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:  # pragma: no cover - compiled
-    k = axis / np.sqrt(np.sum(axis * axis))
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
-
-
-@njit(cache=True)
-def _leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
-    """Two-bone IK, as world rotations of the thigh (about the hip) and the shin (about the
-    knee, applied after the thigh's) that take the ankle to `target`, or as near as the leg
-    allows: the knee bends about its own hinge (the axis across its generated bend; for a
-    straight leg, across the line to the toes) to the angle the law of cosines gives, then the
-    hip swings the leg onto the target. A generated leg bent a little backwards (less than
-    NEARLY_STRAIGHT, the toes' side telling which way is forward) is bent forward through
-    straight, not further back, so a leg shortened from nearly straight never folds the wrong
-    way and flips back a frame later; a clearer bend is the knee's own (a swinging foot's toes
-    may point anywhere)."""
-    thigh_vector, shin_vector = knee - hip, ankle - knee
-    upper = np.sqrt(np.sum(thigh_vector**2))
-    lower = np.sqrt(np.sum(shin_vector**2))
-    reach = target - hip
-    distance = min(max(np.sqrt(np.sum(reach * reach)), abs(upper - lower) + 1e-6), (upper + lower) * 0.9999)
-    forward = np.cross(toes, thigh_vector)  # the axis a knee bends forward about (the shin back, the knee towards the toes)
-    hinge = np.cross(thigh_vector, shin_vector)
-    now = np.arccos(min(max(np.sum(thigh_vector * shin_vector) / (upper * lower), -1.0), 1.0))  # 0: straight
-    if np.sqrt(np.sum(hinge * hinge)) < 1e-3 * upper * lower:  # straight: the knee bends forward
-        hinge, now = forward, 0.0
-    elif now < NEARLY_STRAIGHT and np.sum(hinge * forward) < 0.0:  # bent a little backwards: bent forward through straight
-        hinge, now = -hinge, -now
-    if np.sqrt(np.sum(hinge * hinge)) < 1e-12:
-        return np.eye(3), np.eye(3)
-    cos_new = min(max((upper**2 + lower**2 - distance**2) / (2.0 * upper * lower), -1.0), 1.0)
-    bend = _axis_rotation(hinge, np.pi - np.arccos(cos_new) - now)
-    swing = _rotation_between(thigh_vector + bend @ shin_vector, reach)
-    return swing, swing @ bend @ swing.T

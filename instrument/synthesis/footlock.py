@@ -8,7 +8,8 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
   and still where the state allows it; always one foot);
 - `lock_target`: where an ankle should go (the lock blended in, the floor, the swing lift);
 - `body_drop`: how far the body must come down for a planted leg to reach the floor;
-- `solve_leg`: two-bone leg IK in place on the local rotations (`contact._leg_swings`);
+- `leg_swings`: two-bone IK, the thigh's and the shin's turns that take an ankle to a target;
+- `solve_leg`: those turns applied in place to the local rotations;
 - `lock_frame`: one character's frame, in the order above; `lock_crowd`: every character's.
 
 `FootLock` holds what does not change (the legs' joints, the floor, the units); each
@@ -26,7 +27,7 @@ from numba import njit
 from ..motion.features import FeatureLayout
 from ..motion.kinematics import _compose, forward_kinematics
 from ..motion.limbs import centimetres_per_unit, find_limbs
-from .contact import BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, PLANTED, POSSIBLE, SWING_CM, _leg_swings
+from .contact import BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, PLANTED, POSSIBLE, SWING_CM
 
 
 @dataclass
@@ -76,7 +77,7 @@ class FootLock:
 
 @njit(cache=True)
 def _ease(x: float) -> float:  # pragma: no cover - compiled
-    return x * x * (3.0 - 2.0 * x)  # contact.EASE: the lock starts and ends with zero speed
+    return x * x * (3.0 - 2.0 * x)  # smoothstep: the lock starts and ends with zero speed
 
 
 @njit(cache=True)
@@ -140,21 +141,110 @@ def body_drop(world_pos, joints, reach, targets, planted):  # pragma: no cover -
 
 
 @njit(cache=True)
+def _product(a, b, out, transpose_a=False):  # pragma: no cover - compiled
+    """out = a @ b (or a.T @ b) for 3x3 matrices, without a BLAS call or an allocation."""
+    for i in range(3):
+        for j in range(3):
+            if transpose_a:
+                out[i, j] = a[0, i] * b[0, j] + a[1, i] * b[1, j] + a[2, i] * b[2, j]
+            else:
+                out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
+
+
+@njit(cache=True)
+def _dot(a, b) -> float:  # pragma: no cover - compiled
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(cache=True)
+def _cross(a, b):  # pragma: no cover - compiled
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+@njit(cache=True)
+def _axis_rotation(axis, sine: float, versine: float):  # pragma: no cover - compiled
+    """I + sin K + (1 - cos) K K (Rodrigues), K the cross-product matrix of the unit `axis`."""
+    K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    KK = np.empty((3, 3))
+    _product(K, K, KK)
+    out = np.eye(3)
+    for i in range(3):
+        for j in range(3):
+            out[i, j] += sine * K[i, j] + versine * KK[i, j]
+    return out
+
+
+@njit(cache=True)
+def _rotation_between(a, b):  # pragma: no cover - compiled
+    """The smallest rotation taking direction a to direction b."""
+    a = a / np.sqrt(_dot(a, a))
+    b = b / np.sqrt(_dot(b, b))
+    axis = _cross(a, b)
+    s = np.sqrt(_dot(axis, axis))
+    if s < 1e-12:
+        return np.eye(3)
+    return _axis_rotation(axis / s, s, 1.0 - _dot(a, b))
+
+
+@njit(cache=True)
+def leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
+    """Two-bone IK, as world rotations of the thigh (about the hip) and the shin (about the
+    knee, applied after the thigh's) that take the ankle to `target`, or as near as the leg
+    allows: the knee bends about its own hinge (the axis across its generated bend; for a
+    straight leg, across the line to the toes) to the angle the law of cosines gives, then the
+    hip swings the leg onto the target. A generated leg bent a little backwards (less than
+    NEARLY_STRAIGHT, the toes' side telling which way is forward) is bent forward through
+    straight, not further back, so a leg shortened from nearly straight never folds the wrong
+    way and flips back a frame later; a clearer bend is the knee's own (a swinging foot's toes
+    may point anywhere)."""
+    thigh_vector, shin_vector = knee - hip, ankle - knee
+    upper = np.sqrt(_dot(thigh_vector, thigh_vector))
+    lower = np.sqrt(_dot(shin_vector, shin_vector))
+    reach = target - hip
+    distance = min(max(np.sqrt(_dot(reach, reach)), abs(upper - lower) + 1e-6), (upper + lower) * 0.9999)
+    forward = _cross(toes, thigh_vector)  # the axis a knee bends forward about (the shin back, the knee towards the toes)
+    hinge = _cross(thigh_vector, shin_vector)
+    now = np.arccos(min(max(_dot(thigh_vector, shin_vector) / (upper * lower), -1.0), 1.0))  # 0: straight
+    if np.sqrt(_dot(hinge, hinge)) < 1e-3 * upper * lower:  # straight: the knee bends forward
+        hinge, now = forward, 0.0
+    elif now < NEARLY_STRAIGHT and _dot(hinge, forward) < 0.0:  # bent a little backwards: bent forward through straight
+        hinge, now = -hinge, -now
+    length = np.sqrt(_dot(hinge, hinge))
+    if length < 1e-12:
+        return np.eye(3), np.eye(3)
+    cos_new = min(max((upper**2 + lower**2 - distance**2) / (2.0 * upper * lower), -1.0), 1.0)
+    angle = np.pi - np.arccos(cos_new) - now
+    bend = _axis_rotation(hinge / length, np.sin(angle), 1.0 - np.cos(angle))
+    bent_shin = np.empty(3)
+    for i in range(3):
+        bent_shin[i] = thigh_vector[i] + _dot(bend[i], shin_vector)  # thigh + bend @ shin
+    swing = _rotation_between(bent_shin, reach)
+    turned, shin = np.empty((3, 3)), np.empty((3, 3))
+    _product(swing, bend, turned)
+    for i in range(3):
+        for j in range(3):
+            shin[i, j] = _dot(turned[i], swing[j])  # swing @ bend @ swing.T
+    return swing, shin
+
+
+@njit(cache=True)
 def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, target):  # pragma: no cover - compiled
     """Leg IK in place on the local rotations: hip and knee swung, the ankle keeping its world
     rotation. The hip is the knee's parent and the knee the ankle's (limbs.py): below the hip
     everything turns with the thigh, below the knee also with the shin."""
     toes = world_pos[toe] - world_pos[ankle]
-    thigh, shin = _leg_swings(world_pos[hip], world_pos[knee], world_pos[ankle], target, toes)
-    hip_world = thigh @ world_rot[hip]
-    knee_world = shin @ thigh @ world_rot[knee]
+    thigh, shin = leg_swings(world_pos[hip], world_pos[knee], world_pos[ankle], target, toes)
+    hip_world, knee_world, turn = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    _product(thigh, world_rot[hip], hip_world)  # thigh @ world_rot[hip]
+    _product(shin, thigh, turn)
+    _product(turn, world_rot[knee], knee_world)  # shin @ thigh @ world_rot[knee]
     parent = parents[hip]
     if parent >= 0:
-        rotations[hip] = world_rot[parent].T @ hip_world
+        _product(world_rot[parent], hip_world, rotations[hip], True)
     else:
         rotations[hip] = hip_world
-    rotations[knee] = hip_world.T @ knee_world
-    rotations[ankle] = knee_world.T @ world_rot[ankle]
+    _product(hip_world, knee_world, rotations[knee], True)
+    _product(knee_world, world_rot[ankle], rotations[ankle], True)
 
 
 @njit(cache=True)
