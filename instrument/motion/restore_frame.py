@@ -62,7 +62,7 @@ def _multiply(a, b, out) -> None:  # pragma: no cover - compiled
             out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def restore_next(static, positions, headings, template_rot, template_trans, parent_rot, parent_pos, root, joints,
                  reference, fps, rotations, translations):  # pragma: no cover - compiled
     """See `FrameRestorer.next`; the arithmetic of `features.restore_local` for one frame."""

@@ -275,7 +275,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             solve_leg(rotations, world_rot, world_pos, parents, joints[f, 0], joints[f, 1], ankle, feet[f, -1], targets[f])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, drop, previous, parents, joints,
                feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
     """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
