@@ -40,7 +40,7 @@ BLEND_FRAMES = 4
 SWING_CM = 2.0  # a foot in the air keeps its lowest joint this far above its clearance
 PLANTED = 0.5  # a state this sure of a foot's contact plants it
 POSSIBLE = 0.2  # a state this sure plants a foot that is on the floor and still
-NEARLY_STRAIGHT = np.radians(10.0)  # a knee bent less than this may be bent the wrong way (see _leg_swings)
+NEARLY_STRAIGHT = np.radians(10.0)  # a knee bent less than this may be bent the wrong way (see footlock.leg_swings)
 
 
 # ---- training -------------------------------------------------------------------------------
