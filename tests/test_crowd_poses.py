@@ -108,6 +108,23 @@ def test_a_crowd_makes_each_characters_own_poses(model, space):
     assert np.abs(last[0] - last[1]).max() > 1.0 and np.abs(last[1] - last[2]).max() > 1.0
 
 
+def test_a_character_placed_mid_walk_walks_on_as_if_it_had_started_there(model, space):
+    static, shares = _features(model, space, [_performance(model, 120, k) for k in range(2)])
+    contact = contact_space(model)
+    crowd = CrowdPoses(model.layout, model.fps, 2, FootLock(model.layout, contact.clearance, model.fps))
+    for row, s in zip(static[:60], shares[:60]):
+        crowd.next(row, s)
+    crowd.place(1, np.array([500.0, 0.0, 500.0]), 2.0)
+    frames = [crowd.next(row, s) for row, s in zip(static[60:], shares[60:])]
+    expected = _reference_run(model, static[60:, 1], shares[60:, 1], [500.0, 0.0, 500.0], 2.0)
+    for frame, want in zip(frames, expected):
+        for field in FIELDS:
+            np.testing.assert_allclose(getattr(frame.character(1), field), getattr(want, field), rtol=0, atol=1e-9)
+    # the other character walked on undisturbed
+    unmoved = _reference_run(model, static[:, 0], shares[:, 0])[60:]
+    np.testing.assert_allclose(frames[-1].world_positions[0], unmoved[-1].world_positions, rtol=0, atol=1e-9)
+
+
 def test_without_a_lock_or_shares_the_feet_are_left_as_made(model, space):
     static, shares = _features(model, space, [_performance(model, 60, 1)])
     contact = contact_space(model)

@@ -68,6 +68,15 @@ class CrowdPoses:
         self._parents = np.asarray(layout.skeleton.parents, dtype=np.int64)
         self._shape = np.asarray(layout.template_pose[1]).shape  # (J, 3)
 
+    def place(self, n: int, position: np.ndarray, heading: float) -> None:
+        """Puts character n at `position` (3,) facing `heading` (radians about Y) from its next
+        frame on, its feet unlocked (a planted foot is not dragged back to where it was)."""
+        self.positions[n], self.headings[n] = position, heading
+        if self.lock_state is not None:
+            fresh = self.lock.start(1)
+            for name in ("weights", "points", "drop", "previous"):
+                getattr(self.lock_state, name)[n] = getattr(fresh, name)[0]
+
     def next(self, static: np.ndarray, shares: np.ndarray | None = None) -> CrowdPose:
         """The poses of static features (N, D); `shares` (N, 2) says how surely each character's
         state has each foot planted (None: the feet are not planted this frame)."""
