@@ -165,3 +165,13 @@ def test_the_compiled_leg_ik_turns_as_the_reference_does():
         want = reference._leg_swings(hip, knee, ankle, target, toes)
         for a, b in zip(got, want):
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+
+
+def test_a_degenerate_leg_gives_numbers_not_an_exception():
+    """Compiled division follows numpy (a live show must not stop on a zero length): a target at
+    the hip has no direction, and the turns come back NaN as numpy's would, not as ZeroDivisionError."""
+    from instrument.synthesis.footlock import leg_swings
+
+    hip, knee, ankle = np.zeros(3), np.array([0.0, -4.0, 0.0]), np.array([0.0, -8.0, 0.1])
+    thigh, shin = leg_swings(hip, knee, ankle, hip.copy(), np.array([0.0, 0.0, 1.0]))
+    assert thigh.shape == shin.shape == (3, 3)

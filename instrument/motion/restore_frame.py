@@ -37,7 +37,7 @@ class FrameRestorer:
                      self.fps, rotations, translations)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def expmap_matrix(x: float, y: float, z: float, out) -> None:  # pragma: no cover - compiled
     """Rotation matrix of the rotation vector (x, y, z), written into `out` (3, 3)."""
     angle = np.sqrt(x * x + y * y + z * z)
@@ -54,7 +54,7 @@ def expmap_matrix(x: float, y: float, z: float, out) -> None:  # pragma: no cove
     out[2, 0], out[2, 1], out[2, 2] = 2.0 * (xz - yw), 2.0 * (yz + xw), -x2 - y2 + z2 + w2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _multiply(a, b, out) -> None:  # pragma: no cover - compiled
     """out = a @ b for 3x3 matrices (no BLAS call for so small a product)."""
     for i in range(3):
@@ -62,7 +62,7 @@ def _multiply(a, b, out) -> None:  # pragma: no cover - compiled
             out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def restore_next(static, positions, headings, template_rot, template_trans, parent_rot, parent_pos, root, joints,
                  reference, fps, rotations, translations):  # pragma: no cover - compiled
     """See `FrameRestorer.next`; the arithmetic of `features.restore_local` for one frame."""

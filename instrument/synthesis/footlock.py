@@ -75,12 +75,12 @@ class FootLock:
 
 # ---- kernels (compiled; the names and jobs of the plain-Python lock's methods) --------------
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _ease(x: float) -> float:  # pragma: no cover - compiled
     return x * x * (3.0 - 2.0 * x)  # smoothstep: the lock starts and ends with zero speed
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _lowest_lift(world_pos, foot, ground_f):  # pragma: no cover - compiled
     """Height of the foot's lowest joint above its clearance."""
     lift = np.inf
@@ -89,7 +89,7 @@ def _lowest_lift(world_pos, foot, ground_f):  # pragma: no cover - compiled
     return lift
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def planted_feet(shares, world_pos, previous, feet, ground, fps, cm):  # pragma: no cover - compiled
     """A foot is planted where its state says so, or where the state allows it and the generated
     foot is on the floor and nearly still (as the data's contact was labelled); `previous` (2, 3)
@@ -108,7 +108,7 @@ def planted_feet(shares, world_pos, previous, feet, ground, fps, cm):  # pragma:
     return planted
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def lock_target(world_pos, ankle, foot, ground_f, weight, point, planted, swing_lift):  # pragma: no cover - compiled
     """Where the ankle should be: the lock blended in horizontally, the lowest foot joint on the
     floor while planted, never below it, and a little above it while swinging."""
@@ -127,7 +127,7 @@ def lock_target(world_pos, ankle, foot, ground_f, weight, point, planted, swing_
     return target
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def body_drop(world_pos, joints, reach, targets, planted):  # pragma: no cover - compiled
     """How far the body must come down for every planted leg to reach the floor below its hip
     (an exaggerated style can lift the hips), before easing; 0 when it reaches already."""
@@ -140,28 +140,33 @@ def body_drop(world_pos, joints, reach, targets, planted):  # pragma: no cover -
     return max(need, 0.0)
 
 
-@njit(cache=True)
-def _product(a, b, out, transpose_a=False):  # pragma: no cover - compiled
-    """out = a @ b (or a.T @ b) for 3x3 matrices, without a BLAS call or an allocation."""
+@njit(cache=True, error_model="numpy")
+def _product(a, b, out):  # pragma: no cover - compiled
+    """out = a @ b for 3x3 matrices, without a BLAS call or an allocation."""
     for i in range(3):
         for j in range(3):
-            if transpose_a:
-                out[i, j] = a[0, i] * b[0, j] + a[1, i] * b[1, j] + a[2, i] * b[2, j]
-            else:
-                out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
+            out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
+def _product_t(a, b, out):  # pragma: no cover - compiled
+    """out = a.T @ b for 3x3 matrices."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[0, i] * b[0, j] + a[1, i] * b[1, j] + a[2, i] * b[2, j]
+
+
+@njit(cache=True, error_model="numpy")
 def _dot(a, b) -> float:  # pragma: no cover - compiled
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _cross(a, b):  # pragma: no cover - compiled
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _axis_rotation(axis, sine: float, versine: float):  # pragma: no cover - compiled
     """I + sin K + (1 - cos) K K (Rodrigues), K the cross-product matrix of the unit `axis`."""
     K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
@@ -174,7 +179,7 @@ def _axis_rotation(axis, sine: float, versine: float):  # pragma: no cover - com
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _rotation_between(a, b):  # pragma: no cover - compiled
     """The smallest rotation taking direction a to direction b."""
     a = a / np.sqrt(_dot(a, a))
@@ -186,7 +191,7 @@ def _rotation_between(a, b):  # pragma: no cover - compiled
     return _axis_rotation(axis / s, s, 1.0 - _dot(a, b))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
     """Two-bone IK, as world rotations of the thigh (about the hip) and the shin (about the
     knee, applied after the thigh's) that take the ankle to `target`, or as near as the leg
@@ -227,7 +232,7 @@ def leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
     return swing, shin
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, target):  # pragma: no cover - compiled
     """Leg IK in place on the local rotations: hip and knee swung, the ankle keeping its world
     rotation. The hip is the knee's parent and the knee the ankle's (limbs.py): below the hip
@@ -240,14 +245,14 @@ def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, t
     _product(turn, world_rot[knee], knee_world)  # shin @ thigh @ world_rot[knee]
     parent = parents[hip]
     if parent >= 0:
-        _product(world_rot[parent], hip_world, rotations[hip], True)
+        _product_t(world_rot[parent], hip_world, rotations[hip])
     else:
         rotations[hip] = hip_world
-    _product(hip_world, knee_world, rotations[knee], True)
-    _product(knee_world, world_rot[ankle], rotations[ankle], True)
+    _product_t(hip_world, knee_world, rotations[knee])
+    _product_t(knee_world, world_rot[ankle], rotations[ankle])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, drop, previous, parents, joints,
                feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
     """One character's frame (arrays of that character; `drop` a 1-element view). Returns nothing:
@@ -275,7 +280,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             solve_leg(rotations, world_rot, world_pos, parents, joints[f, 0], joints[f, 1], ankle, feet[f, -1], targets[f])
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, drop, previous, parents, joints,
                feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
     """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
