@@ -138,6 +138,14 @@ def test_without_a_lock_or_shares_the_feet_are_left_as_made(model, space):
                 np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
 
 
+def test_a_wrong_shape_is_refused_not_read_past(model):
+    crowd = CrowdPoses(model.layout, model.fps, 2)
+    with pytest.raises(ValueError, match="2 characters"):
+        crowd.next(np.zeros((2, model.layout.dimension - 3)))
+    with pytest.raises(ValueError, match="shares"):
+        crowd.next(np.zeros((2, model.layout.dimension)), np.zeros((1, 2)))
+
+
 def test_each_frame_owns_its_arrays(model, space):
     """An output may keep a pose (a recorder, the console): the next frame must not overwrite it."""
     static, shares = _features(model, space, [_performance(model, 3, 0)])

@@ -73,13 +73,16 @@ class CrowdPoses:
         frame on, its feet unlocked (a planted foot is not dragged back to where it was)."""
         self.positions[n], self.headings[n] = position, heading
         if self.lock_state is not None:
-            fresh = self.lock.start(1)
-            for name in ("weights", "points", "drop", "previous"):
-                getattr(self.lock_state, name)[n] = getattr(fresh, name)[0]
+            self.lock_state.release(n)
 
     def next(self, static: np.ndarray, shares: np.ndarray | None = None) -> CrowdPose:
         """The poses of static features (N, D); `shares` (N, 2) says how surely each character's
         state has each foot planted (None: the feet are not planted this frame)."""
+        static = np.asarray(static, dtype=np.float64)
+        if static.shape != (self.count, self.layout.dimension) or (shares is not None and np.shape(shares) != (self.count, 2)):
+            # the kernels do not check their bounds: a wrong shape would read past the arrays
+            raise ValueError(f"CrowdPoses.next: static {static.shape} and shares {np.shape(shares)} for "
+                             f"{self.count} characters of {self.layout.dimension} features")
         joints = self._shape[0]
         rotations = np.empty((self.count, joints, 3, 3))
         translations = np.empty((self.count, joints, 3))

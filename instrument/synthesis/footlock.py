@@ -39,6 +39,10 @@ class LockState:
     drop: np.ndarray  # (N,) how far the body is lowered for a planted leg to reach the floor
     previous: np.ndarray  # (N, 2, 3) each pivot's generated position in the frame before (NaN at first)
 
+    def release(self, n: int) -> None:
+        """Character n's feet unlocked, as before its first frame (it was put somewhere else)."""
+        self.weights[n], self.points[n], self.drop[n], self.previous[n] = 0.0, np.nan, 0.0, np.nan
+
 
 class FootLock:
     """A skeleton's feet as the lock sees them: legs, floor, units (the same for every character)."""
