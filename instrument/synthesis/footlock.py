@@ -173,7 +173,8 @@ def _cross(a, b):  # pragma: no cover - compiled
 @njit(cache=True, error_model="numpy")
 def _axis_rotation(axis, sine: float, versine: float):  # pragma: no cover - compiled
     """I + sin K + (1 - cos) K K (Rodrigues), K the cross-product matrix of the unit `axis`."""
-    K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    K = np.zeros((3, 3))
+    K[0, 1], K[0, 2], K[1, 0], K[1, 2], K[2, 0], K[2, 1] = -axis[2], axis[1], axis[2], -axis[0], -axis[1], axis[0]
     KK = np.empty((3, 3))
     _product(K, K, KK)
     out = np.eye(3)
