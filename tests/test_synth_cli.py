@@ -75,3 +75,4 @@ def test_bench_json_has_the_promised_figures():
                           ("widen_us_per_frame", "widen_to_window_solve")):
         assert figures[figure] > 0
         assert figures[ratio] == pytest.approx(figures[figure] / figures["window_solve_us"])
+    assert figures["contact_us_per_frame"] > 0  # the lock timed on its own
