@@ -10,7 +10,8 @@ from instrument.models.symmetry import symmetric_models
 from instrument.motion.features import extract
 from instrument.motion.kinematics import world_positions
 from instrument.runtime.pose import PoseStream
-from instrument.synthesis.contact import NEARLY_STRAIGHT, FootLock, _leg_swings, contact_space
+from instrument.synthesis.contact import NEARLY_STRAIGHT, contact_space
+from instrument.synthesis.footlock import FootLock, leg_swings
 from instrument.synthesis.interpolation import style_space
 from instrument.synthesis.offline import default_controls, generate_with_states, synthesize_motion
 from instrument.synthesis.stream import Controls, Crowd
@@ -35,7 +36,7 @@ def test_two_bone_ik_reaches_a_reachable_target_and_keeps_the_bones():
         reach = np.linalg.norm(knee - hip) + np.linalg.norm(ankle - knee)
         direction = rng.normal(size=3)
         target = hip + direction / np.linalg.norm(direction) * reach * rng.uniform(0.3, 0.95)
-        thigh, shin = _leg_swings(hip, knee, ankle, target, np.array([0.0, 0.0, 1.0]))
+        thigh, shin = leg_swings(hip, knee, ankle, target, np.array([0.0, 0.0, 1.0]))
         for r in (thigh, shin):
             np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-9)
             assert np.linalg.det(r) == pytest.approx(1.0)
@@ -62,7 +63,7 @@ def test_a_nearly_straight_knee_bent_backwards_is_shortened_by_bending_forward()
         shin = 40.0 * np.array([0.0, -np.cos(0.4 - back), np.sin(0.4 - back)])
         ankle = knee + shin
         target = hip + (ankle - hip) * 0.9  # shorter: the knee must bend
-        thigh, shin_turn = _leg_swings(hip, knee, ankle, target, toes)
+        thigh, shin_turn = leg_swings(hip, knee, ankle, target, toes)
         new_knee = hip + thigh @ (knee - hip)
         new_ankle = new_knee + shin_turn @ thigh @ (ankle - knee)
         np.testing.assert_allclose(new_ankle, target, atol=1e-6)
@@ -72,7 +73,7 @@ def test_a_nearly_straight_knee_bent_backwards_is_shortened_by_bending_forward()
     knee = hip + np.array([0.0, -40.0, 10.0])
     ankle = knee + np.array([0.0, -30.0, -25.0])
     target = hip + (ankle - hip) * 0.95
-    thigh, shin_turn = _leg_swings(hip, knee, ankle, target, np.array([0.0, -5.0, -10.0]))
+    thigh, shin_turn = leg_swings(hip, knee, ankle, target, np.array([0.0, -5.0, -10.0]))
     new_knee = hip + thigh @ (knee - hip)
     line = hip + (target - hip) * (hip[1] - new_knee[1]) / (hip[1] - target[1])
     assert new_knee[2] > line[2] + 5.0
@@ -91,7 +92,7 @@ def _walk(model, space, weights_per_frame, fps=None):
         shares = contact.shares(controls.weights)[walker.history_ids[0, 1]]
         out.append(poses.next(frame, shares))
         raw.append(plain.next(frame))
-        planted.append(poses.lock.weight.copy())
+        planted.append(poses.lock_weights.copy())
     return out, raw, np.array(planted)
 
 

@@ -14,12 +14,14 @@ import numpy as np
 from ..models.modelfile import default_model_path, load_model
 from ..motion.bvh import Joint, Motion, Skeleton, bvh_text, parse_bvh
 from ..motion.features import choose_layout, extract
-from ..runtime.pose import PoseStream
-from ..synthesis.contact import FootLock, contact_space
+from ..runtime.pose import CrowdPoses, PoseStream
+from ..synthesis.contact import contact_space
+from ..synthesis.footlock import FootLock
 from ..synthesis.interpolation import interpolate, style_space
 from ..synthesis.mlpg import mlpg, mlpg_continued
 from ..synthesis.offline import generate_with_states
 from ..synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Crowd
+from ..synthesis.widen import Widen, range_space
 from .arguments import checked
 
 MLPG_FRAMES = 10_000
@@ -215,30 +217,74 @@ def measure(model_path: str | None, repeat: int) -> dict:
     figures["stream_to_window_solve"] = figures["stream_us_per_frame"] / figures["window_solve_us"]
     figures["stream_batch_to_window_solve"] = figures["stream_us_per_frame_batch"] / figures["window_solve_us"]
     figures["lookahead"] = DEFAULT_LOOKAHEAD
-    figures |= measure_contact(model, space, all_styles, blocks)
+    figures |= measure_pose(model, space, all_styles, blocks, figures["window_solve_us"])
     per_character = figures["stream_us_per_frame_batch"]
     figures["characters_at_30fps"] = int(1e6 / 30 / per_character)
     figures["characters_at_60fps"] = int(1e6 / 60 / per_character)
     return figures
 
 
-def measure_contact(model, space, controls: Controls, blocks: int) -> dict:
-    """The pose path per frame (features to world pose) with and without planting the feet;
-    the difference is what contact, IK and the floor cost. None without contact statistics."""
+def measure_pose(model, space, controls: Controls, blocks: int, window_solve_us: float) -> dict:
+    """The pose path per frame (features to world pose, the feet planted: one compiled call for
+    all characters), for one character and per character in a crowd of BATCH, and the lock on its
+    own (what planting the feet adds); the widen filter per frame; each also against the window solve.
+    The pose figures are None without contact statistics, the widen ones without range ones."""
+    frames = 100
+    figures: dict = {}
     contact = contact_space(model)
     if contact is None:
-        return {"pose_us_per_frame": None, "contact_us_per_frame": None}
-    frames = 100
-    static, ids = generate_with_states(space, model.layout.dimension, controls, frames, "stream", DEFAULT_LOOKAHEAD, 0)
+        figures |= {"pose_us_per_frame": None, "contact_us_per_frame": None, "pose_us_per_character_batch": None}
+    else:
+        static, ids = generate_with_states(space, model.layout.dimension, controls, frames, "stream", DEFAULT_LOOKAHEAD, 0)
+        shares = contact.shares(controls.weights, controls.part_weights)[ids]
+        lock = FootLock(model.layout, contact.clearance, model.fps)
 
-    def poses(lock):
-        stream = PoseStream(model.layout, model.fps, lock)
-        for row, state in zip(static, ids):
-            stream.next(row, contact.shares(controls.weights, controls.part_weights)[state] if lock else None)
+        def poses():
+            stream = PoseStream(model.layout, model.fps, lock)
+            for row, frame_shares in zip(static, shares):
+                stream.next(row, frame_shares)
 
-    plain = 1e6 / frames * median_seconds(lambda: poses(None), blocks)
-    planted = 1e6 / frames * median_seconds(lambda: poses(FootLock(model.layout, contact.clearance, model.fps)), blocks)
-    return {"pose_us_per_frame": plain, "contact_us_per_frame": planted - plain}
+        # the lock on its own: applied to the frames' unplanted poses (it leaves each a planted
+        # pose with its world transforms, itself a valid input: the work is the same every block)
+        plain = PoseStream(model.layout, model.fps)
+        unplanted = [plain.next(row) for row in static]
+        inputs = [tuple(np.array(a)[None] for a in (p.rotations, p.translations, p.world_rotations, p.world_positions))
+                  for p in unplanted]
+
+        def planting():
+            state = lock.start(1)
+            for (rotations, translations, world_rot, world_pos), frame_shares in zip(inputs, shares):
+                lock.apply(state, rotations, translations, frame_shares[None], world_rot, world_pos)
+
+        crowd_static = np.repeat(static[:, None], BATCH, axis=1)
+        crowd_shares = np.repeat(shares[:, None], BATCH, axis=1)
+
+        def crowd_poses():
+            crowd = CrowdPoses(model.layout, model.fps, BATCH, lock)
+            for rows, frame_shares in zip(crowd_static, crowd_shares):
+                crowd.next(rows, frame_shares)
+
+        figures |= {"pose_us_per_frame": 1e6 / frames * median_seconds(poses, blocks),
+                    "contact_us_per_frame": 1e6 / frames * median_seconds(planting, blocks),
+                    "pose_us_per_character_batch": 1e6 / frames / BATCH * median_seconds(crowd_poses, blocks)}
+    widen = range_space(model)
+    if widen is None:
+        figures["widen_us_per_frame"] = None
+    else:
+        walker = Crowd(space)
+        frame = walker.step([controls])[0]
+        live = [Controls(controls.weights.copy(), controls.part_weights) for _ in range(frames)]  # a new snapshot a frame, as live
+
+        def widened():
+            scale = Widen(widen)
+            for snapshot in live:
+                scale.next(frame, walker, snapshot)
+
+        figures["widen_us_per_frame"] = 1e6 / frames * median_seconds(widened, blocks)
+    for name, ratio in (("pose_us_per_frame", "pose_to_window_solve"), ("pose_us_per_character_batch", "pose_batch_to_window_solve"),
+                        ("widen_us_per_frame", "widen_to_window_solve")):
+        figures[ratio] = None if figures[name] is None else figures[name] / window_solve_us
+    return figures
 
 
 def run(args: argparse.Namespace) -> int:
@@ -280,9 +326,14 @@ def run(args: argparse.Namespace) -> int:
     print(f"one window's bare solve ({2 + f['lookahead'] + 1} frames):    {f['window_solve_us']:8.1f} us (the yardstick below)")
     print(f"streaming, one character:               {f['stream_us_per_frame']:8.1f} us/frame "
           f"(x{f['stream_to_window_solve']:.2f} the window solve; look-ahead {f['lookahead']})")
-    if f["contact_us_per_frame"] is not None:
-        print(f"planting the feet (contact, IK, floor):  {f['contact_us_per_frame']:8.1f} us/frame "
-              f"(on top of {f['pose_us_per_frame']:.1f} us for the pose)")
+    if f["widen_us_per_frame"] is not None:
+        print(f"widen filter, one character:            {f['widen_us_per_frame']:8.1f} us/frame "
+              f"(x{f['widen_to_window_solve']:.2f} the window solve)")
+    if f["pose_us_per_frame"] is not None:
+        print(f"pose with planted feet, one character:  {f['pose_us_per_frame']:8.1f} us/frame "
+              f"(x{f['pose_to_window_solve']:.2f} the window solve; planting the feet {f['contact_us_per_frame']:.1f} us of it)")
+        print(f"pose, per character in a crowd of {BATCH}:  {f['pose_us_per_character_batch']:8.1f} us/frame "
+              f"(x{f['pose_batch_to_window_solve']:.2f} the window solve)")
     print(f"streaming, per character in a crowd of {BATCH}: {f['stream_us_per_frame_batch']:6.1f} us/frame "
           f"(x{f['stream_batch_to_window_solve']:.2f} the window solve)")
     print(f"characters in realtime on one core:     {f['characters_at_30fps']} at 30 fps, {f['characters_at_60fps']} at 60 fps")

@@ -20,7 +20,8 @@ from ..control.events import ControlEvent, LogReplay
 from ..control.hub import ControlHub
 from ..control.state import ControlState
 from ..models.modelfile import Model
-from ..synthesis.contact import FootLock, contact_space
+from ..synthesis.contact import contact_space
+from ..synthesis.footlock import FootLock
 from ..synthesis.interpolation import style_space
 from ..synthesis.offline import drive
 from ..synthesis.stream import DEFAULT_LOOKAHEAD, Crowd

@@ -1,4 +1,5 @@
-"""From generated features to a pose per frame: the root path integrated as the walk goes."""
+"""From generated features to a pose per frame: the root path integrated as the walk goes, the
+feet planted; for one character (`PoseStream`) or a crowd in one compiled call (`CrowdPoses`)."""
 
 from __future__ import annotations
 
@@ -7,12 +8,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..motion.features import FeatureLayout, restore_local
-from ..motion.kinematics import channels_from_local, forward_kinematics
+from ..motion.features import FeatureLayout
+from ..motion.kinematics import _compose, channels_from_local
+from ..motion.restore_frame import FrameRestorer
 from ..motion.rotations import matrix_to_quat
 
 if TYPE_CHECKING:
-    from ..synthesis.contact import FootLock
+    from ..synthesis.footlock import FootLock
 
 
 @dataclass
@@ -27,33 +29,88 @@ class Pose:
     world_positions: np.ndarray  # (J, 3)
 
 
+@dataclass
+class CrowdPose:
+    """One frame of N characters: `Pose`'s arrays with a leading character axis."""
+
+    index: int
+    time: float
+    rotations: np.ndarray  # (N, J, 3, 3)
+    translations: np.ndarray  # (N, J, 3)
+    world_rotations: np.ndarray  # (N, J, 3, 3)
+    world_positions: np.ndarray  # (N, J, 3)
+
+    def character(self, n: int) -> Pose:
+        return Pose(self.index, self.time, self.rotations[n], self.translations[n], self.world_rotations[n],
+                    self.world_positions[n])
+
+
 def quaternions(rotations: np.ndarray) -> np.ndarray:
     """Rotation matrices (..., 3, 3) as quaternions (x, y, z, w) with w >= 0 (one sign for receivers)."""
     quats = matrix_to_quat(rotations)
     return np.where(quats[..., 3:4] < 0, -quats, quats)
 
 
-class PoseStream:
-    """Turns each frame of static features into a Pose, carrying the root's path across frames."""
+class CrowdPoses:
+    """Turns each frame of static features of N characters into their poses in one compiled
+    pass (restore, forward kinematics, the foot lock), carrying each character's root path
+    (`positions` (N, 3), `headings` (N,) radians about Y) and lock state (`lock_state`) across
+    frames. Without a `lock` (a model without contact statistics) the feet are left as made."""
 
-    def __init__(self, layout: FeatureLayout, fps: float, lock: FootLock | None = None):
-        self.layout, self.fps = layout, fps
-        self.lock = lock  # plants the feet when the frame says how surely each is planted
-        self.position = np.zeros(3)
-        self.heading = 0.0
+    def __init__(self, layout: FeatureLayout, fps: float, count: int, lock: FootLock | None = None,
+                 positions: np.ndarray | None = None, headings: np.ndarray | None = None):
+        self.layout, self.fps, self.count, self.lock = layout, float(fps), int(count), lock
+        self.positions = np.zeros((count, 3)) if positions is None else np.array(positions, dtype=np.float64).reshape(count, 3)
+        self.headings = np.zeros(count) if headings is None else np.array(headings, dtype=np.float64).reshape(count)
+        self.lock_state = None if lock is None else lock.start(count)
         self.index = 0
+        self._restorer = FrameRestorer(layout, fps)
+        self._parents = np.asarray(layout.skeleton.parents, dtype=np.int64)
+        self._shape = np.asarray(layout.template_pose[1]).shape  # (J, 3)
 
-    def next(self, static: np.ndarray, contact_shares: np.ndarray | None = None) -> Pose:
-        rotations, translations, (self.position, self.heading) = restore_local(
-            static[None], self.layout, self.fps, self.position, self.heading
-        )
-        if self.lock is not None and contact_shares is not None:
-            pose = Pose(self.index, self.index / self.fps, *self.lock.apply(rotations[0], translations[0], contact_shares))
-        else:
-            world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations, translations)
-            pose = Pose(self.index, self.index / self.fps, rotations[0], translations[0], world_rot[0], world_pos[0])
+    def place(self, n: int, position: np.ndarray, heading: float) -> None:
+        """Puts character n at `position` (3,) facing `heading` (radians about Y) from its next
+        frame on, its feet unlocked (a planted foot is not dragged back to where it was)."""
+        self.positions[n], self.headings[n] = position, heading
+        if self.lock_state is not None:
+            self.lock_state.release(n)
+
+    def next(self, static: np.ndarray, shares: np.ndarray | None = None) -> CrowdPose:
+        """The poses of static features (N, D); `shares` (N, 2) says how surely each character's
+        state has each foot planted (None: the feet are not planted this frame)."""
+        static = np.asarray(static, dtype=np.float64)
+        if static.shape != (self.count, self.layout.dimension) or (shares is not None and np.shape(shares) != (self.count, 2)):
+            # the kernels do not check their bounds: a wrong shape would read past the arrays
+            raise ValueError(f"CrowdPoses.next: static {static.shape} and shares {np.shape(shares)} for "
+                             f"{self.count} characters of {self.layout.dimension} features")
+        joints = self._shape[0]
+        rotations = np.empty((self.count, joints, 3, 3))
+        translations = np.empty((self.count, joints, 3))
+        world_rot, world_pos = np.empty_like(rotations), np.empty_like(translations)
+        self._restorer.next(static, self.positions, self.headings, rotations, translations)
+        _compose(self._parents, rotations, translations, world_rot, world_pos)
+        if self.lock is not None and shares is not None:
+            self.lock.apply(self.lock_state, rotations, translations, shares, world_rot, world_pos)
+        pose = CrowdPose(self.index, self.index / self.fps, rotations, translations, world_rot, world_pos)
         self.index += 1
         return pose
+
+
+class PoseStream:
+    """One character's `CrowdPoses`: each frame of static features (D,) becomes a `Pose`."""
+
+    def __init__(self, layout: FeatureLayout, fps: float, lock: FootLock | None = None,
+                 position: np.ndarray | None = None, heading: float = 0.0):
+        self.crowd = CrowdPoses(layout, fps, 1, lock, None if position is None else [position], [heading])
+
+    @property
+    def lock_weights(self) -> np.ndarray:
+        """(2,) how far each foot's lock is blended in (0..1)."""
+        return np.zeros(2) if self.crowd.lock_state is None else self.crowd.lock_state.weights[0]
+
+    def next(self, static: np.ndarray, contact_shares: np.ndarray | None = None) -> Pose:
+        shares = None if contact_shares is None else np.asarray(contact_shares, dtype=np.float64)[None]
+        return self.crowd.next(np.asarray(static)[None], shares).character(0)
 
 
 def pose_channels(skeleton, pose: Pose) -> np.ndarray:

@@ -9,7 +9,8 @@ from ..motion.bvh import Motion
 from ..motion.features import restore
 from ..motion.kinematics import channels_from_local
 from ..runtime.pose import PoseStream
-from .contact import FootLock, contact_space
+from .contact import contact_space
+from .footlock import FootLock
 from .interpolation import StyleSpace
 from .mlpg import mlpg_continued
 from .stream import DEFAULT_LOOKAHEAD, Controls, Crowd

@@ -1,0 +1,296 @@
+"""The foot lock, compiled and batched: one call plants the feet of every character of a frame.
+
+What the lock does is described in `instrument.synthesis.contact` (which also trains the
+contact statistics). Here it runs as numba kernels over arrays, each with the job of one method
+of the plain-Python lock it replaced (kept as the test oracle, tests/reference_lock.py):
+
+- `planted_feet`: which feet are planted this frame (the state's share, or a foot on the floor
+  and still where the state allows it; always one foot);
+- `lock_target`: where an ankle should go (the lock blended in, the floor, the swing lift);
+- `body_drop`: how far the body must come down for a planted leg to reach the floor;
+- `leg_swings`: two-bone IK, the thigh's and the shin's turns that take an ankle to a target;
+- `solve_leg`: those turns applied in place to the local rotations;
+- `lock_frame`: one character's frame, in the order above; `lock_crowd`: every character's.
+
+`FootLock` holds what does not change (the legs' joints, the floor, the units); each
+character's state (how far each foot's lock is blended in, the locked points, the body's drop,
+the feet's previous positions) lives in `LockState` arrays, one row per character.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ..motion.features import FeatureLayout
+from ..motion.kinematics import _compose, forward_kinematics
+from ..motion.limbs import centimetres_per_unit, find_limbs
+from .contact import BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, PLANTED, POSSIBLE, SWING_CM
+
+
+@dataclass
+class LockState:
+    """Every character's lock, carried from frame to frame (row n: character n)."""
+
+    weights: np.ndarray  # (N, 2) how far each foot's lock is blended in, 0..1
+    points: np.ndarray  # (N, 2, 3) world point each foot is locked to (NaN before its first landing)
+    drop: np.ndarray  # (N,) how far the body is lowered for a planted leg to reach the floor
+    previous: np.ndarray  # (N, 2, 3) each pivot's generated position in the frame before (NaN at first)
+
+    def release(self, n: int) -> None:
+        """Character n's feet unlocked, as before its first frame (it was put somewhere else)."""
+        self.weights[n], self.points[n], self.drop[n], self.previous[n] = 0.0, np.nan, 0.0, np.nan
+
+
+class FootLock:
+    """A skeleton's feet as the lock sees them: legs, floor, units (the same for every character)."""
+
+    def __init__(self, layout: FeatureLayout, ground: np.ndarray, fps: float):
+        self.layout, self.fps = layout, float(fps)
+        self.limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
+        self.ground = np.ascontiguousarray(ground, dtype=np.float64)  # (2, foot joints) clearance
+        self.parents = np.asarray(layout.skeleton.parents, dtype=np.int64)
+        self.parent_rot = np.ascontiguousarray(layout.template_pose[2])  # the root's parent's world rotation
+        legs = self.limbs.legs
+        self.joints = np.array([[leg.hip, leg.knee, leg.ankle] for leg in legs], dtype=np.int64)  # (2, 3)
+        self.feet = np.array([leg.foot for leg in legs], dtype=np.int64)  # (2, foot joints); the last is the pivot
+        self.reach = np.array([leg.thigh + leg.shin for leg in legs])  # hip to ankle, stretched
+        template = forward_kinematics(layout.skeleton, layout.template_pose[0][None], layout.template_pose[1][None])[1][0]
+        self.cm = centimetres_per_unit(layout, template)
+        self.swing_lift = SWING_CM / self.cm  # in the skeleton's units
+
+    def start(self, count: int) -> LockState:
+        """The state of `count` characters before their first frame: nothing locked yet."""
+        return LockState(np.zeros((count, 2)), np.full((count, 2, 3), np.nan), np.zeros(count),
+                         np.full((count, 2, 3), np.nan))
+
+    def apply(self, state: LockState, rotations: np.ndarray, translations: np.ndarray, shares: np.ndarray,
+              world_rot: np.ndarray, world_pos: np.ndarray) -> None:
+        """Plants the feet of N characters in place: local rotations (N, J, 3, 3) and translations
+        (N, J, 3) are adjusted and their world transforms (same shapes) written; `world_rot` and
+        `world_pos` hold the unadjusted pose's on entry. `shares` (N, 2): how surely each foot is
+        planted in each character's state."""
+        lock_crowd(rotations, translations, np.ascontiguousarray(shares, dtype=np.float64), world_rot, world_pos,
+                   state.weights, state.points, state.drop, state.previous, self.parents, self.joints, self.feet,
+                   self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm, self.swing_lift)
+
+
+# ---- kernels (compiled; the names and jobs of the plain-Python lock's methods) --------------
+
+@njit(cache=True, error_model="numpy")
+def _ease(x: float) -> float:  # pragma: no cover - compiled
+    return x * x * (3.0 - 2.0 * x)  # smoothstep: the lock starts and ends with zero speed
+
+
+@njit(cache=True, error_model="numpy")
+def _lowest_lift(world_pos, foot, ground_f):  # pragma: no cover - compiled
+    """Height of the foot's lowest joint above its clearance."""
+    lift = np.inf
+    for k in range(foot.shape[0]):
+        lift = min(lift, world_pos[foot[k], 1] - ground_f[k])
+    return lift
+
+
+@njit(cache=True, error_model="numpy")
+def planted_feet(shares, world_pos, previous, feet, ground, fps, cm):  # pragma: no cover - compiled
+    """A foot is planted where its state says so, or where the state allows it and the generated
+    foot is on the floor and nearly still (as the data's contact was labelled); `previous` (2, 3)
+    becomes this frame's pivots."""
+    planted = np.zeros(2, dtype=np.bool_)
+    for f in range(2):
+        pivot = world_pos[feet[f, -1]]
+        speed = np.hypot(pivot[0] - previous[f, 0], pivot[2] - previous[f, 2]) * fps * cm
+        previous[f] = pivot
+        planted[f] = shares[f] >= PLANTED
+        if not planted[f] and shares[f] >= POSSIBLE:
+            lift = _lowest_lift(world_pos, feet[f], ground[f]) * cm
+            planted[f] = lift < CONTACT_CM and speed < CONTACT_SPEED_CM_S  # NaN speed (first frame): False
+    if not planted[0] and not planted[1] and max(shares[0], shares[1]) > 0.0:  # a walk has a foot on the floor
+        planted[0 if shares[0] >= shares[1] else 1] = True
+    return planted
+
+
+@njit(cache=True, error_model="numpy")
+def lock_target(world_pos, ankle, foot, ground_f, weight, point, planted, swing_lift):  # pragma: no cover - compiled
+    """Where the ankle should be: the lock blended in horizontally, the lowest foot joint on the
+    floor while planted, never below it, and a little above it while swinging."""
+    lift = _lowest_lift(world_pos, foot, ground_f)
+    target = world_pos[ankle].copy()
+    w = _ease(weight)
+    if w > 0:
+        pivot = world_pos[foot[-1]]
+        target[0] += w * (point[0] - pivot[0])
+        target[2] += w * (point[2] - pivot[2])
+        target[1] -= w * lift
+    lowest_after = lift - w * lift
+    floor = 0.0 if planted else (1.0 - w) * swing_lift
+    if lowest_after < floor:
+        target[1] += floor - lowest_after
+    return target
+
+
+@njit(cache=True, error_model="numpy")
+def body_drop(world_pos, joints, reach, targets, planted):  # pragma: no cover - compiled
+    """How far the body must come down for every planted leg to reach the floor below its hip
+    (an exaggerated style can lift the hips), before easing; 0 when it reaches already."""
+    need = 0.0
+    for f in range(2):
+        if planted[f]:
+            hip, ankle = world_pos[joints[f, 0]], world_pos[joints[f, 2]]
+            below = np.sqrt((hip[0] - ankle[0]) ** 2 + (hip[1] - targets[f, 1]) ** 2 + (hip[2] - ankle[2]) ** 2)
+            need = max(need, below - 0.98 * reach[f])
+    return max(need, 0.0)
+
+
+@njit(cache=True, error_model="numpy")
+def _product(a, b, out):  # pragma: no cover - compiled
+    """out = a @ b for 3x3 matrices, without a BLAS call or an allocation."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
+
+
+@njit(cache=True, error_model="numpy")
+def _product_t(a, b, out):  # pragma: no cover - compiled
+    """out = a.T @ b for 3x3 matrices."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[0, i] * b[0, j] + a[1, i] * b[1, j] + a[2, i] * b[2, j]
+
+
+@njit(cache=True, error_model="numpy")
+def _dot(a, b) -> float:  # pragma: no cover - compiled
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(cache=True, error_model="numpy")
+def _cross(a, b):  # pragma: no cover - compiled
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+@njit(cache=True, error_model="numpy")
+def _axis_rotation(axis, sine: float, versine: float):  # pragma: no cover - compiled
+    """I + sin K + (1 - cos) K K (Rodrigues), K the cross-product matrix of the unit `axis`."""
+    K = np.zeros((3, 3))
+    K[0, 1], K[0, 2], K[1, 0], K[1, 2], K[2, 0], K[2, 1] = -axis[2], axis[1], axis[2], -axis[0], -axis[1], axis[0]
+    KK = np.empty((3, 3))
+    _product(K, K, KK)
+    out = np.eye(3)
+    for i in range(3):
+        for j in range(3):
+            out[i, j] += sine * K[i, j] + versine * KK[i, j]
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _rotation_between(a, b):  # pragma: no cover - compiled
+    """The smallest rotation taking direction a to direction b."""
+    a = a / np.sqrt(_dot(a, a))
+    b = b / np.sqrt(_dot(b, b))
+    axis = _cross(a, b)
+    s = np.sqrt(_dot(axis, axis))
+    if s < 1e-12:
+        return np.eye(3)
+    return _axis_rotation(axis / s, s, 1.0 - _dot(a, b))
+
+
+@njit(cache=True, error_model="numpy")
+def leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
+    """Two-bone IK, as world rotations of the thigh (about the hip) and the shin (about the
+    knee, applied after the thigh's) that take the ankle to `target`, or as near as the leg
+    allows: the knee bends about its own hinge (the axis across its generated bend; for a
+    straight leg, across the line to the toes) to the angle the law of cosines gives, then the
+    hip swings the leg onto the target. A generated leg bent a little backwards (less than
+    NEARLY_STRAIGHT, the toes' side telling which way is forward) is bent forward through
+    straight, not further back, so a leg shortened from nearly straight never folds the wrong
+    way and flips back a frame later; a clearer bend is the knee's own (a swinging foot's toes
+    may point anywhere)."""
+    thigh_vector, shin_vector = knee - hip, ankle - knee
+    upper = np.sqrt(_dot(thigh_vector, thigh_vector))
+    lower = np.sqrt(_dot(shin_vector, shin_vector))
+    reach = target - hip
+    distance = min(max(np.sqrt(_dot(reach, reach)), abs(upper - lower) + 1e-6), (upper + lower) * 0.9999)
+    forward = _cross(toes, thigh_vector)  # the axis a knee bends forward about (the shin back, the knee towards the toes)
+    hinge = _cross(thigh_vector, shin_vector)
+    now = np.arccos(min(max(_dot(thigh_vector, shin_vector) / (upper * lower), -1.0), 1.0))  # 0: straight
+    if np.sqrt(_dot(hinge, hinge)) < 1e-3 * upper * lower:  # straight: the knee bends forward
+        hinge, now = forward, 0.0
+    elif now < NEARLY_STRAIGHT and _dot(hinge, forward) < 0.0:  # bent a little backwards: bent forward through straight
+        hinge, now = -hinge, -now
+    length = np.sqrt(_dot(hinge, hinge))
+    if length < 1e-12:
+        return np.eye(3), np.eye(3)
+    cos_new = min(max((upper**2 + lower**2 - distance**2) / (2.0 * upper * lower), -1.0), 1.0)
+    angle = np.pi - np.arccos(cos_new) - now
+    bend = _axis_rotation(hinge / length, np.sin(angle), 1.0 - np.cos(angle))
+    bent_shin = np.empty(3)
+    for i in range(3):
+        bent_shin[i] = thigh_vector[i] + _dot(bend[i], shin_vector)  # thigh + bend @ shin
+    swing = _rotation_between(bent_shin, reach)
+    turned, shin = np.empty((3, 3)), np.empty((3, 3))
+    _product(swing, bend, turned)
+    for i in range(3):
+        for j in range(3):
+            shin[i, j] = _dot(turned[i], swing[j])  # swing @ bend @ swing.T
+    return swing, shin
+
+
+@njit(cache=True, error_model="numpy")
+def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, target):  # pragma: no cover - compiled
+    """Leg IK in place on the local rotations: hip and knee swung, the ankle keeping its world
+    rotation. The hip is the knee's parent and the knee the ankle's (limbs.py): below the hip
+    everything turns with the thigh, below the knee also with the shin."""
+    toes = world_pos[toe] - world_pos[ankle]
+    thigh, shin = leg_swings(world_pos[hip], world_pos[knee], world_pos[ankle], target, toes)
+    hip_world, knee_world, turn = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    _product(thigh, world_rot[hip], hip_world)  # thigh @ world_rot[hip]
+    _product(shin, thigh, turn)
+    _product(turn, world_rot[knee], knee_world)  # shin @ thigh @ world_rot[knee]
+    parent = parents[hip]
+    if parent >= 0:
+        _product_t(world_rot[parent], hip_world, rotations[hip])
+    else:
+        rotations[hip] = hip_world
+    _product_t(hip_world, knee_world, rotations[knee])
+    _product_t(knee_world, world_rot[ankle], rotations[ankle])
+
+
+@njit(cache=True, error_model="numpy")
+def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, drop, previous, parents, joints,
+               feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
+    """One character's frame (arrays of that character; `drop` a 1-element view). Returns nothing:
+    rotations, translations, the world transforms and the state are updated in place."""
+    planted = planted_feet(shares, world_pos, previous, feet, ground, fps, cm)
+    step = 1.0 / BLEND_FRAMES
+    for f in range(2):
+        if planted[f] and weights[f] == 0.0:
+            points[f] = world_pos[feet[f, -1]]
+        weights[f] = min(1.0, weights[f] + step) if planted[f] else max(0.0, weights[f] - step)
+    targets = np.empty((2, 3))
+    for f in range(2):
+        targets[f] = lock_target(world_pos, joints[f, 2], feet[f], ground[f], weights[f], points[f], planted[f], swing_lift)
+    drop[0] += (body_drop(world_pos, joints, reach, targets, planted) - drop[0]) / BLEND_FRAMES
+    if drop[0] > 1e-9:
+        translations[root] -= drop[0] * parent_rot[1]  # [0, drop, 0] @ parent_rot
+        world_pos[:, 1] -= drop[0]
+        for f in range(2):
+            targets[f] = lock_target(world_pos, joints[f, 2], feet[f], ground[f], weights[f], points[f], planted[f],
+                                     swing_lift)
+    for f in range(2):
+        ankle = joints[f, 2]
+        gap = targets[f] - world_pos[ankle]
+        if np.sqrt(np.sum(gap * gap)) > 1e-9:
+            solve_leg(rotations, world_rot, world_pos, parents, joints[f, 0], joints[f, 1], ankle, feet[f, -1], targets[f])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, drop, previous, parents, joints,
+               feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
+    """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
+    for n in range(rotations.shape[0]):
+        lock_frame(rotations[n], translations[n], shares[n], world_rot[n], world_pos[n], weights[n], points[n],
+                   drop[n : n + 1], previous[n], parents, joints, feet, ground, reach, parent_rot, root, fps, cm,
+                   swing_lift)
+    _compose(parents, rotations, translations, world_rot, world_pos)

@@ -1,0 +1,185 @@
+"""The compiled, batched pose path (CrowdPoses, the foot lock's kernels) against the plain-Python
+path it replaced (tests/reference_lock.py), on walks the shipped model makes."""
+
+import numpy as np
+import pytest
+
+import reference_lock as reference
+from instrument.models.modelfile import default_model_path, load_model
+from instrument.runtime.pose import CrowdPoses, PoseStream
+from instrument.synthesis.contact import contact_space
+from instrument.synthesis.footlock import FootLock
+from instrument.synthesis.interpolation import GROUPS, style_space
+from instrument.synthesis.offline import drive
+from instrument.synthesis.stream import Controls, Crowd
+
+FIELDS = ("rotations", "translations", "world_rotations", "world_positions")
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_model(default_model_path())
+
+
+@pytest.fixture(scope="module")
+def space(model):
+    return style_space(model)
+
+
+def _performance(model, frames: int, variant: int) -> list[Controls]:
+    """Controls per frame: styles changing every 40 frames, exaggerated (x2), inverted (-1),
+    blended, per body part, with steering; `variant` shifts which style comes when."""
+    styles = len(model.style_names)
+    out = []
+    for i in range(frames):
+        block = i // 40 + variant
+        weights = np.zeros(styles)
+        weights[block % styles] = (1.0, 2.0, -1.0, 0.5)[block % 4]
+        weights[(block + 3) % styles] += 0.5 if block % 3 == 0 else 0.0
+        parts = None
+        if block % 5 == 2:  # the legs in another style than the rest
+            parts = np.full((styles, len(GROUPS)), np.nan)
+            parts[:, GROUPS.index("legs")] = np.eye(styles)[(block + 1) % styles] * 2.0
+        out.append(Controls(weights, parts, turn=0.3 * np.sin(i / 50.0) * (variant % 2)))
+    return out
+
+
+def _features(model, space, performances: list[list[Controls]]):
+    """Static features (frames, N, D) and contact shares (frames, N, 2) of N live walks."""
+    contact = contact_space(model)
+    walker = Crowd(space, len(performances), seeds=list(range(len(performances))))
+    statics, shares = [], []
+    for controls in zip(*performances):
+        frame = walker.step(list(controls))
+        statics.append(np.stack([drive(frame[n], walker.cadence[n], c.turn) for n, c in enumerate(controls)]))
+        shares.append(np.stack([contact.shares(c.weights, c.part_weights)[walker.history_ids[n, 1]]
+                                for n, c in enumerate(controls)]))
+    return np.array(statics), np.array(shares)
+
+
+def _reference_run(model, static, shares, position=None, heading=0.0, locked=True):
+    contact = contact_space(model)
+    lock = reference.FootLock(model.layout, contact.clearance, model.fps) if locked else None
+    stream = reference.PoseStream(model.layout, model.fps, lock)
+    if position is not None:
+        stream.position, stream.heading = np.asarray(position, dtype=float), heading
+    return [stream.next(row, s if locked else None) for row, s in zip(static, shares)]
+
+
+def test_one_character_makes_the_reference_poses_through_style_changes_and_extrapolation(model, space):
+    static, shares = _features(model, space, [_performance(model, 400, 0)])
+    contact = contact_space(model)
+    stream = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps))
+    poses, drops = [], []
+    for row, s in zip(static[:, 0], shares[:, 0]):
+        poses.append(stream.next(row, s))
+        drops.append(stream.crowd.lock_state.drop[0])
+    expected = _reference_run(model, static[:, 0], shares[:, 0])
+    for got, want in zip(poses, expected):
+        assert (got.index, got.time) == (want.index, want.time)
+        for field in FIELDS:
+            np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
+    # the lock did something on this walk, the body's drop included (so the comparison covers it)
+    assert max(drops) > 1e-3
+    plain = _reference_run(model, static[:, 0], shares[:, 0], locked=False)
+    moved = [np.abs(a.world_positions - b.world_positions).max() for a, b in zip(poses, plain)]
+    assert max(moved) > 1e-2 and np.mean(np.array(moved) > 1e-6) > 0.5
+
+
+def test_a_crowd_makes_each_characters_own_poses(model, space):
+    """Three characters with different controls, start points and headings, in one call a frame:
+    each gets the poses of its own single run."""
+    count = 3
+    static, shares = _features(model, space, [_performance(model, 240, k) for k in range(count)])
+    contact = contact_space(model)
+    positions = np.array([[0.0, 0.0, 0.0], [150.0, 0.0, -40.0], [-80.0, 0.0, 300.0]])
+    headings = np.array([0.0, 1.2, -2.5])
+    crowd = CrowdPoses(model.layout, model.fps, count, FootLock(model.layout, contact.clearance, model.fps),
+                       positions, headings)
+    frames = [crowd.next(row, s) for row, s in zip(static, shares)]
+    for n in range(count):
+        expected = _reference_run(model, static[:, n], shares[:, n], positions[n], headings[n])
+        for frame, want in zip(frames, expected):
+            got = frame.character(n)
+            for field in FIELDS:
+                np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
+    # the characters really differ (different controls and places)
+    last = frames[-1].world_positions
+    assert np.abs(last[0] - last[1]).max() > 1.0 and np.abs(last[1] - last[2]).max() > 1.0
+
+
+def test_a_character_placed_mid_walk_walks_on_as_if_it_had_started_there(model, space):
+    static, shares = _features(model, space, [_performance(model, 120, k) for k in range(2)])
+    contact = contact_space(model)
+    crowd = CrowdPoses(model.layout, model.fps, 2, FootLock(model.layout, contact.clearance, model.fps))
+    for row, s in zip(static[:60], shares[:60]):
+        crowd.next(row, s)
+    crowd.place(1, np.array([500.0, 0.0, 500.0]), 2.0)
+    frames = [crowd.next(row, s) for row, s in zip(static[60:], shares[60:])]
+    expected = _reference_run(model, static[60:, 1], shares[60:, 1], [500.0, 0.0, 500.0], 2.0)
+    for frame, want in zip(frames, expected):
+        for field in FIELDS:
+            np.testing.assert_allclose(getattr(frame.character(1), field), getattr(want, field), rtol=0, atol=1e-9)
+    # the other character walked on undisturbed
+    unmoved = _reference_run(model, static[:, 0], shares[:, 0])[60:]
+    np.testing.assert_allclose(frames[-1].world_positions[0], unmoved[-1].world_positions, rtol=0, atol=1e-9)
+
+
+def test_without_a_lock_or_shares_the_feet_are_left_as_made(model, space):
+    static, shares = _features(model, space, [_performance(model, 60, 1)])
+    contact = contact_space(model)
+    expected = _reference_run(model, static[:, 0], shares[:, 0], locked=False)
+    unlocked = PoseStream(model.layout, model.fps)
+    no_shares = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps))
+    for row, want in zip(static[:, 0], expected):
+        for stream in (unlocked, no_shares):
+            got = stream.next(row)
+            for field in FIELDS:
+                np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
+
+
+def test_a_wrong_shape_is_refused_not_read_past(model):
+    crowd = CrowdPoses(model.layout, model.fps, 2)
+    with pytest.raises(ValueError, match="2 characters"):
+        crowd.next(np.zeros((2, model.layout.dimension - 3)))
+    with pytest.raises(ValueError, match="shares"):
+        crowd.next(np.zeros((2, model.layout.dimension)), np.zeros((1, 2)))
+
+
+def test_each_frame_owns_its_arrays(model, space):
+    """An output may keep a pose (a recorder, the console): the next frame must not overwrite it."""
+    static, shares = _features(model, space, [_performance(model, 3, 0)])
+    stream = PoseStream(model.layout, model.fps)
+    first = stream.next(static[0, 0])
+    kept = first.world_positions.copy()
+    stream.next(static[1, 0])
+    np.testing.assert_array_equal(first.world_positions, kept)
+
+
+def test_the_compiled_leg_ik_turns_as_the_reference_does():
+    """Reachable and unreachable targets, straight legs, knees bent a little backwards."""
+    from instrument.synthesis.footlock import leg_swings
+
+    rng = np.random.default_rng(5)
+    for case in range(300):
+        hip = rng.normal(size=3)
+        knee = hip + np.array([0.0, -4.0, 0.3]) + 0.3 * rng.normal(size=3)
+        ankle = knee + np.array([0.0, -4.0, -0.3]) + 0.3 * rng.normal(size=3)
+        if case % 3 == 0:  # straight, or nearly: the hinge comes from the toes
+            ankle = knee + (knee - hip) * (1.0 + 0.01 * rng.normal()) + 1e-4 * rng.normal(size=3) * (case % 2)
+        target = hip + rng.normal(size=3) * rng.uniform(1.0, 12.0)
+        toes = rng.normal(size=3)
+        got = leg_swings(hip, knee, ankle, target, toes)
+        want = reference._leg_swings(hip, knee, ankle, target, toes)
+        for a, b in zip(got, want):
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+
+
+def test_a_degenerate_leg_gives_numbers_not_an_exception():
+    """Compiled division follows numpy (a live show must not stop on a zero length): a target at
+    the hip has no direction, and the turns come back NaN as numpy's would, not as ZeroDivisionError."""
+    from instrument.synthesis.footlock import leg_swings
+
+    hip, knee, ankle = np.zeros(3), np.array([0.0, -4.0, 0.0]), np.array([0.0, -8.0, 0.1])
+    thigh, shin = leg_swings(hip, knee, ankle, hip.copy(), np.array([0.0, 0.0, 1.0]))
+    assert thigh.shape == shin.shape == (3, 3)
