@@ -13,6 +13,7 @@ from ..motion.rotations import matrix_to_quat
 
 if TYPE_CHECKING:
     from ..synthesis.contact import FootLock
+    from ..synthesis.follow import RootFollow
 
 
 @dataclass
@@ -39,6 +40,11 @@ class PoseStream:
     def __init__(self, layout: FeatureLayout, fps: float, lock: FootLock | None = None):
         self.layout, self.fps = layout, fps
         self.lock = lock  # plants the feet when the frame says how surely each is planted
+        self.follow: RootFollow | None = None  # the body follows its stance foot
+        if lock is not None:
+            from ..synthesis.follow import RootFollow  # here: synthesis imports this module
+
+            self.follow = RootFollow()
         self.position = np.zeros(3)
         self.heading = 0.0
         self.index = 0
@@ -48,12 +54,22 @@ class PoseStream:
             static[None], self.layout, self.fps, self.position, self.heading
         )
         if self.lock is not None and contact_shares is not None:
+            translations = self._follow(rotations, translations)
             pose = Pose(self.index, self.index / self.fps, *self.lock.apply(rotations[0], translations[0], contact_shares))
         else:
             world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations, translations)
             pose = Pose(self.index, self.index / self.fps, rotations[0], translations[0], world_rot[0], world_pos[0])
         self.index += 1
         return pose
+
+    def _follow(self, rotations: np.ndarray, translations: np.ndarray) -> np.ndarray:
+        """The frame's translations with the body moved after its stance foot (follow.py), by
+        the lock's blend of each foot so far."""
+        world_pos = forward_kinematics(self.layout.skeleton, rotations, translations)[1][0]
+        offset = self.follow.step(world_pos[self.lock.pivot][None], self.lock.weight[None])[0]
+        moved = translations.copy()
+        moved[0, self.layout.root] += offset @ self.lock.parent_rot  # world to the root's parent's frame
+        return moved
 
 
 def pose_channels(skeleton, pose: Pose) -> np.ndarray:

@@ -14,8 +14,9 @@ when the generated foot is on the floor and nearly still (as the data was labell
   hinge; then the hip swings the leg), the foot keeping its generated world orientation, towards: the lock
   horizontally, its lowest joint on the floor vertically; the lock blends in and out over
   BLEND_FRAMES frames, so nothing pops;
-- no foot joint goes below its clearance, planted or not, and a swinging foot keeps SWING_CM
-  above it;
+- no foot joint goes below its clearance, planted or not, and a swinging foot keeps up to
+  SWING_CM above it (all of it on a bent knee, none on a straight one reaching to land);
+- a released foot rises as generated (only the horizontal pull blends out);
 - a walk always has a foot on the floor: when no state plants either, the likelier one is;
 - where a planted leg is too short to reach the floor below it (an exaggerated style can lift
   the hips), the body comes down by the difference, eased over BLEND_FRAMES frames.
@@ -41,10 +42,20 @@ SWING_CM = 2.0  # a foot in the air keeps its lowest joint this far above its cl
 PLANTED = 0.5  # a state this sure of a foot's contact plants it
 POSSIBLE = 0.2  # a state this sure plants a foot that is on the floor and still
 NEARLY_STRAIGHT = np.radians(10.0)  # a knee bent less than this may be bent the wrong way (see _leg_swings)
+SWING_BENT = np.radians(30.0)  # a swinging foot gets its full SWING_CM once its knee is bent this far
 
 
 def EASE(x: float) -> float:
     return x * x * (3.0 - 2.0 * x)  # smoothstep: the lock starts and ends with zero speed
+
+
+def _swing_share(world_pos: np.ndarray, leg) -> float:
+    """How much of SWING_CM a swinging foot keeps: all of it on a bent knee (mid-swing, where
+    an exaggerated style would drag it along the floor), none on a straight one (reaching for
+    the floor to land: lifting it there bends the knee the data straightens and flexes the hip)."""
+    thigh, shin = world_pos[leg.knee] - world_pos[leg.hip], world_pos[leg.ankle] - world_pos[leg.knee]
+    cos = thigh @ shin / (np.linalg.norm(thigh) * np.linalg.norm(shin) + 1e-12)
+    return min(1.0, float(np.arccos(min(max(cos, -1.0), 1.0))) / SWING_BENT)
 
 
 # ---- training -------------------------------------------------------------------------------
@@ -288,12 +299,13 @@ class FootLock:
         lift = np.min(world_pos[list(leg.foot), 1] - self.ground[f])
         target = world_pos[leg.ankle].copy()
         w = EASE(self.weight[f])
+        down = w * lift if planted else 0.0  # a released foot rises as generated (held down, the knee straightens at toe-off)
         if w > 0:
             pull = self.lock[f] - world_pos[self.pivot[f]]
             target[[0, 2]] += w * pull[[0, 2]]
-            target[1] -= w * lift
-        lowest_after = lift - w * lift
-        floor = 0.0 if planted else (1.0 - w) * self.swing_lift
+            target[1] -= down
+        lowest_after = lift - down
+        floor = 0.0 if planted else (1.0 - w) * self.swing_lift * _swing_share(world_pos, leg)
         if lowest_after < floor:
             target[1] += floor - lowest_after
         return target

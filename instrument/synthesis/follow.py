@@ -1,0 +1,46 @@
+"""The body follows its stance foot: part of a planted foot's generated slide moves the body.
+
+The foot lock (contact.py) holds a planted foot where it landed while the generated body
+travels on. Where the generated leg sweeps less ground than the body travels, the lock's leg IK
+makes up the difference by stretching the leg and swinging the thigh further back than the
+data does (the hip's range grows, the knee's shrinks). Here the body takes STRENGTH of that
+slide instead: each frame, the horizontal step each foot's pivot (the joint the lock holds)
+made in the generated pose since the frame before, weighted by how far that foot's lock is
+blended in (eased as the lock eases it), is taken off the body's path. The rest is left to the
+IK, because what the body takes it no longer travels: all of it (STRENGTH 1) slows the walk by
+7-11% and a quarter by up to 3% (docs/evaluate.md has the figures), against the target of
+speed within 3% of the real takes.
+
+The offset grows by at most STRENGTH times a foot's slide per frame, so nothing jumps, and a
+style change shows in the next frame. It is causal: it uses the lock's blend of the frame
+before. Its state is arrays with one row per character, so it batches over a crowd.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .contact import EASE
+
+STRENGTH = 0.2  # share of a planted foot's generated slide the body takes (chosen by `instrument evaluate`)
+HORIZONTAL = np.array([1.0, 0.0, 1.0])
+
+
+class RootFollow:
+    """Characters' bodies following their stance feet, one row per character."""
+
+    def __init__(self, characters: int = 1, strength: float = STRENGTH):
+        self.strength = strength
+        self.offset = np.zeros((characters, 3))  # world offset added to each body's generated path
+        self.previous = np.full((characters, 2, 3), np.nan)  # each pivot's generated position in the frame before
+
+    def step(self, pivots: np.ndarray, blend: np.ndarray) -> np.ndarray:
+        """The world offsets (N, 3) to add to this frame's bodies, given each foot's pivot in
+        the frame's generated pose (N, 2, 3) and how far each foot's lock was blended in, 0 to 1,
+        over the step from the frame before to this one (N, 2)."""
+        slide = np.nan_to_num((pivots - self.previous) * HORIZONTAL)  # none in the first frame
+        self.previous = np.array(pivots, dtype=np.float64)
+        weight = EASE(np.clip(blend, 0.0, 1.0))
+        share = weight / np.maximum(weight.sum(axis=1, keepdims=True), 1.0)  # both feet planted: their mean
+        self.offset -= self.strength * np.einsum("nf,nfi->ni", share, slide)
+        return self.offset
