@@ -49,12 +49,15 @@ class PoseStream:
         self.heading = 0.0
         self.index = 0
 
-    def next(self, static: np.ndarray, contact_shares: np.ndarray | None = None) -> Pose:
+    def next(self, static: np.ndarray, contact_shares: np.ndarray | None = None, follow_strength: float | None = None) -> Pose:
+        """The frame's pose; with the feet planted when `contact_shares` (2,) says how surely
+        each is planted, the body taking `follow_strength` of a planted foot's slide (default
+        follow.STRENGTH)."""
         rotations, translations, (self.position, self.heading) = restore_local(
             static[None], self.layout, self.fps, self.position, self.heading
         )
         if self.lock is not None and contact_shares is not None:
-            translations = self._follow(rotations, translations)
+            translations = self._follow(rotations, translations, follow_strength)
             pose = Pose(self.index, self.index / self.fps, *self.lock.apply(rotations[0], translations[0], contact_shares))
         else:
             world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations, translations)
@@ -62,11 +65,14 @@ class PoseStream:
         self.index += 1
         return pose
 
-    def _follow(self, rotations: np.ndarray, translations: np.ndarray) -> np.ndarray:
+    def _follow(self, rotations: np.ndarray, translations: np.ndarray, strength: float | None) -> np.ndarray:
         """The frame's translations with the body moved after its stance foot (follow.py), by
         the lock's blend of each foot so far."""
+        from ..synthesis.follow import STRENGTH
+
         world_pos = forward_kinematics(self.layout.skeleton, rotations, translations)[1][0]
-        offset = self.follow.step(world_pos[self.lock.pivot][None], self.lock.weight[None])[0]
+        strengths = np.array([STRENGTH if strength is None else strength])
+        offset = self.follow.step(world_pos[self.lock.pivot][None], self.lock.weight[None], strengths)[0]
         moved = translations.copy()
         moved[0, self.layout.root] += offset @ self.lock.parent_rot  # world to the root's parent's frame
         return moved

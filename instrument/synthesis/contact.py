@@ -148,11 +148,15 @@ class ContactSpace:
     def shares(self, weights: np.ndarray, part_weights: np.ndarray | None = None) -> np.ndarray:
         """(labels * states, 2): how surely each foot is planted in each state at these weights
         (the legs' own weights when given per body part), 0 to 1."""
+        return np.clip(self.base + np.einsum("s,sif->if", self.leg_weights(weights, part_weights), self.offsets), 0.0, 1.0)
+
+    def leg_weights(self, weights: np.ndarray, part_weights: np.ndarray | None = None) -> np.ndarray:
+        """The style weights the legs walk with: their own where given per body part."""
         weights = np.asarray(weights, dtype=np.float64)
         if part_weights is not None:
             legs = np.asarray(part_weights, dtype=np.float64)[:, self.legs]
             weights = np.where(np.isnan(legs), weights, legs)
-        return np.clip(self.base + np.einsum("s,sif->if", weights, self.offsets), 0.0, 1.0)
+        return weights
 
 
 def contact_space(model) -> ContactSpace | None:
