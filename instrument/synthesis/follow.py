@@ -43,16 +43,18 @@ class RootFollow:
 
     def __init__(self, characters: int = 1):
         self.offset = np.zeros((characters, 3))  # world offset added to each body's generated path
-        self.previous = np.full((characters, 2, 3), np.nan)  # each pivot's generated position in the frame before
+        self.previous: np.ndarray | None = None  # (N, 2, 3) each pivot's generated position in the frame before
 
     def step(self, pivots: np.ndarray, blend: np.ndarray, strengths: np.ndarray) -> np.ndarray:
         """The world offsets (N, 3) to add to this frame's bodies, given each foot's pivot in
         the frame's generated pose (N, 2, 3), how far each foot's lock was blended in, 0 to 1,
         over the step from the frame before to this one (N, 2), and each character's
         `strength` (N,)."""
-        slide = np.nan_to_num((pivots - self.previous) * HORIZONTAL)  # none in the first frame
-        self.previous = np.array(pivots, dtype=np.float64)
-        weight = EASE(np.clip(blend, 0.0, 1.0))
-        share = weight / np.maximum(weight.sum(axis=1, keepdims=True), 1.0)  # both feet planted: their mean
-        self.offset -= np.asarray(strengths, dtype=np.float64)[:, None] * np.einsum("nf,nfi->ni", share, slide)
+        pivots = np.array(pivots, dtype=np.float64)
+        if self.previous is not None:  # the first frame has no slide
+            slide = (pivots - self.previous) * HORIZONTAL
+            weight = EASE(blend)
+            share = weight / np.maximum(weight.sum(axis=1, keepdims=True), 1.0)  # both feet planted: their mean
+            self.offset -= (np.asarray(strengths)[:, None, None] * share[:, :, None] * slide).sum(axis=1)
+        self.previous = pivots
         return self.offset
