@@ -96,3 +96,28 @@ def test_synth_follows_as_the_live_path_does(model):
     skeleton = model.layout.skeleton
     again = channels_from_local(skeleton, np.stack([p.rotations for p in out]), np.stack([p.translations for p in out]))
     np.testing.assert_allclose(motion.channels, again, atol=1e-9)
+
+
+def test_a_jump_out_of_the_data_changes_the_follow_without_a_jump_in_the_pose(model):
+    """Live, the strength follows the weights frame by frame (a fifth -> half here): the body's
+    offset changes its rate, never its value, so the joints move no faster across the change
+    than the unplanted walk itself does (plus 20%, as the lock's own continuity test allows)."""
+    from instrument.synthesis.stream import Controls, Crowd
+
+    space, contact = style_space(model), contact_space(model)
+    names = model.style_names
+    calm, bold = np.zeros(len(names)), np.eye(len(names))[names.index("feminine")] * 2.0
+    walker = Crowd(space)
+    poses = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps))
+    plain = PoseStream(model.layout, model.fps)
+    planted, raw = [], []
+    for weights in [calm] * 60 + [bold] * 30:
+        controls = Controls(weights)
+        frame = walker.step([controls])[0]
+        shares = contact.shares(controls.weights)[walker.history_ids[0, 1]]
+        planted.append(poses.next(frame, shares, strength(contact.leg_weights(controls.weights))).world_positions)
+        raw.append(plain.next(frame).world_positions)
+    planted, raw = np.array(planted), np.array(raw)
+    assert strength(calm) < strength(bold)
+    moves = np.linalg.norm(np.diff(planted[55:75], axis=0), axis=2).max()
+    assert moves < 1.2 * np.linalg.norm(np.diff(raw[55:75], axis=0), axis=2).max()
