@@ -13,11 +13,19 @@ from instrument.motion.kinematics import forward_kinematics
 from instrument.motion.limbs import centimetres_per_unit, find_limbs
 from instrument.runtime.pose import Pose
 from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, POSSIBLE,
-                                          PLANTED, SWING_CM)
+                                          PLANTED, SWING_BENT, SWING_CM)
+from instrument.synthesis.follow import STRENGTH, RootFollow
 
 
 def EASE(x: float) -> float:
     return x * x * (3.0 - 2.0 * x)  # smoothstep: the lock starts and ends with zero speed
+
+
+def _swing_share(world_pos: np.ndarray, leg) -> float:
+    """How much of SWING_CM a swinging foot keeps: all of it on a bent knee, none on a straight one."""
+    thigh, shin = world_pos[leg.knee] - world_pos[leg.hip], world_pos[leg.ankle] - world_pos[leg.knee]
+    cos = thigh @ shin / (np.linalg.norm(thigh) * np.linalg.norm(shin) + 1e-12)
+    return min(1.0, float(np.arccos(min(max(cos, -1.0), 1.0))) / SWING_BENT)
 
 
 @njit
@@ -146,12 +154,13 @@ class FootLock:
         lift = np.min(world_pos[list(leg.foot), 1] - self.ground[f])
         target = world_pos[leg.ankle].copy()
         w = EASE(self.weight[f])
+        down = w * lift if planted else 0.0  # a released foot rises as generated
         if w > 0:
             pull = self.lock[f] - world_pos[self.pivot[f]]
             target[[0, 2]] += w * pull[[0, 2]]
-            target[1] -= w * lift
-        lowest_after = lift - w * lift
-        floor = 0.0 if planted else (1.0 - w) * self.swing_lift
+            target[1] -= down
+        lowest_after = lift - down
+        floor = 0.0 if planted else (1.0 - w) * self.swing_lift * _swing_share(world_pos, leg)
         if lowest_after < floor:
             target[1] += floor - lowest_after
         return target
@@ -179,18 +188,30 @@ class PoseStream:
     def __init__(self, layout: FeatureLayout, fps: float, lock: FootLock | None = None):
         self.layout, self.fps = layout, fps
         self.lock = lock  # plants the feet when the frame says how surely each is planted
+        self.follow = RootFollow()  # the body follows its stance foot
         self.position = np.zeros(3)
         self.heading = 0.0
         self.index = 0
 
-    def next(self, static: np.ndarray, contact_shares: np.ndarray | None = None) -> Pose:
+    def next(self, static: np.ndarray, contact_shares: np.ndarray | None = None, follow_strength: float | None = None) -> Pose:
         rotations, translations, (self.position, self.heading) = restore_local(
             static[None], self.layout, self.fps, self.position, self.heading
         )
         if self.lock is not None and contact_shares is not None:
+            translations = self._follow(rotations, translations, follow_strength)
             pose = Pose(self.index, self.index / self.fps, *self.lock.apply(rotations[0], translations[0], contact_shares))
         else:
             world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations, translations)
             pose = Pose(self.index, self.index / self.fps, rotations[0], translations[0], world_rot[0], world_pos[0])
         self.index += 1
         return pose
+
+    def _follow(self, rotations: np.ndarray, translations: np.ndarray, strength: float | None) -> np.ndarray:
+        """The frame's translations with the body moved after its stance foot, by the lock's
+        blend of each foot so far."""
+        world_pos = forward_kinematics(self.layout.skeleton, rotations, translations)[1][0]
+        strengths = np.array([STRENGTH if strength is None else strength])
+        offset = self.follow.step(world_pos[self.lock.pivot][None], self.lock.weight[None], strengths)[0]
+        moved = translations.copy()
+        moved[0, self.layout.root] += offset @ self.lock.parent_rot  # world to the root's parent's frame
+        return moved

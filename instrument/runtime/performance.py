@@ -20,6 +20,7 @@ from ..control.events import ControlEvent, LogReplay
 from ..control.hub import ControlHub
 from ..control.state import ControlState
 from ..models.modelfile import Model
+from ..synthesis import follow
 from ..synthesis.contact import contact_space
 from ..synthesis.footlock import FootLock
 from ..synthesis.interpolation import style_space
@@ -59,6 +60,7 @@ class Engine:
         self.made = 0  # model frames made
         self.contact = contact_space(model)  # None: the model has no contact statistics
         self.contact_shares: np.ndarray | None = None  # (2,) how surely the newest model frame has each foot planted
+        self.follow_strength = follow.STRENGTH  # how much of a planted foot's slide the body takes (follow.py)
         widen = range_space(model)
         self.widen = None if widen is None else Widen(widen)  # None: the model has no range statistics
 
@@ -81,6 +83,7 @@ class Engine:
             self.made += 1
             if self.contact is not None:
                 self.contact_shares = self.contact.shares(controls.weights, controls.part_weights)[self.walker.history_ids[0, 1]]
+                self.follow_strength = follow.strength(self.contact.leg_weights(controls.weights, controls.part_weights))
         fraction = position - (newest - 1)
         if fraction >= 1.0 - 1e-9 or len(self.frames) == 1:
             return self.frames[-1]
@@ -172,7 +175,7 @@ def perform(
             take_live(now)  # what came since the last look, while the loop waited
             state.advance(now)
             controls = state.snapshot()
-            pose = poses.next(engine.sample(now, controls), engine.contact_shares)
+            pose = poses.next(engine.sample(now, controls), engine.contact_shares, engine.follow_strength)
             echo = state.echo()
             prepared = [_attempt(console, summary, output, output.prepare, pose, echo) for output in outputs]
             if index > 0:

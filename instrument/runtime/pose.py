@@ -12,6 +12,7 @@ from ..motion.features import FeatureLayout
 from ..motion.kinematics import _compose, channels_from_local
 from ..motion.restore_frame import FrameRestorer
 from ..motion.rotations import matrix_to_quat
+from ..synthesis.follow import STRENGTH, RootFollow
 
 if TYPE_CHECKING:
     from ..synthesis.footlock import FootLock
@@ -63,6 +64,7 @@ class CrowdPoses:
         self.positions = np.zeros((count, 3)) if positions is None else np.array(positions, dtype=np.float64).reshape(count, 3)
         self.headings = np.zeros(count) if headings is None else np.array(headings, dtype=np.float64).reshape(count)
         self.lock_state = None if lock is None else lock.start(count)
+        self.follow = None if lock is None else RootFollow(count)  # the body follows its stance foot
         self.index = 0
         self._restorer = FrameRestorer(layout, fps)
         self._parents = np.asarray(layout.skeleton.parents, dtype=np.int64)
@@ -74,10 +76,12 @@ class CrowdPoses:
         self.positions[n], self.headings[n] = position, heading
         if self.lock_state is not None:
             self.lock_state.release(n)
+            self.follow.release(n)
 
-    def next(self, static: np.ndarray, shares: np.ndarray | None = None) -> CrowdPose:
+    def next(self, static: np.ndarray, shares: np.ndarray | None = None, follow: np.ndarray | None = None) -> CrowdPose:
         """The poses of static features (N, D); `shares` (N, 2) says how surely each character's
-        state has each foot planted (None: the feet are not planted this frame)."""
+        state has each foot planted (None: the feet are not planted this frame); `follow` (N,)
+        how much of a planted foot's slide each body takes (default follow.STRENGTH)."""
         static = np.asarray(static, dtype=np.float64)
         if static.shape != (self.count, self.layout.dimension) or (shares is not None and np.shape(shares) != (self.count, 2)):
             # the kernels do not check their bounds: a wrong shape would read past the arrays
@@ -90,10 +94,20 @@ class CrowdPoses:
         self._restorer.next(static, self.positions, self.headings, rotations, translations)
         _compose(self._parents, rotations, translations, world_rot, world_pos)
         if self.lock is not None and shares is not None:
+            self._follow(translations, world_pos, np.full(self.count, STRENGTH) if follow is None else follow)
             self.lock.apply(self.lock_state, rotations, translations, shares, world_rot, world_pos)
         pose = CrowdPose(self.index, self.index / self.fps, rotations, translations, world_rot, world_pos)
         self.index += 1
         return pose
+
+    def _follow(self, translations: np.ndarray, world_pos: np.ndarray, strengths: np.ndarray) -> None:
+        """Moves each body after its stance foot (follow.py) in place, by the lock's blend of each
+        foot so far: the root's translation and, as the whole skeleton hangs from the root,
+        every joint's world position."""
+        pivots = world_pos[:, self.lock.feet[:, -1]]  # (N, 2, 3) in the generated pose
+        offset = self.follow.step(pivots, self.lock_state.weights, np.asarray(strengths, dtype=np.float64))
+        translations[:, self.layout.root] += offset @ self.lock.parent_rot  # world to the root's parent's frame
+        world_pos += offset[:, None, :]
 
 
 class PoseStream:
@@ -108,9 +122,12 @@ class PoseStream:
         """(2,) how far each foot's lock is blended in (0..1)."""
         return np.zeros(2) if self.crowd.lock_state is None else self.crowd.lock_state.weights[0]
 
-    def next(self, static: np.ndarray, contact_shares: np.ndarray | None = None) -> Pose:
+    def next(self, static: np.ndarray, contact_shares: np.ndarray | None = None, follow_strength: float | None = None) -> Pose:
+        """The frame's pose; the feet planted when `contact_shares` (2,) says how surely each is,
+        the body taking `follow_strength` of a planted foot's slide (default follow.STRENGTH)."""
         shares = None if contact_shares is None else np.asarray(contact_shares, dtype=np.float64)[None]
-        return self.crowd.next(np.asarray(static)[None], shares).character(0)
+        follow = None if follow_strength is None else np.array([follow_strength], dtype=np.float64)
+        return self.crowd.next(np.asarray(static)[None], shares, follow).character(0)
 
 
 def pose_channels(skeleton, pose: Pose) -> np.ndarray:

@@ -15,11 +15,14 @@ frame at a time, on the pose the features give:
   hinge; then the hip swings the leg), the foot keeping its generated world orientation, towards: the lock
   horizontally, its lowest joint on the floor vertically; the lock blends in and out over
   BLEND_FRAMES frames, so nothing pops;
-- no foot joint goes below its clearance, planted or not, and a swinging foot keeps SWING_CM
-  above it;
+- no foot joint goes below its clearance, planted or not, and a swinging foot keeps up to
+  SWING_CM above it (all of it on a bent knee, none on a straight one reaching to land);
+- a released foot rises as generated (only the horizontal pull blends out);
 - a walk always has a foot on the floor: when no state plants either, the likelier one is;
 - where a planted leg is too short to reach the floor below it (an exaggerated style can lift
   the hips), the body comes down by the difference, eased over BLEND_FRAMES frames.
+Before the lock, the body takes a share of a planted foot's generated slide (`follow.py`), so
+the IK does not have to stretch the leg after a body that slides on.
 Nothing looks ahead beyond what the frame's state already says, so live and `synth` agree.
 """
 
@@ -41,6 +44,7 @@ SWING_CM = 2.0  # a foot in the air keeps its lowest joint this far above its cl
 PLANTED = 0.5  # a state this sure of a foot's contact plants it
 POSSIBLE = 0.2  # a state this sure plants a foot that is on the floor and still
 NEARLY_STRAIGHT = np.radians(10.0)  # a knee bent less than this may be bent the wrong way (see footlock.leg_swings)
+SWING_BENT = np.radians(30.0)  # a swinging foot gets its full SWING_CM once its knee is bent this far
 
 
 # ---- training -------------------------------------------------------------------------------
@@ -133,11 +137,15 @@ class ContactSpace:
     def shares(self, weights: np.ndarray, part_weights: np.ndarray | None = None) -> np.ndarray:
         """(labels * states, 2): how surely each foot is planted in each state at these weights
         (the legs' own weights when given per body part), 0 to 1."""
+        return np.clip(self.base + np.einsum("s,sif->if", self.leg_weights(weights, part_weights), self.offsets), 0.0, 1.0)
+
+    def leg_weights(self, weights: np.ndarray, part_weights: np.ndarray | None = None) -> np.ndarray:
+        """The style weights the legs walk with: their own where given per body part."""
         weights = np.asarray(weights, dtype=np.float64)
         if part_weights is not None:
             legs = np.asarray(part_weights, dtype=np.float64)[:, self.legs]
             weights = np.where(np.isnan(legs), weights, legs)
-        return np.clip(self.base + np.einsum("s,sif->if", weights, self.offsets), 0.0, 1.0)
+        return weights
 
 
 def contact_space(model) -> ContactSpace | None:

@@ -6,7 +6,8 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 
 - `planted_feet`: which feet are planted this frame (the state's share, or a foot on the floor
   and still where the state allows it; always one foot);
-- `lock_target`: where an ankle should go (the lock blended in, the floor, the swing lift);
+- `lock_target`: where an ankle should go (the lock blended in, the floor, the swing lift as
+  `swing_share` allows);
 - `body_drop`: how far the body must come down for a planted leg to reach the floor;
 - `leg_swings`: two-bone IK, the thigh's and the shin's turns that take an ankle to a target;
 - `solve_leg`: those turns applied in place to the local rotations;
@@ -27,7 +28,8 @@ from numba import njit
 from ..motion.features import FeatureLayout
 from ..motion.kinematics import _compose, forward_kinematics
 from ..motion.limbs import centimetres_per_unit, find_limbs
-from .contact import BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, PLANTED, POSSIBLE, SWING_CM
+from .contact import BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, PLANTED, POSSIBLE, SWING_BENT, SWING_CM
+from .follow import ease
 
 
 @dataclass
@@ -80,11 +82,6 @@ class FootLock:
 # ---- kernels (compiled; the names and jobs of the plain-Python lock's methods) --------------
 
 @njit(cache=True, error_model="numpy")
-def _ease(x: float) -> float:  # pragma: no cover - compiled
-    return x * x * (3.0 - 2.0 * x)  # smoothstep: the lock starts and ends with zero speed
-
-
-@njit(cache=True, error_model="numpy")
 def _lowest_lift(world_pos, foot, ground_f):  # pragma: no cover - compiled
     """Height of the foot's lowest joint above its clearance."""
     lift = np.inf
@@ -113,19 +110,34 @@ def planted_feet(shares, world_pos, previous, feet, ground, fps, cm):  # pragma:
 
 
 @njit(cache=True, error_model="numpy")
-def lock_target(world_pos, ankle, foot, ground_f, weight, point, planted, swing_lift):  # pragma: no cover - compiled
-    """Where the ankle should be: the lock blended in horizontally, the lowest foot joint on the
-    floor while planted, never below it, and a little above it while swinging."""
+def swing_share(world_pos, leg):  # pragma: no cover - compiled
+    """How much of the swing lift a swinging foot keeps: all of it on a knee bent SWING_BENT or
+    more (mid-swing, where an exaggerated style would drag it along the floor), none on a
+    straight one (reaching for the floor to land: lifting it there bends the knee the data
+    straightens and flexes the hip)."""
+    hip, knee, ankle = world_pos[leg[0]], world_pos[leg[1]], world_pos[leg[2]]
+    thigh, shin = knee - hip, ankle - knee
+    cos = _dot(thigh, shin) / (np.sqrt(_dot(thigh, thigh)) * np.sqrt(_dot(shin, shin)) + 1e-12)
+    return min(1.0, np.arccos(min(max(cos, -1.0), 1.0)) / SWING_BENT)
+
+
+@njit(cache=True, error_model="numpy")
+def lock_target(world_pos, leg, foot, ground_f, weight, point, planted, swing_lift):  # pragma: no cover - compiled
+    """Where the ankle (leg: hip, knee, ankle) should be: the lock blended in horizontally, the
+    lowest foot joint on the floor while planted (a released foot rises as generated: held
+    down, the knee would straighten at toe-off), never below it, and a little above it while
+    swinging on a bent knee."""
     lift = _lowest_lift(world_pos, foot, ground_f)
-    target = world_pos[ankle].copy()
-    w = _ease(weight)
+    target = world_pos[leg[2]].copy()
+    w = ease(weight)
+    down = w * lift if planted else 0.0
     if w > 0:
         pivot = world_pos[foot[-1]]
         target[0] += w * (point[0] - pivot[0])
         target[2] += w * (point[2] - pivot[2])
-        target[1] -= w * lift
-    lowest_after = lift - w * lift
-    floor = 0.0 if planted else (1.0 - w) * swing_lift
+        target[1] -= down
+    lowest_after = lift - down
+    floor = 0.0 if planted else (1.0 - w) * swing_lift * swing_share(world_pos, leg)
     if lowest_after < floor:
         target[1] += floor - lowest_after
     return target
@@ -270,13 +282,13 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         weights[f] = min(1.0, weights[f] + step) if planted[f] else max(0.0, weights[f] - step)
     targets = np.empty((2, 3))
     for f in range(2):
-        targets[f] = lock_target(world_pos, joints[f, 2], feet[f], ground[f], weights[f], points[f], planted[f], swing_lift)
+        targets[f] = lock_target(world_pos, joints[f], feet[f], ground[f], weights[f], points[f], planted[f], swing_lift)
     drop[0] += (body_drop(world_pos, joints, reach, targets, planted) - drop[0]) / BLEND_FRAMES
     if drop[0] > 1e-9:
         translations[root] -= drop[0] * parent_rot[1]  # [0, drop, 0] @ parent_rot
         world_pos[:, 1] -= drop[0]
         for f in range(2):
-            targets[f] = lock_target(world_pos, joints[f, 2], feet[f], ground[f], weights[f], points[f], planted[f],
+            targets[f] = lock_target(world_pos, joints[f], feet[f], ground[f], weights[f], points[f], planted[f],
                                      swing_lift)
     for f in range(2):
         ankle = joints[f, 2]

@@ -10,6 +10,7 @@ from ..motion.features import restore
 from ..motion.kinematics import channels_from_local
 from ..runtime.pose import PoseStream
 from .contact import contact_space
+from .follow import strength
 from .footlock import FootLock
 from .interpolation import StyleSpace
 from .mlpg import mlpg_continued
@@ -83,7 +84,8 @@ def synthesize_motion(model: Model, space: StyleSpace, controls: Controls, frame
         return restore(static, model.layout, model.fps)
     shares = contact.shares(controls.weights, controls.part_weights)[ids]
     poses = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps))
-    frames_out = [poses.next(row, frame_shares) for row, frame_shares in zip(static, shares)]
+    follow = strength(contact.leg_weights(controls.weights, controls.part_weights))
+    frames_out = [poses.next(row, frame_shares, follow) for row, frame_shares in zip(static, shares)]
     rotations = np.stack([p.rotations for p in frames_out])
     translations = np.stack([p.translations for p in frames_out])
     return Motion(model.layout.skeleton, channels_from_local(model.layout.skeleton, rotations, translations), model.fps)
