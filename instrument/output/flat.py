@@ -14,6 +14,11 @@ Per frame, in bundles of at most 1,400 bytes, in this order:
 
 Coordinates are the model's: right-handed, Y up, the units of the training data (centimetres
 for the shipped model).
+
+A crowd (`run --characters N`): character 0 is sent at the addresses above, exactly as a single
+character; character K (1 to N-1) at the same bone and root addresses under
+/walk/character/K/ (/walk/character/K/bone/<Joint>/quat, /walk/character/K/root/pos, ...),
+after character 0's root and before the echo. The echo and /walk/frame are sent once, last.
 """
 
 from __future__ import annotations
@@ -24,20 +29,38 @@ from ..runtime.pose import Pose, quaternions
 from .osc import bundles, float_messages, float_prefix, message
 
 
+def character_prefix(k: int) -> str:
+    """Where character k's bone and root addresses start: /walk for character 0 (a crowd's
+    first character is sent as a single one is), /walk/character/k for the others."""
+    return "/walk" if k == 0 else f"/walk/character/{k}"
+
+
 class FlatProfile:
-    def __init__(self, joint_names: list[str], root: int):
+    def __init__(self, joint_names: list[str], root: int, characters: int = 1):
         self.names = joint_names
         self.root = root
-        self.quat_prefixes = [float_prefix(f"/walk/bone/{n}/quat", 4) for n in joint_names]
-        self.pos_prefixes = [float_prefix(f"/walk/bone/{n}/pos", 3) for n in joint_names]
+        self.whole_crowd = characters > 1  # datagrams() takes every character's pose (a list)
+        heads = [character_prefix(k) for k in range(characters)]
+        # per character: a quaternion per joint then the root's; a position per joint, the root's world and local
+        self.quat_prefixes = [[float_prefix(f"{h}/bone/{n}/quat", 4) for n in joint_names] + [float_prefix(f"{h}/root/quat", 4)]
+                              for h in heads]
+        self.pos_prefixes = [[float_prefix(f"{h}/bone/{n}/pos", 3) for n in joint_names]
+                             + [float_prefix(f"{h}/root/pos", 3), float_prefix(f"{h}/root/local", 3)] for h in heads]
 
-    def datagrams(self, pose: Pose, echo: dict[str, float]) -> list[bytes]:
-        quats = quaternions(np.concatenate([pose.rotations, pose.world_rotations[self.root][None]]))  # local, then the root's world
-        messages = float_messages(self.quat_prefixes, quats[:-1])
-        messages += float_messages(self.pos_prefixes, pose.world_positions)
-        messages.append(message("/walk/root/pos", *pose.world_positions[self.root].tolist()))
-        messages.append(message("/walk/root/quat", *quats[-1].tolist()))
-        messages.append(message("/walk/root/local", *pose.translations[self.root].tolist()))
+    def datagrams(self, pose: Pose | list[Pose], echo: dict[str, float]) -> list[bytes]:
+        """One frame's bundles: of one character, or of a crowd given every character's pose."""
+        poses = pose if isinstance(pose, list) else [pose]
+        root = self.root
+        # local rotations, then the root's world rotation; world positions, then the root's local translation
+        quats = quaternions(np.stack([np.concatenate([p.rotations, p.world_rotations[root][None]]) for p in poses]))
+        positions = np.stack([np.concatenate([p.world_positions, p.world_positions[root][None], p.translations[root][None]])
+                              for p in poses])
+        joints = len(self.names)
+        messages = []
+        for quat_prefixes, pos_prefixes, q, x in zip(self.quat_prefixes, self.pos_prefixes, quats, positions):
+            q_messages, x_messages = float_messages(quat_prefixes, q), float_messages(pos_prefixes, x)
+            messages += q_messages[:joints] + x_messages[:joints]
+            messages += [x_messages[joints], q_messages[joints], x_messages[joints + 1]]  # root pos, quat, local
         messages += [message(f"/walk/{name}", value) for name, value in echo.items()]
         messages.append(message("/walk/frame", int(pose.index), float(pose.time)))
         return bundles(messages)
