@@ -62,5 +62,5 @@ class FlatProfile:
             messages += q_messages[:joints] + x_messages[:joints]
             messages += [x_messages[joints], q_messages[joints], x_messages[joints + 1]]  # root pos, quat, local
         messages += [message(f"/walk/{name}", value) for name, value in echo.items()]
-        messages.append(message("/walk/frame", int(pose.index), float(pose.time)))
+        messages.append(message("/walk/frame", int(poses[0].index), float(poses[0].time)))
         return bundles(messages)
