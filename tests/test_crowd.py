@@ -146,8 +146,10 @@ def test_spread_gives_each_character_its_own_style_and_none_alike_at_zero(model)
     state.set("spread", 1.0)
     each = engine.each(state.snapshot(), state.spread)
     assert np.array_equal(each[0].weights, state.weights)  # character 0 is the performance itself
-    mixes = [tuple(c.weights) for c in each[1:]]
-    assert len(set(mixes)) == 3 and all(abs(sum(m) - 1) < 1e-9 and min(m) >= 0 for m in mixes)
+    state.set("style/elderly", 1.0)
+    each = engine.each(state.snapshot(), state.spread)
+    mixes = [tuple(c.weights) for c in each[1:]]  # around the performed weights, each its own, none adding weight
+    assert len(set(mixes)) == 3 and all(abs(sum(m) - 1) < 1e-9 and np.abs(np.subtract(m, state.weights)).max() > 0.2 for m in mixes)
 
 
 def test_spread_is_a_control_target_like_the_others():

@@ -3,9 +3,12 @@
 Character 0 walks exactly as performed, as a run of one character does. Every other character
 k has, drawn once from its own seed (the run's seed + k, so a replay is exact):
 
-- a style mix of its own (a Dirichlet draw over the styles: mostly one or two of them), which
-  the `spread` control blends in: its weights are the performed ones moved `spread` of the way
-  to its mix (0: all as performed; 1: each its own mix; part weights the same way);
+- a style offset of its own: a style mix (a Dirichlet draw over the styles: mostly one or two
+  of them) minus the even mix, so its weights add up to 0. The `spread` control scales it: a
+  character's weights are the performed ones plus `spread` times its offset (0: all as
+  performed; 1: each its own mix around the performed one). The offsets change no total: a
+  walk inside the styles' blends stays near them. Part weights set for a body part move the
+  same way; those that follow the overall weights keep following;
 - a start phase: the step and state it starts in, so the crowd does not step in unison;
 - its own liveliness draws (the walker's generator, seeded the same way).
 
@@ -37,7 +40,7 @@ class Cast:
     """Who is in the crowd: per character its seed, own style mix and start phase."""
 
     seeds: list[int]
-    mixes: np.ndarray  # (N, styles); row 0 unused (character 0 is the performance itself)
+    offsets: np.ndarray  # (N, styles) each character's style offset at spread 1; row 0 zeros (the performance itself)
     phases: np.ndarray  # (N, 2): label (which foot steps) and state it starts in; row 0 zeros
 
     @property
@@ -47,13 +50,13 @@ class Cast:
 
 def make_cast(count: int, styles: int, states: int, seed: int = 0) -> Cast:
     seeds = [seed + k for k in range(count)]
-    mixes = np.zeros((count, styles))
+    offsets = np.zeros((count, styles))
     phases = np.zeros((count, 2), dtype=np.int64)
     for k in range(1, count):
         rng = np.random.default_rng([seeds[k], MIX_STREAM])
-        mixes[k] = rng.dirichlet(np.full(styles, MIX_CONCENTRATION))
+        offsets[k] = rng.dirichlet(np.full(styles, MIX_CONCENTRATION)) - 1.0 / styles
         phases[k] = rng.integers(0, 2), rng.integers(0, states)
-    return Cast(seeds, mixes, phases)
+    return Cast(seeds, offsets, phases)
 
 
 def start_phases(walker: Crowd, cast: Cast) -> None:
@@ -69,27 +72,27 @@ class CastControls:
     on) nor the spread change, so the walkers do not recompute lambda* every frame."""
 
     def __init__(self, cast: Cast):
-        self.mixes = cast.mixes
+        self.offsets = cast.offsets
         self._key: tuple | None = None
         self._others: list[Controls] = []
 
     def __call__(self, controls: Controls, spread: float) -> list[Controls]:
-        if self.mixes.shape[0] == 1:
+        if self.offsets.shape[0] == 1:
             return [controls]
         key = (controls.key(), float(spread))
         if key != self._key:
             self._key = key
-            self._others = [spread_controls(controls, mix, spread) for mix in self.mixes[1:]]
+            self._others = [spread_controls(controls, offset, spread) for offset in self.offsets[1:]]
         return [controls] + self._others
 
 
-def spread_controls(controls: Controls, mix: np.ndarray, spread: float) -> Controls:
-    """`controls` with the style weights moved `spread` of the way to `mix` (part weights set
-    for a body part the same way; those that follow the overall weights keep following)."""
-    weights = controls.weights + spread * (mix - controls.weights)
+def spread_controls(controls: Controls, offset: np.ndarray, spread: float) -> Controls:
+    """`controls` with `spread` times `offset` added to the style weights (and to the part
+    weights set for a body part; NaN, following the overall weights, stays NaN)."""
+    weights = controls.weights + spread * offset
     parts = None
     if controls.part_weights is not None:
-        parts = controls.part_weights + spread * (mix[:, None] - controls.part_weights)  # NaN stays NaN
+        parts = controls.part_weights + spread * offset[:, None]
     return Controls(weights, parts, controls.speed, controls.state_scale, controls.liveliness, controls.turn)
 
 
