@@ -8,7 +8,7 @@ Per frame, in bundles of at most 1,400 bytes, in this order:
     /walk/root/quat          f f f f   world rotation of the root joint (x, y, z, w)
     /walk/root/local         f f f     local translation of the root joint (its BVH position channels)
     /walk/style/<name>       f         echo of every style weight
-    /walk/speed, /walk/turn, /walk/liveliness   f   echo of the other controls
+    /walk/speed, /walk/turn, /walk/liveliness, /walk/spread   f   echo of the other controls
     /walk/frame              i f       frame index and performance time in seconds; sent last,
                                        so a receiver can apply the frame when it arrives
 
