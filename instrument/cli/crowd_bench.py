@@ -26,12 +26,12 @@ def live_path(model: Model, count: int, spread: float = 0.5):
     from ..control.state import ControlState
     from ..output.outputs import make_profile
     from ..runtime.console import Console
-    from ..runtime.crowd import CrowdPoses, floor_positions
+    from ..runtime.crowd import LoopedPoses, floor_positions
     from ..runtime.performance import Engine
     from ..shipped import demo_score_path
 
     engine = Engine(model, characters=count)
-    poses = CrowdPoses(model.layout, CROWD_FPS, floor_positions(model, count), lambda: engine.foot_lock(CROWD_FPS))
+    poses = LoopedPoses(model.layout, CROWD_FPS, floor_positions(model, count), lambda: engine.foot_lock(CROWD_FPS))
     profile = make_profile("flat", model, characters=count)
     state = ControlState(model.style_names, model.states)
     state.set("spread", spread)

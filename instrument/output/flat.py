@@ -23,10 +23,12 @@ after character 0's root and before the echo. The echo and /walk/frame are sent 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..runtime.pose import Pose, quaternions
-from .osc import bundles, float_messages, float_prefix, message
+from .osc import bundles, float_prefix, message
 
 
 def character_prefix(k: int) -> str:
@@ -35,32 +37,75 @@ def character_prefix(k: int) -> str:
     return "/walk" if k == 0 else f"/walk/character/{k}"
 
 
+@dataclass(frozen=True)
+class FrameTemplate:
+    """A frame's bundles with every value left as a slot: every message of the profile has a
+    fixed size, so the bundles are cut the same way every frame, and a frame is the template
+    with its float32 values (and the frame index) written in by one numpy scatter."""
+
+    data: np.ndarray  # uint8: every datagram of a frame, back to back
+    float_slots: np.ndarray  # (values, 4) byte positions of each float32, in message order
+    index_slot: np.ndarray  # (4,) byte positions of /walk/frame's int32
+    bounds: list[tuple[int, int]]  # each datagram's start and end in `data`
+
+    @classmethod
+    def build(cls, prefixes: list[bytes], widths: list[int]) -> FrameTemplate:
+        """For messages of `widths[k]` float32 values after `prefixes[k]`, then /walk/frame."""
+        frame = message("/walk/frame", 0, 0.0)
+        datagrams = bundles([p + bytes(4 * w) for p, w in zip(prefixes, widths)] + [frame])
+        starts, bounds, base = [], [], 0
+        for datagram in datagrams:  # where each message landed: "#bundle\0", time tag, then (size, message)...
+            at = 16
+            while at < len(datagram):
+                size = int.from_bytes(datagram[at : at + 4], "big", signed=True)
+                starts.append(base + at + 4)
+                at += 4 + size
+            bounds.append((base, base + len(datagram)))
+            base += len(datagram)
+        lanes = np.arange(4)
+        floats = [start + len(p) + 4 * i for start, p, w in zip(starts, prefixes, widths) for i in range(w)]
+        frame_values = starts[-1] + len(frame) - 8  # the int32 index, then the float32 time
+        floats.append(frame_values + 4)
+        return cls(np.frombuffer(b"".join(datagrams), dtype=np.uint8).copy(), np.array(floats)[:, None] + lanes,
+                   frame_values + lanes, bounds)
+
+    def fill(self, values: np.ndarray, index: int) -> list[bytes]:
+        data = self.data.copy()
+        data[self.float_slots] = np.ascontiguousarray(values, dtype=">f4").view(np.uint8).reshape(-1, 4)
+        data[self.index_slot] = np.array([index], dtype=">i4").view(np.uint8)
+        raw = data.tobytes()
+        return [raw[a:b] for a, b in self.bounds]
+
+
 class FlatProfile:
     def __init__(self, joint_names: list[str], root: int, characters: int = 1):
         self.names = joint_names
         self.root = root
-        self.whole_crowd = characters > 1  # datagrams() takes every character's pose (a list)
-        heads = [character_prefix(k) for k in range(characters)]
-        # per character: a quaternion per joint then the root's; a position per joint, the root's world and local
-        self.quat_prefixes = [[float_prefix(f"{h}/bone/{n}/quat", 4) for n in joint_names] + [float_prefix(f"{h}/root/quat", 4)]
-                              for h in heads]
-        self.pos_prefixes = [[float_prefix(f"{h}/bone/{n}/pos", 3) for n in joint_names]
-                             + [float_prefix(f"{h}/root/pos", 3), float_prefix(f"{h}/root/local", 3)] for h in heads]
+        self.whole_crowd = characters > 1  # datagrams() takes every character's pose (a CrowdPose)
+        joints = len(joint_names)
+        # per character, in the order sent: a quaternion per joint, a position per joint, the root's position,
+        # world rotation and local translation
+        self.prefixes, self.widths = [], []
+        for head in (character_prefix(k) for k in range(characters)):
+            self.prefixes += [float_prefix(f"{head}/bone/{n}/quat", 4) for n in joint_names]
+            self.prefixes += [float_prefix(f"{head}/bone/{n}/pos", 3) for n in joint_names]
+            self.prefixes += [float_prefix(f"{head}/root/{kind}", width) for kind, width in (("pos", 3), ("quat", 4), ("local", 3))]
+            self.widths += [4] * joints + [3] * joints + [3, 4, 3]
+        self._template: tuple[tuple[str, ...], FrameTemplate] | None = None  # for the echo's names
 
-    def datagrams(self, pose: Pose | list[Pose], echo: dict[str, float]) -> list[bytes]:
-        """One frame's bundles: of one character, or of a crowd given every character's pose."""
-        poses = pose if isinstance(pose, list) else [pose]
-        root = self.root
-        # local rotations, then the root's world rotation; world positions, then the root's local translation
-        quats = quaternions(np.stack([np.concatenate([p.rotations, p.world_rotations[root][None]]) for p in poses]))
-        positions = np.stack([np.concatenate([p.world_positions, p.world_positions[root][None], p.translations[root][None]])
-                              for p in poses])
-        joints = len(self.names)
-        messages = []
-        for quat_prefixes, pos_prefixes, q, x in zip(self.quat_prefixes, self.pos_prefixes, quats, positions):
-            q_messages, x_messages = float_messages(quat_prefixes, q), float_messages(pos_prefixes, x)
-            messages += q_messages[:joints] + x_messages[:joints]
-            messages += [x_messages[joints], q_messages[joints], x_messages[joints + 1]]  # root pos, quat, local
-        messages += [message(f"/walk/{name}", value) for name, value in echo.items()]
-        messages.append(message("/walk/frame", int(poses[0].index), float(poses[0].time)))
-        return bundles(messages)
+    def datagrams(self, pose: Pose, echo: dict[str, float]) -> list[bytes]:
+        """One frame's bundles: of one character (a Pose), or of a crowd (a CrowdPose: the same
+        arrays with a leading character axis)."""
+        crowd = pose.rotations.ndim == 4
+        rotations, world_rotations = (pose.rotations, pose.world_rotations) if crowd else (pose.rotations[None], pose.world_rotations[None])
+        world_positions, translations = (pose.world_positions, pose.translations) if crowd else (pose.world_positions[None], pose.translations[None])
+        root, count = self.root, rotations.shape[0]
+        quats = quaternions(np.concatenate([rotations, world_rotations[:, root, None]], axis=1))  # local, then the root's world
+        values = np.concatenate([quats[:, :-1].reshape(count, -1), world_positions.reshape(count, -1), world_positions[:, root],
+                                 quats[:, -1], translations[:, root]], axis=1)
+        names = tuple(echo)
+        if self._template is None or self._template[0] != names:
+            echo_prefixes = [float_prefix(f"/walk/{name}", 1) for name in names]
+            self._template = names, FrameTemplate.build(self.prefixes + echo_prefixes, self.widths + [1] * len(names))
+        everything = np.concatenate([values.ravel(), np.fromiter(echo.values(), float, len(names)), [float(pose.time)]])
+        return self._template[1].fill(everything, int(pose.index))

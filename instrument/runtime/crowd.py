@@ -116,20 +116,39 @@ def floor_positions(model: Model, count: int, spacing_m: float = DEFAULT_SPACING
     return step * ((k % columns)[:, None] * across - (k // columns)[:, None] * forward) + 0.0  # + 0.0: no -0.0
 
 
-class CrowdPoses:
-    """Features to poses for N characters: one PoseStream each, started at its place.
+@dataclass
+class CrowdPose:
+    """One frame of N characters: `Pose`'s arrays with a leading character axis (the same
+    fields as the batched pose path's CrowdPose on branch lockfast)."""
 
-    The swap point for the batched pose path (runtime/pose.py on branch lockfast): `next`
-    takes every character's frame at once and returns every pose, so a batched class can stand
-    in for this loop without the caller changing."""
+    index: int
+    time: float
+    rotations: np.ndarray  # (N, J, 3, 3)
+    translations: np.ndarray  # (N, J, 3)
+    world_rotations: np.ndarray  # (N, J, 3, 3)
+    world_positions: np.ndarray  # (N, J, 3)
+
+    def character(self, n: int) -> Pose:
+        return Pose(self.index, self.time, self.rotations[n], self.translations[n], self.world_rotations[n],
+                    self.world_positions[n])
+
+
+class LoopedPoses:
+    """Features to poses for N characters, one PoseStream each, started at `positions` (N, 3).
+
+    The swap point for the batched pose path (`CrowdPoses` in runtime/pose.py on branch
+    lockfast, which takes the same frames and returns the same CrowdPose in one compiled call):
+    `perform` makes this in one line."""
 
     def __init__(self, layout: FeatureLayout, fps: float, positions: np.ndarray, lock_factory):
         self.streams = [PoseStream(layout, fps, lock_factory()) for _ in range(len(positions))]
         for stream, position in zip(self.streams, positions):
             stream.position = np.array(position, dtype=np.float64)
 
-    def next(self, frames: np.ndarray, contact_shares: np.ndarray | None = None) -> list[Pose]:
-        """Poses of all characters from their static features (N, D) and contact shares (N, 2)."""
-        if contact_shares is None:
-            return [stream.next(frame) for stream, frame in zip(self.streams, frames)]
-        return [stream.next(frame, shares) for stream, frame, shares in zip(self.streams, frames, contact_shares)]
+    def next(self, static: np.ndarray, shares: np.ndarray | None = None) -> CrowdPose:
+        """The poses of static features (N, D); `shares` (N, 2) how surely each character's state
+        has each foot planted (None: the feet are not planted)."""
+        poses = [stream.next(frame, None if shares is None else shares[n]) for n, (stream, frame) in enumerate(zip(self.streams, static))]
+        first = poses[0]
+        return CrowdPose(first.index, first.time, *(np.stack([getattr(p, name) for p in poses]) for name in
+                                                     ("rotations", "translations", "world_rotations", "world_positions")))

@@ -27,7 +27,7 @@ from ..synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Crowd
 from ..synthesis.widen import Widen, range_space
 from .clock import IDLE_UNTIL, FrameClock
 from .console import Console
-from .crowd import DEFAULT_SPACING, CastControls, CrowdPoses, floor_positions, make_cast, start_phases
+from .crowd import DEFAULT_SPACING, CastControls, LoopedPoses, floor_positions, make_cast, start_phases
 from .pose import Pose
 from .stopping import StopFlag
 
@@ -141,11 +141,11 @@ def perform(
     stop during its start-up is kept too).
     `on_frame`, when given, is called after each frame is sent (health, the systemd watchdog).
     `characters` walk at once, `spacing` metres apart (runtime/crowd.py); an output gets the
-    pose of its `character` (0 unless it says), or every pose if it says `whole_crowd`."""
+    pose of its `character` (0 unless it says), or the whole CrowdPose if it says `whole_crowd`."""
     state = state or ControlState(model.style_names, model.states)
     apply = apply or ControlHub([], console=console).apply  # checked, counted and warned as a show's events are
     engine = Engine(model, lookahead, characters=characters)
-    poses = CrowdPoses(model.layout, fps, floor_positions(model, characters, spacing), lambda: engine.foot_lock(fps))
+    poses = LoopedPoses(model.layout, fps, floor_positions(model, characters, spacing), lambda: engine.foot_lock(fps))
     wanted = [None if getattr(output, "whole_crowd", False) else getattr(output, "character", 0) for output in outputs]
     clock = FrameClock(fps, realtime=not fast)
     for output in outputs:
@@ -197,7 +197,7 @@ def perform(
             controls = state.snapshot()
             crowd = poses.next(engine.sample(now, controls, state.spread), engine.contact_shares)
             echo = state.echo()
-            prepared = [_attempt(console, summary, output, output.prepare, crowd if k is None else crowd[k], echo)
+            prepared = [_attempt(console, summary, output, output.prepare, crowd if k is None else crowd.character(k), echo)
                         for output, k in zip(outputs, wanted)]
             if index > 0:
                 work_times.append(time.monotonic() - work_started)
