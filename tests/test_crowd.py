@@ -205,3 +205,55 @@ def test_a_show_file_takes_a_crowd_and_names_its_bad_line(tmp_path):
     result = subprocess.run(RUN + ["--config", str(show)], capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     assert read_bvh(tmp_path / "c.bvh").frames == 30
+
+
+def test_the_batched_tables_of_a_crowd_are_each_characters_own(model):
+    """Characters 1..N-1 get lambda*, durations, range targets and contact tables in one batched
+    pass; each must be what a walker of that character's own controls computes alone."""
+    from instrument.synthesis.contact import contact_space
+    from instrument.synthesis.stream import Crowd
+    from instrument.synthesis.widen import range_space, stride_mean
+
+    engine = Engine(model, characters=4)
+    state = ControlState(model.style_names, model.states)
+    for target, value in (("spread", 0.7), ("style/elderly", 0.8), ("speed", 1.3), ("liveliness", 0.5), ("phase/2", 1.4),
+                          (f"part/{model.style_names[1]}/legs", 1.2)):
+        state.set(target, value)
+    controls = state.snapshot()
+    engine.sample(0.0, controls, state.spread)
+    each = engine.each(controls, state.spread, engine.walker)
+    ranges, contact = range_space(model), contact_space(model)
+    for k in range(1, 4):
+        alone = Crowd(engine.space)
+        alone.refresh([each[k]])
+        for name in ("means", "precisions", "base", "sigma", "cadence"):
+            np.testing.assert_allclose(getattr(engine.walker, name)[k], getattr(alone, name)[0], rtol=1e-12, atol=1e-12, err_msg=name)
+        mean, factor = engine.each.range_targets
+        np.testing.assert_allclose(mean[k - 1], stride_mean(alone), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(factor[k - 1], ranges.factors(each[k].weights, each[k].part_weights), rtol=1e-12)
+        np.testing.assert_allclose(engine.each.share_tables[k - 1], contact.shares(each[k].weights, each[k].part_weights),
+                                   rtol=1e-12, atol=1e-12)
+
+
+def test_each_character_of_a_crowd_walks_as_it_would_alone(model):
+    """Character k of a crowd (one compiled step, batched tables, batched range filter) makes
+    the frames a walker of its own (its seed, start phase and controls) makes by itself."""
+    from instrument.runtime.crowd import start_phases
+    from instrument.synthesis.offline import drive
+    from instrument.synthesis.stream import Crowd
+    from instrument.synthesis.widen import Widen, range_space
+
+    engine = Engine(model, characters=3)
+    state = ControlState(model.style_names, model.states)
+    state.set("spread", 1.0)
+    state.set("liveliness", 0.6)
+    controls = state.snapshot()
+    made = np.array([engine.sample(i / model.fps, controls, state.spread) for i in range(40)])
+    each = engine.each(controls, state.spread, engine.walker)
+    for k in (1, 2):
+        alone = Crowd(engine.space, 1, seeds=[engine.cast.seeds[k]])
+        start_phases(alone, type(engine.cast)([k], engine.cast.offsets[k:k + 1], engine.cast.phases[k:k + 1]))
+        widen = Widen(range_space(model))
+        frames = [drive(widen.next(alone.step([each[k]])[0], alone, each[k]), alone.cadence[0], controls.turn) for _ in range(40)]
+        np.testing.assert_allclose(made[:, k], np.array(frames), rtol=1e-9, atol=1e-9)
+    assert np.abs(made[:, 1] - made[:, 2]).max() > 0.1

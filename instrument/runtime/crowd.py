@@ -27,7 +27,15 @@ from ..motion.bvh import Motion
 from ..motion.features import FeatureLayout
 from ..motion.kinematics import forward_kinematics, local_transforms
 from ..output.vmc import forward_direction, units_to_metres
+from ..synthesis.contact import ContactSpace
+from ..synthesis.durations import MIN_FRAMES, state_durations
+from ..synthesis.interpolation import MAX_LOG_VARIANCE_CHANGE, StyleSpace
 from ..synthesis.stream import LABEL, STATE, Controls, Crowd
+from ..synthesis.widen import EASE_FRAMES as RANGE_EASE_FRAMES
+from ..synthesis.widen import KEPT as RANGE_KEPT
+from ..synthesis.widen import LIMIT as RANGE_LIMIT
+from ..synthesis.widen import STRENGTH as RANGE_STRENGTH
+from ..synthesis.widen import RangeSpace
 from .pose import Pose, PoseStream
 
 DEFAULT_SPACING = 1.5  # metres between neighbours on the floor
@@ -66,24 +74,65 @@ def start_phases(walker: Crowd, cast: Cast) -> None:
 
 
 class CastControls:
-    """Each character's Controls from the performed ones and the spread.
+    """Each character's Controls from the performed ones and the spread, and the tables that
+    follow from them for characters 1..N-1, computed together in one batched pass.
 
-    The same objects are handed out while neither the performed controls (what lambda* depends
-    on) nor the spread change, so the walkers do not recompute lambda* every frame."""
+    Character 0 gets the performed controls themselves (its walker refreshes them as a single
+    character's does). The others' objects stay the same while neither the performed controls
+    (what lambda* depends on) nor the spread change; when either does, their lambda*, state
+    durations, range-filter targets and contact tables are recomputed for all of them at once
+    and handed to the walker (`Crowd.assign`), which then skips them in its own refresh."""
 
-    def __init__(self, cast: Cast):
+    def __init__(self, cast: Cast, space: StyleSpace, ranges: RangeSpace | None = None, contact: ContactSpace | None = None):
         self.offsets = cast.offsets
+        self.space, self.ranges, self.contact = space, ranges, contact
+        # lambda*'s change is linear in the weights, and a character's are the performed ones plus spread times its
+        # offset (part weights too): so its change is the performance's plus spread times its offset's, made once here
+        styles = len(space.style_names)
+        self.offset_change = (self.offsets[1:] @ space.offsets.reshape(styles, -1)).reshape((-1,) + space.base.shape)
+        self.offset_duration_change = (self.offsets[1:] @ space.duration_offsets.reshape(styles, -1)).reshape(
+            (-1,) + space.duration_base.shape)
         self._key: tuple | None = None
         self._others: list[Controls] = []
+        self.range_targets: tuple[np.ndarray, np.ndarray] | None = None  # (N-1, D) stride means and swing factors
+        self.share_tables: np.ndarray | None = None  # (N-1, labels * states, 2)
+        self.means: np.ndarray | None = None  # (N-1, labels * states, 3D) the others' lambda*, made in place
+        self.precisions: np.ndarray | None = None
 
-    def __call__(self, controls: Controls, spread: float) -> list[Controls]:
+    def __call__(self, controls: Controls, spread: float, walker: Crowd | None = None) -> list[Controls]:
         if self.offsets.shape[0] == 1:
             return [controls]
         key = (controls.key(), float(spread))
         if key != self._key:
             self._key = key
             self._others = [spread_controls(controls, offset, spread) for offset in self.offsets[1:]]
+            if walker is not None:
+                self._retune(controls, spread, walker)
         return [controls] + self._others
+
+    def _retune(self, controls: Controls, spread: float, walker: Crowd) -> None:
+        """The others' tables from their weights (the performed ones plus spread times each offset)."""
+        space = self.space
+        weights = controls.weights + spread * self.offsets[1:]  # (M, styles)
+        parts = None
+        if controls.part_weights is not None:
+            parts = controls.part_weights[None] + spread * self.offsets[1:, :, None]  # NaN (follows) stays NaN
+        if self.means is None:
+            self.means, self.precisions = np.empty(walker.means[1:].shape), np.empty(walker.precisions[1:].shape)
+        means, variances = interpolate_around(space, controls.weights, controls.part_weights, spread, self.offset_change,
+                                              self.offset_duration_change, self.means, self.precisions)
+        scale = np.ones(space.states) if controls.state_scale is None else np.asarray(controls.state_scale, dtype=np.float64)
+        base = state_durations(means, variances, controls.speed, scale)
+        sigma = controls.liveliness * np.sqrt(variances) * scale
+        cadence = np.maximum(means, MIN_FRAMES).sum(axis=(1, 2)) / base.sum(axis=(1, 2))
+        walker.assign(1, self._others, self.means, self.precisions, base, sigma, cadence)
+        if self.ranges is not None:
+            frames = base.reshape(len(base), -1)
+            dimension = walker.means.shape[2] // 3
+            stride_means = np.einsum("mk,mkd->md", frames, self.means[:, :, :dimension]) / frames.sum(axis=1)[:, None]
+            self.range_targets = stride_means, range_factors_many(self.ranges, weights, parts)
+        if self.contact is not None:
+            self.share_tables = contact_shares_many(self.contact, weights, parts)
 
 
 def spread_controls(controls: Controls, offset: np.ndarray, spread: float) -> Controls:
@@ -94,6 +143,85 @@ def spread_controls(controls: Controls, offset: np.ndarray, spread: float) -> Co
     if controls.part_weights is not None:
         parts = controls.part_weights + spread * offset[:, None]
     return Controls(weights, parts, controls.speed, controls.state_scale, controls.liveliness, controls.turn)
+
+
+def style_change(space: StyleSpace, weights: np.ndarray, parts: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """How far lambda* moves from lambda 0 at these weights, before the variances' limit:
+    (2, labels * states, 3D) means and log variances, (2, labels * states) of the durations
+    (as `interpolate` moves them; tests/test_crowd.py holds the two equal)."""
+    styles = len(weights)
+    if parts is None:
+        change = (weights @ space.offsets.reshape(styles, -1)).reshape(space.base.shape)
+    else:
+        per_dim = np.where(np.isnan(parts), weights[:, None], parts) @ space.group_masks
+        change = np.einsum("sf,sxkf->xkf", per_dim, space.offsets)
+    return change, (weights @ space.duration_offsets.reshape(styles, -1)).reshape(space.duration_base.shape)
+
+
+def interpolate_around(space: StyleSpace, weights: np.ndarray, parts: np.ndarray | None, spread: float, offset_change: np.ndarray,
+                       offset_duration_change: np.ndarray, means: np.ndarray, precisions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """lambda* for M characters whose change from lambda 0 is the one at (weights, parts) plus
+    `spread` times their own `offset_change` (M, 2, labels * states, 3D) and
+    `offset_duration_change` (M, 2, labels * states): means and precisions written into the
+    given (M, labels * states, 3D) arrays (in place: a crowd's tables are megabytes, and fresh
+    ones cost page faults every time), and the duration means and variances (M, labels, states)."""
+    change, duration_change = style_change(space, weights, parts)
+    limit = MAX_LOG_VARIANCE_CHANGE
+    np.multiply(offset_change[:, 0], spread, out=means)
+    means += space.base[0] + change[0]
+    np.multiply(offset_change[:, 1], spread, out=precisions)
+    precisions += change[1]
+    np.clip(precisions, -limit, limit, out=precisions)
+    precisions += space.base[1]
+    np.negative(precisions, out=precisions)
+    np.exp(precisions, out=precisions)
+    duration_change = duration_change + spread * offset_duration_change
+    shape = (len(means), space.labels, space.states)
+    return ((space.duration_base[0] + duration_change[:, 0]).reshape(shape),
+            np.exp(space.duration_base[1] + np.clip(duration_change[:, 1], -limit, limit)).reshape(shape))
+
+
+def range_factors_many(ranges: RangeSpace, weights: np.ndarray, parts: np.ndarray | None = None) -> np.ndarray:
+    """`RangeSpace.factors` for M characters at once, (M, D) (tests/test_crowd.py holds them equal)."""
+    per_dim = np.broadcast_to(weights[:, :, None], weights.shape + ranges.offsets.shape[1:])
+    if parts is not None:
+        per_dim = np.where(np.isnan(parts), weights[:, :, None], parts) @ ranges.group_masks
+    positive = np.maximum(per_dim, 0.0)
+    total = positive.sum(axis=1)
+    outside = np.maximum(-per_dim, 0.0).sum(axis=1) + np.maximum(total - 1.0, 0.0)
+    inside = positive / np.maximum(total, 1.0)[:, None]
+    blended = ranges.base + np.einsum("msd,sd->md", inside, ranges.offsets)
+    return np.exp(RANGE_STRENGTH * np.clip(1.0 - outside, 0.0, 1.0) * np.clip(blended, -RANGE_LIMIT, RANGE_LIMIT))
+
+
+def contact_shares_many(contact: ContactSpace, weights: np.ndarray, parts: np.ndarray | None = None) -> np.ndarray:
+    """`ContactSpace.shares` for M characters at once, (M, labels * states, 2)."""
+    if parts is not None:
+        legs = parts[:, :, contact.legs]
+        weights = np.where(np.isnan(legs), weights, legs)
+    return np.clip(contact.base + np.einsum("ms,sif->mif", weights, contact.offsets), 0.0, 1.0)
+
+
+class CrowdWiden:
+    """The range filter (synthesis/widen.py's `Widen`) for characters 1..N-1 at once, from the
+    targets CastControls computes: each frame the stride mean and the factor move a quarter of
+    the way to them, and each feature's swing about the mean is scaled."""
+
+    def __init__(self):
+        self.mean: np.ndarray | None = None
+        self.factor: np.ndarray | None = None
+        self.kept = list(RANGE_KEPT)
+
+    def next(self, frames: np.ndarray, targets: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        mean, factor = targets
+        if self.mean is None:
+            self.mean, self.factor = mean, factor
+        else:
+            self.mean = self.mean + (mean - self.mean) / RANGE_EASE_FRAMES
+            self.factor = self.factor + (factor - self.factor) / RANGE_EASE_FRAMES
+        out = self.mean + self.factor * (frames - self.mean)
+        out[:, self.kept] = frames[:, self.kept]
+        return out
 
 
 def metres_to_units(layout: FeatureLayout) -> float:

@@ -27,7 +27,7 @@ from ..synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Crowd
 from ..synthesis.widen import Widen, range_space
 from .clock import IDLE_UNTIL, FrameClock
 from .console import Console
-from .crowd import DEFAULT_SPACING, CastControls, LoopedPoses, floor_positions, make_cast, start_phases
+from .crowd import DEFAULT_SPACING, CastControls, CrowdWiden, LoopedPoses, floor_positions, make_cast, start_phases
 from .pose import Pose
 from .stopping import StopFlag
 
@@ -56,17 +56,17 @@ class Engine:
     def __init__(self, model: Model, lookahead: int = DEFAULT_LOOKAHEAD, seed: int = 0, characters: int = 1):
         self.model = model
         self.space = style_space(model)
+        self.contact = contact_space(model)  # None: the model has no contact statistics
+        self.contact_shares: np.ndarray | None = None  # (N, 2) how surely each character's newest frame has each foot planted
+        widen = range_space(model)
+        self.widen = None if widen is None else Widen(widen)  # None: the model has no range statistics
         self.cast = make_cast(characters, len(model.style_names), model.states, seed)
-        self.each = CastControls(self.cast)  # the performed controls -> each character's
+        self.each = CastControls(self.cast, self.space, widen, self.contact)  # the performed controls -> each character's
+        self.others_widen = CrowdWiden()  # characters 1..N-1
         self.walker = Crowd(self.space, characters, lookahead, seeds=self.cast.seeds)
         start_phases(self.walker, self.cast)
         self.frames: list[np.ndarray] = []  # the last two model frames (N, D), driven
         self.made = 0  # model frames made
-        self.contact = contact_space(model)  # None: the model has no contact statistics
-        self.contact_shares: np.ndarray | None = None  # (N, 2) how surely each character's newest frame has each foot planted
-        self._share_tables: list[tuple[Controls, np.ndarray] | None] = [None] * characters
-        widen = range_space(model)
-        self.widen = None if widen is None else [Widen(widen) for _ in range(characters)]  # None: no range statistics
 
     def foot_lock(self, fps: float) -> FootLock | None:
         return None if self.contact is None else FootLock(self.model.layout, self.contact.clearance, fps)
@@ -79,30 +79,25 @@ class Engine:
         """
         position = time_s * self.model.fps
         newest = int(np.ceil(position - 1e-9))
+        crowd = self.walker.count > 1
         while self.made <= newest:
-            each = self.each(controls, spread)
-            frames = self.walker.step(each)
+            frames = self.walker.step(self.each(controls, spread, self.walker))
             if self.widen is not None:
-                frames = np.stack([w.next(f, self.walker, c, n) for n, (w, f, c) in enumerate(zip(self.widen, frames, each))])
+                frames[0] = self.widen.next(frames[0], self.walker, controls)
+                if crowd:
+                    frames[1:] = self.others_widen.next(frames[1:], self.each.range_targets)
             self.frames = (self.frames + [drive(frames, self.walker.cadence, controls.turn)])[-2:]
             self.made += 1
             if self.contact is not None:
-                self.contact_shares = self._shares(each)
+                ids = self.walker.history_ids[:, 1]
+                shares = self.contact.shares(controls.weights, controls.part_weights)[ids[:1]]
+                if crowd:
+                    shares = np.concatenate([shares, self.each.share_tables[np.arange(len(ids) - 1), ids[1:]]])
+                self.contact_shares = shares
         fraction = position - (newest - 1)
         if fraction >= 1.0 - 1e-9 or len(self.frames) == 1:
             return self.frames[-1]
         return self.frames[0] + (self.frames[1] - self.frames[0]) * fraction
-
-    def _shares(self, each: list[Controls]) -> np.ndarray:
-        """(N, 2) contact shares of each character's newest frame; a character's table is
-        recomputed only when its controls are new."""
-        out = np.empty((len(each), 2))
-        for n, control in enumerate(each):
-            kept = self._share_tables[n]
-            if kept is None or kept[0] is not control:
-                kept = self._share_tables[n] = (control, self.contact.shares(control.weights, control.part_weights))
-            out[n] = kept[1][self.walker.history_ids[n, 1]]
-        return out
 
 
 @dataclass
