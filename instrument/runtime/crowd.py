@@ -96,8 +96,7 @@ class CastControls:
         self._others: list[Controls] = []
         self.range_targets: tuple[np.ndarray, np.ndarray] | None = None  # (N-1, D) stride means and swing factors
         self.share_tables: np.ndarray | None = None  # (N-1, labels * states, 2)
-        self.means: np.ndarray | None = None  # (N-1, labels * states, 3D) the others' lambda*, made in place
-        self.precisions: np.ndarray | None = None
+        self._spread_terms: tuple[float, np.ndarray, np.ndarray] | None = None  # spread, its share of the means and precisions
 
     def __call__(self, controls: Controls, spread: float, walker: Crowd | None = None) -> list[Controls]:
         if self.offsets.shape[0] == 1:
@@ -117,19 +116,20 @@ class CastControls:
         parts = None
         if controls.part_weights is not None:
             parts = controls.part_weights[None] + spread * self.offsets[1:, :, None]  # NaN (follows) stays NaN
-        if self.means is None:
-            self.means, self.precisions = np.empty(walker.means[1:].shape), np.empty(walker.precisions[1:].shape)
+        if self._spread_terms is None or self._spread_terms[0] != spread:
+            self._spread_terms = spread_terms(self.offset_change, spread)
         means, variances = interpolate_around(space, controls.weights, controls.part_weights, spread, self.offset_change,
-                                              self.offset_duration_change, self.means, self.precisions)
+                                              self.offset_duration_change, self._spread_terms, walker.means[1:],
+                                              walker.precisions[1:])
         scale = np.ones(space.states) if controls.state_scale is None else np.asarray(controls.state_scale, dtype=np.float64)
         base = state_durations(means, variances, controls.speed, scale)
         sigma = controls.liveliness * np.sqrt(variances) * scale
         cadence = np.maximum(means, MIN_FRAMES).sum(axis=(1, 2)) / base.sum(axis=(1, 2))
-        walker.assign(1, self._others, self.means, self.precisions, base, sigma, cadence)
+        walker.assign(1, self._others, None, None, base, sigma, cadence)  # lambda* already written into the walker
         if self.ranges is not None:
             frames = base.reshape(len(base), -1)
             dimension = walker.means.shape[2] // 3
-            stride_means = np.einsum("mk,mkd->md", frames, self.means[:, :, :dimension]) / frames.sum(axis=1)[:, None]
+            stride_means = np.einsum("mk,mkd->md", frames, walker.means[1:, :, :dimension]) / frames.sum(axis=1)[:, None]
             self.range_targets = stride_means, range_factors_many(self.ranges, weights, parts)
         if self.contact is not None:
             self.share_tables = contact_shares_many(self.contact, weights, parts)
@@ -158,23 +158,35 @@ def style_change(space: StyleSpace, weights: np.ndarray, parts: np.ndarray | Non
     return change, (weights @ space.duration_offsets.reshape(styles, -1)).reshape(space.duration_base.shape)
 
 
+def spread_terms(offset_change: np.ndarray, spread: float) -> tuple[float, np.ndarray, np.ndarray]:
+    """What the spread adds to the others' means, and the factor it puts on their precisions
+    when no variance reaches its limit: kept while the spread stays (a moving style weight then
+    costs one pass over the tables for each, no exponential)."""
+    return spread, spread * offset_change[:, 0], np.exp(-spread * offset_change[:, 1])
+
+
 def interpolate_around(space: StyleSpace, weights: np.ndarray, parts: np.ndarray | None, spread: float, offset_change: np.ndarray,
-                       offset_duration_change: np.ndarray, means: np.ndarray, precisions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                       offset_duration_change: np.ndarray, terms: tuple[float, np.ndarray, np.ndarray], means: np.ndarray,
+                       precisions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """lambda* for M characters whose change from lambda 0 is the one at (weights, parts) plus
     `spread` times their own `offset_change` (M, 2, labels * states, 3D) and
-    `offset_duration_change` (M, 2, labels * states): means and precisions written into the
-    given (M, labels * states, 3D) arrays (in place: a crowd's tables are megabytes, and fresh
-    ones cost page faults every time), and the duration means and variances (M, labels, states)."""
+    `offset_duration_change` (M, 2, labels * states), `terms` being `spread_terms` of it: means
+    and precisions written into the given (M, labels * states, 3D) arrays (in place: a crowd's
+    tables are megabytes, and fresh ones cost page faults every time); returns the duration
+    means and variances (M, labels, states)."""
     change, duration_change = style_change(space, weights, parts)
     limit = MAX_LOG_VARIANCE_CHANGE
-    np.multiply(offset_change[:, 0], spread, out=means)
-    means += space.base[0] + change[0]
-    np.multiply(offset_change[:, 1], spread, out=precisions)
-    precisions += change[1]
-    np.clip(precisions, -limit, limit, out=precisions)
-    precisions += space.base[1]
-    np.negative(precisions, out=precisions)
-    np.exp(precisions, out=precisions)
+    _, mean_term, precision_factor = terms
+    np.add(mean_term, space.base[0] + change[0], out=means)
+    if np.abs(change[1]).max() + abs(spread) * np.abs(offset_change[:, 1]).max() <= limit:  # no variance at its limit:
+        np.multiply(precision_factor, np.exp(-(space.base[1] + change[1])), out=precisions)  # exp(-(a + b)) = exp(-a) exp(-b)
+    else:
+        np.multiply(offset_change[:, 1], spread, out=precisions)
+        precisions += change[1]
+        np.clip(precisions, -limit, limit, out=precisions)
+        precisions += space.base[1]
+        np.negative(precisions, out=precisions)
+        np.exp(precisions, out=precisions)
     duration_change = duration_change + spread * offset_duration_change
     shape = (len(means), space.labels, space.states)
     return ((space.duration_base[0] + duration_change[:, 0]).reshape(shape),
@@ -183,6 +195,12 @@ def interpolate_around(space: StyleSpace, weights: np.ndarray, parts: np.ndarray
 
 def range_factors_many(ranges: RangeSpace, weights: np.ndarray, parts: np.ndarray | None = None) -> np.ndarray:
     """`RangeSpace.factors` for M characters at once, (M, D) (tests/test_crowd.py holds them equal)."""
+    if parts is None:  # every feature has its style's one weight: the sums are per style, not per feature
+        positive = np.maximum(weights, 0.0)
+        total = positive.sum(axis=1)
+        outside = np.maximum(-weights, 0.0).sum(axis=1) + np.maximum(total - 1.0, 0.0)
+        blended = ranges.base + (positive / np.maximum(total, 1.0)[:, None]) @ ranges.offsets
+        return np.exp(RANGE_STRENGTH * np.clip(1.0 - outside, 0.0, 1.0)[:, None] * np.clip(blended, -RANGE_LIMIT, RANGE_LIMIT))
     per_dim = np.broadcast_to(weights[:, :, None], weights.shape + ranges.offsets.shape[1:])
     if parts is not None:
         per_dim = np.where(np.isnan(parts), weights[:, :, None], parts) @ ranges.group_masks
