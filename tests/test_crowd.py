@@ -207,7 +207,8 @@ def test_a_show_file_takes_a_crowd_and_names_its_bad_line(tmp_path):
     assert read_bvh(tmp_path / "c.bvh").frames == 30
 
 
-def test_the_batched_tables_of_a_crowd_are_each_characters_own(model):
+@pytest.mark.parametrize("elderly, parts", [(0.8, True), (0.8, False), (9.5, False)])  # 9.5: variances at their limit
+def test_the_batched_tables_of_a_crowd_are_each_characters_own(model, elderly, parts):
     """Characters 1..N-1 get lambda*, durations, range targets and contact tables in one batched
     pass; each must be what a walker of that character's own controls computes alone."""
     from instrument.synthesis.contact import contact_space
@@ -216,9 +217,10 @@ def test_the_batched_tables_of_a_crowd_are_each_characters_own(model):
 
     engine = Engine(model, characters=4)
     state = ControlState(model.style_names, model.states)
-    for target, value in (("spread", 0.7), ("style/elderly", 0.8), ("speed", 1.3), ("liveliness", 0.5), ("phase/2", 1.4),
-                          (f"part/{model.style_names[1]}/legs", 1.2)):
+    for target, value in (("spread", 0.7), ("style/elderly", elderly), ("speed", 1.3), ("liveliness", 0.5), ("phase/2", 1.4)):
         state.set(target, value)
+    if parts:
+        state.set(f"part/{model.style_names[1]}/legs", 1.2)
     controls = state.snapshot()
     engine.sample(0.0, controls, state.spread)
     each = engine.each(controls, state.spread, engine.walker)
