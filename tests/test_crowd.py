@@ -100,24 +100,25 @@ def free_ports(count: int) -> int:
 
 
 def test_vmc_sends_character_k_on_port_p_plus_k():
-    first = free_ports(3)
-    receivers = [Receiver(first + k) for k in range(3)]
+    first = free_ports(4)
+    receivers = [Receiver(first + k) for k in range(4)]  # the fourth port gets nothing: --vmc-characters 3
     try:
-        result = subprocess.run(RUN + ["--characters", "3", "--seconds", "1", "--osc", f"127.0.0.1:{first}/vmc", "--quiet"],
-                                capture_output=True, text=True, timeout=120)
-        wait_until(lambda: all(sum(d.count(b"/VMC/Ext/T\x00") for d in list(r.datagrams)) >= 30 for r in receivers)
+        result = subprocess.run(RUN + ["--characters", "5", "--vmc-characters", "3", "--seconds", "1", "--osc",
+                                       f"127.0.0.1:{first}/vmc", "--quiet"], capture_output=True, text=True, timeout=120)
+        wait_until(lambda: all(sum(d.count(b"/VMC/Ext/T\x00") for d in list(r.datagrams)) >= 30 for r in receivers[:3])
                    or result.returncode, "30 VMC frames on each port")
     finally:
         for receiver in receivers:
             receiver.close()
     assert result.returncode == 0, result.stderr
+    assert not receivers[3].datagrams
     hips = []
-    for receiver in receivers:
+    for receiver in receivers[:3]:
         messages = receiver.messages()
         assert sum(a == "/VMC/Ext/T" for a, _ in messages) == 30
         hips.append(np.array([p[1:4] for a, p in messages if a == "/VMC/Ext/Bone/Pos" and p[0] == "Hips"]))
-    for k in (1, 2):  # each port its own character: 1.5 m from character 0 at the start (metres in VMC)
-        assert abs(np.linalg.norm((hips[k][0] - hips[0][0])[[0, 2]]) - 1.5) < 0.3
+    for k in (1, 2):  # each port its own character: in the first row of three, 1.5 m apart at the start (metres in VMC)
+        assert abs(np.linalg.norm((hips[k][0] - hips[0][0])[[0, 2]]) - 1.5 * k) < 0.3
 
 
 def walk_means(model, spread: float, frames: int = 150) -> np.ndarray:
@@ -186,7 +187,9 @@ def test_a_recorded_crowd_replays_byte_for_byte(tmp_path):
     (["--spacing", "nan"], "--spacing: expected"),
     (["--characters", "3", "--bvh-character", "3"], "--bvh-character: expected a character of the crowd, 0 to 2, not 3"),
     (["--bvh-character", "1"], "--bvh-character: expected a character of the crowd, 0 to 0, not 1"),
-    (["--characters", "10", "--osc", "127.0.0.1:65530/vmc"], "needs VMC ports 65530 to 65539, past 65535"),
+    (["--characters", "10", "--osc", "127.0.0.1:65530/vmc"], "10 characters need VMC ports 65530 to 65539, past 65535"),
+    (["--characters", "30", "--osc", "127.0.0.1:65530/vmc"], "16 characters need VMC ports 65530 to 65545, past 65535"),
+    (["--vmc-characters", "0"], "--vmc-characters: expected a whole number from 1 to"),
 ])
 def test_bad_crowd_options_are_one_line(args, message):
     result = subprocess.run(RUN + args + ["--seconds", "1", "--no-osc"] * ("--osc" not in args), capture_output=True,

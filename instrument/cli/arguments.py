@@ -67,6 +67,7 @@ OPTIONS: dict[str, Accepts] = {
     "run --characters": Accepts(int, 1, MAX_CHARACTERS),
     "run --spacing": Accepts(float, 0, 100, above_low=True),  # metres
     "run --bvh-character": Accepts(int, 0, MAX_CHARACTERS - 1),  # and below --characters (checked in run)
+    "run --vmc-characters": Accepts(int, 1, MAX_CHARACTERS),  # at most --characters are sent
     "view --port": PORT,
     "view --frames": Accepts(int, 1, None),
     "learn --timeout": POSITIVE_SECONDS,

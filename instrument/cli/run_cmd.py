@@ -25,7 +25,7 @@ from ..output.osc import FLAT_PORT, VMC_PORT, OscTarget, parse_target
 from ..output.outputs import OscOutput, RecorderOutput, make_profile
 from ..output.vmc import ROOT_CONVENTIONS
 from ..runtime.console import Console
-from ..runtime.crowd import DEFAULT_SPACING
+from ..runtime.crowd import DEFAULT_SPACING, DEFAULT_VMC_CHARACTERS
 from ..runtime.health import Health
 from ..runtime.notify import SystemdNotifier
 from ..runtime.performance import perform
@@ -58,6 +58,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--characters", metavar="N", help="a crowd of N walkers (default 1; docs/crowds.md)")
     p.add_argument("--spacing", metavar="METRES", help=f"a crowd's distance between neighbours on the floor (default {DEFAULT_SPACING:g})")
     p.add_argument("--bvh-character", metavar="K", help="of a crowd, the character --bvh records (default 0)")
+    p.add_argument("--vmc-characters", metavar="M", help=f"of a crowd, how many characters (0 to M-1) a VMC target sends, "
+                   f"character K on its port + K (default {DEFAULT_VMC_CHARACTERS}; the flat profile carries them all)")
     p.add_argument("--midi", metavar="PATTERN", help="MIDI input: the first port whose name matches (regular expression)")
     p.add_argument("--midi-virtual", metavar="NAME", help="create a virtual MIDI input port NAME that other programs connect to")
     p.add_argument("--midi-api", choices=("alsa", "jack"), help="MIDI system (default: rtmidi's choice, ALSA on Linux)")
@@ -191,14 +193,16 @@ def check_recordings(args: argparse.Namespace) -> None:
             check_output(path, args.force, inputs=(args.replay,))
 
 
-def crowd_options(args: argparse.Namespace) -> tuple[int, float, int]:
-    """--characters, --spacing and --bvh-character, checked (the character must be in the crowd)."""
+def crowd_options(args: argparse.Namespace) -> tuple[int, float, int, int]:
+    """--characters, --spacing, --bvh-character (a character of the crowd) and --vmc-characters
+    (how many of the crowd a VMC target sends, at most all), checked."""
     characters = 1 if args.characters is None else option_value("run --characters", args.characters)
     spacing = DEFAULT_SPACING if args.spacing is None else option_value("run --spacing", args.spacing)
     chosen = 0 if args.bvh_character is None else option_value("run --bvh-character", args.bvh_character)
     if chosen >= characters:
         raise UserError(f"--bvh-character: expected a character of the crowd, 0 to {characters - 1}, not {chosen}")
-    return characters, spacing, chosen
+    vmc = DEFAULT_VMC_CHARACTERS if args.vmc_characters is None else option_value("run --vmc-characters", args.vmc_characters)
+    return characters, spacing, chosen, min(vmc, characters)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -215,7 +219,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     seconds = None if args.seconds is None else option_value("run --seconds", args.seconds)
     morph = 0.0 if args.morph is None else option_value("run --morph", args.morph)
     health_every = 60.0 if args.health_every is None else option_value("run --health-every", args.health_every)
-    characters, spacing, bvh_character = crowd_options(args)
+    characters, spacing, bvh_character, vmc_characters = crowd_options(args)
     if args.osc_in:
         option_value("run --osc-in", args.osc_in.rpartition(":")[2], where=f"--osc-in {args.osc_in}: port")
     if args.status_port:
@@ -243,9 +247,9 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     score_path = args.score or (None if live or args.replay else demo_score_path())
     targets = [] if args.no_osc else [parse_target(t) for t in (args.osc or DEFAULT_TARGETS)]
     for target in targets:
-        if target.profile == "vmc" and target.port + characters - 1 > 65535:
-            raise UserError(f"--osc {target}: a crowd of {characters} needs VMC ports {target.port} to "
-                            f"{target.port + characters - 1}, past 65535")
+        if target.profile == "vmc" and target.port + vmc_characters - 1 > 65535:
+            raise UserError(f"--osc {target}: {vmc_characters} characters need VMC ports {target.port} to "
+                            f"{target.port + vmc_characters - 1}, past 65535")
     outputs, devices, hub, created, health = [], [], None, [], None
     try:
         hub = ControlHub(mappings, presets, None, morph, console)
@@ -292,7 +296,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         profiles = {kind: make_profile(kind, model, args.humanoid, args.vmc_root, not args.no_relaxed_hands, characters)
                     for kind in {t.profile for t in targets}}
         for t in targets:  # a crowd's flat target carries every character; VMC: character k on port + k
-            crowd = range(characters) if t.profile == "vmc" else [0]
+            crowd = range(vmc_characters) if t.profile == "vmc" else [0]
             outputs += [OscOutput(OscTarget(t.host, t.port + k, t.profile), profiles[t.profile], console, k) for k in crowd]
         if args.console:
             outputs.append(link.output)  # after the OSC targets: their datagrams leave first at the deadline
@@ -315,6 +319,8 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         sources += [f"score {score_path}"] if score_path else []
         sources += [f"attract after {attract.after / 60:g} min of no input"] if attract else []
         crowd = f"{characters} characters {spacing:g} m apart; " if characters > 1 else ""
+        if any(t.profile == "vmc" for t in targets) and vmc_characters < characters:
+            crowd += f"VMC sends characters 0 to {vmc_characters - 1} (--vmc-characters), the flat profile all; "
         console.say(f"model {args.model or default_model_path()}; {fps:g} fps; {crowd}controls: {', '.join(sources) or 'none'}; "
                     f"OSC to {', '.join(map(str, targets)) or 'nowhere'}" + (f"; recording {args.bvh}" if args.bvh else "")
                     + (f" (character {bvh_character})" if args.bvh and characters > 1 else ""))

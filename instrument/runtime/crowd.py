@@ -39,6 +39,7 @@ from ..synthesis.widen import RangeSpace
 from .pose import Pose, PoseStream
 
 DEFAULT_SPACING = 1.5  # metres between neighbours on the floor
+DEFAULT_VMC_CHARACTERS = 16  # a VMC stream costs several times a character's walk: a crowd's first 16 unless asked
 MIX_CONCENTRATION = 0.5  # of the Dirichlet draw: below 1 a character's own mix leans on one or two styles
 MIX_STREAM = 1  # the draws of a character's mix and phase come from seed sequence (seed, MIX_STREAM)
 
