@@ -4,7 +4,6 @@ import filecmp
 import socket
 import subprocess
 import sys
-from collections import defaultdict
 
 import numpy as np
 import pytest
@@ -53,7 +52,8 @@ def test_every_character_reaches_a_flat_receiver_and_the_bvh_is_the_chosen_one(m
     frames = by_frame(receiver.messages())
     assert [f["/walk/frame"][0] for f in frames] == list(range(30))
     joints = model.layout.skeleton.names
-    single = {f"/walk/bone/{j}/{kind}" for j in joints for kind in ("quat", "pos")} | {f"/walk/root/{k}" for k in ("pos", "quat", "local")}
+    single = {f"/walk/bone/{j}/{kind}" for j in joints for kind in ("quat", "pos")}
+    single |= {f"/walk/root/{k}" for k in ("pos", "quat", "local")}
     for frame in frames:
         addresses = set(frame)
         assert single <= addresses  # character 0 at today's addresses
@@ -150,7 +150,8 @@ def test_spread_gives_each_character_its_own_style_and_none_alike_at_zero(model)
     state.set("style/elderly", 1.0)
     each = engine.each(state.snapshot(), state.spread)
     mixes = [tuple(c.weights) for c in each[1:]]  # around the performed weights, each its own, none adding weight
-    assert len(set(mixes)) == 3 and all(abs(sum(m) - 1) < 1e-9 and np.abs(np.subtract(m, state.weights)).max() > 0.2 for m in mixes)
+    assert len(set(mixes)) == 3
+    assert all(abs(sum(m) - 1) < 1e-9 and np.abs(np.subtract(m, state.weights)).max() > 0.2 for m in mixes)
 
 
 def test_spread_is_a_control_target_like_the_others():
@@ -173,7 +174,8 @@ def test_a_recorded_crowd_replays_byte_for_byte(tmp_path):
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert '"spread"' in log.read_text()
-    result = subprocess.run(RUN + crowd + ["--replay", str(log), "--bvh", str(second)], capture_output=True, text=True, timeout=120)
+    result = subprocess.run(RUN + crowd + ["--replay", str(log), "--bvh", str(second)], capture_output=True, text=True,
+                            timeout=120)
     assert result.returncode == 0, result.stderr
     assert filecmp.cmp(first, second, shallow=False)
     assert read_bvh(first).frames == 90
@@ -232,7 +234,8 @@ def test_the_batched_tables_of_a_crowd_are_each_characters_own(model, elderly, p
         alone = Crowd(engine.space)
         alone.refresh([each[k]])
         for name in ("means", "precisions", "base", "sigma", "cadence"):
-            np.testing.assert_allclose(getattr(engine.walker, name)[k], getattr(alone, name)[0], rtol=1e-12, atol=1e-12, err_msg=name)
+            np.testing.assert_allclose(getattr(engine.walker, name)[k], getattr(alone, name)[0], rtol=1e-12, atol=1e-12,
+                                       err_msg=name)
         mean, factor = engine.each.range_targets
         np.testing.assert_allclose(mean[k - 1], stride_mean(alone), rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(factor[k - 1], ranges.factors(each[k].weights, each[k].part_weights), rtol=1e-12)

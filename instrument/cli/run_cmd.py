@@ -56,7 +56,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-osc", action="store_true", default=None, help="send no OSC at all")
     p.add_argument("--bvh", metavar="OUT.bvh", help="record the performance as BVH while it plays")
     p.add_argument("--characters", metavar="N", help="a crowd of N walkers (default 1; docs/crowds.md)")
-    p.add_argument("--spacing", metavar="METRES", help=f"a crowd's distance between neighbours on the floor (default {DEFAULT_SPACING:g})")
+    p.add_argument("--spacing", metavar="METRES",
+                   help=f"a crowd's distance between neighbours on the floor (default {DEFAULT_SPACING:g})")
     p.add_argument("--bvh-character", metavar="K", help="of a crowd, the character --bvh records (default 0)")
     p.add_argument("--vmc-characters", metavar="M", help=f"of a crowd, how many characters (0 to M-1) a VMC target sends, "
                    f"character K on its port + K (default {DEFAULT_VMC_CHARACTERS}; the flat profile carries them all)")

@@ -89,16 +89,18 @@ class FlatProfile:
         for head in (character_prefix(k) for k in range(characters)):
             self.prefixes += [float_prefix(f"{head}/bone/{n}/quat", 4) for n in joint_names]
             self.prefixes += [float_prefix(f"{head}/bone/{n}/pos", 3) for n in joint_names]
-            self.prefixes += [float_prefix(f"{head}/root/{kind}", width) for kind, width in (("pos", 3), ("quat", 4), ("local", 3))]
+            self.prefixes += [float_prefix(f"{head}/root/{kind}", width)
+                              for kind, width in (("pos", 3), ("quat", 4), ("local", 3))]
             self.widths += [4] * joints + [3] * joints + [3, 4, 3]
         self._template: tuple[tuple[str, ...], FrameTemplate] | None = None  # for the echo's names
 
     def datagrams(self, pose: Pose, echo: dict[str, float]) -> list[bytes]:
         """One frame's bundles: of one character (a Pose), or of a crowd (a CrowdPose: the same
         arrays with a leading character axis)."""
-        crowd = pose.rotations.ndim == 4
-        rotations, world_rotations = (pose.rotations, pose.world_rotations) if crowd else (pose.rotations[None], pose.world_rotations[None])
-        world_positions, translations = (pose.world_positions, pose.translations) if crowd else (pose.world_positions[None], pose.translations[None])
+        arrays = (pose.rotations, pose.world_rotations, pose.world_positions, pose.translations)
+        if pose.rotations.ndim == 3:  # one character: a crowd of one
+            arrays = tuple(a[None] for a in arrays)
+        rotations, world_rotations, world_positions, translations = arrays
         root, count = self.root, rotations.shape[0]
         quats = quaternions(np.concatenate([rotations, world_rotations[:, root, None]], axis=1))  # local, then the root's world
         values = np.concatenate([quats[:, :-1].reshape(count, -1), world_positions.reshape(count, -1), world_positions[:, root],

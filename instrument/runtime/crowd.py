@@ -295,7 +295,8 @@ class LoopedPoses:
     def next(self, static: np.ndarray, shares: np.ndarray | None = None) -> CrowdPose:
         """The poses of static features (N, D); `shares` (N, 2) how surely each character's state
         has each foot planted (None: the feet are not planted)."""
-        poses = [stream.next(frame, None if shares is None else shares[n]) for n, (stream, frame) in enumerate(zip(self.streams, static))]
+        poses = [stream.next(frame, None if shares is None else shares[n])
+                 for n, (stream, frame) in enumerate(zip(self.streams, static))]
         first = poses[0]
         return CrowdPose(first.index, first.time, *(np.stack([getattr(p, name) for p in poses]) for name in
                                                      ("rotations", "translations", "world_rotations", "world_positions")))
