@@ -142,13 +142,13 @@ def test_spread_gives_each_character_its_own_style_and_none_alike_at_zero(model)
     assert apart(spread) > 0.05  # radians: a visible difference in some joint's average pose
     engine = Engine(model, characters=4)
     state = ControlState(model.style_names, model.states)
-    each = engine.each(state.snapshot(), 0.0)
+    each = engine.each(state.snapshot(), 0.0, engine.walker)
     assert all(np.array_equal(c.weights, each[0].weights) for c in each)
     state.set("spread", 1.0)
-    each = engine.each(state.snapshot(), state.spread)
+    each = engine.each(state.snapshot(), state.spread, engine.walker)
     assert np.array_equal(each[0].weights, state.weights)  # character 0 is the performance itself
     state.set("style/elderly", 1.0)
-    each = engine.each(state.snapshot(), state.spread)
+    each = engine.each(state.snapshot(), state.spread, engine.walker)
     mixes = [tuple(c.weights) for c in each[1:]]  # around the performed weights, each its own, none adding weight
     assert len(set(mixes)) == 3
     assert all(abs(sum(m) - 1) < 1e-9 and np.abs(np.subtract(m, state.weights)).max() > 0.2 for m in mixes)

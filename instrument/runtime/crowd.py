@@ -46,15 +46,11 @@ MIX_STREAM = 1  # the draws of a character's mix and phase come from seed sequen
 
 @dataclass(frozen=True)
 class Cast:
-    """Who is in the crowd: per character its seed, own style mix and start phase."""
+    """Who is in the crowd: per character its seed, style offset and start phase."""
 
     seeds: list[int]
     offsets: np.ndarray  # (N, styles) each character's style offset at spread 1; row 0 zeros (the performance itself)
     phases: np.ndarray  # (N, 2): label (which foot steps) and state it starts in; row 0 zeros
-
-    @property
-    def count(self) -> int:
-        return len(self.seeds)
 
 
 def make_cast(count: int, styles: int, states: int, seed: int = 0) -> Cast:
@@ -99,15 +95,14 @@ class CastControls:
         self.share_tables: np.ndarray | None = None  # (N-1, labels * states, 2)
         self._spread_terms: tuple[float, np.ndarray, np.ndarray] | None = None  # spread, its share of the means and precisions
 
-    def __call__(self, controls: Controls, spread: float, walker: Crowd | None = None) -> list[Controls]:
+    def __call__(self, controls: Controls, spread: float, walker: Crowd) -> list[Controls]:
         if self.offsets.shape[0] == 1:
             return [controls]
         key = (controls.key(), float(spread))
         if key != self._key:
             self._key = key
             self._others = [spread_controls(controls, offset, spread) for offset in self.offsets[1:]]
-            if walker is not None:
-                self._retune(controls, spread, walker)
+            self._retune(controls, spread, walker)
         return [controls] + self._others
 
     def _retune(self, controls: Controls, spread: float, walker: Crowd) -> None:
