@@ -265,3 +265,28 @@ def test_each_character_of_a_crowd_walks_as_it_would_alone(model):
         frames = [drive(widen.next(alone.step([each[k]])[0], alone, each[k]), alone.cadence[0], controls.turn) for _ in range(40)]
         np.testing.assert_allclose(made[:, k], np.array(frames), rtol=1e-9, atol=1e-9)
     assert np.abs(made[:, 1] - made[:, 2]).max() > 0.1
+
+
+def test_an_osc_surface_moves_the_spread_and_sees_it_echoed(tmp_path):
+    from pythonosc.udp_client import SimpleUDPClient
+
+    from oscrecv import free_port
+
+    control_port, receiver = free_port(), Receiver()
+    log = tmp_path / "surface.jsonl"
+    process = subprocess.Popen(RUN + ["--characters", "3", "--osc-in", str(control_port), "--record", str(log),
+                                      "--osc", f"127.0.0.1:{receiver.port}/flat", "--quiet"], stderr=subprocess.PIPE, text=True)
+
+    def spread_echoed() -> bool:
+        return any(a == "/walk/spread" and p[0] == pytest.approx(0.75) for a, p in receiver.messages()[-400:])
+
+    try:
+        wait_until(lambda: frame_count(receiver) >= 10, "10 frames")
+        SimpleUDPClient("127.0.0.1", control_port).send_message("/walk/spread", 0.75)
+        wait_until(spread_echoed, "spread 0.75 echoed")
+    finally:
+        process.terminate()
+        stderr = process.communicate(timeout=60)[1]
+        receiver.close()
+    assert process.returncode == 0, stderr
+    assert '"control": "spread", "value": 0.75' in log.read_text()
