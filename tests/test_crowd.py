@@ -206,7 +206,7 @@ def test_a_show_file_takes_a_crowd_and_names_its_bad_line(tmp_path):
     result = subprocess.run(RUN + ["--config", str(show)], capture_output=True, text=True, timeout=60)
     assert result.returncode == 1
     assert f"{show}:5: characters: expected a whole number from 1 to {MAX_CHARACTERS}, not '0'" in result.stderr
-    show.write_text(f'seconds = 1\nno-osc = true\nquiet = true\nfast = true\ncharacters = 3\nbvh-character = 2\nbvh = "c.bvh"\n')
+    show.write_text('seconds = 1\nno-osc = true\nquiet = true\nfast = true\ncharacters = 3\nbvh-character = 2\nbvh = "c.bvh"\n')
     result = subprocess.run(RUN + ["--config", str(show)], capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     assert read_bvh(tmp_path / "c.bvh").frames == 30
