@@ -10,9 +10,9 @@ from pythonosc.osc_message import OscMessage
 
 
 class Receiver:
-    def __init__(self):
+    def __init__(self, port: int = 0):
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", 0))
+        self.sock.bind(("127.0.0.1", port))
         self.sock.settimeout(0.2)
         self.port = self.sock.getsockname()[1]
         self.datagrams: list[bytes] = []

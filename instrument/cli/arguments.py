@@ -17,6 +17,7 @@ from ..errors import UserError
 from ..synthesis.durations import MAX_SPEED, MIN_SPEED
 
 MAX_SECONDS = 7 * 24 * 3600.0  # a week: longer is a typo
+MAX_CHARACTERS = 1000  # a crowd larger than this is a typo (docs/crowds.md: how many keep time)
 WEIGHT_LIMIT = 10.0  # as far as a style weight goes: control.targets.WEIGHT_LIMIT (a test keeps them equal)
 
 
@@ -63,6 +64,10 @@ OPTIONS: dict[str, Accepts] = {
     "run --osc-in": PORT,  # the port of [HOST:]PORT
     "run --status-port": PORT,  # the port of [HOST:]PORT
     "run --health-every": Accepts(float, 0, 86400),  # seconds; 0: no health line
+    "run --characters": Accepts(int, 1, MAX_CHARACTERS),
+    "run --spacing": Accepts(float, 0, 100, above_low=True),  # metres
+    "run --bvh-character": Accepts(int, 0, MAX_CHARACTERS - 1),  # and below --characters (checked in run)
+    "run --vmc-characters": Accepts(int, 1, MAX_CHARACTERS),  # at most --characters are sent
     "view --port": PORT,
     "view --frames": Accepts(int, 1, None),
     "learn --timeout": POSITIVE_SECONDS,

@@ -23,6 +23,7 @@ from ..synthesis.offline import generate_with_states
 from ..synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Crowd
 from ..synthesis.widen import Widen, range_space
 from .arguments import checked
+from .crowd_bench import LATENESS_P99_MS, largest_crowd, measure_cost
 
 MLPG_FRAMES = 10_000
 BATCH = 100
@@ -221,6 +222,9 @@ def measure(model_path: str | None, repeat: int) -> dict:
     per_character = figures["stream_us_per_frame_batch"]
     figures["characters_at_30fps"] = int(1e6 / 30 / per_character)
     figures["characters_at_60fps"] = int(1e6 / 60 / per_character)
+    figures |= measure_cost(model)  # the whole live path of a crowd, per character
+    figures["stream_per_character_to_window_solve"] = figures["stream_us_per_character"] / figures["window_solve_us"]
+    figures |= largest_crowd(model, figures["stream_us_per_character"])
     return figures
 
 
@@ -337,4 +341,10 @@ def run(args: argparse.Namespace) -> int:
     print(f"streaming, per character in a crowd of {BATCH}: {f['stream_us_per_frame_batch']:6.1f} us/frame "
           f"(x{f['stream_batch_to_window_solve']:.2f} the window solve)")
     print(f"characters in realtime on one core:     {f['characters_at_30fps']} at 30 fps, {f['characters_at_60fps']} at 60 fps")
+    print(f"live crowd of {f['crowd_size_for_cost']}, per character:     {f['stream_us_per_character']:8.1f} us/frame "
+          f"(x{f['stream_per_character_to_window_solve']:.2f} the window solve: engine {f['crowd_engine_us_per_character']:.1f}, "
+          f"pose {f['crowd_pose_us_per_character']:.1f}, flat OSC {f['crowd_flat_us_per_character']:.1f})")
+    print(f"largest live crowd at 30 fps:           {f['largest_crowd_30fps']:8d} characters (p99 lateness under "
+          f"{LATENESS_P99_MS:g} ms, flat OSC to 127.0.0.1, {f['largest_crowd_scheduling']} scheduling; "
+          f"tried {f['largest_crowd_tried']} in {f['largest_crowd_search_s']:.0f} s)")
     return 0

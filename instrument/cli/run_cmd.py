@@ -21,10 +21,11 @@ from ..control.state import ControlState
 from ..errors import UserError
 from ..models.modelfile import load_model
 from ..outputfile import check_output
-from ..output.osc import FLAT_PORT, VMC_PORT, parse_target
+from ..output.osc import FLAT_PORT, VMC_PORT, OscTarget, parse_target
 from ..output.outputs import OscOutput, RecorderOutput, make_profile
 from ..output.vmc import ROOT_CONVENTIONS
 from ..runtime.console import Console
+from ..runtime.crowd import DEFAULT_SPACING, DEFAULT_VMC_CHARACTERS
 from ..runtime.health import Health
 from ..runtime.notify import SystemdNotifier
 from ..runtime.performance import perform
@@ -54,6 +55,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "a broadcast (x.x.x.255) or multicast (224-239.x.x.x) address sends to many")
     p.add_argument("--no-osc", action="store_true", default=None, help="send no OSC at all")
     p.add_argument("--bvh", metavar="OUT.bvh", help="record the performance as BVH while it plays")
+    p.add_argument("--characters", metavar="N", help="a crowd of N walkers (default 1; docs/crowds.md)")
+    p.add_argument("--spacing", metavar="METRES",
+                   help=f"a crowd's distance between neighbours on the floor (default {DEFAULT_SPACING:g})")
+    p.add_argument("--bvh-character", metavar="K", help="of a crowd, the character --bvh records (default 0)")
+    p.add_argument("--vmc-characters", metavar="M", help=f"of a crowd, how many characters (0 to M-1) a VMC target sends, "
+                   f"character K on its port + K (default {DEFAULT_VMC_CHARACTERS}; the flat profile carries them all)")
     p.add_argument("--midi", metavar="PATTERN", help="MIDI input: the first port whose name matches (regular expression)")
     p.add_argument("--midi-virtual", metavar="NAME", help="create a virtual MIDI input port NAME that other programs connect to")
     p.add_argument("--midi-api", choices=("alsa", "jack"), help="MIDI system (default: rtmidi's choice, ALSA on Linux)")
@@ -187,6 +194,18 @@ def check_recordings(args: argparse.Namespace) -> None:
             check_output(path, args.force, inputs=(args.replay,))
 
 
+def crowd_options(args: argparse.Namespace) -> tuple[int, float, int, int]:
+    """--characters, --spacing, --bvh-character (a character of the crowd) and --vmc-characters
+    (how many of the crowd a VMC target sends, at most all), checked."""
+    characters = 1 if args.characters is None else option_value("run --characters", args.characters)
+    spacing = DEFAULT_SPACING if args.spacing is None else option_value("run --spacing", args.spacing)
+    chosen = 0 if args.bvh_character is None else option_value("run --bvh-character", args.bvh_character)
+    if chosen >= characters:
+        raise UserError(f"--bvh-character: expected a character of the crowd, 0 to {characters - 1}, not {chosen}")
+    vmc = DEFAULT_VMC_CHARACTERS if args.vmc_characters is None else option_value("run --vmc-characters", args.vmc_characters)
+    return characters, spacing, chosen, min(vmc, characters)
+
+
 def run(args: argparse.Namespace) -> int:
     with StopFlag() as stop:  # Ctrl-C and SIGTERM from here on, start-up included, only ask to stop
         return _run(args, stop)
@@ -201,6 +220,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     seconds = None if args.seconds is None else option_value("run --seconds", args.seconds)
     morph = 0.0 if args.morph is None else option_value("run --morph", args.morph)
     health_every = 60.0 if args.health_every is None else option_value("run --health-every", args.health_every)
+    characters, spacing, bvh_character, vmc_characters = crowd_options(args)
     if args.osc_in:
         option_value("run --osc-in", args.osc_in.rpartition(":")[2], where=f"--osc-in {args.osc_in}: port")
     if args.status_port:
@@ -227,6 +247,10 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
                         "(the log has no mapping header): give the --mapping it was recorded with")
     score_path = args.score or (None if live or args.replay else demo_score_path())
     targets = [] if args.no_osc else [parse_target(t) for t in (args.osc or DEFAULT_TARGETS)]
+    for target in targets:
+        if target.profile == "vmc" and target.port + vmc_characters - 1 > 65535:
+            raise UserError(f"--osc {target}: {vmc_characters} characters need VMC ports {target.port} to "
+                            f"{target.port + vmc_characters - 1}, past 65535")
     outputs, devices, hub, created, health = [], [], None, [], None
     try:
         hub = ControlHub(mappings, presets, None, morph, console)
@@ -270,14 +294,16 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
                                args.presets, sources)
             devices.append(link.input)
             console.say(f"console: {link.url}")
-        profiles = {kind: make_profile(kind, model, args.humanoid, args.vmc_root, not args.no_relaxed_hands)
+        profiles = {kind: make_profile(kind, model, args.humanoid, args.vmc_root, not args.no_relaxed_hands, characters)
                     for kind in {t.profile for t in targets}}
-        outputs += [OscOutput(t, profiles[t.profile], console) for t in targets]
+        for t in targets:  # a crowd's flat target carries every character; VMC: character k on port + k
+            crowd = range(vmc_characters) if t.profile == "vmc" else [0]
+            outputs += [OscOutput(OscTarget(t.host, t.port + k, t.profile), profiles[t.profile], console, k) for k in crowd]
         if args.console:
             outputs.append(link.output)  # after the OSC targets: their datagrams leave first at the deadline
         # files last: a start-up that fails leaves nothing behind, so the corrected command runs
         if args.bvh:
-            outputs.append(RecorderOutput(args.bvh, model, fps, replace=args.force))
+            outputs.append(RecorderOutput(args.bvh, model, fps, replace=args.force, character=bvh_character))
             created.append(args.bvh)
         if args.record:
             hub.start_recording(args.record, header_line(mappings), replace=args.force)
@@ -293,8 +319,12 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         sources = [d.describe() for d in devices] + ([f"log {args.replay}"] if args.replay else [])
         sources += [f"score {score_path}"] if score_path else []
         sources += [f"attract after {attract.after / 60:g} min of no input"] if attract else []
-        console.say(f"model {args.model or default_model_path()}; {fps:g} fps; controls: {', '.join(sources) or 'none'}; "
-                    f"OSC to {', '.join(map(str, targets)) or 'nowhere'}" + (f"; recording {args.bvh}" if args.bvh else ""))
+        crowd = f"{characters} characters {spacing:g} m apart; " if characters > 1 else ""
+        if any(t.profile == "vmc" for t in targets) and vmc_characters < characters:
+            crowd += f"VMC sends characters 0 to {vmc_characters - 1} (--vmc-characters), the flat profile all; "
+        console.say(f"model {args.model or default_model_path()}; {fps:g} fps; {crowd}controls: {', '.join(sources) or 'none'}; "
+                    f"OSC to {', '.join(map(str, targets)) or 'nowhere'}" + (f"; recording {args.bvh}" if args.bvh else "")
+                    + (f" (character {bvh_character})" if args.bvh and characters > 1 else ""))
     if not args.fast and not args.normal_priority:
         refused = realtime_scheduling()
         if refused and not args.quiet:
@@ -311,7 +341,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         summary = perform(model, outputs, console, fps, seconds, replay, live_sources=live_sources, fast=args.fast,
                           apply=hub.apply,
                           describe_sources=lambda: ", ".join(d.describe() for d in devices) or ("score" if score_path else "replay"),
-                          state=state, stop=stop, on_frame=health.frame)
+                          state=state, stop=stop, on_frame=health.frame, characters=characters, spacing=spacing)
     finally:
         health.notifier.stopping()
         for thing in devices + [hub, health, health.notifier]:

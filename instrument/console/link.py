@@ -50,7 +50,7 @@ def hello(model, state: ControlState, presets: dict, morph: float, save_path: st
         "joints": list(skeleton.names), "parents": [j.parent for j in skeleton.joints], "root": model.layout.root,
         "fps": fps, "morph": morph, "save": save_path, "presets": sorted(presets), "order": list(all_values(state)),
         "ranges": {"weight": [-WEIGHT_LIMIT, WEIGHT_LIMIT], "slider": list(SLIDER_WEIGHTS), "speed": [MIN_SPEED, MAX_SPEED],
-                   "turn": [-MAX_TURN, MAX_TURN], "liveliness": [0.0, 1.0], "phase": [MIN_SPEED, MAX_SPEED]},
+                   "turn": [-MAX_TURN, MAX_TURN], "liveliness": [0.0, 1.0], "spread": [0.0, 1.0], "phase": [MIN_SPEED, MAX_SPEED]},
     }
 
 

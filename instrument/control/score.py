@@ -122,7 +122,7 @@ def _values(values: dict, state: ControlState, fail) -> dict[str, float]:
     for target, value in values.items():
         if target in ("reset", "cue") or not state.knows(target):
             raise fail("not a target a score can move (style/<name>, part/<style>/<group>, speed, turn, "
-                       "liveliness, phase/<k>)", target)
+                       "liveliness, spread, phase/<k>)", target)
         if not _number(value):
             raise fail("expected a number", target)
         probe.set(target, float(value))

@@ -7,6 +7,7 @@ Targets (what each accepts, and the one check every input goes through: control/
     phase/<k>               stretch of state k (1-based) of every step (0.25 to 4)
     turn                    steering, radians per second (positive turns left)
     liveliness              0: every step alike; 1: durations drawn from the model
+    spread                  a crowd's style spread: 0 every character as performed; 1 each its own mix
     reset                   any value: everything back to the start
     cue                     a press: a score waiting for the performer goes on
 
@@ -38,12 +39,13 @@ class ControlState:
         self.speed = 1.0
         self.turn = 0.0
         self.liveliness = 0.0
+        self.spread = 0.0  # read by a crowd (runtime/crowd.py), not part of one walker's Controls
         self.state_scale = np.ones(self.states)
 
     def targets(self) -> list[str]:
         names = [f"style/{s}" for s in self.style_names]
         names += [f"part/{s}/{g}" for s in self.style_names for g in GROUPS]
-        names += ["speed", "turn", "liveliness", "reset", "cue"] + [f"phase/{k + 1}" for k in range(self.states)]
+        names += ["speed", "turn", "liveliness", "spread", "reset", "cue"] + [f"phase/{k + 1}" for k in range(self.states)]
         return names
 
     def knows(self, target: str) -> bool:
@@ -72,7 +74,7 @@ class ControlState:
                 self.reset()
         elif kind == "cue":
             self.cue_presses += value > 0
-        else:  # speed, turn, liveliness
+        else:  # speed, turn, liveliness, spread
             setattr(self, kind, value)
         return True
 
@@ -113,7 +115,7 @@ class ControlState:
         return Controls(self.weights.copy(), parts, self.speed, self.state_scale.copy(), self.liveliness, self.turn)
 
     def echo(self) -> dict[str, float]:
-        """The values a control surface shows: every style weight, speed, turn, liveliness."""
+        """The values a control surface shows: every style weight, speed, turn, liveliness, spread."""
         out = {f"style/{s}": float(w) for s, w in zip(self.style_names, self.weights)}
-        out.update(speed=self.speed, turn=self.turn, liveliness=self.liveliness)
+        out.update(speed=self.speed, turn=self.turn, liveliness=self.liveliness, spread=self.spread)
         return out

@@ -13,7 +13,7 @@ def all_values(state: ControlState) -> dict[str, float]:
     out = {f"style/{s}": float(w) for s, w in zip(state.style_names, state.weights)}
     for k, s in enumerate(state.style_names):
         out.update({f"part/{s}/{g}": float(state.part_weights[k, j]) for j, g in enumerate(GROUPS)})
-    out.update(speed=state.speed, turn=state.turn, liveliness=state.liveliness)
+    out.update(speed=state.speed, turn=state.turn, liveliness=state.liveliness, spread=state.spread)
     out.update({f"phase/{k + 1}": float(v) for k, v in enumerate(state.state_scale)})
     return out
 

@@ -15,12 +15,17 @@ from .vmc import VmcProfile, forward_direction
 
 
 class OscOutput:
-    def __init__(self, target: OscTarget, profile, console: Console):
+    """One OSC target. It sends the pose of its `character`, or (a crowd's flat profile) every
+    character's: the live loop hands it what it asks for."""
+
+    def __init__(self, target: OscTarget, profile, console: Console, character: int = 0):
         self.name = f"osc {target}"
         self.profile = profile
+        self.character = character
+        self.whole_crowd = getattr(profile, "whole_crowd", False)
         self.out = UdpOut(target, console)
 
-    def prepare(self, pose: Pose, echo: dict[str, float]) -> list[bytes]:
+    def prepare(self, pose: Pose | list[Pose], echo: dict[str, float]) -> list[bytes]:
         return self.profile.datagrams(pose, echo)
 
     def send(self, datagrams: list[bytes]) -> None:
@@ -31,8 +36,9 @@ class OscOutput:
 
 
 class RecorderOutput:
-    def __init__(self, path: str, model: Model, fps: float, replace: bool = False):
+    def __init__(self, path: str, model: Model, fps: float, replace: bool = False, character: int = 0):
         self.name = f"bvh {path}"
+        self.character = character  # of a crowd, the one recorded
         self.skeleton = model.layout.skeleton
         self.recorder = BvhRecorder(path, model.layout.skeleton, fps, replace)
 
@@ -46,10 +52,12 @@ class RecorderOutput:
         self.recorder.close()
 
 
-def make_profile(kind: str, model: Model, humanoid_file: str | None = None, vmc_root: str = "hips", fingers: bool = True):
+def make_profile(kind: str, model: Model, humanoid_file: str | None = None, vmc_root: str = "hips", fingers: bool = True,
+                 characters: int = 1):
+    """`characters`: the flat profile of a crowd carries them all (a VMC target takes one)."""
     layout = model.layout
     if kind == "flat":
-        return FlatProfile(layout.skeleton.names, layout.root)
+        return FlatProfile(layout.skeleton.names, layout.root, characters)
     mapping = read_humanoid(humanoid_file, layout.skeleton) if humanoid_file else guess_humanoid(layout.skeleton)
     means = [m.means[..., : layout.dimension].reshape(-1, layout.dimension) for m in (model.average, model.styles)]
     return VmcProfile(layout, mapping, forward_direction(model.average.means[..., : layout.dimension]),

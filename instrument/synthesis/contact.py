@@ -140,10 +140,11 @@ class ContactSpace:
         return np.clip(self.base + np.einsum("s,sif->if", self.leg_weights(weights, part_weights), self.offsets), 0.0, 1.0)
 
     def leg_weights(self, weights: np.ndarray, part_weights: np.ndarray | None = None) -> np.ndarray:
-        """The style weights the legs walk with: their own where given per body part."""
+        """The style weights the legs walk with: their own where given per body part. Also for
+        many characters at once: weights (M, styles), part weights (M, styles, groups)."""
         weights = np.asarray(weights, dtype=np.float64)
         if part_weights is not None:
-            legs = np.asarray(part_weights, dtype=np.float64)[:, self.legs]
+            legs = np.asarray(part_weights, dtype=np.float64)[..., self.legs]
             weights = np.where(np.isnan(legs), weights, legs)
         return weights
 

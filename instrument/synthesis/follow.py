@@ -34,14 +34,15 @@ def ease(x):  # pragma: no cover - compiled
     return x * x * (3.0 - 2.0 * x)
 
 
-def strength(leg_weights: np.ndarray) -> float:
-    """How much of the slide the body takes at these (legs') style weights: STRENGTH inside the
-    data (no weight below 0, none above 1 in sum), growing to STRENGTH_OFF_DATA a whole weight
-    unit outside it. Speed must match the real takes only inside; outside, the slide is larger
-    (feminine x2 skated 25 cm/s at STRENGTH, 8 at STRENGTH_OFF_DATA)."""
+def strength(leg_weights: np.ndarray) -> np.ndarray:
+    """How much of the slide the body takes at these (legs') style weights (styles,) or
+    (characters, styles): STRENGTH inside the data (no weight below 0, none above 1 in sum),
+    growing to STRENGTH_OFF_DATA a whole weight unit outside it. Speed must match the real takes
+    only inside; outside, the slide is larger (feminine x2 skated 25 cm/s at STRENGTH, 8 at
+    STRENGTH_OFF_DATA)."""
     w = np.asarray(leg_weights, dtype=np.float64)
-    outside = np.sum(np.maximum(-w, 0.0)) + max(np.sum(np.maximum(w, 0.0)) - 1.0, 0.0)
-    return STRENGTH + (STRENGTH_OFF_DATA - STRENGTH) * min(outside, 1.0)
+    outside = np.maximum(-w, 0.0).sum(axis=-1) + np.maximum(np.maximum(w, 0.0).sum(axis=-1) - 1.0, 0.0)
+    return STRENGTH + (STRENGTH_OFF_DATA - STRENGTH) * np.minimum(outside, 1.0)
 
 
 class RootFollow:

@@ -105,6 +105,20 @@ class Crowd:
             self.sigma[n] = control.liveliness * np.sqrt(lam.duration_variances) * scale
             self.cadence[n] = float(np.maximum(lam.duration_means, MIN_FRAMES).sum() / base.sum())
 
+    def assign(self, first: int, controls: list[Controls], means: np.ndarray | None, precisions: np.ndarray | None,
+               base: np.ndarray, sigma: np.ndarray, cadence: np.ndarray) -> None:
+        """Characters first, first + 1, ... take these controls with their lambda* tables (None:
+        already written into `self.means` and `self.precisions`) and durations computed together
+        elsewhere (a crowd's batched refresh, runtime/crowd.py); `refresh` leaves them be while
+        they are given the same Controls objects."""
+        chosen = slice(first, first + len(controls))
+        if means is not None:
+            self.means[chosen], self.precisions[chosen] = means, precisions
+        self.base[chosen] = base
+        self.sigma[chosen], self.cadence[chosen] = sigma, cadence
+        for n, control in enumerate(controls, start=first):
+            self._last[n], self._keys[n], self.lams[n] = control, None, None
+
     def _draws_for(self, frames: int) -> None:
         """Make sure every character has draws for a plan over `frames` frames (at most one state
         instance a frame, plus the one being left)."""

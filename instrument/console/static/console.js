@@ -99,6 +99,7 @@ function build(message) {
   slider($("walk"), "speed", "speed", r.speed);
   slider($("walk"), "turn", "turn", r.turn);
   slider($("walk"), "liveliness", "liveliness", r.liveliness);
+  slider($("walk"), "spread", "spread", r.spread);
   for (const style of hello.styles) {
     const title = document.createElement("div");
     title.className = "group";

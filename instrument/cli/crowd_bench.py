@@ -1,0 +1,139 @@
+"""`instrument bench`'s crowd figures: what one character of a live crowd costs, and the largest
+crowd whose live loop keeps time on this machine (docs/crowds.md)."""
+
+from __future__ import annotations
+
+import socket
+import time
+
+import numpy as np
+
+from ..models.modelfile import Model
+
+CROWD_FPS = 30.0
+TRIAL_SECONDS = 3.0  # of realtime live loop per crowd size tried
+LATENESS_P99_MS = 1.0  # a crowd keeps time when no frame is dropped and the p99 lateness stays under this
+SEARCH_BUDGET = 50.0  # seconds the search may take; past it the largest crowd found so far is reported
+COST_CROWD = 100  # characters in the crowd whose per-character cost is measured
+COST_FRAMES = 30
+
+
+def live_path(model: Model, count: int, spread: float = 0.5):
+    """A frame of the live crowd path without the clock: the engine, the poses and the flat
+    profile's datagrams for `count` characters, with the demo's controls moving."""
+    from ..control.hub import ControlHub
+    from ..control.score import ScorePlayer, load_score
+    from ..control.state import ControlState
+    from ..output.outputs import make_profile
+    from ..runtime.console import Console
+    from ..runtime.crowd import floor_positions
+    from ..runtime.pose import CrowdPoses
+    from ..runtime.performance import Engine
+    from ..shipped import demo_score_path
+
+    engine = Engine(model, characters=count)
+    poses = CrowdPoses(model.layout, CROWD_FPS, count, engine.foot_lock(CROWD_FPS), positions=floor_positions(model, count))
+    profile = make_profile("flat", model, characters=count)
+    state = ControlState(model.style_names, model.states)
+    state.set("spread", spread)
+    demo = ScorePlayer(load_score(demo_score_path(), state, loop=True), state)
+    apply = ControlHub([], console=Console(quiet=True)).apply  # as the live loop applies a score's events
+    times = np.zeros(3)
+
+    def frame(index: int) -> None:
+        now = index / CROWD_FPS
+        for event in demo.due(now):
+            apply(state, event)
+        state.advance(now)
+        started = time.perf_counter()
+        frames = engine.sample(now, state.snapshot(), state.spread)
+        made = time.perf_counter()
+        crowd = poses.next(frames, engine.contact_shares, engine.follow_strengths)
+        posed = time.perf_counter()
+        profile.datagrams(crowd, state.echo())
+        times[:] += (made - started, posed - made, time.perf_counter() - posed)
+
+    return frame, times
+
+
+def measure_cost(model: Model) -> dict:
+    """Microseconds per character per frame of the live crowd path, and of its three parts."""
+    frame, times = live_path(model, COST_CROWD)
+    frame(0)  # compiles and loads
+    times[:] = 0.0
+    for index in range(1, COST_FRAMES + 1):
+        frame(index)
+    engine, pose, flat = times * 1e6 / COST_FRAMES / COST_CROWD
+    return {"crowd_size_for_cost": COST_CROWD, "stream_us_per_character": engine + pose + flat,
+            "crowd_engine_us_per_character": engine, "crowd_pose_us_per_character": pose,
+            "crowd_flat_us_per_character": flat}
+
+
+def keeps_time(model: Model, count: int, seconds: float = TRIAL_SECONDS) -> tuple[bool, float, int]:
+    """Whether the realtime live loop of `count` characters (the demo, spread 0.5, flat OSC to a
+    local UDP socket) keeps time: no frame dropped and p99 lateness under LATENESS_P99_MS. Also
+    the p99 lateness (ms) and the late frames (sent over 0.1 ms after their deadline)."""
+    from ..control.score import ScorePlayer, load_score
+    from ..control.state import ControlState
+    from ..output.osc import OscTarget
+    from ..output.outputs import OscOutput, make_profile
+    from ..runtime.console import Console
+    from ..runtime.performance import perform
+    from ..shipped import demo_score_path
+
+    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink.bind(("127.0.0.1", 0))
+    sink.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)  # never read: the kernel drops what overflows
+    console = Console(quiet=True)
+    output = OscOutput(OscTarget("127.0.0.1", sink.getsockname()[1], "flat"), make_profile("flat", model, characters=count),
+                       console)
+    state = ControlState(model.style_names, model.states)
+    state.set("spread", 0.5)
+    demo = ScorePlayer(load_score(demo_score_path(), state, loop=True), state)
+    timing: list[float] = []
+    try:
+        summary = perform(model, [output], console, CROWD_FPS, seconds, demo, timing=timing, state=state, characters=count)
+    finally:
+        sink.close()
+    p99 = float(np.percentile(np.maximum(np.array(timing[1:]), 0.0), 99)) * 1000.0
+    return summary.dropped == 0 and p99 < LATENESS_P99_MS, p99, summary.late
+
+
+def largest_crowd(model: Model, us_per_character: float, budget: float = SEARCH_BUDGET) -> dict:
+    """The largest crowd that keeps time at 30 fps: from a guess (half the frame's budget at
+    the measured cost per character), halving until one holds, doubling until one fails, then
+    bisecting to within a tenth."""
+    from ..runtime.priority import realtime_scheduling
+
+    refused = realtime_scheduling()  # as `instrument run` does
+    started = time.monotonic()
+    tried: dict[int, tuple[float, int]] = {}  # crowd size: p99 lateness (ms), late frames
+
+    def holds(count: int) -> bool:
+        ok, *tried[count] = keeps_time(model, count)
+        return ok
+
+    guess = max(1, 2 ** int(np.log2(max(1.0, 0.5e6 / CROWD_FPS / us_per_character))))
+    low, high = 0, None  # the largest that held, the smallest that failed
+    count = guess
+    while count >= 1 and time.monotonic() - started < budget:
+        if holds(count):
+            low = count
+            break
+        high, count = count, count // 2
+    while high is None and low and time.monotonic() - started < budget:
+        if holds(2 * low):
+            low *= 2
+        else:
+            high = 2 * low
+    while high is not None and high - low > max(1, low // 10) and time.monotonic() - started < budget:
+        middle = (low + high) // 2
+        if holds(middle):
+            low = middle
+        else:
+            high = middle
+    return {"largest_crowd_30fps": low, "largest_crowd_first_failing": high,
+            "largest_crowd_p99_ms": tried[low][0] if low else None, "largest_crowd_late_frames": tried[low][1] if low else None,
+            "largest_crowd_tried": {str(k): [round(v[0], 3), v[1]] for k, v in sorted(tried.items())},
+            "largest_crowd_search_s": time.monotonic() - started,
+            "largest_crowd_scheduling": "realtime" if refused is None else f"normal ({refused})"}

@@ -1,0 +1,292 @@
+"""Crowds (`run --characters N`): real UDP on 127.0.0.1, real processes, real files."""
+
+import filecmp
+import socket
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from instrument.cli.arguments import MAX_CHARACTERS
+from instrument.control.state import ControlState
+from instrument.models.modelfile import default_model_path, load_model
+from instrument.motion.bvh import read_bvh
+from instrument.motion.kinematics import local_transforms
+from instrument.runtime.crowd import metres_to_units
+from instrument.runtime.performance import Engine
+from instrument.runtime.pose import quaternions
+from oscrecv import Receiver, frame_count
+from waiting import wait_until
+
+RUN = [sys.executable, "-m", "instrument", "run"]
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_model(default_model_path())
+
+
+def by_frame(messages: list[tuple[str, list]]) -> list[dict[str, list]]:
+    """The flat stream cut into frames at /walk/frame (sent last in each)."""
+    frames, current = [], {}
+    for address, params in messages:
+        current[address] = params
+        if address == "/walk/frame":
+            frames.append(current)
+            current = {}
+    return frames
+
+
+def test_every_character_reaches_a_flat_receiver_and_the_bvh_is_the_chosen_one(model, tmp_path):
+    receiver = Receiver()
+    bvh = tmp_path / "two.bvh"
+    try:
+        result = subprocess.run(RUN + ["--characters", "3", "--spacing", "2", "--seconds", "1", "--bvh", str(bvh),
+                                       "--bvh-character", "2", "--osc", f"127.0.0.1:{receiver.port}/flat", "--quiet"],
+                                capture_output=True, text=True, timeout=120)
+        wait_until(lambda: frame_count(receiver) >= 30 or result.returncode, "30 frames")
+    finally:
+        receiver.close()
+    assert result.returncode == 0, result.stderr
+    frames = by_frame(receiver.messages())
+    assert [f["/walk/frame"][0] for f in frames] == list(range(30))
+    joints = model.layout.skeleton.names
+    single = {f"/walk/bone/{j}/{kind}" for j in joints for kind in ("quat", "pos")}
+    single |= {f"/walk/root/{k}" for k in ("pos", "quat", "local")}
+    for frame in frames:
+        addresses = set(frame)
+        assert single <= addresses  # character 0 at today's addresses
+        for k in (1, 2):
+            assert {a.replace("/walk/", f"/walk/character/{k}/", 1) for a in single} <= addresses
+        assert not any(a.startswith(("/walk/character/0/", "/walk/character/3/")) for a in addresses)
+        assert "/walk/spread" in addresses and "/walk/speed" in addresses  # the echo, once
+    # placed apart: 2 m (200 cm) from character 0 on the floor, at the start
+    start = frames[0]
+    for k in (1, 2):
+        apart = np.subtract(start[f"/walk/character/{k}/root/pos"], start["/walk/root/pos"])[[0, 2]]
+        assert abs(np.linalg.norm(apart) - 2 * metres_to_units(model.layout)) < 30
+    # the BVH holds character 2: its rotations are the ones sent for character 2, not character 0's
+    motion = read_bvh(bvh)
+    assert motion.frames == 30
+    rotations, translations = local_transforms(motion)
+    recorded = quaternions(rotations)
+    sent = {k: np.array([[f[f"{head}/bone/{j}/quat"] for j in joints] for f in frames])
+            for k, head in ((0, "/walk"), (2, "/walk/character/2"))}
+    assert np.abs(recorded - sent[2]).max() < 1e-3
+    assert np.abs(recorded - sent[0]).max() > 0.05
+    root = model.layout.root
+    local = np.array([f["/walk/character/2/root/local"] for f in frames])
+    assert np.abs(translations[:, root] - local).max() < 1e-2
+
+
+def free_ports(count: int) -> int:
+    """The first of `count` consecutive free UDP ports on 127.0.0.1."""
+    for _ in range(100):
+        first = np.random.default_rng().integers(20000, 60000)
+        socks = []
+        try:
+            for k in range(count):
+                s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+                socks.append(s)
+                s.bind(("127.0.0.1", int(first) + k))
+            return int(first)
+        except OSError:
+            continue
+        finally:
+            for s in socks:
+                s.close()
+    raise AssertionError("no free consecutive ports")
+
+
+def test_vmc_sends_character_k_on_port_p_plus_k():
+    first = free_ports(4)
+    receivers = [Receiver(first + k) for k in range(4)]  # the fourth port gets nothing: --vmc-characters 3
+    try:
+        result = subprocess.run(RUN + ["--characters", "5", "--vmc-characters", "3", "--seconds", "1", "--osc",
+                                       f"127.0.0.1:{first}/vmc", "--quiet"], capture_output=True, text=True, timeout=120)
+        wait_until(lambda: all(sum(d.count(b"/VMC/Ext/T\x00") for d in list(r.datagrams)) >= 30 for r in receivers[:3])
+                   or result.returncode, "30 VMC frames on each port")
+    finally:
+        for receiver in receivers:
+            receiver.close()
+    assert result.returncode == 0, result.stderr
+    assert not receivers[3].datagrams
+    hips = []
+    for receiver in receivers[:3]:
+        messages = receiver.messages()
+        assert sum(a == "/VMC/Ext/T" for a, _ in messages) == 30
+        hips.append(np.array([p[1:4] for a, p in messages if a == "/VMC/Ext/Bone/Pos" and p[0] == "Hips"]))
+    for k in (1, 2):  # each port its own character: in the first row of three, 1.5 m apart at the start (metres in VMC)
+        assert abs(np.linalg.norm((hips[k][0] - hips[0][0])[[0, 2]]) - 1.5 * k) < 0.3
+
+
+def walk_means(model, spread: float, frames: int = 150) -> np.ndarray:
+    """(N, D) each character's static features averaged over its last four strides."""
+    engine = Engine(model, characters=4)
+    state = ControlState(model.style_names, model.states)
+    state.set("spread", spread)
+    state.set("style/elderly", 0.5)
+    made = np.array([engine.sample(i / model.fps, state.snapshot(), state.spread) for i in range(frames)])
+    return made[-128:].mean(axis=0)
+
+
+def test_spread_gives_each_character_its_own_style_and_none_alike_at_zero(model):
+    alike, spread = walk_means(model, 0.0), walk_means(model, 1.0)
+    joints = slice(4, None)  # the joint rotations (the root's rates follow the cadence)
+
+    def apart(means):
+        return max(np.abs(means[k, joints] - means[0, joints]).max() for k in range(1, len(means)))
+
+    assert apart(spread) > 5 * apart(alike)
+    assert apart(spread) > 0.05  # radians: a visible difference in some joint's average pose
+    engine = Engine(model, characters=4)
+    state = ControlState(model.style_names, model.states)
+    each = engine.each(state.snapshot(), 0.0, engine.walker)
+    assert all(np.array_equal(c.weights, each[0].weights) for c in each)
+    state.set("spread", 1.0)
+    each = engine.each(state.snapshot(), state.spread, engine.walker)
+    assert np.array_equal(each[0].weights, state.weights)  # character 0 is the performance itself
+    state.set("style/elderly", 1.0)
+    each = engine.each(state.snapshot(), state.spread, engine.walker)
+    mixes = [tuple(c.weights) for c in each[1:]]  # around the performed weights, each its own, none adding weight
+    assert len(set(mixes)) == 3
+    assert all(abs(sum(m) - 1) < 1e-9 and np.abs(np.subtract(m, state.weights)).max() > 0.2 for m in mixes)
+
+
+def test_spread_is_a_control_target_like_the_others():
+    state = ControlState(["elderly"], 5)
+    assert "spread" in state.targets() and state.knows("spread")
+    assert state.set("spread", 3.0) and state.spread == 1.0  # clamped to its range
+    assert not state.set("spread", float("nan"))
+    assert state.echo()["spread"] == 1.0
+    state.set("reset", 1.0)
+    assert state.spread == 0.0
+
+
+def test_a_recorded_crowd_replays_byte_for_byte(tmp_path):
+    score = tmp_path / "spread.toml"
+    score.write_text('[[cue]]\nat = 0.2\nramp = { spread = 1.0, "style/elderly" = 1.0 }\nover = 1.5\n'
+                     '[[cue]]\nafter = 0.2\nramp = { liveliness = 1.0, speed = 1.4 }\nover = 0.5\n')
+    log, first, second = tmp_path / "crowd.jsonl", tmp_path / "first.bvh", tmp_path / "second.bvh"
+    crowd = ["--characters", "4", "--bvh-character", "3", "--no-osc", "--quiet", "--fast", "--seconds", "3"]
+    result = subprocess.run(RUN + crowd + ["--score", str(score), "--record", str(log), "--bvh", str(first)],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert '"spread"' in log.read_text()
+    result = subprocess.run(RUN + crowd + ["--replay", str(log), "--bvh", str(second)], capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert filecmp.cmp(first, second, shallow=False)
+    assert read_bvh(first).frames == 90
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--characters", "0"], "--characters: expected a whole number from 1 to"),
+    (["--characters", "2.5"], "--characters: expected a whole number"),
+    (["--characters", str(MAX_CHARACTERS + 1)], "--characters: expected"),
+    (["--spacing", "0"], "--spacing: expected a number above 0"),
+    (["--spacing", "nan"], "--spacing: expected"),
+    (["--characters", "3", "--bvh-character", "3"], "--bvh-character: expected a character of the crowd, 0 to 2, not 3"),
+    (["--bvh-character", "1"], "--bvh-character: expected a character of the crowd, 0 to 0, not 1"),
+    (["--characters", "10", "--osc", "127.0.0.1:65530/vmc"], "10 characters need VMC ports 65530 to 65539, past 65535"),
+    (["--characters", "30", "--osc", "127.0.0.1:65530/vmc"], "16 characters need VMC ports 65530 to 65545, past 65535"),
+    (["--vmc-characters", "0"], "--vmc-characters: expected a whole number from 1 to"),
+])
+def test_bad_crowd_options_are_one_line(args, message):
+    result = subprocess.run(RUN + args + ["--seconds", "1", "--no-osc"] * ("--osc" not in args), capture_output=True,
+                            text=True, timeout=60)
+    assert result.returncode == 1
+    assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_a_show_file_takes_a_crowd_and_names_its_bad_line(tmp_path):
+    show = tmp_path / "show.toml"
+    show.write_text('seconds = 1\nno-osc = true\nquiet = true\nfast = true\ncharacters = 0\n')
+    result = subprocess.run(RUN + ["--config", str(show)], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 1
+    assert f"{show}:5: characters: expected a whole number from 1 to {MAX_CHARACTERS}, not '0'" in result.stderr
+    show.write_text('seconds = 1\nno-osc = true\nquiet = true\nfast = true\ncharacters = 3\nbvh-character = 2\nbvh = "c.bvh"\n')
+    result = subprocess.run(RUN + ["--config", str(show)], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert read_bvh(tmp_path / "c.bvh").frames == 30
+
+
+@pytest.mark.parametrize("elderly, parts", [(0.8, True), (0.8, False), (9.5, False)])  # 9.5: variances at their limit
+def test_the_batched_tables_of_a_crowd_are_each_characters_own(model, elderly, parts):
+    """Characters 1..N-1 get lambda*, durations, range targets and contact tables in one batched
+    pass; each must be what a walker of that character's own controls computes alone."""
+    from instrument.synthesis.contact import contact_space
+    from instrument.synthesis.stream import Crowd
+    from instrument.synthesis.widen import range_space, stride_mean
+
+    engine = Engine(model, characters=4)
+    state = ControlState(model.style_names, model.states)
+    for target, value in (("spread", 0.7), ("style/elderly", elderly), ("speed", 1.3), ("liveliness", 0.5), ("phase/2", 1.4)):
+        state.set(target, value)
+    if parts:
+        state.set(f"part/{model.style_names[1]}/legs", 1.2)
+    controls = state.snapshot()
+    engine.sample(0.0, controls, state.spread)
+    each = engine.each(controls, state.spread, engine.walker)
+    ranges, contact = range_space(model), contact_space(model)
+    for k in range(1, 4):
+        alone = Crowd(engine.space)
+        alone.refresh([each[k]])
+        for name in ("means", "precisions", "base", "sigma", "cadence"):
+            np.testing.assert_allclose(getattr(engine.walker, name)[k], getattr(alone, name)[0], rtol=1e-12, atol=1e-12,
+                                       err_msg=name)
+        mean, factor = engine.each.range_targets
+        np.testing.assert_allclose(mean[k - 1], stride_mean(alone), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(factor[k - 1], ranges.factors(each[k].weights, each[k].part_weights), rtol=1e-12)
+        np.testing.assert_allclose(engine.each.share_tables[k - 1], contact.shares(each[k].weights, each[k].part_weights),
+                                   rtol=1e-12, atol=1e-12)
+
+
+def test_each_character_of_a_crowd_walks_as_it_would_alone(model):
+    """Character k of a crowd (one compiled step, batched tables, batched range filter) makes
+    the frames a walker of its own (its seed, start phase and controls) makes by itself."""
+    from instrument.runtime.crowd import start_phases
+    from instrument.synthesis.offline import drive
+    from instrument.synthesis.stream import Crowd
+    from instrument.synthesis.widen import Widen, range_space
+
+    engine = Engine(model, characters=3)
+    state = ControlState(model.style_names, model.states)
+    state.set("spread", 1.0)
+    state.set("liveliness", 0.6)
+    controls = state.snapshot()
+    made = np.array([engine.sample(i / model.fps, controls, state.spread) for i in range(40)])
+    each = engine.each(controls, state.spread, engine.walker)
+    for k in (1, 2):
+        alone = Crowd(engine.space, 1, seeds=[engine.cast.seeds[k]])
+        start_phases(alone, type(engine.cast)([k], engine.cast.offsets[k:k + 1], engine.cast.phases[k:k + 1]))
+        widen = Widen(range_space(model))
+        frames = [drive(widen.next(alone.step([each[k]])[0], alone, each[k]), alone.cadence[0], controls.turn) for _ in range(40)]
+        np.testing.assert_allclose(made[:, k], np.array(frames), rtol=1e-9, atol=1e-9)
+    assert np.abs(made[:, 1] - made[:, 2]).max() > 0.1
+
+
+def test_an_osc_surface_moves_the_spread_and_sees_it_echoed(tmp_path):
+    from pythonosc.udp_client import SimpleUDPClient
+
+    from oscrecv import free_port
+
+    control_port, receiver = free_port(), Receiver()
+    log = tmp_path / "surface.jsonl"
+    process = subprocess.Popen(RUN + ["--characters", "3", "--osc-in", str(control_port), "--record", str(log),
+                                      "--osc", f"127.0.0.1:{receiver.port}/flat", "--quiet"], stderr=subprocess.PIPE, text=True)
+
+    def spread_echoed() -> bool:
+        return any(a == "/walk/spread" and p[0] == pytest.approx(0.75) for a, p in receiver.messages()[-400:])
+
+    try:
+        wait_until(lambda: frame_count(receiver) >= 10, "10 frames")
+        SimpleUDPClient("127.0.0.1", control_port).send_message("/walk/spread", 0.75)
+        wait_until(spread_echoed, "spread 0.75 echoed")
+    finally:
+        process.terminate()
+        stderr = process.communicate(timeout=60)[1]
+        receiver.close()
+    assert process.returncode == 0, stderr
+    assert '"control": "spread", "value": 0.75' in log.read_text()
