@@ -183,7 +183,7 @@ def _prefetch_row(array, row):  # pragma: no cover - compiled
         _prefetch(flat, j)
 
 
-@njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
+@njit(cache=True, nogil=True, fastmath=True, error_model="numpy", inline="always")
 def _sequence_precisions(variances, t, dynamic, p0, p1, p2):  # pragma: no cover - compiled
     """Frame t's precisions (1 / variance) for the static, delta and delta-delta windows, the two
     dynamic ones times `dynamic` (0 for windows centred on the first or last frame). A loop of its
@@ -196,7 +196,7 @@ def _sequence_precisions(variances, t, dynamic, p0, p1, p2):  # pragma: no cover
         p2[d] = dynamic / variances[t, 2 * dim + d]
 
 
-@njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
+@njit(cache=True, nogil=True, fastmath=True, error_model="numpy", inline="always")
 def _sequence_row(t, means, before, here, after, inverses1, inverses2, z1, z2, l1_last, l1, l2, y):  # pragma: no cover
     """Row t of the whole-sequence solve, formed and eliminated: before, here, after (3, D) hold the
     precisions of frames t - 1, t, t + 1 (rows: static, delta, delta-delta); inverses1, z1: row
@@ -277,7 +277,7 @@ def _solve_sequence(means, variances, y, l1, l2):  # pragma: no cover - compiled
         _substitute_row(y[t], y[t + 1], y[t + 2], l1[t + 1], l2[t + 2])
 
 
-@njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
+@njit(cache=True, nogil=True, fastmath=True, error_model="numpy", inline="always")
 def _substitute_row(x, x1, x2, l1, l2):  # pragma: no cover - compiled
     """x[t] -= l1[t + 1] x[t + 1] + l2[t + 2] x[t + 2], given rows as vectors: indexed as one (T, D)
     array the compiler cannot tell the row written from the rows read, and the loop stays
