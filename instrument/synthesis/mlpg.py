@@ -15,16 +15,16 @@ and only the frames after them are solved for, so a streamed walk has no jump wh
 
 A whole sequence from variances (`mlpg`, what `instrument bench` sets against nnmnkwii) has a
 kernel of its own, `_solve_sequence`: the same elimination without the row table and the fixed
-frames, its rolling buffers picked by reference instead of indexed by slot, and the back
-substitution on row vectors, which the compiler vectorises. Its work arrays are kept between
-calls: fresh ones of 10,000 x 66 came back from the allocator as fresh pages, about 1,000 page
-faults a call, a quarter to a third of the old path's time. Together 1.16-1.42 x the old path
-(10,000 frames x 66 dims, timed turn about in one process, 2 shared cores; docs/mlpg.md).
-Tried and dropped, by the same measure: prange over two halves of the dimensions (the kernel
-over a runtime range of dimensions compiles to slower code, 0.67 x in all; under load the halves
-wait on each other's time slices), blocks of dimensions (1.2-2.4 x slower: each block streams
-the whole input again), a vectorised forward sweep (0.99-1.03 x), one division instead of three
-per frame and dimension (no change: not bound by the divider).
+frames, its work arrays kept between calls (fresh ones came back from the allocator as fresh
+pages). What bound it, measured (docs/mlpg.md): a scalar division takes 1.45 ns here and a
+packed one 0.37 ns per value, and the old row loop, scalar, made four per unknown; the compiler
+would not vectorise it (it writes 11 arrays and reads 7: too many run-time overlap checks);
+where it did vectorise a row, the per-row call with a dozen array arguments and those checks
+ate the gain at 66 dimensions; and the loads of the next rows were issued late behind long
+chains of dependent arithmetic. So: the three precisions' divisions per unknown in a loop of
+their own (`_sequence_precisions`, vectorised), the elimination with one division and no pivot
+kept (`_sequence_row`, vectorised), both inlined into the sweep, and both sweeps prefetching
+rows a few ahead (`_prefetch`, llvm.prefetch through a numba intrinsic).
 """
 
 from __future__ import annotations
@@ -187,8 +187,8 @@ def _prefetch_row(array, row):  # pragma: no cover - compiled
 def _sequence_precisions(variances, t, dynamic, p0, p1, p2):  # pragma: no cover - compiled
     """Frame t's precisions (1 / variance) for the static, delta and delta-delta windows, the two
     dynamic ones times `dynamic` (0 for windows centred on the first or last frame). A loop of its
-    own: with four arrays the compiler vectorises it, and the three divisions per unknown (scalar,
-    4.4 cycles each on this machine) were what bound the sweep."""
+    own: with four arrays the compiler vectorises it, and the three divisions per unknown (1.45 ns
+    each scalar, 0.37 ns packed, on this machine) were what bound the sweep."""
     dim = p0.shape[0]
     for d in range(dim):
         p0[d] = 1.0 / variances[t, d]
