@@ -163,7 +163,7 @@ def _prefetch(typingctx, flat, index):  # pragma: no cover - compiled
         byte_pointer = ir.IntType(8).as_pointer()
         int32 = ir.IntType(32)
         function = cgutils.get_or_insert_function(
-            builder.module, ir.FunctionType(ir.VoidType(), [byte_pointer, int32, int32, int32]), "llvm.prefetch.p0")
+            builder.module, ir.FunctionType(ir.VoidType(), [byte_pointer, int32, int32, int32]), "llvm.prefetch.p0i8")
         address = builder.bitcast(builder.gep(array.data, [args[1]]), byte_pointer)
         builder.call(function, [address, int32(0), int32(3), int32(1)])
         return context.get_dummy_value()
