@@ -83,6 +83,19 @@ def test_mlpg_equals_the_windowed_kernel_on_random_input():
         np.testing.assert_allclose(mlpg(means, variances), before, rtol=0, atol=1e-10 * np.abs(before).max())
 
 
+def test_mlpg_equals_the_windowed_kernel_on_variances_of_many_sizes():
+    """The sequence kernel keeps no pivots, only their inverses (pivot = diag - m1 u1 - m2 a2): on
+    variances spread over eight orders of magnitude it still agrees with the windowed kernel,
+    which keeps both, per dimension."""
+    rng = np.random.default_rng(8)
+    for frames, dim in ((300, 7), (1000, 67)):
+        means = rng.normal(size=(frames, 3 * dim)) * 10.0 ** rng.uniform(-3, 3, size=3 * dim)
+        variances = 10.0 ** rng.uniform(-4, 4, size=(frames, 3 * dim))
+        before = windowed_kernel(means, variances)
+        scale = np.abs(before).max(axis=0)
+        assert np.all(np.abs(mlpg(means, variances) - before) <= 1e-10 * scale)
+
+
 def test_kept_work_arrays_leave_no_trace_between_calls_of_other_sizes():
     inputs = [random_input(frames, dim, frames + dim) for frames, dim in ((800, 9), (30, 9), (30, 4), (1200, 2), (3, 9))]
     first = [mlpg(m, v) for m, v in inputs]

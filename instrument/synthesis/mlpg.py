@@ -15,16 +15,16 @@ and only the frames after them are solved for, so a streamed walk has no jump wh
 
 A whole sequence from variances (`mlpg`, what `instrument bench` sets against nnmnkwii) has a
 kernel of its own, `_solve_sequence`: the same elimination without the row table and the fixed
-frames, its rolling buffers picked by reference instead of indexed by slot, and the back
-substitution on row vectors, which the compiler vectorises. Its work arrays are kept between
-calls: fresh ones of 10,000 x 66 came back from the allocator as fresh pages, about 1,000 page
-faults a call, a quarter to a third of the old path's time. Together 1.16-1.42 x the old path
-(10,000 frames x 66 dims, timed turn about in one process, 2 shared cores; docs/mlpg.md).
-Tried and dropped, by the same measure: prange over two halves of the dimensions (the kernel
-over a runtime range of dimensions compiles to slower code, 0.67 x in all; under load the halves
-wait on each other's time slices), blocks of dimensions (1.2-2.4 x slower: each block streams
-the whole input again), a vectorised forward sweep (0.99-1.03 x), one division instead of three
-per frame and dimension (no change: not bound by the divider).
+frames, its work arrays kept between calls (fresh ones came back from the allocator as fresh
+pages). What bound it, measured (docs/mlpg.md): a scalar division takes 1.45 ns here and a
+packed one 0.37 ns per value, and the old row loop, scalar, made four per unknown; the compiler
+would not vectorise it (it writes 11 arrays and reads 7: too many run-time overlap checks);
+where it did vectorise a row, the per-row call with a dozen array arguments and those checks
+ate the gain at 66 dimensions; and the loads of the next rows were issued late behind long
+chains of dependent arithmetic. So: the three precisions' divisions per unknown in a loop of
+their own (`_sequence_precisions`, vectorised), the elimination with one division and no pivot
+kept (`_sequence_row`, vectorised), both inlined into the sweep, and both sweeps prefetching
+rows a few ahead (`_prefetch`, llvm.prefetch through a numba intrinsic).
 """
 
 from __future__ import annotations
@@ -32,7 +32,10 @@ from __future__ import annotations
 import threading
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from ..motion.features import WINDOWS
 
@@ -150,65 +153,106 @@ def mlpg_continued(means: np.ndarray, precisions: np.ndarray, fixed: np.ndarray,
     return out
 
 
+@intrinsic
+def _prefetch(typingctx, flat, index):  # pragma: no cover - compiled
+    """A hint to bring the cache line holding flat[index] into the caches (llvm.prefetch: read,
+    keep in all levels); no load, nothing waits for it."""
+
+    def codegen(context, builder, signature, args):
+        array = context.make_array(signature.args[0])(context, builder, args[0])
+        byte_pointer = ir.IntType(8).as_pointer()
+        int32 = ir.IntType(32)
+        function = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(ir.VoidType(), [byte_pointer, int32, int32, int32]), "llvm.prefetch.p0i8")
+        address = builder.bitcast(builder.gep(array.data, [args[1]]), byte_pointer)
+        builder.call(function, [address, int32(0), int32(3), int32(1)])
+        return context.get_dummy_value()
+
+    return types.void(flat, index), codegen
+
+
+PREFETCH_ROWS = 4  # how far ahead (in rows of about 1.5 KB at the shipped model) the sweeps ask for memory
+
+
 @njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
-def _sequence_row(t, means, variances, before, here, after, pivots1, pivots2, inverses1, inverses2,
-                  y1, y2, l1_last, l1, l2, y):  # pragma: no cover - compiled
-    """Row t of the whole-sequence solve: frame t + 1's window terms enter `after`, then row t is
-    formed and eliminated. before, here, after: (4, D) terms of frames t - 1, t, t + 1 (delta and
-    delta-delta precisions, zero at the edges, then the same times their means); pivots1,
-    inverses1, y1: row t - 1; pivots2, inverses2, y2: row t - 2, overwritten by row t; l1_last:
-    row t - 1's first multiplier. A function of its own per row: the caller picks the rolling
-    buffers by reference, so nothing here indexes by slot."""
+def _prefetch_row(array, row):  # pragma: no cover - compiled
+    """Prefetch one row of a C-contiguous 2-D array, one hint per 64-byte line."""
+    width = array.shape[1]
+    flat = array.reshape(-1)
+    for j in range(row * width, (row + 1) * width, 8):
+        _prefetch(flat, j)
+
+
+@njit(cache=True, nogil=True, fastmath=True, error_model="numpy", inline="always")
+def _sequence_precisions(variances, t, dynamic, p0, p1, p2):  # pragma: no cover - compiled
+    """Frame t's precisions (1 / variance) for the static, delta and delta-delta windows, the two
+    dynamic ones times `dynamic` (0 for windows centred on the first or last frame). A loop of its
+    own: with four arrays the compiler vectorises it, and the three divisions per unknown (1.45 ns
+    each scalar, 0.37 ns packed, on this machine) were what bound the sweep."""
+    dim = p0.shape[0]
+    for d in range(dim):
+        p0[d] = 1.0 / variances[t, d]
+        p1[d] = dynamic / variances[t, dim + d]
+        p2[d] = dynamic / variances[t, 2 * dim + d]
+
+
+@njit(cache=True, nogil=True, fastmath=True, error_model="numpy", inline="always")
+def _sequence_row(t, means, before, here, after, inverses1, inverses2, z1, z2, l1_last, l1, l2, y):  # pragma: no cover
+    """Row t of the whole-sequence solve, formed and eliminated: before, here, after (3, D) hold the
+    precisions of frames t - 1, t, t + 1 (rows: static, delta, delta-delta); inverses1, z1: row
+    t - 1's inverse pivot and forward value; inverses2, z2: row t - 2's, overwritten by row t's;
+    l1_last: row t - 1's first multiplier, overwritten by row t's. The pivot is eliminated as
+    pivot = diag - m1 u1 - m2 a2 (u1 = m1 x pivot of row t - 1, a2 = m2 x pivot of row t - 2), so
+    no pivot is kept, only its inverse: the same LDL' factors as `_solve` to rounding."""
     frames = means.shape[0]
     dim = y.shape[1]
-    ahead = min(t + 1, frames - 1)
-    dynamic = 1.0 if t + 1 < frames - 1 else 0.0  # windows centred on the last frame have zero precision
+    tp, tn = max(t - 1, 0), min(t + 1, frames - 1)
     for d in range(dim):
-        p1_next = dynamic / variances[ahead, dim + d]
-        p2_next = dynamic / variances[ahead, 2 * dim + d]
-        q1_next = p1_next * means[ahead, dim + d]
-        q2_next = p2_next * means[ahead, 2 * dim + d]
-        after[0, d] = p1_next
-        after[1, d] = p2_next
-        after[2, d] = q1_next
-        after[3, d] = q2_next
-        p0 = 1.0 / variances[t, d]
-        p1_prev = before[0, d]
-        p2_prev = before[1, d]
-        p2_here = here[1, d]
+        p0 = here[0, d]
+        p2_here = here[2, d]
+        p1_prev = before[1, d]
+        p2_prev = before[2, d]
+        p1_next = after[1, d]
+        p2_next = after[2, d]
         diag = (p0 + D_PREV * D_PREV * p1_next + D_NEXT * D_NEXT * p1_prev
                 + A_PREV * A_PREV * p2_next + A_MID * A_MID * p2_here + A_NEXT * A_NEXT * p2_prev)
-        rhs = (p0 * means[t, d] + A_MID * here[3, d] + D_PREV * q1_next + A_PREV * q2_next
-               + D_NEXT * before[2, d] + A_NEXT * before[3, d])
+        rhs = (p0 * means[t, d] + A_MID * p2_here * means[t, 2 * dim + d]
+               + D_PREV * p1_next * means[tn, dim + d] + A_PREV * p2_next * means[tn, 2 * dim + d]
+               + D_NEXT * p1_prev * means[tp, dim + d] + A_NEXT * p2_prev * means[tp, 2 * dim + d])
         a1 = A_PREV * A_MID * p2_here + A_MID * A_NEXT * p2_prev  # A[t-1, t]
         a2 = D_PREV * D_NEXT * p1_prev + A_PREV * A_NEXT * p2_prev  # A[t-2, t]
         m2 = a2 * inverses2[d]
-        m1 = (a1 - m2 * pivots2[d] * l1_last[d]) * inverses1[d]
-        pivot = diag - m1 * m1 * pivots1[d] - m2 * m2 * pivots2[d]
-        inverse = 1.0 / pivot
-        value = (rhs - m1 * pivots1[d] * y1[d] - m2 * pivots2[d] * y2[d]) * inverse
-        pivots2[d] = pivot
+        u1 = a1 - a2 * l1_last[d]
+        m1 = u1 * inverses1[d]
+        inverse = 1.0 / (diag - m1 * u1 - m2 * a2)
+        z = rhs - m1 * z1[d] - m2 * z2[d]
         inverses2[d] = inverse
-        y2[d] = value
+        z2[d] = z
         l1_last[d] = m1
         l1[t, d] = m1
         l2[t, d] = m2
-        y[t, d] = value
+        y[t, d] = z * inverse
 
 
 @njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
 def _solve_sequence(means, variances, y, l1, l2):  # pragma: no cover - compiled
-    """Whole-sequence MLPG from variances: means, variances (T, 3D); y (T, D) receives the
-    solution; l1, l2 (T, D) work, any content. The same elimination as `_solve` with no fixed
-    frames and no row table: every buffer it reads it has written first."""
+    """Whole-sequence MLPG from variances: means, variances (T, 3D), C-contiguous; y (T, D)
+    receives the solution; l1, l2 (T, D) work, any content. The same elimination as `_solve` with
+    no fixed frames and no row table; every buffer it reads it has written first. Both sweeps ask
+    for the rows they will read a few rows ahead (`_prefetch_row`): the loops keep the core busy
+    with long chains of dependent arithmetic, so the loads of the next rows were issued late."""
     frames, width = means.shape
     dim = width // 3
-    frame_a, frame_b, frame_c = np.zeros((4, dim)), np.zeros((4, dim)), np.zeros((4, dim))
-    pivots_a, pivots_b = np.ones(dim), np.ones(dim)
+    frame_a, frame_b, frame_c = np.zeros((3, dim)), np.zeros((3, dim)), np.zeros((3, dim))
     inverses_a, inverses_b = np.ones(dim), np.ones(dim)
-    y_a, y_b = np.zeros(dim), np.zeros(dim)
+    z_a, z_b = np.zeros(dim), np.zeros(dim)
     l1_last = np.zeros(dim)
-    for t in range(frames):  # frame s's terms live in frame_[abc][s % 3]; frame -1 and frame 0 stay zero
+    # frame s's precisions live in frame_[abc][s % 3]; frame -1 stays zero; frame 0 has no dynamic ones
+    _sequence_precisions(variances, 0, 0.0, frame_a[0], frame_a[1], frame_a[2])
+    for t in range(frames):
+        if t + PREFETCH_ROWS < frames:
+            _prefetch_row(means, t + PREFETCH_ROWS)
+            _prefetch_row(variances, t + PREFETCH_ROWS)
         slot = t % 3
         if slot == 0:
             before, here, after = frame_c, frame_a, frame_b
@@ -216,20 +260,24 @@ def _solve_sequence(means, variances, y, l1, l2):  # pragma: no cover - compiled
             before, here, after = frame_a, frame_b, frame_c
         else:
             before, here, after = frame_b, frame_c, frame_a
+        dynamic = 1.0 if t + 1 < frames - 1 else 0.0  # windows centred on the last frame have zero precision
+        _sequence_precisions(variances, min(t + 1, frames - 1), dynamic, after[0], after[1], after[2])
         if t % 2 == 0:  # row t - 1 in the b buffers; row t - 2 in the a buffers, which row t takes
-            _sequence_row(t, means, variances, before, here, after, pivots_b, pivots_a, inverses_b, inverses_a,
-                          y_b, y_a, l1_last, l1, l2, y)
+            _sequence_row(t, means, before, here, after, inverses_b, inverses_a, z_b, z_a, l1_last, l1, l2, y)
         else:
-            _sequence_row(t, means, variances, before, here, after, pivots_a, pivots_b, inverses_a, inverses_b,
-                          y_a, y_b, l1_last, l1, l2, y)
+            _sequence_row(t, means, before, here, after, inverses_a, inverses_b, z_a, z_b, l1_last, l1, l2, y)
     if frames >= 2:
         for d in range(dim):
             y[frames - 2, d] -= l1[frames - 1, d] * y[frames - 1, d]
     for t in range(frames - 3, -1, -1):
+        if t >= PREFETCH_ROWS:
+            _prefetch_row(y, t - PREFETCH_ROWS)
+            _prefetch_row(l1, t - PREFETCH_ROWS + 1)
+            _prefetch_row(l2, t - PREFETCH_ROWS + 2)
         _substitute_row(y[t], y[t + 1], y[t + 2], l1[t + 1], l2[t + 2])
 
 
-@njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
+@njit(cache=True, nogil=True, fastmath=True, error_model="numpy", inline="always")
 def _substitute_row(x, x1, x2, l1, l2):  # pragma: no cover - compiled
     """x[t] -= l1[t + 1] x[t + 1] + l2[t + 2] x[t + 2], given rows as vectors: indexed as one (T, D)
     array the compiler cannot tell the row written from the rows read, and the loop stays
