@@ -35,6 +35,11 @@ from .stopping import StopFlag
 
 STATUS_EVERY = 0.5  # seconds of wall time
 LEAD_MARGIN = 0.0005  # seconds added to the expected work of a frame when waking before its deadline
+LEAD_SPREAD = 1.25  # ... after scaling it by this: a crowd's work varies by milliseconds (style changes)
+# the earliest a frame's work starts, in frames before its deadline: a single character's work
+# takes a millisecond or two, so this only binds for a crowd, whose work can fill most of a frame
+# (the rest is for the OS and live input); a frame whose work takes longer is late
+MAX_LEAD_FRAMES = 0.9
 INPUT_BUDGET = IDLE_UNTIL  # seconds of input handling per look: what is left waits for the next look
 
 
@@ -225,7 +230,7 @@ def perform(
             # if taken at its start), so a flood of them is handled while waiting, not at the frame
             expected = max(np.percentile(work_times, 99), work_times[-1]) if work_times else 0.5 / fps
             upcoming = (index + 1) / fps
-            clock.advance(lead=min(expected + LEAD_MARGIN, 0.5 / fps),
+            clock.advance(lead=min(LEAD_SPREAD * expected + LEAD_MARGIN, MAX_LEAD_FRAMES / fps),
                           idle=(lambda: take_live(upcoming)) if live_sources else None)
     except KeyboardInterrupt:  # a caller that kept Python's own SIGINT handler
         pass
