@@ -1,6 +1,7 @@
 """Crowds (`run --characters N`): real UDP on 127.0.0.1, real processes, real files."""
 
 import filecmp
+import json
 import socket
 import subprocess
 import sys
@@ -169,16 +170,34 @@ def test_a_recorded_crowd_replays_byte_for_byte(tmp_path):
     score.write_text('[[cue]]\nat = 0.2\nramp = { spread = 1.0, "style/elderly" = 1.0 }\nover = 1.5\n'
                      '[[cue]]\nafter = 0.2\nramp = { liveliness = 1.0, speed = 1.4 }\nover = 0.5\n')
     log, first, second = tmp_path / "crowd.jsonl", tmp_path / "first.bvh", tmp_path / "second.bvh"
-    crowd = ["--characters", "4", "--bvh-character", "3", "--no-osc", "--quiet", "--fast", "--seconds", "3"]
-    result = subprocess.run(RUN + crowd + ["--score", str(score), "--record", str(log), "--bvh", str(first)],
+    common = ["--bvh-character", "3", "--no-osc", "--quiet", "--fast", "--seconds", "3"]
+    result = subprocess.run(RUN + ["--characters", "4", "--spacing", "2.5"] + common
+                            + ["--score", str(score), "--record", str(log), "--bvh", str(first)],
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert '"spread"' in log.read_text()
-    result = subprocess.run(RUN + crowd + ["--replay", str(log), "--bvh", str(second)], capture_output=True, text=True,
+    assert json.loads(log.read_text().splitlines()[0])["crowd"] == {"characters": 4, "spacing": 2.5}
+    # the log's header says which crowd it played: no --characters or --spacing needed
+    result = subprocess.run(RUN + common + ["--replay", str(log), "--bvh", str(second)], capture_output=True, text=True,
                             timeout=120)
     assert result.returncode == 0, result.stderr
     assert filecmp.cmp(first, second, shallow=False)
     assert read_bvh(first).frames == 90
+    # an option given on the command line wins over the header's (and walks another crowd)
+    other = tmp_path / "other.bvh"
+    result = subprocess.run(RUN + common + ["--spacing", "1.5", "--replay", str(log), "--bvh", str(other)],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert not filecmp.cmp(first, other, shallow=False)  # spacing 1.5, not 2.5: character 3 stands elsewhere
+
+
+def test_a_log_with_a_bad_crowd_is_one_line(tmp_path):
+    log = tmp_path / "bad.jsonl"
+    log.write_text(json.dumps({"instrument_log": 1, "mappings": [], "crowd": {"characters": 0, "spacing": 1.0}}) + "\n")
+    result = subprocess.run(RUN + ["--replay", str(log), "--no-osc", "--fast"], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 1
+    assert f"{log}:1: header crowd characters: expected a whole number from 1" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
 
 
 @pytest.mark.parametrize("args, message", [

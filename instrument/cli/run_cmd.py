@@ -14,7 +14,7 @@ from ..control.hid import HidInput
 from ..control.hid import choose_mapping as choose_hid_mapping
 from ..control.hid_feedback import HidFeedback
 from ..control.hub import ControlHub
-from ..control.loghead import header_line, logged_mappings, unreadable_sources
+from ..control.loghead import header_line, logged_crowd, logged_mappings, unreadable_sources
 from ..control.mapping import load_mapping, parse_hid_id, preset_problems, style_problems
 from ..control.score import ScorePlayer, load_score
 from ..control.state import ControlState
@@ -196,7 +196,13 @@ def check_recordings(args: argparse.Namespace) -> None:
 
 def crowd_options(args: argparse.Namespace) -> tuple[int, float, int, int]:
     """--characters, --spacing, --bvh-character (a character of the crowd) and --vmc-characters
-    (how many of the crowd a VMC target sends, at most all), checked."""
+    (how many of the crowd a VMC target sends, at most all), checked; a replayed log's crowd
+    where --characters and --spacing are not given."""
+    logged, where = logged_crowd(args.replay) if args.replay else ({}, "")  # a replay walks the crowd it recorded
+    if args.characters is None and "characters" in logged:
+        args.characters = option_value("run --characters", logged["characters"], where=f"{where} characters")
+    if args.spacing is None and logged.get("spacing") is not None:
+        args.spacing = option_value("run --spacing", logged["spacing"], where=f"{where} spacing")
     characters = 1 if args.characters is None else option_value("run --characters", args.characters)
     spacing = DEFAULT_SPACING if args.spacing is None else option_value("run --spacing", args.spacing)
     chosen = 0 if args.bvh_character is None else option_value("run --bvh-character", args.bvh_character)
@@ -306,7 +312,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
             outputs.append(RecorderOutput(args.bvh, model, fps, replace=args.force, character=bvh_character))
             created.append(args.bvh)
         if args.record:
-            hub.start_recording(args.record, header_line(mappings), replace=args.force)
+            hub.start_recording(args.record, header_line(mappings, characters, spacing), replace=args.force)
             created.append(args.record)
         health = Health(console, outputs, devices, SystemdNotifier(), health_every, args.status_port)  # watches every output
     except UserError:
