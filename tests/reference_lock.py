@@ -14,11 +14,32 @@ from instrument.motion.limbs import centimetres_per_unit, find_limbs
 from instrument.runtime.pose import Pose
 from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, POSSIBLE,
                                           PLANTED, SWING_BENT, SWING_CM)
-from instrument.synthesis.follow import STRENGTH, RootFollow
+from instrument.synthesis.follow import STRENGTH
 
 
 def EASE(x: float) -> float:
     return x * x * (3.0 - 2.0 * x)  # smoothstep: the lock starts and ends with zero speed
+
+
+class _Follow:
+    """The body following its stance foot (instrument.synthesis.follow), written out plainly for
+    one character: each frame the body takes `strength` of each planted foot's horizontal slide
+    in the generated pose, weighted by its lock's eased blend (both planted: their mean)."""
+
+    def __init__(self):
+        self.offset = np.zeros(3)
+        self.previous: np.ndarray | None = None
+
+    def step(self, pivots: np.ndarray, blend: np.ndarray, strength: float) -> np.ndarray:
+        if self.previous is not None:
+            weights = [EASE(float(b)) for b in blend]
+            total = max(sum(weights), 1.0)
+            for f in range(2):
+                slide = pivots[f] - self.previous[f]
+                self.offset[0] -= strength * weights[f] / total * slide[0]
+                self.offset[2] -= strength * weights[f] / total * slide[2]
+        self.previous = np.array(pivots, dtype=np.float64)
+        return self.offset.copy()
 
 
 def _swing_share(world_pos: np.ndarray, leg) -> float:
@@ -188,7 +209,7 @@ class PoseStream:
     def __init__(self, layout: FeatureLayout, fps: float, lock: FootLock | None = None):
         self.layout, self.fps = layout, fps
         self.lock = lock  # plants the feet when the frame says how surely each is planted
-        self.follow = RootFollow()  # the body follows its stance foot
+        self.follow = _Follow()  # the body follows its stance foot
         self.position = np.zeros(3)
         self.heading = 0.0
         self.index = 0
@@ -210,8 +231,7 @@ class PoseStream:
         """The frame's translations with the body moved after its stance foot, by the lock's
         blend of each foot so far."""
         world_pos = forward_kinematics(self.layout.skeleton, rotations, translations)[1][0]
-        strengths = np.array([STRENGTH if strength is None else strength])
-        offset = self.follow.step(world_pos[self.lock.pivot][None], self.lock.weight[None], strengths)[0]
+        offset = self.follow.step(world_pos[self.lock.pivot], self.lock.weight, STRENGTH if strength is None else strength)
         moved = translations.copy()
         moved[0, self.layout.root] += offset @ self.lock.parent_rot  # world to the root's parent's frame
         return moved

@@ -262,6 +262,31 @@ def test_the_batched_tables_of_a_crowd_are_each_characters_own(model, elderly, p
                                    rtol=1e-12, atol=1e-12)
 
 
+def test_character_0_of_a_crowd_walks_exactly_as_a_run_of_one(model):
+    """docs/crowds.md's promise: the lead does not change when a crowd grows around it (same
+    frames, same planted feet, bit for bit), through a style jump out of the data."""
+    from instrument.runtime.crowd import floor_positions
+    from instrument.runtime.pose import CrowdPoses
+
+    single, crowd = Engine(model), Engine(model, characters=3)
+    one = CrowdPoses(model.layout, model.fps, 1, single.foot_lock(model.fps))
+    many = CrowdPoses(model.layout, model.fps, 3, crowd.foot_lock(model.fps), positions=floor_positions(model, 3))
+    state = ControlState(model.style_names, model.states)
+    state.set("spread", 1.0)
+    state.set("liveliness", 0.5)
+    moved = 0.0
+    for i in range(90):
+        if i == 45:
+            state.set("style/feminine", 2.0)
+        controls = state.snapshot()
+        alone = one.next(single.sample(i / model.fps, controls, state.spread), single.contact_shares, single.follow_strengths)
+        lead = many.next(crowd.sample(i / model.fps, controls, state.spread), crowd.contact_shares, crowd.follow_strengths)
+        assert np.array_equal(alone.rotations[0], lead.rotations[0]), i
+        assert np.array_equal(alone.world_positions[0], lead.world_positions[0]), i
+        moved = max(moved, np.abs(lead.world_positions[1] - lead.world_positions[0]).max())
+    assert moved > 0.0  # the others are elsewhere (and walk otherwise)
+
+
 def test_each_character_of_a_crowd_walks_as_it_would_alone(model):
     """Character k of a crowd (one compiled step, batched tables, batched range filter) makes
     the frames a walker of its own (its seed, start phase and controls) makes by itself."""

@@ -8,7 +8,8 @@ import numpy as np
 
 from instrument.models.modelfile import default_model_path, load_model
 from instrument.runtime.pose import PoseStream
-from instrument.synthesis.contact import FootLock, contact_space
+from instrument.synthesis.contact import contact_space
+from instrument.synthesis.footlock import FootLock
 from instrument.synthesis.interpolation import style_space
 from instrument.synthesis.offline import default_controls, generate_with_states
 
@@ -22,7 +23,7 @@ shares = contact.shares(controls.weights)[ids]
 def per_frame_us(lock: bool, follow: bool = True) -> float:
     stream = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps) if lock else None)
     if not follow:
-        stream._follow = lambda rotations, translations, strength: translations  # the lock alone
+        stream.crowd._follow = lambda *args: None  # the lock alone
     start = time.perf_counter()
     for row, share in zip(static, shares):
         stream.next(row, share if lock else None)

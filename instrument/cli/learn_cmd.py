@@ -22,7 +22,7 @@ from .arguments import checked
 QUIET_AFTER = 0.8  # seconds without messages that end a capture
 HID_JITTER = 0.02  # share of an axis's range a HID control must move by to count as moving
 RANGES = {"style": (-1.0, 2.0), "part": (-1.0, 2.0), "speed": (0.5, 2.0), "phase": (0.5, 2.0), "turn": (-1.0, 1.0),
-          "liveliness": (0.0, 1.0)}
+          "liveliness": (0.0, 1.0), "spread": (0.0, 1.0)}
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

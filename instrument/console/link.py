@@ -15,7 +15,7 @@ import numpy as np
 
 from ..control.events import ControlEvent
 from ..control.state import ControlState
-from ..control.targets import MAX_TURN, WEIGHT_LIMIT
+from ..control.targets import MAX_TURN, TABLE, WEIGHT_LIMIT
 from ..control.values import all_values
 from ..errors import UserError
 from ..runtime.console import Console
@@ -50,7 +50,8 @@ def hello(model, state: ControlState, presets: dict, morph: float, save_path: st
         "joints": list(skeleton.names), "parents": [j.parent for j in skeleton.joints], "root": model.layout.root,
         "fps": fps, "morph": morph, "save": save_path, "presets": sorted(presets), "order": list(all_values(state)),
         "ranges": {"weight": [-WEIGHT_LIMIT, WEIGHT_LIMIT], "slider": list(SLIDER_WEIGHTS), "speed": [MIN_SPEED, MAX_SPEED],
-                   "turn": [-MAX_TURN, MAX_TURN], "liveliness": [0.0, 1.0], "spread": [0.0, 1.0], "phase": [MIN_SPEED, MAX_SPEED]},
+                   "turn": [-MAX_TURN, MAX_TURN], "liveliness": [TABLE["liveliness"].low, TABLE["liveliness"].high],
+                   "spread": [TABLE["spread"].low, TABLE["spread"].high], "phase": [MIN_SPEED, MAX_SPEED]},
     }
 
 

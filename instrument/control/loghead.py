@@ -48,7 +48,7 @@ def _header(path: str | Path) -> tuple[dict | None, int]:
             continue
         try:
             item = json.loads(line)
-        except json.JSONDecodeError:
+        except (json.JSONDecodeError, RecursionError):  # too deeply nested is bad JSON too
             return None, 0  # not a header: read_log names the bad line
         return (item, number) if is_header(item) else (None, 0)
     return None, 0

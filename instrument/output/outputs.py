@@ -6,7 +6,7 @@ import numpy as np
 
 from ..models.modelfile import Model
 from ..runtime.console import Console
-from ..runtime.pose import Pose, pose_channels
+from ..runtime.pose import CrowdPose, Pose, pose_channels
 from .flat import FlatProfile
 from .humanoid import guess_humanoid, read_humanoid
 from .osc import OscTarget, UdpOut
@@ -25,7 +25,7 @@ class OscOutput:
         self.whole_crowd = getattr(profile, "whole_crowd", False)
         self.out = UdpOut(target, console)
 
-    def prepare(self, pose: Pose | list[Pose], echo: dict[str, float]) -> list[bytes]:
+    def prepare(self, pose: Pose | CrowdPose, echo: dict[str, float]) -> list[bytes]:
         return self.profile.datagrams(pose, echo)
 
     def send(self, datagrams: list[bytes]) -> None:

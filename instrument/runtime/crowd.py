@@ -1,7 +1,7 @@
 """A crowd in the live instrument: N walkers around the performed walk (docs/crowds.md).
 
 Character 0 walks exactly as performed, as a run of one character does. Every other character
-k has, drawn once from its own seed (the run's seed + k, so a replay is exact):
+k has, drawn once from its own seed (0 + k, so a replay is exact):
 
 - a style offset of its own: a style mix (a Dirichlet draw over the styles: mostly one or two
   of them) minus the even mix, so its weights add up to 0. The `spread` control scales it: a
@@ -200,9 +200,7 @@ def range_factors_many(ranges: RangeSpace, weights: np.ndarray, parts: np.ndarra
         outside = np.maximum(-weights, 0.0).sum(axis=1) + np.maximum(total - 1.0, 0.0)
         blended = ranges.base + (positive / np.maximum(total, 1.0)[:, None]) @ ranges.offsets
         return np.exp(RANGE_STRENGTH * np.clip(1.0 - outside, 0.0, 1.0)[:, None] * np.clip(blended, -RANGE_LIMIT, RANGE_LIMIT))
-    per_dim = np.broadcast_to(weights[:, :, None], weights.shape + ranges.offsets.shape[1:])
-    if parts is not None:
-        per_dim = np.where(np.isnan(parts), weights[:, :, None], parts) @ ranges.group_masks
+    per_dim = np.where(np.isnan(parts), weights[:, :, None], parts) @ ranges.group_masks
     positive = np.maximum(per_dim, 0.0)
     total = positive.sum(axis=1)
     outside = np.maximum(-per_dim, 0.0).sum(axis=1) + np.maximum(total - 1.0, 0.0)

@@ -152,6 +152,8 @@ def perform(
     engine = Engine(model, lookahead, characters=characters)
     poses = CrowdPoses(model.layout, fps, characters, engine.foot_lock(fps), positions=floor_positions(model, characters, spacing))
     wanted = [None if getattr(output, "whole_crowd", False) else getattr(output, "character", 0) for output in outputs]
+    if any(k is not None and not 0 <= k < characters for k in wanted):  # `run` checks this for the user
+        raise ValueError(f"an output asks for a character outside the crowd of {characters}: {wanted}")
     clock = FrameClock(fps, realtime=not fast)
     for output in outputs:
         if hasattr(output, "watch"):  # an output that shows late frames (the console)

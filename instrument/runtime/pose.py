@@ -96,6 +96,8 @@ class CrowdPoses:
         if self.lock is not None and shares is not None:
             self._follow(translations, world_pos, np.full(self.count, STRENGTH) if follow is None else follow)
             self.lock.apply(self.lock_state, rotations, translations, shares, world_rot, world_pos)
+        elif self.lock is not None:  # no feet planted this frame: the body stays where following took it
+            self._shift(translations, world_pos, self.follow.offset)
         pose = CrowdPose(self.index, self.index / self.fps, rotations, translations, world_rot, world_pos)
         self.index += 1
         return pose
@@ -105,7 +107,11 @@ class CrowdPoses:
         foot so far: the root's translation and, as the whole skeleton hangs from the root,
         every joint's world position."""
         pivots = world_pos[:, self.lock.feet[:, -1]]  # (N, 2, 3) in the generated pose
-        offset = self.follow.step(pivots, self.lock_state.weights, np.asarray(strengths, dtype=np.float64))
+        self._shift(translations, world_pos, self.follow.step(pivots, self.lock_state.weights,
+                                                              np.asarray(strengths, dtype=np.float64)))
+
+    def _shift(self, translations: np.ndarray, world_pos: np.ndarray, offset: np.ndarray) -> None:
+        """Moves each body by its world offset (N, 3) in place."""
         translations[:, self.layout.root] += offset @ self.lock.parent_rot  # world to the root's parent's frame
         world_pos += offset[:, None, :]
 

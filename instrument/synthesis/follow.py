@@ -1,6 +1,6 @@
 """The body follows its stance foot: part of a planted foot's generated slide moves the body.
 
-The foot lock (contact.py) holds a planted foot where it landed while the generated body
+The foot lock (footlock.py) holds a planted foot where it landed while the generated body
 travels on. Where the generated leg sweeps less ground than the body travels, the lock's leg IK
 makes up the difference by stretching the leg and swinging the thigh further back than the
 data does (the hip's range grows, the knee's shrinks). Here the body takes STRENGTH of that
@@ -12,7 +12,8 @@ IK, because what the body takes it no longer travels: all of it (STRENGTH 1) slo
 speed within 3% of the real takes. Outside the data (x2, -1) the generated slide is larger and
 speed has nothing real to match, so the body takes more (`strength`).
 
-The offset grows by at most STRENGTH times a foot's slide per frame, so nothing jumps, and a
+The offset grows by at most the character's strength (STRENGTH inside the data, up to
+STRENGTH_OFF_DATA outside it) times a foot's slide per frame, so nothing jumps, and a
 style change shows in the next frame. It is causal: it uses the lock's blend of the frame
 before. Its state is arrays with one row per character, so it batches over a crowd.
 """
@@ -24,7 +25,6 @@ from numba import njit
 
 STRENGTH = 0.2  # share of a planted foot's generated slide the body takes inside the data (chosen by `instrument evaluate`)
 STRENGTH_OFF_DATA = 0.5  # ... a whole weight unit outside it (x2, -1), where speed has no real takes to match
-HORIZONTAL = np.array([1.0, 0.0, 1.0])
 
 
 @njit(cache=True, error_model="numpy")
@@ -61,10 +61,23 @@ class RootFollow:
         the frame's generated pose (N, 2, 3), how far each foot's lock was blended in, 0 to 1,
         over the step from the frame before to this one (N, 2), and each character's
         `strength` (N,)."""
-        pivots = np.array(pivots, dtype=np.float64)
-        slide = np.nan_to_num((pivots - self.previous) * HORIZONTAL)  # a character's first frame has no slide
-        weight = ease(np.asarray(blend, dtype=np.float64))
-        share = weight / np.maximum(weight.sum(axis=1, keepdims=True), 1.0)  # both feet planted: their mean
-        self.offset -= (np.asarray(strengths)[:, None, None] * share[:, :, None] * slide).sum(axis=1)
-        self.previous = pivots
+        _follow_step(np.ascontiguousarray(pivots, dtype=np.float64), np.ascontiguousarray(blend, dtype=np.float64),
+                     np.ascontiguousarray(strengths, dtype=np.float64), self.offset, self.previous)
         return self.offset.copy()
+
+
+@njit(cache=True, error_model="numpy")
+def _follow_step(pivots, blend, strengths, offset, previous):  # pragma: no cover - compiled
+    """`RootFollow.step` in place on `offset` and `previous` (compiled: as numpy it cost a single
+    character several times the foot lock itself)."""
+    for n in range(pivots.shape[0]):
+        w0, w1 = ease(blend[n, 0]), ease(blend[n, 1])
+        total = max(w0 + w1, 1.0)  # both feet planted: their mean
+        for f in range(2):
+            share = (w0 if f == 0 else w1) / total
+            for axis in (0, 2):  # horizontal only
+                slide = pivots[n, f, axis] - previous[n, f, axis]
+                if slide == slide:  # NaN: a character's first frame has no slide
+                    offset[n, axis] -= strengths[n] * share * slide
+            for axis in range(3):
+                previous[n, f, axis] = pivots[n, f, axis]

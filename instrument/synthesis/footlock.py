@@ -39,7 +39,8 @@ class LockState:
     weights: np.ndarray  # (N, 2) how far each foot's lock is blended in, 0..1
     points: np.ndarray  # (N, 2, 3) world point each foot is locked to (NaN before its first landing)
     drop: np.ndarray  # (N,) how far the body is lowered for a planted leg to reach the floor
-    previous: np.ndarray  # (N, 2, 3) each pivot's generated position in the frame before (NaN at first)
+    previous: np.ndarray  # (N, 2, 3) each pivot's position in the frame before, the body's follow offset
+    # included (NaN at first): what the lock's 'nearly still' test measures; not RootFollow.previous
 
     def release(self, n: int) -> None:
         """Character n's feet unlocked, as before its first frame (it was put somewhere else)."""

@@ -307,5 +307,7 @@ def mlpg(means: np.ndarray, variances: np.ndarray) -> np.ndarray:
     variances = np.ascontiguousarray(variances, dtype=np.float64)
     frames, width = means.shape
     out = np.empty((frames, width // 3))
+    if frames == 0:  # the kernel reads frame 0 unchecked
+        return out
     _solve_sequence(means, variances, out, *_work(frames, width // 3))
     return out
