@@ -1,4 +1,4 @@
-"""Shared test fixtures: where the real motion capture lives, and how to skip without it."""
+"""Shared test fixtures: the shipped model, where the real motion capture lives, and how to skip without it."""
 
 from __future__ import annotations
 
@@ -18,6 +18,22 @@ def walk_files() -> list[Path]:
 
 
 needs_walks = pytest.mark.skipif(not walk_files(), reason=f"real walks not found in {SHARED_WALKS}")
+
+
+@pytest.fixture(scope="session")
+def model():
+    """The shipped default model (plain data: no test changes it)."""
+    from instrument.models.modelfile import default_model_path, load_model
+
+    return load_model(default_model_path())
+
+
+@pytest.fixture(scope="session")
+def space(model):
+    """The shipped model's style space."""
+    from instrument.synthesis.interpolation import style_space
+
+    return style_space(model)
 
 
 @pytest.fixture(scope="session")

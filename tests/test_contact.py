@@ -5,7 +5,6 @@ import dataclasses
 import numpy as np
 import pytest
 
-from instrument.models.modelfile import default_model_path, load_model
 from instrument.models.symmetry import symmetric_models
 from instrument.motion.features import extract
 from instrument.motion.kinematics import world_positions
@@ -15,16 +14,6 @@ from instrument.synthesis.footlock import FootLock, leg_swings
 from instrument.synthesis.interpolation import style_space
 from instrument.synthesis.offline import default_controls, generate_with_states, synthesize_motion
 from instrument.synthesis.stream import Controls, Crowd
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model(default_model_path())
-
-
-@pytest.fixture(scope="module")
-def space(model):
-    return style_space(model)
 
 
 def test_two_bone_ik_reaches_a_reachable_target_and_keeps_the_bones():

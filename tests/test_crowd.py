@@ -11,7 +11,6 @@ import pytest
 
 from instrument.cli.arguments import MAX_CHARACTERS
 from instrument.control.state import ControlState
-from instrument.models.modelfile import default_model_path, load_model
 from instrument.motion.bvh import read_bvh
 from instrument.motion.kinematics import local_transforms
 from instrument.runtime.crowd import metres_to_units
@@ -21,11 +20,6 @@ from oscrecv import Receiver, frame_count
 from waiting import wait_until
 
 RUN = [sys.executable, "-m", "instrument", "run"]
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model(default_model_path())
 
 
 def by_frame(messages: list[tuple[str, list]]) -> list[dict[str, list]]:

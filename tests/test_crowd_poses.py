@@ -5,25 +5,14 @@ import numpy as np
 import pytest
 
 import reference_lock as reference
-from instrument.models.modelfile import default_model_path, load_model
 from instrument.runtime.pose import CrowdPoses, PoseStream
 from instrument.synthesis.contact import contact_space
 from instrument.synthesis.footlock import FootLock
-from instrument.synthesis.interpolation import GROUPS, style_space
+from instrument.synthesis.interpolation import GROUPS
 from instrument.synthesis.offline import drive
 from instrument.synthesis.stream import Controls, Crowd
 
 FIELDS = ("rotations", "translations", "world_rotations", "world_positions")
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model(default_model_path())
-
-
-@pytest.fixture(scope="module")
-def space(model):
-    return style_space(model)
 
 
 def _performance(model, frames: int, variant: int) -> list[Controls]:

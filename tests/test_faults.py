@@ -30,18 +30,12 @@ from instrument.control.events import ControlEvent, read_log
 from instrument.control.hub import ControlHub
 from instrument.control.state import ControlState
 from instrument.control.targets import TABLE, problem, raw_problem
-from instrument.models.modelfile import default_model_path, load_model
 from instrument.motion.bvh import read_bvh
 from instrument.output.osc import message as osc_message
 from oscrecv import Receiver, free_port
 
 RUN = [sys.executable, "-m", "instrument", "run"]
 SEED = 13
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model(default_model_path())
 
 
 def wait_until(check, what: str, deadline: float = 60.0):

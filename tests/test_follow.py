@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 
-from instrument.models.modelfile import default_model_path, load_model
 from instrument.motion.bvh import Motion
 from instrument.motion.kinematics import channels_from_local, world_positions
 from instrument.motion.limbs import centimetres_per_unit
@@ -45,11 +44,6 @@ def test_the_body_takes_more_outside_the_data():
     assert strength(-np.eye(7)[2]) == STRENGTH_OFF_DATA
     assert strength(np.eye(7)[2] * 1.5) == pytest.approx((STRENGTH + STRENGTH_OFF_DATA) / 2)
     assert STRENGTH < STRENGTH_OFF_DATA <= 1.0
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model(default_model_path())
 
 
 def _figures(model, style: str, weight: float, follow: float | None, frames: int = 420) -> dict:

@@ -23,18 +23,12 @@ from instrument.control.hub import ControlHub
 from instrument.control.mapping import Mapper, load_mapping
 from instrument.control.state import ControlState
 from instrument.errors import UserError
-from instrument.models.modelfile import default_model_path, load_model
 from instrument.runtime.console import Console
 from instrument.runtime.performance import perform
 from instrument.shipped import shipped_mappings
 from instrument.tomlfile import read_toml
 
 MAPPINGS = REPO / "mappings"
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model(default_model_path())
 
 
 def state_of(model) -> ControlState:

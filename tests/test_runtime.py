@@ -12,7 +12,6 @@ import pytest
 
 from instrument.control.events import ControlEvent, LogReplay, read_log
 from instrument.errors import UserError
-from instrument.models.modelfile import default_model_path, load_model
 from instrument.motion.bvh import read_bvh
 from instrument.output.osc import MAX_BUNDLE, parse_target
 from instrument.output.recorder import BvhRecorder
@@ -23,11 +22,6 @@ from oscrecv import Receiver, frame_count, free_port
 from waiting import wait_until
 
 RUN = [sys.executable, "-m", "instrument", "run"]
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model(default_model_path())
 
 
 def test_flat_profile_sends_every_frame_consecutively_with_all_bones(model):

@@ -12,16 +12,10 @@ from conftest import REPO
 from instrument.control.events import ControlEvent
 from instrument.control.score import ScorePlayer, eased, load_score
 from instrument.control.state import ControlState
-from instrument.models.modelfile import default_model_path, load_model
 from instrument.motion.bvh import read_bvh
 from oscrecv import Receiver, free_port
 
 RUN = [sys.executable, "-m", "instrument", "run"]
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model(default_model_path())
 
 
 def state_of(model) -> ControlState:

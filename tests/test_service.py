@@ -21,7 +21,6 @@ from instrument.control.hub import ControlHub
 from instrument.control.mapping import load_mapping
 from instrument.control.score import preset_tour
 from instrument.control.state import ControlState
-from instrument.models.modelfile import default_model_path, load_model
 from instrument.runtime.console import Console
 from instrument.runtime.health import Health
 from instrument.runtime.notify import SystemdNotifier
@@ -29,11 +28,6 @@ from instrument.runtime.performance import perform
 from oscrecv import Receiver, free_port
 
 RUN = [sys.executable, "-m", "instrument", "run"]
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model(default_model_path())
 
 
 class NotifyListener:

@@ -3,24 +3,13 @@
 import numpy as np
 import pytest
 
-from instrument.models.modelfile import default_model_path, load_model
 from instrument.synthesis.durations import state_durations, whole_frames
-from instrument.synthesis.interpolation import GROUPS, interpolate, style_space
+from instrument.synthesis.interpolation import GROUPS, interpolate
 from instrument.synthesis.mlpg import mlpg, mlpg_continued
 from instrument.synthesis.offline import default_controls, synthesize
 from instrument.synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Crowd
 
 WINDOWS = [(0, 0, np.array([1.0])), (1, 1, np.array([-0.5, 0.0, 0.5])), (1, 1, np.array([1.0, -2.0, 1.0]))]
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model(default_model_path())
-
-
-@pytest.fixture(scope="module")
-def space(model):
-    return style_space(model)
 
 
 @pytest.mark.parametrize("frames", [1, 2, 3, 4, 7, 50, 1000])

@@ -5,22 +5,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from instrument.models.modelfile import default_model_path, load_model
 from instrument.runtime.pose import PoseStream
-from instrument.synthesis.interpolation import style_space
 from instrument.synthesis.offline import default_controls, generate_with_states
 from instrument.synthesis.stream import Controls, Crowd
 from instrument.synthesis.widen import KEPT, SETTLE, Widen, _generated_variance, range_space, stride_mean
-
-
-@pytest.fixture(scope="module")
-def model():
-    return load_model(default_model_path())
-
-
-@pytest.fixture(scope="module")
-def space(model):
-    return style_space(model)
 
 
 def _widened(model, space, weights_per_frame):
