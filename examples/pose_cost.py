@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
+from instrument.cli.bench_cmd import median_seconds
 from instrument.models.modelfile import load_model
 from instrument.motion.features import ROOT_FEATURES, FeatureLayout
 from instrument.motion.kinematics import _compose
@@ -74,13 +74,7 @@ def kinematics_numpy(parents: np.ndarray, rotations: np.ndarray, translations: n
 
 
 def per_frame_us(work, frames: int, repeat: int) -> float:
-    work()  # warm up (and compile)
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        work()
-        times.append(time.perf_counter() - start)
-    return 1e6 * float(np.median(times)) / frames
+    return 1e6 * median_seconds(work, repeat) / frames
 
 
 def main() -> None:
