@@ -93,7 +93,9 @@ DUALSENSE_USB = bytes.fromhex(
 
 # Nintendo Switch Pro Controller (057e:2009), USB
 # from ToadKing's dump of a real controller, gist.github.com/ToadKing/b883a8ccfa26adcc6ba9905e75aeb4f2
-# (as reproduced in the Switch reverse-engineering projects that cite it)
+# (as reproduced in the Switch reverse-engineering projects that cite it). The controller never sends
+# a report in this layout: over USB it is silent until a host's `80 02` handshake, then sends vendor
+# reports (SDL's and hid-nintendo's). Kept for the parser: its sticks are 4-byte extended usages.
 SWITCH_PRO_USB = bytes.fromhex(
     "05 01 15 00 09 04 a1 01 85 30 05 01 05 09 19 01"
     "29 0a 15 00 25 01 75 01 95 0a 55 00 65 00 81 02"
@@ -108,6 +110,27 @@ SWITCH_PRO_USB = bytes.fromhex(
     "81 03 85 01 09 03 75 08 95 3f 91 83 85 10 09 04"
     "75 08 95 3f 91 83 85 80 09 05 75 08 95 3f 91 83"
     "85 82 09 06 75 08 95 3f 91 83 c0"
+)
+
+# Nintendo Switch Pro Controller (057e:2009) over Bluetooth: the descriptor in its SDP record
+# (attribute 0x0206), as JoyConDroid presents it to a Switch when it plays a Pro Controller
+# (github.com/TeamJCD/JoyConDroid, app/src/main/java/com/rdapps/gamepad/protocol/ControllerType.java,
+# DESCRIPTOR; the same 170 bytes a Pro-Controller-mode pad published to `sdptool browse`).
+# Report 0x3F, the simple HID report it sends until a host switches it to its vendor reports 0x21 and
+# 0x30 (dekuNukem/Nintendo_Switch_Reverse_Engineering, bluetooth_hid_notes.md, "INPUT 0x3F"): Buttons
+# 1-16, a hat with a null state, 4 bits padding, X, Y, Rx, Ry 16 bits each. 0x21, 0x30-0x33: vendor page.
+SWITCH_PRO_BT = bytes.fromhex(
+    "05 01 09 05 a1 01 06 01 ff 85 21 09 21 75 08 95"
+    "30 81 02 85 30 09 30 75 08 95 30 81 02 85 31 09"
+    "31 75 08 96 69 01 81 02 85 32 09 32 75 08 96 69"
+    "01 81 02 85 33 09 33 75 08 96 69 01 81 02 85 3f"
+    "05 09 19 01 29 10 15 00 25 01 75 01 95 10 81 02"
+    "05 01 09 39 15 00 25 07 75 04 95 01 81 42 05 09"
+    "75 04 95 01 81 01 05 01 09 30 09 31 09 33 09 34"
+    "16 00 00 27 ff ff 00 00 75 10 95 04 81 02 06 01"
+    "ff 85 01 09 01 75 08 95 30 91 02 85 10 09 10 75"
+    "08 95 30 91 02 85 11 09 11 75 08 95 30 91 02 85"
+    "12 09 12 75 08 95 30 91 02 c0"
 )
 
 # Xbox One S Wireless Controller (045e:02fd) over Bluetooth, Linux-mode firmware

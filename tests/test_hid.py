@@ -8,12 +8,14 @@ from __future__ import annotations
 import io
 import struct
 import sys
+import types
 from argparse import Namespace
 from typing import ClassVar
 
 import pytest
 from conftest import REPO
-from hid_descriptors import DUALSENSE_USB, DUALSHOCK4_BT, DUALSHOCK4_USB, SPACENAVIGATOR_USB, SWITCH_PRO_USB, XBOX_WIRELESS_BT
+from hid_descriptors import (DUALSENSE_USB, DUALSHOCK4_BT, DUALSHOCK4_USB, SPACENAVIGATOR_USB, SWITCH_PRO_BT, SWITCH_PRO_USB,
+                             XBOX_WIRELESS_BT)
 from hid_sim import SimulatedDevice, SimulatedHid
 
 from instrument.control import hid as hid_module
@@ -55,10 +57,12 @@ def xbox_report(x=32768, y=32768, z=32768, rz=32768, brake=0, accelerator=0, hat
     return struct.pack("<BHHHHHHBHB", 0x01, x, y, z, rz, brake, accelerator, hat, buttons, back)
 
 
-def switch_pro_report(x=32768, y=32768, z=32768, rz=32768, buttons=0, hat=8) -> bytes:
-    """Switch Pro Controller input report 0x30 as its USB descriptor lays it out: Buttons 1-14 in
-    16 bits, X Y Z Rz 16 bits each, hat 4 bits with Buttons 15-18, 52 bytes of padding."""
-    return struct.pack("<BHHHHHB", 0x30, buttons & 0x3FFF, x, y, z, rz, hat | ((buttons >> 14) << 4)) + bytes(52)
+def switch_pro_report(x=0x8000, y=0x8000, rx=0x8000, ry=0x8000, buttons=0, hat=8) -> bytes:
+    """Switch Pro Controller over Bluetooth, its simple HID report 0x3F, 12 bytes: two bytes of buttons
+    (B A Y X L R ZL ZR, then - + LS RS Home Capture: SDL's SDL_hidapi_switch.c, HandleSimpleControllerState),
+    the hat (0 up, clockwise, 8 released) with 4 bits of padding, then the sticks, 16 bits each, centred
+    at 0x8000 (dekuNukem's bluetooth_hid_notes.md, "INPUT 0x3F": `3F 28 CA 08 00 80 00 80 00 80 00 80`)."""
+    return struct.pack("<BHBHHHH", 0x3F, buttons, hat, x, y, rx, ry)
 
 
 def spacenav_report(report_id: int, a=0, b=0, c=0) -> bytes:
@@ -71,6 +75,24 @@ def spacenav_buttons(pressed: int) -> bytes:
     return bytes([0x03, pressed, 0x00])  # `03 01 00`: button 1
 
 
+# A made-up joystick: X, Y 10 bits; 4 bits padding; Slider, Dial signed 8 bits; a 4-way hat with a
+# null state; 12 buttons; no report ids. Bits: X 0-9, Y 10-19, Slider 24-31, Dial 32-39, Hat 40-43,
+# Buttons 44-55.
+MADE_UP_JOYSTICK = bytes.fromhex(
+    "05 01 09 04 a1 01"
+    "15 00 26 ff 03 75 0a 95 02 09 30 09 31 81 02"
+    "75 04 95 01 81 03"
+    "15 81 25 7f 75 08 09 36 09 37 95 02 81 02"
+    "09 39 15 00 25 03 35 00 46 0e 01 65 14 75 04 95 01 81 42 65 00"
+    "05 09 19 01 29 0c 15 00 25 01 75 01 95 0c 81 02"
+    "c0")
+
+
+def joystick_report(x=512, y=512, slider=0, dial=0, hat=4, buttons=0) -> bytes:
+    bits = x | y << 10 | (slider & 0xFF) << 24 | (dial & 0xFF) << 32 | hat << 40 | buttons << 44
+    return bits.to_bytes(7, "little")
+
+
 # Descriptors
 
 @pytest.mark.parametrize("descriptor,lengths,names", [
@@ -80,6 +102,7 @@ def spacenav_buttons(pressed: int) -> bytes:
      + [f"Button {k}" for k in range(1, 16)] + ["AC Back", "AC Home", "0006:0020"]),
     (SWITCH_PRO_USB, {0x30: 64}, [f"Button {k}" for k in range(1, 15)] + ["X", "Y", "Z", "Rz", "Hat"]
      + [f"Button {k}" for k in range(15, 19)]),
+    (SWITCH_PRO_BT, {0x3F: 12}, [f"Button {k}" for k in range(1, 17)] + ["Hat", "X", "Y", "Rx", "Ry"]),
     (DUALSHOCK4_BT, {1: 10}, ["X", "Y", "Z", "Rz", "Hat"] + [f"Button {k}" for k in range(1, 15)] + ["Rx", "Ry"]),
     (SPACENAVIGATOR_USB, {1: 7, 2: 7, 3: 3}, ["X", "Y", "Z", "Rx", "Ry", "Rz", "Button 1", "Button 2"]),
 ])
@@ -140,20 +163,30 @@ def test_xbox_report_by_usage():
 
 
 def test_switch_pro_report_by_usage():
-    values = decoded(SWITCH_PRO_USB, switch_pro_report(x=65535, y=0, buttons=(1 << 6) | (1 << 15), hat=4))
-    assert values["X"] == 1.0 and values["Y"] == 0.0
-    assert values["Button 7"] == 1.0 and values["Button 16"] == 1.0 and values["Button 8"] == 0.0
+    # over Bluetooth: its simple report 0x3F; ZL (Button 7) and Capture (Button 14) held, hat down
+    values = decoded(SWITCH_PRO_BT, switch_pro_report(x=65535, y=0, rx=16384, buttons=(1 << 6) | (1 << 13), hat=4))
+    assert values["X"] == 1.0 and values["Y"] == 0.0 and values["Rx"] == pytest.approx(16384 / 65535)
+    assert values["Ry"] == pytest.approx(0x8000 / 65535)  # at rest
+    assert values["Button 7"] == 1.0 and values["Button 14"] == 1.0 and values["Button 8"] == 0.0
     assert values["Hat/down"] == 1.0
 
 
-def test_switch_pro_sticks_decode_from_their_extended_usages():
-    # its descriptor names the sticks with 4-byte usages (`0B 30 00 01 00`: Generic Desktop X) while
-    # the Usage Page in effect is Buttons; a parser that ignores the high half loses them
+def test_switch_pro_over_bluetooth_vendor_reports_are_counted_not_decoded():
+    # once a driver (the kernel's hid-nintendo, SDL) has switched it to its full report 0x30, 49 bytes
+    # of vendor data: counted as vendor-only, so a silent pad says why
+    pad = SimulatedDevice(SWITCH_PRO_BT, 0x057E, 0x2009)
+    device = HidInput(Console(stream=io.StringIO()), 0x057E, 0x2009, hid=SimulatedHid(pad))
+    pad.send(switch_pro_report(hat=8), bytes([0x30, 0x5A, 0x8E, 0x00, 0x00, 0x00]) + bytes(43))
+    assert dict(device.read_raw())["Hat"] == -1.0
+    assert device.dropped["vendor-only"] == 1
+
+
+def test_switch_pro_usb_descriptor_names_its_sticks_with_extended_usages():
+    # its USB descriptor names the sticks with 4-byte usages (`0B 30 00 01 00`: Generic Desktop X) while
+    # the Usage Page in effect is Buttons; a parser that ignores the high half loses them. (The pad never
+    # sends a report in this layout, so none is decoded here: see SWITCH_PRO_USB.)
     sticks = {c.name: c.page for c in parse_descriptor(SWITCH_PRO_USB).controls if c.size == 16}
     assert sticks == {"X": 0x01, "Y": 0x01, "Z": 0x01, "Rz": 0x01}
-    values = decoded(SWITCH_PRO_USB, switch_pro_report(x=0, y=65535, z=16384, rz=49152))
-    assert values["X"] == 0.0 and values["Y"] == 1.0
-    assert values["Z"] == pytest.approx(16384 / 65535) and values["Rz"] == pytest.approx(49152 / 65535)
 
 
 def test_spacenavigator_reports_by_usage():
@@ -234,19 +267,20 @@ class Watch:
 DRIVES = [  # mapping, device descriptor and ids, a report moving one control, the target and value it gives
     ("sony-dualshock4", DUALSHOCK4_USB, (0x054C, 0x05C4), ds4_report(ry=0), "style/elderly", -1.5),
     ("xbox-wireless-bluetooth", XBOX_WIRELESS_BT, (0x045E, 0x0B13), xbox_report(brake=1023), "style/exhausted", 2.0),
-    ("nintendo-switch-pro", SWITCH_PRO_USB, (0x057E, 0x2009), switch_pro_report(x=0), "turn", 1.2),
+    ("nintendo-switch-pro", SWITCH_PRO_BT, (0x057E, 0x2009), switch_pro_report(rx=65535), "style/masculine", 1.5),
     ("3dconnexion-spacemouse", SPACENAVIGATOR_USB, (0x046D, 0xC626), spacenav_report(2, 0, 0, -350), "turn", 1.2),
-    ("generic-gamepad", DUALSENSE_USB, (0x054C, 0x0CE6), dualsense_report(rx=255), "style/masculine", 1.5),
+    ("generic-gamepad", MADE_UP_JOYSTICK, (0x16C0, 0x05DC), joystick_report(x=0), "turn", 1.2),
+    ("sony-dualshock4", DUALSENSE_USB, (0x054C, 0x0CE6), dualsense_report(rx=255), "style/masculine", 1.5),
 ]
 
 
-@pytest.mark.parametrize("name,descriptor,ids,report,target,value", DRIVES, ids=[d[0] for d in DRIVES])
+@pytest.mark.parametrize("name,descriptor,ids,report,target,value", DRIVES, ids=[f"{d[0]}-{d[2][0]:04x}" for d in DRIVES])
 def test_every_shipped_hid_mapping_drives_the_walk(model, name, descriptor, ids, report, target, value):
     sim = SimulatedDevice(descriptor, *ids)
     hid = SimulatedHid(sim)
     state = state_of(model)
     shipped = [load_mapping(p, state) for p in shipped_mappings()]
-    mapping, why = choose_mapping(shipped, *ids, hid=hid)  # by vendor:product, or by usages (the DualSense)
+    mapping, why = choose_mapping(shipped, *ids, hid=hid)  # by vendor:product, or by usages (the joystick, the DualSense)
     assert mapping.path.endswith(f"{name}.toml"), why
     console = Console(stream=io.StringIO())
     device = HidInput(console, *ids, hid=hid)
@@ -263,11 +297,54 @@ def test_generic_gamepad_is_chosen_by_usages_only_when_no_mapping_names_the_devi
     shipped = [load_mapping(p, state) for p in shipped_mappings()]
     ds4 = SimulatedHid(SimulatedDevice(DUALSHOCK4_USB, 0x054C, 0x09CC))
     assert choose_mapping(shipped, 0x054C, 0x09CC, hid=ds4)[0].name == "Sony DualShock 4"
-    nav = SimulatedHid(SimulatedDevice(SPACENAVIGATOR_USB, 0x1234, 0x0001, usage=(1, 8)))
-    chosen, why = choose_mapping(shipped, 0x1234, 0x0001, hid=nav)  # two buttons: not a gamepad
-    assert chosen is None and "fits its controls" in why
-    chosen, why = choose_mapping(shipped, 0x1234, 0x0002, hid=nav)
+    stick = SimulatedHid(SimulatedDevice(MADE_UP_JOYSTICK, 0x16C0, 0x05DC, usage=(1, 4)))
+    assert choose_mapping(shipped, 0x16C0, 0x05DC, hid=stick) == (
+        next(m for m in shipped if m.name == "Generic gamepad"), "by its usages")
+    chosen, why = choose_mapping(shipped, 0x1234, 0x0002, hid=stick)
     assert chosen is None and "not here" in why
+    # a mouse-like device with two axes and three buttons fits nothing: said with what it has
+    mouse = bytes.fromhex("05 01 09 02 a1 01 05 09 19 01 29 03 15 00 25 01 75 01 95 03 81 02 95 05 81 03"
+                          "05 01 09 30 09 31 15 81 25 7f 75 08 95 02 81 06 c0")
+    chosen, why = choose_mapping(shipped, 0x1234, 0x0003, hid=SimulatedHid(SimulatedDevice(mouse, 0x1234, 0x0003)))
+    assert chosen is None and "fits its controls (X (-127..127 relative), Y (-127..127 relative), Button 1-3)" in why
+
+
+def test_every_shipped_device_file_names_its_devices_by_ids_and_by_usages(model):
+    state = state_of(model)
+    for path in shipped_mappings():
+        mapping = load_mapping(path, state)
+        if mapping.hid or mapping.hid_usages:
+            assert mapping.hid_usages, f"{path}: no hid-usages"
+            assert mapping.hid or path.name == "generic-gamepad.toml", f"{path}: no vendor:product"
+
+
+def test_a_spacemouse_with_an_unlisted_id_takes_the_spacemouse_file_and_a_gamepad_does_not(model):
+    state = state_of(model)
+    shipped = [load_mapping(p, state) for p in shipped_mappings()]
+    nav = SimulatedHid(SimulatedDevice(SPACENAVIGATOR_USB, 0x256F, 0xC6FF, usage=(1, 8)))  # an id no file names
+    chosen, why = choose_mapping(shipped, 0x256F, 0xC6FF, hid=nav)
+    assert chosen.path.endswith("3dconnexion-spacemouse.toml") and why == "by its usages"
+    # a gamepad with all six axes and two buttons is not a multi-axis controller: not the SpaceMouse's file
+    pad = SimulatedHid(SimulatedDevice(DUALSENSE_USB, 0x054C, 0x0CE6))
+    chosen, why = choose_mapping(shipped, 0x054C, 0x0CE6, hid=pad)
+    assert chosen.path.endswith("sony-dualshock4.toml") and why == "by its usages"  # the DualShock 4's layout
+    for descriptor, ids, name in ((SWITCH_PRO_BT, (0x057E, 0x2FFF), "nintendo-switch-pro"),
+                                  (XBOX_WIRELESS_BT, (0x045E, 0x0FFF), "xbox-wireless-bluetooth"),
+                                  (DUALSHOCK4_USB, (0x1234, 0x0004), "sony-dualshock4")):  # clones: ids no file names
+        chosen, why = choose_mapping(shipped, *ids, hid=SimulatedHid(SimulatedDevice(descriptor, *ids)))
+        assert chosen.path.endswith(f"{name}.toml") and why == "by its usages", name
+
+
+def test_a_device_whose_descriptor_cannot_be_parsed_says_so_not_that_it_is_away(model):
+    state = state_of(model)
+    shipped = [load_mapping(p, state) for p in shipped_mappings()]
+    broken = SimulatedHid(SimulatedDevice(b"\x05\x01\x09\x05\xa1\x01\x85", 0x1234, 0x0005))  # cut inside an item
+    chosen, why = choose_mapping(shipped, 0x1234, 0x0005, hid=broken)
+    assert chosen is None and "not here" not in why
+    assert "its usages cannot be read: cannot parse the HID report descriptor (7 bytes): byte 6:" in why
+    with pytest.raises(UserError, match="byte 6"):
+        hid_module.device_descriptor(broken, 0x1234, 0x0005)
+    assert hid_module.device_descriptor(broken, 0x1234, 0x0006) is None  # not plugged in
 
 
 def test_a_recorded_log_with_the_old_dualshock4_names_replays_the_same(model):
@@ -350,25 +427,7 @@ def test_dualshock4_light_bar_shows_the_leading_styles_colour(model):
     assert [r[6:9] for r in sim.written] == [rgb["none"], rgb["active"], rgb["exhausted"]]
 
 
-# A device the project has never seen
-
-# A made-up joystick: X, Y 10 bits; 4 bits padding; Slider, Dial signed 8 bits; a 4-way hat with a
-# null state; 12 buttons; no report ids. Bits: X 0-9, Y 10-19, Slider 24-31, Dial 32-39, Hat 40-43,
-# Buttons 44-55.
-MADE_UP_JOYSTICK = bytes.fromhex(
-    "05 01 09 04 a1 01"
-    "15 00 26 ff 03 75 0a 95 02 09 30 09 31 81 02"
-    "75 04 95 01 81 03"
-    "15 81 25 7f 75 08 09 36 09 37 95 02 81 02"
-    "09 39 15 00 25 03 35 00 46 0e 01 65 14 75 04 95 01 81 42 65 00"
-    "05 09 19 01 29 0c 15 00 25 01 75 01 95 0c 81 02"
-    "c0")
-
-
-def joystick_report(x=512, y=512, slider=0, dial=0, hat=4, buttons=0) -> bytes:
-    bits = x | y << 10 | (slider & 0xFF) << 24 | (dial & 0xFF) << 32 | hat << 40 | buttons << 44
-    return bits.to_bytes(7, "little")
-
+# A device the project has never seen (MADE_UP_JOYSTICK, above)
 
 def test_a_made_up_joystick_is_decoded_with_no_code_for_it():
     values = decoded(MADE_UP_JOYSTICK, joystick_report(x=1023, slider=-127, dial=127, hat=1, buttons=1 << 11))
@@ -422,6 +481,7 @@ def test_instrument_devices_lists_each_hid_devices_controls_by_usage(monkeypatch
                        SimulatedDevice(MADE_UP_JOYSTICK, 0x16C0, 0x05DC, "Knob box", usage=(1, 4)),
                        SimulatedDevice(DUALSENSE_USB, 0x054C, 0x0CE6, "DualSense"),
                        SimulatedDevice(SPACENAVIGATOR_USB, 0x1234, 0x0001, "Six axes, two buttons", usage=(1, 8)),
+                       SimulatedDevice(b"\x05\x01\x09\x05\xa1\x01\x85", 0x1234, 0x0005, "Broken pad"),
                        SimulatedDevice(b"", 0x046D, 0xC077, "USB Optical Mouse", usage=(1, 2)))
     monkeypatch.setattr(hid_module, "hidapi", lambda: bus)
     monkeypatch.setattr(devices_cmd, "hidapi", lambda: bus)
@@ -433,8 +493,11 @@ def test_instrument_devices_lists_each_hid_devices_controls_by_usage(monkeypatch
     lines = out.splitlines()
     knobs = lines.index("    controls: X (0..1023), Y (0..1023), Slider (-127..127), Dial (-127..127), Hat, Button 1-12")
     assert "Knob box" in lines[knobs - 1] and "generic-gamepad.toml (by its usages)" in lines[knobs - 1]
-    assert "generic-gamepad.toml (by its usages)" in next(line for line in lines if "DualSense" in line)
-    assert "no shipped mapping" in next(line for line in lines if "Six axes" in line)
+    assert "sony-dualshock4.toml (by its usages)" in next(line for line in lines if "DualSense" in line)
+    assert "3dconnexion-spacemouse.toml (by its usages)" in next(line for line in lines if "Six axes" in line)
+    broken = next(k for k, line in enumerate(lines) if "Broken pad" in line)
+    assert "no shipped mapping" in lines[broken]
+    assert lines[broken + 1].startswith("    controls: (cannot read them: cannot parse the HID report descriptor (7 bytes): byte 6:")
     assert "Mouse" not in out
 
 
@@ -450,7 +513,7 @@ def test_instrument_run_plays_a_hid_device_through_its_mapping_with_feedback(mon
     assert main(["run", "--hid", "054c:0ce6", "--seconds", "1", "--no-osc", "--quiet", "--normal-priority",
                  "--record", str(log)]) == 0
     err = capsys.readouterr().err
-    assert "HID mapping: Generic gamepad" in err and "by its usages" in err
+    assert "HID mapping: Sony DualShock 4" in err and "by its usages" in err
     assert '"control": "Rx", "value": 1.0' in log.read_text()  # recorded by usage, normalised
     light.send(ds4_report(r2=255))
     assert main(["run", "--hid", "054c:09cc", "--seconds", "1", "--no-osc", "--quiet", "--normal-priority"]) == 0

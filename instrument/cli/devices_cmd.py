@@ -7,8 +7,9 @@ import re
 
 from ..control.devices import midi_backend
 from ..control.hid import choose_mapping as choose_hid_mapping
-from ..control.hid import describe_controls, device_controls, hidapi
+from ..control.hid import describe_controls, device_descriptor, hidapi
 from ..control.mapping import load_mapping
+from ..errors import UserError
 from ..shipped import shipped_mappings
 
 PLAYABLE = {(1, 4), (1, 5), (1, 8)}  # Generic Desktop joystick, gamepad, multi-axis controller
@@ -48,12 +49,16 @@ def run(args: argparse.Namespace) -> int:
         playable = (info.get("usage_page"), info.get("usage")) in PLAYABLE
         if not playable and not any(m.hid and ids in m.hid for m in mappings):
             continue  # keyboards, mice, UPSes...: nothing a performer plays
-        controls = device_controls(hid, *ids)
+        try:
+            descriptor = device_descriptor(hid, *ids)
+            controls = describe_controls(descriptor.controls) if descriptor else "(unplugged just now)"
+        except UserError as error:  # a descriptor that cannot be parsed: said, with the byte
+            controls = f"(cannot read them: {error})"
         shown.add(ids)
         fit, why = choose_hid_mapping(mappings, *ids, hid=hid)
         print(f"  {ids[0]:04x}:{ids[1]:04x} {info.get('product_string') or ''}  ->  "
               f"{f'{fit.path} ({why})' if fit else 'no shipped mapping (instrument learn --hid writes one)'}")
-        print(f"    controls: {describe_controls(controls) if controls else '(cannot read its report descriptor)'}")
+        print(f"    controls: {controls}")
     if not shown:
         print("  none")
     return 0

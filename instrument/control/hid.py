@@ -26,6 +26,7 @@ import functools
 import math
 import os
 import re
+import sys
 import time
 from dataclasses import dataclass, field
 
@@ -44,6 +45,9 @@ USAGE_NAMES = {
     SIMULATION: {0xBA: "Rudder", 0xBB: "Throttle", 0xC4: "Accelerator", 0xC5: "Brake", 0xC8: "Steering"},
     CONSUMER: {0x223: "AC Home", 0x224: "AC Back"},
 }
+# what a device says it is: the usage of its application collection, matched by a mapping's `hid-usages`
+APPLICATION_NAMES = {(GENERIC_DESKTOP, 0x04): "Joystick", (GENERIC_DESKTOP, 0x05): "Game Pad",
+                     (GENERIC_DESKTOP, 0x08): "Multi-axis Controller"}
 HAT_DIRECTIONS = ("up", "right", "down", "left")
 HAT_EIGHT = (("up",), ("up", "right"), ("right",), ("down", "right"), ("down",), ("down", "left"), ("left",), ("up", "left"))
 HAT_FOUR = (("up",), ("right",), ("down",), ("left",))
@@ -55,7 +59,7 @@ USAGE_NAME = re.compile(rf"(?:(?:{_NAMED})|Hat/(?:up|right|down|left)|Button [1-
 # The DualShock 4's names before controls were named by usage (mapping files and recorded logs
 # written then still work): name -> (usage name, full scale of the old raw value)
 DS4_NAMES = {"lx": ("X", 255.0), "ly": ("Y", 255.0), "rx": ("Z", 255.0), "ry": ("Rz", 255.0), "l2": ("Rx", 255.0),
-             "r2": ("Ry", 255.0)}
+             "r2": ("Ry", 255.0), "hat": ("Hat", 7.0)}  # the old hat: 0 (up) to 7 (up-left) clockwise, 8 released
 DS4_NAMES.update({f"button/{b}": (f"Button {k + 1}", 1.0) for k, b in enumerate(
     ("square", "cross", "circle", "triangle", "l1", "r1", "l2", "r2", "share", "options", "l3", "r3"))})
 DS4_NAMES.update({f"button/{d}": (f"Hat/{d}", 1.0) for d in HAT_DIRECTIONS})
@@ -69,9 +73,17 @@ def canonical_input(name: str) -> str | None:
 
 
 def legacy_event(control: str, value: float) -> tuple[str, float]:
-    """A recorded DualShock 4 event of the old naming (raw 0..255) as a usage-named one (0..1)."""
+    """A recorded DualShock 4 event of the old naming (raw 0..255; the hat 0..7, 8 released) as a
+    usage-named one (0..1; a released hat -1)."""
     name, scale = DS4_NAMES[control]
+    if name == "Hat" and value > scale:
+        return name, -1.0
     return name, value / scale
+
+
+def is_usage_name(name: str) -> bool:
+    """Whether `name` can stand in a mapping's `hid-usages`: a control's usage name or an application's."""
+    return USAGE_NAME.fullmatch(name) is not None or name in APPLICATION_NAMES.values()
 
 
 def usage_name(page: int, usage: int) -> str:
@@ -163,6 +175,7 @@ class Descriptor:
     layouts: dict[int, ReportLayout]
     outputs: dict[int, tuple[int, list[OutputField]]] = field(default_factory=dict)  # report id -> (bytes, fields)
     vendor_only: set[int] = field(default_factory=set)  # input reports declared with no controls (vendor data)
+    applications: tuple[str, ...] = ()  # what the device says it is (Game Pad, Multi-axis Controller, PPPP:UUUU)
 
     @property
     def controls(self) -> list[HidControl]:
@@ -211,7 +224,8 @@ def _parse(data: bytes) -> Descriptor:
         fields = [OutputField(f.page, f.usage, report_id, f.bit, f.size, f.logical_min, f.logical_max)
                   for f in report.fields if not f.constant]
         outputs[report_id] = (report.length, fields)
-    return Descriptor(layouts, outputs, vendor_only)
+    applications = tuple(APPLICATION_NAMES.get(a) or f"{a[0]:04x}:{a[1]:04x}" for a in parsed.applications)
+    return Descriptor(layouts, outputs, vendor_only, applications)
 
 
 HIDIOCGRDESCSIZE = 0x80044801  # _IOR('H', 0x01, int)
@@ -240,7 +254,16 @@ def read_descriptor(device, path) -> bytes:
 
 
 def hidapi():
-    """The hidapi binding (`import hid`), or a UserError saying how to get it."""
+    """The hidapi binding: on Linux its hidraw backend (`import hidraw`, the same API), which reads
+    USB and Bluetooth devices through /dev/hidraw*; elsewhere, or without it, `import hid` (on Linux
+    that one is libusb: USB devices only, none over Bluetooth). A UserError says how to get it."""
+    if sys.platform.startswith("linux"):
+        try:
+            import hidraw
+
+            return hidraw
+        except ImportError:
+            pass
     try:
         import hid
     except ImportError as error:
@@ -424,21 +447,29 @@ class HidInput:
             self.device = None
 
 
-def device_controls(hid, vendor: int, product: int) -> list[HidControl] | None:
-    """The controls of a device that is plugged in now (None if it is not, or cannot be read)."""
+def device_descriptor(hid, vendor: int, product: int) -> Descriptor | None:
+    """The descriptor of a device plugged in now (its first interface with controls), None if it is
+    not here; UserError saying why if it is here but cannot be read (a descriptor that cannot be
+    parsed says at which byte)."""
+    problems = []
     for info in hid.enumerate(vendor, product):
         try:
             device, descriptor = open_device(hid, info)
-        except (OSError, UserError):
+        except (OSError, UserError) as error:
+            problems.append(str(error))
             continue
         device.close()
         if descriptor.layouts:
-            return descriptor.controls
+            return descriptor
+        problems.append("its report descriptor declares no controls")
+    if problems:
+        raise UserError("; ".join(dict.fromkeys(problems)))
     return None
 
 
-def matches_usages(wanted: tuple[str, ...], controls: list[HidControl]) -> bool:
-    names = {c.name for c in controls}
+def matches_usages(wanted: tuple[str, ...], descriptor: Descriptor) -> bool:
+    """Whether a device has every usage a mapping's `hid-usages` asks for (controls and what it is)."""
+    names = {c.name for c in descriptor.controls} | set(descriptor.applications)
     return all(w in names for w in wanted)
 
 
@@ -459,12 +490,17 @@ def choose_mapping(mappings: list, vendor: int, product: int, hid=None) -> tuple
     if by_id:
         return by_id[0], "by vendor:product"
     candidates = [m for m in mappings if m.hid_usages]
-    controls = device_controls(hid if hid is not None else hidapi(), vendor, product) if candidates else None
-    if controls is None:
+    if not candidates:
+        return None, "no mapping names this device"
+    try:
+        descriptor = device_descriptor(hid if hid is not None else hidapi(), vendor, product)
+    except UserError as error:
+        return None, f"no mapping names this device, and its usages cannot be read: {error}"
+    if descriptor is None:
         return None, "no mapping names this device, and it is not here to read its usages from"
-    fitting = [m for m in candidates if matches_usages(m.hid_usages, controls)]
+    fitting = [m for m in candidates if matches_usages(m.hid_usages, descriptor)]
     if not fitting:
-        return None, f"no mapping names this device or fits its controls ({describe_controls(controls)})"
+        return None, f"no mapping names this device or fits its controls ({describe_controls(descriptor.controls)})"
     return max(fitting, key=lambda m: len(m.hid_usages)), "by its usages"
 
 

@@ -7,10 +7,11 @@ usages given (it does not repeat the last usage, so the DualShock 4's report 1 c
 bytes, not 64), reads 4-byte extended usages under the current page (losing the Switch Pro
 Controller's sticks), and stops on Push, Pop and Delimiter items.
 
-What is read: main items (Input, Output, Feature, Collection, End Collection), global items
-(Usage Page, Logical Minimum/Maximum as signed numbers, Report Size, Report ID, Report Count,
-Push, Pop), local items (Usage, Usage Minimum/Maximum, Delimiter: the first usage of a
-delimited set), 4-byte extended usages (usage page in the high 16 bits), long items (skipped).
+What is read: main items (Input, Output, Feature, Collection: the usage of each application
+collection, End Collection), global items (Usage Page, Logical Minimum/Maximum as signed numbers,
+Report Size, Report ID, Report Count, Push, Pop), local items (Usage, Usage Minimum/Maximum,
+Delimiter: the first usage of a delimited set), 4-byte extended usages (usage page in the high
+16 bits), long items (skipped).
 Physical ranges, units, designators and strings are read past: nothing here uses them.
 """
 
@@ -21,6 +22,7 @@ from dataclasses import dataclass, field
 INPUT, OUTPUT, FEATURE = "input", "output", "feature"
 _MAIN_KINDS = {0x8: INPUT, 0x9: OUTPUT, 0xB: FEATURE}
 _COLLECTION, _END_COLLECTION = 0xA, 0xC
+_APPLICATION = 0x01  # the kind of collection that says what a device is (Game Pad, Multi-axis Controller)
 _MAIN, _GLOBAL, _LOCAL = 0, 1, 2  # item types
 _USAGE_PAGE, _LOGICAL_MINIMUM, _LOGICAL_MAXIMUM, _REPORT_SIZE, _REPORT_ID, _REPORT_COUNT, _PUSH, _POP = (
     0x0, 0x1, 0x2, 0x7, 0x8, 0x9, 0xA, 0xB)  # global item tags read (physical range, unit: not needed)
@@ -89,6 +91,7 @@ class ReportDescriptor:
     outputs: dict[int, Report] = field(default_factory=dict)
     features: dict[int, Report] = field(default_factory=dict)
     numbered: bool = False
+    applications: list[tuple[int, int]] = field(default_factory=list)  # usage of each application collection (Game Pad, ...)
 
     def reports(self, kind: str) -> dict[int, Report]:
         return {INPUT: self.inputs, OUTPUT: self.outputs, FEATURE: self.features}[kind]
@@ -140,6 +143,8 @@ def parse_report_descriptor(data: bytes) -> ReportDescriptor:
                 _add_fields(out, _MAIN_KINDS[tag], state, usages, value, at)
             elif tag == _COLLECTION:
                 collections += 1
+                if value == _APPLICATION:
+                    out.applications.append(usages[0] if usages else (0, 0))
             elif tag == _END_COLLECTION:
                 collections -= 1
                 if collections < 0:

@@ -17,7 +17,7 @@ from pathlib import Path
 from ..errors import UserError
 from ..tomlfile import parse_toml, read_toml
 from .events import ControlEvent
-from .hid import DS4_NAMES, canonical_input, legacy_event, unit_with_deadzone
+from .hid import DS4_NAMES, canonical_input, is_usage_name, legacy_event, unit_with_deadzone
 from .hid_feedback import FeedbackSpec, parse_feedback
 from .state import ControlState
 from .targets import PRESET_NAME, is_number
@@ -59,7 +59,7 @@ class Mapping:
     controls: tuple[ControlSpec, ...]
     presets: dict[str, dict[str, float]] = field(default_factory=dict)
     morph: float = 0.0  # default seconds to morph into a recalled preset
-    hid_usages: tuple[str, ...] = ()  # a HID device exposing all these usages fits, whatever its ids
+    hid_usages: tuple[str, ...] = ()  # a HID device with all these usages (controls, application) fits, whatever its ids
     feedback: FeedbackSpec | None = None  # HID output reports (LEDs, a light bar), from [feedback]
     text: str = ""  # the TOML it was read from: a recorded log carries it, so the replay reads events alike
 
@@ -101,8 +101,9 @@ def load_mapping(path: str | Path, state: ControlState | None = None, text: str 
         if key not in ("midi", "hid", "hid-usages"):
             raise fail("unknown key in [device] (midi, hid or hid-usages)", key)
     usages = device.get("hid-usages", [])
-    if not (isinstance(usages, list) and all(isinstance(u, str) and canonical_input(u) == u for u in usages)):
-        raise fail("expected a list of HID usage names (X, Rz, Hat, Button 1, ...)", "hid-usages")
+    if not (isinstance(usages, list) and all(isinstance(u, str) and is_usage_name(u) for u in usages)):
+        raise fail("expected a list of HID usage names (X, Rz, Hat, Button 1, ..., and what the device is: "
+                   "Game Pad, Joystick, Multi-axis Controller)", "hid-usages")
     if midi is not None:
         if not isinstance(midi, str):
             raise fail("must be a string (a port name pattern)", "midi")

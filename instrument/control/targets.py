@@ -50,7 +50,8 @@ TABLE: dict[str, Target] = {
 # raw controls of devices as they appear in events and logs: id pattern -> highest raw value
 PRESET_NAME = re.compile(r"^[A-Za-z0-9_.-]{1,40}$")  # preset names: plain TOML keys, safe in a URL and on screen
 MIDI_RAW = re.compile(r"(cc|note|pitchbend)/([0-9]{1,2})/([0-9]{1,3})", re.ASCII)
-HID_RAW_HIGH = 255.0
+HID_RAW_HIGH = 255.0  # the DualShock 4's old raw names (lx, r2, ...); controls named by usage read 0 to 1
+HID_RELEASED = -1.0  # a hat switch let go (control/hid.py: `Hat`, `Hat#2`, ...; the old name `hat` read 8)
 
 
 def is_number(value: object) -> bool:
@@ -99,8 +100,9 @@ def raw_problem(source: str, control: object, value: object) -> str | None:
     """Why a device's raw event is refused before its mapping sees it, or None.
 
     MIDI ids are cc/<channel 1-16>/<0-127>, note/<channel>/<0-127>, pitchbend/<channel>/0 with
-    values 0 to 127 (pitch bend 0 to 16383); HID values are 0 to 255. Names a mapping does not
-    use are left to the mapping (not an error of the input, just not mapped)."""
+    values 0 to 127 (pitch bend 0 to 16383); HID values are 0 to 1 (controls named by usage) or
+    0 to 255 (the DualShock 4's old raw names), and a released hat is -1. Names a mapping does
+    not use are left to the mapping (not an error of the input, just not mapped)."""
     if not is_number(value):
         return "not a finite number"
     if not isinstance(control, str):
@@ -112,6 +114,7 @@ def raw_problem(source: str, control: object, value: object) -> str | None:
         high = 16383 if match.group(1) == "pitchbend" else 127
         if not 0 <= value <= high:
             return "MIDI value out of range"
-    elif source.startswith("hid:") and not 0 <= value <= HID_RAW_HIGH:
+    elif source.startswith("hid:") and not 0 <= value <= HID_RAW_HIGH \
+            and not (value == HID_RELEASED and control.partition("#")[0] == "Hat"):
         return "HID value out of range"
     return None
