@@ -292,6 +292,32 @@ def test_every_shipped_hid_mapping_drives_the_walk(model, name, descriptor, ids,
     assert watch.seen[20] == pytest.approx(value)
 
 
+def test_spacemouse_push_and_tilt_move_the_style_blend_and_a_button_recalls_a_preset(model):
+    sim = SimulatedDevice(SPACENAVIGATOR_USB, 0x046D, 0xC626, usage=(1, 8))
+    state = state_of(model)
+    mapping = load_mapping(MAPPINGS / "3dconnexion-spacemouse.toml", state)
+    weary = mapping.presets["weary"]
+    console = Console(stream=io.StringIO())
+    device = HidInput(console, 0x046D, 0xC626, hid=SimulatedHid(sim))
+    script = {5: lambda: sim.send(spacenav_report(1, 350, 0, 0)),  # pushed right, as far as it goes
+              15: lambda: sim.send(spacenav_report(2, 0, 350, 0)),  # tilted sideways
+              25: lambda: sim.send(spacenav_report(1, 0, 0, 0), spacenav_report(2, 0, 0, 0)),  # let go: springs back
+              30: lambda: sim.send(spacenav_buttons(0b01), spacenav_buttons(0b00))}  # button 1 pressed and let go
+    watches = [Watch(state, "style/masculine", script), Watch(state, "style/feminine", {}),
+               Watch(state, "style/normal", {}), Watch(state, "style/exhausted", {}), Watch(state, "speed", {})]
+    perform(model, watches, console, fps=30, seconds=3.0, live_sources=[device.poll], apply=ControlHub([mapping]).apply,
+            state=state)
+    masculine, feminine, normal, exhausted, speed = (w.seen for w in watches)
+    assert masculine[4] == pytest.approx(0.0) and masculine[12] == pytest.approx(1.5)  # push: masculine up...
+    assert feminine[12] == pytest.approx(-1.5)  # ...and feminine down, the blend moved
+    assert normal[14] == pytest.approx(0.0) and normal[22] == pytest.approx(1.5)  # tilt sideways: the normal style
+    assert masculine[28] == pytest.approx(0.0) and normal[28] == pytest.approx(0.0)  # the cap sprang back
+    assert exhausted[29] == pytest.approx(0.0) and speed[29] == pytest.approx(1.1)  # Rx at rest: mid [1.6, 0.6]
+    # button 1: the preset "weary", morphed in over the mapping's morph seconds, and it stays
+    assert exhausted[89] == pytest.approx(weary["style/exhausted"]) and speed[89] == pytest.approx(weary["speed"])
+    assert exhausted[40] != pytest.approx(weary["style/exhausted"])  # morphing, not jumping
+
+
 def test_generic_gamepad_is_chosen_by_usages_only_when_no_mapping_names_the_device(model):
     state = state_of(model)
     shipped = [load_mapping(p, state) for p in shipped_mappings()]
@@ -355,6 +381,55 @@ def test_a_recorded_log_with_the_old_dualshock4_names_replays_the_same(model):
     mapper.apply(state, ControlEvent(0.0, "hid:054c:09cc", "r2", 255.0))  # as logs recorded it: raw 0..255
     mapper.apply(state, ControlEvent(0.0, "hid:054c:09cc", "lx", 0.0))
     assert state.get("style/active") == pytest.approx(2.0) and state.turn == pytest.approx(1.2)
+
+
+HAT_MAPPING = """[device]
+hid = "054c:09cc"
+
+[[control]]
+message = "hid"
+input = "{input}"
+target = "style/elderly"
+range = [-1.4, 1.4]
+"""
+
+
+@pytest.mark.parametrize("name", ["Hat", "hat"])  # by usage, and by the DualShock 4's old name
+def test_a_released_hat_reaches_its_mapping_with_no_warning(model, tmp_path, name):
+    path = tmp_path / "hat.toml"
+    path.write_text(HAT_MAPPING.format(input=name))
+    state = state_of(model)
+    text = io.StringIO()
+    console = Console(stream=text)
+    pad = SimulatedDevice(DUALSHOCK4_USB, 0x054C, 0x09CC)
+    device = HidInput(console, 0x054C, 0x09CC, hid=SimulatedHid(pad))
+    hub = ControlHub([load_mapping(path, state)], console=console)
+
+    def play(report: bytes) -> list:
+        pad.send(report)
+        events = device.poll(0.0)
+        for event in events:
+            hub.apply(state, event)
+        return [e.value for e in events if e.control == "Hat"]
+
+    assert play(ds4_report(hat=7)) == [1.0] and state.get("style/elderly") == pytest.approx(1.4)  # up-left: 7 of 0..7
+    assert play(ds4_report(hat=8)) == [-1.0]  # let go
+    assert state.get("style/elderly") == pytest.approx(-1.4)  # the mapping saw the release: the low end
+    assert "Hat" not in hub.refused and not any("out of range" in k for k in hub.refused)
+    assert "out of range" not in text.getvalue()
+
+
+def test_old_dualshock4_hat_events_in_a_recorded_log_replay_as_the_hat(model, tmp_path):
+    from instrument.control.events import ControlEvent
+
+    path = tmp_path / "hat.toml"
+    path.write_text(HAT_MAPPING.format(input="hat"))
+    state = state_of(model)
+    hub = ControlHub([load_mapping(path, state)])
+    assert hub.apply(state, ControlEvent(0.0, "hid:054c:09cc", "hat", 7.0))  # as logs recorded it: raw 0..7
+    assert state.get("style/elderly") == pytest.approx(1.4)
+    assert hub.apply(state, ControlEvent(0.0, "hid:054c:09cc", "hat", 8.0))  # 8: released
+    assert state.get("style/elderly") == pytest.approx(-1.4)
 
 
 def test_a_mapping_naming_no_usage_is_a_one_line_error(tmp_path, model):
@@ -531,3 +606,56 @@ def test_hidraw_ioctl_numbers_follow_the_kernels_ioc_macro():
 
     assert hid_module.HIDIOCGRDESCSIZE == ior("H", 0x01, 4)
     assert hid_module.HIDIOCGRDESC == ior("H", 0x02, 4 + 4096)
+
+
+def test_hidapi_prefers_the_hidraw_backend_on_linux(monkeypatch):
+    # the hidapi wheel ships both: `hidraw` (Linux hidraw: USB and Bluetooth) and `hid` (libusb: USB only)
+    assert hid_module.hidapi().__name__ == ("hidraw" if sys.platform.startswith("linux") else "hid")
+    hidraw, libusb = types.ModuleType("hidraw"), types.ModuleType("hid")
+    monkeypatch.setitem(sys.modules, "hidraw", hidraw)
+    monkeypatch.setitem(sys.modules, "hid", libusb)
+    monkeypatch.setattr(sys, "platform", "linux")
+    assert hid_module.hidapi() is hidraw
+    monkeypatch.setitem(sys.modules, "hidraw", None)  # not installed: `import hidraw` raises ImportError
+    assert hid_module.hidapi() is libusb
+    monkeypatch.setitem(sys.modules, "hidraw", hidraw)
+    monkeypatch.setattr(sys, "platform", "darwin")  # elsewhere the `hid` module is the native backend
+    assert hid_module.hidapi() is libusb
+    monkeypatch.setitem(sys.modules, "hid", None)
+    with pytest.raises(UserError, match="HID is not available.*pip install hidapi"):
+        hid_module.hidapi()
+
+
+def kernel_hidraw_ioctl(descriptor: bytes, calls: list):
+    """fcntl.ioctl as the kernel's hidraw driver answers the two descriptor ioctls (drivers/hid/hidraw.c):
+    HIDIOCGRDESCSIZE writes the size as a 32-bit int; HIDIOCGRDESC reads the size the caller put in the
+    struct's first 4 bytes and copies that many descriptor bytes after them (EINVAL above the real size)."""
+    def ioctl(fd, request, buffer):
+        calls.append(request)
+        if request == hid_module.HIDIOCGRDESCSIZE:
+            assert len(buffer) == 4
+            buffer[:4] = len(descriptor).to_bytes(4, "little")
+        elif request == hid_module.HIDIOCGRDESC:
+            assert len(buffer) == 4 + 4096  # struct hidraw_report_descriptor
+            size = int.from_bytes(buffer[:4], "little")
+            if size > len(descriptor):
+                raise OSError(22, "Invalid argument")
+            buffer[4:4 + size] = descriptor[:size]
+        else:
+            raise OSError(25, "Inappropriate ioctl for device")
+        return 0
+    return ioctl
+
+
+def test_the_hidraw_ioctl_reads_the_descriptor_as_the_kernel_gives_it(monkeypatch, tmp_path):
+    node = tmp_path / "hidraw0"  # stands for /dev/hidraw0: opened and closed for real
+    node.write_bytes(b"")
+    calls = []
+    monkeypatch.setattr(hid_module.fcntl, "ioctl", kernel_hidraw_ioctl(SPACENAVIGATOR_USB, calls))
+    assert hid_module.hidraw_descriptor(str(node)) == SPACENAVIGATOR_USB
+    assert calls == [hid_module.HIDIOCGRDESCSIZE, hid_module.HIDIOCGRDESC]
+    # a binding without get_report_descriptor: the device is opened through the ioctl on its path and plays
+    sim = SimulatedDevice(SPACENAVIGATOR_USB, 0x046D, 0xC626, descriptor_call=False, path=str(node).encode())
+    device = HidInput(Console(stream=io.StringIO()), 0x046D, 0xC626, hid=SimulatedHid(sim))
+    sim.send(spacenav_report(2, 0, 0, 350))
+    assert dict(device.read_raw())["Rz"] == 1.0

@@ -89,3 +89,11 @@ def test_output_and_feature_reports_are_laid_out_apart_from_inputs():
 def test_a_descriptor_that_cannot_be_laid_out_says_where(hex_items, where):
     with pytest.raises(DescriptorError, match=where):
         parse_report_descriptor(bytes.fromhex(hex_items))
+
+
+def test_each_application_collection_gives_its_usage():
+    # Usage (Game Pad) before Collection (Application); a Physical collection inside is not an application;
+    # a second application (Usage Page Consumer, Usage Consumer Control) after the first one closes
+    descriptor = parse_report_descriptor(bytes.fromhex(
+        GAMEPAD + "09 01 a1 00 09 30 15 00 25 7f 75 08 95 01 81 02 c0" + END + "05 0c 09 01 a1 01 c0"))
+    assert descriptor.applications == [(0x01, 0x05), (0x0C, 0x01)]
