@@ -502,6 +502,24 @@ def test_dualshock4_light_bar_shows_the_leading_styles_colour(model):
     assert [r[6:9] for r in sim.written] == [rgb["none"], rgb["active"], rgb["exhausted"]]
 
 
+def test_dualshock4_light_bar_stays_dark_over_bluetooth_and_the_console_says_why(model):
+    # its Bluetooth descriptor has no output report 5 (the light bar sits in vendor report 0x11 there,
+    # which the kernel's hid-playstation driver writes with a CRC): nothing is sent, one line says so
+    text = io.StringIO()
+    sim = SimulatedDevice(DUALSHOCK4_BT, 0x054C, 0x05C4)
+    state = state_of(model)
+    mapping = load_mapping(MAPPINGS / "sony-dualshock4.toml", state)
+    console = Console(stream=text)
+    device = HidInput(console, 0x054C, 0x05C4, hid=SimulatedHid(sim))
+    feedback = HidFeedback(device, mapping.feedback, console)
+    watch = Watch(state, "style/active", {5: lambda: sim.send(ds4_report(r2=255)[:10])})
+    perform(model, [watch, feedback], console, fps=30, seconds=0.5, live_sources=[device.poll],
+            apply=ControlHub([mapping]).apply, state=state)
+    assert watch.seen[14] == pytest.approx(2.0)  # it plays
+    assert sim.written == []
+    assert "no output report 5 long enough for the light bar" in text.getvalue()
+
+
 # A device the project has never seen (MADE_UP_JOYSTICK, above)
 
 def test_a_made_up_joystick_is_decoded_with_no_code_for_it():
