@@ -98,6 +98,9 @@ def test_raw_device_events_are_checked_before_a_mapping_sees_them():
     assert raw_problem("midi:x", "cc/1/7", 128.0) == "MIDI value out of range"
     assert raw_problem("midi:x", "pitchbend/1/0", 16383.0) is None
     assert raw_problem("hid:054c:09cc", "lx", 256.0) == "HID value out of range"
+    assert raw_problem("hid:054c:09cc", "Hat", -1.0) is None and raw_problem("hid:054c:09cc", "Hat#2", -1.0) is None  # released
+    for control, value in (("X", -1.0), ("Hat", -0.5), ("Hat/up", -1.0)):
+        assert raw_problem("hid:054c:09cc", control, value) == "HID value out of range", control
 
 
 def test_the_hub_refuses_counts_and_never_records_bad_events(model, tmp_path):

@@ -14,8 +14,15 @@ from typing import ClassVar
 
 import pytest
 from conftest import REPO
-from hid_descriptors import (DUALSENSE_USB, DUALSHOCK4_BT, DUALSHOCK4_USB, SPACENAVIGATOR_USB, SWITCH_PRO_BT, SWITCH_PRO_USB,
-                             XBOX_WIRELESS_BT)
+from hid_descriptors import (
+    DUALSENSE_USB,
+    DUALSHOCK4_BT,
+    DUALSHOCK4_USB,
+    SPACENAVIGATOR_USB,
+    SWITCH_PRO_BT,
+    SWITCH_PRO_USB,
+    XBOX_WIRELESS_BT,
+)
 from hid_sim import SimulatedDevice, SimulatedHid
 
 from instrument.control import hid as hid_module
