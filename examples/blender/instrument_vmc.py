@@ -315,19 +315,26 @@ def _drain() -> float | None:
 
 def start(armature, port: int, preset: str, scale: float, record: bool) -> None:
     stop()
-    sock = open_socket(port)
-    inbox: queue.Queue = queue.Queue()
     driver = VmcDriver(armature, preset, scale, record)
+    sock = open_socket(port)
+    sock.settimeout(0.1)
+    inbox: queue.Queue = queue.Queue()
+    stopping = threading.Event()
 
     def listen() -> None:
-        while True:
-            try:
-                inbox.put(sock.recv(65536))
-            except OSError:
-                return
+        """Until Stop: a socket closed under a blocked recv would stay bound, so this thread closes it."""
+        with sock:
+            while not stopping.is_set():
+                try:
+                    inbox.put(sock.recv(65536))
+                except socket.timeout:
+                    continue
+                except OSError:
+                    return
 
-    threading.Thread(target=listen, daemon=True).start()
-    _running["state"] = {"socket": sock, "inbox": inbox, "driver": driver}
+    thread = threading.Thread(target=listen, daemon=True)
+    thread.start()
+    _running["state"] = {"thread": thread, "stopping": stopping, "inbox": inbox, "driver": driver}
     if not bpy.app.timers.is_registered(_drain):
         bpy.app.timers.register(_drain, persistent=True)
 
@@ -335,7 +342,8 @@ def start(armature, port: int, preset: str, scale: float, record: bool) -> None:
 def stop() -> None:
     state = _running.pop("state", None)
     if state is not None:
-        state["socket"].close()
+        state["stopping"].set()
+        state["thread"].join()  # the port is free again when Stop returns
 
 
 class INSTRUMENT_OT_import_rest(bpy.types.Operator):
