@@ -3,7 +3,8 @@
 Install: Edit > Preferences > Add-ons > Install..., pick this file, tick "Animation: Instrument
 VMC receiver". The panel is in the 3D view's sidebar (N), tab "Instrument":
   - Import rest: the T-pose skeleton from `instrument skeleton --out rest.bvh` (metres; the
-    scene's frame rate is set to the file's), for a character rigged to it;
+    scene's frame rate is set to the file's), for a character rigged to it. It works where
+    File > Import > BVH fails (Blender 3.4 with Python 3.11, as in Debian: "invalid mode: 'rU'");
   - Armature: the armature to drive, and its bone names (Humanoid = the names in that rest
     file and in VMC, Mixamo, Rigify metarig, VRM/VRoid);
   - Port (39539, where `instrument run` sends VMC by default), Start / Stop;
