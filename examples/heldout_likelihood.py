@@ -11,10 +11,10 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from pathlib import Path
 
+from instrument.errors import run_script
 from instrument.models.build import build_model
-from instrument.models.corpus import DEFAULT_STYLE_PATTERN, style_from_name
+from instrument.models.corpus import styled_takes
 from instrument.models.evaluation import format_table, heldout_table, split_holdout
 
 
@@ -23,10 +23,7 @@ def main() -> None:
     parser.add_argument("data", help="folder of BVH takes named like dataset-2_walk_<style>_NNN.bvh")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
-    files = sorted(Path(args.data).glob("*.bvh"))
-    if not files:
-        raise SystemExit(f"{args.data}: no .bvh takes there (the Bandai walks: see docs/testing.md)")
-    pairs = [(f, style_from_name(f, DEFAULT_STYLE_PATTERN)) for f in files]
+    pairs = styled_takes([args.data])
     train, held = split_holdout(pairs)
     started = time.perf_counter()
     model, _, _ = build_model(train)
@@ -36,4 +33,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main, __file__)

@@ -186,7 +186,7 @@ def cmu_named_walk(path) -> str:
     joints, blocks = [], []
 
     def add(name: str, parent: int) -> None:
-        parent_of, offset, channels, end_site, children = nodes[name]
+        _, offset, channels, end_site, children = nodes[name]
         joints.append(Joint(name, parent, tuple(float(v) for v in offset), tuple(channels),
                             None if end_site is None else tuple(float(v) for v in end_site)))
         if name in columns:

@@ -7,16 +7,23 @@ import time
 from pathlib import Path
 
 import pytest
+from oscrecv import Receiver
+from samples import cmu_named_walk
+from test_vmc_pose import assert_close, compare
 
 from instrument.errors import UserError
-from instrument.models.corpus import DEFAULT_STYLE_PATTERN, make_takes, read_motions, style_from_name
+from instrument.models.corpus import (
+    DEFAULT_STYLE_PATTERN,
+    load_corpus,
+    make_takes,
+    read_motions,
+    style_from_name,
+    styled_takes,
+)
 from instrument.models.modelfile import default_model_path, load_model
 from instrument.motion.bvh import Joint, Skeleton, read_bvh
 from instrument.output.humanoid import guess_humanoid, read_humanoid
 from instrument.output.outputs import make_profile
-from oscrecv import Receiver
-from samples import cmu_named_walk
-from test_vmc_pose import assert_close, compare
 
 
 def cli(*args: str) -> subprocess.CompletedProcess:
@@ -37,6 +44,39 @@ def test_default_pattern_reads_styles_with_hyphens_and_digits(name, style):
 def test_names_without_a_style_are_one_line_errors(name):
     with pytest.raises(UserError, match="cannot read a style"):
         style_from_name(Path(name + ".bvh"), DEFAULT_STYLE_PATTERN)
+
+
+def test_no_takes_are_one_line_errors_naming_the_folder(tmp_path):
+    empty = tmp_path / "captures"
+    empty.mkdir()
+    (empty / "notes.txt").write_text("the takes are elsewhere\n")
+    with pytest.raises(UserError, match=f"^{empty}: no .bvh files in this folder$"):
+        styled_takes([empty])
+    with pytest.raises(UserError, match=f"^{tmp_path / 'missing'}: no such file or folder$"):
+        styled_takes([tmp_path / "missing"])
+    with pytest.raises(UserError, match="no takes to read"):
+        read_motions([], 30.0)
+    with pytest.raises(UserError, match="no takes to read"):
+        load_corpus([], 30.0)
+
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+@pytest.mark.parametrize("script", ["training_time.py", "heldout_likelihood.py", "one_take.py", "style_fidelity.py"])
+def test_the_training_examples_name_a_folder_without_takes(script, tmp_path):
+    result = subprocess.run([sys.executable, str(EXAMPLES / script), str(tmp_path)], capture_output=True, text=True,
+                            timeout=300)
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    assert result.stderr.strip() == f"{script}: error: {tmp_path}: no .bvh files in this folder"
+
+
+@pytest.mark.parametrize("script", ["one_take.py", "style_fidelity.py"])
+def test_the_training_examples_check_their_options(script, tmp_path):
+    result = subprocess.run([sys.executable, str(EXAMPLES / script), str(tmp_path), "--walks", "0"], capture_output=True,
+                            text=True, timeout=300)
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "--walks" in result.stderr
 
 
 def _skeleton(pairs: list[tuple[str, str | None]]) -> Skeleton:

@@ -16,7 +16,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from oscrecv import free_port
 from vmcpose import sent_pose
 
