@@ -1,8 +1,8 @@
 """The one exception type for a user's mistake: the CLI prints it as a single line and exits 1."""
 
 import sys
-from pathlib import Path
 from collections.abc import Callable
+from pathlib import Path
 
 
 class UserError(Exception):
