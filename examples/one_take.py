@@ -25,9 +25,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 from style_fidelity import LinearDiscriminant, step_features  # noqa: E402
 
+from instrument.errors import UserError, run_script  # noqa: E402
 from instrument.models.adaptation import ONE_PASS_MAP  # noqa: E402
 from instrument.models.build import build_model  # noqa: E402
-from instrument.models.corpus import DEFAULT_STYLE_PATTERN, make_takes, read_motions, style_from_name  # noqa: E402
+from instrument.models.corpus import make_takes, read_motions, styled_takes  # noqa: E402
 from instrument.models.evaluation import heldout_table  # noqa: E402
 from instrument.motion.features import extract, restore  # noqa: E402
 from instrument.motion.steps import segment_steps  # noqa: E402
@@ -52,13 +53,17 @@ def recognised(classifier: LinearDiscriminant, model, style: str, walks: int, se
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("data")
+    parser.add_argument("data", help="folder of BVH takes named like dataset-2_walk_<style>_NNN.bvh (searched recursively)")
     parser.add_argument("--walks", type=int, default=4, help="synthesised walks per style (different seeds)")
     parser.add_argument("--seconds", type=float, default=20.0, help="length of each synthesised walk")
     args = parser.parse_args()
-    pairs = [(f, style_from_name(f, DEFAULT_STYLE_PATTERN)) for f in sorted(Path(args.data).glob("*.bvh"))]
+    if args.walks < 1 or not args.seconds > 0:
+        raise UserError(f"--walks must be at least 1 and --seconds above 0 (got {args.walks}, {args.seconds})")
+    pairs = styled_takes([args.data])
     first = [next(p for p in pairs if p[1] == s) for s in sorted({s for _, s in pairs})]
     others = [p for p in pairs if p not in first]
+    if not others:
+        raise UserError(f"{args.data}: one take per style: no other takes to judge the models against")
 
     results = {}
     for name, fixed in (("re-aligned, transforms + MAP", None), ("one-pass MAP (before)", ONE_PASS_MAP)):
@@ -101,4 +106,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main, __file__)

@@ -11,12 +11,12 @@ model trained on the same training takes. A take is labelled by the summed score
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 import numpy as np
 
+from instrument.errors import UserError, run_script
 from instrument.models.build import build_model
-from instrument.models.corpus import DEFAULT_STYLE_PATTERN, make_takes, read_motions, style_from_name
+from instrument.models.corpus import make_takes, read_motions, styled_takes
 from instrument.models.evaluation import split_holdout
 from instrument.models.recognition import LinearDiscriminant, step_features
 from instrument.motion.features import extract, restore
@@ -31,10 +31,9 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=20.0, help="length of each synthesized walk")
     parser.add_argument("--walks", type=int, default=4, help="synthesized walks per style (different seeds, liveliness 1)")
     args = parser.parse_args()
-    files = sorted(Path(args.data).glob("*.bvh"))
-    if not files:
-        raise SystemExit(f"{args.data}: no .bvh takes there (the Bandai walks: see docs/testing.md)")
-    pairs = [(f, style_from_name(f, DEFAULT_STYLE_PATTERN)) for f in files]
+    if args.walks < 1 or not args.seconds > 0:
+        raise UserError(f"--walks must be at least 1 and --seconds above 0 (got {args.walks}, {args.seconds})")
+    pairs = styled_takes([args.data])
     train, held = split_holdout(pairs)
     model, _, train_takes = build_model(train)
     dimension = model.layout.dimension
@@ -73,4 +72,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main, __file__)

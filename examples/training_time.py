@@ -10,18 +10,18 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
+from instrument.errors import run_script
 from instrument.models.adaptation import ONE_PASS_MAP
 from instrument.models.build import build_model
-from instrument.models.corpus import DEFAULT_STYLE_PATTERN, style_from_name
+from instrument.models.corpus import styled_takes
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("data")
+    parser.add_argument("data", help="folder of BVH takes named like dataset-2_walk_<style>_NNN.bvh (searched recursively)")
     args = parser.parse_args()
-    pairs = [(f, style_from_name(f, DEFAULT_STYLE_PATTERN)) for f in sorted(Path(args.data).glob("*.bvh"))]
+    pairs = styled_takes([args.data])
     for name, fixed in (("one-pass MAP", ONE_PASS_MAP), ("default", None), ("one-pass MAP", ONE_PASS_MAP)):
         wall, cpu = time.perf_counter(), time.process_time()
         build_model(pairs, adaptation=fixed)
@@ -29,4 +29,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main, __file__)

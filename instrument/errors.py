@@ -1,5 +1,9 @@
 """The one exception type for a user's mistake: the CLI prints it as a single line and exits 1."""
 
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
 
 class UserError(Exception):
     """Bad input from the user (a file, an option, a control). Its message is shown as is."""
@@ -9,3 +13,13 @@ def located(path: object, message: str, line: int | None = None) -> UserError:
     """A UserError whose text starts with `file:line:` so an editor can jump to it."""
     where = f"{path}:{line}" if line is not None else f"{path}"
     return UserError(f"{where}: {message}")
+
+
+def run_script(main: Callable[[], None], script: str) -> None:
+    """Run an example script's main as the CLI runs a command: a UserError is one line naming the
+    script on stderr and exit status 1, never a traceback."""
+    try:
+        main()
+    except UserError as error:
+        print(f"{Path(script).name}: error: {error}", file=sys.stderr)
+        raise SystemExit(1) from None

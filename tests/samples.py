@@ -134,24 +134,70 @@ def reorder_bvh(text: str, order: str, drop_joint_positions: bool = False) -> st
 
 
 BANDAI_TO_CMU = {
-    "Chest": "Spine1", "Shoulder_L": "LeftShoulder", "UpperArm_L": "LeftArm", "LowerArm_L": "LeftForeArm",
+    "Chest": "Spine1", "Neck": "Neck1", "Shoulder_L": "LeftShoulder", "UpperArm_L": "LeftArm", "LowerArm_L": "LeftForeArm",
     "Hand_L": "LeftHand", "Shoulder_R": "RightShoulder", "UpperArm_R": "RightArm", "LowerArm_R": "RightForeArm",
     "Hand_R": "RightHand", "UpperLeg_L": "LeftUpLeg", "LowerLeg_L": "LeftLeg", "Foot_L": "LeftFoot",
     "Toes_L": "LeftToeBase", "UpperLeg_R": "RightUpLeg", "LowerLeg_R": "RightLeg", "Foot_R": "RightFoot",
     "Toes_R": "RightToeBase",
 }
+# The CMU joints the shared walks have no counterpart for, each inserted at zero offset above
+# (or, for the hands' joints, below) a renamed joint, as in the CMU conversions, never rotated.
+CMU_INSERTED_ABOVE = {"LeftUpLeg": "LHipJoint", "RightUpLeg": "RHipJoint", "Spine": "LowerBack", "Neck1": "Neck"}
+CMU_HAND = {"LeftHand": ("LeftFingerBase", "LeftHandIndex1", "LThumb"),
+            "RightHand": ("RightFingerBase", "RightHandIndex1", "RThumb")}
+CMU_HIPS_CHILDREN = ("LHipJoint", "RHipJoint", "LowerBack")  # the CMU files' order: legs first
 
 
 def cmu_named_walk(path) -> str:
-    """A shared walk as a CMU-style file: joints renamed as in the CMU conversions, re-rooted at
-    Hips (the static `joint_Root` above it removed), 3 rotation channels per joint in ZYX order."""
+    """A shared walk as a file in the CMU conversions' 31-joint layout: joints renamed as there,
+    re-rooted at Hips (the static `joint_Root` above it removed), the CMU joints the walks lack
+    inserted unrotated at zero offset (LHipJoint, RHipJoint, LowerBack, Neck, and per hand a
+    FingerBase, HandIndex1 and thumb made from the hand's end site), 3 rotation channels per
+    joint in ZYX order. The body moves exactly as in the walk."""
     from instrument.motion.bvh import Joint, Motion, Skeleton, bvh_text, read_bvh
 
     motion = read_bvh(path)
     top = motion.skeleton.joints[0]
     width = len(top.channels)
     assert top.name == "joint_Root" and not np.any(motion.channels[:, :width]), "re-rooting assumes a static identity root"
-    joints = tuple(Joint(BANDAI_TO_CMU.get(j.name, j.name), j.parent - 1, j.offset, j.channels, j.end_site)
-                   for j in motion.skeleton.joints[1:])
-    text = bvh_text(Motion(Skeleton(joints), motion.channels[:, width:], motion.fps))
+    rotation = ("Zrotation", "Yrotation", "Xrotation")
+    columns, at = {}, width  # joint name -> its columns in the walk
+    nodes = {}  # name -> [parent, offset, channels, end site, children]
+    for joint in motion.skeleton.joints[1:]:
+        name = BANDAI_TO_CMU.get(joint.name, joint.name)
+        columns[name] = (at, at + len(joint.channels))
+        at += len(joint.channels)
+        parent = motion.skeleton.joints[joint.parent].name
+        nodes[name] = [None if parent == "joint_Root" else BANDAI_TO_CMU.get(parent, parent), joint.offset,
+                       joint.channels, joint.end_site, []]
+    for below, name in CMU_INSERTED_ABOVE.items():
+        nodes[name] = [nodes[below][0], (0.0, 0.0, 0.0), rotation, None, []]
+        nodes[below][0] = name
+    for hand, (base, index, thumb) in CMU_HAND.items():
+        along = np.array(nodes[hand][1]) / np.linalg.norm(nodes[hand][1])  # the forearm's way (the walks' hands end at once)
+        nodes[hand][3] = None
+        nodes[base] = [hand, (0.0, 0.0, 0.0), rotation, None, []]
+        nodes[index] = [base, tuple(5.0 * along), rotation, tuple(4.0 * along), []]
+        nodes[thumb] = [hand, (0.0, 0.0, 0.0), rotation, tuple(3.0 * along + (0.0, 0.0, 3.0)), []]  # and ahead
+    for name, node in nodes.items():
+        if node[0] is not None:
+            nodes[node[0]][4].append(name)
+    nodes["Hips"][4] = [*CMU_HIPS_CHILDREN, *(c for c in nodes["Hips"][4] if c not in CMU_HIPS_CHILDREN)]
+    joints, blocks = [], []
+
+    def add(name: str, parent: int) -> None:
+        _, offset, channels, end_site, children = nodes[name]
+        joints.append(Joint(name, parent, tuple(float(v) for v in offset), tuple(channels),
+                            None if end_site is None else tuple(float(v) for v in end_site)))
+        if name in columns:
+            blocks.append(motion.channels[:, slice(*columns[name])])
+        else:
+            blocks.append(np.zeros((motion.frames, len(channels))))
+        here = len(joints) - 1
+        for child in children:
+            add(child, here)
+
+    add("Hips", -1)
+    assert len(joints) == 31, [j.name for j in joints]
+    text = bvh_text(Motion(Skeleton(tuple(joints)), np.hstack(blocks), motion.fps))
     return reorder_bvh(text, "ZYX", drop_joint_positions=True)

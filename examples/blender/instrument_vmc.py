@@ -3,7 +3,8 @@
 Install: Edit > Preferences > Add-ons > Install..., pick this file, tick "Animation: Instrument
 VMC receiver". The panel is in the 3D view's sidebar (N), tab "Instrument":
   - Import rest: the T-pose skeleton from `instrument skeleton --out rest.bvh` (metres; the
-    scene's frame rate is set to the file's), for a character rigged to it;
+    scene's frame rate is set to the file's), for a character rigged to it. It works where
+    File > Import > BVH fails (Blender 3.4 with Python 3.11, as in Debian: "invalid mode: 'rU'");
   - Armature: the armature to drive, and its bone names (Humanoid = the names in that rest
     file and in VMC, Mixamo, Rigify metarig, VRM/VRoid);
   - Port (39539, where `instrument run` sends VMC by default), Start / Stop;
@@ -315,19 +316,26 @@ def _drain() -> float | None:
 
 def start(armature, port: int, preset: str, scale: float, record: bool) -> None:
     stop()
-    sock = open_socket(port)
-    inbox: queue.Queue = queue.Queue()
     driver = VmcDriver(armature, preset, scale, record)
+    sock = open_socket(port)
+    sock.settimeout(0.1)
+    inbox: queue.Queue = queue.Queue()
+    stopping = threading.Event()
 
     def listen() -> None:
-        while True:
-            try:
-                inbox.put(sock.recv(65536))
-            except OSError:
-                return
+        """Until Stop: a socket closed under a blocked recv would stay bound, so this thread closes it."""
+        with sock:
+            while not stopping.is_set():
+                try:
+                    inbox.put(sock.recv(65536))
+                except socket.timeout:
+                    continue
+                except OSError:
+                    return
 
-    threading.Thread(target=listen, daemon=True).start()
-    _running["state"] = {"socket": sock, "inbox": inbox, "driver": driver}
+    thread = threading.Thread(target=listen, daemon=True)
+    thread.start()
+    _running["state"] = {"thread": thread, "stopping": stopping, "inbox": inbox, "driver": driver}
     if not bpy.app.timers.is_registered(_drain):
         bpy.app.timers.register(_drain, persistent=True)
 
@@ -335,7 +343,8 @@ def start(armature, port: int, preset: str, scale: float, record: bool) -> None:
 def stop() -> None:
     state = _running.pop("state", None)
     if state is not None:
-        state["socket"].close()
+        state["stopping"].set()
+        state["thread"].join()  # the port is free again when Stop returns
 
 
 class INSTRUMENT_OT_import_rest(bpy.types.Operator):

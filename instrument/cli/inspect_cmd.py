@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
+from ..models.corpus import bvh_files
 from ..motion.bvh import read_bvh
 from ..motion.steps import contiguous_runs, segment_steps
 
@@ -19,23 +20,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("paths", nargs="+", metavar="FILE_OR_DIR", help="BVH files or folders holding them")
     p.add_argument("--json", action="store_true", help="print one JSON document instead of text")
     p.set_defaults(run=run)
-
-
-def bvh_files(paths: list[str]) -> list[Path]:
-    """The BVH files named, and those inside the folders named (sorted); an error for a missing path."""
-    files: list[Path] = []
-    for name in paths:
-        path = Path(name)
-        if path.is_dir():
-            found = sorted(p for p in path.rglob("*") if p.suffix.lower() == ".bvh" and p.is_file())
-            if not found:
-                raise UserError(f"{path}: no .bvh files in this folder")
-            files.extend(found)
-        elif path.is_file():
-            files.append(path)
-        else:
-            raise UserError(f"{path}: no such file or folder")
-    return files
 
 
 def describe(path: Path) -> dict:

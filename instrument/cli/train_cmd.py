@@ -11,11 +11,10 @@ from pathlib import Path
 
 from ..errors import UserError
 from ..models.build import UNSPECIFIED_LICENCE, build_model
-from ..models.corpus import DEFAULT_STYLE_PATTERN, read_manifest, style_from_name
+from ..models.corpus import DEFAULT_STYLE_PATTERN, read_manifest, styled_takes
 from ..models.modelfile import save_model
 from ..outputfile import check_output
 from .arguments import checked
-from .inspect_cmd import bvh_files
 from .progress import Progress
 
 
@@ -47,7 +46,7 @@ def _pairs(args: argparse.Namespace) -> list[tuple[Path, str]]:
             raise UserError(f"--style-from: not a regular expression: {e}") from None
         if pattern.groups != 1:
             raise UserError(f"--style-from: the expression needs exactly one group, it has {pattern.groups}")
-        pairs += [(f, style_from_name(f, args.style_from)) for f in bvh_files(args.data)]
+        pairs += styled_takes(args.data, args.style_from)
     if not pairs:
         raise UserError("no training data: give BVH files or folders, or --manifest")
     return pairs

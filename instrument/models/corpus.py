@@ -45,6 +45,29 @@ def style_from_name(path: Path, pattern: str) -> str:
     return match.group(1).lower()
 
 
+def bvh_files(paths: list[str] | list[Path]) -> list[Path]:
+    """The BVH files named, and those inside the folders named (searched recursively, sorted); an
+    error names a missing path or a folder without takes."""
+    files: list[Path] = []
+    for name in paths:
+        path = Path(name)
+        if path.is_dir():
+            found = sorted(p for p in path.rglob("*") if p.suffix.lower() == ".bvh" and p.is_file())
+            if not found:
+                raise UserError(f"{path}: no .bvh files in this folder")
+            files.extend(found)
+        elif path.is_file():
+            files.append(path)
+        else:
+            raise UserError(f"{path}: no such file or folder")
+    return files
+
+
+def styled_takes(paths: list[str] | list[Path], pattern: str = DEFAULT_STYLE_PATTERN) -> list[tuple[Path, str]]:
+    """(file, style) for every BVH file named or inside the folders named, the style read from its name."""
+    return [(f, style_from_name(f, pattern)) for f in bvh_files(paths)]
+
+
 def read_manifest(path: Path) -> list[tuple[Path, str]]:
     """(file, style) pairs from a CSV (header `file,style`) or TOML ([[take]] file = ..., style = ...)."""
     base = path.parent
@@ -93,6 +116,8 @@ def skeleton_difference(expected: Skeleton, found: Skeleton) -> str:
 
 def read_motions(pairs: list[tuple[Path, str]], fps: float, progress=None) -> list[Motion]:
     """Read and resample every take; an error names the files whose skeleton differs from the first."""
+    if not pairs:
+        raise UserError("no takes to read: no .bvh file was given")
     motions: list[Motion] = []
     for k, (path, _) in enumerate(pairs):
         if not path.is_file():
