@@ -103,16 +103,23 @@ def _leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
     return swing, swing @ bend @ swing.T
 
 
-def _heel_rise(world_pos: np.ndarray, leg, target: np.ndarray, allowed: float) -> tuple[np.ndarray, np.ndarray]:
-    """The foot's turn about its pivot (the last foot joint) that raises the heel until the leg
-    reaches no further than `allowed`, and the ankle's target after it, found numerically (a
-    scan of the rise, then bisection) to check the compiled closed form: the smallest rise
-    that reaches, else the one in [0, MAX_HEEL_RISE] that comes nearest."""
+def _heel_rise(world_pos: np.ndarray, leg, ground: np.ndarray, on_floor: float, target: np.ndarray,
+               allowed: float) -> tuple[np.ndarray, np.ndarray]:
+    """The foot's turn about its toes (the last foot joint) that raises the heel until the leg
+    reaches no further than `allowed` (less of the way where the toes are higher above their
+    clearance than the heel above its own, none from `on_floor` higher), and the ankle's target
+    after it, found numerically (a scan of the rise, then bisection) to check the compiled
+    closed form: the smallest rise that reaches, else the one in [0, MAX_HEEL_RISE] that comes
+    nearest."""
     hip = world_pos[leg.hip]
     toes = world_pos[leg.foot[-1]] - world_pos[leg.ankle]
     toe, back = target + toes, -toes
-    if np.linalg.norm(toe + back - hip) <= allowed:
+    toes_up = (world_pos[leg.foot[-1], 1] - ground[-1]) - (world_pos[leg.ankle, 1] - ground[0])
+    share = min(max(1.0 - toes_up / on_floor, 0.0), 1.0)
+    reach = np.linalg.norm(target - hip)
+    if share <= 0.0 or reach <= allowed:
         return np.eye(3), target
+    allowed = reach - share * (reach - allowed)
     axis = np.cross([0.0, 1.0, 0.0], toes)  # lifting the heel about the toes
     if np.linalg.norm(axis) < 1e-12:
         return np.eye(3), target
@@ -238,7 +245,7 @@ class FootLock:
             target = self._target(f, leg, world_pos, planted[f])
             turn = np.eye(3)
             if self.weight[f] > 0:
-                turn, target = _heel_rise(world_pos, leg, target, extension[f])
+                turn, target = _heel_rise(world_pos, leg, self.ground[f], CONTACT_CM / self.cm, target, extension[f])
             targets.append(target)
             turns.append(turn)
         return targets, turns

@@ -151,19 +151,27 @@ def lock_target(world_pos, leg, foot, ground_f, weight, point, planted, swing_li
 
 
 @njit(cache=True, error_model="numpy")
-def heel_rise(world_pos, leg, pivot, target, allowed):  # pragma: no cover - compiled
-    """The foot's turn (3x3, world) about its pivot when the lock asks the leg (hip, knee,
-    ankle) to reach further than `allowed` (hip to ankle): the heel rises, as a real foot rolls
-    onto its toes, so the knee keeps its bend instead of straightening and the hip is not pulled
-    into extension. Moves `target` (the ankle's) with it; at most MAX_HEEL_RISE, the rise that
-    comes nearest when none reaches; identity when the leg reaches already."""
+def heel_rise(world_pos, leg, pivot, clearance, on_floor, target, allowed):  # pragma: no cover - compiled
+    """The foot's turn (3x3, world) about its pivot (its last joint, the toes) when the lock asks
+    the leg (hip, knee, ankle) to reach further than `allowed` (hip to ankle): the heel rises, as
+    a real foot rolls onto its toes, so the knee keeps its bend instead of straightening and the
+    hip is not pulled into extension. Moves `target` (the ankle's) with it; at most
+    MAX_HEEL_RISE, the rise that comes nearest when none reaches; identity when the leg reaches
+    already. `clearance` (2,): the ankle's and the pivot's heights standing on the floor. A foot
+    whose toes are `on_floor` or more higher above their clearance than the heel is above its
+    own (a heel just landing) takes none of the rise, and in between a share: rolling on toes
+    in the air would lift the whole foot off the floor."""
     hip = world_pos[leg[0]]
     toes = world_pos[pivot] - world_pos[leg[2]]
     toe = target + toes  # where the pivot goes with the ankle
+    toes_up = toes[1] - (clearance[1] - clearance[0])  # toes' lift above the heel's, each above its clearance
+    share = min(max(1.0 - toes_up / on_floor, 0.0), 1.0)
+    reach = np.sqrt(_dot(target - hip, target - hip))
+    if share <= 0.0 or reach <= allowed:
+        return np.eye(3)
+    allowed = reach - share * (reach - allowed)
     v = target - toe
     u = toe - hip
-    if _dot(u + v, u + v) <= allowed * allowed:
-        return np.eye(3)
     k = np.array([toes[2], 0.0, -toes[0]])  # up x (toe direction): the foot's pitch axis, lifting the heel
     norm = np.sqrt(_dot(k, k))
     if norm < 1e-12:
@@ -344,12 +352,13 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     for f in range(2):
         gap = world_pos[joints[f, 2]] - world_pos[joints[f, 0]]
         extension[f] = np.sqrt(_dot(gap, gap))
-    targets, turns = _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, extension)
+    on_floor = CONTACT_CM / cm
+    targets, turns = _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension)
     drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) / BLEND_FRAMES
     if drop[0] > 1e-9:
         translations[root] -= drop[0] * parent_rot[1]  # [0, drop, 0] @ parent_rot
         world_pos[:, 1] -= drop[0]
-        targets, turns = _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, extension)
+        targets, turns = _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension)
     turned = np.empty((3, 3))
     for f in range(2):
         ankle = joints[f, 2]
@@ -361,7 +370,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
 
 
 @njit(cache=True, error_model="numpy")
-def _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, extension):  # pragma: no cover - compiled
+def _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension):  # pragma: no cover - compiled
     """Each ankle's target and each foot's heel-rise turn (2, 3, 3), a foot whose lock is blended
     in rising on its toes where its leg would otherwise stretch past its generated extension."""
     targets = np.empty((2, 3))
@@ -370,7 +379,8 @@ def _targets(world_pos, joints, feet, ground, weights, points, planted, swing_li
         targets[f] = lock_target(world_pos, joints[f], feet[f], ground[f], weights[f], points[f], planted[f], swing_lift)
         turns[f] = np.eye(3)
         if weights[f] > 0.0:
-            turns[f] = heel_rise(world_pos, joints[f], feet[f, -1], targets[f], extension[f])
+            clearance = np.array([ground[f, 0], ground[f, -1]])
+            turns[f] = heel_rise(world_pos, joints[f], feet[f, -1], clearance, on_floor, targets[f], extension[f])
     return targets, turns
 
 
