@@ -15,6 +15,7 @@ from instrument.runtime.pose import Pose
 from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, POSSIBLE,
                                           PLANTED, SWING_BENT, SWING_CM)
 from instrument.synthesis.follow import STRENGTH
+from instrument.synthesis.footlock import MAX_HEEL_RISE, STRETCH
 
 
 def EASE(x: float) -> float:
@@ -102,6 +103,57 @@ def _leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
     return swing, swing @ bend @ swing.T
 
 
+def _heel_rise(world_pos: np.ndarray, leg, ground: np.ndarray, on_floor: float, target: np.ndarray,
+               allowed: float) -> tuple[np.ndarray, np.ndarray]:
+    """The foot's turn about its toes (the last foot joint) that raises the heel until the leg
+    reaches no further than `allowed` (less of the way where the toes are higher above their
+    clearance than the heel above its own, none from `on_floor` higher), and the ankle's target
+    after it, found numerically (a scan of the rise, then bisection) to check the compiled
+    closed form: the smallest rise that reaches, else the one in [0, MAX_HEEL_RISE] that comes
+    nearest."""
+    hip = world_pos[leg.hip]
+    toes = world_pos[leg.foot[-1]] - world_pos[leg.ankle]
+    toe, back = target + toes, -toes
+    toes_up = (world_pos[leg.foot[-1], 1] - ground[-1]) - (world_pos[leg.ankle, 1] - ground[0])
+    share = min(max(1.0 - toes_up / on_floor, 0.0), 1.0)
+    reach = np.linalg.norm(target - hip)
+    if share <= 0.0 or reach <= allowed:
+        return np.eye(3), target
+    allowed = reach - share * (reach - allowed)
+    axis = np.cross([0.0, 1.0, 0.0], toes)  # lifting the heel about the toes
+    if np.linalg.norm(axis) < 1e-12:
+        return np.eye(3), target
+
+    def excess(angle: float) -> float:
+        return float(np.linalg.norm(toe + _axis_rotation(axis, angle) @ back - hip) - allowed)
+
+    def bisect(low: float, high: float, below) -> float:
+        for _ in range(80):
+            middle = (low + high) / 2.0
+            low, high = (low, middle) if below(middle) else (middle, high)
+        return (low + high) / 2.0
+
+    angles = np.linspace(0.0, MAX_HEEL_RISE, 2001)
+    values = np.array([excess(a) for a in angles])
+    reached = np.flatnonzero(values <= 0.0)
+    if len(reached):
+        i = reached[0]
+        angle = bisect(angles[i - 1], angles[i], lambda a: excess(a) <= 0.0)
+    else:
+        i = int(np.argmin(values))
+        if i == 0:
+            return np.eye(3), target
+        unit = axis / np.linalg.norm(axis)
+
+        def rising(angle: float) -> bool:  # the reach's derivative, d|x|^2 = 2 x . (unit x R back)
+            turned = _axis_rotation(axis, angle) @ back
+            return float((toe + turned - hip) @ np.cross(unit, turned)) > 0.0
+
+        angle = MAX_HEEL_RISE if i == len(angles) - 1 else bisect(angles[i - 1], angles[i + 1], rising)
+    turn = _axis_rotation(axis, angle)
+    return turn, toe + turn @ back
+
+
 class FootLock:
     """One character's planted feet, carried from frame to frame (see the module's docstring)."""
 
@@ -133,24 +185,24 @@ class FootLock:
             if planted[f] and self.weight[f] == 0.0:
                 self.lock[f] = world_pos[self.pivot[f]]
             self.weight[f] = min(1.0, self.weight[f] + step) if planted[f] else max(0.0, self.weight[f] - step)
-        targets = [self._target(f, leg, world_pos, planted[f]) for f, leg in enumerate(self.limbs.legs)]
-        # a planted leg too short for the floor below it (an exaggerated style can lift the
-        # hips): the body comes down, eased over a few frames so it does not bob
+        extension = [np.linalg.norm(world_pos[leg.ankle] - world_pos[leg.hip]) for leg in self.limbs.legs]
+        targets, turns = self._targets(world_pos, planted, extension)
+        # a planted leg that cannot reach its target even on its toes (an exaggerated style can
+        # lift the hips): the body comes down, eased over a few frames so it does not bob
         need = 0.0
         for f, leg in enumerate(self.limbs.legs):
             if planted[f]:
-                below = world_pos[leg.hip] - np.array([world_pos[leg.ankle][0], targets[f][1], world_pos[leg.ankle][2]])
-                need = max(need, np.linalg.norm(below) - 0.98 * (leg.thigh + leg.shin))
+                need = max(need, np.linalg.norm(targets[f] - world_pos[leg.hip]) - max(extension[f], STRETCH * (leg.thigh + leg.shin)))
         self.drop += (max(need, 0.0) - self.drop) / BLEND_FRAMES
         if self.drop > 1e-9:
             translations = translations.copy()
             translations[self.layout.root] -= np.array([0.0, self.drop, 0.0]) @ self.parent_rot
             world_pos = world_pos - np.array([0.0, self.drop, 0.0])
-            targets = [self._target(f, leg, world_pos, planted[f]) for f, leg in enumerate(self.limbs.legs)]
+            targets, turns = self._targets(world_pos, planted, extension)
         for f, leg in enumerate(self.limbs.legs):
-            target = targets[f]
-            if np.linalg.norm(target - world_pos[leg.ankle]) > 1e-9:
-                self._solve(leg, rotations, world_rot, world_pos, target)
+            world_rot[leg.ankle] = turns[f] @ world_rot[leg.ankle]
+            if np.linalg.norm(targets[f] - world_pos[leg.ankle]) > 1e-9:
+                self._solve(leg, rotations, world_rot, world_pos, targets[f])
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
         return rotations, translations, world_rot[0], world_pos[0]
 
@@ -185,6 +237,18 @@ class FootLock:
         if lowest_after < floor:
             target[1] += floor - lowest_after
         return target
+
+    def _targets(self, world_pos: np.ndarray, planted: np.ndarray, extension: list[float]) -> tuple[list, list]:
+        """Each ankle's target, and each foot's heel-rise turn where its lock is blended in."""
+        targets, turns = [], []
+        for f, leg in enumerate(self.limbs.legs):
+            target = self._target(f, leg, world_pos, planted[f])
+            turn = np.eye(3)
+            if self.weight[f] > 0:
+                turn, target = _heel_rise(world_pos, leg, self.ground[f], CONTACT_CM / self.cm, target, extension[f])
+            targets.append(target)
+            turns.append(turn)
+        return targets, turns
 
     def _solve(self, leg, rotations: np.ndarray, world_rot: np.ndarray, world_pos: np.ndarray, target: np.ndarray) -> None:
         """Leg IK in place on the local rotations: hip and knee swung, the ankle keeping its world rotation."""

@@ -10,7 +10,7 @@ from instrument.motion.features import extract
 from instrument.motion.kinematics import world_positions
 from instrument.runtime.pose import PoseStream
 from instrument.synthesis.contact import NEARLY_STRAIGHT, contact_space
-from instrument.synthesis.footlock import FootLock, leg_swings
+from instrument.synthesis.footlock import MAX_HEEL_RISE, FootLock, heel_rise, leg_swings
 from instrument.synthesis.interpolation import style_space
 from instrument.synthesis.offline import default_controls, generate_with_states, synthesize_motion
 from instrument.synthesis.stream import Controls, Crowd
@@ -40,6 +40,48 @@ def test_two_bone_ik_reaches_a_reachable_target_and_keeps_the_bones():
             hinge *= np.sign(hinge @ np.cross(np.array([0.0, 0.0, 1.0]), knee - hip))
         new_hinge = np.cross(new_knee - hip, new_ankle - new_knee)
         np.testing.assert_allclose(new_hinge / np.linalg.norm(new_hinge), thigh @ hinge / np.linalg.norm(hinge), atol=1e-6)
+
+
+def _standing_leg(toe_ahead: float):
+    """World positions (4, 3) of hip, knee, ankle and toes of a leg standing on a flat foot, in cm."""
+    return np.array([[0.0, 90.0, 0.0], [0.0, 48.0, 3.0], [0.0, 8.0, 0.0], [0.0, 3.0, toe_ahead]])
+
+
+def test_a_planted_leg_asked_to_reach_too_far_rises_on_its_toes_and_keeps_its_length():
+    legs, toes, on_floor = np.array([0, 1, 2]), 3, 2.0
+    clearance = np.array([8.0, 3.0])  # heights of the ankle and the toes standing on a flat foot
+    for back, down in ((6.0, 0.0), (3.0, 1.5), (12.0, 2.0)):  # the lock holds the foot behind and below the generated one
+        pos = _standing_leg(14.0)
+        length = np.linalg.norm(pos[2] - pos[0])
+        target = pos[2] + np.array([0.0, -down, -back])
+        toe_before = target + (pos[3] - pos[2])
+        turned_target = target.copy()
+        turn = heel_rise(pos, legs, toes, clearance, on_floor, turned_target, length)
+        np.testing.assert_allclose(turn @ turn.T, np.eye(3), atol=1e-12)
+        # the toes stay where the lock wants them; the ankle comes up about them to the leg's length
+        np.testing.assert_allclose(turned_target + turn @ (pos[3] - pos[2]), toe_before, atol=1e-9)
+        assert np.linalg.norm(turned_target - pos[0]) == pytest.approx(length, abs=1e-9)
+        assert turned_target[1] > target[1]
+        angle = np.degrees(np.arccos((np.trace(turn) - 1.0) / 2.0))
+        assert 0.0 < angle <= np.degrees(MAX_HEEL_RISE) + 1e-9
+    # within reach: nothing turns
+    pos = _standing_leg(14.0)
+    target = pos[2] + np.array([0.0, 0.5, 2.0])
+    kept = target.copy()
+    np.testing.assert_array_equal(heel_rise(pos, legs, toes, clearance, on_floor, kept, np.linalg.norm(pos[2] - pos[0])), np.eye(3))
+    np.testing.assert_array_equal(kept, target)
+    # out of reach even on tiptoe: the rise that comes nearest, no further than the limit
+    target = pos[2] + np.array([0.0, -30.0, -60.0])
+    turned_target = target.copy()
+    turn = heel_rise(pos, legs, toes, clearance, on_floor, turned_target, np.linalg.norm(pos[2] - pos[0]))
+    assert np.degrees(np.arccos((np.trace(turn) - 1.0) / 2.0)) == pytest.approx(np.degrees(MAX_HEEL_RISE))
+    assert np.linalg.norm(turned_target - pos[0]) < np.linalg.norm(target - pos[0])
+    # a heel just landing, its toes up in the air (on_floor more above their clearance than the heel): no rise
+    landing = pos.copy()
+    landing[3, 1] += on_floor
+    target = landing[2] + np.array([0.0, 0.0, -6.0])
+    np.testing.assert_array_equal(heel_rise(landing, legs, toes, clearance, on_floor, target.copy(), np.linalg.norm(pos[2] - pos[0])),
+                                  np.eye(3))
 
 
 def test_a_nearly_straight_knee_bent_backwards_is_shortened_by_bending_forward():

@@ -62,14 +62,16 @@ def _figures(model, style: str, weight: float, follow: float | None, frames: int
     return walk_figures(motion, model.layout, limbs, contact.clearance, cm)
 
 
-def test_following_the_stance_foot_swings_the_thigh_less_and_keeps_the_pace(model):
-    """Feminine, whose generated legs sweep least of the ground the body travels: held in place
-    with the body sliding on, the thigh swings back 11 deg beyond the unplanted walk's range."""
+def test_inside_the_data_the_body_keeps_its_pace_and_the_heel_takes_the_slide(model):
+    """Feminine, whose generated legs sweep least of the ground the body travels: inside the
+    data the body takes none of the planted foot's slide (it would slow the walk: the foot
+    lock's heel rise takes it, tests/test_quality.py checks the ranges that leaves)."""
+    assert STRENGTH == 0.0
     held = _figures(model, "feminine", 1.0, 0.0)
     followed = _figures(model, "feminine", 1.0, None)  # the default, STRENGTH
-    assert followed["hip_deg"] < held["hip_deg"] - 2.0
-    assert followed["skate_cm_s"] < held["skate_cm_s"]
-    assert abs(followed["speed_cm_s"] / held["speed_cm_s"] - 1.0) < 0.03
+    np.testing.assert_equal(followed, held)
+    taking = _figures(model, "feminine", 1.0, 0.5)
+    assert taking["speed_cm_s"] < held["speed_cm_s"] * 0.99  # what the body takes it no longer travels
 
 
 def test_an_exaggerated_walk_keeps_its_feet_planted(model):

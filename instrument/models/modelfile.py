@@ -9,8 +9,8 @@ Arrays:
     static_step_max                             (D,) largest frame-to-frame change of each static feature in the data
     contact_average, contact_styles             optional (synthesis/contact.py): share of frames with each foot
                                                 planted per (label, state), (labels, states, 2) and (styles, ...)
-    range_average, range_styles                 optional (synthesis/widen.py): half the log ratio of each static
-                                                feature's variance in the data to that in a made walk, (D,) and (styles, D)
+    range_average, range_styles                 optional (synthesis/widen.py): the log ratio of each static
+                                                feature's range in the data to that in a made walk, (D,) and (styles, D)
     metadata                                    a 0-d string array holding JSON
 """
 

@@ -71,6 +71,25 @@ def heading_drift(yaw: np.ndarray, steps: list[Step], fps: float) -> float:
     return float(abs(np.degrees(np.polyfit(times, headings, 1)[0])))
 
 
+def limb_ranges(pos: np.ndarray, yaw: np.ndarray, limbs: Limbs, root: int) -> dict[str, float]:
+    """`knee_deg`, `hip_deg` and `shoulder_deg` (NaN without arms) of world positions (T, J, 3)
+    whose root heads `yaw` (T,) radians: each the mean over both sides of its 1st to 99th
+    percentile range. Training calibrates the range filter with it (synthesis/widen.py)."""
+    heading = axis_angle_matrix("y", yaw)
+    direction = np.median(np.einsum("tji,tj->ti", heading, np.gradient(pos[:, root], axis=0)), axis=0) * [1, 0, 1]
+    norm = np.linalg.norm(direction)  # the way the walk goes, in the heading frame
+    forward = heading @ (direction / norm if norm > 1e-9 else np.array([0.0, 0.0, 1.0]))
+    knees, hips = [], []
+    for leg in limbs.legs:
+        thigh = pos[:, leg.knee] - pos[:, leg.hip]
+        shin = pos[:, leg.ankle] - pos[:, leg.knee]
+        knees.append(_spread(_angle(thigh, shin)))
+        hips.append(_spread(_swing(thigh, forward)))
+    shoulders = [_spread(_swing(pos[:, e] - pos[:, s], forward)) for s, e in limbs.arms]
+    return {"knee_deg": float(np.mean(knees)), "hip_deg": float(np.mean(hips)),
+            "shoulder_deg": float(np.mean(shoulders)) if shoulders else float("nan")}
+
+
 def walk_figures(motion: Motion, layout: FeatureLayout, limbs: Limbs, ground: np.ndarray, cm: float) -> dict[str, float]:
     """The figures of one walk (see the module's docstring); NaN where a walk has too few steps."""
     world_rot, world_pos = forward_kinematics(motion.skeleton, *local_transforms(motion))
@@ -106,20 +125,7 @@ def walk_figures(motion: Motion, layout: FeatureLayout, limbs: Limbs, ground: np
     out["under_frac"] = float((lift < -UNDER_CM).any(axis=0).mean())
     out["under_depth_cm"] = float(max(0.0, -lift.min()))
     out["air_frac"] = float((lift > AIR_CM).all(axis=0).mean())
-    # ranges
-    heading = axis_angle_matrix("y", yaw)
-    direction = np.median(np.einsum("tji,tj->ti", heading, np.gradient(root, axis=0)), axis=0) * [1, 0, 1]
-    norm = np.linalg.norm(direction)  # the way the walk goes, in the heading frame
-    forward = heading @ (direction / norm if norm > 1e-9 else np.array([0.0, 0.0, 1.0]))
-    knees, hips = [], []
-    for leg in limbs.legs:
-        thigh = pos[:, leg.knee] - pos[:, leg.hip]
-        shin = pos[:, leg.ankle] - pos[:, leg.knee]
-        knees.append(_spread(_angle(thigh, shin)))
-        hips.append(_spread(_swing(thigh, forward)))
-    out["knee_deg"], out["hip_deg"] = float(np.mean(knees)), float(np.mean(hips))
-    if limbs.arms:
-        out["shoulder_deg"] = float(np.mean([_spread(_swing(pos[:, e] - pos[:, s], forward)) for s, e in limbs.arms]))
+    out |= limb_ranges(pos, yaw, limbs, layout.root)
     body = pos[:, [j for j in range(pos.shape[1]) if j == layout.root or is_below(motion, j, layout.root)]]
     if motion.frames > 3:
         out["jitter_m_s3"] = float(np.linalg.norm(np.diff(body, 3, axis=0), axis=2).mean() * fps**3 / 100.0)

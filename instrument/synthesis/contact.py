@@ -15,14 +15,19 @@ frame at a time, on the pose the features give:
   hinge; then the hip swings the leg), the foot keeping its generated world orientation, towards: the lock
   horizontally, its lowest joint on the floor vertically; the lock blends in and out over
   BLEND_FRAMES frames, so nothing pops;
+- where that would stretch a planted leg past its generated length (hip to ankle), the heel
+  rises instead: the foot pitches up about its pivot (its last joint, the toes), up to
+  MAX_HEEL_RISE, as a real foot rolls onto its toes at the end of stance. Stretching the leg
+  straightened the knee (25 to 8 degrees for a 1.7 cm reach) and swung the thigh back, which
+  left the hip's range up to 19% wider than the takes';
 - no foot joint goes below its clearance, planted or not, and a swinging foot keeps up to
   SWING_CM above it (all of it on a bent knee, none on a straight one reaching to land);
 - a released foot rises as generated (only the horizontal pull blends out);
 - a walk always has a foot on the floor: when no state plants either, the likelier one is;
-- where a planted leg is too short to reach the floor below it (an exaggerated style can lift
-  the hips), the body comes down by the difference, eased over BLEND_FRAMES frames.
-Before the lock, the body takes a share of a planted foot's generated slide (`follow.py`), so
-the IK does not have to stretch the leg after a body that slides on.
+- where a planted leg cannot reach even so (an exaggerated style can lift the hips), it stretches
+  up to STRETCH of its length, and the body comes down by the rest, eased over BLEND_FRAMES frames.
+Before the lock, outside the data, the body takes a share of a planted foot's generated slide
+(`follow.py`), so the IK does not have to stretch the leg after a body that slides on.
 Nothing looks ahead beyond what the frame's state already says, so live and `synth` agree.
 """
 

@@ -1,21 +1,20 @@
 """The body follows its stance foot: part of a planted foot's generated slide moves the body.
 
 The foot lock (footlock.py) holds a planted foot where it landed while the generated body
-travels on. Where the generated leg sweeps less ground than the body travels, the lock's leg IK
-makes up the difference by stretching the leg and swinging the thigh further back than the
-data does (the hip's range grows, the knee's shrinks). Here the body takes STRENGTH of that
-slide instead: each frame, the horizontal step each foot's pivot (the joint the lock holds)
-made in the generated pose since the frame before, weighted by how far that foot's lock is
-blended in (eased as the lock eases it), is taken off the body's path. The rest is left to the
-IK, because what the body takes it no longer travels: all of it (STRENGTH 1) slows the walk by
-7-11% and a quarter by up to 3% (docs/evaluate.md has the figures), against the target of
-speed within 3% of the real takes. Outside the data (x2, -1) the generated slide is larger and
-speed has nothing real to match, so the body takes more (`strength`).
+travels on. Where the generated leg sweeps less ground than the body travels, the lock makes up
+the difference: the heel rises (a foot rolling onto its toes) and, past what that reaches, the
+leg stretches. Here the body takes a share of that slide instead: each frame, the horizontal
+step each foot's pivot (the joint the lock holds) made in the generated pose since the frame
+before, weighted by how far that foot's lock is blended in (eased as the lock eases it), is
+taken off the body's path. What the body takes it no longer travels, so inside the data
+(STRENGTH) it takes nothing: there the made leg's sweep and the body's travel agree to within a
+heel rise, and any share slowed the walk (a fifth: speed 2-3% short of the takes). Outside the
+data (x2, -1) the generated slide is larger and speed has nothing real to match, so the body
+takes more (`strength`): feminine x2 skated 25 cm/s without it.
 
-The offset grows by at most the character's strength (STRENGTH inside the data, up to
-STRENGTH_OFF_DATA outside it) times a foot's slide per frame, so nothing jumps, and a
-style change shows in the next frame. It is causal: it uses the lock's blend of the frame
-before. Its state is arrays with one row per character, so it batches over a crowd.
+The offset grows by at most the character's strength times a foot's slide per frame, so nothing
+jumps, and a style change shows in the next frame. It is causal: it uses the lock's blend of
+the frame before. Its state is arrays with one row per character, so it batches over a crowd.
 """
 
 from __future__ import annotations
@@ -23,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-STRENGTH = 0.2  # share of a planted foot's generated slide the body takes inside the data (chosen by `instrument evaluate`)
+STRENGTH = 0.0  # share of a planted foot's generated slide the body takes inside the data (chosen by `instrument evaluate`)
 STRENGTH_OFF_DATA = 0.5  # ... a whole weight unit outside it (x2, -1), where speed has no real takes to match
 
 

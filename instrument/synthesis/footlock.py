@@ -8,10 +8,13 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
   and still where the state allows it; always one foot);
 - `lock_target`: where an ankle should go (the lock blended in, the floor, the swing lift as
   `swing_share` allows);
-- `body_drop`: how far the body must come down for a planted leg to reach the floor;
+- `heel_rise`: the foot pitched up about its toes where the lock would stretch a planted leg
+  past its generated length;
+- `body_drop`: how far the body must come down for a planted leg to reach its target;
 - `leg_swings`: two-bone IK, the thigh's and the shin's turns that take an ankle to a target;
 - `solve_leg`: those turns applied in place to the local rotations;
-- `lock_frame`: one character's frame, in the order above; `lock_crowd`: every character's.
+- `lock_frame`: one character's frame, in the order above (`_targets` gathers the first three
+  for both legs); `lock_crowd`: every character's.
 
 `FootLock` holds what does not change (the legs' joints, the floor, the units); each
 character's state (how far each foot's lock is blended in, the locked points, the body's drop,
@@ -30,6 +33,9 @@ from ..motion.kinematics import _compose, forward_kinematics
 from ..motion.limbs import centimetres_per_unit, find_limbs
 from .contact import BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, PLANTED, POSSIBLE, SWING_BENT, SWING_CM
 from .follow import ease
+
+MAX_HEEL_RISE = np.radians(50.0)  # the most a planted foot pitches up about its toes
+STRETCH = 0.98  # of a leg's full length: how far the lock stretches a leg before the body comes down
 
 
 @dataclass
@@ -145,15 +151,76 @@ def lock_target(world_pos, leg, foot, ground_f, weight, point, planted, swing_li
 
 
 @njit(cache=True, error_model="numpy")
-def body_drop(world_pos, joints, reach, targets, planted):  # pragma: no cover - compiled
-    """How far the body must come down for every planted leg to reach the floor below its hip
-    (an exaggerated style can lift the hips), before easing; 0 when it reaches already."""
+def heel_rise(world_pos, leg, pivot, clearance, on_floor, target, allowed):  # pragma: no cover - compiled
+    """The foot's turn (3x3, world) about its pivot (its last joint, the toes) when the lock asks
+    the leg (hip, knee, ankle) to reach further than `allowed` (hip to ankle): the heel rises, as
+    a real foot rolls onto its toes, so the knee keeps its bend instead of straightening and the
+    hip is not pulled into extension. Moves `target` (the ankle's) with it; at most
+    MAX_HEEL_RISE, the rise that comes nearest when none reaches; identity when the leg reaches
+    already. `clearance` (2,): the ankle's and the pivot's heights standing on the floor. A foot
+    whose toes are `on_floor` or more higher above their clearance than the heel is above its
+    own (a heel just landing) takes none of the rise, and in between a share: rolling on toes
+    in the air would lift the whole foot off the floor."""
+    hip = world_pos[leg[0]]
+    toes = world_pos[pivot] - world_pos[leg[2]]
+    toe = target + toes  # where the pivot goes with the ankle
+    toes_up = toes[1] - (clearance[1] - clearance[0])  # toes' lift above the heel's, each above its clearance
+    share = min(max(1.0 - toes_up / on_floor, 0.0), 1.0)
+    reach = np.sqrt(_dot(target - hip, target - hip))
+    if share <= 0.0 or reach <= allowed:
+        return np.eye(3)
+    allowed = reach - share * (reach - allowed)
+    v = target - toe
+    u = toe - hip
+    k = np.array([toes[2], 0.0, -toes[0]])  # up x (toe direction): the foot's pitch axis, lifting the heel
+    norm = np.sqrt(_dot(k, k))
+    if norm < 1e-12:
+        return np.eye(3)
+    k /= norm
+    # the squared reach after a turn t is |u|^2 + |v|^2 + 2 (a cos t + b sin t + c), with
+    # a cos t + b sin t = r cos(t - phi)
+    kv, uk = _dot(k, v), _dot(u, k)
+    a = _dot(u, v) - uk * kv
+    b = _dot(u, _cross(k, v))
+    c = uk * kv
+    r = np.sqrt(a * a + b * b)
+    if r < 1e-12:
+        return np.eye(3)
+    phi = np.arctan2(b, a)
+    q = ((allowed * allowed - _dot(u, u) - _dot(v, v)) / 2.0 - c) / r
+    theta = -1.0
+    if q > -1.0:  # the smallest rise that brings the reach down to `allowed`
+        spread = np.arccos(min(q, 1.0))
+        for candidate in (phi - spread, phi + spread):
+            candidate = (candidate + np.pi) % (2.0 * np.pi) - np.pi
+            if 0.0 < candidate <= MAX_HEEL_RISE and (theta < 0.0 or candidate < theta):
+                theta = candidate
+    if theta < 0.0:  # out of reach: the rise in [0, MAX_HEEL_RISE] that comes nearest
+        theta, best = 0.0, np.cos(phi)
+        nearest = (phi + 2.0 * np.pi) % (2.0 * np.pi) - np.pi  # phi + pi, where r cos(t - phi) is least
+        for candidate in (MAX_HEEL_RISE, nearest):
+            if 0.0 < candidate <= MAX_HEEL_RISE and np.cos(candidate - phi) < best:
+                theta, best = candidate, np.cos(candidate - phi)
+        if theta == 0.0:
+            return np.eye(3)
+    turn = _axis_rotation(k, np.sin(theta), 1.0 - np.cos(theta))
+    for i in range(3):
+        target[i] = toe[i] + _dot(turn[i], v)
+    return turn
+
+
+@njit(cache=True, error_model="numpy")
+def body_drop(world_pos, joints, reach, targets, planted, extension):  # pragma: no cover - compiled
+    """How far the body must come down for every planted leg to reach its target (an
+    exaggerated style can lift the hips further than a heel rise makes up), before easing; 0
+    when it reaches. A leg may stretch past its generated `extension` (hip to ankle) up to
+    STRETCH of its full length before the body comes down."""
     need = 0.0
     for f in range(2):
         if planted[f]:
-            hip, ankle = world_pos[joints[f, 0]], world_pos[joints[f, 2]]
-            below = np.sqrt((hip[0] - ankle[0]) ** 2 + (hip[1] - targets[f, 1]) ** 2 + (hip[2] - ankle[2]) ** 2)
-            need = max(need, below - 0.98 * reach[f])
+            hip = world_pos[joints[f, 0]]
+            gap = targets[f] - hip
+            need = max(need, np.sqrt(_dot(gap, gap)) - max(extension[f], STRETCH * reach[f]))
     return max(need, 0.0)
 
 
@@ -281,21 +348,40 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         if planted[f] and weights[f] == 0.0:
             points[f] = world_pos[feet[f, -1]]
         weights[f] = min(1.0, weights[f] + step) if planted[f] else max(0.0, weights[f] - step)
-    targets = np.empty((2, 3))
+    extension = np.empty(2)  # each leg's generated hip-to-ankle distance, which the lock keeps where it can
     for f in range(2):
-        targets[f] = lock_target(world_pos, joints[f], feet[f], ground[f], weights[f], points[f], planted[f], swing_lift)
-    drop[0] += (body_drop(world_pos, joints, reach, targets, planted) - drop[0]) / BLEND_FRAMES
+        gap = world_pos[joints[f, 2]] - world_pos[joints[f, 0]]
+        extension[f] = np.sqrt(_dot(gap, gap))
+    on_floor = CONTACT_CM / cm
+    targets, turns = _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension)
+    drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) / BLEND_FRAMES
     if drop[0] > 1e-9:
         translations[root] -= drop[0] * parent_rot[1]  # [0, drop, 0] @ parent_rot
         world_pos[:, 1] -= drop[0]
-        for f in range(2):
-            targets[f] = lock_target(world_pos, joints[f], feet[f], ground[f], weights[f], points[f], planted[f],
-                                     swing_lift)
+        targets, turns = _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension)
+    turned = np.empty((3, 3))
     for f in range(2):
         ankle = joints[f, 2]
+        _product(turns[f], world_rot[ankle], turned)
+        world_rot[ankle] = turned  # the foot keeps its generated world rotation, but for the heel's rise
         gap = targets[f] - world_pos[ankle]
         if np.sqrt(np.sum(gap * gap)) > 1e-9:
             solve_leg(rotations, world_rot, world_pos, parents, joints[f, 0], joints[f, 1], ankle, feet[f, -1], targets[f])
+
+
+@njit(cache=True, error_model="numpy")
+def _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension):  # pragma: no cover - compiled
+    """Each ankle's target and each foot's heel-rise turn (2, 3, 3), a foot whose lock is blended
+    in rising on its toes where its leg would otherwise stretch past its generated extension."""
+    targets = np.empty((2, 3))
+    turns = np.empty((2, 3, 3))
+    for f in range(2):
+        targets[f] = lock_target(world_pos, joints[f], feet[f], ground[f], weights[f], points[f], planted[f], swing_lift)
+        turns[f] = np.eye(3)
+        if weights[f] > 0.0:
+            clearance = np.array([ground[f, 0], ground[f, -1]])
+            turns[f] = heel_rise(world_pos, joints[f], feet[f, -1], clearance, on_floor, targets[f], extension[f])
+    return targets, turns
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -1,11 +1,14 @@
-"""Full range: a causal variance-scaling post-filter (after Silen et al. 2012) on streamed features.
+"""Full range: a causal post-filter scaling each feature's swing (after the variance scaling of Silen et al. 2012).
 
 MLPG averages: a walk it makes swings through a smaller range than the takes it learnt from
 (the knee 24-38% short for some styles) and, for others, through a larger one. Training
-measures, for the average model and for each style, every static feature's variance in the real
-walking frames (about each take's mean) and in a walk the model makes (about its stride mean,
-below), and stores half the log of their ratio: the factor by which a generated feature's
-swing must grow (or shrink) to have the data's variance.
+measures, for the average model and for each style, every static feature's range (1st to 99th
+percentile) in the real walking frames (about each take's stride mean, averaged over the takes)
+and in a walk the model makes (about its stride mean, below), and stores the log of their
+ratio: the factor by which a generated feature's swing must grow (or shrink) to have the
+data's range. (Matching variances instead left the peaks short: MLPG rounds them off more than
+it lowers the variance.) The knees' factors are then calibrated on the walk as the instrument
+plays it, feet planted (`_calibrate_knees`).
 
 Live, frame by frame, each feature is moved away from (or towards) the stride mean of the
 current lambda* (the state means weighted by the planned state durations: what the walk
@@ -23,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..motion.features import ROOT_FEATURES
+from ..motion.features import ROOT_FEATURES, heading_angle
 from .stream import Controls, Crowd
 
 STRENGTH = 1.0  # share of the learnt log factor applied (chosen by `instrument evaluate`, docs/evaluate.md)
@@ -32,6 +35,9 @@ EASE_FRAMES = 4
 KEPT = tuple(ROOT_FEATURES.index(name) for name in ("root.vx", "root.vz", "root.yaw_rate"))  # never scaled
 TRAINING_FRAMES = 600  # frames of each generated walk measured in training (the first SETTLE dropped)
 SETTLE = 60
+RANGE_PERCENTILES = (1.0, 99.0)  # a feature's range, as `instrument evaluate` measures a joint's
+CALIBRATION_ROUNDS = 3  # the knees' factors corrected on a played walk this many times
+CALIBRATION_FRAMES = 360  # 12 s at 30 fps, after SETTLE frames from rest
 
 
 @dataclass(frozen=True)
@@ -117,21 +123,30 @@ class Widen:
 
 # ---- training -------------------------------------------------------------------------------
 
-def _generated_variance(space, weights: np.ndarray) -> np.ndarray:
-    """Variance of each feature of a walk the model makes at `weights`, about its stride mean."""
+def _spread(values: np.ndarray) -> np.ndarray:
+    """Each column's range between its 1st and 99th percentiles: the peaks a viewer sees, which
+    MLPG rounds off more than it lowers the variance (matching variances left the knee 5-18%
+    short of the takes' range)."""
+    low, high = np.percentile(values, RANGE_PERCENTILES, axis=0)
+    return high - low
+
+
+def _generated_range(space, weights: np.ndarray) -> np.ndarray:
+    """Range of each feature of a walk the model makes at `weights`, about its stride mean."""
     walker = Crowd(space)
     controls = Controls(weights)
     frames = np.array([walker.step([controls])[0] for _ in range(TRAINING_FRAMES)])[SETTLE:]
-    return np.mean((frames - stride_mean(walker)) ** 2, axis=0)
+    return _spread(frames - stride_mean(walker))
 
 
-def _real_variance(takes, dimension: int) -> np.ndarray:
-    """Pooled variance of the walking frames (inside steps) about each one's stride mean (the
-    average over the stride around it), as the made walk's is about its stride mean: a take's
-    slower changes (turning, speeding up, settling) are not swing the model should make."""
+def _real_range(takes, dimension: int) -> np.ndarray:
+    """Each feature's range in the walking frames (inside steps) of each take about its stride
+    mean (the average over the stride around it, as the made walk's is about its stride mean: a
+    take's slower changes, turning, speeding up, settling, are not swing the model should make),
+    averaged over the takes by their walking frames."""
     from scipy.ndimage import uniform_filter1d  # training only: the live path does not load it
 
-    squares, count = np.zeros(dimension), 0
+    total, count = np.zeros(dimension), 0
     for take in takes:
         if not take.steps:
             continue
@@ -139,14 +154,62 @@ def _real_variance(takes, dimension: int) -> np.ndarray:
         static = take.observations[:, :dimension]
         mean = uniform_filter1d(static, stride, axis=0, mode="nearest")
         rows = np.concatenate([np.arange(s.start, s.end) for s in take.steps])
-        squares += ((static[rows] - mean[rows]) ** 2).sum(axis=0)
+        total += _spread(static[rows] - mean[rows]) * len(rows)
         count += len(rows)
-    return squares / max(count, 1)
+    return total / max(count, 1)
+
+
+def _knee_columns(layout, limbs) -> list[int]:
+    """The feature columns of both knees' rotations."""
+    return [len(ROOT_FEATURES) + 3 * layout.joints.index(leg.knee) + a for leg in limbs.legs if leg.knee in layout.joints
+            for a in range(3)]
+
+
+def _knee_range(motion, limbs, root: int) -> float:
+    """The knees' range of a walk in degrees, as `instrument evaluate` measures it."""
+    from ..motion.kinematics import forward_kinematics, local_transforms
+    from ..motion.quality import limb_ranges
+
+    world_rot, world_pos = forward_kinematics(motion.skeleton, *local_transforms(motion))
+    return limb_ranges(world_pos, heading_angle(world_rot[:, root]), limbs, root)["knee_deg"]
+
+
+def _calibrate_knees(model, takes, log_factors: np.ndarray, weights: np.ndarray, extras_with) -> None:
+    """Moves the knees' log factors (in place) until the walk the instrument plays at `weights`,
+    feet planted, bends its knees through the takes' range. The foot lock keeps a planted leg's
+    generated bend where it can (a heel rises instead), but a swinging foot kept off the floor
+    bends its knee more, so the features' range alone left the played knee up to 13% short
+    (elderly). The hips are not calibrated: a planted thigh's swing is the lock's geometry, not
+    its features (a correction on them did not converge). `extras_with(log_factors)` gives the
+    model's extras with these factors in their place."""
+    from dataclasses import replace
+
+    from ..motion.bvh import Motion
+    from ..motion.features import restore
+    from ..motion.limbs import find_limbs
+    from .interpolation import style_space
+    from .offline import synthesize_motion
+
+    layout = model.layout
+    limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
+    chosen = [t for t in takes if t.steps]
+    if limbs is None or not chosen:
+        return
+    knees = _knee_columns(layout, limbs)
+    real = np.average([_knee_range(restore(t.observations[:, : layout.dimension], layout, model.fps), limbs, layout.root)
+                       for t in chosen], weights=[t.frames for t in chosen])
+    for _ in range(CALIBRATION_ROUNDS):
+        trial = replace(model, extras=extras_with(log_factors))
+        made = synthesize_motion(trial, style_space(trial), Controls(weights), SETTLE + CALIBRATION_FRAMES)
+        made = Motion(made.skeleton, made.channels[SETTLE:], made.fps)
+        log_factors[knees] += np.log(max(real, 1e-9) / max(_knee_range(made, limbs, layout.root), 1e-9))
+        np.clip(log_factors, -LIMIT, LIMIT, out=log_factors)
 
 
 def train_range(model, takes) -> dict[str, np.ndarray]:
-    """Model-file arrays `range_average` (D,) and `range_styles` (styles, D): half the log ratio
-    of each feature's variance in the data to its variance in a walk the model makes."""
+    """Model-file arrays `range_average` (D,) and `range_styles` (styles, D): the log ratio of
+    each feature's range in the data to its range in a walk the model makes, the knees' then
+    calibrated on the walk as it is played (`_calibrate_knees`)."""
     from .interpolation import style_space
 
     space = style_space(model)
@@ -154,12 +217,18 @@ def train_range(model, takes) -> dict[str, np.ndarray]:
     names = model.style_names
 
     def log_factor(chosen, weights):
-        real = _real_variance(chosen, dimension)
-        made = _generated_variance(space, weights)
-        out = 0.5 * np.log(np.maximum(real, 1e-12) / np.maximum(made, 1e-12))
+        real = _real_range(chosen, dimension)
+        made = _generated_range(space, weights)
+        out = np.log(np.maximum(real, 1e-12) / np.maximum(made, 1e-12))
         out[list(KEPT)] = 0.0
         return np.clip(out, -LIMIT, LIMIT)
 
     average = log_factor(takes, np.zeros(len(names)))
     styles = np.stack([log_factor([t for t in takes if t.style == name], np.eye(len(names))[s]) for s, name in enumerate(names)])
+    extras = dict(model.extras)
+    _calibrate_knees(model, takes, average, np.zeros(len(names)),
+               lambda f: extras | {"range_average": f, "range_styles": styles})
+    for s, name in enumerate(names):
+        _calibrate_knees(model, [t for t in takes if t.style == name], styles[s], np.eye(len(names))[s],
+                   lambda f, s=s: extras | {"range_average": average, "range_styles": np.vstack([styles[:s], f[None], styles[s + 1:]])})
     return {"range_average": average, "range_styles": styles}
