@@ -445,6 +445,28 @@ def test_a_page_that_stops_reading_is_dropped_and_the_others_go_on():
     assert len(replies) > 60 and replies == sorted(replies)
 
 
+def test_every_interface_prints_an_address_a_tablet_can_open():
+    import ipaddress
+    import urllib.request
+
+    show = Instrument("--console", "0.0.0.0:0", "--no-osc", "--quiet")
+    try:
+        lines = [line for line in show.lines if line.startswith("console: http")]
+        host = ipaddress.ip_address(show.url.split("/")[2].rsplit(":", 1)[0])
+        assert not host.is_unspecified
+        if host.is_loopback:  # a machine without a network: said so, not a URL that cannot work
+            assert "this machine has no network address" in lines[0]
+        else:
+            assert "open this on a tablet or computer on the network" in lines[0]
+            assert urllib.request.urlopen(show.url, timeout=30).status == 200  # served at that address, token included
+            loopback = show.wait_for(r"console: (http://127\.0\.0\.1:\S+) \(on this machine\)").group(1)
+            assert urllib.request.urlopen(loopback, timeout=30).status == 200
+        assert not any("0.0.0.0" in line for line in lines)
+    finally:
+        stderr = show.stop()
+    assert show.process.returncode == 0, stderr
+
+
 @pytest.mark.parametrize("address,message", [("nowhere:abc", "--console 'nowhere:abc': expected [HOST:]PORT"),
                                              ("70000", "port must be 0 to 65535")])
 def test_bad_console_addresses_are_one_line_errors(address, message):

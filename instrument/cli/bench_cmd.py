@@ -109,7 +109,8 @@ def _console_for_pacing(address: str, model, console, outputs: list, fps: float,
 
     link = ConsoleLink(address, model, ControlState(model.style_names, model.states), {}, console, fps)
     outputs.append(link.output)
-    print(f"console: {link.url}", file=sys.stderr, flush=True)
+    for line in link.announcement():
+        print(line, file=sys.stderr, flush=True)
     deadline = time.monotonic() + 300
     while link.pages < pages:
         if time.monotonic() > deadline:

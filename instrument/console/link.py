@@ -27,6 +27,7 @@ from .server import JSON, frame_packet
 SOURCE = "console"  # the source name of the page's events in a controller log
 SLIDER_WEIGHTS = (-2.0, 4.0)  # the style sliders' travel; the number box beside takes the whole +-WEIGHT_LIMIT
 START_SECONDS = 60.0  # the server process has this long to start listening (a busy machine imports slowly)
+EVERY_INTERFACE = ("0.0.0.0", "")  # a host meaning "listen on every interface": not an address to open
 SOURCES_EVERY = 15  # frames between two updates of the control sources shown on the pages
 
 
@@ -40,6 +41,26 @@ def split_address(address: str) -> tuple[str, int, bool]:
     if not 0 <= number <= 65535:
         raise UserError(f"--console {address!r}: port must be 0 to 65535")
     return host or "127.0.0.1", number, bool(host)
+
+
+def network_addresses() -> list[str]:
+    """This machine's IPv4 addresses another machine may reach, the outbound interface's first.
+
+    The outbound one is found by connecting a UDP socket (which sends nothing) towards an address
+    outside this machine and reading which local address the system chose; the others are the
+    host name's addresses. Loopback addresses are left out: a tablet cannot open them."""
+    found = []
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        try:
+            probe.connect(("10.254.254.254", 9))  # any address off this machine; no packet is sent
+            found.append(probe.getsockname()[0])
+        except OSError:  # no route: no network, or only loopback
+            pass
+    try:
+        found += [info[4][0] for info in socket.getaddrinfo(socket.gethostname(), None, socket.AF_INET)]
+    except OSError:
+        pass
+    return list(dict.fromkeys(a for a in found if not a.startswith("127.") and a != "0.0.0.0"))
 
 
 def hello(model, state: ControlState, presets: dict, morph: float, save_path: str | None, fps: float) -> dict:
@@ -65,6 +86,8 @@ class ConsoleLink:
         # a named host may be reached from the network: then the page needs the token
         self.token = token or (secrets.token_urlsafe(16) if named else None)
         self.host, self.pages, self.open = host, 0, True
+        # looked up once (a host name lookup may wait on DNS): describe() is called from the frame loop
+        self.addresses = network_addresses() if host in EVERY_INTERFACE else []
         self.sock, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         self.process = subprocess.Popen([sys.executable, "-m", "instrument.console.server", str(theirs.fileno())],
                                         pass_fds=[theirs.fileno()])
@@ -85,9 +108,27 @@ class ConsoleLink:
         self.input = ConsoleInput(self, console)
         self.output = ConsoleOutput(self, state, presets, sources)
 
+    def url_at(self, host: str) -> str:
+        return f"http://{host}:{self.port}/" + (f"?token={self.token}" if self.token else "")
+
     @property
     def url(self) -> str:
-        return f"http://{self.host}:{self.port}/" + (f"?token={self.token}" if self.token else "")
+        """The URL to open: on a console listening on every interface, at this machine's network address."""
+        if self.host in EVERY_INTERFACE:
+            return self.url_at(next(iter(self.addresses), "127.0.0.1"))
+        return self.url_at(self.host)
+
+    def announcement(self) -> list[str]:
+        """The lines said at start: the URL to open, and on every interface, which address is for what."""
+        if self.host not in EVERY_INTERFACE:
+            return [f"console: {self.url}"]
+        addresses = self.addresses
+        if not addresses:
+            return [f"console: {self.url_at('127.0.0.1')} (listening on {self.host}, but this machine has no network "
+                    "address: only this machine can open the console)"]
+        lines = [f"console: {self.url_at(addresses[0])} (open this on a tablet or computer on the network)"]
+        lines += [f"console: {self.url_at(a)} (another address of this machine)" for a in addresses[1:]]
+        return lines + [f"console: {self.url_at('127.0.0.1')} (on this machine)"]
 
     def send(self, packet: bytes) -> None:
         """To the server, never waiting: when its queue is full (a stalled server) the packet is dropped."""
