@@ -20,6 +20,7 @@ from instrument.control.events import ControlEvent, read_log
 from instrument.control.hub import ControlHub
 from instrument.control.loghead import logged_mappings
 from instrument.control.mapping import load_mapping
+from instrument.control.targets import TABLE
 from instrument.control.targets import WEIGHT_LIMIT as STATE_WEIGHT_LIMIT
 from instrument.control.state import ControlState
 from instrument.errors import UserError
@@ -113,6 +114,7 @@ def test_usage_errors_exit_2_in_one_line(capsys):
 def test_the_option_table_and_the_control_state_agree():
     assert WEIGHT_LIMIT == STATE_WEIGHT_LIMIT
     assert OPTIONS["synth --style"].high == STATE_WEIGHT_LIMIT
+    assert (OPTIONS["run --morph"].low, OPTIONS["run --morph"].high) == (TABLE["morph"].low, TABLE["morph"].high)
 
 
 @pytest.mark.parametrize("kind", ["garbage", "utf16"])

@@ -61,7 +61,7 @@ POSITIVE_SECONDS = Accepts(float, 0, MAX_SECONDS, above_low=True)
 OPTIONS: dict[str, Accepts] = {
     "run --fps": Accepts(float, 24, 120),
     "run --seconds": POSITIVE_SECONDS,
-    "run --morph": Accepts(float, 0, 600),
+    "run --morph": Accepts(float, 0, 600),  # as the control target morph (control.targets.MAX_MORPH; a test keeps them equal)
     "run --osc-in": PORT,  # the port of [HOST:]PORT
     "run --status-port": PORT,  # the port of [HOST:]PORT
     "run --health-every": Accepts(float, 0, 86400),  # seconds; 0: no health line

@@ -265,6 +265,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     outputs, devices, hub, created, health = [], [], None, [], None
     try:
         hub = ControlHub(mappings, presets, None, morph, console)
+        hub.start(state)
         for mapping in mappings:
             for target in preset_problems(mapping, hub.presets):
                 raise UserError(f"{mapping.path}: target {target!r}: no such preset (the mapping, the show file and --presets "
@@ -301,8 +302,8 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
                 return ", ".join([d.describe() for d in devices] + ([f"log {args.replay}"] if args.replay else [])
                                  + ([f"score {score_path}"] if score_path else []))
 
-            link = ConsoleLink(args.console, model, state, hub.presets, console, fps, hub.morph, args.console_token,
-                               args.presets, sources)
+            link = ConsoleLink(args.console, model, state, hub.presets, console, fps, args.console_token, args.presets,
+                               sources)
             devices.append(link.input)
             for line in link.announcement():
                 console.say(line)

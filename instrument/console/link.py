@@ -26,6 +26,7 @@ from .server import JSON, frame_packet
 
 SOURCE = "console"  # the source name of the page's events in a controller log
 SLIDER_WEIGHTS = (-2.0, 4.0)  # the style sliders' travel; the number box beside takes the whole +-WEIGHT_LIMIT
+MORPH_SLIDER = (0.0, 10.0)  # the morph time slider's travel in seconds; the number box takes the table's whole range
 START_SECONDS = 60.0  # the server process has this long to start listening (a busy machine imports slowly)
 EVERY_INTERFACE = ("0.0.0.0", "")  # a host meaning "listen on every interface": not an address to open
 SOURCES_EVERY = 15  # frames between two updates of the control sources shown on the pages
@@ -63,16 +64,17 @@ def network_addresses() -> list[str]:
     return list(dict.fromkeys(a for a in found if not a.startswith("127.") and a != "0.0.0.0"))
 
 
-def hello(model, state: ControlState, presets: dict, morph: float, save_path: str | None, fps: float) -> dict:
+def hello(model, state: ControlState, presets: dict, save_path: str | None, fps: float) -> dict:
     """What a page is told once, on connecting: the model's styles and skeleton, the ranges."""
     skeleton = model.layout.skeleton
     return {
         "type": "hello", "styles": state.style_names, "groups": list(GROUPS), "states": state.states,
         "joints": list(skeleton.names), "parents": [j.parent for j in skeleton.joints], "root": model.layout.root,
-        "fps": fps, "morph": morph, "save": save_path, "presets": sorted(presets), "order": list(all_values(state)),
+        "fps": fps, "save": save_path, "presets": sorted(presets), "order": list(all_values(state)),
         "ranges": {"weight": [-WEIGHT_LIMIT, WEIGHT_LIMIT], "slider": list(SLIDER_WEIGHTS), "speed": [MIN_SPEED, MAX_SPEED],
                    "turn": [-MAX_TURN, MAX_TURN], "liveliness": [TABLE["liveliness"].low, TABLE["liveliness"].high],
-                   "spread": [TABLE["spread"].low, TABLE["spread"].high], "phase": [MIN_SPEED, MAX_SPEED]},
+                   "spread": [TABLE["spread"].low, TABLE["spread"].high], "phase": [MIN_SPEED, MAX_SPEED],
+                   "morph": [TABLE["morph"].low, TABLE["morph"].high], "morph_slider": list(MORPH_SLIDER)},
     }
 
 
@@ -80,7 +82,7 @@ class ConsoleLink:
     """Starts the server process; `input` is the device the hub polls, `output` the frame sink."""
 
     def __init__(self, address: str, model, state: ControlState, presets: dict[str, dict[str, float]], console: Console,
-                 fps: float, morph: float = 0.0, token: str | None = None, save_path: str | None = None,
+                 fps: float, token: str | None = None, save_path: str | None = None,
                  sources: Callable[[], str] = lambda: ""):
         host, port, named = split_address(address)
         # a named host may be reached from the network: then the page needs the token
@@ -93,7 +95,7 @@ class ConsoleLink:
                                         pass_fds=[theirs.fileno()])
         theirs.close()
         config = {"host": host, "port": port, "token": self.token, "targets": state.targets(), "save": save_path,
-                  "hello": hello(model, state, presets, morph, save_path, fps)}
+                  "hello": hello(model, state, presets, save_path, fps)}
         self.sock.sendall(JSON + json.dumps(config).encode("utf-8"))
         self.sock.settimeout(START_SECONDS)
         try:
