@@ -175,6 +175,7 @@ def test_simulated_dualshock4_steers_drives_a_style_and_survives_unplug(capsys):
     device = HidInput(console, 0x054C, 0x09CC, hid=pad)
     state = ControlState(model.style_names, model.states)
     hub = ControlHub([load_mapping(REPO / "mappings" / "sony-dualshock4.toml", state)])
+    hub.start(state)  # the mapping's morph time (1 s), as `run` starts it
     seen = []
 
     class Watch:
