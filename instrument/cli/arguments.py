@@ -91,6 +91,8 @@ OPTIONS: dict[str, Accepts] = {
 # "COMMAND --option": the option without which it means nothing (refused rather than ignored)
 NEEDS: dict[str, str] = {
     "run --console-token": "--console",
+    "bench --console": "--pacing",
+    "bench --console-pages": "--console",
 }
 
 
