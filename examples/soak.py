@@ -149,6 +149,7 @@ def main() -> int:
     presets = {"old": {"style/elderly": 1.2, "speed": 0.8}, "proud": {"style/masculine": 1.5, "style/active": 0.5},
                "light": {"style/feminine": 1.5, "style/youthful": 1.0, "speed": 1.2}}
     hub = ControlHub([ds4], presets)
+    hub.start(state)  # the mapping's morph time, as `run` starts it
     hid = HidInput(console, 0x054C, 0x09CC, hid=pad)
     surface_in = OscInput(console, "127.0.0.1:0")
     surface_port = surface_in.sock.getsockname()[1]

@@ -20,6 +20,7 @@ from instrument.control.events import ControlEvent, read_log
 from instrument.control.hub import ControlHub
 from instrument.control.loghead import logged_mappings
 from instrument.control.mapping import load_mapping
+from instrument.control.targets import TABLE
 from instrument.control.targets import WEIGHT_LIMIT as STATE_WEIGHT_LIMIT
 from instrument.control.state import ControlState
 from instrument.errors import UserError
@@ -110,9 +111,21 @@ def test_usage_errors_exit_2_in_one_line(capsys):
         assert "--help" in one_line(err)
 
 
+@pytest.mark.parametrize("argv,message", [
+    (["run", "--console-token", "s3cret", "--no-osc", "--seconds", "1"], "--console-token means nothing without --console"),
+    (["bench", "--console", "0"], "--console means nothing without --pacing"),
+    (["bench", "--pacing", "1", "--console-pages", "2"], "--console-pages means nothing without --console"),
+])
+def test_an_option_without_the_one_it_belongs_to_is_refused(capsys, argv, message):
+    status, err = cli(capsys, *argv)
+    assert status == 1
+    assert message in one_line(err)
+
+
 def test_the_option_table_and_the_control_state_agree():
     assert WEIGHT_LIMIT == STATE_WEIGHT_LIMIT
     assert OPTIONS["synth --style"].high == STATE_WEIGHT_LIMIT
+    assert (OPTIONS["run --morph"].low, OPTIONS["run --morph"].high) == (TABLE["morph"].low, TABLE["morph"].high)
 
 
 @pytest.mark.parametrize("kind", ["garbage", "utf16"])

@@ -80,8 +80,10 @@ def echoed(receiver: Receiver, address: str) -> list[float]:
     return [params[0] for a, params in receiver.messages() if a == address]
 
 
-@pytest.fixture
-def browser(tmp_path):
+@pytest.fixture(scope="module")
+def chromium(tmp_path_factory):
+    """One headless chromium for the whole module (each start costs seconds); tests share it
+    through `browser`, which leaves it as it found it."""
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
 
@@ -89,12 +91,24 @@ def browser(tmp_path):
     options.binary_location = CHROMIUM
     for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
                  "--disable-component-update", "--disable-sync", "--window-size=1400,900",
-                 f"--user-data-dir={tmp_path / 'chromium'}"):
+                 f"--user-data-dir={tmp_path_factory.mktemp('chromium')}"):
         options.add_argument(flag)
     driver = webdriver.Chrome(options=options, service=Service(CHROMEDRIVER))
     driver.set_page_load_timeout(60)
     yield driver
     driver.quit()
+
+
+@pytest.fixture
+def browser(chromium):
+    """The shared chromium; afterwards one window again, on a blank page, without touch emulation."""
+    yield chromium
+    for handle in chromium.window_handles[1:]:
+        chromium.switch_to.window(handle)
+        chromium.close()
+    chromium.switch_to.window(chromium.window_handles[0])
+    chromium.execute_cdp_cmd("Emulation.setTouchEmulationEnabled", {"enabled": False})
+    chromium.get("about:blank")
 
 
 def open_page(driver, url: str) -> None:
@@ -313,6 +327,226 @@ def test_the_view_draws_the_walking_figure(browser):
     assert (np.abs(first - second).max(axis=2) > 40).sum() > 200
 
 
+# ---- the other controls of the page, on one show shared by these tests ------------------------
+
+class FlatFrames:
+    """The flat OSC stream as whole frames (address -> arguments), parsed as they come in (not
+    all over again at each look: a shared show sends thousands of frames)."""
+
+    def __init__(self, receiver: Receiver):
+        self.receiver, self.read, self.frames, self.current = receiver, 0, [], {}
+
+    def update(self) -> list[dict[str, list]]:
+        from pythonosc.osc_bundle import OscBundle
+        from pythonosc.osc_message import OscMessage
+
+        new = self.receiver.datagrams[self.read:]
+        self.read += len(new)
+        for datagram in new:
+            parts = OscBundle(datagram) if OscBundle.dgram_is_bundle(datagram) else [OscMessage(datagram)]
+            for message in parts:
+                self.current[message.address] = list(message.params)
+                if message.address == "/walk/frame":  # sent last in each frame
+                    self.frames.append(self.current)
+                    self.current = {}
+        return self.frames
+
+    def last(self, address: str) -> float | None:
+        frames = self.update()
+        return frames[-1][address][0] if frames else None
+
+    def after(self, count: int) -> list[dict[str, list]]:
+        """The next `count` frames from now."""
+        start = len(self.update())
+        return until(lambda: self.update()[start:start + count] if len(self.update()) >= start + count else None,
+                     60, f"{count} more frames")
+
+
+def head_above_hips(frames: list[dict[str, list]]) -> float:
+    """How high the head is above the hips, on average (the upper body's posture)."""
+    return float(np.mean([f["/walk/bone/Head/pos"][1] - f["/walk/bone/Hips/pos"][1] for f in frames]))
+
+
+def step_frames(frames: list[dict[str, list]]) -> int:
+    """Frames of one step: the first peak of the autocorrelation of the hips' height."""
+    height = np.array([f["/walk/bone/Hips/pos"][1] for f in frames])
+    height -= height.mean()
+    correlation = np.correlate(height, height, "full")[len(height) - 1:]
+    return int(np.argmax(correlation[8:60]) + 8)
+
+
+@pytest.fixture(scope="module")
+def mixer(tmp_path_factory):
+    """One show for the tests of the page's controls: the flat OSC stream and a preset file."""
+    presets = tmp_path_factory.mktemp("mixer") / "presets.toml"
+    presets.write_text('[presets.far]\n"style/elderly" = 3.0\n')
+    receiver = Receiver()
+    show = Instrument("--console", "0", "--osc", f"127.0.0.1:{receiver.port}/flat", "--quiet", "--presets", str(presets))
+    yield show, FlatFrames(receiver)
+    stderr = show.stop()
+    receiver.close()
+    assert show.process.returncode == 0, stderr
+    assert "Traceback" not in stderr
+
+
+def fresh_page(driver, show: Instrument, stream: FlatFrames) -> None:
+    """The page open, the show reset to the average walk (the shared show's earlier tests undone)."""
+    open_page(driver, show.url)
+    driver.find_element("id", "reset").click()
+    until(lambda: stream.last("/walk/liveliness") == 0.0 and stream.last("/walk/style/elderly") == 0.0
+          and slider_value(driver, "liveliness") == 0.0, what="the reset")
+
+
+def click_at(driver, element, share: float) -> None:
+    """A real pointer click at `share` (0 left end .. 1 right end) of an element's width."""
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    driver.execute_script("arguments[0].scrollIntoView({block: 'center'})", element)
+    offset = int(element.size["width"] * (share - 0.5))
+    ActionChains(driver).move_to_element_with_offset(element, offset, 0).click().perform()
+
+
+@needs_browser
+def test_part_weight_phase_stretch_and_liveliness_sliders_reach_the_walk(browser, mixer):
+    show, stream = mixer
+    fresh_page(browser, show, stream)
+    stream.after(60)  # the reset walked through the look-ahead
+    average = stream.after(90)
+    posture, step = head_above_hips(average), step_frames(average)
+    # a body-part weight: the elderly style's upper body, exaggerated to the slider's end, bends the back
+    browser.find_element("css selector", "#parts-box summary").click()
+    click_at(browser, slider(browser, "part/elderly/upper"), 0.99)
+    assert slider_value(browser, "part/elderly/upper") > 3.5
+    until(lambda: head_above_hips(stream.update()[-30:]) < posture - 5, what="the upper body to follow its weight")
+    # a per-state phase stretch: state 2 of every step drawn out to the slider's end makes the step longer
+    browser.find_element("id", "reset").click()
+    until(lambda: abs(head_above_hips(stream.update()[-30:]) - posture) < 1, what="the posture back after the reset")
+    browser.find_element("css selector", "#phases-box summary").click()
+    click_at(browser, slider(browser, "phase/2"), 0.99)
+    assert slider_value(browser, "phase/2") > 3.5
+    until(lambda: step_frames(stream.update()[-90:]) > step + 3, what="longer steps")
+    # liveliness, echoed in the stream
+    click_at(browser, slider(browser, "liveliness"), 0.7)
+    wanted = slider_value(browser, "liveliness")
+    assert 0.5 < wanted < 0.9
+    until(lambda: stream.last("/walk/liveliness") == pytest.approx(wanted, abs=1e-6), what="the liveliness in OSC")
+
+
+@needs_browser
+def test_the_arrow_keys_steer_while_held(browser, mixer):
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.keys import Keys
+
+    show, stream = mixer
+    fresh_page(browser, show, stream)
+    browser.execute_script("document.activeElement && document.activeElement.blur()")
+    for key, turn in ((Keys.ARROW_LEFT, 1.0), (Keys.ARROW_RIGHT, -1.0)):  # positive turns left
+        ActionChains(browser).key_down(key).perform()
+        until(lambda: stream.last("/walk/turn") == turn, what=f"the turn {turn} while the key is held")
+        ActionChains(browser).key_up(key).perform()
+        until(lambda: stream.last("/walk/turn") == 0.0, what="the turn back to 0 on release")
+
+
+@needs_browser
+def test_a_preset_recall_morphs_over_the_time_the_page_shows(browser, mixer):
+    show, stream = mixer
+    fresh_page(browser, show, stream)
+    click_at(browser, slider(browser, "morph"), 0.2)  # the morph time, set on the page
+    box = browser.find_element("css selector", '[data-target="morph"] input[type=number]')
+    until(lambda: browser.execute_script("return latest.v.morph") == slider_value(browser, "morph") > 0,
+          what="the instrument to take the morph time")
+    shown = float(until(lambda: box.get_attribute("value"), what="the morph time shown"))
+    assert 1.0 < shown < 4.0
+    start = len(stream.update())
+    browser.find_element("css selector", '[data-preset="far"]').click()  # style/elderly 0 -> 3
+    until(lambda: stream.last("/walk/style/elderly") == 3.0, what="the preset's value")
+    frames = stream.update()[start:]
+    path = [(f["/walk/frame"][1], f["/walk/style/elderly"][0]) for f in frames]
+    moving = [(t, v) for t, v in path if 0 < v < 3.0]
+    assert len(moving) > 10  # in-between values on the way, not a jump
+    assert [v for _, v in moving] == sorted(v for _, v in moving)
+    began = next(t for t, v in path if v > 0)
+    arrived = next(t for t, v in path if v == 3.0)
+    # the morph takes the time the page shows, in performance time (a frame either way)
+    assert arrived - began == pytest.approx(shown, abs=2 / 30 + 0.01)
+
+
+def touch_drag(driver, element, start: tuple[float, float], end: tuple[float, float], steps: int = 12) -> None:
+    """One finger put down, moved and lifted, in shares of the element's box (Chrome DevTools touch events)."""
+    driver.execute_script("arguments[0].scrollIntoView({block: 'center'})", element)
+    left, top, width, height = driver.execute_script("const r = arguments[0].getBoundingClientRect();"
+                                                     "return [r.left, r.top, r.width, r.height]", element)
+
+    def point(share):
+        return [{"x": left + width * share[0], "y": top + height * share[1]}]
+
+    driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchStart", "touchPoints": point(start)})
+    for k in range(1, steps + 1):
+        at = [a + (b - a) * k / steps for a, b in zip(start, end)]
+        driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchMove", "touchPoints": point(at)})
+    driver.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": "touchEnd", "touchPoints": []})
+
+
+@needs_browser
+def test_touch_on_a_tablet_moves_a_slider_and_the_pad(browser, mixer):
+    from selenium.webdriver.support.ui import Select
+
+    show, stream = mixer
+    browser.execute_cdp_cmd("Emulation.setTouchEmulationEnabled", {"enabled": True, "maxTouchPoints": 5})
+    fresh_page(browser, show, stream)
+    assert browser.execute_script("return navigator.maxTouchPoints") == 5  # a touch screen, as on a tablet
+    touch_drag(browser, slider(browser, "liveliness"), (0.02, 0.5), (0.75, 0.5))
+    wanted = slider_value(browser, "liveliness")
+    assert 0.5 < wanted < 0.9
+    until(lambda: stream.last("/walk/liveliness") == pytest.approx(wanted, abs=1e-6), what="the dragged liveliness in OSC")
+    first, second, third = (Select(e) for e in browser.find_elements("css selector", "#pad-styles select"))
+    first.select_by_value("normal")
+    second.select_by_value("youthful")
+    third.select_by_value("")
+    # a finger across the pad at half height, from the first style to the second
+    touch_drag(browser, browser.find_element("id", "pad"), (0.05, 0.5), (0.99, 0.5))
+    until(lambda: stream.last("/walk/style/youthful") == pytest.approx(1.0, abs=0.02)
+          and stream.last("/walk/style/normal") == pytest.approx(0.0, abs=0.02), what="the pad's blend by touch")
+
+
+@needs_browser
+def test_orbit_and_the_follow_camera_change_the_view(browser, mixer):
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    show, stream = mixer
+    fresh_page(browser, show, stream)
+    view = browser.find_element("id", "view")
+
+    def camera() -> dict:
+        return browser.execute_script("return {...figure.camera, target: [...figure.camera.target]}")
+
+    def root() -> list[float]:
+        return browser.execute_script("return figure.positions[Math.max(figure.first, 0)]")
+
+    def apart() -> float:  # the character from the camera's target, on the floor
+        c, r = camera(), root()
+        return float(np.hypot(c["target"][0] - r[0], c["target"][2] - r[2]))
+
+    before, picture = camera(), screenshot(view)
+    ActionChains(browser).click_and_hold(view).move_by_offset(150, 60).release().perform()  # orbit
+    after = camera()
+    assert abs(after["yaw"] - before["yaw"]) > 0.5 and after["pitch"] > before["pitch"] + 0.1
+    until(lambda: (np.abs(screenshot(view) - picture).max(axis=2) > 40).sum() > 5000, what="the orbited view drawn")
+    # follow off: the camera stays where it is while the character walks away
+    browser.find_element("id", "follow").click()
+    assert browser.find_element("id", "follow").get_attribute("aria-pressed") == "false"
+    fixed = camera()["target"]
+    until(lambda: apart() > 150, what="the character to walk out of the centre")
+    assert camera()["target"] == fixed
+    # follow on: the camera catches up with the character
+    browser.find_element("id", "follow").click()
+    assert browser.find_element("id", "follow").get_attribute("aria-pressed") == "true"
+    until(lambda: apart() < 50, what="the camera to follow")  # it eases after the walking character: a little behind
+    browser.find_element("id", "home").click()  # "view": the camera back to its start
+    home = camera()
+    assert (home["yaw"], home["pitch"]) == (before["yaw"], before["pitch"])
+
+
 # ---- the WebSocket itself, without a browser: tokens, validation, slow pages --------------------
 
 def socket_url(page_url: str) -> str:
@@ -443,6 +677,28 @@ def test_a_page_that_stops_reading_is_dropped_and_the_others_go_on():
     assert show.process.returncode == 0, stderr
     assert "dropped a page that took no frame" in stderr
     assert len(replies) > 60 and replies == sorted(replies)
+
+
+def test_every_interface_prints_an_address_a_tablet_can_open():
+    import ipaddress
+    import urllib.request
+
+    show = Instrument("--console", "0.0.0.0:0", "--no-osc", "--quiet")
+    try:
+        lines = [line for line in show.lines if line.startswith("console: http")]
+        host = ipaddress.ip_address(show.url.split("/")[2].rsplit(":", 1)[0])
+        assert not host.is_unspecified
+        if host.is_loopback:  # a machine without a network: said so, not a URL that cannot work
+            assert "this machine has no network address" in lines[0]
+        else:
+            assert "open this on a tablet or computer on the network" in lines[0]
+            assert urllib.request.urlopen(show.url, timeout=30).status == 200  # served at that address, token included
+            loopback = show.wait_for(r"console: (http://127\.0\.0\.1:\S+) \(on this machine\)").group(1)
+            assert urllib.request.urlopen(loopback, timeout=30).status == 200
+        assert not any("0.0.0.0" in line for line in lines)
+    finally:
+        stderr = show.stop()
+    assert show.process.returncode == 0, stderr
 
 
 @pytest.mark.parametrize("address,message", [("nowhere:abc", "--console 'nowhere:abc': expected [HOST:]PORT"),

@@ -175,6 +175,7 @@ def test_simulated_dualshock4_steers_drives_a_style_and_survives_unplug(capsys):
     device = HidInput(console, 0x054C, 0x09CC, hid=pad)
     state = ControlState(model.style_names, model.states)
     hub = ControlHub([load_mapping(REPO / "mappings" / "sony-dualshock4.toml", state)])
+    hub.start(state)  # the mapping's morph time (1 s), as `run` starts it
     seen = []
 
     class Watch:
@@ -261,7 +262,13 @@ def test_show_file_starts_the_whole_setup(tmp_path):
     ('seconds = [2]\n', "show.toml:1: seconds: expected a string or a number"),
     ('seconds = 2\nfps = 200\n', "show.toml:2: fps: expected a number from 24 to 120, not '200'"),
     ('seconds = 2\nosc = ["127.0.0.1:9000", "127.0.0.1:99999"]\n', "show.toml:2: osc: '127.0.0.1:99999': port must be 1 to 65535"),
-    ('seconds = 2\n[presets.x]\n"style/sleepy" = 1\n', "presets.x: unknown target 'style/sleepy'"),
+    ('seconds = 2\n[presets.x]\n"style/sleepy" = 1\n', "show.toml:3: presets.x: unknown target 'style/sleepy'"),
+    ('seconds = 2\n\n[presets.calm]\n"speed" = 1\n\n[presets."x"]  # a note\n"speed" = 2\n"style/sleepy" = 1\n',
+     "show.toml:8: presets.x: unknown target 'style/sleepy'"),
+    ('seconds = 2\n[presets.x]\nspeed = 1\nturn = "left"\n', "show.toml:4: presets.x: turn: not a finite number, not 'left'"),
+    ('seconds = 2\npresets.x = 3\n', "show.toml:2: presets.x: expected target = number pairs"),
+    ('seconds = 2\npresets.calm.speed = 1\npresets.calm.turn = true\n', "show.toml:3: presets.calm: turn: not a finite number"),
+    ('seconds = 2\nconsole-token = "s3cret"\n', "--console-token means nothing without --console"),
 ])
 def test_bad_show_files_are_one_line_errors(tmp_path, text, message):
     show = tmp_path / "show.toml"
@@ -269,6 +276,24 @@ def test_bad_show_files_are_one_line_errors(tmp_path, text, message):
     result = subprocess.run(RUN + ["--config", str(show)], capture_output=True, text=True, timeout=60)
     assert result.returncode == 1
     assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_a_bad_preset_file_names_its_line(tmp_path):
+    presets = tmp_path / "mine.toml"
+    presets.write_text('[presets.calm]\n"style/elderly" = 0.5\n\n[presets.x]\n"speed" = 1.2\n"style/nope" = 1\n')
+    result = subprocess.run(RUN + ["--presets", str(presets), "--no-osc", "--seconds", "1"], capture_output=True, text=True,
+                            timeout=60)
+    assert result.returncode == 1
+    assert f"{presets}:6: presets.x: unknown target 'style/nope'" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_a_console_token_without_a_console_is_refused():
+    result = subprocess.run(RUN + ["--console-token", "s3cret", "--no-osc", "--seconds", "1"], capture_output=True, text=True,
+                            timeout=60)
+    assert result.returncode == 1
+    assert "--console-token means nothing without --console" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
 
 
 def test_midi_feedback_follows_a_preset_recall(jack, tmp_path):

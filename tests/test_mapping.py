@@ -5,6 +5,7 @@ import math
 import pytest
 
 from instrument.control.events import ControlEvent
+from instrument.control.hub import ControlHub
 from instrument.control.mapping import Mapper, load_mapping, preset_problems
 from instrument.control.state import ControlState
 from instrument.errors import UserError
@@ -151,12 +152,23 @@ def test_presets_recall_and_morph_by_performance_time(tmp_path):
     m = mapper(tmp_path, '[[control]]\nmessage = "note"\nnumber = 1\nmode = "momentary"\ntarget = "preset/bold"\n',
                'morph = 2.0\n[presets.bold]\n"style/feminine" = 2.0\nspeed = 1.5\n')
     s = state()
+    ControlHub([m.mapping]).start(s)  # the mapping's morph time is the state's at the start
+    assert s.get("morph") == 2.0
     send(m, s, "note/1/1", 127, t=10.0)
     s.advance(10.0)
     assert s.get("style/feminine") == 0.0
     s.advance(11.0)
     assert s.get("style/feminine") == pytest.approx(1.0) and s.speed == pytest.approx(1.25)
     s.advance(12.5)
+    assert s.get("style/feminine") == pytest.approx(2.0) and s.morph is None
+    s.set("morph", 0.5)  # the morph time is a target: a later recall takes the new time
+    s.set("reset", 1)
+    assert s.get("morph") == 0.5  # a reset keeps it
+    send(m, s, "note/1/1", 0, t=20.0)
+    send(m, s, "note/1/1", 127, t=20.0)
+    s.advance(20.25)
+    assert s.get("style/feminine") == pytest.approx(1.0)
+    s.advance(20.5)
     assert s.get("style/feminine") == pytest.approx(2.0) and s.morph is None
 
 

@@ -4,7 +4,8 @@ Every numeric option of every subcommand is listed in OPTIONS with its type and 
 given on the command line go through `checked(KEY)` (argparse's type=: a bad value is a usage
 error, exit 2) or `value(KEY, text)` (for options that a show file can also give, exit 1);
 show files go through `value(KEY, text, where="show.toml:3: fps")`, so their errors name the
-file, line and key. A value out of range is refused, never clamped silently.
+file, line and key. A value out of range is refused, never clamped silently. An option that
+belongs to another (NEEDS) is refused without it, never ignored.
 """
 
 from __future__ import annotations
@@ -60,7 +61,7 @@ POSITIVE_SECONDS = Accepts(float, 0, MAX_SECONDS, above_low=True)
 OPTIONS: dict[str, Accepts] = {
     "run --fps": Accepts(float, 24, 120),
     "run --seconds": POSITIVE_SECONDS,
-    "run --morph": Accepts(float, 0, 600),
+    "run --morph": Accepts(float, 0, 600),  # as the control target morph (control.targets.MAX_MORPH; a test keeps them equal)
     "run --osc-in": PORT,  # the port of [HOST:]PORT
     "run --status-port": PORT,  # the port of [HOST:]PORT
     "run --health-every": Accepts(float, 0, 86400),  # seconds; 0: no health line
@@ -86,6 +87,22 @@ OPTIONS: dict[str, Accepts] = {
     "bench --console-pages": Accepts(int, 0, 100),
     "render --every": Accepts(int, 1, None),
 }
+
+# "COMMAND --option": the option without which it means nothing (refused rather than ignored)
+NEEDS: dict[str, str] = {
+    "run --console-token": "--console",
+    "bench --console": "--pacing",
+    "bench --console-pages": "--console",
+}
+
+
+def check_needs(command: str, args: argparse.Namespace) -> None:
+    """A one-line UserError for an option given without the option it belongs to (NEEDS)."""
+    for key, partner in NEEDS.items():
+        name, option = key.split(" ", 1)
+        if name == command and getattr(args, option[2:].replace("-", "_")) is not None \
+                and getattr(args, partner[2:].replace("-", "_")) is None:
+            raise UserError(f"{option} means nothing without {partner} (on the command line or in the show file)")
 
 
 def value(key: str, text: object, where: str | None = None):

@@ -22,7 +22,7 @@ from ..synthesis.mlpg import mlpg, mlpg_continued
 from ..synthesis.offline import generate_with_states
 from ..synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Crowd
 from ..synthesis.widen import Widen, range_space
-from .arguments import checked
+from .arguments import check_needs, checked
 from .crowd_bench import LATENESS_P99_MS, largest_crowd, measure_cost
 
 MLPG_FRAMES = 10_000
@@ -39,7 +39,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "how far each frame's send time is from its deadline")
     p.add_argument("--fps", type=checked("bench --fps"), default=60.0, help="frame rate for --pacing (default 60)")
     p.add_argument("--console", metavar="[HOST:]PORT", help="for --pacing: serve the browser console meanwhile")
-    p.add_argument("--console-pages", type=checked("bench --console-pages"), default=0, metavar="N",
+    p.add_argument("--console-pages", type=checked("bench --console-pages"), metavar="N",
                    help="for --pacing with --console: wait until N pages are open before measuring")
     p.add_argument("--startup", action="store_true",
                    help="instead: how long `instrument --version`, `--help` and each `COMMAND --help` take to start, "
@@ -109,7 +109,8 @@ def _console_for_pacing(address: str, model, console, outputs: list, fps: float,
 
     link = ConsoleLink(address, model, ControlState(model.style_names, model.states), {}, console, fps)
     outputs.append(link.output)
-    print(f"console: {link.url}", file=sys.stderr, flush=True)
+    for line in link.announcement():
+        print(line, file=sys.stderr, flush=True)
     deadline = time.monotonic() + 300
     while link.pages < pages:
         if time.monotonic() > deadline:
@@ -292,6 +293,7 @@ def measure_pose(model, space, controls: Controls, blocks: int, window_solve_us:
 
 
 def run(args: argparse.Namespace) -> int:
+    check_needs("bench", args)
     if args.startup:
         from .startup import measure_startup
 
@@ -302,7 +304,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"{line:32s} {f['seconds']:6.2f} s  (python -c pass {f['bare_seconds']:.2f} s: x{f['ratio']:.1f})")
         return 0
     if args.pacing:
-        f = measure_pacing(args.model, args.pacing, args.fps, args.console, args.console_pages)
+        f = measure_pacing(args.model, args.pacing, args.fps, args.console, args.console_pages or 0)
         if args.json:
             print(json.dumps(f, indent=1))
         else:

@@ -32,8 +32,8 @@ from ..runtime.performance import perform
 from ..runtime.priority import realtime_scheduling
 from ..runtime.stopping import StopFlag
 from ..shipped import default_model_path, demo_score_path, shipped_mappings
-from ..tomlfile import read_toml
-from .arguments import OPTIONS
+from ..tomlfile import key_line, read_toml
+from .arguments import OPTIONS, check_needs
 from .arguments import value as option_value
 
 DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
@@ -97,8 +97,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def apply_show_file(args: argparse.Namespace) -> dict:
-    """Fill options not given on the command line from the show file; returns its presets."""
+def apply_show_file(args: argparse.Namespace) -> tuple[dict, str]:
+    """Fill options not given on the command line from the show file; returns its presets and its text."""
     path = Path(args.config)
     text, data = read_toml(path)
     presets = data.pop("presets", {})
@@ -137,20 +137,23 @@ def apply_show_file(args: argparse.Namespace) -> dict:
                 setattr(args, dest, [str(base / v) for v in value] if isinstance(value, list) else str(base / value))
     if not isinstance(presets, dict):
         raise UserError(f"{path}: presets: expected [presets.NAME] tables")
-    return presets
+    return presets, text
 
 
-def check_presets(presets: dict, state: ControlState, where: str) -> dict[str, dict[str, float]]:
+def check_presets(presets: dict, state: ControlState, path: str, text: str) -> dict[str, dict[str, float]]:
+    """The [presets.NAME] tables of the TOML `text` read from `path`, checked against the table of
+    targets (control/targets.py); a bad entry is one line naming the file, the line and the key."""
     out = {}
     for name, values in presets.items():
         if not isinstance(values, dict):
-            raise UserError(f"{where}: presets.{name}: expected target = number pairs")
+            raise UserError(f"{path}:{key_line(text, ('presets', name))}: presets.{name}: expected target = number pairs")
         for target, value in values.items():
-            why = state.problem(target, value)  # the table of targets: control/targets.py
+            why = state.problem(target, value)
+            where = f"{path}:{key_line(text, ('presets', name), target)}: presets.{name}"
             if why == "unknown target":
-                raise UserError(f"{where}: presets.{name}: unknown target {target!r}")
+                raise UserError(f"{where}: unknown target {target!r}")
             if why is not None:
-                raise UserError(f"{where}: presets.{name}: {target}: {why}, not {value!r}")
+                raise UserError(f"{where}: {target}: {why}, not {value!r}")
         out[name] = {k: float(v) for k, v in values.items()}
     return out
 
@@ -218,7 +221,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, stop: StopFlag) -> int:
-    show_presets = apply_show_file(args) if args.config else {}
+    show_presets, show_text = apply_show_file(args) if args.config else ({}, "")
+    check_needs("run", args)
     for key, value in DEFAULTS.items():
         if getattr(args, key) is None:
             setattr(args, key, value)
@@ -236,9 +240,10 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     model = load_model(args.model or default_model_path())
     console = Console(quiet=args.quiet)
     state = ControlState(model.style_names, model.states)
-    presets = check_presets(show_presets, state, args.config or "show file")
+    presets = check_presets(show_presets, state, args.config or "show file", show_text)
     if args.presets and (Path(args.presets).exists() or not args.console):  # the console may save to a new file
-        presets.update(check_presets(read_toml(args.presets)[1].get("presets", {}), state, args.presets))
+        text, data = read_toml(args.presets)
+        presets.update(check_presets(data.get("presets", {}), state, args.presets, text))
     check_recordings(args)
     logged = logged_mappings(args.replay, state) if args.replay and not args.mapping else []  # as recorded
     mappings = logged + choose_mappings(args, state, console)
@@ -260,6 +265,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     outputs, devices, hub, created, health = [], [], None, [], None
     try:
         hub = ControlHub(mappings, presets, None, morph, console)
+        hub.start(state)
         for mapping in mappings:
             for target in preset_problems(mapping, hub.presets):
                 raise UserError(f"{mapping.path}: target {target!r}: no such preset (the mapping, the show file and --presets "
@@ -296,10 +302,11 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
                 return ", ".join([d.describe() for d in devices] + ([f"log {args.replay}"] if args.replay else [])
                                  + ([f"score {score_path}"] if score_path else []))
 
-            link = ConsoleLink(args.console, model, state, hub.presets, console, fps, hub.morph, args.console_token,
-                               args.presets, sources)
+            link = ConsoleLink(args.console, model, state, hub.presets, console, fps, args.console_token, args.presets,
+                               sources)
             devices.append(link.input)
-            console.say(f"console: {link.url}")
+            for line in link.announcement():
+                console.say(line)
         profiles = {kind: make_profile(kind, model, args.humanoid, args.vmc_root, not args.no_relaxed_hands, characters)
                     for kind in {t.profile for t in targets}}
         for t in targets:  # a crowd's flat target carries every character; VMC: character k on port + k

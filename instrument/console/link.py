@@ -26,7 +26,9 @@ from .server import JSON, frame_packet
 
 SOURCE = "console"  # the source name of the page's events in a controller log
 SLIDER_WEIGHTS = (-2.0, 4.0)  # the style sliders' travel; the number box beside takes the whole +-WEIGHT_LIMIT
+MORPH_SLIDER = (0.0, 10.0)  # the morph time slider's travel in seconds; the number box takes the table's whole range
 START_SECONDS = 60.0  # the server process has this long to start listening (a busy machine imports slowly)
+EVERY_INTERFACE = ("0.0.0.0", "")  # a host meaning "listen on every interface": not an address to open
 SOURCES_EVERY = 15  # frames between two updates of the control sources shown on the pages
 
 
@@ -42,16 +44,37 @@ def split_address(address: str) -> tuple[str, int, bool]:
     return host or "127.0.0.1", number, bool(host)
 
 
-def hello(model, state: ControlState, presets: dict, morph: float, save_path: str | None, fps: float) -> dict:
+def network_addresses() -> list[str]:
+    """This machine's IPv4 addresses another machine may reach, the outbound interface's first.
+
+    The outbound one is found by connecting a UDP socket (which sends nothing) towards an address
+    outside this machine and reading which local address the system chose; the others are the
+    host name's addresses. Loopback addresses are left out: a tablet cannot open them."""
+    found = []
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        try:
+            probe.connect(("10.254.254.254", 9))  # any address off this machine; no packet is sent
+            found.append(probe.getsockname()[0])
+        except OSError:  # no route: no network, or only loopback
+            pass
+    try:
+        found += [info[4][0] for info in socket.getaddrinfo(socket.gethostname(), None, socket.AF_INET)]
+    except OSError:
+        pass
+    return list(dict.fromkeys(a for a in found if not a.startswith("127.") and a != "0.0.0.0"))
+
+
+def hello(model, state: ControlState, presets: dict, save_path: str | None, fps: float) -> dict:
     """What a page is told once, on connecting: the model's styles and skeleton, the ranges."""
     skeleton = model.layout.skeleton
     return {
         "type": "hello", "styles": state.style_names, "groups": list(GROUPS), "states": state.states,
         "joints": list(skeleton.names), "parents": [j.parent for j in skeleton.joints], "root": model.layout.root,
-        "fps": fps, "morph": morph, "save": save_path, "presets": sorted(presets), "order": list(all_values(state)),
+        "fps": fps, "save": save_path, "presets": sorted(presets), "order": list(all_values(state)),
         "ranges": {"weight": [-WEIGHT_LIMIT, WEIGHT_LIMIT], "slider": list(SLIDER_WEIGHTS), "speed": [MIN_SPEED, MAX_SPEED],
                    "turn": [-MAX_TURN, MAX_TURN], "liveliness": [TABLE["liveliness"].low, TABLE["liveliness"].high],
-                   "spread": [TABLE["spread"].low, TABLE["spread"].high], "phase": [MIN_SPEED, MAX_SPEED]},
+                   "spread": [TABLE["spread"].low, TABLE["spread"].high], "phase": [MIN_SPEED, MAX_SPEED],
+                   "morph": [TABLE["morph"].low, TABLE["morph"].high], "morph_slider": list(MORPH_SLIDER)},
     }
 
 
@@ -59,18 +82,20 @@ class ConsoleLink:
     """Starts the server process; `input` is the device the hub polls, `output` the frame sink."""
 
     def __init__(self, address: str, model, state: ControlState, presets: dict[str, dict[str, float]], console: Console,
-                 fps: float, morph: float = 0.0, token: str | None = None, save_path: str | None = None,
+                 fps: float, token: str | None = None, save_path: str | None = None,
                  sources: Callable[[], str] = lambda: ""):
         host, port, named = split_address(address)
         # a named host may be reached from the network: then the page needs the token
         self.token = token or (secrets.token_urlsafe(16) if named else None)
         self.host, self.pages, self.open = host, 0, True
+        # looked up once (a host name lookup may wait on DNS): describe() is called from the frame loop
+        self.addresses = network_addresses() if host in EVERY_INTERFACE else []
         self.sock, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         self.process = subprocess.Popen([sys.executable, "-m", "instrument.console.server", str(theirs.fileno())],
                                         pass_fds=[theirs.fileno()])
         theirs.close()
         config = {"host": host, "port": port, "token": self.token, "targets": state.targets(), "save": save_path,
-                  "hello": hello(model, state, presets, morph, save_path, fps)}
+                  "hello": hello(model, state, presets, save_path, fps)}
         self.sock.sendall(JSON + json.dumps(config).encode("utf-8"))
         self.sock.settimeout(START_SECONDS)
         try:
@@ -85,9 +110,27 @@ class ConsoleLink:
         self.input = ConsoleInput(self, console)
         self.output = ConsoleOutput(self, state, presets, sources)
 
+    def url_at(self, host: str) -> str:
+        return f"http://{host}:{self.port}/" + (f"?token={self.token}" if self.token else "")
+
     @property
     def url(self) -> str:
-        return f"http://{self.host}:{self.port}/" + (f"?token={self.token}" if self.token else "")
+        """The URL to open: on a console listening on every interface, at this machine's network address."""
+        if self.host in EVERY_INTERFACE:
+            return self.url_at(next(iter(self.addresses), "127.0.0.1"))
+        return self.url_at(self.host)
+
+    def announcement(self) -> list[str]:
+        """The lines said at start: the URL to open, and on every interface, which address is for what."""
+        if self.host not in EVERY_INTERFACE:
+            return [f"console: {self.url}"]
+        addresses = self.addresses
+        if not addresses:
+            return [f"console: {self.url_at('127.0.0.1')} (listening on {self.host}, but this machine has no network "
+                    "address: only this machine can open the console)"]
+        lines = [f"console: {self.url_at(addresses[0])} (open this on a tablet or computer on the network)"]
+        lines += [f"console: {self.url_at(a)} (another address of this machine)" for a in addresses[1:]]
+        return lines + [f"console: {self.url_at('127.0.0.1')} (on this machine)"]
 
     def send(self, packet: bytes) -> None:
         """To the server, never waiting: when its queue is full (a stalled server) the packet is dropped."""

@@ -3,7 +3,7 @@
 A page sends JSON objects, one a WebSocket message:
 
     {"set": "style/elderly", "value": 1.2}   a target of the control state (clamped by the state)
-    {"preset": "calm"}                       recall a preset (with the show's morph time)
+    {"preset": "calm"}                       recall a preset (over the morph time: the target "morph")
     {"store": "calm"}                        store the current values as preset "calm"
     {"save": true}                           write the presets to the preset file
 

@@ -27,14 +27,19 @@ class ControlHub:
         for m in mappings:
             self.presets.update(m.presets)
         self.presets.update(presets or {})  # a show file's presets win over a mapping's
-        self.morph = morph or max([m.morph for m in mappings], default=0.0)
-        self.midi = next((Mapper(m, self.presets, self.morph) for m in mappings if m.midi is not None), None)
-        self.hid = next((Mapper(m, self.presets, self.morph) for m in mappings if m.hid is not None or m.hid_usages), None)
+        self.morph = morph or max([m.morph for m in mappings], default=0.0)  # the state's start morph time (start())
+        self.midi = next((Mapper(m, self.presets) for m in mappings if m.midi is not None), None)
+        self.hid = next((Mapper(m, self.presets) for m in mappings if m.hid is not None or m.hid_usages), None)
         self.console = console
         self.refused: dict[str, int] = {}  # kind of refusal -> events refused
         self.log: EventLog | None = None
         if record:
             self.start_recording(record, header_line(mappings))
+
+    def start(self, state: ControlState) -> None:
+        """Give the state what the options and mappings set before the show: the morph time
+        (`--morph`, else the longest of the mappings'); from then on it is a target like any other."""
+        state.set("morph", self.morph)
 
     def start_recording(self, path: str | Path, header: str, replace: bool = False) -> None:
         """Record every accepted event from now on to a new log at `path` (an existing one only with `replace`)."""
@@ -73,7 +78,7 @@ class ControlHub:
             preset = self.presets.get(event.control[len("preset/"):])
             if preset is None:
                 return "unknown preset"
-            state.recall(preset, event.time, self.morph)
+            state.recall(preset, event.time)
             return None
         if isinstance(event.control, str) and event.control.startswith("store/"):  # the current values as a new preset
             name = event.control[len("store/"):]

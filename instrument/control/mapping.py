@@ -210,10 +210,9 @@ class _Memory:
 class Mapper:
     """Raw events of one device -> target values in the control state."""
 
-    def __init__(self, mapping: Mapping, presets: dict[str, dict[str, float]] | None = None, morph: float | None = None):
+    def __init__(self, mapping: Mapping, presets: dict[str, dict[str, float]] | None = None):
         self.mapping = mapping
         self.presets = mapping.presets if presets is None else presets
-        self.morph = mapping.morph if morph is None else morph
         self.by_key: dict[str, list[ControlSpec]] = {}
         for spec in mapping.controls:
             if spec.message == "cc14":  # both halves of the pair arrive as plain CCs
@@ -313,7 +312,7 @@ class Mapper:
     def _set(self, state: ControlState, spec: ControlSpec, value: float, time: float) -> None:
         if spec.target.startswith("preset/"):
             if value > min(spec.range) and spec.target[7:] in self.presets:
-                state.recall(self.presets[spec.target[7:]], time, self.morph)
+                state.recall(self.presets[spec.target[7:]], time)
             return
         if not spec.mode.startswith("relative") and spec.mode == "absolute" and spec.takeover != "none":
             value = self._takeover(state, spec, value, time)

@@ -8,11 +8,13 @@ Targets (what each accepts, and the one check every input goes through: control/
     turn                    steering, radians per second (positive turns left)
     liveliness              0: every step alike; 1: durations drawn from the model
     spread                  a crowd's style spread: 0 every character as performed; 1 each its own mix
+    morph                   seconds a recalled preset takes to arrive (0: at once); a reset keeps it
     reset                   any value: everything back to the start
     cue                     a press: a score waiting for the performer goes on
 
-Presets are named sets of target values; recalling one moves there at once or over a morph
-time, by performance time (so a replayed performance morphs identically).
+Presets are named sets of target values; recalling one moves there at once or over the morph
+time, by performance time (so a replayed performance morphs identically). The morph time is a
+target like the others, so a page, a knob or a log can change it and every surface shows it.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ class ControlState:
         self.style_index = {name: k for k, name in enumerate(self.style_names)}
         self.states = states
         self.cue_presses = 0  # how often the performer pressed the score's cue button (a reset keeps it)
+        self.morph_time = 0.0  # seconds a recall takes: how presets behave, not a performed value (a reset keeps it)
         self.reset()
 
     def reset(self) -> None:
@@ -45,7 +48,7 @@ class ControlState:
     def targets(self) -> list[str]:
         names = [f"style/{s}" for s in self.style_names]
         names += [f"part/{s}/{g}" for s in self.style_names for g in GROUPS]
-        names += ["speed", "turn", "liveliness", "spread", "reset", "cue"] + [f"phase/{k + 1}" for k in range(self.states)]
+        names += ["speed", "turn", "liveliness", "spread", "morph", "reset", "cue"] + [f"phase/{k + 1}" for k in range(self.states)]
         return names
 
     def knows(self, target: str) -> bool:
@@ -74,6 +77,8 @@ class ControlState:
                 self.reset()
         elif kind == "cue":
             self.cue_presses += value > 0
+        elif kind == "morph":
+            self.morph_time = value
         else:  # speed, turn, liveliness, spread
             setattr(self, kind, value)
         return True
@@ -88,10 +93,13 @@ class ControlState:
             return float(self.state_scale[int(parts[1]) - 1])
         if target == "cue":  # a button with no value to show
             return 0.0
+        if target == "morph":
+            return self.morph_time
         return float(getattr(self, target))
 
-    def recall(self, preset: dict[str, float], now: float, seconds: float = 0.0) -> None:
-        """Go to a preset's values, at once or over `seconds` of performance time."""
+    def recall(self, preset: dict[str, float], now: float) -> None:
+        """Go to a preset's values, at once or over the morph time (performance time)."""
+        seconds = self.morph_time
         if seconds <= 0:
             for target, value in preset.items():
                 self.set(target, value)

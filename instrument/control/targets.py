@@ -22,6 +22,7 @@ from ..synthesis.interpolation import GROUPS
 
 MAX_TURN = 3.0  # rad/s
 WEIGHT_LIMIT = 10.0
+MAX_MORPH = 600.0  # seconds: as --morph (cli/arguments.py) accepts
 
 
 @dataclass(frozen=True)
@@ -43,6 +44,7 @@ TABLE: dict[str, Target] = {
     "turn": Target("turn", -MAX_TURN, MAX_TURN, "steering, radians per second (positive turns left)"),
     "liveliness": Target("liveliness", 0.0, 1.0, "0: every step alike; 1: durations drawn from the model"),
     "spread": Target("spread", 0.0, 1.0, "a crowd's style spread: 0 every character as performed; 1 each its own style mix"),
+    "morph": Target("morph", 0.0, MAX_MORPH, "seconds a recalled preset takes to arrive (0: at once)"),
     "reset": Target("reset", -math.inf, math.inf, "a value above 0: everything back to the start"),
     "cue": Target("cue", -math.inf, math.inf, "a value above 0: a score waiting for the performer goes on"),
 }
@@ -77,7 +79,7 @@ def kind_of(target: object, style_index: dict[str, int], states: int) -> str | N
     if head == "phase" and len(parts) == 2 and re.fullmatch(r"[1-9][0-9]{0,3}", parts[1], re.ASCII) \
             and int(parts[1]) <= states:
         return head
-    if len(parts) == 1 and head in ("speed", "turn", "liveliness", "spread", "reset", "cue"):
+    if len(parts) == 1 and head in ("speed", "turn", "liveliness", "spread", "morph", "reset", "cue"):
         return head
     return None
 

@@ -93,7 +93,7 @@ function zones(low, high) {
 function build(message) {
   hello = message;
   controls.clear();
-  for (const id of ["styles", "walk", "parts", "phases", "pad-styles"]) $(id).replaceChildren();
+  for (const id of ["styles", "walk", "parts", "phases", "morph", "pad-styles"]) $(id).replaceChildren();
   const r = hello.ranges;
   for (const style of hello.styles) slider($("styles"), "style/" + style, style, r.weight, r.slider, true);
   slider($("walk"), "speed", "speed", r.speed);
@@ -108,7 +108,7 @@ function build(message) {
     for (const group of hello.groups) slider($("parts"), `part/${style}/${group}`, group, r.weight, r.slider);
   }
   for (let k = 1; k <= hello.states; k++) slider($("phases"), "phase/" + k, "state " + k, r.phase);
-  $("morph").textContent = hello.morph > 0 ? `(morph ${hello.morph} s)` : "";
+  slider($("morph"), "morph", "morph s", r.morph, r.morph_slider);
   $("save").disabled = !hello.save;
   $("save").title = hello.save ? "write every preset to " + hello.save : "start the instrument with --presets FILE to save";
   buildPad();
