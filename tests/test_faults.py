@@ -353,11 +353,43 @@ def test_signals_at_random_times_leave_a_valid_bvh_or_none(tmp_path):
         process.send_signal(rng.choice([signal.SIGINT, signal.SIGTERM]))
         stderr = process.communicate(timeout=120)[1]
         assert "Traceback" not in stderr, stderr
-        assert process.returncode in (0, -signal.SIGINT, -signal.SIGTERM), stderr  # the last two: before start-up
+        assert process.returncode in (0, 128 + signal.SIGINT, 128 + signal.SIGTERM), stderr  # the last two: before start-up
         if path.exists():
             assert assert_valid_bvh(path) >= 1
         else:
             assert process.returncode != 0 or "before the first frame" in stderr or stderr == ""
+
+
+# Sends the process a signal the moment `instrument.cli.run_cmd` is about to be imported: the
+# deterministic version of a Ctrl-C while the command line loads.
+SIGNAL_ON_IMPORT = """
+import os, sys
+class SignalOnImport:
+    def find_spec(self, name, path=None, target=None):
+        if name == "instrument.cli.run_cmd":
+            os.kill(os.getpid(), {signum})
+        return None
+sys.meta_path.insert(0, SignalOnImport())
+sys.argv = ["instrument", *{arguments!r}]
+"""
+ENTRY_POINTS = {
+    "python -m instrument": "import runpy; runpy.run_module('instrument', run_name='__main__', alter_sys=True)",
+    "console script": "from instrument.cli.main import main; sys.exit(main())",  # what pip's `instrument` script runs
+}
+
+
+@pytest.mark.parametrize("entry", ENTRY_POINTS)
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_while_the_command_loads_ends_it_quietly_with_nothing_written(tmp_path, entry, signum):
+    bvh, log = tmp_path / "take.bvh", tmp_path / "take.jsonl"
+    arguments = ["run", "--no-osc", "--fast", "--seconds", "5", "--bvh", str(bvh), "--record", str(log)]
+    code = SIGNAL_ON_IMPORT.format(signum=int(signum), arguments=arguments) + ENTRY_POINTS[entry]
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert "Traceback" not in result.stderr, result.stderr
+    assert result.stderr == "" and result.stdout == ""
+    assert result.returncode == 128 + signum  # 130 for Ctrl-C, 143 for SIGTERM: `instrument --help` says so
+    assert not bvh.exists() and not log.exists()
+    assert list(tmp_path.iterdir()) == []
 
 
 # --- the console: closed, stalled ----------------------------------------------------------------
