@@ -392,6 +392,61 @@ def test_a_signal_while_the_command_loads_ends_it_quietly_with_nothing_written(t
     assert list(tmp_path.iterdir()) == []
 
 
+# --- a device or an event that raises in the live loop ------------------------------------------
+
+
+class Frames:
+    """An output that keeps the index of every frame it is sent."""
+
+    name = "frames"
+
+    def __init__(self):
+        self.indices: list[int] = []
+
+    def prepare(self, pose, echo):
+        return pose.index
+
+    def send(self, index):
+        self.indices.append(index)
+
+    def close(self):
+        pass
+
+
+def test_a_device_poll_or_an_event_that_raises_is_counted_and_the_show_goes_on(model):
+    import io
+
+    from instrument.runtime.console import Console
+    from instrument.runtime.performance import perform
+
+    state = ControlState(model.style_names, model.states)
+    hub = ControlHub([], console=Console(quiet=True))
+    polls = []
+
+    def unplugged_mid_read(now: float) -> list[ControlEvent]:  # a device whose read fails every time
+        polls.append(now)
+        raise OSError(5, "Input/output error")
+
+    def surface(now: float) -> list[ControlEvent]:  # a working source: speed up, one event that breaks apply
+        return [ControlEvent(now, "osc", "speed", 1.0 + now), *([ControlEvent(now, "osc", "explode", 1.0)] if now == 0.5 else [])]
+
+    def apply(state: ControlState, event: ControlEvent) -> bool:
+        if event.control == "explode":
+            raise ValueError("an event nobody foresaw")
+        return hub.apply(state, event)
+
+    frames, said = Frames(), io.StringIO()
+    summary = perform(model, [frames], Console(stream=said), fps=30, seconds=1.0, fast=True,
+                      live_sources=[unplugged_mid_read, surface], apply=apply, state=state)
+    assert frames.indices == list(range(30))  # every frame made
+    assert summary.input_errors == {f"poll {unplugged_mid_read.__qualname__}": len(polls), "apply osc": 1}
+    assert len(polls) >= 30
+    assert state.speed > 1.9  # the working source's events reached the walk, after the failures too
+    lines = said.getvalue().splitlines()
+    assert sum("OSError" in line and "the walk goes on" in line for line in lines) == 1  # said once, not every frame
+    assert sum("apply osc failed: ValueError: an event nobody foresaw" in line for line in lines) == 1
+
+
 # --- the console: closed, stalled ----------------------------------------------------------------
 
 

@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass
 
 from ..errors import UserError
-from ..synthesis.durations import MAX_SPEED, MIN_SPEED
+from ..synthesis.parameters import MAX_SPEED, MIN_SPEED
 
 MAX_SECONDS = 7 * 24 * 3600.0  # a week: longer is a typo
 MAX_CHARACTERS = 1000  # a crowd larger than this is a typo (docs/crowds.md: how many keep time)

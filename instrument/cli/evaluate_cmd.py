@@ -9,8 +9,8 @@ import sys
 from pathlib import Path
 
 from ..errors import UserError
+from ..shipped import default_model_path
 from .arguments import number
-from ..models.modelfile import default_model_path, load_model
 
 VARIANT_KINDS = ("one", "x2", "inverted", "pairs")  # as synthesis.assessment names them (imported when run: it is slow to load)
 
@@ -45,6 +45,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..models.modelfile import load_model  # (numpy, scipy, numba: loaded when run, not for --help)
+
     model = load_model(args.model or default_model_path())
     seconds = number("--seconds", args.seconds)
     if not 2.0 <= seconds <= 600.0:

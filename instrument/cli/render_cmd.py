@@ -6,12 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import UserError
-from ..motion.bvh import read_bvh
-from ..motion.kinematics import world_positions
-from ..output.drawing import bone_colours, draw_framed, drawn_parents, pyplot, side_projection
 from ..outputfile import check_output, written
 from .arguments import checked
 
@@ -32,6 +27,13 @@ def run(args: argparse.Namespace) -> int:
     if out.suffix.lower() not in (".png", ".gif"):
         raise UserError(f"--out {out}: give a .png (contact sheet) or a .gif (animation)")
     check_output(out, args.force, inputs=(args.bvh,))
+    # numpy, numba (the skeleton's kinematics) and matplotlib: loaded when run, not for --help
+    import numpy as np
+
+    from ..motion.bvh import read_bvh
+    from ..motion.kinematics import world_positions
+    from ..output.drawing import bone_colours, draw_framed, drawn_parents, pyplot, side_projection
+
     motion = read_bvh(args.bvh)
     plt = pyplot("Agg")
     positions = world_positions(motion)

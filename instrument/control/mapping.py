@@ -13,14 +13,17 @@ import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import UserError
 from ..tomlfile import parse_toml, read_toml
 from .events import ControlEvent
 from .hid import DS4_NAMES, canonical_input, legacy_event, unit_with_deadzone
 from .hid_feedback import FeedbackSpec, parse_feedback
-from .state import ControlState
 from .targets import PRESET_NAME, is_number
+
+if TYPE_CHECKING:  # (numpy and the synthesis behind it: not needed to read a mapping)
+    from .state import ControlState
 
 MESSAGES = ("cc", "cc14", "nrpn", "note", "pitchbend", "hid")
 MODES = ("absolute", "toggle", "momentary", "relative-twos", "relative-signed", "relative-signed2", "relative-offset")
