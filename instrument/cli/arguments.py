@@ -85,6 +85,8 @@ OPTIONS: dict[str, Accepts] = {
     "bench --fps": Accepts(float, 1, 1000),
     "bench --console-pages": Accepts(int, 0, 100),
     "render --every": Accepts(int, 1, None),
+    "evaluate --seconds": Accepts(float, 2, 600),  # of each generated walk
+    "service --watchdog": Accepts(float, 1, 3600),  # seconds without an answer from the frame loop
 }
 
 
@@ -107,11 +109,3 @@ def checked(key: str):
 
     read.__name__ = key.split(" --", 1)[1]  # argparse names the type in some messages
     return read
-
-
-def number(option: str, text: str, kind=float):
-    """`text` as a finite float (or int with kind=int), or a UserError naming `option` (no range)."""
-    try:
-        return Accepts(kind).read(text)
-    except ValueError as e:
-        raise UserError(f"{option}: {e}") from None

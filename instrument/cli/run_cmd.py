@@ -13,7 +13,7 @@ from ..control.hid import HidInput
 from ..control.hid import choose_mapping as choose_hid_mapping
 from ..control.hid_feedback import HidFeedback
 from ..control.loghead import header_line, logged_crowd, logged_mappings, unreadable_sources
-from ..control.mapping import load_mapping, parse_hid_id, preset_problems, style_problems
+from ..control.mapping import load_mapping, parse_hid_id, preset_problems, style_problems, target_line
 from ..errors import UserError
 from ..output.osc import FLAT_PORT, VMC_PORT, OscTarget, parse_target
 from ..outputfile import check_output
@@ -268,7 +268,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         hub = ControlHub(mappings, presets, None, morph, console)
         for mapping in mappings:
             for target in preset_problems(mapping, hub.presets):
-                raise UserError(f"{mapping.path}: target {target!r}: no such preset (the mapping, the show file and --presets "
+                raise UserError(f"{mapping.path}:{target_line(mapping, target)}: target {target!r}: no such preset (the mapping, the show file and --presets "
                                 "define none by that name)")
         if score_path and not args.score:  # the built-in demo, written for the shipped model's styles
             try:

@@ -193,6 +193,12 @@ def preset_problems(mapping: Mapping, presets: dict[str, dict[str, float]]) -> l
     return [c.target for c in mapping.controls if c.target.startswith("preset/") and c.target[len("preset/"):] not in presets]
 
 
+def target_line(mapping: Mapping, target: str) -> int:
+    """The 1-based line of the mapping's text that sets `target = "..."` (for error messages), or 1."""
+    found = re.search(rf"""^[ \t]*target[ \t]*=[ \t]*["']{re.escape(target)}["']""", mapping.text, re.MULTILINE)
+    return mapping.text.count("\n", 0, found.start()) + 1 if found else 1
+
+
 def style_problems(mapping: Mapping, state: ControlState) -> list[str]:
     """Targets of a mapping that the loaded model lacks (reported at start, not fatal)."""
     return [c.target for c in mapping.controls if not state.knows(c.target) and not c.target.startswith("preset/")]
