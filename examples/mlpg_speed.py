@@ -19,7 +19,7 @@ import time
 import numpy as np
 from numba import njit
 
-from instrument.cli.bench_cmd import _nnmnkwii_mlpg, machine
+from instrument.cli.benchmarks import _nnmnkwii_mlpg, machine
 from instrument.models.modelfile import default_model_path, load_model
 from instrument.synthesis.interpolation import interpolate, style_space
 from instrument.synthesis.mlpg import mlpg, mlpg_continued

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from instrument.cli.bench_cmd import median_seconds
+from instrument.cli.benchmarks import median_seconds
 from instrument.models.modelfile import load_model
 from instrument.motion.features import ROOT_FEATURES, FeatureLayout
 from instrument.motion.kinematics import _compose

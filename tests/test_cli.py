@@ -71,6 +71,37 @@ def test_version_and_help_load_no_subcommand():
         assert result.stdout.strip().splitlines()[-1] == "[]"
 
 
+HEAVY_PROBE = ("import sys\nfrom instrument.cli.main import main\n"
+               "try:\n    code = main(sys.argv[1:])\nexcept SystemExit as e:\n    code = e.code\n"
+               "print(code, sorted(m for m in ('scipy', 'numba', 'matplotlib') if m in sys.modules))")
+
+
+def heavy_modules_loaded(*args: str) -> str:
+    """Run `instrument ARGS` in a fresh Python; the exit status and which of scipy, numba and
+    matplotlib it loaded (what makes a command slow to start)."""
+    result = subprocess.run([sys.executable, "-c", HEAVY_PROBE, *args], capture_output=True, text=True, timeout=120)
+    assert "Traceback" not in result.stderr, result.stderr
+    return result.stdout.strip().splitlines()[-1]
+
+
+def test_every_command_help_loads_no_scipy_numba_or_matplotlib():
+    """Each command loads its heavy code when it runs, not to parse its options (timed in `instrument bench --startup`)."""
+    from instrument.cli.main import COMMANDS
+
+    assert {c: heavy_modules_loaded(c, "--help") for c in COMMANDS} == {c: "0 []" for c in COMMANDS}
+
+
+def test_recover_and_log_run_without_scipy_or_numba(tmp_path):
+    walk = tmp_path / "walk.bvh"
+    walk.write_text(cmu_style_walk(fps=30)[0])
+    log = tmp_path / "take.jsonl"
+    log.write_text('{"t": 0.5, "source": "midi:x", "control": "cc/1/7", "value": 64}\n')
+    assert heavy_modules_loaded("recover", str(walk)) == "0 []"
+    assert heavy_modules_loaded("log", "export", str(log), "--out", str(tmp_path / "take.mid")) == "0 []"
+    assert heavy_modules_loaded("log", "import", str(tmp_path / "take.mid"), "--out", str(tmp_path / "back.jsonl")) == "0 []"
+    assert (tmp_path / "back.jsonl").read_text().count("cc/1/7") == 1
+
+
 def test_the_help_summary_of_each_command_is_its_own():
     from instrument.cli.main import COMMANDS, EVERY, build_parser
 

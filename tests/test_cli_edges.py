@@ -52,11 +52,12 @@ def one_line(err: str) -> str:
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
-    """Small real inputs: a walk, a one-frame BVH, a model-less npz, a MIDI file."""
+    """Small real inputs: a walk, a controller log, a show file."""
     folder = tmp_path_factory.mktemp("inputs")
     walk, _ = cmu_style_walk(fps=30)
     (folder / "walk.bvh").write_text(walk)
     (folder / "mid.jsonl").write_text(ControlEvent(0.5, "midi:x", "cc/1/1", 64).to_json() + "\n")
+    (folder / "show.toml").write_text('fps = 30\nno-osc = true\n')
     return folder
 
 
@@ -85,6 +86,8 @@ def required(command: str, files, tmp_path) -> list[str]:
         "synth": ["--out", tmp_path / "s.bvh"],
         "bench": [],
         "render": ["--bvh", files / "walk.bvh", "--out", tmp_path / "r.png"],
+        "evaluate": ["--styles", "elderly"],
+        "service": ["--config", files / "show.toml", "--out", tmp_path / "show.service"],
     }[command.split()[0]]
 
 

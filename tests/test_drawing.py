@@ -72,3 +72,36 @@ def test_live_view_draws_the_received_walk(tmp_path):
     assert viewer.wait(30) == 0
     ink = (picture(out) < 0.5).mean()
     assert 0.002 < ink < 0.3
+
+
+def near(sheet: np.ndarray, colour: str) -> int:
+    """Pixels of an RGB picture within a small distance of a #rrggbb colour."""
+    rgb = np.array([int(colour[k : k + 2], 16) for k in (1, 3, 5)], dtype=float)
+    return int((np.linalg.norm(sheet - rgb, axis=-1) < 40).sum())
+
+
+def test_a_contact_sheet_draws_left_limbs_blue_and_right_limbs_red(walks, model):
+    from instrument.output.drawing import bone_colours
+
+    names = model.layout.skeleton.names
+    colours = dict(zip(names, bone_colours(names)))
+    assert {n for n, c in colours.items() if c == "tab:blue"} == {n for n in names if n.endswith("_L")}
+    assert {n for n, c in colours.items() if c == "tab:red"} == {n for n in names if n.endswith("_R")}
+    out = walks / "sides.png"
+    result = subprocess.run(CLI + ["render", "--bvh", str(walks / "youthful.bvh"), "--out", str(out)], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    sheet = np.asarray(Image.open(out).convert("RGB"), dtype=float)
+    blue, red = near(sheet, "#1f77b4"), near(sheet, "#d62728")  # matplotlib's tab:blue and tab:red
+    assert blue > 500 and red > 500  # both sides drawn, each in its colour
+    assert 0.5 < blue / red < 2.0  # an arm and a leg on each side: about as much of each
+
+
+@pytest.mark.parametrize("fps", [24.0, 30.0, 60.0, 120.0])
+def test_a_contact_sheet_shows_twelve_figures_a_tenth_of_a_second_apart(fps):
+    from instrument.cli.render_cmd import sheet_frames
+
+    frames = sheet_frames(int(4 * fps), fps)
+    times = np.array(frames) / fps
+    assert len(frames) == 12 and times[0] == 0.0
+    assert np.allclose(np.diff(times), 0.1, atol=0.5 / fps)  # 0.1 s, to the nearest frame
+    assert sheet_frames(int(4 * fps), fps, every=5) == list(range(0, int(4 * fps), 5))  # --every: all of them

@@ -356,11 +356,98 @@ def test_signals_at_random_times_leave_a_valid_bvh_or_none(tmp_path):
         process.send_signal(rng.choice([signal.SIGINT, signal.SIGTERM]))
         stderr = process.communicate(timeout=120)[1]
         assert "Traceback" not in stderr, stderr
-        assert process.returncode in (0, -signal.SIGINT, -signal.SIGTERM), stderr  # the last two: before start-up
+        assert process.returncode in (0, 128 + signal.SIGINT, 128 + signal.SIGTERM), stderr  # the last two: before start-up
         if path.exists():
             assert assert_valid_bvh(path) >= 1
         else:
             assert process.returncode != 0 or "before the first frame" in stderr or stderr == ""
+
+
+# Sends the process a signal the moment `instrument.cli.run_cmd` is about to be imported: the
+# deterministic version of a Ctrl-C while the command line loads.
+SIGNAL_ON_IMPORT = """
+import os, sys
+class SignalOnImport:
+    def find_spec(self, name, path=None, target=None):
+        if name == "instrument.cli.run_cmd":
+            os.kill(os.getpid(), {signum})
+        return None
+sys.meta_path.insert(0, SignalOnImport())
+sys.argv = ["instrument", *{arguments!r}]
+"""
+ENTRY_POINTS = {
+    "python -m instrument": "import runpy; runpy.run_module('instrument', run_name='__main__', alter_sys=True)",
+    "console script": "from instrument.cli.main import main; sys.exit(main())",  # what pip's `instrument` script runs
+}
+
+
+@pytest.mark.parametrize("entry", ENTRY_POINTS)
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_while_the_command_loads_ends_it_quietly_with_nothing_written(tmp_path, entry, signum):
+    bvh, log = tmp_path / "take.bvh", tmp_path / "take.jsonl"
+    arguments = ["run", "--no-osc", "--fast", "--seconds", "5", "--bvh", str(bvh), "--record", str(log)]
+    code = SIGNAL_ON_IMPORT.format(signum=int(signum), arguments=arguments) + ENTRY_POINTS[entry]
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert "Traceback" not in result.stderr, result.stderr
+    assert result.stderr == "" and result.stdout == ""
+    assert result.returncode == 128 + signum  # 130 for Ctrl-C, 143 for SIGTERM: `instrument --help` says so
+    assert not bvh.exists() and not log.exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+# --- a device or an event that raises in the live loop ------------------------------------------
+
+
+class Frames:
+    """An output that keeps the index of every frame it is sent."""
+
+    name = "frames"
+
+    def __init__(self):
+        self.indices: list[int] = []
+
+    def prepare(self, pose, echo):
+        return pose.index
+
+    def send(self, index):
+        self.indices.append(index)
+
+    def close(self):
+        pass
+
+
+def test_a_device_poll_or_an_event_that_raises_is_counted_and_the_show_goes_on(model):
+    import io
+
+    from instrument.runtime.console import Console
+    from instrument.runtime.performance import perform
+
+    state = ControlState(model.style_names, model.states)
+    hub = ControlHub([], console=Console(quiet=True))
+    polls = []
+
+    def unplugged_mid_read(now: float) -> list[ControlEvent]:  # a device whose read fails every time
+        polls.append(now)
+        raise OSError(5, "Input/output error")
+
+    def surface(now: float) -> list[ControlEvent]:  # a working source: speed up, one event that breaks apply
+        return [ControlEvent(now, "osc", "speed", 1.0 + now), *([ControlEvent(now, "osc", "explode", 1.0)] if now == 0.5 else [])]
+
+    def apply(state: ControlState, event: ControlEvent) -> bool:
+        if event.control == "explode":
+            raise ValueError("an event nobody foresaw")
+        return hub.apply(state, event)
+
+    frames, said = Frames(), io.StringIO()
+    summary = perform(model, [frames], Console(stream=said), fps=30, seconds=1.0, fast=True,
+                      live_sources=[unplugged_mid_read, surface], apply=apply, state=state)
+    assert frames.indices == list(range(30))  # every frame made
+    assert summary.input_errors == {f"poll {unplugged_mid_read.__qualname__}": len(polls), "apply osc": 1}
+    assert len(polls) >= 30
+    assert state.speed > 1.9  # the working source's events reached the walk, after the failures too
+    lines = said.getvalue().splitlines()
+    assert sum("OSError" in line and "the walk goes on" in line for line in lines) == 1  # said once, not every frame
+    assert sum("apply osc failed: ValueError: an event nobody foresaw" in line for line in lines) == 1
 
 
 # --- the console: closed, stalled ----------------------------------------------------------------
@@ -409,6 +496,39 @@ def test_a_closed_stderr_never_stops_the_show(tmp_path, how):
 # --- JACK restart mid-show ----------------------------------------------------------------------
 
 
+def start_private_jack(rtmidi, name: str, log: Path) -> subprocess.Popen:
+    """A running private JACK server NAME; a start that fails (a stale socket from the one just
+    killed can refuse it on a busy machine) is tried again: the server's restart is not under test."""
+    until = time.monotonic() + 90
+    while True:
+        with log.open("a") as sink:
+            # a long period and client timeout: on a loaded machine a short one makes the server
+            # drop notifications and time clients out, which is the machine's failure, not the show's
+            server = subprocess.Popen(["jackd", "--no-realtime", "-n", name, "-t", "5000", "-d", "dummy",
+                                       "-r", "48000", "-p", "1024"], stdout=sink, stderr=subprocess.STDOUT)
+        while server.poll() is None and time.monotonic() < until:
+            if _server_up(rtmidi):
+                return server
+            time.sleep(0.1)
+        server.kill()
+        server.wait(30)
+        assert time.monotonic() < until, f"the private JACK server never started: {log.read_text()[-2000:]}"
+        time.sleep(0.2)  # a short back-off before the next start (the loop's deadline bounds the whole wait)
+
+
+def jack_port_listed(rtmidi, part: str, readable: bool = False) -> str | None:
+    """The JACK MIDI port whose name holds `part`, or None: one a MIDI output can send to, or with
+    `readable` one a MIDI input can read from."""
+    try:
+        probe = (rtmidi.MidiIn if readable else rtmidi.MidiOut)(rtmidi.API_UNIX_JACK, name="fault-probe")
+    except Exception:
+        return None
+    try:
+        return next((n for n in probe.get_ports() if part in n), None)
+    finally:
+        probe.delete()
+
+
 def test_a_jack_server_restart_mid_show_is_recovered(tmp_path, monkeypatch):
     if shutil.which("jackd") is None:
         pytest.skip("JACK is not installed (apt-get install jackd2)")
@@ -421,33 +541,10 @@ def test_a_jack_server_restart_mid_show_is_recovered(tmp_path, monkeypatch):
     jackd_log = tmp_path / "jackd.txt"
 
     def start_server() -> subprocess.Popen:
-        """A running private server; a start that fails (a stale socket from the one just killed
-        can refuse it on a busy machine) is tried again: the server's restart is not under test."""
-        until = time.monotonic() + 90
-        while True:
-            with jackd_log.open("a") as sink:
-                # a long period and client timeout: on a loaded machine a short one makes the server
-                # drop notifications and time clients out, which is the machine's failure, not the show's
-                server = subprocess.Popen(["jackd", "--no-realtime", "-n", server_name, "-t", "5000", "-d", "dummy",
-                                           "-r", "48000", "-p", "1024"], stdout=sink, stderr=subprocess.STDOUT)
-            while server.poll() is None and time.monotonic() < until:
-                if _server_up(rtmidi):
-                    return server
-                time.sleep(0.1)
-            server.kill()
-            server.wait(30)
-            assert time.monotonic() < until, f"the private JACK server never started: {jackd_log.read_text()[-2000:]}"
-            time.sleep(0.2)  # a short back-off before the next start (the loop's deadline bounds the whole wait)
+        return start_private_jack(rtmidi, server_name, jackd_log)
 
     def port_listed() -> str | None:
-        try:
-            probe = rtmidi.MidiOut(rtmidi.API_UNIX_JACK, name="fault-probe")
-        except Exception:
-            return None
-        try:
-            return next((n for n in probe.get_ports() if "fault-restart" in n), None)
-        finally:
-            probe.delete()
+        return jack_port_listed(rtmidi, "fault-restart")
 
     mapping = tmp_path / "speed.toml"
     mapping.write_text('[device]\nmidi = "fault-restart"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\n'
@@ -521,6 +618,113 @@ def test_a_jack_server_restart_mid_show_is_recovered(tmp_path, monkeypatch):
     assert "waiting for the JACK server" in stderr  # the status line said so meanwhile
     frames = [p[0] for a, p in receiver.messages() if a == "/walk/frame"]
     assert frames == list(range(len(frames))) and len(frames) >= frames_before_end  # the walk never stopped
+    assert [e.value for e in read_log(log)][-1] == 0.0
+
+
+# a MIDI controller's stand-in: its own JACK client with an output port, sending a CC 1 of each
+# value read from stdin; it dies with its server, as a hardware bridge's client does
+SENDER = """
+import sys
+import rtmidi
+out = rtmidi.MidiOut(rtmidi.API_UNIX_JACK, name="fault-sender")
+out.open_virtual_port("fault-pattern-out")
+for line in sys.stdin:
+    out.send_message([0xB0, 1, int(line)])
+"""
+
+
+def test_a_jack_server_restart_with_midi_pattern_reconnects_to_the_port(tmp_path, monkeypatch):
+    """As the test above, with `--midi PATTERN`: the instrument reads another client's port, which
+    comes back (made again by its owner) after the server's restart."""
+    if shutil.which("jackd") is None:
+        pytest.skip("JACK is not installed (apt-get install jackd2)")
+    import rtmidi
+
+    server_name = f"instrument-fault-pattern-{os.getpid()}"  # a private server: the shared one is never killed
+    monkeypatch.setenv("JACK_DEFAULT_SERVER", server_name)
+    monkeypatch.setenv("JACK_NO_START_SERVER", "1")
+    jackd_log = tmp_path / "jackd.txt"
+    mapping = tmp_path / "speed.toml"
+    mapping.write_text('[device]\nmidi = "fault-pattern"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\n'
+                       'range = [0.25, 4.0]\n')
+    receiver, log, errors = Receiver(), tmp_path / "take.jsonl", tmp_path / "stderr.txt"
+    senders: list[subprocess.Popen] = []
+
+    def new_sender() -> subprocess.Popen:
+        def made() -> subprocess.Popen | None:
+            sender = subprocess.Popen([sys.executable, "-c", SENDER], stdin=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+            senders.append(sender)
+            until = time.monotonic() + 20
+            while sender.poll() is None and time.monotonic() < until:
+                time.sleep(0.5)  # every look is a new JACK client, which the server tells every other one of
+                if jack_port_listed(rtmidi, "fault-pattern-out", readable=True):
+                    return sender
+            sender.kill()  # the server was busy: a new sender
+            sender.wait(30)
+            return None
+        return wait_until(made, "the sender's port on the JACK server", deadline=120)
+
+    def speed_becomes(sender: subprocess.Popen, value: float) -> None:
+        def sent_and_seen() -> bool:
+            time.sleep(0.5)
+            try:
+                sender.stdin.write(f"{round((value - 0.25) / 3.75 * 127)}\n")
+                sender.stdin.flush()
+            except (BrokenPipeError, OSError):
+                return False
+            time.sleep(0.3)
+            speeds = [p[0] for a, p in receiver.messages() if a == "/walk/speed"]
+            return bool(speeds) and abs(speeds[-1] - value) < 1e-3
+        try:
+            wait_until(sent_and_seen, f"speed {value} through JACK", deadline=120)
+        except AssertionError as failure:
+            raise AssertionError(f"{failure}; the show is {'on' if process.poll() is None else 'over'}, "
+                                 f"it said: {errors.read_text()[-2000:]}") from None
+
+    server = start_private_jack(rtmidi, server_name, jackd_log)
+    process = None
+    try:
+        sender = new_sender()
+        with errors.open("w") as sink:  # a file, not a pipe: a pipe nobody reads would stall the show once full
+            process = subprocess.Popen(RUN + ["--midi", "fault-pattern-out", "--midi-api", "jack", "--no-feedback",
+                                              "--mapping", str(mapping), "--osc", f"127.0.0.1:{receiver.port}/flat",
+                                              "--seconds", "600", "--record", str(log)], stderr=sink, text=True)
+        speed_becomes(sender, 4.0)
+        server.terminate()
+        server.wait(30)
+        sender.kill()  # its client died with the server: its owner makes the port again on the new one
+        sender.wait(30)
+        server = start_private_jack(rtmidi, server_name, jackd_log)
+        sender = new_sender()
+        speed_becomes(sender, 0.25)  # the instrument found the port again and reads it
+        process.send_signal(signal.SIGTERM)
+        process.wait(timeout=60)
+        stderr = errors.read_text()
+    finally:
+        if process is not None and process.poll() is None:
+            process.kill()
+        for sender in senders:  # the live one ends cleanly (its client leaves the server), others are gone
+            sender.stdin.close()
+            try:
+                sender.wait(30)
+            except subprocess.TimeoutExpired:
+                sender.kill()
+                sender.wait(30)
+        server.terminate()
+        try:
+            server.wait(30)
+        except subprocess.TimeoutExpired:  # a server waiting on a killed client: the test's mess, not the show's
+            server.kill()
+            server.wait(30)
+        receiver.close()
+    assert process.returncode == 0, stderr
+    assert "JACK server went away" in stderr
+    assert re.search(r"MIDI input '[^']*fault-pattern-out' connected", stderr), stderr[-2000:]  # the reconnect line
+    status = [line for line in stderr.splitlines() if line.startswith("frame ")]
+    assert "fault-pattern-out waiting" in stderr or "waiting for the JACK server" in stderr  # meanwhile
+    assert status and status[-1].endswith("fault-pattern-out on"), status[-1:]  # and true again after
+    frames = [p[0] for a, p in receiver.messages() if a == "/walk/frame"]
+    assert frames == list(range(len(frames)))  # the walk never stopped
     assert [e.value for e in read_log(log)][-1] == 0.0
 
 

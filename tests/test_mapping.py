@@ -235,14 +235,15 @@ def test_state_ignores_non_numbers_and_unknown_targets():
 
 
 def test_a_preset_button_with_no_such_preset_is_refused_at_start(tmp_path, capsys):
-    """A button whose preset nobody defines would do nothing on stage: `run` refuses it, naming the file."""
+    """A button whose preset nobody defines would do nothing on stage: `run` refuses it, naming the file and line."""
     from instrument.cli.main import main
 
     path = tmp_path / "m.toml"
-    path.write_text('[device]\nmidi = "x"\n[[control]]\nmessage = "note"\nnumber = 1\ntarget = "preset/nosuch"\n')
+    path.write_text('[device]\nmidi = "x"\n# target = "preset/nosuch" once\n[[control]]\nmessage = "note"\nnumber = 1\n'
+                    'target = "preset/nosuch"\n')
     assert preset_problems(load_mapping(path, state()), {}) == ["preset/nosuch"]
     assert preset_problems(load_mapping(path, state()), {"nosuch": {"speed": 1.0}}) == []
     assert main(["run", "--mapping", str(path), "--no-osc", "--quiet", "--seconds", "0.1", "--normal-priority"]) == 1
     error = capsys.readouterr().err.strip()
-    assert error.startswith("instrument run: error: ") and str(path) in error and "'preset/nosuch'" in error
+    assert error.startswith(f"instrument run: error: {path}:7: target 'preset/nosuch': no such preset")
     assert "\n" not in error

@@ -137,7 +137,7 @@ def test_mlpg_takes_any_float_layout():
 
 
 def test_bench_names_the_machine_its_figures_came_from():
-    from instrument.cli.bench_cmd import machine
+    from instrument.cli.benchmarks import machine
 
     figures = machine()
     assert figures["cores"] == os.cpu_count()

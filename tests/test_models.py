@@ -133,6 +133,30 @@ def test_train_errors_are_one_line(real_walks, tmp_path):
     assert not (tmp_path / "x.npz").exists()
 
 
+def first_frames(path: Path, frames: int, out: Path) -> Path:
+    """The first `frames` frames of a BVH file, written to `out` (a take cut short)."""
+    head, motion = path.read_text().split("Frame Time:", 1)
+    lines = motion.split("\n")
+    head = head[: head.rindex("Frames:")] + f"Frames: {frames}\n"
+    out.write_text(head + "Frame Time:" + lines[0] + "\n" + "\n".join(lines[1 : 1 + frames]) + "\n")
+    return out
+
+
+@pytest.mark.parametrize("quiet", [False, True], ids=["progress", "quiet"])
+def test_train_says_a_small_style_warning_once_also_when_quiet(real_walks, tmp_path, quiet):
+    """A style with too few steps is trained anyway, with one warning line (not a second, raw
+    Python warning); --quiet leaves out the progress, not the warning."""
+    normal = next(p for p in real_walks if "_normal_" in p.name)
+    tiny = first_frames(normal, 100, tmp_path / "cut_walk_tiny_001.bvh")  # about three steps
+    result = cli("train", str(normal), str(tiny), "--out", str(tmp_path / "m.npz"), *(["--quiet"] if quiet else []))
+    assert result.returncode == 0, result.stderr
+    lines = result.stderr.splitlines()
+    said = [line for line in lines if "'tiny'" in line]
+    assert len(said) == 1 and said[0].startswith("warning: style 'tiny' has only "), result.stderr
+    assert "Warning" not in result.stderr  # no Python warning beside it
+    assert all(line.startswith("warning: ") for line in lines) if quiet else any("done in" in line for line in lines)
+
+
 @pytest.mark.parametrize("kind", ["csv", "toml"])
 def test_manifest_names_styles_and_other_conventions_train(tmp_path, kind):
     # a CMU-style skeleton in XYZ order with 3-channel joints: nothing is tied to the shared skeleton

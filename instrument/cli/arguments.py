@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass
 
 from ..errors import UserError
-from ..synthesis.durations import MAX_SPEED, MIN_SPEED
+from ..synthesis.parameters import MAX_SPEED, MIN_SPEED
 
 MAX_SECONDS = 7 * 24 * 3600.0  # a week: longer is a typo
 MAX_CHARACTERS = 1000  # a crowd larger than this is a typo (docs/crowds.md: how many keep time)
@@ -86,6 +86,8 @@ OPTIONS: dict[str, Accepts] = {
     "bench --fps": Accepts(float, 1, 1000),
     "bench --console-pages": Accepts(int, 0, 100),
     "render --every": Accepts(int, 1, None),
+    "evaluate --seconds": Accepts(float, 2, 600),  # of each generated walk
+    "service --watchdog": Accepts(float, 1, 3600),  # seconds without an answer from the frame loop
 }
 
 # "COMMAND --option": the option without which it means nothing (refused rather than ignored)
@@ -124,11 +126,3 @@ def checked(key: str):
 
     read.__name__ = key.split(" --", 1)[1]  # argparse names the type in some messages
     return read
-
-
-def number(option: str, text: str, kind=float):
-    """`text` as a finite float (or int with kind=int), or a UserError naming `option` (no range)."""
-    try:
-        return Accepts(kind).read(text)
-    except ValueError as e:
-        raise UserError(f"{option}: {e}") from None

@@ -9,8 +9,8 @@ import sys
 from pathlib import Path
 
 from ..errors import UserError
-from .arguments import number
-from ..models.modelfile import default_model_path, load_model
+from ..shipped import default_model_path
+from .arguments import checked
 
 VARIANT_KINDS = ("one", "x2", "inverted", "pairs")  # as synthesis.assessment names them (imported when run: it is slow to load)
 
@@ -36,28 +36,34 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("evaluate", help="measure a model's walks (skate, floor, ranges, drift, recognisability) against real takes")
     p.add_argument("model", nargs="?", metavar="MODEL", help="model file (default: the shipped default model)")
     p.add_argument("--real", metavar="DIR", help="folder holding the takes the model was trained on (its provenance names them)")
-    p.add_argument("--seconds", default="12", help="length of each generated walk (default 12)")
+    p.add_argument("--seconds", type=checked("evaluate --seconds"), default=12.0,
+                   help="length of each generated walk, 2 to 600 (default 12)")
     p.add_argument("--styles", nargs="+", metavar="NAME", help="only these styles (default: all)")
-    p.add_argument("--variants", default=",".join(VARIANT_KINDS),
+    p.add_argument("--variants", type=variant_kinds, default=VARIANT_KINDS,
                    help=f"which weightings, comma-separated from {', '.join(VARIANT_KINDS)} (default: all)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(run=run)
 
 
+def variant_kinds(text: str) -> tuple[str, ...]:
+    """--variants: some of VARIANT_KINDS, comma-separated (argparse's type=: a bad list is a usage error)."""
+    kinds = tuple(k.strip() for k in text.split(",") if k.strip())
+    if not kinds or any(k not in VARIANT_KINDS for k in kinds):
+        raise argparse.ArgumentTypeError(f"expected some of {', '.join(VARIANT_KINDS)}, comma-separated, not {text!r}")
+    return kinds
+
+
 def run(args: argparse.Namespace) -> int:
+    from ..models.modelfile import load_model  # (numpy, scipy, numba: loaded when run, not for --help)
+
     model = load_model(args.model or default_model_path())
-    seconds = number("--seconds", args.seconds)
-    if not 2.0 <= seconds <= 600.0:
-        raise UserError(f"--seconds must be between 2 and 600, not {args.seconds}")
+    seconds = args.seconds
     styles = args.styles or model.style_names
     unknown = [s for s in styles if s not in model.style_names]
     if unknown:
         raise UserError(f"--styles: the model has no style {unknown[0]!r} (it has {', '.join(model.style_names)})")
     styles = [s for s in model.style_names if s in styles]  # the model's order, whatever the command line's
-    kinds = tuple(k.strip() for k in args.variants.split(",") if k.strip())
-    wrong = [k for k in kinds if k not in VARIANT_KINDS]
-    if wrong or not kinds:
-        raise UserError(f"--variants {args.variants!r}: expected some of {', '.join(VARIANT_KINDS)}")
+    kinds = args.variants
     from ..synthesis.assessment import assess
 
     progress = None if args.json else (lambda name: print(f"  measured {name}", file=sys.stderr))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from ..models.modelfile import default_model_path, load_model
+from ..shipped import default_model_path
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -16,6 +16,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def summary(path: str) -> dict:
+    from ..models.modelfile import load_model  # (numpy, scipy, numba: loaded when run, not for --help)
+
     model = load_model(path)
     meta = model.metadata
     layout = model.layout

@@ -7,12 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import UserError
-from ..models.corpus import bvh_files
-from ..motion.bvh import read_bvh
-from ..motion.steps import contiguous_runs, segment_steps
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -23,6 +18,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def describe(path: Path) -> dict:
+    # numpy, and scipy and numba for finding the steps: loaded when run, not for --help (nor for `train`'s)
+    from ..motion.bvh import read_bvh
+    from ..motion.steps import contiguous_runs, segment_steps
+
     motion = read_bvh(path)
     segmentation = segment_steps(motion)
     steps = segmentation.steps
@@ -46,7 +45,7 @@ def describe(path: Path) -> dict:
 
 def _text(info: dict) -> str:
     steps = info["steps"]
-    mean = float(np.mean([s["frames"] for s in steps])) if steps else 0.0
+    mean = sum(s["frames"] for s in steps) / len(steps) if steps else 0.0
     rotation_orders = sorted({"".join(c[0] for c in j["channels"] if c.endswith("rotation")) or "-" for j in info["joints"]})
     lines = [
         info["file"],
@@ -60,6 +59,8 @@ def _text(info: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..models.corpus import bvh_files
+
     results, failed = [], 0
     for path in bvh_files(args.paths):
         try:

@@ -10,9 +10,7 @@ from ..control.devices import MidiInput
 from ..control.hid import HidInput, detect_hid
 from ..control.learn import detect
 from ..control.mapping import parse_hid_id
-from ..control.state import ControlState
 from ..errors import UserError
-from ..models.modelfile import load_model
 from ..outputfile import check_output, written
 from ..runtime.console import Console
 from ..shipped import default_model_path
@@ -63,6 +61,9 @@ def run(args: argparse.Namespace) -> int:
     if not (args.midi or args.midi_virtual or args.hid):
         raise UserError("give --midi PATTERN (a port to listen to), --midi-virtual NAME or --hid VVVV:PPPP")
     hid_ids = parse_hid_id(args.hid) if args.hid else None
+    from ..control.state import ControlState  # (with the model's code: loaded when run, not for --help)
+    from ..models.modelfile import load_model
+
     model = load_model(args.model or default_model_path())
     targets = ControlState(model.style_names, model.states).targets()
     targets = [t for t in targets if not t.startswith("part/")] + [f"preset/{n}" for n in ("1", "2", "3", "4")]

@@ -5,8 +5,6 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..control.events import read_log
-from ..control.smf import export_smf, import_smf
 from ..outputfile import check_output, written
 from .arguments import checked
 
@@ -22,6 +20,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..control.events import read_log
+    from ..control.smf import export_smf, import_smf  # (mido: loaded when run, not for --help)
+
     out = check_output(args.out, args.force, inputs=(args.source,))
     if args.action == "export":
         events = read_log(args.source)

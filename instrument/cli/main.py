@@ -3,13 +3,20 @@
 Only the chosen subcommand's module is imported (numpy, scipy and numba take seconds to load),
 so `instrument --version`, `instrument --help` and each command start without the others' cost.
 Usage errors (an unknown option, a missing argument) are argparse's: one line, exit 2.
+
+Ctrl-C and SIGTERM while the parser and the chosen command's module load end the process at once
+(exit 130 or 143, no traceback: nothing has been written yet). Once the command runs they are
+its own: `run` turns both into a stop flag, the others see KeyboardInterrupt ("interrupted", 130).
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
+import signal
 import sys
+import threading
 
 from .. import __version__
 from ..errors import UserError
@@ -53,7 +60,7 @@ def build_parser(load: str | None = EVERY) -> argparse.ArgumentParser:
     parser = OneLineParser(
         prog="instrument",
         description="A realtime stylistic walk synthesizer: style models from motion capture, live control, OSC out.",
-        epilog="Exit status: 0 done, 1 a bad file or value (one line naming it), 2 a usage error, 130 interrupted.",
+        epilog="Exit status: 0 done, 1 a bad file or value (one line naming it), 2 a usage error, 130 interrupted (143: SIGTERM while loading).",
     )
     parser.add_argument("--version", action="version", version=f"instrument {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
@@ -65,13 +72,33 @@ def build_parser(load: str | None = EVERY) -> argparse.ArgumentParser:
     return parser
 
 
+# the handling each signal gets once the command runs (Python's own)
+COMMAND_HANDLERS = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: signal.SIG_DFL}
+
+
+def _end_at_once(signum: int, _frame) -> None:
+    """A signal before the command runs: nothing is written yet, so end now (128 + signal, as a
+    shell reports it). os._exit, not an exception: an import may swallow an exception."""
+    os._exit(128 + signum)
+
+
+def _set_handlers(handler_for: dict[int, object]) -> None:
+    if threading.current_thread() is threading.main_thread():  # (main() called from a thread: left alone)
+        for signum, handler in handler_for.items():
+            signal.signal(signum, handler)
+
+
 def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    parser = build_parser(chosen_command(argv))
-    args = parser.parse_args(argv)
-    if args.command is None:
-        parser.print_help()
-        return 2
+    _set_handlers({signum: _end_at_once for signum in COMMAND_HANDLERS})
+    try:
+        argv = sys.argv[1:] if argv is None else argv
+        parser = build_parser(chosen_command(argv))
+        args = parser.parse_args(argv)
+        if args.command is None:
+            parser.print_help()
+            return 2
+    finally:
+        _set_handlers(COMMAND_HANDLERS)
     try:
         return int(args.run(args) or 0)
     except UserError as error:

@@ -4,9 +4,6 @@ from __future__ import annotations
 
 import argparse
 
-from ..motion.bvh import read_bvh
-from ..output.recorder import recover
-
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("recover", help="repair the frame count of a BVH recording left by a killed run")
@@ -15,6 +12,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..motion.bvh import read_bvh  # (numpy: loaded when run, not for --help)
+    from ..output.recorder import recover
+
     before, after = recover(args.bvh)
     read_bvh(args.bvh)  # proves the result reads
     if before == after:

@@ -6,12 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import UserError
-from ..motion.bvh import read_bvh
-from ..motion.kinematics import world_positions
-from ..output.drawing import bone_colours, draw_framed, drawn_parents, pyplot, side_projection
 from ..outputfile import check_output, written
 from .arguments import checked
 
@@ -27,11 +22,26 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
+def sheet_frames(frames: int, fps: float, every: int | None = None) -> list[int]:
+    """The frames a contact sheet shows: every `every`th, or by default SHEET_FIGURES of them
+    SHEET_SPACING seconds apart (figures a stride apart all look alike: the walk seems frozen;
+    a tenth of a second apart they show the gait)."""
+    step = every or max(1, int(round(fps * SHEET_SPACING)))
+    return list(range(0, frames, step))[: None if every else SHEET_FIGURES]
+
+
 def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.suffix.lower() not in (".png", ".gif"):
         raise UserError(f"--out {out}: give a .png (contact sheet) or a .gif (animation)")
     check_output(out, args.force, inputs=(args.bvh,))
+    # numpy, numba (the skeleton's kinematics) and matplotlib: loaded when run, not for --help
+    import numpy as np
+
+    from ..motion.bvh import read_bvh
+    from ..motion.kinematics import world_positions
+    from ..output.drawing import bone_colours, draw_framed, drawn_parents, pyplot, side_projection
+
     motion = read_bvh(args.bvh)
     plt = pyplot("Agg")
     positions = world_positions(motion)
@@ -42,9 +52,7 @@ def run(args: argparse.Namespace) -> int:
     low, high = points[..., 1].min() - 0.05 * height, points[..., 1].max() + 0.05 * height
     colours = bone_colours(motion.skeleton.names)  # left limbs blue, right red
     if out.suffix.lower() == ".png":
-        # figures a stride apart all look alike (the walk seems frozen): a tenth of a second apart they show the gait
-        every = args.every or max(1, int(round(motion.fps * SHEET_SPACING)))
-        frames = list(range(0, motion.frames, every))[: None if args.every else SHEET_FIGURES]
+        frames = sheet_frames(motion.frames, motion.fps, args.every)
         columns = min(6, len(frames))
         rows = (len(frames) + columns - 1) // columns
         fig, axes = plt.subplots(rows, columns, figsize=(2 * columns, 3 * rows), squeeze=False)

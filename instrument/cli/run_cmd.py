@@ -5,36 +5,31 @@ from __future__ import annotations
 import argparse
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from ..control.attract import Attract, load_attract
 from ..control.devices import MidiInput, OscInput
 from ..control.events import LogReplay, read_log
-from ..control.feedback import MidiFeedback
 from ..control.hid import HidInput
 from ..control.hid import choose_mapping as choose_hid_mapping
 from ..control.hid_feedback import HidFeedback
-from ..control.hub import ControlHub
 from ..control.loghead import header_line, logged_crowd, logged_mappings, unreadable_sources
-from ..control.mapping import load_mapping, parse_hid_id, preset_problems, style_problems
-from ..control.score import ScorePlayer, load_score
-from ..control.state import ControlState
+from ..control.mapping import load_mapping, parse_hid_id, preset_problems, style_problems, target_line
 from ..errors import UserError
-from ..models.modelfile import load_model
-from ..outputfile import check_output
 from ..output.osc import FLAT_PORT, VMC_PORT, OscTarget, parse_target
-from ..output.outputs import OscOutput, RecorderOutput, make_profile
-from ..output.vmc import ROOT_CONVENTIONS
+from ..outputfile import check_output
 from ..runtime.console import Console
-from ..runtime.crowd import DEFAULT_SPACING, DEFAULT_VMC_CHARACTERS
 from ..runtime.health import Health
 from ..runtime.notify import SystemdNotifier
-from ..runtime.performance import perform
 from ..runtime.priority import realtime_scheduling
 from ..runtime.stopping import StopFlag
 from ..shipped import default_model_path, demo_score_path, shipped_mappings
+from ..synthesis.parameters import DEFAULT_SPACING, DEFAULT_VMC_CHARACTERS
 from ..tomlfile import key_line, read_toml
 from .arguments import OPTIONS, check_needs
 from .arguments import value as option_value
+
+if TYPE_CHECKING:
+    from ..control.state import ControlState
 
 DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
 DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "fast": False, "quiet": False,
@@ -221,6 +216,17 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, stop: StopFlag) -> int:
+    # the walk's code (numpy, scipy, numba): loaded here, under the stop flag, not for --help
+    from ..control.attract import Attract, load_attract
+    from ..control.feedback import MidiFeedback
+    from ..control.hub import ControlHub
+    from ..control.score import ScorePlayer, load_score
+    from ..control.state import ControlState
+    from ..models.modelfile import load_model
+    from ..output.outputs import OscOutput, RecorderOutput, make_profile
+    from ..output.vmc import ROOT_CONVENTIONS
+    from ..runtime.performance import perform
+
     show_presets, show_text = apply_show_file(args) if args.config else ({}, "")
     check_needs("run", args)
     for key, value in DEFAULTS.items():
@@ -268,7 +274,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         hub.start(state)
         for mapping in mappings:
             for target in preset_problems(mapping, hub.presets):
-                raise UserError(f"{mapping.path}: target {target!r}: no such preset (the mapping, the show file and --presets "
+                raise UserError(f"{mapping.path}:{target_line(mapping, target)}: target {target!r}: no such preset (the mapping, the show file and --presets "
                                 "define none by that name)")
         if score_path and not args.score:  # the built-in demo, written for the shipped model's styles
             try:

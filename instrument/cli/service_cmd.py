@@ -14,7 +14,7 @@ from pathlib import Path
 from ..errors import UserError
 from ..runtime.priority import PRIORITY
 from ..tomlfile import read_toml
-from .arguments import number
+from .arguments import checked
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -23,7 +23,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, metavar="NAME.service", help="where to write the unit")
     p.add_argument("--user", action="store_true", help="a user unit (systemctl --user) instead of a system unit")
     p.add_argument("--run-as", metavar="USER", help="system unit: the account it runs as (default root)")
-    p.add_argument("--watchdog", default="10", metavar="SECONDS",
+    p.add_argument("--watchdog", type=checked("service --watchdog"), default=10.0, metavar="SECONDS",
                    help="restart when the frame loop has not answered for this long (default 10)")
     p.add_argument("--force", action="store_true", help="replace --out if it exists")
     p.set_defaults(run=run)
@@ -61,9 +61,7 @@ def unit_text(show: Path, watchdog: float, user_unit: bool, run_as: str | None, 
 def run(args: argparse.Namespace) -> int:
     show = Path(args.config)
     read_toml(show)  # a missing or broken show file is named now, not at the first start
-    watchdog = number("--watchdog", args.watchdog)
-    if not 1 <= watchdog <= 3600:
-        raise UserError(f"--watchdog must be 1 to 3600 seconds, not {args.watchdog}")
+    watchdog = args.watchdog
     if args.run_as and args.user:
         raise UserError("--run-as is for a system unit; a user unit runs as its user")
     out = Path(args.out)

@@ -5,10 +5,6 @@ from __future__ import annotations
 import argparse
 import sys
 
-import numpy as np
-
-from ..models.modelfile import load_model
-from ..motion.bvh import Motion, write_bvh
 from ..outputfile import check_output
 from ..shipped import default_model_path
 
@@ -25,6 +21,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import numpy as np  # (with the model's code: loaded when run, not for --help)
+
+    from ..models.modelfile import load_model
+    from ..motion.bvh import Motion, write_bvh
+
     check_output(args.out, args.force)
     model = load_model(args.model or default_model_path())
     layout = model.layout

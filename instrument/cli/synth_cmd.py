@@ -4,20 +4,16 @@ from __future__ import annotations
 
 import argparse
 import sys
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from ..errors import UserError
-from .arguments import value
-from ..models.modelfile import default_model_path, load_model
-from ..motion.bvh import write_bvh
 from ..outputfile import check_output
-from ..synthesis.durations import MAX_SPEED, MIN_SPEED
-from ..synthesis.interpolation import GROUPS, style_space
-from ..motion.features import restore
-from ..synthesis.offline import default_controls, synthesize
-from ..synthesis.stream import DEFAULT_LOOKAHEAD
-from ..synthesis.widen import range_space
+from ..shipped import default_model_path
+from ..synthesis.parameters import DEFAULT_LOOKAHEAD, GROUPS, MAX_SPEED, MIN_SPEED
+from .arguments import value
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -40,6 +36,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def parse_weights(items: list[str], styles: list[str]) -> tuple[dict[str, float], np.ndarray | None]:
     """Whole-body weights by style, and per-part weights (styles, parts; NaN: as the whole body) if any."""
+    import numpy as np
+
     weights: dict[str, float] = {}
     parts = np.full((len(styles), len(GROUPS)), np.nan)
     for item in items:
@@ -60,6 +58,14 @@ def parse_weights(items: list[str], styles: list[str]) -> tuple[dict[str, float]
 
 
 def run(args: argparse.Namespace) -> int:
+    # the synthesizer's code (numpy, scipy, numba): loaded when run, not for --help
+    from ..models.modelfile import load_model
+    from ..motion.bvh import write_bvh
+    from ..motion.features import restore
+    from ..synthesis.interpolation import style_space
+    from ..synthesis.offline import default_controls, synthesize
+    from ..synthesis.widen import range_space
+
     check_output(args.out, args.force)
     model = load_model(args.model or default_model_path())
     weights, part_weights = parse_weights(args.style, model.style_names)

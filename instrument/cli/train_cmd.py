@@ -10,9 +10,6 @@ import time
 from pathlib import Path
 
 from ..errors import UserError
-from ..models.build import UNSPECIFIED_LICENCE, build_model
-from ..models.corpus import DEFAULT_STYLE_PATTERN, read_manifest, styled_takes
-from ..models.modelfile import save_model
 from ..outputfile import check_output
 from .arguments import checked
 from .progress import Progress
@@ -23,36 +20,43 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("data", nargs="*", metavar="DATA", help="BVH files or folders")
     p.add_argument("--out", required=True, metavar="MODEL.npz", help="where to write the model")
     p.add_argument("--force", action="store_true", help="overwrite the model if it exists (default: refuse)")
-    p.add_argument("--style-from", metavar="REGEX", default=DEFAULT_STYLE_PATTERN,
+    p.add_argument("--style-from", metavar="REGEX",
                    help="regular expression with one group that finds the style in a file name (without .bvh); "
-                        f"default {DEFAULT_STYLE_PATTERN!r} reads names like dataset-2_walk_elderly_003.bvh")
+                        "default: the last but one '_'-separated part, so dataset-2_walk_elderly_003.bvh is elderly")
     p.add_argument("--manifest", metavar="FILE", help="CSV (file,style) or TOML ([[take]] file, style) naming takes and styles")
     p.add_argument("--fps", type=checked("train --fps"), default=30.0, help="frame rate the model works at (default 30)")
     p.add_argument("--states", type=checked("train --states"), default=5, help="states per step model (default 5)")
-    p.add_argument("--licence", default=UNSPECIFIED_LICENCE, help="licence of the model (that of the training data)")
+    p.add_argument("--licence", help="licence of the model (that of the training data; default: says it is unspecified)")
     p.add_argument("--attribution", default="", help="attribution the licence requires")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(run=run)
 
 
 def _pairs(args: argparse.Namespace) -> list[tuple[Path, str]]:
+    from ..models.corpus import DEFAULT_STYLE_PATTERN, read_manifest, styled_takes
+
+    style_from = args.style_from or DEFAULT_STYLE_PATTERN
     pairs: list[tuple[Path, str]] = []
     if args.manifest:
         pairs += read_manifest(Path(args.manifest))
     if args.data:
         try:
-            pattern = re.compile(args.style_from)
+            pattern = re.compile(style_from)
         except re.error as e:
             raise UserError(f"--style-from: not a regular expression: {e}") from None
         if pattern.groups != 1:
             raise UserError(f"--style-from: the expression needs exactly one group, it has {pattern.groups}")
-        pairs += styled_takes(args.data, args.style_from)
+        pairs += styled_takes(args.data, style_from)
     if not pairs:
         raise UserError("no training data: give BVH files or folders, or --manifest")
     return pairs
 
 
 def run(args: argparse.Namespace) -> int:
+    # the training code (numpy, scipy, numba): loaded when run, not for --help
+    from ..models.build import UNSPECIFIED_LICENCE, build_model
+    from ..models.modelfile import save_model
+
     check_output(args.out, args.force)
     pairs = _pairs(args)
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
@@ -61,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     command = "instrument train " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if sys.argv[1:2] == ["train"] else ""
     model, report, takes = build_model(
-        pairs, args.fps, args.states, command, args.licence, args.attribution,
+        pairs, args.fps, args.states, command, args.licence or UNSPECIFIED_LICENCE, args.attribution,
         progress=Progress(args.quiet),
         on_iteration=lambda i, ll: say(f"EM iteration {i:2d}: log-likelihood per frame {ll:.4f}"),
     )

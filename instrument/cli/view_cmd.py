@@ -12,11 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
-from ..models.modelfile import load_model
 from ..output.drawing import bone_colours, draw_framed, drawn_parents, pyplot
 from ..output.osc import FLAT_PORT
-from ..shipped import default_model_path
 from ..outputfile import check_output, written
+from ..shipped import default_model_path
 from .arguments import checked
 
 
@@ -33,6 +32,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from pythonosc.osc_bundle import OscBundle
     from pythonosc.osc_message import OscMessage
+
+    from ..models.modelfile import load_model  # (scipy, numba: loaded when run, not for --help)
 
     if args.save:
         if Path(args.save).suffix.lower() != ".png":

@@ -15,12 +15,15 @@ from __future__ import annotations
 import hashlib
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import located
 from ..textfile import read_text
 from .events import ControlEvent
 from .mapping import Mapping, load_mapping
-from .state import ControlState
+
+if TYPE_CHECKING:
+    from .state import ControlState
 
 HEADER_KEY = "instrument_log"  # {"instrument_log": 1, "mappings": [...]}
 VERSION = 1

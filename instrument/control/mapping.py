@@ -13,14 +13,17 @@ import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import UserError
 from ..tomlfile import parse_toml, read_toml
 from .events import ControlEvent
 from .hid import DS4_NAMES, canonical_input, is_usage_name, legacy_event, unit_with_deadzone
 from .hid_feedback import FeedbackSpec, parse_feedback
-from .state import ControlState
 from .targets import PRESET_NAME, is_number
+
+if TYPE_CHECKING:  # (numpy and the synthesis behind it: not needed to read a mapping)
+    from .state import ControlState
 
 MESSAGES = ("cc", "cc14", "nrpn", "note", "pitchbend", "hid")
 MODES = ("absolute", "toggle", "momentary", "relative-twos", "relative-signed", "relative-signed2", "relative-offset")
@@ -189,6 +192,12 @@ def preset_problems(mapping: Mapping, presets: dict[str, dict[str, float]]) -> l
     """preset/NAME targets of a mapping that no preset answers (the mapping's own, the show
     file's or a preset file's): a button that would do nothing, refused at start."""
     return [c.target for c in mapping.controls if c.target.startswith("preset/") and c.target[len("preset/"):] not in presets]
+
+
+def target_line(mapping: Mapping, target: str) -> int:
+    """The 1-based line of the mapping's text that sets `target = "..."` (for error messages), or 1."""
+    found = re.search(rf"""^[ \t]*target[ \t]*=[ \t]*["']{re.escape(target)}["']""", mapping.text, re.MULTILINE)
+    return mapping.text.count("\n", 0, found.start()) + 1 if found else 1
 
 
 def style_problems(mapping: Mapping, state: ControlState) -> list[str]:

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..synthesis.interpolation import GROUPS
+from ..synthesis.parameters import GROUPS
 from ..synthesis.stream import Controls
 from .targets import clamped, kind_of, problem
 

@@ -17,8 +17,7 @@ import re
 from dataclasses import dataclass
 from numbers import Real
 
-from ..synthesis.durations import MAX_SPEED, MIN_SPEED
-from ..synthesis.interpolation import GROUPS
+from ..synthesis.parameters import GROUPS, MAX_SPEED, MIN_SPEED
 
 MAX_TURN = 3.0  # rad/s
 WEIGHT_LIMIT = 10.0

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from ..synthesis.interpolation import GROUPS
+from ..synthesis.parameters import GROUPS
 from .state import ControlState
 
 

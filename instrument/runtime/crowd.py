@@ -31,6 +31,7 @@ from ..synthesis.contact import ContactSpace
 from ..synthesis.durations import MIN_FRAMES, state_durations
 from ..synthesis.follow import strength as follow_strength
 from ..synthesis.interpolation import MAX_LOG_VARIANCE_CHANGE, StyleSpace
+from ..synthesis.parameters import DEFAULT_SPACING
 from ..synthesis.stream import LABEL, STATE, Controls, Crowd
 from ..synthesis.widen import EASE_FRAMES as RANGE_EASE_FRAMES
 from ..synthesis.widen import KEPT as RANGE_KEPT
@@ -38,8 +39,6 @@ from ..synthesis.widen import LIMIT as RANGE_LIMIT
 from ..synthesis.widen import STRENGTH as RANGE_STRENGTH
 from ..synthesis.widen import RangeSpace
 
-DEFAULT_SPACING = 1.5  # metres between neighbours on the floor
-DEFAULT_VMC_CHARACTERS = 16  # a VMC stream costs several times a character's walk: a crowd's first 16 unless asked
 MIX_CONCENTRATION = 0.5  # of the Dirichlet draw: below 1 a character's own mix leans on one or two styles
 MIX_STREAM = 1  # the draws of a character's mix and phase come from seed sequence (seed, MIX_STREAM)
 

@@ -25,11 +25,12 @@ from ..synthesis.contact import contact_space
 from ..synthesis.footlock import FootLock
 from ..synthesis.interpolation import style_space
 from ..synthesis.offline import drive
+from ..synthesis.parameters import DEFAULT_SPACING
 from ..synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Crowd
 from ..synthesis.widen import Widen, range_space
 from .clock import IDLE_UNTIL, FrameClock
 from .console import Console
-from .crowd import DEFAULT_SPACING, CastControls, CrowdWiden, floor_positions, make_cast, start_phases
+from .crowd import CastControls, CrowdWiden, floor_positions, make_cast, start_phases
 from .pose import CrowdPoses, Pose
 from .stopping import StopFlag
 

@@ -7,7 +7,8 @@ import math
 
 import numpy as np
 
-MIN_SPEED, MAX_SPEED = 0.25, 4.0
+from .parameters import MAX_SPEED, MIN_SPEED
+
 MIN_FRAMES = 1.0
 
 

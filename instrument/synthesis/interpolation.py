@@ -21,8 +21,8 @@ from ..models.modelfile import Model
 from ..motion.bvh import Motion
 from ..motion.features import ROOT_FEATURES, FeatureLayout
 from ..motion.kinematics import forward_kinematics, local_transforms
+from .parameters import GROUPS
 
-GROUPS = ("root", "legs", "upper")
 MAX_LOG_VARIANCE_CHANGE = float(np.log(1e4))  # extreme weights may scale a variance 10^4 times, no more
 
 

@@ -23,8 +23,8 @@ from numba import njit
 from .durations import MIN_FRAMES, state_durations
 from .interpolation import Lambda, StyleSpace, interpolate
 from .mlpg import _solve
+from .parameters import DEFAULT_LOOKAHEAD
 
-DEFAULT_LOOKAHEAD = 32  # frames: one stride (two steps) at 30 fps; see the README for the trade-off
 
 # rows of Crowd.counters
 LABEL, STATE, ELAPSED, HEAD, TAIL, FILLED = range(6)

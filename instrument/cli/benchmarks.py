@@ -1,0 +1,272 @@
+"""The speed figures `instrument bench` reports: parsing, MLPG, streaming, poses and the live loop's pacing,
+measured on this machine (`bench_cmd` prints them)."""
+
+from __future__ import annotations
+
+import os
+import platform
+import sys
+import time
+
+import numpy as np
+
+from ..models.modelfile import default_model_path, load_model
+from ..motion.bvh import Joint, Motion, Skeleton, bvh_text, parse_bvh
+from ..motion.features import choose_layout, extract
+from ..runtime.pose import CrowdPoses, PoseStream
+from ..synthesis.contact import contact_space
+from ..synthesis.footlock import FootLock
+from ..synthesis.interpolation import interpolate, style_space
+from ..synthesis.mlpg import mlpg, mlpg_continued
+from ..synthesis.offline import generate_with_states
+from ..synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Crowd
+from ..synthesis.widen import Widen, range_space
+from .crowd_bench import largest_crowd, measure_cost
+
+MLPG_FRAMES = 10_000
+BATCH = 100
+
+
+def measure_pacing(model_path: str | None, seconds: float, fps: float, console_address: str | None = None,
+                   pages: int = 0) -> dict:
+    """Send-time deviation from the schedule of the live loop, with real UDP outputs (and the
+    browser console with `pages` pages open, when asked)."""
+    import socket
+
+    from ..output.osc import OscTarget
+    from ..output.outputs import OscOutput, make_profile
+    from ..runtime.console import Console
+    from ..runtime.performance import perform
+    from ..runtime.priority import realtime_scheduling
+    from ..control.score import ScorePlayer, load_score
+    from ..control.state import ControlState
+    from ..shipped import demo_score_path
+
+    model = load_model(model_path or default_model_path())
+    sinks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(2)]
+    for s in sinks:
+        s.bind(("127.0.0.1", 0))
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+    console = Console(quiet=True)
+    outputs = [OscOutput(OscTarget("127.0.0.1", s.getsockname()[1], kind), make_profile(kind, model), console)
+               for s, kind in zip(sinks, ("vmc", "flat"))]
+    live_sources, link = [], None
+    if console_address:
+        link = _console_for_pacing(console_address, model, console, outputs, fps, pages)
+        live_sources = [link.input.poll]
+    timing: list[float] = []
+    refused = realtime_scheduling()  # as `instrument run` does
+    state = link.output.state if link else ControlState(model.style_names, model.states)
+    demo = ScorePlayer(load_score(demo_score_path(), state, loop=True), state)
+    try:
+        summary = perform(model, outputs, console, fps, seconds, demo, timing=timing, live_sources=live_sources, state=state)
+    finally:
+        if link:
+            open_pages = link.pages
+            link.input.close()
+    for s in sinks:
+        s.close()
+    deviation = np.abs(np.array(timing[1:])) * 1000.0
+    return {
+        "pacing_fps": fps,
+        "pacing_seconds": seconds,
+        "pacing_frames": summary.frames,
+        "pacing_p50_ms": float(np.percentile(deviation, 50)),
+        "pacing_p99_ms": float(np.percentile(deviation, 99)),
+        "pacing_max_ms": float(deviation.max()),
+        "pacing_late_frames": summary.late,
+        "pacing_dropped_frames": summary.dropped,
+        "pacing_scheduling": "realtime" if refused is None else f"normal ({refused})",
+        "pacing_console_pages": open_pages if console_address else None,
+    }
+
+
+def _console_for_pacing(address: str, model, console, outputs: list, fps: float, pages: int):
+    """The console beside the measured loop; waits (up to 5 minutes) for `pages` pages to open."""
+    from ..console.link import ConsoleLink
+    from ..control.state import ControlState
+    from ..errors import UserError
+
+    link = ConsoleLink(address, model, ControlState(model.style_names, model.states), {}, console, fps)
+    outputs.append(link.output)
+    for line in link.announcement():
+        print(line, file=sys.stderr, flush=True)
+    deadline = time.monotonic() + 300
+    while link.pages < pages:
+        if time.monotonic() > deadline:
+            link.input.close()
+            raise UserError(f"--console-pages {pages}: only {link.pages} pages opened in 5 minutes")
+        link.input.poll(0.0)  # takes the page count (and says the pages' connections)
+        time.sleep(0.1)
+    return link
+
+
+def median_seconds(work, repeat: int) -> float:
+    work()  # warm up (and compile)
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        work()
+        times.append(time.perf_counter() - start)
+    return float(np.median(times))
+
+
+def benchmark_walk(frames: int = 500, joints: int = 22) -> str:
+    """BVH text of a `frames`-long chain of `joints` 6-channel joints with smooth random motion."""
+    channels6 = ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")
+    skeleton = Skeleton(tuple(Joint(f"J{k}", k - 1, (0.0, 10.0, 0.0), channels6) for k in range(joints)))
+    rng = np.random.default_rng(0)
+    channels = np.cumsum(rng.normal(0, 1.0, (frames, skeleton.channel_count)), axis=0)
+    return bvh_text(Motion(skeleton, channels, 30.0))
+
+
+def _nnmnkwii_mlpg():
+    try:
+        from nnmnkwii.paramgen import mlpg as reference
+    except ImportError:
+        return None
+    windows = [(0, 0, np.array([1.0])), (1, 1, np.array([-0.5, 0.0, 0.5])), (1, 1, np.array([1.0, -2.0, 1.0]))]
+    return lambda means, variances: reference(means, variances, windows)
+
+
+def machine() -> dict:
+    """The machine a figure came from: absolute speeds mean little without it."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as info:
+            cpu = next((line.split(":", 1)[1].strip() for line in info if line.startswith("model name")), cpu)
+    except OSError:
+        pass
+    return {"cores": os.cpu_count(), "cpu": cpu, "load_1min": os.getloadavg()[0] if hasattr(os, "getloadavg") else None}
+
+
+def paired_seconds(ours, theirs, repeat: int) -> tuple[float, float, float]:
+    """Median seconds of two solvers timed turn about, and the median of their per-turn ratio
+    (theirs / ours): on a shared machine the load changes within seconds, and a pair measured
+    back to back sees the same load where two separate runs of medians do not."""
+    ours(), theirs()  # warm up (and compile)
+    times = np.empty((repeat, 2))
+    for k in range(repeat):
+        for j, work in enumerate((ours, theirs)):
+            start = time.perf_counter()
+            work()
+            times[k, j] = time.perf_counter() - start
+    return float(np.median(times[:, 0])), float(np.median(times[:, 1])), float(np.median(times[:, 1] / times[:, 0]))
+
+
+def measure(model_path: str | None, repeat: int) -> dict:
+    figures: dict = {}
+    text = benchmark_walk()
+    motion = parse_bvh(text)
+    layout = choose_layout([motion])
+    figures["bvh_parse_ms_500x22"] = 1000 * median_seconds(lambda: parse_bvh(text), repeat)
+    figures["features_ms_500x22"] = 1000 * median_seconds(lambda: extract(motion, layout), repeat)
+
+    model = load_model(model_path or default_model_path())
+    space = style_space(model)
+    dimension = model.layout.dimension
+    all_styles = Controls(np.full(len(model.style_names), 1.0 / len(model.style_names)) * 1.5)
+    ids = Crowd(space).state_plan(all_styles, MLPG_FRAMES)
+    lam = interpolate(space, all_styles.weights)
+    means, variances = lam.means[ids], 1.0 / lam.precisions[ids]
+    figures["dimension"] = dimension
+    figures["mlpg_frames"] = MLPG_FRAMES
+    figures["machine"] = machine()
+    reference = _nnmnkwii_mlpg()
+    if reference:
+        ours, theirs, speedup = paired_seconds(lambda: mlpg(means, variances), lambda: reference(means, variances), repeat)
+        figures["mlpg_frames_per_s"] = MLPG_FRAMES / ours
+        figures["nnmnkwii_frames_per_s"] = MLPG_FRAMES / theirs
+        figures["mlpg_speedup_over_nnmnkwii"] = speedup
+    else:
+        figures["mlpg_frames_per_s"] = MLPG_FRAMES / median_seconds(lambda: mlpg(means, variances), repeat)
+        figures["nnmnkwii_frames_per_s"] = figures["mlpg_speedup_over_nnmnkwii"] = None
+
+    # the yardstick of the streaming figures: the bare solve of one window of the same size
+    frames, blocks = 100, max(3, min(repeat, 9))  # the median of several blocks: one busy moment is not the figure
+    window = 2 + DEFAULT_LOOKAHEAD + 1
+    window_means, window_precisions = lam.means[ids[None, :window]], lam.precisions[ids[None, :window]]
+    known = np.zeros((1, 2, dimension))
+    figures["window_solve_us"] = 1e6 / frames * median_seconds(
+        lambda: [mlpg_continued(window_means, window_precisions, known) for _ in range(frames)], blocks)
+    walker = Crowd(space)
+    controls = [all_styles]
+    figures["stream_us_per_frame"] = 1e6 / frames * median_seconds(lambda: [walker.step(controls) for _ in range(frames)], blocks)
+    crowd = Crowd(space, BATCH)
+    crowd_controls = [Controls(all_styles.weights * (1 + 0.01 * k)) for k in range(BATCH)]
+    figures["stream_us_per_frame_batch"] = 1e6 / 10 / BATCH * median_seconds(
+        lambda: [crowd.step(crowd_controls) for _ in range(10)], blocks)
+    figures["stream_to_window_solve"] = figures["stream_us_per_frame"] / figures["window_solve_us"]
+    figures["stream_batch_to_window_solve"] = figures["stream_us_per_frame_batch"] / figures["window_solve_us"]
+    figures["lookahead"] = DEFAULT_LOOKAHEAD
+    figures |= measure_pose(model, space, all_styles, blocks, figures["window_solve_us"])
+    per_character = figures["stream_us_per_frame_batch"]
+    figures["characters_at_30fps"] = int(1e6 / 30 / per_character)
+    figures["characters_at_60fps"] = int(1e6 / 60 / per_character)
+    figures |= measure_cost(model)  # the whole live path of a crowd, per character
+    figures["stream_per_character_to_window_solve"] = figures["stream_us_per_character"] / figures["window_solve_us"]
+    figures |= largest_crowd(model, figures["stream_us_per_character"])
+    return figures
+
+
+def measure_pose(model, space, controls: Controls, blocks: int, window_solve_us: float) -> dict:
+    """The pose path per frame (features to world pose, the feet planted: one compiled call for
+    all characters), for one character and per character in a crowd of BATCH, and the lock on its
+    own (what planting the feet adds); the widen filter per frame; each also against the window solve.
+    The pose figures are None without contact statistics, the widen ones without range ones."""
+    frames = 100
+    figures: dict = {}
+    contact = contact_space(model)
+    if contact is None:
+        figures |= {"pose_us_per_frame": None, "contact_us_per_frame": None, "pose_us_per_character_batch": None}
+    else:
+        static, ids = generate_with_states(space, model.layout.dimension, controls, frames, "stream", DEFAULT_LOOKAHEAD, 0)
+        shares = contact.shares(controls.weights, controls.part_weights)[ids]
+        lock = FootLock(model.layout, contact.clearance, model.fps)
+
+        def poses():
+            stream = PoseStream(model.layout, model.fps, lock)
+            for row, frame_shares in zip(static, shares):
+                stream.next(row, frame_shares)
+
+        # the lock on its own: applied to the frames' unplanted poses (it leaves each a planted
+        # pose with its world transforms, itself a valid input: the work is the same every block)
+        plain = PoseStream(model.layout, model.fps)
+        unplanted = [plain.next(row) for row in static]
+        inputs = [tuple(np.array(a)[None] for a in (p.rotations, p.translations, p.world_rotations, p.world_positions))
+                  for p in unplanted]
+
+        def planting():
+            state = lock.start(1)
+            for (rotations, translations, world_rot, world_pos), frame_shares in zip(inputs, shares):
+                lock.apply(state, rotations, translations, frame_shares[None], world_rot, world_pos)
+
+        crowd_static = np.repeat(static[:, None], BATCH, axis=1)
+        crowd_shares = np.repeat(shares[:, None], BATCH, axis=1)
+
+        def crowd_poses():
+            crowd = CrowdPoses(model.layout, model.fps, BATCH, lock)
+            for rows, frame_shares in zip(crowd_static, crowd_shares):
+                crowd.next(rows, frame_shares)
+
+        figures |= {"pose_us_per_frame": 1e6 / frames * median_seconds(poses, blocks),
+                    "contact_us_per_frame": 1e6 / frames * median_seconds(planting, blocks),
+                    "pose_us_per_character_batch": 1e6 / frames / BATCH * median_seconds(crowd_poses, blocks)}
+    widen = range_space(model)
+    if widen is None:
+        figures["widen_us_per_frame"] = None
+    else:
+        walker = Crowd(space)
+        frame = walker.step([controls])[0]
+        live = [Controls(controls.weights.copy(), controls.part_weights) for _ in range(frames)]  # a new snapshot a frame, as live
+
+        def widened():
+            scale = Widen(widen)
+            for snapshot in live:
+                scale.next(frame, walker, snapshot)
+
+        figures["widen_us_per_frame"] = 1e6 / frames * median_seconds(widened, blocks)
+    for name, ratio in (("pose_us_per_frame", "pose_to_window_solve"), ("pose_us_per_character_batch", "pose_batch_to_window_solve"),
+                        ("widen_us_per_frame", "widen_to_window_solve")):
+        figures[ratio] = None if figures[name] is None else figures[name] / window_solve_us
+    return figures

@@ -1,0 +1,21 @@
+"""What a performer can ask of the synthesizer and a crowd, as plain names and numbers (no numpy).
+
+The control table (control/targets.py) and the command line's option table (cli/arguments.py)
+name these; keeping them here, apart from the code that uses them, lets those tables load in a
+few milliseconds (`instrument COMMAND --help` imports no numpy, scipy or numba).
+"""
+
+# the body-part groups a style can be weighted by, one by one (synthesis/interpolation.py
+# derives each group's feature dimensions from the skeleton)
+GROUPS = ("root", "legs", "upper")
+
+# how far the step rate goes, relative to the model's (synthesis/durations.py)
+MIN_SPEED, MAX_SPEED = 0.25, 4.0
+
+# frames the streaming MLPG looks ahead: one stride (two steps) at 30 fps; see the README for the trade-off
+DEFAULT_LOOKAHEAD = 32
+
+# a crowd (runtime/crowd.py): metres between neighbours on the floor, and how many characters a
+# VMC target sends unless asked (a VMC stream costs several times a character's walk)
+DEFAULT_SPACING = 1.5
+DEFAULT_VMC_CHARACTERS = 16
