@@ -13,7 +13,8 @@ from instrument.control.events import ControlEvent
 from instrument.control.score import ScorePlayer, eased, load_score
 from instrument.control.state import ControlState
 from instrument.motion.bvh import read_bvh
-from oscrecv import Receiver, free_port
+from oscrecv import Receiver, frame_count, free_port
+from waiting import wait_until
 
 RUN = [sys.executable, "-m", "instrument", "run"]
 
@@ -200,17 +201,14 @@ def test_live_osc_rides_on_top_and_the_cue_button_releases_a_wait(tmp_path):
                                stderr=subprocess.PIPE, text=True)
     surface = SimpleUDPClient("127.0.0.1", control_port)
     try:
-        deadline = time.monotonic() + 60
-        while len(messages_per_frame(receiver, "/walk/speed")) < 15 and time.monotonic() < deadline:
-            time.sleep(0.05)
+        wait_until(lambda: frame_count(receiver) >= 15, "15 frames")
         surface.send_message("/walk/speed", 1.6)
-        while 1.6 not in [round(v, 3) for v in messages_per_frame(receiver, "/walk/speed")] and time.monotonic() < deadline:
-            time.sleep(0.05)
-        time.sleep(0.5)
+        wait_until(lambda: 1.6 in [round(v, 3) for v in messages_per_frame(receiver, "/walk/speed")], "the surface's speed")
+        moved = frame_count(receiver)
+        wait_until(lambda: frame_count(receiver) >= moved + 30, "30 more frames")
         assert set(messages_per_frame(receiver, "/walk/style/elderly")) == {0.0}  # still waiting for the cue
         surface.send_message("/walk/cue", 1.0)
-        while 1.0 not in messages_per_frame(receiver, "/walk/style/elderly") and time.monotonic() < deadline:
-            time.sleep(0.05)
+        wait_until(lambda: 1.0 in messages_per_frame(receiver, "/walk/style/elderly"), "the ramp's end")
     finally:
         process.terminate()
         stderr = process.communicate(timeout=60)[1]
@@ -234,6 +232,7 @@ def test_live_osc_rides_on_top_and_the_cue_button_releases_a_wait(tmp_path):
     ('loop = true\n[[cue]]\nramp = { speed = 1 }\n', "s.toml:1: loop: a looping score must take some time"),
     ('[[cue]]\nwait = "applause"\n', "s.toml:2: wait: the only thing to wait for is \"cue\""),
     ('[[cue]]\nhold = -1\n', "s.toml:2: hold: expected a number of seconds"),
+    ('name = 3\n[[cue]]\nhold = 1\n', "s.toml:1: name: expected a string"),
     ('[[cue\n', "s.toml: "),
 ])
 def test_bad_scores_are_one_line_errors_with_file_line_and_key(tmp_path, text, message):
