@@ -2,6 +2,7 @@
 live input on top, waits for the performer's cue button, and one-line errors for bad files."""
 
 import filecmp
+import json
 import subprocess
 import sys
 import time
@@ -190,14 +191,16 @@ def messages_per_frame(receiver: Receiver, address: str) -> list[float]:
 
 def test_live_osc_rides_on_top_and_the_cue_button_releases_a_wait(tmp_path):
     """Real UDP both ways: the score waits for /walk/cue from a surface, while the surface moves
-    a target of its own that the score does not touch."""
+    a target of its own that the score does not touch. The take, recorded, replays byte for byte."""
     from pythonosc.udp_client import SimpleUDPClient
 
     score = write(tmp_path, '[[cue]]\nwait = "cue"\n[[cue]]\nramp = { "style/elderly" = 1.0 }\nover = 0.5\n'
                             '[[cue]]\nhold = 600\n')
+    log, live, replayed = tmp_path / "take.jsonl", tmp_path / "live.bvh", tmp_path / "replayed.bvh"
     control_port, receiver = free_port(), Receiver()
     process = subprocess.Popen(RUN + ["--score", str(score), "--osc-in", str(control_port), "--osc",
-                                      f"127.0.0.1:{receiver.port}/flat", "--seconds", "120", "--quiet"],
+                                      f"127.0.0.1:{receiver.port}/flat", "--seconds", "12", "--quiet",
+                                      "--record", str(log), "--bvh", str(live)],
                                stderr=subprocess.PIPE, text=True)
     surface = SimpleUDPClient("127.0.0.1", control_port)
     try:
@@ -209,14 +212,22 @@ def test_live_osc_rides_on_top_and_the_cue_button_releases_a_wait(tmp_path):
         assert set(messages_per_frame(receiver, "/walk/style/elderly")) == {0.0}  # still waiting for the cue
         surface.send_message("/walk/cue", 1.0)
         wait_until(lambda: 1.0 in messages_per_frame(receiver, "/walk/style/elderly"), "the ramp's end")
+        stderr = process.communicate(timeout=120)[1]  # the run ends on its own after 12 s
     finally:
-        process.terminate()
-        stderr = process.communicate(timeout=60)[1]
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
         receiver.close()
     assert process.returncode == 0, stderr
     elderly = messages_per_frame(receiver, "/walk/style/elderly")
     assert elderly[-1] == 1.0 and len(set(elderly)) > 5  # ramped, not jumped
     assert messages_per_frame(receiver, "/walk/speed")[-1] == pytest.approx(1.6)  # the surface's value stayed
+    sources = {json.loads(line)["source"] for line in log.read_text().splitlines()[1:]}
+    assert sources == {"score", "osc"}  # the score's ramp and the surface's speed and cue
+    replay = subprocess.run(RUN + ["--replay", str(log), "--fast", "--no-osc", "--quiet", "--seconds", "12", "--bvh", str(replayed)],
+                            capture_output=True, text=True, timeout=120)
+    assert replay.returncode == 0, replay.stderr
+    assert read_bvh(live).frames == 360 and filecmp.cmp(live, replayed, shallow=False)
 
 
 @pytest.mark.parametrize("text,message", [
