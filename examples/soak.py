@@ -35,24 +35,24 @@ import numpy as np
 TOP = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(TOP / "tests"))  # the simulated hidapi and the real descriptor the tests use
 
-from hid_descriptors import DUALSHOCK4_USB  # noqa: E402
-from hid_sim import SimulatedDevice, SimulatedHid, ds4_report  # noqa: E402
+from hid_descriptors import DUALSHOCK4_USB
+from hid_sim import SimulatedDevice, SimulatedHid, ds4_report
 
-from instrument.control.attract import Attract, AttractSettings  # noqa: E402
-from instrument.control.devices import OscInput  # noqa: E402
-from instrument.control.hid import HidInput  # noqa: E402
-from instrument.control.hub import ControlHub  # noqa: E402
-from instrument.control.mapping import load_mapping  # noqa: E402
-from instrument.control.score import preset_tour  # noqa: E402
-from instrument.control.state import ControlState  # noqa: E402
-from instrument.models.modelfile import load_model  # noqa: E402
-from instrument.output.osc import OscTarget, message  # noqa: E402
-from instrument.output.outputs import OscOutput, make_profile  # noqa: E402
-from instrument.runtime.console import Console  # noqa: E402
-from instrument.runtime.health import Health, open_files, rss_bytes  # noqa: E402
-from instrument.runtime.performance import perform  # noqa: E402
-from instrument.runtime.priority import realtime_scheduling  # noqa: E402
-from instrument.shipped import default_model_path  # noqa: E402
+from instrument.control.attract import Attract, AttractSettings
+from instrument.control.devices import OscInput
+from instrument.control.hid import HidInput
+from instrument.control.hub import ControlHub
+from instrument.control.mapping import load_mapping
+from instrument.control.score import preset_tour
+from instrument.control.state import ControlState
+from instrument.models.modelfile import load_model
+from instrument.output.osc import OscTarget, message
+from instrument.output.outputs import OscOutput, make_profile
+from instrument.runtime.console import Console
+from instrument.runtime.health import Health, open_files, rss_bytes
+from instrument.runtime.performance import perform
+from instrument.runtime.priority import realtime_scheduling
+from instrument.shipped import default_model_path
 
 
 class Sink:

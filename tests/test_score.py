@@ -5,7 +5,6 @@ import filecmp
 import json
 import subprocess
 import sys
-import time
 
 import pytest
 
