@@ -2,8 +2,9 @@
 
 The real loop (`perform`), the real hub and mappings, real UDP: an OSC control surface sends
 to the instrument's --osc-in socket, both OSC profiles go to receivers on 127.0.0.1. Only the
-HID game controller is simulated (a DualShock 4 that is unplugged and plugged back, raising
-the same `OSError('read error')` as hidapi). On a schedule of performance time:
+HID game controller is simulated (tests/hid_sim.py: a DualShock 4 serving its real USB report
+descriptor and reports laid out as it sends them, unplugged and plugged back, raising the same
+`OSError('read error')` as hidapi). On a schedule of performance time:
 
     every 20 min   a performer plays for 10 min (an OSC fader every second, the pad's stick
                    and buttons), then nobody does: after 2 min the attract mode tours presets
@@ -31,8 +32,15 @@ from pathlib import Path
 
 import numpy as np
 
+TOP = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(TOP / "tests"))  # the simulated hidapi and the real descriptor the tests use
+
+from hid_descriptors import DUALSHOCK4_USB
+from hid_sim import SimulatedDevice, SimulatedHid, ds4_report
+
 from instrument.control.attract import Attract, AttractSettings
-from instrument.control.devices import HidInput, OscInput
+from instrument.control.devices import OscInput
+from instrument.control.hid import HidInput
 from instrument.control.hub import ControlHub
 from instrument.control.mapping import load_mapping
 from instrument.control.score import preset_tour
@@ -45,45 +53,6 @@ from instrument.runtime.health import Health, open_files, rss_bytes
 from instrument.runtime.performance import perform
 from instrument.runtime.priority import realtime_scheduling
 from instrument.shipped import default_model_path
-
-TOP = Path(__file__).resolve().parents[1]
-
-
-class SimulatedPad:
-    """hidapi's `hid` module as seen with one DualShock 4 (USB report 0x01) that can be unplugged."""
-
-    def __init__(self):
-        self.plugged = True
-        self.reports: list[list[int]] = []
-        self.opened = 0
-
-    def report(self, lx=128, ly=128, r2=0, face=0) -> list[int]:
-        return [0x01, lx, ly, 128, 128, 0x08 | (face << 4), 0, 0, 0, r2] + [0] * 54
-
-    def enumerate(self, vendor, product):
-        return [{"path": b"/dev/hidraw-sim", "vendor_id": vendor, "product_id": product}] if self.plugged else []
-
-    def device(self):
-        pad = self
-
-        class Device:
-            def open_path(self, path):
-                if not pad.plugged:
-                    raise OSError("open failed")
-                pad.opened += 1
-
-            def set_nonblocking(self, flag):
-                return 0
-
-            def read(self, size):
-                if not pad.plugged:
-                    raise OSError("read error")
-                return pad.reports.pop(0) if pad.reports else []
-
-            def close(self):
-                pass
-
-        return Device()
 
 
 class Sink:
@@ -131,6 +100,9 @@ class CountingStream:
     def flush(self) -> None:
         pass
 
+    def isatty(self) -> bool:
+        return False
+
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -144,13 +116,13 @@ def main() -> int:
     state = ControlState(model.style_names, model.states)
     stream = CountingStream()
     console = Console(quiet=True, stream=stream)  # warnings, not the status line
-    pad = SimulatedPad()
+    pad = SimulatedDevice(DUALSHOCK4_USB, 0x054C, 0x09CC, name="Wireless Controller")  # its real USB descriptor
     ds4 = load_mapping(TOP / "mappings" / "sony-dualshock4.toml", state)
     presets = {"old": {"style/elderly": 1.2, "speed": 0.8}, "proud": {"style/masculine": 1.5, "style/active": 0.5},
                "light": {"style/feminine": 1.5, "style/youthful": 1.0, "speed": 1.2}}
     hub = ControlHub([ds4], presets)
     hub.start(state)  # the mapping's morph time, as `run` starts it
-    hid = HidInput(console, 0x054C, 0x09CC, hid=pad)
+    hid = HidInput(console, 0x054C, 0x09CC, hid=SimulatedHid(pad))
     surface_in = OscInput(console, "127.0.0.1:0")
     surface_port = surface_in.sock.getsockname()[1]
     surface = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -160,12 +132,15 @@ def main() -> int:
     rng = np.random.default_rng(7)
     period = 1.0 / args.fps
     seen = {"frame": -1}
+    unplugs = {"n": 0}
 
     def inject(now: float) -> list:
         """Faults and a performer, by performance time; sends real UDP to the surface socket."""
         minute = now / 60.0
         playing = minute % 20 < 10
-        pad.plugged = not (minute % 10 >= 9.5)
+        plugged = not (minute % 10 >= 9.5)
+        unplugs["n"] += pad.plugged and not plugged
+        pad.plugged = plugged
         flat_down = minute % 15 >= 14
         if flat_down and sinks["flat"].sock is not None:
             sinks["flat"].down()
@@ -178,8 +153,9 @@ def main() -> int:
         if playing and frame % round(args.fps) == 0:  # once a second: a fader on the surface, the pad's stick
             style = model.style_names[int(rng.integers(len(model.style_names)))]
             surface.sendto(message(f"/walk/style/{style}", float(rng.uniform(-1, 2))), ("127.0.0.1", surface_port))
-            pad.reports.append(pad.report(lx=int(rng.integers(256)), r2=int(rng.integers(256)),
-                                          face=0b0010 if rng.random() < 0.05 else 0))
+            report = ds4_report(lx=int(rng.integers(256)), r2=int(rng.integers(256)), face=0b0010 if rng.random() < 0.05 else 0)
+            if pad.plugged:  # an unplugged pad sends nothing
+                pad.send(report)
         if frame % 30 == 0:
             for sink in sinks.values():
                 sink.drain()
@@ -220,7 +196,7 @@ def main() -> int:
         "slow_frames": marks["slow"], "late": summary.late if summary else None, "dropped": summary.dropped if summary else None,
         "output_errors": summary.output_errors if summary else None, "rss_mb_start": round(start_rss, 1),
         "rss_mb_end": round(rss_bytes() / 1e6, 1), "open_files_start": start_files, "open_files_end": open_files(),
-        "pad_reconnects": pad.opened - 1, "console_lines": stream.lines, "console_last": stream.last, "hours": hours,
+        "pad_unplugs": unplugs["n"], "pad_reconnects": hid.connections - 1, "pad_reports_read": hid.reports, "console_lines": stream.lines, "console_last": stream.last, "hours": hours,
     }
     if len(hours) >= 3:  # growth after the first (warm-up) hour
         x = np.array([h["hour"] for h in hours[1:]], float)

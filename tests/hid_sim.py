@@ -90,3 +90,10 @@ class SimulatedHid:
     def device(self):
         # a device's handle has the descriptor call if the binding has it (hidapi >= 0.14 does)
         return _HandleWithDescriptor(self) if all(d.descriptor_call for d in self.devices) else _Handle(self)
+
+
+def ds4_report(lx=128, ly=128, rx=128, ry=128, hat=8, face=0, shoulders=0, l2=0, r2=0) -> bytes:
+    """DualShock 4 USB input report 1, laid out by hand from the published layout (not by the code
+    under test): sticks, hat (8 = released) with square/cross/circle/triangle in the high nibble,
+    L1 R1 L2 R2 SHARE OPTIONS L3 R3, counter, triggers, then motion and touch."""
+    return bytes([0x01, lx, ly, rx, ry, (face << 4) | hat, shoulders, 0, l2, r2] + [0] * 54)

@@ -10,6 +10,7 @@ import pytest
 
 from conftest import REPO
 from hid_descriptors import DUALSHOCK4_USB
+from hid_sim import SimulatedDevice, SimulatedHid, ds4_report
 from instrument.control.hid import HidInput
 from instrument.control.hub import ControlHub
 from instrument.control.mapping import load_mapping
@@ -126,53 +127,11 @@ def test_an_unplugged_midi_device_is_reported_and_reconnected(jack, tmp_path):
     assert read_bvh(tmp_path / "walk.bvh").frames >= len(frames)
 
 
-class SimulatedDualShock4:
-    """Stands in for hidapi: the same `enumerate` and `device` calls, DualShock 4 USB reports,
-    and on unplug the same OSError('read error') from read() and an empty enumerate()."""
-
-    def __init__(self):
-        self.plugged = True
-        self.reports: list[list[int]] = []
-        self.opened = 0
-
-    @staticmethod
-    def report(lx=128, ly=128, rx=128, ry=128, hat=8, face=0, shoulders=0, l2=0, r2=0) -> list[int]:
-        return [0x01, lx, ly, rx, ry, (face << 4) | hat, shoulders, 0, l2, r2] + [0] * 54
-
-    def enumerate(self, vendor=0, product=0):
-        return [{"path": b"/dev/hidraw-sim", "vendor_id": 0x054C, "product_id": 0x09CC}] if self.plugged and (vendor, product) == (0x054C, 0x09CC) else []
-
-    def device(self):
-        sim = self
-
-        class Device:
-            def open_path(self, path):
-                if not sim.plugged:
-                    raise OSError("open failed")
-                sim.opened += 1
-
-            def set_nonblocking(self, flag):
-                pass
-
-            def get_report_descriptor(self, size=4096):
-                return list(DUALSHOCK4_USB)  # the real one: the device is decoded from it
-
-            def read(self, size):
-                if not sim.plugged:
-                    raise OSError("read error")
-                return sim.reports.pop(0) if sim.reports else []
-
-            def close(self):
-                pass
-
-        return Device()
-
-
 def test_simulated_dualshock4_steers_drives_a_style_and_survives_unplug(capsys):
     model = load_model(default_model_path())
-    pad = SimulatedDualShock4()
+    pad = SimulatedDevice(DUALSHOCK4_USB, 0x054C, 0x09CC, name="Wireless Controller")  # its real USB descriptor
     console = Console()
-    device = HidInput(console, 0x054C, 0x09CC, hid=pad)
+    device = HidInput(console, 0x054C, 0x09CC, hid=SimulatedHid(pad))
     state = ControlState(model.style_names, model.states)
     hub = ControlHub([load_mapping(REPO / "mappings" / "sony-dualshock4.toml", state)])
     hub.start(state)  # the mapping's morph time (1 s), as `run` starts it
@@ -188,13 +147,13 @@ def test_simulated_dualshock4_steers_drives_a_style_and_survives_unplug(capsys):
             seen.append(values)
             index = values[0]
             if index == 10:
-                pad.reports.append(pad.report(lx=0, r2=255))  # full left, R2 pressed
+                pad.send(ds4_report(lx=0, r2=255))  # full left, R2 pressed
             if index == 30:
                 pad.plugged = False  # cable pulled
             if index == 80:
                 pad.plugged = True
             if index == 120:
-                pad.reports.append(pad.report(lx=128, r2=0, face=0b0010))  # centre, release, cross: preset "proud"
+                pad.send(ds4_report(lx=128, r2=0, face=0b0010))  # centre, release, cross: preset "proud"
 
         def close(self):
             pass

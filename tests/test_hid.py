@@ -23,7 +23,7 @@ from hid_descriptors import (
     SWITCH_PRO_USB,
     XBOX_WIRELESS_BT,
 )
-from hid_sim import SimulatedDevice, SimulatedHid
+from hid_sim import SimulatedDevice, SimulatedHid, ds4_report
 
 from instrument.control import hid as hid_module
 from instrument.control.hid import HidInput, choose_mapping, parse_descriptor
@@ -45,12 +45,6 @@ def state_of(model) -> ControlState:
 
 
 # Reports as each device sends them, from the published layouts.
-
-def ds4_report(lx=128, ly=128, rx=128, ry=128, hat=8, face=0, shoulders=0, l2=0, r2=0) -> bytes:
-    """DualShock 4 USB input report 1: sticks, hat (8 = released) with square/cross/circle/triangle
-    in the high nibble, L1 R1 L2 R2 SHARE OPTIONS L3 R3, counter, triggers, then motion and touch."""
-    return bytes([0x01, lx, ly, rx, ry, (face << 4) | hat, shoulders, 0, l2, r2] + [0] * 54)
-
 
 def dualsense_report(lx=128, ly=128, rx=128, ry=128, l2=0, r2=0, hat=8, face=0) -> bytes:
     """DualSense USB input report 1 (the kernel's hid-playstation struct dualsense_input_report):

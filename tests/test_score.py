@@ -2,9 +2,9 @@
 live input on top, waits for the performer's cue button, and one-line errors for bad files."""
 
 import filecmp
+import json
 import subprocess
 import sys
-import time
 
 import pytest
 
@@ -13,7 +13,8 @@ from instrument.control.events import ControlEvent
 from instrument.control.score import ScorePlayer, eased, load_score
 from instrument.control.state import ControlState
 from instrument.motion.bvh import read_bvh
-from oscrecv import Receiver, free_port
+from oscrecv import Receiver, frame_count, free_port
+from waiting import wait_until
 
 RUN = [sys.executable, "-m", "instrument", "run"]
 
@@ -189,36 +190,43 @@ def messages_per_frame(receiver: Receiver, address: str) -> list[float]:
 
 def test_live_osc_rides_on_top_and_the_cue_button_releases_a_wait(tmp_path):
     """Real UDP both ways: the score waits for /walk/cue from a surface, while the surface moves
-    a target of its own that the score does not touch."""
+    a target of its own that the score does not touch. The take, recorded, replays byte for byte."""
     from pythonosc.udp_client import SimpleUDPClient
 
     score = write(tmp_path, '[[cue]]\nwait = "cue"\n[[cue]]\nramp = { "style/elderly" = 1.0 }\nover = 0.5\n'
                             '[[cue]]\nhold = 600\n')
+    log, live, replayed = tmp_path / "take.jsonl", tmp_path / "live.bvh", tmp_path / "replayed.bvh"
     control_port, receiver = free_port(), Receiver()
     process = subprocess.Popen(RUN + ["--score", str(score), "--osc-in", str(control_port), "--osc",
-                                      f"127.0.0.1:{receiver.port}/flat", "--seconds", "120", "--quiet"],
+                                      f"127.0.0.1:{receiver.port}/flat", "--seconds", "12", "--quiet",
+                                      "--record", str(log), "--bvh", str(live)],
                                stderr=subprocess.PIPE, text=True)
     surface = SimpleUDPClient("127.0.0.1", control_port)
     try:
-        deadline = time.monotonic() + 60
-        while len(messages_per_frame(receiver, "/walk/speed")) < 15 and time.monotonic() < deadline:
-            time.sleep(0.05)
+        wait_until(lambda: frame_count(receiver) >= 15, "15 frames")
         surface.send_message("/walk/speed", 1.6)
-        while 1.6 not in [round(v, 3) for v in messages_per_frame(receiver, "/walk/speed")] and time.monotonic() < deadline:
-            time.sleep(0.05)
-        time.sleep(0.5)
+        wait_until(lambda: 1.6 in [round(v, 3) for v in messages_per_frame(receiver, "/walk/speed")], "the surface's speed")
+        moved = frame_count(receiver)
+        wait_until(lambda: frame_count(receiver) >= moved + 30, "30 more frames")
         assert set(messages_per_frame(receiver, "/walk/style/elderly")) == {0.0}  # still waiting for the cue
         surface.send_message("/walk/cue", 1.0)
-        while 1.0 not in messages_per_frame(receiver, "/walk/style/elderly") and time.monotonic() < deadline:
-            time.sleep(0.05)
+        wait_until(lambda: 1.0 in messages_per_frame(receiver, "/walk/style/elderly"), "the ramp's end")
+        stderr = process.communicate(timeout=120)[1]  # the run ends on its own after 12 s
     finally:
-        process.terminate()
-        stderr = process.communicate(timeout=60)[1]
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
         receiver.close()
     assert process.returncode == 0, stderr
     elderly = messages_per_frame(receiver, "/walk/style/elderly")
     assert elderly[-1] == 1.0 and len(set(elderly)) > 5  # ramped, not jumped
     assert messages_per_frame(receiver, "/walk/speed")[-1] == pytest.approx(1.6)  # the surface's value stayed
+    sources = {json.loads(line)["source"] for line in log.read_text().splitlines()[1:]}
+    assert sources == {"score", "osc"}  # the score's ramp and the surface's speed and cue
+    replay = subprocess.run(RUN + ["--replay", str(log), "--fast", "--no-osc", "--quiet", "--seconds", "12", "--bvh", str(replayed)],
+                            capture_output=True, text=True, timeout=120)
+    assert replay.returncode == 0, replay.stderr
+    assert read_bvh(live).frames == 360 and filecmp.cmp(live, replayed, shallow=False)
 
 
 @pytest.mark.parametrize("text,message", [
@@ -234,6 +242,7 @@ def test_live_osc_rides_on_top_and_the_cue_button_releases_a_wait(tmp_path):
     ('loop = true\n[[cue]]\nramp = { speed = 1 }\n', "s.toml:1: loop: a looping score must take some time"),
     ('[[cue]]\nwait = "applause"\n', "s.toml:2: wait: the only thing to wait for is \"cue\""),
     ('[[cue]]\nhold = -1\n', "s.toml:2: hold: expected a number of seconds"),
+    ('name = 3\n[[cue]]\nhold = 1\n', "s.toml:1: name: expected a string"),
     ('[[cue\n', "s.toml: "),
 ])
 def test_bad_scores_are_one_line_errors_with_file_line_and_key(tmp_path, text, message):

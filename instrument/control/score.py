@@ -80,6 +80,8 @@ def load_score(path: str | Path, state: ControlState, presets: dict[str, dict[st
             raise fail(f"unknown key (expected one of {', '.join(TOP_KEYS)})", key)
     if not isinstance(data.get("loop", False), bool):
         raise fail("expected true or false", "loop")
+    if not isinstance(data.get("name", ""), str):
+        raise fail("expected a string", "name")
     known = dict(presets or {})
     own = data.get("presets", {})
     if not isinstance(own, dict):
@@ -107,7 +109,7 @@ def load_score(path: str | Path, state: ControlState, presets: dict[str, dict[st
         cues.append(cue)
     if (data.get("loop", False) if loop is None else loop) and not _lasts(cues):
         raise fail("a looping score must take some time (add a hold or a ramp's over)", "loop")
-    return Score(str(data.get("name", path.stem)), str(path), tuple(cues), data.get("loop", False) if loop is None else loop)
+    return Score(data.get("name", path.stem), str(path), tuple(cues), data.get("loop", False) if loop is None else loop)
 
 
 def _lasts(cues: list[Cue], since: float = 0.0) -> bool:
