@@ -306,8 +306,9 @@ def test_spacemouse_push_and_tilt_move_the_style_blend_and_a_button_recalls_a_pr
               30: lambda: sim.send(spacenav_buttons(0b01), spacenav_buttons(0b00))}  # button 1 pressed and let go
     watches = [Watch(state, "style/masculine", script), Watch(state, "style/feminine", {}),
                Watch(state, "style/normal", {}), Watch(state, "style/exhausted", {}), Watch(state, "speed", {})]
-    perform(model, watches, console, fps=30, seconds=3.0, live_sources=[device.poll], apply=ControlHub([mapping]).apply,
-            state=state)
+    hub = ControlHub([mapping])
+    hub.start(state)  # the mapping's morph time, as `run` starts it
+    perform(model, watches, console, fps=30, seconds=3.0, live_sources=[device.poll], apply=hub.apply, state=state)
     masculine, feminine, normal, exhausted, speed = (w.seen for w in watches)
     assert masculine[4] == pytest.approx(0.0) and masculine[12] == pytest.approx(1.5)  # push: masculine up...
     assert feminine[12] == pytest.approx(-1.5)  # ...and feminine down, the blend moved
