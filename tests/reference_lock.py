@@ -164,7 +164,7 @@ class FootLock:
         self.parents = layout.skeleton.parents
         self.weight = np.zeros(2)  # how far each foot's lock is blended in
         self.lock = np.full((2, 3), np.nan)  # world point each foot is locked to
-        self.drop = 0.0  # how far the body is lowered for a planted leg to reach the floor
+        self.drop = 0.0  # how far the body is lowered for a planted leg to reach its target
         self.parent_rot = layout.template_pose[2]  # the root's parent's world rotation
         self.pivot = [int(foot[-1]) for foot in self.limbs.feet]  # the joint whose landing point is locked
         template = forward_kinematics(layout.skeleton, layout.template_pose[0][None], layout.template_pose[1][None])[1][0]
@@ -192,7 +192,8 @@ class FootLock:
         need = 0.0
         for f, leg in enumerate(self.limbs.legs):
             if planted[f]:
-                need = max(need, np.linalg.norm(targets[f] - world_pos[leg.hip]) - max(extension[f], STRETCH * (leg.thigh + leg.shin)))
+                stretched = max(extension[f], STRETCH * (leg.thigh + leg.shin))
+                need = max(need, np.linalg.norm(targets[f] - world_pos[leg.hip]) - stretched)
         self.drop += (max(need, 0.0) - self.drop) / BLEND_FRAMES
         if self.drop > 1e-9:
             translations = translations.copy()

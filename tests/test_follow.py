@@ -96,7 +96,7 @@ def test_synth_follows_as_the_live_path_does(model):
 
 
 def test_a_jump_out_of_the_data_changes_the_follow_without_a_jump_in_the_pose(model):
-    """Live, the strength follows the weights frame by frame (a fifth -> half here): the body's
+    """Live, the strength follows the weights frame by frame (none -> half here): the body's
     offset changes its rate, never its value, so the joints move no faster across the change
     than the unplanted walk itself does (plus 20%, as the lock's own continuity test allows)."""
     from instrument.synthesis.stream import Controls, Crowd

@@ -79,7 +79,6 @@ def _x_channel(motion: Motion, joint: int) -> int:
 
 
 @needs_walks
-@needs_walks
 def test_played_walks_swing_knees_and_hips_through_the_takes_ranges(model):
     """Issue 10's range target on the shipped model: the walk as played (range filter, feet
     planted) against the real takes of its style, measured as `instrument evaluate` does."""
@@ -93,6 +92,7 @@ def test_played_walks_swing_knees_and_hips_through_the_takes_ranges(model):
         assert made["speed_cm_s"] == pytest.approx(real["speed_cm_s"], rel=0.03), style
 
 
+@needs_walks
 def test_evaluate_json_against_the_real_takes(tmp_path):
     for style in ("elderly", "active"):  # a few of the takes the shipped model learnt from
         for take in sorted(SHARED_WALKS.glob(f"*_{style}_*.bvh"))[:5]:

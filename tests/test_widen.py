@@ -1,4 +1,4 @@
-"""Full range: the variance-scaling post-filter, on the shipped model (which holds range statistics)."""
+"""Full range: the range-scaling post-filter, on the shipped model (which holds range statistics)."""
 
 import dataclasses
 

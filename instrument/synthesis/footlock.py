@@ -13,8 +13,8 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 - `body_drop`: how far the body must come down for a planted leg to reach its target;
 - `leg_swings`: two-bone IK, the thigh's and the shin's turns that take an ankle to a target;
 - `solve_leg`: those turns applied in place to the local rotations;
-- `lock_frame`: one character's frame, in the order above (`_targets` gathers the first three
-  for both legs); `lock_crowd`: every character's.
+- `lock_frame`: one character's frame, in the order above (`_targets` gathers `lock_target` and
+  `heel_rise` for both legs); `lock_crowd`: every character's.
 
 `FootLock` holds what does not change (the legs' joints, the floor, the units); each
 character's state (how far each foot's lock is blended in, the locked points, the body's drop,
@@ -44,7 +44,7 @@ class LockState:
 
     weights: np.ndarray  # (N, 2) how far each foot's lock is blended in, 0..1
     points: np.ndarray  # (N, 2, 3) world point each foot is locked to (NaN before its first landing)
-    drop: np.ndarray  # (N,) how far the body is lowered for a planted leg to reach the floor
+    drop: np.ndarray  # (N,) how far the body is lowered for a planted leg to reach its target
     previous: np.ndarray  # (N, 2, 3) each pivot's position in the frame before, the body's follow offset
     # included (NaN at first): what the lock's 'nearly still' test measures; not RootFollow.previous
 
@@ -370,7 +370,8 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
 
 
 @njit(cache=True, error_model="numpy")
-def _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension):  # pragma: no cover - compiled
+def _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor,
+             extension):  # pragma: no cover - compiled
     """Each ankle's target and each foot's heel-rise turn (2, 3, 3), a foot whose lock is blended
     in rising on its toes where its leg would otherwise stretch past its generated extension."""
     targets = np.empty((2, 3))

@@ -37,12 +37,12 @@ TRAINING_FRAMES = 600  # frames of each generated walk measured in training (the
 SETTLE = 60
 RANGE_PERCENTILES = (1.0, 99.0)  # a feature's range, as `instrument evaluate` measures a joint's
 CALIBRATION_ROUNDS = 3  # the knees' factors corrected on a played walk this many times
-CALIBRATION_FRAMES = 360  # 12 s at 30 fps, after SETTLE frames from rest
+CALIBRATION_SECONDS = 12.0  # each calibration walk, after SETTLE frames from rest
 
 
 @dataclass(frozen=True)
 class RangeSpace:
-    """Log variance-scaling factors as lambda 0 plus style offsets, per static feature."""
+    """Log range-scaling factors as lambda 0 plus style offsets, per static feature."""
 
     base: np.ndarray  # (D,)
     offsets: np.ndarray  # (styles, D)
@@ -139,7 +139,7 @@ def _generated_range(space, weights: np.ndarray) -> np.ndarray:
     return _spread(frames - stride_mean(walker))
 
 
-def _real_range(takes, dimension: int) -> np.ndarray:
+def _real_range(takes, dimension: int) -> np.ndarray | None:
     """Each feature's range in the walking frames (inside steps) of each take about its stride
     mean (the average over the stride around it, as the made walk's is about its stride mean: a
     take's slower changes, turning, speeding up, settling, are not swing the model should make),
@@ -147,7 +147,7 @@ def _real_range(takes, dimension: int) -> np.ndarray:
     from scipy.ndimage import uniform_filter1d  # training only: the live path does not load it
 
     total, count = np.zeros(dimension), 0
-    for take in takes:
+    for take in takes:  # None when no take has a step: nothing to match
         if not take.steps:
             continue
         stride = max(3, int(round(2.0 * np.mean([s.frames for s in take.steps]))))
@@ -156,7 +156,7 @@ def _real_range(takes, dimension: int) -> np.ndarray:
         rows = np.concatenate([np.arange(s.start, s.end) for s in take.steps])
         total += _spread(static[rows] - mean[rows]) * len(rows)
         count += len(rows)
-    return total / max(count, 1)
+    return total / count if count else None
 
 
 def _knee_columns(layout, limbs) -> list[int]:
@@ -175,8 +175,9 @@ def _knee_range(motion, limbs, root: int) -> float:
 
 
 def _calibrate_knees(model, takes, log_factors: np.ndarray, weights: np.ndarray, extras_with) -> None:
-    """Moves the knees' log factors (in place) until the walk the instrument plays at `weights`,
-    feet planted, bends its knees through the takes' range. The foot lock keeps a planted leg's
+    """Moves the knees' log factors (in place, CALIBRATION_ROUNDS times) so that the walk the
+    instrument plays at `weights`, feet planted, bends its knees through the takes' range (a
+    walk it cannot measure leaves them as they are). The foot lock keeps a planted leg's
     generated bend where it can (a heel rises instead), but a swinging foot kept off the floor
     bends its knee more, so the features' range alone left the played knee up to 13% short
     (elderly). The hips are not calibrated: a planted thigh's swing is the lock's geometry, not
@@ -196,13 +197,19 @@ def _calibrate_knees(model, takes, log_factors: np.ndarray, weights: np.ndarray,
     if limbs is None or not chosen:
         return
     knees = _knee_columns(layout, limbs)
+    if not knees:  # the knees are not modelled (a skeleton whose legs the layout leaves out)
+        return
     real = np.average([_knee_range(restore(t.observations[:, : layout.dimension], layout, model.fps), limbs, layout.root)
                        for t in chosen], weights=[t.frames for t in chosen])
     for _ in range(CALIBRATION_ROUNDS):
         trial = replace(model, extras=extras_with(log_factors))
-        made = synthesize_motion(trial, style_space(trial), Controls(weights), SETTLE + CALIBRATION_FRAMES)
+        frames = int(round(CALIBRATION_SECONDS * model.fps))
+        made = synthesize_motion(trial, style_space(trial), Controls(weights), SETTLE + frames)
         made = Motion(made.skeleton, made.channels[SETTLE:], made.fps)
-        log_factors[knees] += np.log(max(real, 1e-9) / max(_knee_range(made, limbs, layout.root), 1e-9))
+        step = np.log(real / _knee_range(made, limbs, layout.root))
+        if not np.isfinite(step):  # a walk too short or too still to measure: keep what the features gave
+            return
+        log_factors[knees] += step
         np.clip(log_factors, -LIMIT, LIMIT, out=log_factors)
 
 
@@ -218,6 +225,8 @@ def train_range(model, takes) -> dict[str, np.ndarray]:
 
     def log_factor(chosen, weights):
         real = _real_range(chosen, dimension)
+        if real is None:  # no walking frames (takes too short for a step): that walk is left as made
+            return np.zeros(dimension)
         made = _generated_range(space, weights)
         out = np.log(np.maximum(real, 1e-12) / np.maximum(made, 1e-12))
         out[list(KEPT)] = 0.0
@@ -225,10 +234,10 @@ def train_range(model, takes) -> dict[str, np.ndarray]:
 
     average = log_factor(takes, np.zeros(len(names)))
     styles = np.stack([log_factor([t for t in takes if t.style == name], np.eye(len(names))[s]) for s, name in enumerate(names)])
-    extras = dict(model.extras)
-    _calibrate_knees(model, takes, average, np.zeros(len(names)),
-               lambda f: extras | {"range_average": f, "range_styles": styles})
+    def extras_with(_changed: np.ndarray) -> dict:  # the factors are calibrated in place, in these arrays
+        return dict(model.extras) | {"range_average": average, "range_styles": styles}
+
+    _calibrate_knees(model, takes, average, np.zeros(len(names)), extras_with)
     for s, name in enumerate(names):
-        _calibrate_knees(model, [t for t in takes if t.style == name], styles[s], np.eye(len(names))[s],
-                   lambda f, s=s: extras | {"range_average": average, "range_styles": np.vstack([styles[:s], f[None], styles[s + 1:]])})
+        _calibrate_knees(model, [t for t in takes if t.style == name], styles[s], np.eye(len(names))[s], extras_with)
     return {"range_average": average, "range_styles": styles}
