@@ -32,6 +32,7 @@ from instrument.control.state import ControlState
 from instrument.control.targets import TABLE, problem, raw_problem
 from instrument.motion.bvh import read_bvh
 from instrument.output.osc import message as osc_message
+from frame_indices import FrameIndices
 from oscrecv import Receiver, free_port
 
 RUN = [sys.executable, "-m", "instrument", "run"]
@@ -398,24 +399,6 @@ def test_a_signal_while_the_command_loads_ends_it_quietly_with_nothing_written(t
 # --- a device or an event that raises in the live loop ------------------------------------------
 
 
-class Frames:
-    """An output that keeps the index of every frame it is sent."""
-
-    name = "frames"
-
-    def __init__(self):
-        self.indices: list[int] = []
-
-    def prepare(self, pose, echo):
-        return pose.index
-
-    def send(self, index):
-        self.indices.append(index)
-
-    def close(self):
-        pass
-
-
 def test_a_device_poll_or_an_event_that_raises_is_counted_and_the_show_goes_on(model):
     import io
 
@@ -438,7 +421,7 @@ def test_a_device_poll_or_an_event_that_raises_is_counted_and_the_show_goes_on(m
             raise ValueError("an event nobody foresaw")
         return hub.apply(state, event)
 
-    frames, said = Frames(), io.StringIO()
+    frames, said = FrameIndices(), io.StringIO()
     summary = perform(model, [frames], Console(stream=said), fps=30, seconds=1.0, fast=True,
                       live_sources=[unplugged_mid_read, surface], apply=apply, state=state)
     assert frames.indices == list(range(30))  # every frame made
@@ -529,16 +512,25 @@ def jack_port_listed(rtmidi, part: str, readable: bool = False) -> str | None:
         probe.delete()
 
 
-def test_a_jack_server_restart_mid_show_is_recovered(tmp_path, monkeypatch):
+def private_jack(tmp_path: Path, monkeypatch, port: str):
+    """What both JACK-restart tests start from: rtmidi; the name of a private server (the shared
+    one is never killed), which every JACK client made from here on uses; its log file; and a
+    mapping of CC 1 on the MIDI device `port` to speed."""
     if shutil.which("jackd") is None:
         pytest.skip("JACK is not installed (apt-get install jackd2)")
     import rtmidi
 
-    server_name = f"instrument-fault-{os.getpid()}"  # a private server: the shared one is never killed
+    server_name = f"instrument-{port}-{os.getpid()}"
     monkeypatch.setenv("JACK_DEFAULT_SERVER", server_name)
     monkeypatch.setenv("JACK_NO_START_SERVER", "1")
+    mapping = tmp_path / "speed.toml"
+    mapping.write_text(f'[device]\nmidi = "{port}"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\n'
+                       'range = [0.25, 4.0]\n')
+    return rtmidi, server_name, tmp_path / "jackd.txt", mapping
 
-    jackd_log = tmp_path / "jackd.txt"
+
+def test_a_jack_server_restart_mid_show_is_recovered(tmp_path, monkeypatch):
+    rtmidi, server_name, jackd_log, mapping = private_jack(tmp_path, monkeypatch, "fault-restart")
 
     def start_server() -> subprocess.Popen:
         return start_private_jack(rtmidi, server_name, jackd_log)
@@ -546,9 +538,6 @@ def test_a_jack_server_restart_mid_show_is_recovered(tmp_path, monkeypatch):
     def port_listed() -> str | None:
         return jack_port_listed(rtmidi, "fault-restart")
 
-    mapping = tmp_path / "speed.toml"
-    mapping.write_text('[device]\nmidi = "fault-restart"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\n'
-                       'range = [0.25, 4.0]\n')
     receiver, log, errors = Receiver(), tmp_path / "take.jsonl", tmp_path / "stderr.txt"
     server = start_server()
     process = None
@@ -636,17 +625,7 @@ for line in sys.stdin:
 def test_a_jack_server_restart_with_midi_pattern_reconnects_to_the_port(tmp_path, monkeypatch):
     """As the test above, with `--midi PATTERN`: the instrument reads another client's port, which
     comes back (made again by its owner) after the server's restart."""
-    if shutil.which("jackd") is None:
-        pytest.skip("JACK is not installed (apt-get install jackd2)")
-    import rtmidi
-
-    server_name = f"instrument-fault-pattern-{os.getpid()}"  # a private server: the shared one is never killed
-    monkeypatch.setenv("JACK_DEFAULT_SERVER", server_name)
-    monkeypatch.setenv("JACK_NO_START_SERVER", "1")
-    jackd_log = tmp_path / "jackd.txt"
-    mapping = tmp_path / "speed.toml"
-    mapping.write_text('[device]\nmidi = "fault-pattern"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\n'
-                       'range = [0.25, 4.0]\n')
+    rtmidi, server_name, jackd_log, mapping = private_jack(tmp_path, monkeypatch, "fault-pattern")
     receiver, log, errors = Receiver(), tmp_path / "take.jsonl", tmp_path / "stderr.txt"
     senders: list[subprocess.Popen] = []
 

@@ -18,6 +18,7 @@ from instrument.output.recorder import BvhRecorder
 from instrument.runtime.clock import IDLE_EVERY, IDLE_UNTIL, FrameClock
 from instrument.runtime.console import Console
 from instrument.runtime.performance import perform
+from frame_indices import FrameIndices
 from oscrecv import Receiver, frame_count, free_port
 from waiting import wait_until
 
@@ -172,24 +173,8 @@ class Exploding:
         raise RuntimeError("and cannot close")
 
 
-class Collecting:
-    name = "collecting"
-
-    def __init__(self):
-        self.indices = []
-
-    def prepare(self, pose, echo):
-        return pose.index
-
-    def send(self, index):
-        self.indices.append(index)
-
-    def close(self):
-        pass
-
-
 def test_an_output_that_fails_never_stops_the_clock_or_the_others(model, capsys):
-    exploding, collecting = Exploding(), Collecting()
+    exploding, collecting = Exploding(), FrameIndices()
     console = Console()
     summary = perform(model, [exploding, collecting], console, fps=30, seconds=1.0, fast=True)
     assert collecting.indices == list(range(30))
