@@ -527,6 +527,7 @@ def test_orbit_and_the_follow_camera_change_the_view(browser, mixer):
         c, r = camera(), root()
         return float(np.hypot(c["target"][0] - r[0], c["target"][2] - r[2]))
 
+    until(lambda: apart() < 50, what="the camera on the character")  # so the held camera still sees it
     browser.find_element("id", "follow").click()  # the camera held still, so only the orbit changes the picture
     drawn = "return !figure.dirty && !!figure.positions && figure.positions.length > 0"
     until(lambda: browser.execute_script(drawn), what="the view drawn")

@@ -34,6 +34,8 @@ from instrument.motion.bvh import read_bvh
 from instrument.output.osc import message as osc_message
 from frame_indices import FrameIndices
 from oscrecv import Receiver, free_port
+from private_jack import (alive, free_dead_slots, jack_port_listed, registered_servers, start_private_jack,
+                          stop_private_jack)
 
 RUN = [sys.executable, "-m", "instrument", "run"]
 SEED = 13
@@ -479,39 +481,6 @@ def test_a_closed_stderr_never_stops_the_show(tmp_path, how):
 # --- JACK restart mid-show ----------------------------------------------------------------------
 
 
-def start_private_jack(rtmidi, name: str, log: Path) -> subprocess.Popen:
-    """A running private JACK server NAME; a start that fails (a stale socket from the one just
-    killed can refuse it on a busy machine) is tried again: the server's restart is not under test."""
-    until = time.monotonic() + 90
-    while True:
-        with log.open("a") as sink:
-            # a long period and client timeout: on a loaded machine a short one makes the server
-            # drop notifications and time clients out, which is the machine's failure, not the show's
-            server = subprocess.Popen(["jackd", "--no-realtime", "-n", name, "-t", "5000", "-d", "dummy",
-                                       "-r", "48000", "-p", "1024"], stdout=sink, stderr=subprocess.STDOUT)
-        while server.poll() is None and time.monotonic() < until:
-            if _server_up(rtmidi):
-                return server
-            time.sleep(0.1)
-        server.kill()
-        server.wait(30)
-        assert time.monotonic() < until, f"the private JACK server never started: {log.read_text()[-2000:]}"
-        time.sleep(0.2)  # a short back-off before the next start (the loop's deadline bounds the whole wait)
-
-
-def jack_port_listed(rtmidi, part: str, readable: bool = False) -> str | None:
-    """The JACK MIDI port whose name holds `part`, or None: one a MIDI output can send to, or with
-    `readable` one a MIDI input can read from."""
-    try:
-        probe = (rtmidi.MidiIn if readable else rtmidi.MidiOut)(rtmidi.API_UNIX_JACK, name="fault-probe")
-    except Exception:
-        return None
-    try:
-        return next((n for n in probe.get_ports() if part in n), None)
-    finally:
-        probe.delete()
-
-
 def private_jack(tmp_path: Path, monkeypatch, port: str):
     """What both JACK-restart tests start from: rtmidi; the name of a private server (the shared
     one is never killed), which every JACK client made from here on uses; its log file; and a
@@ -520,13 +489,26 @@ def private_jack(tmp_path: Path, monkeypatch, port: str):
         pytest.skip("JACK is not installed (apt-get install jackd2)")
     import rtmidi
 
-    server_name = f"instrument-{port}-{os.getpid()}"
+    server_name = f"instrument-test-{port}"  # a fixed name: jackd frees a killed one's registry slot at its next start
     monkeypatch.setenv("JACK_DEFAULT_SERVER", server_name)
     monkeypatch.setenv("JACK_NO_START_SERVER", "1")
     mapping = tmp_path / "speed.toml"
     mapping.write_text(f'[device]\nmidi = "{port}"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\n'
                        'range = [0.25, 4.0]\n')
     return rtmidi, server_name, tmp_path / "jackd.txt", mapping
+
+
+def test_a_killed_private_server_leaves_no_registry_slot_behind(tmp_path, monkeypatch):
+    """The restart tests' upkeep: JACK has 8 server slots, and a killed server's slot outlives it
+    (CI failed once all were taken); the next start frees it."""
+    rtmidi, server_name, jackd_log, _ = private_jack(tmp_path, monkeypatch, "fault-slot")
+    server = start_private_jack(rtmidi, server_name, jackd_log)
+    server.kill()
+    server.wait(30)
+    assert registered_servers().get(server_name) == server.pid  # the dead server's slot, still taken
+    assert server_name in free_dead_slots(jackd_log)
+    assert server_name not in registered_servers()
+    assert all(alive(pid) for pid in registered_servers().values())
 
 
 def test_a_jack_server_restart_mid_show_is_recovered(tmp_path, monkeypatch):
@@ -576,8 +558,7 @@ def test_a_jack_server_restart_mid_show_is_recovered(tmp_path, monkeypatch):
                                      f"it said: {errors.read_text()[-2000:]}") from None
 
         speed_becomes(4.0)
-        server.terminate()
-        server.wait(30)
+        stop_private_jack(server)
         server = start_server()
         speed_becomes(0.25)  # the virtual port was made again on the new server
 
@@ -599,8 +580,7 @@ def test_a_jack_server_restart_mid_show_is_recovered(tmp_path, monkeypatch):
     finally:
         if process is not None and process.poll() is None:
             process.kill()
-        server.terminate()
-        server.wait(30)
+        stop_private_jack(server)
         receiver.close()
     assert process.returncode == 0, stderr
     assert "JACK server went away" in stderr and "on again" in stderr
@@ -669,8 +649,7 @@ def test_a_jack_server_restart_with_midi_pattern_reconnects_to_the_port(tmp_path
                                               "--mapping", str(mapping), "--osc", f"127.0.0.1:{receiver.port}/flat",
                                               "--seconds", "600", "--record", str(log)], stderr=sink, text=True)
         speed_becomes(sender, 4.0)
-        server.terminate()
-        server.wait(30)
+        stop_private_jack(server)
         sender.kill()  # its client died with the server: its owner makes the port again on the new one
         sender.wait(30)
         server = start_private_jack(rtmidi, server_name, jackd_log)
@@ -689,12 +668,7 @@ def test_a_jack_server_restart_with_midi_pattern_reconnects_to_the_port(tmp_path
             except subprocess.TimeoutExpired:
                 sender.kill()
                 sender.wait(30)
-        server.terminate()
-        try:
-            server.wait(30)
-        except subprocess.TimeoutExpired:  # a server waiting on a killed client: the test's mess, not the show's
-            server.kill()
-            server.wait(30)
+        stop_private_jack(server)
         receiver.close()
     assert process.returncode == 0, stderr
     assert "JACK server went away" in stderr
@@ -705,15 +679,6 @@ def test_a_jack_server_restart_with_midi_pattern_reconnects_to_the_port(tmp_path
     frames = [p[0] for a, p in receiver.messages() if a == "/walk/frame"]
     assert frames == list(range(len(frames)))  # the walk never stopped
     assert [e.value for e in read_log(log)][-1] == 0.0
-
-
-def _server_up(rtmidi) -> bool:
-    try:
-        probe = rtmidi.MidiOut(rtmidi.API_UNIX_JACK, name="fault-probe")
-    except Exception:
-        return False
-    probe.delete()
-    return True
 
 
 # --- a storm of big bundles ---------------------------------------------------------------------

@@ -322,6 +322,10 @@ const figure = {
     for (let k = 0; k < n; k++) positions.push([flat[3 * k], flat[3 * k + 1], flat[3 * k + 2]]);
     const previous = this.positions;
     this.positions = positions;
+    if (!previous) {  // the first frame: the camera starts on the character, not at the origin far from it
+      const root = positions[Math.max(this.first, 0)];
+      this.camera.target = [root[0], this.camera.target[1], root[2]];
+    }
     this.dirty = true;
     this.frames++;
     let lowest = Infinity;
