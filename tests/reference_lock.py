@@ -105,16 +105,16 @@ def _leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
 
 def _heel_rise(world_pos: np.ndarray, leg, ground: np.ndarray, on_floor: float, target: np.ndarray,
                allowed: float) -> tuple[np.ndarray, np.ndarray]:
-    """The foot's turn about its toes (the last foot joint) that raises the heel until the leg
+    """The foot's turn about the ball of the foot (leg.pivot) that raises the heel until the leg
     reaches no further than `allowed` (less of the way where the toes are higher above their
     clearance than the heel above its own, none from `on_floor` higher), and the ankle's target
     after it, found numerically (a scan of the rise, then bisection) to check the compiled
     closed form: the smallest rise that reaches, else the one in [0, MAX_HEEL_RISE] that comes
     nearest."""
     hip = world_pos[leg.hip]
-    toes = world_pos[leg.foot[-1]] - world_pos[leg.ankle]
+    toes = world_pos[leg.pivot] - world_pos[leg.ankle]
     toe, back = target + toes, -toes
-    toes_up = (world_pos[leg.foot[-1], 1] - ground[-1]) - (world_pos[leg.ankle, 1] - ground[0])
+    toes_up = (world_pos[leg.pivot, 1] - ground[leg.foot.index(leg.pivot)]) - (world_pos[leg.ankle, 1] - ground[0])
     share = min(max(1.0 - toes_up / on_floor, 0.0), 1.0)
     reach = np.linalg.norm(target - hip)
     if share <= 0.0 or reach <= allowed:
@@ -166,7 +166,7 @@ class FootLock:
         self.lock = np.full((2, 3), np.nan)  # world point each foot is locked to
         self.drop = 0.0  # how far the body is lowered for a planted leg to reach its target
         self.parent_rot = layout.template_pose[2]  # the root's parent's world rotation
-        self.pivot = [int(foot[-1]) for foot in self.limbs.feet]  # the joint whose landing point is locked
+        self.pivot = [leg.pivot for leg in self.limbs.legs]  # the joint whose landing point is locked (the ball)
         template = forward_kinematics(layout.skeleton, layout.template_pose[0][None], layout.template_pose[1][None])[1][0]
         self.cm = centimetres_per_unit(layout, template)
         self.swing_lift = SWING_CM / self.cm  # in the skeleton's units
@@ -201,6 +201,8 @@ class FootLock:
             world_pos = world_pos - np.array([0.0, self.drop, 0.0])
             targets, turns = self._targets(world_pos, planted, extension)
         for f, leg in enumerate(self.limbs.legs):
+            if leg.pivot != leg.ankle and not np.array_equal(turns[f], np.eye(3)):  # the toes keep their world rotation
+                rotations[leg.pivot] = (turns[f] @ world_rot[self.parents[leg.pivot]]).T @ world_rot[leg.pivot]
             world_rot[leg.ankle] = turns[f] @ world_rot[leg.ankle]
             if np.linalg.norm(targets[f] - world_pos[leg.ankle]) > 1e-9:
                 self._solve(leg, rotations, world_rot, world_pos, targets[f])
@@ -253,7 +255,7 @@ class FootLock:
 
     def _solve(self, leg, rotations: np.ndarray, world_rot: np.ndarray, world_pos: np.ndarray, target: np.ndarray) -> None:
         """Leg IK in place on the local rotations: hip and knee swung, the ankle keeping its world rotation."""
-        toes = world_pos[leg.foot[-1]] - world_pos[leg.ankle]
+        toes = world_pos[leg.pivot] - world_pos[leg.ankle]
         thigh, shin = _leg_swings(world_pos[leg.hip], world_pos[leg.knee], world_pos[leg.ankle], target, toes)
         # the hip is the knee's parent and the knee the ankle's (limbs.py): below the hip everything
         # turns with the thigh, below the knee also with the shin

@@ -127,6 +127,61 @@ def _walk(model, space, weights_per_frame, fps=None):
     return out, raw, np.array(planted)
 
 
+def _feet_skeleton(heel_last: bool):
+    """A standing skeleton (cm) whose feet have a ball (ToeBase), a toe tip joint (Toe_End, as
+    Mixamo's) and, with `heel_last`, a heel marker listed after the toes."""
+    from instrument.motion.bvh import Joint, Skeleton
+
+    joints = [Joint("Hips", -1, (0.0, 95.0, 0.0), ("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation")),
+              Joint("Spine", 0, (0.0, 12.0, 0.0), ("Zrotation", "Xrotation", "Yrotation"), (0.0, 40.0, 0.0))]
+    rotation = ("Zrotation", "Xrotation", "Yrotation")
+    for side, x in (("Left", 9.0), ("Right", -9.0)):
+        up = len(joints)
+        joints += [Joint(f"{side}UpLeg", 0, (x, -5.0, 0.0), rotation), Joint(f"{side}Leg", up, (0.0, -42.0, 0.0), rotation),
+                   Joint(f"{side}Foot", up + 1, (0.0, -40.0, 0.0), rotation),
+                   Joint(f"{side}ToeBase", up + 2, (0.0, -6.0, 13.0), rotation),
+                   Joint(f"{side}Toe_End", up + 3, (0.0, 0.0, 7.0), rotation, (0.0, 0.0, 1.0))]
+        if heel_last:
+            joints.append(Joint(f"{side}Heel", up + 2, (0.0, -7.0, -6.0), rotation, (0.0, -1.0, 0.0)))
+    skeleton = Skeleton(tuple(joints))
+    channels = sum(len(j.channels) for j in joints)
+    template = np.zeros(channels)
+    template[1] = 95.0
+    return skeleton, template
+
+
+@pytest.mark.parametrize("heel_last", [False, True])
+def test_the_foot_turns_about_its_ball_not_a_toe_tip_or_heel_joint(heel_last):
+    from instrument.motion.limbs import find_limbs
+
+    skeleton, template = _feet_skeleton(heel_last)
+    limbs = find_limbs(skeleton, 0, template)
+    assert [skeleton.names[leg.pivot] for leg in limbs.legs] == ["LeftToeBase", "RightToeBase"]
+    assert [skeleton.names[leg.foot[-1]] for leg in limbs.legs] == (["LeftHeel", "RightHeel"] if heel_last
+                                                                    else ["LeftToe_End", "RightToe_End"])
+
+
+def test_the_shipped_skeletons_foot_turns_about_its_toes_joint(model):
+    limbs = FootLock(model.layout, contact_space(model).clearance, model.fps).limbs
+    assert [model.layout.skeleton.names[leg.pivot] for leg in limbs.legs] == ["Toes_L", "Toes_R"]
+
+
+def test_a_rising_heel_bends_the_foot_at_its_ball_and_the_toes_keep_their_turn(model, space):
+    """Where the heel rises the ankle pitches up about the ball; the toes beyond it keep the world
+    rotation they were made with (a real foot bends there), instead of dipping into the floor."""
+    weights = np.full(len(model.style_names), 1.6 / len(model.style_names))
+    poses, raw, _ = _walk(model, space, [weights] * 240)
+    legs = FootLock(model.layout, contact_space(model).clearance, model.fps).limbs.legs
+    for leg in legs:
+        ankle = np.array([p.world_rotations[leg.ankle] for p in poses])
+        ankle_made = np.array([p.world_rotations[leg.ankle] for p in raw])
+        turn = np.degrees(np.arccos(np.clip((np.einsum("tij,tij->t", ankle, ankle_made) - 1.0) / 2.0, -1.0, 1.0)))
+        assert (turn > 2.0).sum() > 10  # the heel rose in these frames
+        toes = np.array([p.world_rotations[leg.pivot] for p in poses])
+        toes_made = np.array([p.world_rotations[leg.pivot] for p in raw])
+        np.testing.assert_allclose(toes, toes_made, atol=1e-9)
+
+
 def test_the_shipped_model_holds_contact_statistics(model):
     contact = contact_space(model)
     assert contact is not None
@@ -148,7 +203,7 @@ def test_a_planted_foot_stays_put_and_nothing_goes_under_the_floor(model, space,
     for f, foot in enumerate(limbs.feet):
         heights = positions[:, list(foot), 1] - contact.clearance[f]
         assert heights.min() > -1e-6  # no foot joint under the floor
-        pivot = positions[:, foot[-1]][:, [0, 2]]
+        pivot = positions[:, limbs.legs[f].pivot][:, [0, 2]]
         held = (lock[1:, f] == 1.0) & (lock[:-1, f] == 1.0)
         assert held.sum() > 40
         slide = np.linalg.norm(np.diff(pivot, axis=0), axis=1)[held]

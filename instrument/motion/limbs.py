@@ -3,6 +3,9 @@
 A leg is a subtree under the root that reaches near the ground; its thigh and shin are the two
 longest consecutive bones on the way from the root to its lowest joint, so hip, knee and ankle
 are where those bones start and end, and the foot is the ankle and what hangs below it. The
+foot's pivot, the joint a heel rises about, is the ball of the foot: on the way from the ankle to
+the foot's front-most joint, the first joint at least half as far forward (so a toe-tip joint, as
+Mixamo's Toe_End, or a heel marker listed last does not put the foot on pointe or behind it). The
 arms are the chains to the joints furthest out on either side (across the line between the two
 hips); the upper arm is the longest bone past the point where the two arms part.
 """
@@ -28,6 +31,7 @@ class Leg:
     knee: int
     ankle: int
     foot: tuple[int, ...]  # the ankle and every joint below it (toes, end joints)
+    pivot: int  # the ball of the foot, which a heel rises about; the ankle if nothing hangs below it
     thigh: float  # bone lengths in the skeleton's units
     shin: float
 
@@ -71,6 +75,18 @@ def _two_longest(chain: list[int], lengths: np.ndarray) -> tuple[int, int, int]:
     return bones[best][0], bones[best][1], bones[best + 1][1]
 
 
+def _ball(parents: np.ndarray, positions: np.ndarray, ankle: int, foot: list[int]) -> int:
+    """The foot's pivot (see the module's text), from the template pose's joint positions."""
+    forward = np.hypot(*(positions[foot] - positions[ankle])[:, [0, 2]].T)
+    front = foot[int(np.argmax(forward))]
+    if forward.max() <= 1e-9:
+        return ankle
+    for joint in _chain(parents, front, ankle):
+        if forward[foot.index(joint)] >= 0.5 * forward.max():
+            return joint
+    return front
+
+
 def find_limbs(skeleton: Skeleton, root: int, template: np.ndarray) -> Limbs | None:
     """Legs and arms from one frame of channel values (the template pose); None when the
     skeleton has no two legs below the root (then nothing about feet can be measured or fixed)."""
@@ -94,7 +110,9 @@ def _find_limbs(skeleton: Skeleton, root: int, template: tuple[float, ...]) -> L
             hip, knee, ankle = _two_longest([root] + _chain(parents, lowest, root), lengths)
         except ValueError:
             continue
-        legs.append(Leg(hip, knee, ankle, tuple(_descendants(parents, ankle)), float(lengths[knee]), float(lengths[ankle])))
+        foot = _descendants(parents, ankle)
+        legs.append(Leg(hip, knee, ankle, tuple(foot), _ball(parents, positions, ankle, foot), float(lengths[knee]),
+                        float(lengths[ankle])))
     if len(legs) != 2:
         return None
     across = positions[legs[0].hip] - positions[legs[1].hip]

@@ -8,8 +8,9 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
   and still where the state allows it; always one foot);
 - `lock_target`: where an ankle should go (the lock blended in, the floor, the swing lift as
   `swing_share` allows);
-- `heel_rise`: the foot pitched up about its toes where the lock would stretch a planted leg
-  past its generated length;
+- `heel_rise`: the foot pitched up about the ball of the foot where the lock would stretch a
+  planted leg past its generated length (the toes beyond it keep their generated world rotation,
+  bending at the ball as a real foot does, instead of dipping into the floor);
 - `body_drop`: how far the body must come down for a planted leg to reach its target;
 - `leg_swings`: two-bone IK, the thigh's and the shin's turns that take an ankle to a target;
 - `solve_leg`: those turns applied in place to the local rotations;
@@ -34,7 +35,7 @@ from ..motion.limbs import centimetres_per_unit, find_limbs
 from .contact import BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, PLANTED, POSSIBLE, SWING_BENT, SWING_CM
 from .follow import ease
 
-MAX_HEEL_RISE = np.radians(50.0)  # the most a planted foot pitches up about its toes
+MAX_HEEL_RISE = np.radians(50.0)  # the most a planted foot pitches up about the ball of the foot
 STRETCH = 0.98  # of a leg's full length: how far the lock stretches a leg before the body comes down
 
 
@@ -64,7 +65,11 @@ class FootLock:
         self.parent_rot = np.ascontiguousarray(layout.template_pose[2])  # the root's parent's world rotation
         legs = self.limbs.legs
         self.joints = np.array([[leg.hip, leg.knee, leg.ankle] for leg in legs], dtype=np.int64)  # (2, 3)
-        self.feet = np.array([leg.foot for leg in legs], dtype=np.int64)  # (2, foot joints); the last is the pivot
+        # (2, foot joints), each foot's pivot (the ball of the foot, limbs.Leg.pivot) moved last, as
+        # the kernels read it; the clearance's columns in the same order
+        order = [[k for k, j in enumerate(leg.foot) if j != leg.pivot] + [leg.foot.index(leg.pivot)] for leg in legs]
+        self.feet = np.array([np.asarray(leg.foot)[o] for leg, o in zip(legs, order)], dtype=np.int64)
+        self.ground = np.ascontiguousarray([self.ground[f, o] for f, o in enumerate(order)])
         self.reach = np.array([leg.thigh + leg.shin for leg in legs])  # hip to ankle, stretched
         template = forward_kinematics(layout.skeleton, layout.template_pose[0][None], layout.template_pose[1][None])[1][0]
         self.cm = centimetres_per_unit(layout, template)
@@ -152,7 +157,7 @@ def lock_target(world_pos, leg, foot, ground_f, weight, point, planted, swing_li
 
 @njit(cache=True, error_model="numpy")
 def heel_rise(world_pos, leg, pivot, clearance, on_floor, target, allowed):  # pragma: no cover - compiled
-    """The foot's turn (3x3, world) about its pivot (its last joint, the toes) when the lock asks
+    """The foot's turn (3x3, world) about its pivot (the ball of the foot) when the lock asks
     the leg (hip, knee, ankle) to reach further than `allowed` (hip to ankle): the heel rises, as
     a real foot rolls onto its toes, so the knee keeps its bend instead of straightening and the
     hip is not pulled into extension. Moves `target` (the ankle's) with it; at most
@@ -238,6 +243,15 @@ def _product_t(a, b, out):  # pragma: no cover - compiled
     for i in range(3):
         for j in range(3):
             out[i, j] = a[0, i] * b[0, j] + a[1, i] * b[1, j] + a[2, i] * b[2, j]
+
+
+@njit(cache=True, error_model="numpy")
+def _identity(m) -> bool:  # pragma: no cover - compiled
+    for i in range(3):
+        for j in range(3):
+            if m[i, j] != (1.0 if i == j else 0.0):
+                return False
+    return True
 
 
 @njit(cache=True, error_model="numpy")
@@ -361,7 +375,12 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         targets, turns = _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension)
     turned = np.empty((3, 3))
     for f in range(2):
-        ankle = joints[f, 2]
+        ankle, pivot = joints[f, 2], feet[f, -1]
+        if pivot != ankle and not _identity(turns[f]):
+            # the toes keep their generated world rotation, bending at the ball as the heel rises
+            # (everything below the ankle turns with it: the pivot's parent's new world rotation)
+            _product(turns[f], world_rot[parents[pivot]], turned)
+            _product_t(turned, world_rot[pivot], rotations[pivot])
         _product(turns[f], world_rot[ankle], turned)
         world_rot[ankle] = turned  # the foot keeps its generated world rotation, but for the heel's rise
         gap = targets[f] - world_pos[ankle]
