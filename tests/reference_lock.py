@@ -206,6 +206,8 @@ class FootLock:
             world_rot[leg.ankle] = turns[f] @ world_rot[leg.ankle]
             if np.linalg.norm(targets[f] - world_pos[leg.ankle]) > 1e-9:
                 self._solve(leg, rotations, world_rot, world_pos, targets[f])
+            elif not np.array_equal(turns[f], np.eye(3)):  # the ankle where it was made, the foot turned all the same
+                rotations[leg.ankle] = world_rot[leg.knee].T @ world_rot[leg.ankle]
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
         return rotations, translations, world_rot[0], world_pos[0]
 

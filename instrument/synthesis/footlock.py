@@ -386,6 +386,8 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         gap = targets[f] - world_pos[ankle]
         if np.sqrt(np.sum(gap * gap)) > 1e-9:
             solve_leg(rotations, world_rot, world_pos, parents, joints[f, 0], joints[f, 1], ankle, feet[f, -1], targets[f])
+        elif not _identity(turns[f]):  # the ankle where it was made, the foot turned all the same
+            _product_t(world_rot[joints[f, 1]], world_rot[ankle], rotations[ankle])
 
 
 @njit(cache=True, error_model="numpy")
