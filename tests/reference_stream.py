@@ -44,6 +44,8 @@ class Walker:
     history_ids: list = field(default_factory=lambda: [0, 0])  # their (label, state) indices
     cadence: float = 1.0  # model step length / planned step length (scales root speeds)
     draws: deque = field(default_factory=deque)  # liveliness draws for the current and coming states
+    past: deque = field(default_factory=deque)  # the draws of the states left, the latest last
+    follower: int = 1  # the label whose steps take the draws of the other's step before them
     rng: np.random.Generator = field(default=None)
     lam: Lambda | None = None
     lam_key: tuple | None = None
@@ -77,10 +79,18 @@ def refresh(space: StyleSpace, walker: Walker, controls: Controls) -> None:
     walker.cadence = float(np.maximum(lam.duration_means, MIN_FRAMES).sum() / base.sum())
 
 
-def _duration(walker: Walker, label: int, state: int, k: int) -> float:
+def _duration(walker: Walker, label: int, state: int, k: int, states: int) -> float:
+    """State `state` of `label` k states from the current one; a following step takes the draw
+    of the leading step's same state before it (`states` states back), none before there was one."""
     d = walker.base[label][state]
     sigma = walker.sigma[label][state]
-    return max(MIN_FRAMES, d + sigma * walker.draw(k)) if sigma else d
+    if not sigma:
+        return d
+    draw = walker.draw(k)  # drawn all the same, so the draws that follow keep their order
+    back = k - states
+    if label == walker.follower:  # none before the first leading step
+        draw = 0.0 if len(walker.past) + back < 0 else walker.draw(back) if back >= 0 else walker.past[back]
+    return max(MIN_FRAMES, d + sigma * draw)
 
 
 def plan(walker: Walker, states: int, frames: int) -> tuple[list[int], list[tuple[int, float]]]:
@@ -90,7 +100,7 @@ def plan(walker: Walker, states: int, frames: int) -> tuple[list[int], list[tupl
     instances: list[tuple[int, float]] = []
     label, state, elapsed, carries, k = walker.label, walker.state, walker.elapsed, list(walker.carries), 0
     while len(ids) < frames:
-        count, carries[label] = whole_frames(_duration(walker, label, state, k), carries[label])
+        count, carries[label] = whole_frames(_duration(walker, label, state, k, states), carries[label])
         instances.append((count, carries[label]))
         ids.extend([label * states + state] * max(count - elapsed, 0))
         elapsed, k = 0, k + 1
@@ -114,7 +124,9 @@ def _commit(walker: Walker, states: int, instances: list[tuple[int, float]]) -> 
 def _finish(walker: Walker, states: int, carry_out: float) -> None:
     walker.carries[walker.label], walker.elapsed = carry_out, 0
     if walker.draws:
-        walker.draws.popleft()
+        walker.past.append(walker.draws.popleft())
+        if len(walker.past) > states:
+            walker.past.popleft()
     walker.state += 1
     if walker.state == states:
         walker.state, walker.label = 0, 1 - walker.label

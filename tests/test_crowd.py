@@ -284,7 +284,6 @@ def test_character_0_of_a_crowd_walks_exactly_as_a_run_of_one(model):
 def test_each_character_of_a_crowd_walks_as_it_would_alone(model):
     """Character k of a crowd (one compiled step, batched tables, batched range filter) makes
     the frames a walker of its own (its seed, start phase and controls) makes by itself."""
-    from instrument.runtime.crowd import start_phases
     from instrument.synthesis.offline import drive
     from instrument.synthesis.stream import Crowd
     from instrument.synthesis.widen import Widen, range_space
@@ -298,7 +297,7 @@ def test_each_character_of_a_crowd_walks_as_it_would_alone(model):
     each = engine.each(controls, state.spread, engine.walker)
     for k in (1, 2):
         alone = Crowd(engine.space, 1, seeds=[engine.cast.seeds[k]])
-        start_phases(alone, type(engine.cast)([k], engine.cast.offsets[k:k + 1], engine.cast.phases[k:k + 1]))
+        alone.start_at(engine.cast.phases[k:k + 1])
         widen = Widen(range_space(model))
         frames = [drive(widen.next(alone.step([each[k]])[0], alone, each[k]), alone.cadence[0], controls.turn) for _ in range(40)]
         np.testing.assert_allclose(made[:, k], np.array(frames), rtol=1e-9, atol=1e-9)

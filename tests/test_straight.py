@@ -126,3 +126,38 @@ def test_a_left_step_gets_the_frames_of_the_right_step_before_it(style, speed):
     planned = state_durations(lam.duration_means, lam.duration_variances, speed)[0]
     assert np.abs(strides[:, 0].sum(axis=1) - planned.sum()).max() < 1.0
     assert abs(strides.sum() - len(strides) * 2 * planned.sum()) <= 2.0
+
+
+@pytest.mark.parametrize("phase", [(0, 0), (1, 0), (1, 2), (0, 3)])
+@pytest.mark.parametrize("liveliness", [0.0, 1.0])
+def test_a_walk_begun_anywhere_in_its_stride_pairs_its_steps_and_keeps_its_heading(phase, liveliness):
+    """A crowd's walkers begin at their own phase (label, state). The label a walk begins on
+    leads; each following step takes its leader's frames, state by state, and with liveliness
+    its draws (drawn apart, the steps turned a walk 38 degrees in a minute at turn
+    0; begun mid-step, the labels' carries stayed apart and walkers curved up to 19 degrees a
+    minute); the strides still vary with liveliness."""
+    model = load_model(default_model_path())
+    space = style_space(model)
+    states = model.states
+    controls = default_controls(model, {"active": 1.0}, liveliness=liveliness)
+    walker = Crowd(space, seeds=[5])
+    walker.start_at(np.array([phase]))
+    static, labels = [], []
+    for _ in range(1800):  # a minute
+        static.append(walker.step([controls])[0])
+        labels.append(walker.history_ids[0, 1])
+    ids = np.array(labels)
+    bounds = np.concatenate([[0], np.flatnonzero(np.diff(ids)) + 1])
+    counts = np.diff(np.concatenate([bounds, [len(ids)]]))
+    skip = 2 * states - phase[1] if phase[1] else 0  # a partial step, and the following step it leads
+    leader = phase[0]
+    whole = (len(counts) - skip - 1) // (2 * states) * 2 * states
+    strides = counts[skip : skip + whole].reshape(-1, 2, states)  # (stride, leading / following step, state)
+    assert len(strides) > 20 and ids[bounds[skip]] % states == 0
+    np.testing.assert_array_equal(strides[:, 0], strides[:, 1])
+    if liveliness:
+        assert strides[:, 0].sum(axis=1).std() > 0.5  # the strides vary: liveliness is there
+    label = ids // states
+    starts = np.flatnonzero((label[1:] == leader) & (label[:-1] != leader)) + 1  # each stride's first frame
+    yaw = np.degrees(np.concatenate([[0.0], np.cumsum(np.array(static)[:, 3]) / model.fps]))[starts]
+    assert np.ptp(yaw[1:]) < 3.0, yaw  # the heading over a minute, stride by stride

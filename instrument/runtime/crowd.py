@@ -32,7 +32,7 @@ from ..synthesis.durations import MIN_FRAMES, state_durations
 from ..synthesis.follow import strength as follow_strength
 from ..synthesis.interpolation import MAX_LOG_VARIANCE_CHANGE, StyleSpace
 from ..synthesis.parameters import DEFAULT_SPACING
-from ..synthesis.stream import LABEL, STATE, Controls, Crowd
+from ..synthesis.stream import Controls, Crowd
 from ..synthesis.widen import EASE_FRAMES as RANGE_EASE_FRAMES
 from ..synthesis.widen import KEPT as RANGE_KEPT
 from ..synthesis.widen import LIMIT as RANGE_LIMIT
@@ -61,12 +61,6 @@ def make_cast(count: int, styles: int, states: int, seed: int = 0) -> Cast:
         offsets[k] = rng.dirichlet(np.full(styles, MIX_CONCENTRATION)) - 1.0 / styles
         phases[k] = rng.integers(0, 2), rng.integers(0, states)
     return Cast(seeds, offsets, phases)
-
-
-def start_phases(walker: Crowd, cast: Cast) -> None:
-    """Put each character of a fresh walker at its start phase (before its first frame)."""
-    walker.counters[:, LABEL] = cast.phases[:, 0]
-    walker.counters[:, STATE] = cast.phases[:, 1]
 
 
 class CastControls:

@@ -30,7 +30,7 @@ from ..synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Crowd
 from ..synthesis.widen import Widen, range_space
 from .clock import IDLE_UNTIL, FrameClock
 from .console import Console
-from .crowd import CastControls, CrowdWiden, floor_positions, make_cast, start_phases
+from .crowd import CastControls, CrowdWiden, floor_positions, make_cast
 from .pose import CrowdPoses, Pose
 from .stopping import StopFlag
 
@@ -73,7 +73,7 @@ class Engine:
         self.each = CastControls(self.cast, self.space, widen, self.contact)  # the performed controls -> each character's
         self.others_widen = CrowdWiden()  # characters 1..N-1
         self.walker = Crowd(self.space, characters, lookahead, seeds=self.cast.seeds)
-        start_phases(self.walker, self.cast)
+        self.walker.start_at(self.cast.phases)
         self.frames: list[np.ndarray] = []  # the last two model frames (N, D), driven
         self.made = 0  # model frames made
 

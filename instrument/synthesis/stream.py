@@ -20,14 +20,15 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .durations import MIN_FRAMES, state_durations
+from .durations import MIN_FRAMES, state_durations, whole_frames
 from .interpolation import Lambda, StyleSpace, interpolate
 from .mlpg import _solve
 from .parameters import DEFAULT_LOOKAHEAD
 
 
 # rows of Crowd.counters
-LABEL, STATE, ELAPSED, HEAD, TAIL, FILLED = range(6)
+# per character: where the plan is, its draws in the pool, and which label's steps follow the other's
+LABEL, STATE, ELAPSED, HEAD, TAIL, FILLED, FOLLOWER = range(7)
 
 
 @dataclass
@@ -52,9 +53,10 @@ class Crowd:
     """N characters walking, each with its own controls, seed and random draws.
 
     Liveliness draws come from each character's own generator in a fixed order, pre-drawn into
-    a pool (`pool[n, head:tail]` are the draws of the current and coming states; the numbers
-    after `tail` are drawn but not yet used), so the same seed gives the same walk however the
-    pool is refilled.
+    a pool (`pool[n, head:tail]` are the draws of the current and coming states, the `states`
+    before `head` those of the states just left, which a following step uses again (`_plan`); the
+    numbers after `tail` are drawn but not yet used), so the same seed gives the same walk
+    however the pool is refilled.
     """
 
     def __init__(self, space: StyleSpace, count: int = 1, lookahead: int = DEFAULT_LOOKAHEAD,
@@ -68,7 +70,8 @@ class Crowd:
         labels_states, width = space.base.shape[1], space.base.shape[2]
         dimension = width // 3
         self.sent = 0
-        self.counters = np.zeros((count, 6), dtype=np.int64)
+        self.counters = np.zeros((count, 7), dtype=np.int64)
+        self.counters[:, FOLLOWER] = 1  # a walk begins on a right step (label 0), which the left one follows
         self.carry = np.zeros((count, space.labels))  # the fraction of a frame each label's steps carry on
         self.history = np.zeros((count, 2, dimension))
         self.history_ids = np.zeros((count, 2), dtype=np.int64)
@@ -85,6 +88,27 @@ class Crowd:
         self.rngs = [np.random.default_rng(seed) for seed in seeds]
         self.pool = np.zeros((count, 4 * (lookahead + 8)))
         self._buffers: dict[int, tuple] = {}
+
+    def start_at(self, phases: np.ndarray) -> None:
+        """Each character begins at its own (label, state) of the step cycle, before its first
+        frame. The label it begins on leads and the other follows: a following step takes the
+        frames and draws of the leading step before it, so the pair's turns cancel (`_plan`). One
+        that begins mid-step is given, at its first frame (when its durations are known), the
+        fraction of a frame that step would have carried to there at mean durations, so the
+        first following step matches it: begun with none, its labels' carries stayed apart and
+        a crowd's walkers curved up to 19 degrees a minute."""
+        phases = np.asarray(phases, dtype=np.int64)
+        self.counters[:, LABEL], self.counters[:, STATE] = phases[:, 0], phases[:, 1]
+        self.counters[:, FOLLOWER] = 1 - phases[:, 0]
+
+    def _carry_to_phase(self) -> None:
+        """Before the first frame: a character beginning at state s > 0 carries what states 0 to
+        s - 1 of its step would have (from none, at mean durations), as if it had walked them."""
+        for n in np.flatnonzero(self.counters[:, STATE] > 0):
+            label, carry = self.counters[n, LABEL], 0.0
+            for state in range(self.counters[n, STATE]):
+                carry = whole_frames(self.base[n, label, state], carry)[1]
+            self.carry[n, label] = carry
 
     def refresh(self, controls: list[Controls]) -> None:
         """Recompute lambda* and the durations of the characters whose controls changed."""
@@ -123,22 +147,24 @@ class Crowd:
         """Make sure every character has draws for a plan over `frames` frames (at most one state
         instance a frame, plus the one being left)."""
         need = frames + 3
+        states = self.space.states
         counters = self.counters
         if (counters[:, FILLED] - counters[:, TAIL]).min() >= need:
             return
-        if self.pool.shape[1] < 2 * need:
-            grown = np.zeros((self.count, 2 * need + self.pool.shape[1]))
+        if self.pool.shape[1] < 2 * need + states:
+            grown = np.zeros((self.count, 2 * need + states + self.pool.shape[1]))
             grown[:, : self.pool.shape[1]] = self.pool
             self.pool = grown
         for n, rng in enumerate(self.rngs):
             head, filled = counters[n, HEAD], counters[n, FILLED]
             if filled - counters[n, TAIL] >= need:
                 continue
-            kept = filled - head  # draws in use or drawn ahead, in order
-            self.pool[n, :kept] = self.pool[n, head:filled]
+            first = max(head - states, 0)  # the states just left stay: a following step draws again what its leader drew
+            kept = filled - first  # draws kept, in order
+            self.pool[n, :kept] = self.pool[n, first:filled]
             self.pool[n, kept:] = rng.standard_normal(self.pool.shape[1] - kept)
-            counters[n, HEAD] -= head
-            counters[n, TAIL] -= head
+            counters[n, HEAD] -= first
+            counters[n, TAIL] -= first
             counters[n, FILLED] = self.pool.shape[1]
 
     def _window_buffers(self, fixed: int) -> tuple:
@@ -158,6 +184,8 @@ class Crowd:
     def step(self, controls: list[Controls]) -> np.ndarray:
         """One frame for each character, (N, D)."""
         self.refresh(controls)
+        if self.sent == 0:
+            self._carry_to_phase()
         self._draws_for(self.lookahead + 1)
         fixed = min(self.sent, 2)
         frames = np.empty((self.count, self.means.shape[2] // 3))
@@ -171,6 +199,8 @@ class Crowd:
         """The state indices character 0 would pass through over `frames` frames with constant
         controls, without generating anything (the plan full-sequence MLPG uses)."""
         self.refresh([controls] * self.count)
+        if self.sent == 0:
+            self._carry_to_phase()
         self._draws_for(frames)
         ids = np.zeros(frames, dtype=np.int64)
         counts = np.zeros(frames + 3, dtype=np.int64)
@@ -191,7 +221,13 @@ def _plan(base, sigma, counter, carry, pool, ids, counts, carries):  # pragma: n
     step stays within a frame of its real length, and a right step and the left step after it
     get the same frames state by state. Their models are mirror images, so that keeps the walk
     straight at turn = 0 (one carry passed on across labels gives the odd frame of a step 16.5
-    frames long always to the same label: the walk curves)."""
+    frames long always to the same label: the walk curves). With liveliness, a following step's
+    state (`FOLLOWER`'s label: the left one, unless `Crowd.start_at` began the walk on a left
+    step) takes the draw of the same state of the leading step before it (the one `states`
+    instances back, kept in the pool), so the two steps of a stride still match and the walk goes
+    straight while its strides vary (each step drawing its own turned it 38 degrees a minute,
+    one way or the other); the states of the first following step that no leading step came
+    before keep their mean durations, as `Crowd.start_at` assumed for the leader's."""
     states = base.shape[1]
     label, state, elapsed = counter[LABEL], counter[STATE], counter[ELAPSED]
     head, tail = counter[HEAD], counter[TAIL]
@@ -204,7 +240,10 @@ def _plan(base, sigma, counter, carry, pool, ids, counts, carries):  # pragma: n
         if spread != 0.0:
             if head + k >= tail:
                 tail = head + k + 1
-            duration = max(MIN_FRAMES, duration + spread * pool[head + k])
+            draw = pool[head + k]
+            if label == counter[FOLLOWER]:  # the leading step's draw; none before the first leading step
+                draw = pool[head + k - states] if head + k >= states else 0.0
+            duration = max(MIN_FRAMES, duration + spread * draw)
         count = max(1, int(np.floor(duration + remainders[label])))
         remainders[label] += duration - count
         counts[k], carries[k] = count, remainders[label]
