@@ -96,7 +96,7 @@ class Crowd:
         that begins mid-step is given, at its first frame (when its durations are known), the
         fraction of a frame that step would have carried to there at mean durations, so the
         first following step matches it: begun with none, its labels' carries stayed apart and
-        a crowd's walkers curved up to 19 degrees a minute."""
+        a crowd's walkers curved up to 16 degrees a minute."""
         phases = np.asarray(phases, dtype=np.int64)
         self.counters[:, LABEL], self.counters[:, STATE] = phases[:, 0], phases[:, 1]
         self.counters[:, FOLLOWER] = 1 - phases[:, 0]
