@@ -6,6 +6,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from oscrecv import Receiver
 from samples import cmu_named_walk
@@ -223,3 +224,88 @@ def test_mixed_skeletons_in_one_training_name_the_difference(cmu_model, real_wal
     result = cli("train", str(first), str(real_walks[0]), "--out", str(tmp_path / "x.npz"), "--quiet")
     assert result.returncode == 1 and real_walks[0].name in result.stderr and "joint_Root" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+# ---- takes a user may bring that the instrument cannot model as they are: said in one line -------
+
+def _position_columns(skeleton: Skeleton, joint: int) -> list[int]:
+    start = skeleton.channel_start()[joint]
+    return [start + k for k, c in enumerate(skeleton.joints[joint].channels) if c.endswith("position")]
+
+
+def _scaled(motion, factor: float):
+    """The take in other units: every offset and position channel times `factor`."""
+    import dataclasses
+
+    from instrument.motion.bvh import Motion
+
+    joints = tuple(dataclasses.replace(j, offset=tuple(v * factor for v in j.offset),
+                                       end_site=None if j.end_site is None else tuple(v * factor for v in j.end_site))
+                   for j in motion.skeleton.joints)
+    skeleton = Skeleton(joints)
+    channels = motion.channels.copy()
+    for j in range(len(joints)):
+        channels[:, _position_columns(skeleton, j)] *= factor
+    return Motion(skeleton, channels, motion.fps)
+
+
+def test_a_take_in_other_units_is_named_in_training_and_in_evaluation(real_walks, tmp_path):
+    from instrument.motion.bvh import write_bvh
+
+    chosen = [p for p in real_walks if "_normal_" in p.name][:2] + [p for p in real_walks if "_active_" in p.name][:2]
+    for path in chosen[:-1]:
+        (tmp_path / path.name).write_bytes(path.read_bytes())
+    odd = tmp_path / chosen[-1].name
+    write_bvh(odd, _scaled(read_bvh(chosen[-1]), 0.01))  # one take in metres among centimetres
+    result = cli("train", str(tmp_path), "--out", str(tmp_path / "x.npz"), "--quiet")
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and odd.name in result.stderr and "other units" in result.stderr
+    assert not (tmp_path / "x.npz").exists()
+    model = load_model(default_model_path())  # evaluation against takes in other units than the model's
+    with pytest.raises(UserError, match="other units") as error:
+        make_takes([(odd, "active")], read_motions([(odd, "active")], model.fps), model.layout)
+    assert str(odd) in str(error.value)
+
+
+def test_a_root_that_moves_but_never_turns_is_a_one_line_error(real_walks, tmp_path):
+    """A floor joint ('Reference') carrying the body's position above hips that turn without
+    moving: the heading would be read from a joint that never turns (the walks came out at a
+    third of their speed, sliding), so training says what to change."""
+    from instrument.motion.bvh import Motion, write_bvh
+
+    for path in [p for p in real_walks if "_normal_" in p.name][:2]:
+        motion = read_bvh(path)
+        skeleton, channels = motion.skeleton, motion.channels.copy()
+        floor, hips = 0, 1  # joint_Root (never moves in these takes) and Hips
+        channels[:, _position_columns(skeleton, floor)] = channels[:, _position_columns(skeleton, hips)]
+        channels[:, _position_columns(skeleton, hips)] = 0.0
+        write_bvh(tmp_path / path.name, Motion(skeleton, channels, motion.fps))
+    result = cli("train", str(tmp_path), "--out", str(tmp_path / "x.npz"), "--quiet")
+    assert result.returncode == 1 and "Traceback" not in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert "'joint_Root' carries the body's position but never turns" in result.stderr and "'Hips'" in result.stderr
+    result = cli("inspect", str(tmp_path / path.name))
+    assert result.returncode == 1 and path.name in result.stderr and "never turns" in result.stderr
+
+
+def test_evaluating_against_takes_of_another_skeleton_is_a_one_line_error(cmu_model, real_walks, tmp_path):
+    """The takes the model names, found in the folder, but on another skeleton (the clearance of
+    their feet was measured first, and failed with a traceback)."""
+    model_path, folder = cmu_model
+    for k, name in enumerate(sorted(p.name for p in folder.glob("*.bvh"))):
+        (tmp_path / name).write_bytes(real_walks[k].read_bytes())
+    result = cli("evaluate", str(model_path), "--real", str(tmp_path), "--seconds", "2", "--variants", "one")
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    assert "another skeleton" in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_a_style_whose_takes_have_no_steps_is_said_to_be_left_out(real_walks, tmp_path):
+    from instrument.models.build import build_model
+    from instrument.motion.bvh import Motion, write_bvh
+
+    pairs = [(p, "normal") for p in real_walks if "_normal_" in p.name][:2]
+    standing = read_bvh(pairs[0][0])
+    still = tmp_path / "standing_still_001.bvh"
+    write_bvh(still, Motion(standing.skeleton, np.repeat(standing.channels[:1], 90, axis=0), standing.fps))
+    model, report, _ = build_model(pairs + [(still, "still")])
+    assert model.style_names == ["normal"]
+    assert any("'still'" in w and "no such style" in w for w in report.warnings)

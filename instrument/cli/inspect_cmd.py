@@ -67,9 +67,10 @@ def run(args: argparse.Namespace) -> int:
             info = describe(path)
         except UserError as error:
             failed += 1
-            print(f"instrument inspect: error: {error}", file=sys.stderr)
+            message = str(error) if str(error).startswith(str(path)) else f"{path}: {error}"  # which file, always
+            print(f"instrument inspect: error: {message}", file=sys.stderr)
             if args.json:
-                results.append({"file": str(path), "error": str(error)})
+                results.append({"file": str(path), "error": message})
             continue
         results.append(info)
         if not args.json:

@@ -13,6 +13,7 @@ import numpy as np
 from ..errors import UserError, located
 from ..motion.bvh import Motion, Skeleton, read_bvh
 from ..motion.features import FeatureLayout, choose_layout, extract, resample, with_deltas
+from ..motion.kinematics import world_positions
 from ..motion.steps import LABELS, segment_steps
 from ..textfile import read_text
 from ..tomlfile import read_toml
@@ -114,8 +115,24 @@ def skeleton_difference(expected: Skeleton, found: Skeleton) -> str:
     return "same joints"
 
 
+UNITS_APART = 2.0  # a take this many times larger or smaller than the others is in other units
+
+
+def body_size(skeleton: Skeleton, channels: np.ndarray) -> float:
+    """How big the body is in one frame: the largest extent of its joints along any axis (about
+    its height; 1.7 in metres, 170 in centimetres), whatever the axis that points up."""
+    return float(np.ptp(world_positions(Motion(skeleton, channels[None], 30.0))[0], axis=0).max())
+
+
+def _units_problem(size: float, reference: float) -> str | None:
+    if reference > 0 and size > 0 and not 1 / UNITS_APART < size / reference < UNITS_APART:
+        return f"its body is {size / reference:.3g} times the size of"
+    return None
+
+
 def read_motions(pairs: list[tuple[Path, str]], fps: float, progress=None) -> list[Motion]:
-    """Read and resample every take; an error names the files whose skeleton differs from the first."""
+    """Read and resample every take; an error names the files whose skeleton differs from the
+    first, or whose body is of another size than the others' (a take in other units)."""
     if not pairs:
         raise UserError("no takes to read: no .bvh file was given")
     motions: list[Motion] = []
@@ -133,6 +150,12 @@ def read_motions(pairs: list[tuple[Path, str]], fps: float, progress=None) -> li
             + (f" and {len(different) - 5} more" if len(different) > 5 else "")
             + f" ({different[0][0].name}: {skeleton_difference(first, different[0][1].skeleton)})"
         )
+    sizes = [body_size(m.skeleton, m.channels[0]) for m in motions]
+    typical = float(np.median(sizes))
+    odd = [(p, _units_problem(size, typical)) for (p, _), size in zip(pairs, sizes) if _units_problem(size, typical)]
+    if odd:
+        raise UserError(f"{odd[0][0]}: {odd[0][1]} the other takes' (in other units? metres among centimetres): "
+                        "convert it or leave it out" + (f" ({len(odd) - 1} more such takes)" if len(odd) > 1 else ""))
     return motions
 
 
@@ -144,6 +167,10 @@ def make_takes(pairs: list[tuple[Path, str]], motions: list[Motion], layout: Fea
         if not motion.skeleton.same_layout(layout.skeleton):
             raise UserError(f"{path}: the model was trained on another skeleton: this file's "
                             f"{skeleton_difference(layout.skeleton, motion.skeleton)}")
+        problem = _units_problem(body_size(motion.skeleton, motion.channels[0]),
+                                 body_size(layout.skeleton, np.asarray(layout.template)))
+        if problem:
+            raise UserError(f"{path}: {problem} the model's skeleton (in other units? metres against centimetres)")
         static, _, _ = extract(motion, layout)
         segmentation = segment_steps(motion, layout)
         warnings += [f"{path}: {w}" for w in segmentation.warnings]
@@ -163,6 +190,9 @@ def load_corpus(pairs: list[tuple[Path, str]], fps: float, progress=None) -> tup
     takes, warnings = make_takes(pairs, motions, layout, progress)
     if not takes:
         raise UserError("no steps found in any file: nothing to train on")
+    kept = {t.style for t in takes}
+    warnings += [f"style {style!r}: none of its takes has steps, so the model has no such style"
+                 for style in sorted({style for _, style in pairs} - kept)]
     return layout, takes, warnings
 
 

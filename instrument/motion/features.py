@@ -22,6 +22,7 @@ from functools import cached_property
 
 import numpy as np
 
+from ..errors import UserError
 from .bvh import Motion, Skeleton
 from .kinematics import channels_from_local, forward_kinematics, local_transforms
 from .rotations import (
@@ -122,6 +123,10 @@ def choose_layout(motions: list[Motion]) -> FeatureLayout:
         still &= rotation_angle_between(rot, first[None]).max(axis=0) < STILL_RADIANS
     below_root = _descendants(skeleton, root)
     joints = tuple(j for j in below_root if not still[j])
+    if still[root] and joints:  # e.g. a floor 'Reference' joint moving the hips, which turn below it
+        raise UserError(f"joint {skeleton.names[root]!r} carries the body's position but never turns, while "
+                        f"{skeleton.names[joints[0]]!r} below it does: the walk's heading is read from the joint "
+                        "that moves, so export the takes with one joint carrying both (the hips as the root)")
     return FeatureLayout(skeleton, root, joints, tuple(float(v) for v in motions[0].channels[0]))
 
 

@@ -88,9 +88,9 @@ def assess(
     if real is not None:  # every style's takes: the classifier must know all the styles to tell them apart
         pairs = real_pairs(model, real)
         motions = read_motions(pairs, model.fps)
+        takes, _ = make_takes(pairs, motions, layout)  # first: it names a take of another skeleton or units
         positions = [world_positions(m) for m in motions]
         ground = clearance(positions, limbs)
-        takes, _ = make_takes(pairs, motions, layout)
         features = [step_features(t.observations[:, : layout.dimension], t.steps) for t in takes]
         classifier = LinearDiscriminant(np.vstack(features), [t.style for t, x in zip(takes, features) for _ in x])
         recognised = _cross_validated(takes, features)
