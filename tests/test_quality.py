@@ -125,3 +125,19 @@ def test_evaluate_errors_are_one_line(args, message):
     result = cli("evaluate", *args)
     assert result.returncode == (2 if args[0] in ("--variants", "--seconds") else 1)  # 2: refused as the line is read
     assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_a_style_of_one_take_has_no_recognition_figure_rather_than_zero():
+    """Cross-validated recognition leaves each take out; a style's only take cannot be told by a
+    classifier that never saw the style, so its figure is missing ('-'), not 0."""
+    from types import SimpleNamespace
+
+    from instrument.synthesis.assessment import _cross_validated
+
+    rng = np.random.default_rng(0)
+    centres = {"a": np.zeros(4), "b": np.full(4, 5.0), "c": np.full(4, -5.0)}
+    takes = [SimpleNamespace(style=s) for s in ["a"] * 3 + ["b"] * 3 + ["c"]]
+    features = [centres[t.style] + rng.normal(0.0, 0.3, (12, 4)) for t in takes]
+    recognised = _cross_validated(takes, features)
+    assert "c" not in recognised
+    assert recognised["a"] == 1.0 and recognised["b"] == 1.0

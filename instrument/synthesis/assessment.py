@@ -136,7 +136,10 @@ def _cross_validated(takes, features) -> dict[str, float]:
         if len({takes[k].style for k in train}) < 2:
             continue
         classifier = LinearDiscriminant(np.vstack([features[k] for k in train]), [takes[k].style for k in train for _ in features[k]])
+        known = {takes[k].style for k in train}
         for k in np.flatnonzero(fold == f):
+            if takes[k].style not in known:  # its only take: no classifier that did not see it knows the style
+                continue
             hits.setdefault(takes[k].style, []).extend(label == takes[k].style for label in classifier.step_labels(features[k]))
     return {s: float(np.mean(h)) for s, h in hits.items()}
 
