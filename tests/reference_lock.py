@@ -22,6 +22,12 @@ def EASE(x: float) -> float:
     return x * x * (3.0 - 2.0 * x)  # smoothstep: the lock starts and ends with zero speed
 
 
+def _heading(world_pos: np.ndarray, leg) -> float:
+    """Which way a foot points, about the vertical (0 along +z)."""
+    toes = world_pos[leg.pivot] - world_pos[leg.ankle]
+    return float(np.arctan2(toes[0], toes[2]))
+
+
 class _Follow:
     """The body following its stance foot (instrument.synthesis.follow), written out plainly for
     one character: each frame the body takes `strength` of each planted foot's horizontal slide
@@ -105,7 +111,7 @@ def _leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
 
 def _heel_rise(world_pos: np.ndarray, leg, ground: np.ndarray, on_floor: float, target: np.ndarray,
                allowed: float) -> tuple[np.ndarray, np.ndarray]:
-    """The foot's turn about the ball of the foot (leg.pivot) that raises the heel until the leg
+    """The foot's turn about its front-most joint (leg.pivot) that raises the heel until the leg
     reaches no further than `allowed` (less of the way where the toes are higher above their
     clearance than the heel above its own, none from `on_floor` higher), and the ankle's target
     after it, found numerically (a scan of the rise, then bisection) to check the compiled
@@ -164,9 +170,10 @@ class FootLock:
         self.parents = layout.skeleton.parents
         self.weight = np.zeros(2)  # how far each foot's lock is blended in
         self.lock = np.full((2, 3), np.nan)  # world point each foot is locked to
+        self.heading = np.zeros(2)  # each locked foot's heading at landing (ankle to pivot, about the vertical)
         self.drop = 0.0  # how far the body is lowered for a planted leg to reach its target
         self.parent_rot = layout.template_pose[2]  # the root's parent's world rotation
-        self.pivot = [leg.pivot for leg in self.limbs.legs]  # the joint whose landing point is locked (the ball)
+        self.pivot = [leg.pivot for leg in self.limbs.legs]  # the joint whose landing point is locked (the toes)
         template = forward_kinematics(layout.skeleton, layout.template_pose[0][None], layout.template_pose[1][None])[1][0]
         self.cm = centimetres_per_unit(layout, template)
         self.swing_lift = SWING_CM / self.cm  # in the skeleton's units
@@ -181,10 +188,19 @@ class FootLock:
         world_rot, world_pos = world_rot[0], world_pos[0]
         planted = self._planted(shares, world_pos)
         step = 1.0 / BLEND_FRAMES
-        for f in range(2):
+        for f, leg in enumerate(self.limbs.legs):
             if planted[f] and self.weight[f] == 0.0:
                 self.lock[f] = world_pos[self.pivot[f]]
+                self.heading[f] = _heading(world_pos, leg)
             self.weight[f] = min(1.0, self.weight[f] + step) if planted[f] else max(0.0, self.weight[f] - step)
+            if self.weight[f] > 0.0:  # the foot turned about the vertical through its ankle, back to its landing heading
+                turn = EASE(self.weight[f]) * ((self.heading[f] - _heading(world_pos, leg) + np.pi) % (2 * np.pi) - np.pi)
+                yaw = _axis_rotation(np.array([0.0, 1.0, 0.0]), turn)
+                ankle = world_pos[leg.ankle].copy()
+                for j in leg.foot:
+                    world_rot[j] = yaw @ world_rot[j]
+                    world_pos[j] = ankle + yaw @ (world_pos[j] - ankle)
+                rotations[leg.ankle] = world_rot[leg.knee].T @ world_rot[leg.ankle]
         extension = [np.linalg.norm(world_pos[leg.ankle] - world_pos[leg.hip]) for leg in self.limbs.legs]
         targets, turns = self._targets(world_pos, planted, extension)
         # a planted leg that cannot reach its target even on its toes (an exaggerated style can

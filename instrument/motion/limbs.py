@@ -3,9 +3,10 @@
 A leg is a subtree under the root that reaches near the ground; its thigh and shin are the two
 longest consecutive bones on the way from the root to its lowest joint, so hip, knee and ankle
 are where those bones start and end, and the foot is the ankle and what hangs below it. The
-foot's pivot, the joint a heel rises about, is the ball of the foot: on the way from the ankle to
-the foot's front-most joint, the first joint at least half as far forward (so a toe-tip joint, as
-Mixamo's Toe_End, or a heel marker listed last does not put the foot on pointe or behind it). The
+foot's pivot, the joint that is locked where it lands and that a heel rises about, is the foot's
+front-most joint (its toes; a toe-tip joint such as Mixamo's Toe_End where there is one): not
+the last joint listed, which may be a heel marker behind the ankle. The ball of the foot (Mixamo's
+ToeBase) was tried: the toe tip then slid 1.5-8 times as much (`instrument evaluate`). The
 arms are the chains to the joints furthest out on either side (across the line between the two
 hips); the upper arm is the longest bone past the point where the two arms part.
 """
@@ -31,7 +32,7 @@ class Leg:
     knee: int
     ankle: int
     foot: tuple[int, ...]  # the ankle and every joint below it (toes, end joints)
-    pivot: int  # the ball of the foot, which a heel rises about; the ankle if nothing hangs below it
+    pivot: int  # the foot's front-most joint: locked where it lands, a heel rises about it; the ankle if none
     thigh: float  # bone lengths in the skeleton's units
     shin: float
 
@@ -75,16 +76,11 @@ def _two_longest(chain: list[int], lengths: np.ndarray) -> tuple[int, int, int]:
     return bones[best][0], bones[best][1], bones[best + 1][1]
 
 
-def _ball(parents: np.ndarray, positions: np.ndarray, ankle: int, foot: list[int]) -> int:
-    """The foot's pivot (see the module's text), from the template pose's joint positions."""
+def _front(positions: np.ndarray, ankle: int, foot: list[int]) -> int:
+    """The foot's pivot (see the module's text): of the template pose's foot joints, the one
+    furthest from the ankle along the floor."""
     forward = np.hypot(*(positions[foot] - positions[ankle])[:, [0, 2]].T)
-    front = foot[int(np.argmax(forward))]
-    if forward.max() <= 1e-9:
-        return ankle
-    for joint in _chain(parents, front, ankle):
-        if forward[foot.index(joint)] >= 0.5 * forward.max():
-            return joint
-    return front
+    return foot[int(np.argmax(forward))] if forward.max() > 1e-9 else ankle
 
 
 def find_limbs(skeleton: Skeleton, root: int, template: np.ndarray) -> Limbs | None:
@@ -111,7 +107,7 @@ def _find_limbs(skeleton: Skeleton, root: int, template: tuple[float, ...]) -> L
         except ValueError:
             continue
         foot = _descendants(parents, ankle)
-        legs.append(Leg(hip, knee, ankle, tuple(foot), _ball(parents, positions, ankle, foot), float(lengths[knee]),
+        legs.append(Leg(hip, knee, ankle, tuple(foot), _front(positions, ankle, foot), float(lengths[knee]),
                         float(lengths[ankle])))
     if len(legs) != 2:
         return None

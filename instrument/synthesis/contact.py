@@ -10,15 +10,17 @@ when the generated foot is on the floor and nearly still (as the data was labell
 
 The foot lock (`footlock.py`, compiled and batched over characters) enforces it causally, one
 frame at a time, on the pose the features give:
-- when a foot lands, the point it lands on (the ball of the foot, limbs.Leg.pivot, horizontally)
-  is locked;
+- when a foot lands, the point it lands on (the foot's front-most joint,
+  limbs.Leg.pivot, horizontally)
+  is locked, and the foot turned back about the vertical to the heading it landed with (a foot
+  that yaws in the generated walk swung its heel and toe tip about the lock);
 - each leg is solved by analytic two-bone IK (law of cosines for the knee, bent about its own
   hinge; then the hip swings the leg), the foot keeping its generated world orientation, towards: the lock
   horizontally, its lowest joint on the floor vertically; the lock blends in and out over
   BLEND_FRAMES frames, so nothing pops;
 - where that would stretch a planted leg past its generated length (hip to ankle), the heel
-  rises instead: the foot pitches up about the ball of the foot, up to MAX_HEEL_RISE, the toes
-  keeping their generated world rotation, as a real foot rolls onto its toes at the end of
+  rises instead: the foot pitches up about its front-most joint, up to MAX_HEEL_RISE, that
+  joint keeping its generated world rotation, as a real foot rolls onto its toes at the end of
   stance. Stretching the leg
   straightened the knee (25 to 8 degrees for a 1.7 cm reach) and swung the thigh back, which
   left the hip's range up to 19% wider than the takes';

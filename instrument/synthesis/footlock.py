@@ -8,9 +8,9 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
   and still where the state allows it; always one foot);
 - `lock_target`: where an ankle should go (the lock blended in, the floor, the swing lift as
   `swing_share` allows);
-- `heel_rise`: the foot pitched up about the ball of the foot where the lock would stretch a
+- `heel_rise`: the foot pitched up about its front-most joint (the toes) where the lock would stretch a
   planted leg past its generated length (the toes beyond it keep their generated world rotation,
-  bending at the ball as a real foot does, instead of dipping into the floor);
+  as a real foot bends there, instead of dipping into the floor);
 - `body_drop`: how far the body must come down for a planted leg to reach its target;
 - `leg_swings`: two-bone IK, the thigh's and the shin's turns that take an ankle to a target;
 - `solve_leg`: those turns applied in place to the local rotations;
@@ -35,7 +35,7 @@ from ..motion.limbs import centimetres_per_unit, find_limbs
 from .contact import BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, PLANTED, POSSIBLE, SWING_BENT, SWING_CM
 from .follow import ease
 
-MAX_HEEL_RISE = np.radians(50.0)  # the most a planted foot pitches up about the ball of the foot
+MAX_HEEL_RISE = np.radians(50.0)  # the most a planted foot pitches up about its toes
 STRETCH = 0.98  # of a leg's full length: how far the lock stretches a leg before the body comes down
 
 
@@ -45,13 +45,14 @@ class LockState:
 
     weights: np.ndarray  # (N, 2) how far each foot's lock is blended in, 0..1
     points: np.ndarray  # (N, 2, 3) world point each foot is locked to (NaN before its first landing)
+    headings: np.ndarray  # (N, 2) each locked foot's heading (ankle to pivot, about the vertical) at landing
     drop: np.ndarray  # (N,) how far the body is lowered for a planted leg to reach its target
     previous: np.ndarray  # (N, 2, 3) each pivot's position in the frame before, the body's follow offset
     # included (NaN at first): what the lock's 'nearly still' test measures; not RootFollow.previous
 
     def release(self, n: int) -> None:
         """Character n's feet unlocked, as before its first frame (it was put somewhere else)."""
-        self.weights[n], self.points[n], self.drop[n], self.previous[n] = 0.0, np.nan, 0.0, np.nan
+        self.weights[n], self.points[n], self.headings[n], self.drop[n], self.previous[n] = 0.0, np.nan, 0.0, 0.0, np.nan
 
 
 class FootLock:
@@ -65,7 +66,7 @@ class FootLock:
         self.parent_rot = np.ascontiguousarray(layout.template_pose[2])  # the root's parent's world rotation
         legs = self.limbs.legs
         self.joints = np.array([[leg.hip, leg.knee, leg.ankle] for leg in legs], dtype=np.int64)  # (2, 3)
-        # (2, foot joints), each foot's pivot (the ball of the foot, limbs.Leg.pivot) moved last, as
+        # (2, foot joints), each foot's pivot (its front-most joint, limbs.Leg.pivot) moved last, as
         # the kernels read it; the clearance's columns in the same order
         order = [[k for k, j in enumerate(leg.foot) if j != leg.pivot] + [leg.foot.index(leg.pivot)] for leg in legs]
         self.feet = np.array([np.asarray(leg.foot)[o] for leg, o in zip(legs, order)], dtype=np.int64)
@@ -77,7 +78,7 @@ class FootLock:
 
     def start(self, count: int) -> LockState:
         """The state of `count` characters before their first frame: nothing locked yet."""
-        return LockState(np.zeros((count, 2)), np.full((count, 2, 3), np.nan), np.zeros(count),
+        return LockState(np.zeros((count, 2)), np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros(count),
                          np.full((count, 2, 3), np.nan))
 
     def apply(self, state: LockState, rotations: np.ndarray, translations: np.ndarray, shares: np.ndarray,
@@ -87,7 +88,7 @@ class FootLock:
         `world_pos` hold the unadjusted pose's on entry. `shares` (N, 2): how surely each foot is
         planted in each character's state."""
         lock_crowd(rotations, translations, np.ascontiguousarray(shares, dtype=np.float64), world_rot, world_pos,
-                   state.weights, state.points, state.drop, state.previous, self.parents, self.joints, self.feet,
+                   state.weights, state.points, state.headings, state.drop, state.previous, self.parents, self.joints, self.feet,
                    self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm, self.swing_lift)
 
 
@@ -157,7 +158,7 @@ def lock_target(world_pos, leg, foot, ground_f, weight, point, planted, swing_li
 
 @njit(cache=True, error_model="numpy")
 def heel_rise(world_pos, leg, pivot, clearance, on_floor, target, allowed):  # pragma: no cover - compiled
-    """The foot's turn (3x3, world) about its pivot (the ball of the foot) when the lock asks
+    """The foot's turn (3x3, world) about its pivot (its front-most joint, the toes) when the lock asks
     the leg (hip, knee, ankle) to reach further than `allowed` (hip to ankle): the heel rises, as
     a real foot rolls onto its toes, so the knee keeps its bend instead of straightening and the
     hip is not pulled into extension. Moves `target` (the ankle's) with it; at most
@@ -352,8 +353,8 @@ def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, t
 
 
 @njit(cache=True, error_model="numpy")
-def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, drop, previous, parents, joints,
-               feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
+def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, parents,
+               joints, feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
     """One character's frame (arrays of that character; `drop` a 1-element view). Returns nothing:
     rotations, translations, the world transforms and the state are updated in place."""
     planted = planted_feet(shares, world_pos, previous, feet, ground, fps, cm)
@@ -361,7 +362,10 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     for f in range(2):
         if planted[f] and weights[f] == 0.0:
             points[f] = world_pos[feet[f, -1]]
+            headings[f] = foot_heading(world_pos, joints[f, 2], feet[f, -1])
         weights[f] = min(1.0, weights[f] + step) if planted[f] else max(0.0, weights[f] - step)
+        if weights[f] > 0.0:
+            hold_heading(rotations, world_rot, world_pos, parents, joints[f, 1], feet[f], headings[f], ease(weights[f]))
     extension = np.empty(2)  # each leg's generated hip-to-ankle distance, which the lock keeps where it can
     for f in range(2):
         gap = world_pos[joints[f, 2]] - world_pos[joints[f, 0]]
@@ -377,7 +381,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     for f in range(2):
         ankle, pivot = joints[f, 2], feet[f, -1]
         if pivot != ankle and not _identity(turns[f]):
-            # the toes keep their generated world rotation, bending at the ball as the heel rises
+            # the toes keep their generated world rotation, bending as the heel rises
             # (everything below the ankle turns with it: the pivot's parent's new world rotation)
             _product(turns[f], world_rot[parents[pivot]], turned)
             _product_t(turned, world_rot[pivot], rotations[pivot])
@@ -388,6 +392,36 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             solve_leg(rotations, world_rot, world_pos, parents, joints[f, 0], joints[f, 1], ankle, feet[f, -1], targets[f])
         elif not _identity(turns[f]):  # the ankle where it was made, the foot turned all the same
             _product_t(world_rot[joints[f, 1]], world_rot[ankle], rotations[ankle])
+
+
+@njit(cache=True, error_model="numpy")
+def foot_heading(world_pos, ankle, pivot) -> float:  # pragma: no cover - compiled
+    """Which way the foot points, about the vertical (radians; 0 along +z)."""
+    return np.arctan2(world_pos[pivot, 0] - world_pos[ankle, 0], world_pos[pivot, 2] - world_pos[ankle, 2])
+
+
+@njit(cache=True, error_model="numpy")
+def hold_heading(rotations, world_rot, world_pos, parents, knee, foot, heading, share):  # pragma: no cover - compiled
+    """A planted foot turned about the vertical through its ankle, `share` of the way back to the
+    heading it landed with: a foot that yaws in the generated walk would swing its toes and heel
+    about its locked toes, sliding them (skate 3-20% lower on the shipped model's walks with
+    it). Its joints' world transforms follow; the ankle's local rotation takes the turn."""
+    ankle = foot[0]
+    turn = heading - foot_heading(world_pos, ankle, foot[-1])
+    turn = share * ((turn + np.pi) % (2.0 * np.pi) - np.pi)
+    if turn == 0.0:
+        return
+    c, s = np.cos(turn), np.sin(turn)
+    yaw = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])  # about +y: +z turns towards +x
+    turned = np.empty((3, 3))
+    centre = world_pos[ankle].copy()
+    for j in foot:
+        _product(yaw, world_rot[j], turned)
+        world_rot[j] = turned
+        offset = world_pos[j] - centre
+        for i in range(3):
+            world_pos[j, i] = centre[i] + _dot(yaw[i], offset)
+    _product_t(world_rot[knee], world_rot[ankle], rotations[ankle])  # the knee is the ankle's parent (limbs.py)
 
 
 @njit(cache=True, error_model="numpy")
@@ -407,11 +441,11 @@ def _targets(world_pos, joints, feet, ground, weights, points, planted, swing_li
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, drop, previous, parents, joints,
-               feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
+def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, parents,
+               joints, feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
     """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
     for n in range(rotations.shape[0]):
-        lock_frame(rotations[n], translations[n], shares[n], world_rot[n], world_pos[n], weights[n], points[n],
+        lock_frame(rotations[n], translations[n], shares[n], world_rot[n], world_pos[n], weights[n], points[n], headings[n],
                    drop[n : n + 1], previous[n], parents, joints, feet, ground, reach, parent_rot, root, fps, cm,
                    swing_lift)
     _compose(parents, rotations, translations, world_rot, world_pos)
