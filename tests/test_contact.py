@@ -285,3 +285,27 @@ def test_a_live_performance_keeps_its_feet_on_and_above_the_floor(model, tmp_pat
     lowest = np.stack([(positions[:, list(foot), 1] - contact.clearance[f]).min(axis=1) for f, foot in enumerate(limbs.feet)])
     assert lowest.min() > -1e-3  # nothing under the floor (the BVH keeps 6 decimals)
     assert (lowest.min(axis=0) < 0.5).mean() > 0.95  # and some foot on it almost always
+
+
+def test_a_locked_foot_keeps_the_heading_it_landed_with(model, space):
+    """While a foot's lock is fully in, the foot points where it pointed when it landed (about
+    the vertical; a heel rise only pitches it), though the generated foot turns meanwhile."""
+    weights = np.full(len(model.style_names), 1.0 / len(model.style_names))
+    poses, raw, lock = _walk(model, space, [weights] * 240)
+    legs = FootLock(model.layout, contact_space(model).clearance, model.fps).limbs.legs
+
+    def heading(pose_list, leg) -> np.ndarray:
+        toes = np.array([p.world_positions[leg.pivot] - p.world_positions[leg.ankle] for p in pose_list])
+        return np.arctan2(toes[:, 0], toes[:, 2])
+
+    turned_in_the_made_walk = 0.0
+    for f, leg in enumerate(legs):
+        held = lock[:, f] == 1.0
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], held.astype(int), [0]])))
+        runs = [(a, b) for a, b in zip(edges[::2], edges[1::2]) if b - a >= 3]
+        assert len(runs) >= 3
+        locked, made = heading(poses, leg), heading(raw, leg)
+        for a, b in runs:
+            assert np.ptp(np.unwrap(locked[a:b])) < 1e-6
+            turned_in_the_made_walk = max(turned_in_the_made_walk, np.ptp(np.unwrap(made[a:b])))
+    assert turned_in_the_made_walk > 1e-3  # radians: there was a turn to hold
