@@ -13,7 +13,7 @@ import numpy as np
 from ..errors import UserError, located
 from ..motion.bvh import Motion, Skeleton, read_bvh
 from ..motion.features import FeatureLayout, choose_layout, extract, resample, with_deltas
-from ..motion.kinematics import world_positions
+from ..motion.kinematics import local_transforms
 from ..motion.steps import LABELS, segment_steps
 from ..textfile import read_text
 from ..tomlfile import read_toml
@@ -119,14 +119,17 @@ UNITS_APART = 2.0  # a take this many times larger or smaller than the others is
 
 
 def body_size(skeleton: Skeleton, channels: np.ndarray) -> float:
-    """How big the body is in one frame: the largest extent of its joints along any axis (about
-    its height; 1.7 in metres, 170 in centimetres), whatever the axis that points up."""
-    return float(np.ptp(world_positions(Motion(skeleton, channels[None], 30.0))[0], axis=0).max())
+    """A typical bone's length in one frame (the median of the non-zero ones): which units a take
+    is in, whatever its pose, its axes or how far from the origin it stands (a joint carrying the
+    body's position is one outlier among many bones)."""
+    lengths = np.linalg.norm(local_transforms(Motion(skeleton, channels[None], 30.0))[1][0], axis=1)
+    lengths = lengths[lengths > 1e-9]
+    return float(np.median(lengths)) if len(lengths) else 0.0
 
 
 def _units_problem(size: float, reference: float) -> str | None:
     if reference > 0 and size > 0 and not 1 / UNITS_APART < size / reference < UNITS_APART:
-        return f"its body is {size / reference:.3g} times the size of"
+        return f"its bones are {size / reference:.3g} times as long as those of"
     return None
 
 
@@ -170,7 +173,8 @@ def make_takes(pairs: list[tuple[Path, str]], motions: list[Motion], layout: Fea
         problem = _units_problem(body_size(motion.skeleton, motion.channels[0]),
                                  body_size(layout.skeleton, np.asarray(layout.template)))
         if problem:
-            raise UserError(f"{path}: {problem} the model's skeleton (in other units? metres against centimetres)")
+            raise UserError(f"{path}: {problem} the skeleton it is measured against (the model's, or the first "
+                            "take's; in other units? metres against centimetres)")
         static, _, _ = extract(motion, layout)
         segmentation = segment_steps(motion, layout)
         warnings += [f"{path}: {w}" for w in segmentation.warnings]

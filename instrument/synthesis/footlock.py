@@ -365,7 +365,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             headings[f] = foot_heading(world_pos, joints[f, 2], feet[f, -1])
         weights[f] = min(1.0, weights[f] + step) if planted[f] else max(0.0, weights[f] - step)
         if weights[f] > 0.0:
-            hold_heading(rotations, world_rot, world_pos, parents, joints[f, 1], feet[f], headings[f], ease(weights[f]))
+            hold_heading(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], headings[f], ease(weights[f]))
     extension = np.empty(2)  # each leg's generated hip-to-ankle distance, which the lock keeps where it can
     for f in range(2):
         gap = world_pos[joints[f, 2]] - world_pos[joints[f, 0]]
@@ -401,13 +401,12 @@ def foot_heading(world_pos, ankle, pivot) -> float:  # pragma: no cover - compil
 
 
 @njit(cache=True, error_model="numpy")
-def hold_heading(rotations, world_rot, world_pos, parents, knee, foot, heading, share):  # pragma: no cover - compiled
+def hold_heading(rotations, world_rot, world_pos, knee, ankle, foot, heading, share):  # pragma: no cover - compiled
     """A planted foot turned about the vertical through its ankle, `share` of the way back to the
     heading it landed with: a foot that yaws in the generated walk would swing its toes and heel
     about its locked toes, sliding them (skate 3-20% lower on the shipped model's walks with
     it). Its joints' world transforms follow; the ankle's local rotation takes the turn."""
-    ankle = foot[0]
-    turn = heading - foot_heading(world_pos, ankle, foot[-1])
+    turn = heading - foot_heading(world_pos, ankle, foot[-1])  # `foot`: the ankle and the joints below it, pivot last
     turn = share * ((turn + np.pi) % (2.0 * np.pi) - np.pi)
     if turn == 0.0:
         return
