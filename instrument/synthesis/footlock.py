@@ -410,16 +410,14 @@ def hold_heading(rotations, world_rot, world_pos, knee, ankle, foot, heading, sh
     turn = share * ((turn + np.pi) % (2.0 * np.pi) - np.pi)
     if turn == 0.0:
         return
-    c, s = np.cos(turn), np.sin(turn)
-    yaw = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])  # about +y: +z turns towards +x
-    turned = np.empty((3, 3))
-    centre = world_pos[ankle].copy()
-    for j in foot:
-        _product(yaw, world_rot[j], turned)
-        world_rot[j] = turned
-        offset = world_pos[j] - centre
-        for i in range(3):
-            world_pos[j, i] = centre[i] + _dot(yaw[i], offset)
+    c, s = np.cos(turn), np.sin(turn)  # about +y: +z turns towards +x; rows x and z mix, y stays
+    cx, cz = world_pos[ankle, 0], world_pos[ankle, 2]
+    for j in foot:  # in place, nothing allocated: this runs for every planted foot every frame
+        for k in range(3):
+            x, z = world_rot[j, 0, k], world_rot[j, 2, k]
+            world_rot[j, 0, k], world_rot[j, 2, k] = c * x + s * z, c * z - s * x
+        dx, dz = world_pos[j, 0] - cx, world_pos[j, 2] - cz
+        world_pos[j, 0], world_pos[j, 2] = cx + c * dx + s * dz, cz + c * dz - s * dx
     _product_t(world_rot[knee], world_rot[ankle], rotations[ankle])  # the knee is the ankle's parent (limbs.py)
 
 
