@@ -201,6 +201,21 @@ class FootLock:
                     world_rot[j] = yaw @ world_rot[j]
                     world_pos[j] = ankle + yaw @ (world_pos[j] - ankle)
                 rotations[leg.ankle] = world_rot[leg.knee].T @ world_rot[leg.ankle]
+        for f, leg in enumerate(self.limbs.legs):  # alone on the floor, a planted foot is pitched flat about its ankle
+            share = EASE(self.weight[f]) * (1.0 - EASE(self.weight[1 - f]))
+            toes = world_pos[leg.pivot] - world_pos[leg.ankle]
+            ground = self.ground[f]
+            up = toes[1] - (ground[list(leg.foot).index(leg.pivot)] - ground[list(leg.foot).index(leg.ankle)])
+            if share > 0.0 and leg.pivot != leg.ankle and up > 0.0:
+                flat = toes.copy()
+                flat[1] -= share * up
+                flat[[0, 2]] *= np.sqrt(toes @ toes - flat[1] ** 2) / np.linalg.norm(toes[[0, 2]])
+                pitch = _rotation_between(toes, flat)
+                ankle = world_pos[leg.ankle].copy()
+                for j in leg.foot:
+                    world_rot[j] = pitch @ world_rot[j]
+                    world_pos[j] = ankle + pitch @ (world_pos[j] - ankle)
+                rotations[leg.ankle] = world_rot[leg.knee].T @ world_rot[leg.ankle]
         extension = [np.linalg.norm(world_pos[leg.ankle] - world_pos[leg.hip]) for leg in self.limbs.legs]
         targets, turns = self._targets(world_pos, planted, extension)
         # a planted leg that cannot reach its target even on its toes (an exaggerated style can

@@ -181,10 +181,43 @@ def test_a_rising_heel_bends_the_foot_at_its_toes_which_keep_their_turn(model, s
 
     for leg in legs:
         # a planted foot may also turn about the vertical (back to its landing heading), which
-        # leaves the vertical where it was; a heel rise tilts it
-        tilt = np.degrees(np.arccos(np.clip(change(leg.ankle)[:, 1, 1], -1.0, 1.0)))
-        assert (tilt > 2.0).sum() > 10  # the heel rose in these frames
-        np.testing.assert_allclose(change(leg.pivot)[:, 1, 1], 1.0, atol=1e-9)  # the toes: no tilt at all
+        # leaves the vertical where it was, and be laid flat, which tilts the foot and its toes
+        # alike; a heel rise tilts the foot alone
+        def tilt(joint: int) -> np.ndarray:
+            return np.degrees(np.arccos(np.clip(change(joint)[:, 1, 1], -1.0, 1.0)))
+        bent = np.array([p.rotations[leg.pivot] for p in poses])  # the toes' turn from the foot
+        made = np.array([p.rotations[leg.pivot] for p in raw])
+        rose = tilt(leg.ankle) - tilt(leg.pivot) > 2.0
+        assert rose.sum() > 10  # the heel rose in these frames, the toes tilting less than the foot
+        assert np.abs(bent - made)[rose].max() > 1e-3  # the foot bent at its toes joint there
+
+
+@pytest.mark.parametrize("style, weight", [("feminine", 2.0), ("youthful", 2.0), ("exhausted", -1.0)])
+def test_a_foot_alone_on_the_floor_stands_flat_below_the_swinging_one(model, space, style, weight):
+    """While the other foot swings, a planted foot is flat (or on its toes), not rocking on its
+    heel with its toes up: the lowest foot joint is then the planted foot's, so the swinging foot
+    never sweeps along below it (which is what a skate measure sees, and an audience too)."""
+    weights = np.zeros(len(model.style_names))
+    weights[model.style_names.index(style)] = weight
+    poses, raw, lock = _walk(model, space, [weights] * 240)
+    contact = contact_space(model)
+    legs = FootLock(model.layout, contact.clearance, model.fps).limbs.legs
+    feet = [list(leg.foot) for leg in legs]
+    def toes_up(pose_list, f: int) -> np.ndarray:  # the pivot's lift above the ankle's, each above its clearance (cm)
+        leg, ground = legs[f], contact.clearance[f]
+        lift = np.array([p.world_positions[feet[f], 1] for p in pose_list]) - ground
+        return lift[:, feet[f].index(leg.pivot)] - lift[:, feet[f].index(leg.ankle)]
+    made_up, alone = 0, 0
+    for f in range(2):
+        single = (lock[:, f] == 1.0) & (lock[:, 1 - f] == 0.0)
+        alone += single.sum()
+        assert toes_up(poses, f)[single].max() < 1e-6  # flat, or the heel up
+        made_up += (toes_up(raw, f)[single] > 0.5).sum()
+        heights = np.array([p.world_positions[feet[0] + feet[1], 1] for p in poses]) - contact.clearance.ravel()
+        lowest = np.argmin(np.array([p.world_positions[feet[0] + feet[1], 1] for p in poses]), axis=1)
+        assert np.all((lowest[single] >= len(feet[0])) == (f == 1))  # the lowest foot joint is the planted foot's
+        assert heights.min() > -1e-6
+    assert alone > 60 and made_up > 5  # as made, these walks stood on their heels with toes up
 
 
 def test_the_shipped_model_holds_contact_statistics(model):

@@ -12,6 +12,7 @@ its own: `run` turns both into a stop flag, the others see KeyboardInterrupt ("i
 from __future__ import annotations
 
 import argparse
+import faulthandler
 import importlib
 import os
 import signal
@@ -88,7 +89,18 @@ def _set_handlers(handler_for: dict[int, object]) -> None:
             signal.signal(signum, handler)
 
 
+def _name_crashes() -> None:
+    """A crash inside a C library (libjack, hidapi) prints each thread's Python stack to stderr,
+    so a show that died says where, not only "Segmentation fault"."""
+    if not faulthandler.is_enabled():
+        try:
+            faulthandler.enable()
+        except (AttributeError, ValueError, OSError):  # a stderr with no file behind it (embedded)
+            pass
+
+
 def main(argv: list[str] | None = None) -> int:
+    _name_crashes()
     _set_handlers({signum: _end_at_once for signum in COMMAND_HANDLERS})
     try:
         argv = sys.argv[1:] if argv is None else argv

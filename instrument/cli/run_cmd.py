@@ -363,7 +363,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
                           state=state, stop=stop, on_frame=health.frame, characters=characters, spacing=spacing)
     finally:
         health.notifier.stopping()
-        for thing in devices + [hub, health, health.notifier]:
+        for thing in [hub] + devices + [health, health.notifier]:  # the recording first, as the outputs' files
             thing.close()
         console.flush()
     refused = dict(hub.refused)

@@ -240,7 +240,8 @@ def perform(
     finally:
         if own_stop:
             stop.restore()
-        for output in outputs:
+        # files (listed last) first: a device library that crashes closing its port takes nothing written with it
+        for output in reversed(outputs):
             try:
                 output.close()
             except Exception as error:

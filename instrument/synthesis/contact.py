@@ -14,6 +14,10 @@ frame at a time, on the pose the features give:
   limbs.Leg.pivot, horizontally)
   is locked, and the foot turned back about the vertical to the heading it landed with (a foot
   that yaws in the generated walk swung its heel and toe tip about the lock);
+- while the other foot swings, a planted foot stands flat: one whose toes are up (an
+  extrapolated style can stand on its heels through the whole stance) is pitched down about
+  its ankle, blended in as the other foot's lock blends out, so a heel strike keeps its
+  rolling landing and the swinging foot never passes below the planted one's toes;
 - each leg is solved by analytic two-bone IK (law of cosines for the knee, bent about its own
   hinge; then the hip swings the leg), the foot keeping its generated world orientation, towards: the lock
   horizontally, its lowest joint on the floor vertically; the lock blends in and out over

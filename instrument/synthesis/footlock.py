@@ -366,6 +366,10 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         weights[f] = min(1.0, weights[f] + step) if planted[f] else max(0.0, weights[f] - step)
         if weights[f] > 0.0:
             hold_heading(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], headings[f], ease(weights[f]))
+    for f in range(2):  # alone on the floor, a planted foot stands flat
+        share = ease(weights[f]) * (1.0 - ease(weights[1 - f]))
+        if share > 0.0:
+            lay_flat(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], ground[f, 0], ground[f, -1], share)
     extension = np.empty(2)  # each leg's generated hip-to-ankle distance, which the lock keeps where it can
     for f in range(2):
         gap = world_pos[joints[f, 2]] - world_pos[joints[f, 0]]
@@ -418,6 +422,42 @@ def hold_heading(rotations, world_rot, world_pos, knee, ankle, foot, heading, sh
             world_rot[j, 0, k], world_rot[j, 2, k] = c * x + s * z, c * z - s * x
         dx, dz = world_pos[j, 0] - cx, world_pos[j, 2] - cz
         world_pos[j, 0], world_pos[j, 2] = cx + c * dx + s * dz, cz + c * dz - s * dx
+    _product_t(world_rot[knee], world_rot[ankle], rotations[ankle])  # the knee is the ankle's parent (limbs.py)
+
+
+@njit(cache=True, error_model="numpy")
+def lay_flat(rotations, world_rot, world_pos, knee, ankle, foot, ankle_clearance, pivot_clearance,
+             share):  # pragma: no cover - compiled
+    """A planted foot whose toes are up (its pivot higher above its clearance than the ankle is
+    above its own) pitched down about its ankle, `share` of the way to flat. Real feet roll flat
+    soon after the heel lands and stay so while the other foot swings; an extrapolated style
+    can stand on its heels through the whole stance, its toes in the air and the swinging foot
+    passing below them (the lowest foot joint then sweeps along at the swing's speed). Its
+    joints' world transforms follow; the ankle's local rotation takes the turn."""
+    pivot = foot[-1]
+    if pivot == ankle:
+        return
+    v = world_pos[pivot] - world_pos[ankle]
+    toes_up = v[1] - (pivot_clearance - ankle_clearance)
+    if toes_up <= 0.0:
+        return
+    length2 = _dot(v, v)
+    along = np.hypot(v[0], v[2])
+    drop_y = v[1] - share * toes_up
+    if drop_y * drop_y >= length2 or along < 1e-12:
+        return
+    flat_along = np.sqrt(length2 - drop_y * drop_y)
+    flat = np.array([v[0] * flat_along / along, drop_y, v[2] * flat_along / along])
+    turn = _rotation_between(v, flat)
+    centre = world_pos[ankle].copy()
+    moved, moved_rot = np.empty(3), np.empty((3, 3))
+    for j in foot:
+        _product(turn, world_rot[j], moved_rot)
+        world_rot[j] = moved_rot
+        gap = world_pos[j] - centre
+        for k in range(3):
+            moved[k] = centre[k] + _dot(turn[k], gap)
+        world_pos[j] = moved
     _product_t(world_rot[knee], world_rot[ankle], rotations[ankle])  # the knee is the ankle's parent (limbs.py)
 
 
