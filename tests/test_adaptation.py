@@ -5,7 +5,8 @@ the duration floor, and settings chosen by held-out likelihood."""
 import numpy as np
 import pytest
 
-from instrument.models.adaptation import DEFAULT, ONE_PASS_MAP, Settings, adapt, adapt_styles, duration_floor, heldout_score
+from instrument.models.adaptation import (DEFAULT, ONE_PASS_MAP, Settings, adapt, adapt_styles, duration_floor,
+                                          floored_keeping_length, heldout_score)
 from instrument.models.hsmm import Floors
 from instrument.models.training import train_average
 from test_hsmm import STATES, TRUE_DURATION_MEANS, sample
@@ -73,6 +74,22 @@ def test_durations_never_fall_below_the_floor(average):
     floored = adapt(average, data, FLOORS, Settings(depth=None, tau=1.0))
     assert free.duration_means.min() < floor.min()
     assert (floored.duration_means >= floor - 1e-12).all()
+    # the floor takes its frames from the other states: the step lasts as the data's steps do
+    lengths = np.array([np.mean([len(s) for s in label]) for label in data])
+    np.testing.assert_allclose(floored.duration_means.sum(axis=1), lengths, rtol=0.02)
+    assert np.abs(np.maximum(free.duration_means, floor).sum(axis=1) - lengths).max() > 0.2  # raising alone: longer
+
+
+def test_a_floor_keeps_the_steps_length_where_it_can():
+    means = np.array([[1.0, 6.0, 3.0, 2.0], [4.0, 4.0, 4.0, 4.0], [0.5, 0.5, 0.5, 0.5]])
+    floor = np.array([[2.0, 1.0, 2.9, 1.0], [1.0, 1.0, 1.0, 1.0], [1.0, 1.0, 1.0, 1.0]])
+    out = floored_keeping_length(means, floor)
+    assert (out >= floor - 1e-12).all()
+    np.testing.assert_allclose(out[:2].sum(axis=1), means[:2].sum(axis=1))  # the length kept
+    np.testing.assert_allclose(out[1], means[1])  # nothing under its floor: unchanged
+    np.testing.assert_allclose(out[0, 2], 2.9)  # pushed under its floor by the others' share: held there
+    np.testing.assert_allclose(out[0, [1, 3]] / out[0, [1, 3]].sum(), [0.75, 0.25])  # the rest in proportion
+    np.testing.assert_allclose(out[2], floor[2])  # no room at all: every state at its floor
 
 
 def test_styles_choose_their_settings_and_tiny_styles_warn(average):
