@@ -15,7 +15,7 @@ from instrument.runtime.pose import Pose
 from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, POSSIBLE,
                                           PLANTED, SWING_BENT, SWING_CM)
 from instrument.synthesis.follow import STRENGTH
-from instrument.synthesis.footlock import MAX_HEEL_RISE, STRETCH
+from instrument.synthesis.footlock import HEEL_RISE_SPEED, MAX_HEEL_RISE, STRETCH
 
 
 def EASE(x: float) -> float:
@@ -110,25 +110,38 @@ def _leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
 
 
 def _heel_rise(world_pos: np.ndarray, leg, ground: np.ndarray, on_floor: float, target: np.ndarray,
-               allowed: float) -> tuple[np.ndarray, np.ndarray]:
+               allowed: float, low: float, high: float) -> tuple[np.ndarray, np.ndarray, float]:
     """The foot's turn about its front-most joint (leg.pivot) that raises the heel until the leg
     reaches no further than `allowed` (less of the way where the toes are higher above their
     clearance than the heel above its own, none from `on_floor` higher), and the ankle's target
     after it, found numerically (a scan of the rise, then bisection) to check the compiled
     closed form: the smallest rise that reaches, else the one in [0, MAX_HEEL_RISE] that comes
-    nearest."""
-    hip = world_pos[leg.hip]
+    nearest; then held in [low, high] and to at most MAX_HEEL_RISE from standing flat. Also the
+    angle."""
     toes = world_pos[leg.pivot] - world_pos[leg.ankle]
+    axis = np.cross([0.0, 1.0, 0.0], toes)  # lifting the heel about the toes
+    if np.linalg.norm(axis) < 1e-12:
+        return np.eye(3), target, 0.0
+    drop = ground[leg.foot.index(leg.pivot)] - ground[0]  # the toes' height below the ankle's, standing flat
+    length = np.linalg.norm(toes)
+    risen = np.arcsin(np.clip(drop / length, -1, 1)) - np.arcsin(np.clip(toes[1] / length, -1, 1))
+    high = min(high, max(MAX_HEEL_RISE - risen, 0.0))
+    angle = float(np.clip(_needed_rise(world_pos, leg, toes, axis, ground, on_floor, target, allowed), min(low, high), high))
+    if angle <= 0.0:
+        return np.eye(3), target, 0.0
+    turn = _axis_rotation(axis, angle)
+    return turn, target + toes + turn @ -toes, angle
+
+
+def _needed_rise(world_pos, leg, toes, axis, ground, on_floor, target, allowed) -> float:
+    hip = world_pos[leg.hip]
     toe, back = target + toes, -toes
     toes_up = (world_pos[leg.pivot, 1] - ground[leg.foot.index(leg.pivot)]) - (world_pos[leg.ankle, 1] - ground[0])
     share = min(max(1.0 - toes_up / on_floor, 0.0), 1.0)
     reach = np.linalg.norm(target - hip)
     if share <= 0.0 or reach <= allowed:
-        return np.eye(3), target
+        return 0.0
     allowed = reach - share * (reach - allowed)
-    axis = np.cross([0.0, 1.0, 0.0], toes)  # lifting the heel about the toes
-    if np.linalg.norm(axis) < 1e-12:
-        return np.eye(3), target
 
     def excess(angle: float) -> float:
         return float(np.linalg.norm(toe + _axis_rotation(axis, angle) @ back - hip) - allowed)
@@ -148,7 +161,7 @@ def _heel_rise(world_pos: np.ndarray, leg, ground: np.ndarray, on_floor: float, 
     else:
         i = int(np.argmin(values))
         if i == 0:
-            return np.eye(3), target
+            return 0.0
         unit = axis / np.linalg.norm(axis)
 
         def rising(angle: float) -> bool:  # the reach's derivative, d|x|^2 = 2 x . (unit x R back)
@@ -156,8 +169,7 @@ def _heel_rise(world_pos: np.ndarray, leg, ground: np.ndarray, on_floor: float, 
             return float((toe + turned - hip) @ np.cross(unit, turned)) > 0.0
 
         angle = MAX_HEEL_RISE if i == len(angles) - 1 else bisect(angles[i - 1], angles[i + 1], rising)
-    turn = _axis_rotation(axis, angle)
-    return turn, toe + turn @ back
+    return angle
 
 
 class FootLock:
@@ -172,6 +184,8 @@ class FootLock:
         self.lock = np.full((2, 3), np.nan)  # world point each foot is locked to
         self.heading = np.zeros(2)  # each locked foot's heading at landing (ankle to pivot, about the vertical)
         self.drop = 0.0  # how far the body is lowered for a planted leg to reach its target
+        self.rise = np.zeros(2)  # each foot's heel rise in the frame before
+        self.rise_step = HEEL_RISE_SPEED / fps  # how far a rise may change in a frame
         self.parent_rot = layout.template_pose[2]  # the root's parent's world rotation
         self.pivot = [leg.pivot for leg in self.limbs.legs]  # the joint whose landing point is locked (the toes)
         template = forward_kinematics(layout.skeleton, layout.template_pose[0][None], layout.template_pose[1][None])[1][0]
@@ -231,6 +245,7 @@ class FootLock:
             translations[self.layout.root] -= np.array([0.0, self.drop, 0.0]) @ self.parent_rot
             world_pos = world_pos - np.array([0.0, self.drop, 0.0])
             targets, turns = self._targets(world_pos, planted, extension)
+        self.rise = self.next_rise  # the rises of the targets taken
         for f, leg in enumerate(self.limbs.legs):
             if leg.pivot != leg.ankle and not np.array_equal(turns[f], np.eye(3)):  # the toes keep their world rotation
                 rotations[leg.pivot] = (turns[f] @ world_rot[self.parents[leg.pivot]]).T @ world_rot[leg.pivot]
@@ -276,12 +291,15 @@ class FootLock:
 
     def _targets(self, world_pos: np.ndarray, planted: np.ndarray, extension: list[float]) -> tuple[list, list]:
         """Each ankle's target, and each foot's heel-rise turn where its lock is blended in."""
-        targets, turns = [], []
+        targets, turns, self.next_rise = [], [], np.zeros(2)
         for f, leg in enumerate(self.limbs.legs):
             target = self._target(f, leg, world_pos, planted[f])
             turn = np.eye(3)
-            if self.weight[f] > 0:
-                turn, target = _heel_rise(world_pos, leg, self.ground[f], CONTACT_CM / self.cm, target, extension[f])
+            if self.weight[f] > 0 or self.rise[f] > 0:  # after its lock, a heel comes down at the same pace
+                low = max(self.rise[f] - self.rise_step, 0.0)
+                high = min(self.rise[f] + self.rise_step, MAX_HEEL_RISE) if self.weight[f] > 0 else low
+                turn, target, self.next_rise[f] = _heel_rise(world_pos, leg, self.ground[f], CONTACT_CM / self.cm, target,
+                                                             extension[f], low, high)
             targets.append(target)
             turns.append(turn)
         return targets, turns

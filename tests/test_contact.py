@@ -10,7 +10,7 @@ from instrument.motion.features import extract
 from instrument.motion.kinematics import world_positions
 from instrument.runtime.pose import PoseStream
 from instrument.synthesis.contact import NEARLY_STRAIGHT, contact_space
-from instrument.synthesis.footlock import MAX_HEEL_RISE, FootLock, heel_rise, leg_swings
+from instrument.synthesis.footlock import HEEL_RISE_SPEED, MAX_HEEL_RISE, FootLock, heel_rise, leg_swings
 from instrument.synthesis.interpolation import style_space
 from instrument.synthesis.offline import default_controls, generate_with_states, synthesize_motion
 from instrument.synthesis.stream import Controls, Crowd
@@ -56,32 +56,47 @@ def test_a_planted_leg_asked_to_reach_too_far_rises_on_its_toes_and_keeps_its_le
         target = pos[2] + np.array([0.0, -down, -back])
         toe_before = target + (pos[3] - pos[2])
         turned_target = target.copy()
-        turn = heel_rise(pos, legs, toes, clearance, on_floor, turned_target, length)
+        turn, rise = heel_rise(pos, legs, toes, clearance, on_floor, turned_target, length, 0.0, MAX_HEEL_RISE)
         np.testing.assert_allclose(turn @ turn.T, np.eye(3), atol=1e-12)
         # the toes stay where the lock wants them; the ankle comes up about them to the leg's length
         np.testing.assert_allclose(turned_target + turn @ (pos[3] - pos[2]), toe_before, atol=1e-9)
         assert np.linalg.norm(turned_target - pos[0]) == pytest.approx(length, abs=1e-9)
         assert turned_target[1] > target[1]
         angle = np.degrees(np.arccos((np.trace(turn) - 1.0) / 2.0))
-        assert 0.0 < angle <= np.degrees(MAX_HEEL_RISE) + 1e-9
+        assert 0.0 < angle <= np.degrees(MAX_HEEL_RISE) + 1e-9 and angle == pytest.approx(np.degrees(rise))
+        # held to at most `high` (the lock's pace from the frame before): the toes still stay
+        slower_target = target.copy()
+        slower, held = heel_rise(pos, legs, toes, clearance, on_floor, slower_target, length, 0.0, rise / 2)
+        assert held == pytest.approx(rise / 2)
+        np.testing.assert_allclose(slower_target + slower @ (pos[3] - pos[2]), toe_before, atol=1e-9)
+        assert np.linalg.norm(slower_target - pos[0]) > length  # short of the reach: the rest is the body's
     # within reach: nothing turns
     pos = _standing_leg(14.0)
     target = pos[2] + np.array([0.0, 0.5, 2.0])
     kept = target.copy()
     length = np.linalg.norm(pos[2] - pos[0])
-    np.testing.assert_array_equal(heel_rise(pos, legs, toes, clearance, on_floor, kept, length), np.eye(3))
+    turn, rise = heel_rise(pos, legs, toes, clearance, on_floor, kept, length, 0.0, MAX_HEEL_RISE)
+    np.testing.assert_array_equal(turn, np.eye(3))
+    assert rise == 0.0
     np.testing.assert_array_equal(kept, target)
+    # ... unless the rise may only come down so fast (`low`): it comes down to that, the toes kept
+    kept = target.copy()
+    turn, rise = heel_rise(pos, legs, toes, clearance, on_floor, kept, length, 0.2, 0.2)
+    assert rise == 0.2 and np.linalg.norm(kept - pos[0]) < length
+    np.testing.assert_allclose(kept + turn @ (pos[3] - pos[2]), target + (pos[3] - pos[2]), atol=1e-9)
     # out of reach even on tiptoe: the rise that comes nearest, no further than the limit
     target = pos[2] + np.array([0.0, -30.0, -60.0])
     turned_target = target.copy()
-    turn = heel_rise(pos, legs, toes, clearance, on_floor, turned_target, np.linalg.norm(pos[2] - pos[0]))
+    turn, _ = heel_rise(pos, legs, toes, clearance, on_floor, turned_target, np.linalg.norm(pos[2] - pos[0]), 0.0,
+                        MAX_HEEL_RISE)
     assert np.degrees(np.arccos((np.trace(turn) - 1.0) / 2.0)) == pytest.approx(np.degrees(MAX_HEEL_RISE))
     assert np.linalg.norm(turned_target - pos[0]) < np.linalg.norm(target - pos[0])
     # a heel just landing, its toes up in the air (on_floor more above their clearance than the heel): no rise
     landing = pos.copy()
     landing[3, 1] += on_floor
     target = landing[2] + np.array([0.0, 0.0, -6.0])
-    np.testing.assert_array_equal(heel_rise(landing, legs, toes, clearance, on_floor, target.copy(), length), np.eye(3))
+    np.testing.assert_array_equal(heel_rise(landing, legs, toes, clearance, on_floor, target.copy(), length, 0.0,
+                                            MAX_HEEL_RISE)[0], np.eye(3))
 
 
 def test_a_nearly_straight_knee_bent_backwards_is_shortened_by_bending_forward():
@@ -218,6 +233,41 @@ def test_a_foot_alone_on_the_floor_stands_flat_below_the_swinging_one(model, spa
         assert np.all((lowest[single] >= len(feet[0])) == (f == 1))  # the lowest foot joint is the planted foot's
         assert heights.min() > -1e-6
     assert alone > 60 and made_up > 5  # as made, these walks stood on their heels with toes up
+
+
+@pytest.mark.parametrize("style, weight", [("normal", 2.0), ("elderly", -1.0), ("active", 2.0)])
+def test_a_rising_heel_keeps_pace_and_never_passes_the_vertical(model, space, style, weight):
+    """Near a leg's full reach the rise that just reaches swings from frame to frame, and on a
+    foot already rising as made it turned the foot past the vertical, heel in front of toes, and
+    back: 30-35 deg flickers in a frame on these walks. The lock's turn of the foot now changes
+    by at most HEEL_RISE_SPEED a second more than the foot made, and the foot rises at most
+    MAX_HEEL_RISE from standing flat (or as made, if more)."""
+    weights = np.zeros(len(model.style_names))
+    weights[model.style_names.index(style)] = weight
+    poses, raw, _ = _walk(model, space, [weights] * 300)
+    contact = contact_space(model)
+    legs = FootLock(model.layout, contact.clearance, model.fps).limbs.legs
+    for f, leg in enumerate(legs):
+        foot = list(leg.foot)
+        drop = contact.clearance[f][foot.index(leg.pivot)] - contact.clearance[f][0]  # toes below the ankle, standing flat
+
+        def toes(pose_list) -> np.ndarray:
+            return np.array([p.world_positions[leg.pivot] - p.world_positions[leg.ankle] for p in pose_list])
+
+        made_toes = toes(raw)
+        forward = made_toes[:, [0, 2]] / np.linalg.norm(made_toes[:, [0, 2]], axis=1, keepdims=True)
+
+        def rise(vectors: np.ndarray) -> np.ndarray:  # the heel's rise from flat (radians), past the vertical too
+            # how far forward the toes reach, negative with the heel in front (the made foot's heading says which way)
+            along = np.linalg.norm(vectors[:, [0, 2]], axis=1) * np.sign(np.sum(vectors[:, [0, 2]] * forward, axis=1))
+            return np.arcsin(drop / np.linalg.norm(vectors, axis=1)) - np.arctan2(vectors[:, 1], along)
+
+        locked, made = rise(toes(poses)), rise(made_toes)
+        extra = np.abs(np.diff(locked) - np.diff(made))
+        assert np.degrees(extra.max()) < 1.5 * np.degrees(HEEL_RISE_SPEED) / model.fps  # was 30-35 deg a frame
+        # never past the vertical (was, by up to 40 deg); within 2 deg of it, a held heading may turn
+        # the toes' sliver of horizontal reach against the made foot's, which reads as just past
+        assert np.degrees((locked - np.maximum(MAX_HEEL_RISE, made)).max()) < 2.0
 
 
 def test_the_shipped_model_holds_contact_statistics(model):

@@ -23,9 +23,10 @@ frame at a time, on the pose the features give:
   horizontally, its lowest joint on the floor vertically; the lock blends in and out over
   BLEND_FRAMES frames, so nothing pops;
 - where that would stretch a planted leg past its generated length (hip to ankle), the heel
-  rises instead: the foot pitches up about its front-most joint, up to MAX_HEEL_RISE, that
-  joint keeping its generated world rotation, as a real foot rolls onto its toes at the end of
-  stance. Stretching the leg
+  rises instead: the foot pitches up about its front-most joint, up to MAX_HEEL_RISE from
+  standing flat, changing no faster than HEEL_RISE_SPEED (radians a second) from frame to frame,
+  that joint keeping its generated world rotation, as a real foot rolls onto its toes at the
+  end of stance. Stretching the leg
   straightened the knee (25 to 8 degrees for a 1.7 cm reach) and swung the thigh back, which
   left the hip's range up to 19% wider than the takes';
 - no foot joint goes below its clearance, planted or not, and a swinging foot keeps up to

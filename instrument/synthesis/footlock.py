@@ -35,7 +35,10 @@ from ..motion.limbs import centimetres_per_unit, find_limbs
 from .contact import BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, PLANTED, POSSIBLE, SWING_BENT, SWING_CM
 from .follow import ease
 
-MAX_HEEL_RISE = np.radians(50.0)  # the most a planted foot pitches up about its toes
+MAX_HEEL_RISE = np.radians(50.0)  # the most a planted foot pitches up about its toes, from standing flat
+# how fast a heel rise may change (real ankles turn at up to 300-400 deg/s at push-off): near a
+# leg's full reach the rise that just reaches can swing by 35 deg from one frame to the next
+HEEL_RISE_SPEED = np.radians(400.0)  # radians per second
 STRETCH = 0.98  # of a leg's full length: how far the lock stretches a leg before the body comes down
 
 
@@ -49,10 +52,12 @@ class LockState:
     drop: np.ndarray  # (N,) how far the body is lowered for a planted leg to reach its target
     previous: np.ndarray  # (N, 2, 3) each pivot's position in the frame before, the body's follow offset
     # included (NaN at first): what the lock's 'nearly still' test measures; not RootFollow.previous
+    rises: np.ndarray  # (N, 2) each foot's heel rise in the frame before (radians)
 
     def release(self, n: int) -> None:
         """Character n's feet unlocked, as before its first frame (it was put somewhere else)."""
         self.weights[n], self.points[n], self.headings[n], self.drop[n], self.previous[n] = 0.0, np.nan, 0.0, 0.0, np.nan
+        self.rises[n] = 0.0
 
 
 class FootLock:
@@ -79,7 +84,7 @@ class FootLock:
     def start(self, count: int) -> LockState:
         """The state of `count` characters before their first frame: nothing locked yet."""
         return LockState(np.zeros((count, 2)), np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros(count),
-                         np.full((count, 2, 3), np.nan))
+                         np.full((count, 2, 3), np.nan), np.zeros((count, 2)))
 
     def apply(self, state: LockState, rotations: np.ndarray, translations: np.ndarray, shares: np.ndarray,
               world_rot: np.ndarray, world_pos: np.ndarray) -> None:
@@ -88,8 +93,9 @@ class FootLock:
         `world_pos` hold the unadjusted pose's on entry. `shares` (N, 2): how surely each foot is
         planted in each character's state."""
         lock_crowd(rotations, translations, np.ascontiguousarray(shares, dtype=np.float64), world_rot, world_pos,
-                   state.weights, state.points, state.headings, state.drop, state.previous, self.parents, self.joints, self.feet,
-                   self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm, self.swing_lift)
+                   state.weights, state.points, state.headings, state.drop, state.previous, state.rises, self.parents,
+                   self.joints, self.feet, self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm,
+                   self.swing_lift)
 
 
 # ---- kernels (compiled; the names and jobs of the plain-Python lock's methods) --------------
@@ -157,32 +163,53 @@ def lock_target(world_pos, leg, foot, ground_f, weight, point, planted, swing_li
 
 
 @njit(cache=True, error_model="numpy")
-def heel_rise(world_pos, leg, pivot, clearance, on_floor, target, allowed):  # pragma: no cover - compiled
-    """The foot's turn (3x3, world) about its pivot (its front-most joint, the toes) when the lock asks
+def heel_rise(world_pos, leg, pivot, clearance, on_floor, target, allowed, low, high):  # pragma: no cover - compiled
+    """The foot's turn (3x3, world) and its angle about its pivot (its front-most joint, the toes) when the lock asks
     the leg (hip, knee, ankle) to reach further than `allowed` (hip to ankle): the heel rises, as
     a real foot rolls onto its toes, so the knee keeps its bend instead of straightening and the
-    hip is not pulled into extension. Moves `target` (the ankle's) with it; at most
-    MAX_HEEL_RISE, the rise that comes nearest when none reaches; identity when the leg reaches
-    already. `clearance` (2,): the ankle's and the pivot's heights standing on the floor. A foot
+    hip is not pulled into extension. Moves `target` (the ankle's) with it; the foot at most
+    MAX_HEEL_RISE from flat, the rise that comes nearest when none reaches; none when the leg
+    reaches already. `clearance` (2,): the ankle's and the pivot's heights standing on the floor. A foot
     whose toes are `on_floor` or more higher above their clearance than the heel is above its
     own (a heel just landing) takes none of the rise, and in between a share: rolling on toes
-    in the air would lift the whole foot off the floor."""
-    hip = world_pos[leg[0]]
+    in the air would lift the whole foot off the floor. The angle is then held in [`low`, `high`]
+    (the lock keeps each rise within HEEL_RISE_SPEED of the frame before's)."""
     toes = world_pos[pivot] - world_pos[leg[2]]
     toe = target + toes  # where the pivot goes with the ankle
+    k = np.array([toes[2], 0.0, -toes[0]])  # up x (toe direction): the foot's pitch axis, lifting the heel
+    norm = np.sqrt(_dot(k, k))
+    if norm < 1e-12:
+        return np.eye(3), 0.0
+    k /= norm
+    # from flat, not from the pose made: a foot made already rising at push-off was turned past
+    # the vertical, its heel in front of its toes, and back the next frame (a 35 deg flicker)
+    length = np.sqrt(_dot(toes, toes))
+    flat = np.arcsin(min(max((clearance[1] - clearance[0]) / length, -1.0), 1.0))  # the toes' elevation standing flat
+    risen = flat - np.arcsin(min(max(toes[1] / length, -1.0), 1.0))  # how far the heel is up in the pose made
+    high = min(high, max(MAX_HEEL_RISE - risen, 0.0))
+    theta = min(max(_needed_rise(world_pos[leg[0]], toes, toe, k, clearance, on_floor, target, allowed), min(low, high)),
+                high)
+    if theta <= 0.0:
+        return np.eye(3), 0.0
+    turn = _axis_rotation(k, np.sin(theta), 1.0 - np.cos(theta))
+    v = target - toe
+    for i in range(3):
+        target[i] = toe[i] + _dot(turn[i], v)
+    return turn, theta
+
+
+@njit(cache=True, error_model="numpy")
+def _needed_rise(hip, toes, toe, k, clearance, on_floor, target, allowed):  # pragma: no cover - compiled
+    """heel_rise's angle before its bounds: the smallest rise that brings the reach down to
+    `allowed`, else the one in [0, MAX_HEEL_RISE] that comes nearest; 0 where none is asked."""
     toes_up = toes[1] - (clearance[1] - clearance[0])  # toes' lift above the heel's, each above its clearance
     share = min(max(1.0 - toes_up / on_floor, 0.0), 1.0)
     reach = np.sqrt(_dot(target - hip, target - hip))
     if share <= 0.0 or reach <= allowed:
-        return np.eye(3)
+        return 0.0
     allowed = reach - share * (reach - allowed)
     v = target - toe
     u = toe - hip
-    k = np.array([toes[2], 0.0, -toes[0]])  # up x (toe direction): the foot's pitch axis, lifting the heel
-    norm = np.sqrt(_dot(k, k))
-    if norm < 1e-12:
-        return np.eye(3)
-    k /= norm
     # the squared reach after a turn t is |u|^2 + |v|^2 + 2 (a cos t + b sin t + c), with
     # a cos t + b sin t = r cos(t - phi)
     kv, uk = _dot(k, v), _dot(u, k)
@@ -191,7 +218,7 @@ def heel_rise(world_pos, leg, pivot, clearance, on_floor, target, allowed):  # p
     c = uk * kv
     r = np.sqrt(a * a + b * b)
     if r < 1e-12:
-        return np.eye(3)
+        return 0.0
     phi = np.arctan2(b, a)
     q = ((allowed * allowed - _dot(u, u) - _dot(v, v)) / 2.0 - c) / r
     theta = -1.0
@@ -207,12 +234,7 @@ def heel_rise(world_pos, leg, pivot, clearance, on_floor, target, allowed):  # p
         for candidate in (MAX_HEEL_RISE, nearest):
             if 0.0 < candidate <= MAX_HEEL_RISE and np.cos(candidate - phi) < best:
                 theta, best = candidate, np.cos(candidate - phi)
-        if theta == 0.0:
-            return np.eye(3)
-    turn = _axis_rotation(k, np.sin(theta), 1.0 - np.cos(theta))
-    for i in range(3):
-        target[i] = toe[i] + _dot(turn[i], v)
-    return turn
+    return theta
 
 
 @njit(cache=True, error_model="numpy")
@@ -353,8 +375,8 @@ def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, t
 
 
 @njit(cache=True, error_model="numpy")
-def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, parents,
-               joints, feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
+def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
+               parents, joints, feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
     """One character's frame (arrays of that character; `drop` a 1-element view). Returns nothing:
     rotations, translations, the world transforms and the state are updated in place."""
     planted = planted_feet(shares, world_pos, previous, feet, ground, fps, cm)
@@ -375,12 +397,16 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         gap = world_pos[joints[f, 2]] - world_pos[joints[f, 0]]
         extension[f] = np.sqrt(_dot(gap, gap))
     on_floor = CONTACT_CM / cm
-    targets, turns = _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension)
+    rise_step = HEEL_RISE_SPEED / fps
+    targets, turns, angles = _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor,
+                                      extension, rises, rise_step)
     drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) / BLEND_FRAMES
     if drop[0] > 1e-9:
         translations[root] -= drop[0] * parent_rot[1]  # [0, drop, 0] @ parent_rot
         world_pos[:, 1] -= drop[0]
-        targets, turns = _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension)
+        targets, turns, angles = _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor,
+                                          extension, rises, rise_step)
+    rises[:] = angles
     turned = np.empty((3, 3))
     for f in range(2):
         ankle, pivot = joints[f, 2], feet[f, -1]
@@ -462,27 +488,33 @@ def lay_flat(rotations, world_rot, world_pos, knee, ankle, foot, ankle_clearance
 
 
 @njit(cache=True, error_model="numpy")
-def _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor,
-             extension):  # pragma: no cover - compiled
-    """Each ankle's target and each foot's heel-rise turn (2, 3, 3), a foot whose lock is blended
-    in rising on its toes where its leg would otherwise stretch past its generated extension."""
+def _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension, rises,
+             rise_step):  # pragma: no cover - compiled
+    """Each ankle's target, each foot's heel-rise turn (2, 3, 3) and angle (2,): a foot whose lock
+    is blended in rises on its toes where its leg would otherwise stretch past its generated
+    extension, its rise within `rise_step` of the frame before's (`rises`), coming down at that
+    pace after its lock has gone."""
     targets = np.empty((2, 3))
     turns = np.empty((2, 3, 3))
+    angles = np.zeros(2)
     for f in range(2):
         targets[f] = lock_target(world_pos, joints[f], feet[f], ground[f], weights[f], points[f], planted[f], swing_lift)
         turns[f] = np.eye(3)
-        if weights[f] > 0.0:
+        if weights[f] > 0.0 or rises[f] > 0.0:
             clearance = np.array([ground[f, 0], ground[f, -1]])
-            turns[f] = heel_rise(world_pos, joints[f], feet[f, -1], clearance, on_floor, targets[f], extension[f])
-    return targets, turns
+            low = max(rises[f] - rise_step, 0.0)
+            high = min(rises[f] + rise_step, MAX_HEEL_RISE) if weights[f] > 0.0 else low
+            turns[f], angles[f] = heel_rise(world_pos, joints[f], feet[f, -1], clearance, on_floor, targets[f],
+                                            extension[f], low, high)
+    return targets, turns, angles
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, parents,
-               joints, feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
+def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
+               parents, joints, feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
     """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
     for n in range(rotations.shape[0]):
         lock_frame(rotations[n], translations[n], shares[n], world_rot[n], world_pos[n], weights[n], points[n], headings[n],
-                   drop[n : n + 1], previous[n], parents, joints, feet, ground, reach, parent_rot, root, fps, cm,
+                   drop[n : n + 1], previous[n], rises[n], parents, joints, feet, ground, reach, parent_rot, root, fps, cm,
                    swing_lift)
     _compose(parents, rotations, translations, world_rot, world_pos)
