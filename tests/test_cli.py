@@ -118,3 +118,20 @@ def test_bench_startup_times_every_command_against_bare_python():
     figures = json.loads(result.stdout)
     assert set(figures) == {"instrument --version", "instrument --help"} | {f"instrument {c} --help" for c in COMMANDS}
     assert all(f["seconds"] > 0 and f["bare_seconds"] > 0 and f["ratio"] == f["seconds"] / f["bare_seconds"] for f in figures.values())
+
+
+def test_a_crash_in_a_c_library_names_the_python_line_it_came_from(tmp_path):
+    """A segfault inside libjack or hidapi during a show should say where, not only "Segmentation
+    fault": every command turns on faulthandler (stderr), as the run command's crash in CI showed.
+    Here a command whose code crashes in C (ctypes reading address 0) stands in for the library."""
+    crash = ("import ctypes, sys\n"
+             "from instrument.cli import main as entry\n"
+             "def crashing_command(args):\n"
+             "    return ctypes.string_at(0)\n"
+             "class Parsed: command = 'run'; run = staticmethod(crashing_command)\n"
+             "entry.build_parser = lambda load: type('P', (), {'parse_args': lambda self, argv: Parsed()})()\n"
+             "sys.exit(entry.main(['run']))\n")
+    result = subprocess.run([sys.executable, "-c", crash], capture_output=True, text=True, timeout=120)
+    assert result.returncode == -11  # SIGSEGV, as before: only the report is new
+    assert "Fatal Python error: Segmentation fault" in result.stderr
+    assert "crashing_command" in result.stderr  # the Python function the crash happened in

@@ -95,7 +95,7 @@ def _name_crashes() -> None:
     if not faulthandler.is_enabled():
         try:
             faulthandler.enable()
-        except (AttributeError, ValueError, OSError):  # a stderr with no file behind it (embedded)
+        except (RuntimeError, ValueError, OSError):  # no stderr (closed: RuntimeError), or no file behind it
             pass
 
 
