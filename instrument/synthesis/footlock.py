@@ -463,28 +463,36 @@ def lay_flat(rotations, world_rot, world_pos, knee, ankle, foot, ankle_clearance
     pivot = foot[-1]
     if pivot == ankle:
         return
-    v = world_pos[pivot] - world_pos[ankle]
-    toes_up = v[1] - (pivot_clearance - ankle_clearance)
+    vx, vy, vz = world_pos[pivot, 0] - world_pos[ankle, 0], world_pos[pivot, 1] - world_pos[ankle, 1], \
+        world_pos[pivot, 2] - world_pos[ankle, 2]
+    toes_up = vy - (pivot_clearance - ankle_clearance)
     if toes_up <= 0.0:
         return
-    length2 = _dot(v, v)
-    along = np.hypot(v[0], v[2])
-    drop_y = v[1] - share * toes_up
+    length2 = vx * vx + vy * vy + vz * vz
+    along = np.hypot(vx, vz)
+    drop_y = vy - share * toes_up
     if drop_y * drop_y >= length2 or along < 1e-12:
         return
-    flat_along = np.sqrt(length2 - drop_y * drop_y)
-    flat = np.array([v[0] * flat_along / along, drop_y, v[2] * flat_along / along])
-    turn = _rotation_between(v, flat)
-    centre = world_pos[ankle].copy()
-    moved, moved_rot = np.empty(3), np.empty((3, 3))
+    pitch = np.arctan2(vy, along) - np.arctan2(drop_y, np.sqrt(length2 - drop_y * drop_y))
+    # about the horizontal axis across the foot (up x toes): a positive turn pitches the toes down;
+    # in place, nothing allocated (this runs for a planted foot every frame)
+    kx, kz, c, s = vz / along, -vx / along, np.cos(pitch), np.sin(pitch)
+    cx, cy, cz = world_pos[ankle, 0], world_pos[ankle, 1], world_pos[ankle, 2]
     for j in foot:
-        _product(turn, world_rot[j], moved_rot)
-        world_rot[j] = moved_rot
-        gap = world_pos[j] - centre
-        for k in range(3):
-            moved[k] = centre[k] + _dot(turn[k], gap)
-        world_pos[j] = moved
+        for col in range(3):
+            world_rot[j, 0, col], world_rot[j, 1, col], world_rot[j, 2, col] = _pitched(
+                kx, kz, c, s, world_rot[j, 0, col], world_rot[j, 1, col], world_rot[j, 2, col])
+        x, y, z = _pitched(kx, kz, c, s, world_pos[j, 0] - cx, world_pos[j, 1] - cy, world_pos[j, 2] - cz)
+        world_pos[j, 0], world_pos[j, 1], world_pos[j, 2] = cx + x, cy + y, cz + z
     _product_t(world_rot[knee], world_rot[ankle], rotations[ankle])  # the knee is the ankle's parent (limbs.py)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _pitched(kx, kz, c, s, x, y, z):  # pragma: no cover - compiled
+    """(x, y, z) turned about the horizontal unit axis (kx, 0, kz) by the angle of cosine c and
+    sine s (Rodrigues: v c + (k x v) s + k (k . v)(1 - c))."""
+    along = (kx * x + kz * z) * (1.0 - c)
+    return x * c - kz * y * s + kx * along, y * c + (kz * x - kx * z) * s, z * c + kx * y * s + kz * along
 
 
 @njit(cache=True, error_model="numpy")
