@@ -290,7 +290,8 @@ class FootLock:
         return target
 
     def _targets(self, world_pos: np.ndarray, planted: np.ndarray, extension: list[float]) -> tuple[list, list]:
-        """Each ankle's target, and each foot's heel-rise turn where its lock is blended in."""
+        """Each ankle's target, and each foot's heel-rise turn where its lock is blended in or its
+        heel still up from it."""
         targets, turns, self.next_rise = [], [], np.zeros(2)
         for f, leg in enumerate(self.limbs.legs):
             target = self._target(f, leg, world_pos, planted[f])

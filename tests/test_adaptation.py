@@ -81,8 +81,8 @@ def test_durations_never_fall_below_the_floor(average):
 
 
 def test_a_floor_keeps_the_steps_length_where_it_can():
-    means = np.array([[1.0, 6.0, 3.0, 2.0], [4.0, 4.0, 4.0, 4.0], [0.5, 0.5, 0.5, 0.5]])
-    floor = np.array([[2.0, 1.0, 2.9, 1.0], [1.0, 1.0, 1.0, 1.0], [1.0, 1.0, 1.0, 1.0]])
+    means = np.array([[1.0, 6.0, 3.0, 2.0], [4.0, 4.0, 4.0, 4.0], [0.5, 0.5, 0.5, 0.5], [0.5, 2.0, 2.0, 0.1]])
+    floor = np.array([[2.0, 1.0, 2.9, 1.0], [1.0, 1.0, 1.0, 1.0], [1.0, 1.0, 1.0, 1.0], [2.7, 1.9, 0.1, 0.1]])
     out = floored_keeping_length(means, floor)
     assert (out >= floor - 1e-12).all()
     np.testing.assert_allclose(out[:2].sum(axis=1), means[:2].sum(axis=1))  # the length kept
@@ -90,6 +90,7 @@ def test_a_floor_keeps_the_steps_length_where_it_can():
     np.testing.assert_allclose(out[0, 2], 2.9)  # pushed under its floor by the others' share: held there
     np.testing.assert_allclose(out[0, [1, 3]] / out[0, [1, 3]].sum(), [0.75, 0.25])  # the rest in proportion
     np.testing.assert_allclose(out[2], floor[2])  # no room at all: every state at its floor
+    np.testing.assert_allclose(out[3], floor[3])  # room used up on the way: the rest at their floors too
 
 
 def test_styles_choose_their_settings_and_tiny_styles_warn(average):

@@ -205,6 +205,12 @@ def test_a_rising_heel_bends_the_foot_at_its_toes_which_keep_their_turn(model, s
         rose = tilt(leg.ankle) - tilt(leg.pivot) > 2.0
         assert rose.sum() > 10  # the heel rose in these frames, the toes tilting less than the foot
         assert np.abs(bent - made)[rose].max() > 1e-3  # the foot bent at its toes joint there
+        # where the foot made was not toes up, nothing lays it flat: the toes keep their tilt exactly
+        foot, ground = list(leg.foot), contact_space(model).clearance[legs.index(leg)]
+        lift = np.array([p.world_positions[foot, 1] for p in raw]) - ground
+        not_up = lift[:, foot.index(leg.pivot)] <= lift[:, 0]
+        assert (rose & not_up).sum() > 10
+        np.testing.assert_allclose(change(leg.pivot)[not_up, 1, 1], 1.0, atol=1e-9)
 
 
 @pytest.mark.parametrize("style, weight", [("feminine", 2.0), ("youthful", 2.0), ("exhausted", -1.0)])

@@ -172,3 +172,61 @@ def test_a_degenerate_leg_gives_numbers_not_an_exception():
     hip, knee, ankle = np.zeros(3), np.array([0.0, -4.0, 0.0]), np.array([0.0, -8.0, 0.1])
     thigh, shin = leg_swings(hip, knee, ankle, hip.copy(), np.array([0.0, 0.0, 1.0]))
     assert thigh.shape == shin.shape == (3, 3)
+
+
+def _scaled(skeleton, template, scale: float):
+    """The same skeleton and template in other units (scale 0.01: centimetres to metres)."""
+    from instrument.motion.bvh import Joint, Skeleton
+
+    joints = tuple(Joint(j.name, j.parent, tuple(np.array(j.offset) * scale), j.channels,
+                         None if j.end_site is None else tuple(np.array(j.end_site) * scale)) for j in skeleton.joints)
+    template = np.array(template, dtype=float)
+    template[:3] *= scale  # the root's position channels
+    return Skeleton(joints), template
+
+
+@pytest.mark.parametrize("heel_last", [True, False])
+@pytest.mark.parametrize("scale", [1.0, 0.01])
+def test_a_foot_with_a_heel_joint_is_locked_as_the_reference_does_in_any_units(heel_last, scale):
+    """Another skeleton than the shipped one: feet with a ball, a toe tip and (heel_last) a heel
+    marker listed after them, in centimetres and in metres; a left foot landing toes up (laid
+    flat) while the hips move on (heel rise, and its pace as the lock lets go)."""
+    from test_contact import _feet_skeleton
+
+    from instrument.motion.features import FeatureLayout
+    from instrument.motion.kinematics import forward_kinematics
+    from instrument.motion.limbs import find_limbs
+
+    skeleton, template = _scaled(*_feet_skeleton(heel_last), scale)
+    layout = FeatureLayout(skeleton, 0, tuple(range(len(skeleton.joints))), tuple(template))
+    rest_rot, rest_tr = layout.template_pose[0], layout.template_pose[1]
+    _, rest_pos = forward_kinematics(skeleton, rest_rot[None], rest_tr[None])
+    legs = find_limbs(skeleton, 0, np.asarray(template)).legs
+    ground = np.array([[rest_pos[0, j, 1] for j in leg.foot] for leg in legs])
+    compiled, oracle = FootLock(layout, ground, 30.0), reference.FootLock(layout, ground, 30.0)
+    state = compiled.start(1)
+
+    def pitch(angle: float) -> np.ndarray:
+        c, s = np.cos(angle), np.sin(angle)
+        return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+    risen = flattened = 0
+    for i in range(60):
+        t = i / 30.0
+        rot, tr = rest_rot.copy(), rest_tr.copy()
+        tr[0, 2] = 30.0 * scale * t  # the hips walk on over the planted left foot
+        tr[0, 1] += 3.0 * scale * np.sin(6.0 * t)
+        rot[legs[0].ankle] = pitch(-np.radians(20.0) * max(0.0, 1.0 - t)) @ rot[legs[0].ankle]  # toes up, then down
+        rot[legs[1].hip] = pitch(-0.6) @ rot[legs[1].hip]  # the right leg swings forward
+        shares = np.array([1.0, 0.0]) if i < 40 else np.array([0.0, 1.0])
+        expected = oracle.apply(rot, tr, shares)
+        world_rot, world_pos = forward_kinematics(skeleton, rot[None], tr[None])
+        rotations, translations = rot[None].copy(), tr[None].copy()
+        compiled.apply(state, rotations, translations, shares[None], world_rot.copy(), world_pos.copy())
+        _, positions = forward_kinematics(skeleton, rotations, translations)
+        assert np.isfinite(positions).all()
+        np.testing.assert_allclose(positions[0] / scale, expected[3] / scale, atol=1e-8)
+        np.testing.assert_allclose(rotations[0], expected[0], atol=1e-9)
+        risen += state.rises[0, 0] > 0.0
+        flattened += not np.allclose(rotations[0, legs[0].ankle], rot[legs[0].ankle]) and i < 10
+    assert risen > 10 and flattened > 5  # the heel rose, the foot was laid flat: both were compared

@@ -353,7 +353,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         live_sources = [Attract(attract, live_sources, state, console).poll]
     try:
         if stop:  # asked to stop during start-up: close everything (a BVH with no frame is removed)
-            for output in outputs:
+            for output in reversed(outputs):  # files first, as at the end of a show
                 output.close()
             console.say(f"stopped by {stop.by} before the first frame")
             return 0
@@ -364,7 +364,10 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     finally:
         health.notifier.stopping()
         for thing in [hub] + devices + [health, health.notifier]:  # the recording first, as the outputs' files
-            thing.close()
+            try:
+                thing.close()
+            except Exception as error:  # one that cannot close leaves the others to close
+                console.warn(f"close {type(thing).__name__}", f"{type(thing).__name__} did not close cleanly: {error}")
         console.flush()
     refused = dict(hub.refused)
     for device in devices:

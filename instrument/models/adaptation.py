@@ -172,7 +172,10 @@ def floored_keeping_length(means: np.ndarray, floor: np.ndarray) -> np.ndarray:
         free = means[k] > floor[k]
         for _ in range(out.shape[1]):  # each round fixes at least one more state at its floor
             room = means[k].sum() - out[k][~free].sum()
-            if not free.any() or room <= 0.0:
+            if not free.any():
+                break
+            if room <= 0.0:  # the floors alone are longer than the step: as short as they allow
+                out[k][free] = floor[k][free]
                 break
             out[k][free] = means[k][free] * room / means[k][free].sum()
             under = free & (out[k] < floor[k])

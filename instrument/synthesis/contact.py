@@ -24,7 +24,7 @@ frame at a time, on the pose the features give:
   BLEND_FRAMES frames, so nothing pops;
 - where that would stretch a planted leg past its generated length (hip to ankle), the heel
   rises instead: the foot pitches up about its front-most joint, up to MAX_HEEL_RISE from
-  standing flat, changing no faster than HEEL_RISE_SPEED (radians a second) from frame to frame,
+  standing flat (a cap that wins) and otherwise changing no faster than HEEL_RISE_SPEED,
   that joint keeping its generated world rotation, as a real foot rolls onto its toes at the
   end of stance. Stretching the leg
   straightened the knee (25 to 8 degrees for a 1.7 cm reach) and swung the thigh back, which

@@ -6,11 +6,14 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 
 - `planted_feet`: which feet are planted this frame (the state's share, or a foot on the floor
   and still where the state allows it; always one foot);
+- `hold_heading`: a planted foot turned back about the vertical to the heading it landed with;
+- `lay_flat`: a planted foot alone on the floor, toes up, pitched down about its ankle to flat;
 - `lock_target`: where an ankle should go (the lock blended in, the floor, the swing lift as
   `swing_share` allows);
 - `heel_rise`: the foot pitched up about its front-most joint (the toes) where the lock would stretch a
   planted leg past its generated length (the toes beyond it keep their generated world rotation,
-  as a real foot bends there, instead of dipping into the floor);
+  as a real foot bends there, instead of dipping into the floor), at most MAX_HEEL_RISE from
+  flat and within HEEL_RISE_SPEED of the frame before's rise;
 - `body_drop`: how far the body must come down for a planted leg to reach its target;
 - `leg_swings`: two-bone IK, the thigh's and the shin's turns that take an ankle to a target;
 - `solve_leg`: those turns applied in place to the local rotations;
@@ -18,8 +21,9 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
   `heel_rise` for both legs); `lock_crowd`: every character's.
 
 `FootLock` holds what does not change (the legs' joints, the floor, the units); each
-character's state (how far each foot's lock is blended in, the locked points, the body's drop,
-the feet's previous positions) lives in `LockState` arrays, one row per character.
+character's state (how far each foot's lock is blended in, the locked points and headings, the
+body's drop, the feet's previous positions, the heels' rises) lives in `LockState` arrays, one
+row per character.
 """
 
 from __future__ import annotations
@@ -167,13 +171,15 @@ def heel_rise(world_pos, leg, pivot, clearance, on_floor, target, allowed, low, 
     """The foot's turn (3x3, world) and its angle about its pivot (its front-most joint, the toes) when the lock asks
     the leg (hip, knee, ankle) to reach further than `allowed` (hip to ankle): the heel rises, as
     a real foot rolls onto its toes, so the knee keeps its bend instead of straightening and the
-    hip is not pulled into extension. Moves `target` (the ankle's) with it; the foot at most
-    MAX_HEEL_RISE from flat, the rise that comes nearest when none reaches; none when the leg
-    reaches already. `clearance` (2,): the ankle's and the pivot's heights standing on the floor. A foot
-    whose toes are `on_floor` or more higher above their clearance than the heel is above its
-    own (a heel just landing) takes none of the rise, and in between a share: rolling on toes
-    in the air would lift the whole foot off the floor. The angle is then held in [`low`, `high`]
-    (the lock keeps each rise within HEEL_RISE_SPEED of the frame before's)."""
+    hip is not pulled into extension. Moves `target` (the ankle's) with it. The rise asked for:
+    the smallest that reaches, the one that comes nearest when none does, none when the leg
+    reaches already; a foot whose toes are `on_floor` or more higher above their clearance than
+    the heel is above its own (a heel just landing) asks for none, and in between a share:
+    rolling on toes in the air would lift the whole foot off the floor. That angle is then held
+    in [`low`, `high`] (the lock keeps each rise within HEEL_RISE_SPEED of the frame before's,
+    so a rise no longer asked for comes down at that pace), and the foot to at most
+    MAX_HEEL_RISE from flat, which wins over `low`. `clearance` (2,): the ankle's and the
+    pivot's heights standing on the floor."""
     toes = world_pos[pivot] - world_pos[leg[2]]
     toe = target + toes  # where the pivot goes with the ankle
     k = np.array([toes[2], 0.0, -toes[0]])  # up x (toe direction): the foot's pitch axis, lifting the heel
