@@ -135,3 +135,24 @@ def test_a_crash_in_a_c_library_names_the_python_line_it_came_from(tmp_path):
     assert result.returncode == -11  # SIGSEGV, as before: only the report is new
     assert "Fatal Python error: Segmentation fault" in result.stderr
     assert "crashing_command" in result.stderr  # the Python function the crash happened in
+
+
+def test_a_process_left_holding_a_dead_jack_client_ends_without_the_teardown():
+    """After a JACK restart the dead server's clients are left to libjack (jackwatch.abandon); the
+    process then ends as soon as its command is done, its output flushed, without the interpreter's
+    teardown (where a show that survived a restart once crashed on exit). Not so otherwise."""
+    script = ("import atexit, sys\n"
+              "from instrument.control import jackwatch\n"
+              "if sys.argv[1] == 'abandoned':\n"
+              "    jackwatch.ABANDONED.set()\n"
+              "atexit.register(lambda: print('teardown'))\n"
+              "sys.argv = ['instrument', 'info']\n"
+              "from instrument.cli.main import main\n"
+              "code = main()\n"
+              "print('returned', code)\n")
+    for case in ("abandoned", "steady"):
+        result = subprocess.run([sys.executable, "-c", script, case], capture_output=True, text=True, timeout=120)
+        assert result.returncode == 0, result.stderr
+        assert "states" in result.stdout  # the command's output, flushed either way
+        ended_at_once = "returned" not in result.stdout and "teardown" not in result.stdout
+        assert ended_at_once == (case == "abandoned"), (case, result.stdout[-200:])

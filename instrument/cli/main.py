@@ -100,6 +100,30 @@ def _name_crashes() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The command line's command; `argv` None: this process's own (then a process left holding
+    a dead JACK client ends as soon as the command is done, see `_end_past_jack`)."""
+    code = _command(argv)
+    if argv is None:
+        _end_past_jack(code)
+    return code
+
+
+def _end_past_jack(code: int) -> None:
+    """After a JACK server restart the dead server's clients are left to libjack (jackwatch.abandon),
+    which can crash while the interpreter and the C libraries tear down at exit: everything is
+    written and closed by now, so the process ends at once with the command's exit status."""
+    watch = sys.modules.get("instrument.control.jackwatch")
+    if watch is not None and watch.ABANDONED.is_set():
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                if stream is not None:
+                    stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(code)
+
+
+def _command(argv: list[str] | None) -> int:
     _name_crashes()
     _set_handlers({signum: _end_at_once for signum in COMMAND_HANDLERS})
     try:

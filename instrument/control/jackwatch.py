@@ -114,11 +114,17 @@ class JackWatch:
         self.client = None
 
 
+ABANDONED = threading.Event()  # set once any port was left to a dead server (see `abandon`)
+
+
 def abandon(port: object) -> None:
     """Leave a port whose server died alone for good: never closed, never freed. Taking it apart
     holds the interpreter for about a second (the frame loop with it) or crashes libjack, and
-    freeing it would do the same later; what it keeps is a few kilobytes per restart."""
+    freeing it would do the same later; what it keeps is a few kilobytes per restart. A process
+    that abandoned one ends without the interpreter's teardown (cli.main): libjack still holds
+    the dead client, and a show that survived a restart crashed as it exited (once in CI)."""
     ctypes.pythonapi.Py_IncRef(ctypes.py_object(port))
+    ABANDONED.set()
 
 
 class Remaker:
