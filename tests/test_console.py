@@ -327,6 +327,32 @@ def test_the_view_draws_the_walking_figure(browser):
     assert (np.abs(first - second).max(axis=2) > 40).sum() > 200
 
 
+@needs_browser
+def test_the_view_draws_a_crowd_and_follows_its_first_character(browser):
+    show = Instrument("--console", "0", "--no-osc", "--quiet", "--characters", "3", "--spacing", "1.5")
+    try:
+        open_page(browser, show.url)
+        start = frame_number(browser)
+        until(lambda: browser.execute_script("return figure.others.length") == 2, what="the crowd on the page")
+
+        def roots():
+            return np.array(browser.execute_script(
+                "const r = Math.max(figure.first, 0); return [figure.positions[r], ...figure.others.map((p) => p[r])]"))
+
+        before = roots()
+        until(lambda: frame_number(browser) > start + 30, what="a second of frames")
+        after = roots()
+        followed = browser.execute_script("return figure.camera.follow")
+    finally:
+        stderr = show.stop()
+    assert show.process.returncode == 0, stderr
+    assert before.shape == (3, 3)
+    apart = [np.hypot(*(before[a] - before[b])[[0, 2]]) for a, b in ((0, 1), (1, 2), (0, 2))]
+    assert min(apart) > 100  # three walkers, spaced on the floor (1.5 m; the shipped model is in cm)
+    assert np.all(np.hypot(*(after - before)[:, [0, 2]].T) > 30)  # and every one of them walks
+    assert followed
+
+
 # ---- the other controls of the page, on one show shared by these tests ------------------------
 
 class FlatFrames:

@@ -19,7 +19,7 @@ from ..control.targets import MAX_TURN, TABLE, WEIGHT_LIMIT
 from ..control.values import all_values
 from ..errors import UserError
 from ..runtime.console import Console
-from ..runtime.pose import Pose
+from ..runtime.pose import CrowdPose, Pose
 from ..synthesis.durations import MAX_SPEED, MIN_SPEED
 from ..synthesis.interpolation import GROUPS
 from .server import JSON, frame_packet
@@ -194,10 +194,15 @@ class ConsoleInput:
         self.link.close()
 
 
+SHOWN_CHARACTERS = 50  # of a crowd, the most the page draws (character 0, which it follows, and the next)
+
+
 class ConsoleOutput:
-    """Hands each frame to the server as one packet; costs nothing while no page is open."""
+    """Hands each frame to the server as one packet; costs nothing while no page is open. Of a
+    crowd it sends the first SHOWN_CHARACTERS (a page's frame grows by 1.6 kB a character)."""
 
     name = "console"
+    whole_crowd = True  # the live loop hands it every character's pose
 
     def __init__(self, link: ConsoleLink, state: ControlState, presets: dict, sources: Callable[[], str]):
         self.link, self.state, self.presets, self.sources = link, state, presets, sources
@@ -208,7 +213,7 @@ class ConsoleOutput:
         """Given the frame clock, so the pages show late and dropped frames."""
         self.clock = clock
 
-    def prepare(self, pose: Pose, echo: dict[str, float]) -> list[bytes] | None:
+    def prepare(self, pose: Pose | CrowdPose, echo: dict[str, float]) -> list[bytes] | None:
         if not self.link.pages:
             return None
         packets = []
@@ -220,7 +225,10 @@ class ConsoleOutput:
             packets.append(JSON + json.dumps({"sources": self.sources()}).encode("utf-8"))
         late, dropped = (self.clock.late, self.clock.dropped) if self.clock else (0, 0)
         values = np.fromiter(all_values(self.state).values(), float)
-        packets.append(frame_packet(pose.index, late, dropped, pose.world_positions, values))
+        positions = pose.world_positions  # (joints, 3), or (characters, joints, 3) of a crowd
+        if positions.ndim == 3:
+            positions = positions[:SHOWN_CHARACTERS]
+        packets.append(frame_packet(pose.index, late, dropped, positions, values))
         return packets
 
     def send(self, packets: list[bytes]) -> None:

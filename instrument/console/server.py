@@ -40,24 +40,30 @@ STATIC = {"/": ("index.html", "text/html"), "/console.js": ("console.js", "text/
           "/console.css": ("console.css", "text/css")}
 SECURITY = {"Content-Security-Policy": "default-src 'self'; img-src 'self' data:; connect-src 'self'",
             "Cache-Control": "no-store", "X-Content-Type-Options": "nosniff", "Referrer-Policy": "no-referrer"}
-HEADER = struct.Struct("<qii")  # a frame packet: index, late frames, dropped frames; then float32 positions, float64 values
+HEADER = struct.Struct("<qiii")  # a frame packet: index, late frames, dropped frames, characters; then float32
+# positions (characters x joints x 3, the followed character first), float64 values
 FRAME, JSON = b"F", b"J"  # the first byte of every packet between the frame loop and the server
 
 
 def frame_packet(index: int, late: int, dropped: int, positions: np.ndarray, values: np.ndarray) -> bytes:
-    """A frame as one packet (made by the frame loop: a few microseconds, no JSON)."""
-    return FRAME + HEADER.pack(index, late, dropped) + positions.astype("<f4").tobytes() + values.astype("<f8").tobytes()
+    """A frame as one packet (made by the frame loop: a few microseconds, no JSON); `positions`
+    (joints, 3) for one character or (characters, joints, 3) for a crowd."""
+    characters = 1 if positions.ndim == 2 else positions.shape[0]
+    return (FRAME + HEADER.pack(index, late, dropped, characters) + positions.astype("<f4").tobytes()
+            + values.astype("<f8").tobytes())
 
 
 def frame_json(packet: bytes, joints: int, order: list[str], extra: dict) -> str:
-    """A frame packet as the JSON a page is sent: the joints' positions and every control value."""
-    index, late, dropped = HEADER.unpack_from(packet, 1)
+    """A frame packet as the JSON a page is sent: the joints' positions ("p", of the character the
+    view follows; "crowd", the others', one after the other) and every control value."""
+    index, late, dropped, characters = HEADER.unpack_from(packet, 1)
     start = 1 + HEADER.size
-    positions = np.frombuffer(packet, "<f4", joints * 3, start)
-    values = np.frombuffer(packet, "<f8", len(order), start + joints * 12)
+    positions = np.round(np.frombuffer(packet, "<f4", characters * joints * 3, start).astype(float), 2)
+    values = np.frombuffer(packet, "<f8", len(order), start + characters * joints * 12)
     shown = {t: (None if math.isnan(v) else round(v, 4)) for t, v in zip(order, values.tolist())}
+    crowd = {"crowd": positions[joints * 3:].tolist()} if characters > 1 else {}
     return json.dumps({"type": "frame", "frame": index, "late": late, "dropped": dropped,
-                       "p": np.round(positions.astype(float), 2).tolist(), "v": shown, **extra}, separators=(",", ":"))
+                       "p": positions[: joints * 3].tolist(), **crowd, "v": shown, **extra}, separators=(",", ":"))
 
 
 @dataclass(eq=False)

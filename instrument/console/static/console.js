@@ -153,7 +153,7 @@ function onFrame(message) {
   $("pages").textContent = message.pages + (message.pages === 1 ? " page" : " pages");
   $("sources").textContent = "controls: " + message.sources;
   rate.count++;
-  figure.push(message.p);
+  figure.push(message.p, message.crowd || []);
 }
 
 const rate = { count: 0, since: performance.now() };
@@ -298,7 +298,7 @@ const figure = {
   canvas: $("view"),
   camera: { yaw: 0.7, pitch: 0.28, distance: 520, target: [0, 90, 0], follow: true },
   joints: [], parents: [], first: 0,
-  positions: null, floor: Infinity, prints: [], feet: [], frames: 0, dirty: true, size: "",
+  positions: null, others: [], floor: Infinity, prints: [], feet: [], frames: 0, dirty: true, size: "",
 
   setup(hello) {
     this.parents = hello.parents;
@@ -316,10 +316,16 @@ const figure = {
     this.floor = Infinity;
   },
 
-  push(flat) {
+  push(flat, crowd) {  // the followed character's joints, and a crowd's others one after the other
     const n = flat.length / 3;
-    const positions = [];
-    for (let k = 0; k < n; k++) positions.push([flat[3 * k], flat[3 * k + 1], flat[3 * k + 2]]);
+    const joints = (values, from) => {
+      const out = [];
+      for (let k = from; k < from + n; k++) out.push([values[3 * k], values[3 * k + 1], values[3 * k + 2]]);
+      return out;
+    };
+    const positions = joints(flat, 0);
+    this.others = [];
+    for (let c = 0; c < crowd.length / flat.length; c++) this.others.push(joints(crowd, c * n));
     const previous = this.positions;
     this.positions = positions;
     if (!previous) {  // the first frame: the camera starts on the character, not at the origin far from it
@@ -423,6 +429,18 @@ const figure = {
       g.beginPath();
       ring.forEach(([x, y], k) => (k ? g.lineTo(x, y) : g.moveTo(x, y)));
       g.fill();
+    }
+
+    // the rest of a crowd: slim figures, the nearest drawn last (the followed character is drawn whole)
+    const others = this.others.map((positions) => ({ positions, depth: view(positions[Math.max(this.first, 0)])[2] }))
+      .filter((o) => o.depth > near).sort((a, b) => b.depth - a.depth);
+    g.lineCap = "round";
+    for (const { positions } of others) {
+      g.strokeStyle = "rgba(175, 182, 198, 0.75)";
+      g.lineWidth = Math.max(1.5, (6 * focal) / Math.max(view(positions[Math.max(this.first, 0)])[2], near));
+      g.beginPath();
+      this.parents.forEach((parent, k) => { if (parent >= this.first) line(positions[parent], positions[k]); });
+      g.stroke();
     }
 
     // the shadow: the skeleton flattened onto the floor
