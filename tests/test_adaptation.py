@@ -128,21 +128,3 @@ def test_a_style_from_one_short_take_walks_at_the_takes_cadence(average, stretch
     shares_kept = adapt(average, take, FLOORS, Settings(depth=2, tau=64.0)).duration_means
     assert np.abs(shares_kept.sum(axis=1) / lengths - 1).max() > 0.03  # the adaptation alone: 3% and more off
     assert (styles.duration_means[0] >= duration_floor(average, take, DEFAULT.floor_share) - 1e-12).all()
-
-
-def test_a_style_from_one_short_take_moves_at_the_takes_pace(average):
-    """The root's speeds (here feature 0 stands for them) of a style from a few steps: the prior
-    keeps each state near lambda 0, but over a step, at the model's own durations, the speed is
-    the take's. Other features are left to the adaptation."""
-    take = shifted(3, 31)
-    report: list[str] = []
-    paced, _ = adapt_styles(average, {"style": [take]}, FLOORS, report, fixed=DEFAULT, speeds=[0])
-    left, _ = adapt_styles(average, {"style": [take]}, FLOORS, report, fixed=DEFAULT)
-    for k, label in enumerate(take):
-        durations = paced.duration_means[0, k]
-        taken = np.concatenate(label)[:, 0].mean()
-        assert durations @ paced.means[0, k, :, 0] / durations.sum() == pytest.approx(taken, abs=1e-9)
-        made = durations @ left.means[0, k, :, 0] / durations.sum()
-        assert abs(made - taken) > 0.05  # without it the prior holds the pace back
-    np.testing.assert_array_equal(paced.means[..., 1:], left.means[..., 1:])
-    np.testing.assert_array_equal(paced.duration_means, left.duration_means)

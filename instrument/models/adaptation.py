@@ -162,21 +162,6 @@ def m_step(average: HSMM, stats: list[Statistics | None], settings: Settings, fl
     return HSMM(means, variances, floored_keeping_length(dmeans, floor), dvars)
 
 
-def with_take_speed(means: np.ndarray, durations: np.ndarray, segments: list[list[np.ndarray]],
-                    speeds: list[int]) -> np.ndarray:
-    """(labels, states, features) means whose root speeds (the features `speeds`) are shifted alike in every
-    state so each label's step, at its state `durations`, moves as fast as the takes' steps do
-    on average. As with the cadence (with_step_length), the prior keeps a style with little data
-    near lambda 0's pace: a style from one take walked 5-6% slower than its take (active, normal)."""
-    out = means.copy()
-    for k, label in enumerate(segments):
-        if label:
-            taken = np.concatenate([s[:, speeds] for s in label]).mean(axis=0)
-            made = durations[k] @ out[k][:, speeds] / durations[k].sum()
-            out[k][:, speeds] += taken - made
-    return out
-
-
 def with_step_length(means: np.ndarray, segments: list[list[np.ndarray]], floor: np.ndarray) -> np.ndarray:
     """(labels, states) duration means scaled so each label's step lasts as long as its steps in
     the data do on average (its floor kept, floored_keeping_length). The transforms and MAP move
@@ -312,13 +297,10 @@ def choose_settings(average: HSMM, takes: list[list[list[np.ndarray]]],
 
 
 def adapt_styles(average: HSMM, takes_per_style: dict[str, list[list[list[np.ndarray]]]], floors: Floors,
-                 warnings: list[str], fixed: Settings | None = None,
-                 speeds: list[int] | None = None) -> tuple[HSMM, dict[str, StyleReport]]:
+                 warnings: list[str], fixed: Settings | None = None) -> tuple[HSMM, dict[str, StyleReport]]:
     """All style models stacked on a leading style axis (in the order of `takes_per_style`, whose
     values are per take, per label, the step segments), with what was chosen and measured for
-    each. `fixed` skips the held-out choice. Each style's step lasts as its takes' steps do
-    (with_step_length) and, given the root's speed `speeds` among the features, moves as fast
-    (with_take_speed)."""
+    each. `fixed` skips the held-out choice."""
     models, reports = [], {}
     for style, takes in takes_per_style.items():
         segments = _merge(takes)
@@ -332,10 +314,8 @@ def adapt_styles(average: HSMM, takes_per_style: dict[str, list[list[list[np.nda
             warnings.append(message)
         trace: list[float] = []
         model = adapt(average, segments, floors, settings, trace, first)
-        durations = with_step_length(model.duration_means, segments, duration_floor(average, segments, settings.floor_share))
-        model = replace(model, duration_means=durations)
-        if speeds:
-            model = replace(model, means=with_take_speed(model.means, durations, segments, speeds))
+        model = replace(model, duration_means=with_step_length(model.duration_means, segments,
+                                                                duration_floor(average, segments, settings.floor_share)))
         models.append(model)
         reports[style] = StyleReport(settings, heldout, trace, float(model.duration_means.min()))
     fields = ("means", "variances", "duration_means", "duration_variances")

@@ -10,7 +10,7 @@ from typing import Callable
 import numpy as np
 
 from .. import __version__
-from ..motion.features import ROOT_SPEEDS, WINDOWS
+from ..motion.features import WINDOWS
 from ..motion.steps import LABELS
 from .adaptation import Settings, adapt_styles
 from .corpus import Take, load_corpus, segments_by_label
@@ -44,7 +44,7 @@ def build_model(
     average = train_average(segments, states, floors, report=report, on_iteration=on_iteration)
     style_names = sorted({t.style for t in takes})
     per_style = {s: [segments_by_label([t], states) for t in takes if t.style == s] for s in style_names}
-    styles, adapted = adapt_styles(average, per_style, floors, report.warnings, adaptation, ROOT_SPEEDS)
+    styles, adapted = adapt_styles(average, per_style, floors, report.warnings, adaptation)
     contact, contact_metadata = train_contact(layout, takes, average, styles, style_names, fps, states)
     average, styles = symmetric_models(average, styles, layout.dimension)  # straight at turn = 0
     for k, style in enumerate(style_names):  # the shortest state as the shipped model has it (mirroring shares durations)

@@ -9,9 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..motion.features import ROOT_FEATURES, ROOT_SPEEDS
 
-SPEEDS, YAW_RATE = ROOT_SPEEDS, ROOT_FEATURES.index("root.yaw_rate")  # among the static features
+SPEEDS, YAW_RATE = [1, 2], 3  # root.vx, root.vz and root.yaw_rate among the static features
 
 
 def step_features(static: np.ndarray, steps) -> np.ndarray:

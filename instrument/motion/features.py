@@ -41,7 +41,6 @@ from .rotations import (
 
 # tilt has no y part: the heading took all rotation about Y (the swing of a swing-twist split)
 ROOT_FEATURES = ("root.height", "root.vx", "root.vz", "root.yaw_rate", "root.tilt.x", "root.tilt.z")
-ROOT_SPEEDS = [ROOT_FEATURES.index("root.vx"), ROOT_FEATURES.index("root.vz")]  # among the static features
 STILL_RADIANS = 1e-4  # a joint whose rotation never strays further than this is left out
 DEFAULT_FPS = 30.0
 
