@@ -106,25 +106,3 @@ def test_styles_choose_their_settings_and_tiny_styles_warn(average):
     for k in range(2):  # both styles move toward the shift, the one with data closer
         assert np.abs(styles.means[k] - average.means - SHIFT).mean() < np.abs(SHIFT).mean()
     assert np.isfinite(styles.variances).all() and (styles.variances > 0).all()
-
-
-@pytest.mark.parametrize("stretch", [4, -2])
-def test_a_style_from_one_short_take_walks_at_the_takes_cadence(average, stretch):
-    """One take of six steps a label whose steps are longer (`stretch` frames held at their start)
-    or shorter (frames cut from the middle) than lambda 0's: the prior leaves the states' shares
-    near lambda 0's, but the step lasts as the take's steps do on average."""
-    rng = np.random.default_rng(21)
-    take = []
-    for label in range(2):
-        steps = []
-        for s in sample(label, 6, rng):
-            s = np.vstack([s[:1]] * stretch + [s]) if stretch > 0 else np.vstack([s[: len(s) // 2 + stretch], s[len(s) // 2:]])
-            steps.append(s + SHIFT)
-        take.append(steps)
-    lengths = np.array([np.mean([len(s) for s in label]) for label in take])
-    report: list[str] = []
-    styles, _ = adapt_styles(average, {"style": [take]}, FLOORS, report, fixed=Settings(depth=2, tau=64.0))
-    np.testing.assert_allclose(styles.duration_means[0].sum(axis=1), lengths, rtol=1e-9)
-    shares_kept = adapt(average, take, FLOORS, Settings(depth=2, tau=64.0)).duration_means
-    assert np.abs(shares_kept.sum(axis=1) / lengths - 1).max() > 0.03  # the adaptation alone: 3% and more off
-    assert (styles.duration_means[0] >= duration_floor(average, take, DEFAULT.floor_share) - 1e-12).all()

@@ -162,20 +162,6 @@ def m_step(average: HSMM, stats: list[Statistics | None], settings: Settings, fl
     return HSMM(means, variances, floored_keeping_length(dmeans, floor), dvars)
 
 
-def with_step_length(means: np.ndarray, segments: list[list[np.ndarray]], floor: np.ndarray) -> np.ndarray:
-    """(labels, states) duration means scaled so each label's step lasts as long as its steps in
-    the data do on average (its floor kept, floored_keeping_length). The transforms and MAP move
-    each state's duration part of the way from lambda 0, and one scale fitted over states of
-    another shape can even move the step's length away from the data: a style trained on one
-    take kept lambda 0's cadence (active's steps 7% long, one of its labels longer than lambda
-    0's). The mean length of a few steps is known well even where the states' shares are not."""
-    out = means.copy()
-    for k, label in enumerate(segments):
-        if label:
-            out[k] *= np.mean([len(s) for s in label]) / out[k].sum()
-    return floored_keeping_length(out, floor)
-
-
 def floored_keeping_length(means: np.ndarray, floor: np.ndarray) -> np.ndarray:
     """(labels, states) duration means raised to `floor`, the frames added taken back from the
     states above it in proportion, so the step lasts as the data says. Raising alone lengthened
@@ -314,8 +300,6 @@ def adapt_styles(average: HSMM, takes_per_style: dict[str, list[list[list[np.nda
             warnings.append(message)
         trace: list[float] = []
         model = adapt(average, segments, floors, settings, trace, first)
-        model = replace(model, duration_means=with_step_length(model.duration_means, segments,
-                                                                duration_floor(average, segments, settings.floor_share)))
         models.append(model)
         reports[style] = StyleReport(settings, heldout, trace, float(model.duration_means.min()))
     fields = ("means", "variances", "duration_means", "duration_variances")
