@@ -156,3 +156,21 @@ def test_a_process_left_holding_a_dead_jack_client_ends_without_the_teardown():
         assert "states" in result.stdout  # the command's output, flushed either way
         ended_at_once = "returned" not in result.stdout and "teardown" not in result.stdout
         assert ended_at_once == (case == "abandoned"), (case, result.stdout[-200:])
+
+
+def test_a_bug_after_a_jack_restart_prints_its_traceback_and_ends_at_once():
+    script = ("import atexit, sys\n"
+              "from instrument.control import jackwatch\n"
+              "from instrument.cli import main as entry\n"
+              "jackwatch.ABANDONED.set()\n"
+              "atexit.register(lambda: print('teardown'))\n"
+              "def buggy_command(args):\n"
+              "    raise RuntimeError('a bug')\n"
+              "class Parsed: command = 'run'; run = staticmethod(buggy_command)\n"
+              "entry.build_parser = lambda load: type('P', (), {'parse_args': lambda self, argv: Parsed()})()\n"
+              "sys.argv = ['instrument', 'run']\n"
+              "entry.main()\n")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 1
+    assert "RuntimeError: a bug" in result.stderr and "buggy_command" in result.stderr
+    assert "teardown" not in result.stdout

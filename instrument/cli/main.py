@@ -18,6 +18,7 @@ import os
 import signal
 import sys
 import threading
+import traceback
 
 from .. import __version__
 from ..errors import UserError
@@ -102,18 +103,28 @@ def _name_crashes() -> None:
 def main(argv: list[str] | None = None) -> int:
     """The command line's command; `argv` None: this process's own (then a process left holding
     a dead JACK client ends as soon as the command is done, see `_end_past_jack`)."""
-    code = _command(argv)
+    try:
+        code = _command(argv)
+    except BaseException:  # a bug's traceback: printed, and past a JACK restart the process still ends at once
+        if argv is None and _abandoned():
+            traceback.print_exc()
+            _end_past_jack(1)
+        raise
     if argv is None:
         _end_past_jack(code)
     return code
+
+
+def _abandoned() -> bool:
+    watch = sys.modules.get("instrument.control.jackwatch")
+    return watch is not None and watch.ABANDONED.is_set()
 
 
 def _end_past_jack(code: int) -> None:
     """After a JACK server restart the dead server's clients are left to libjack (jackwatch.abandon),
     which can crash while the interpreter and the C libraries tear down at exit: everything is
     written and closed by now, so the process ends at once with the command's exit status."""
-    watch = sys.modules.get("instrument.control.jackwatch")
-    if watch is not None and watch.ABANDONED.is_set():
+    if _abandoned():
         for stream in (sys.stdout, sys.stderr):
             try:
                 if stream is not None:

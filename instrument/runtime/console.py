@@ -94,8 +94,8 @@ class Console:
                 while not self.pending:
                     self.wake.wait()
                 text = "".join(self.pending)
+                self.writing = True  # before the queue empties: flush() looks at both without the lock
                 self.pending.clear()
-                self.writing = True
             data = text.encode("utf-8", errors="replace")
             try:
                 while data:
