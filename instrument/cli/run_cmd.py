@@ -225,7 +225,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     from ..models.modelfile import load_model
     from ..output.outputs import OscOutput, RecorderOutput, make_profile
     from ..output.vmc import ROOT_CONVENTIONS
-    from ..runtime.performance import perform
+    from ..runtime.performance import close_all, perform
 
     show_presets, show_text = apply_show_file(args) if args.config else ({}, "")
     check_needs("run", args)
@@ -329,8 +329,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
             created.append(args.record)
         health = Health(console, outputs, devices, SystemdNotifier(), health_every, args.status_port)  # watches every output
     except UserError:
-        for thing in outputs + devices + [t for t in (hub, health) if t is not None]:
-            thing.close()
+        close_all(outputs + devices + [t for t in (hub, health) if t is not None], console)
         for path in created:
             Path(path).unlink(missing_ok=True)
         raise
@@ -353,8 +352,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         live_sources = [Attract(attract, live_sources, state, console).poll]
     try:
         if stop:  # asked to stop during start-up: close everything (a BVH with no frame is removed)
-            for output in reversed(outputs):  # files first, as at the end of a show
-                output.close()
+            close_all(reversed(outputs), console)  # files first, as at the end of a show
             console.say(f"stopped by {stop.by} before the first frame")
             return 0
         summary = perform(model, outputs, console, fps, seconds, replay, live_sources=live_sources, fast=args.fast,
@@ -363,11 +361,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
                           state=state, stop=stop, on_frame=health.frame, characters=characters, spacing=spacing)
     finally:
         health.notifier.stopping()
-        for thing in [hub] + devices + [health, health.notifier]:  # the recording first, as the outputs' files
-            try:
-                thing.close()
-            except Exception as error:  # one that cannot close leaves the others to close
-                console.warn(f"close {type(thing).__name__}", f"{type(thing).__name__} did not close cleanly: {error}")
+        close_all([hub] + devices + [health, health.notifier], console)  # the recording first, as the outputs' files
         console.flush()
     refused = dict(hub.refused)
     for device in devices:

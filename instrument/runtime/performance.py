@@ -121,6 +121,17 @@ class Summary:
     seconds: float = 0.0
 
 
+def close_all(things, console: Console) -> None:
+    """Close each of `things` in turn; one that cannot close is said on the console and leaves the
+    others to close."""
+    for thing in things:
+        try:
+            thing.close()
+        except Exception as error:
+            name = getattr(thing, "name", type(thing).__name__)
+            console.warn(f"close {name}", f"{name} did not close cleanly: {error}")
+
+
 def perform(
     model: Model,
     outputs: list[Output],
@@ -241,11 +252,7 @@ def perform(
         if own_stop:
             stop.restore()
         # files (listed last) first: a device library that crashes closing its port takes nothing written with it
-        for output in reversed(outputs):
-            try:
-                output.close()
-            except Exception as error:
-                console.warn(f"close {output.name}", f"output {output.name} did not close cleanly: {error}")
+        close_all(reversed(outputs), console)
     summary.late, summary.dropped = clock.late, clock.dropped
     summary.seconds = time.monotonic() - started
     return summary

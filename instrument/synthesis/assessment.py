@@ -133,10 +133,10 @@ def _cross_validated(takes, features) -> dict[str, float]:
     hits: dict[str, list[bool]] = {}
     for f in range(FOLDS):
         train = [k for k in range(len(takes)) if fold[k] != f]
-        if len({takes[k].style for k in train}) < 2:
+        known = {takes[k].style for k in train}
+        if len(known) < 2:
             continue
         classifier = LinearDiscriminant(np.vstack([features[k] for k in train]), [takes[k].style for k in train for _ in features[k]])
-        known = {takes[k].style for k in train}
         for k in np.flatnonzero(fold == f):
             if takes[k].style not in known:  # its only take: no classifier that did not see it knows the style
                 continue

@@ -444,17 +444,8 @@ def hold_heading(rotations, world_rot, world_pos, knee, ankle, foot, heading, sh
     it). Its joints' world transforms follow; the ankle's local rotation takes the turn."""
     turn = heading - foot_heading(world_pos, ankle, foot[-1])  # `foot`: the ankle and the joints below it, pivot last
     turn = share * ((turn + np.pi) % (2.0 * np.pi) - np.pi)
-    if turn == 0.0:
-        return
-    c, s = np.cos(turn), np.sin(turn)  # about +y: +z turns towards +x; rows x and z mix, y stays
-    cx, cz = world_pos[ankle, 0], world_pos[ankle, 2]
-    for j in foot:  # in place, nothing allocated: this runs for every planted foot every frame
-        for k in range(3):
-            x, z = world_rot[j, 0, k], world_rot[j, 2, k]
-            world_rot[j, 0, k], world_rot[j, 2, k] = c * x + s * z, c * z - s * x
-        dx, dz = world_pos[j, 0] - cx, world_pos[j, 2] - cz
-        world_pos[j, 0], world_pos[j, 2] = cx + c * dx + s * dz, cz + c * dz - s * dx
-    _product_t(world_rot[knee], world_rot[ankle], rotations[ankle])  # the knee is the ankle's parent (limbs.py)
+    if turn != 0.0:  # about +y: +z turns towards +x
+        turn_foot(rotations, world_rot, world_pos, knee, ankle, foot, 0.0, 1.0, 0.0, np.cos(turn), np.sin(turn))
 
 
 @njit(cache=True, error_model="numpy")
@@ -480,25 +471,34 @@ def lay_flat(rotations, world_rot, world_pos, knee, ankle, foot, ankle_clearance
     if drop_y * drop_y >= length2 or along < 1e-12:
         return
     pitch = np.arctan2(vy, along) - np.arctan2(drop_y, np.sqrt(length2 - drop_y * drop_y))
-    # about the horizontal axis across the foot (up x toes): a positive turn pitches the toes down;
-    # in place, nothing allocated (this runs for a planted foot every frame)
-    kx, kz, c, s = vz / along, -vx / along, np.cos(pitch), np.sin(pitch)
+    # about the horizontal axis across the foot (up x toes): a positive turn pitches the toes down
+    turn_foot(rotations, world_rot, world_pos, knee, ankle, foot, vz / along, 0.0, -vx / along, np.cos(pitch),
+              np.sin(pitch))
+
+
+@njit(cache=True, error_model="numpy")
+def turn_foot(rotations, world_rot, world_pos, knee, ankle, foot, kx, ky, kz, c, s):  # pragma: no cover - compiled
+    """The foot (the ankle and the joints below it) turned about its ankle, about the unit axis
+    (kx, ky, kz) by the angle of cosine c and sine s: its joints' world transforms follow and the
+    ankle's local rotation takes the turn. In place, nothing allocated: the heading hold and the
+    flat foot run it for a planted foot every frame."""
     cx, cy, cz = world_pos[ankle, 0], world_pos[ankle, 1], world_pos[ankle, 2]
     for j in foot:
         for col in range(3):
-            world_rot[j, 0, col], world_rot[j, 1, col], world_rot[j, 2, col] = _pitched(
-                kx, kz, c, s, world_rot[j, 0, col], world_rot[j, 1, col], world_rot[j, 2, col])
-        x, y, z = _pitched(kx, kz, c, s, world_pos[j, 0] - cx, world_pos[j, 1] - cy, world_pos[j, 2] - cz)
+            world_rot[j, 0, col], world_rot[j, 1, col], world_rot[j, 2, col] = _turned(
+                kx, ky, kz, c, s, world_rot[j, 0, col], world_rot[j, 1, col], world_rot[j, 2, col])
+        x, y, z = _turned(kx, ky, kz, c, s, world_pos[j, 0] - cx, world_pos[j, 1] - cy, world_pos[j, 2] - cz)
         world_pos[j, 0], world_pos[j, 1], world_pos[j, 2] = cx + x, cy + y, cz + z
     _product_t(world_rot[knee], world_rot[ankle], rotations[ankle])  # the knee is the ankle's parent (limbs.py)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _pitched(kx, kz, c, s, x, y, z):  # pragma: no cover - compiled
-    """(x, y, z) turned about the horizontal unit axis (kx, 0, kz) by the angle of cosine c and
-    sine s (Rodrigues: v c + (k x v) s + k (k . v)(1 - c))."""
-    along = (kx * x + kz * z) * (1.0 - c)
-    return x * c - kz * y * s + kx * along, y * c + (kz * x - kx * z) * s, z * c + kx * y * s + kz * along
+def _turned(kx, ky, kz, c, s, x, y, z):  # pragma: no cover - compiled
+    """(x, y, z) turned about the unit axis (kx, ky, kz) by the angle of cosine c and sine s
+    (Rodrigues: v c + (k x v) s + k (k . v)(1 - c))."""
+    along = (kx * x + ky * y + kz * z) * (1.0 - c)
+    return (x * c + (ky * z - kz * y) * s + kx * along, y * c + (kz * x - kx * z) * s + ky * along,
+            z * c + (kx * y - ky * x) * s + kz * along)
 
 
 @njit(cache=True, error_model="numpy")
