@@ -145,3 +145,21 @@ def test_bench_names_the_machine_its_figures_came_from():
         models = {line.split(":", 1)[1].strip() for line in info if line.startswith("model name")}
     assert figures["cpu"] in models
     assert figures["load_1min"] >= 0
+
+
+def test_mlpg_keeps_variances_whose_product_leaves_the_doubles():
+    """The kernel takes a frame's three precisions from one division, 1 / (v0 v1 v2); where that
+    product would overflow or underflow (variances beyond 1e100 or below 1e-100) it divides one by
+    one: the answer agrees with the windowed kernel, which always does."""
+    rng = np.random.default_rng(11)
+    frames, dim = 200, 9
+    means = rng.normal(size=(frames, 3 * dim))
+    variances = rng.uniform(0.5, 2.0, size=(frames, 3 * dim))
+    variances[50:60, :dim] = 1e-150  # product underflows
+    variances[120:130, dim:] = 1e160  # product overflows
+    variances[170, 3] = 1e-200
+    before = windowed_kernel(means, variances)
+    now = mlpg(means, variances)
+    assert np.all(np.isfinite(now))
+    scale = np.abs(before).max(axis=0)
+    assert np.all(np.abs(now - before) <= 1e-10 * scale)
