@@ -163,3 +163,42 @@ def test_mlpg_keeps_variances_whose_product_leaves_the_doubles():
     assert np.all(np.isfinite(now))
     scale = np.abs(before).max(axis=0)
     assert np.all(np.abs(now - before) <= 1e-10 * scale)
+
+
+def test_a_solve_shared_among_threads_equals_one_solved_alone(model_input):
+    means, variances = model_input
+    alone = mlpg(means, variances, threads=1)
+    scale = np.abs(alone).max(axis=0)
+    for threads in (2, 3, 5, 100):
+        shared = mlpg(means, variances, threads=threads)
+        assert np.all(np.abs(shared - alone) <= 1e-12 * scale), threads
+
+
+def test_parts_cover_every_dimension_once_on_line_bounds():
+    from instrument.synthesis.mlpg import _parts
+
+    for dim in (1, 7, 8, 9, 33, 66, 67, 200):
+        for threads in (1, 2, 3, 4, 16):
+            parts = _parts(dim, threads)
+            assert parts[0][0] == 0 and parts[-1][1] == dim
+            assert all(hi == lo for (_, hi), (lo, _) in zip(parts, parts[1:]))
+            assert all(lo % 8 == 0 and hi > lo for lo, hi in parts)
+            assert len(parts) <= max(1, threads)
+
+
+def test_a_part_no_helper_takes_is_solved_by_the_caller(model_input):
+    """With every helper thread busy, the caller does not wait for one: it takes the waiting part
+    back and solves it itself (as after a fork, where the pool's threads are gone)."""
+    from instrument.synthesis.mlpg import _cores, _pool
+
+    means, variances = model_input
+    alone = mlpg(means, variances, threads=1)
+    release = threading.Event()
+    blockers = [_pool().submit(release.wait, 60) for _ in range(max(_cores() - 1, 1))]
+    try:
+        shared = mlpg(means, variances, threads=2)
+        assert not release.is_set() and not any(b.done() for b in blockers)  # the helpers were busy throughout
+    finally:
+        release.set()
+    scale = np.abs(alone).max(axis=0)
+    assert np.all(np.abs(shared - alone) <= 1e-12 * scale)

@@ -61,10 +61,12 @@ def run(args: argparse.Namespace) -> int:
     m = f["machine"]
     load = f", load {m['load_1min']:.1f}" if m["load_1min"] is not None else ""
     print(f"machine: {m['cores']} cores, {m['cpu']}{load} (1-minute average at the MLPG figures)")
-    print(f"full MLPG, {f['mlpg_frames']} frames x {f['dimension']} dims:  {f['mlpg_frames_per_s']:8.0f} frames/s")
+    print(f"full MLPG, {f['mlpg_frames']} frames x {f['dimension']} dims:  {f['mlpg_frames_per_s']:8.0f} frames/s "
+          f"on {f['mlpg_threads']} thread{'s' if f['mlpg_threads'] > 1 else ''} ({f['mlpg_one_thread_frames_per_s']:.0f} on one)")
     if f["nnmnkwii_frames_per_s"]:
         print(f"nnmnkwii MLPG, same input, turn about:  {f['nnmnkwii_frames_per_s']:8.0f} frames/s "
-              f"(ours x{f['mlpg_speedup_over_nnmnkwii']:.2f}, the median of per-turn ratios)")
+              f"(ours x{f['mlpg_speedup_over_nnmnkwii']:.2f}, on one thread x{f['mlpg_one_thread_speedup_over_nnmnkwii']:.2f}; "
+              "medians of per-turn ratios)")
     else:
         print("nnmnkwii MLPG:                          not installed (pip install nnmnkwii)")
     print(f"one window's bare solve ({2 + f['lookahead'] + 1} frames):    {f['window_solve_us']:8.1f} us (the yardstick below)")

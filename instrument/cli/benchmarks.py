@@ -17,7 +17,7 @@ from ..runtime.pose import CrowdPoses, PoseStream
 from ..synthesis.contact import contact_space
 from ..synthesis.footlock import FootLock
 from ..synthesis.interpolation import interpolate, style_space
-from ..synthesis.mlpg import mlpg, mlpg_continued
+from ..synthesis.mlpg import mlpg, mlpg_continued, mlpg_threads
 from ..synthesis.offline import generate_with_states
 from ..synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Crowd
 from ..synthesis.widen import Widen, range_space
@@ -140,18 +140,21 @@ def machine() -> dict:
     return {"cores": os.cpu_count(), "cpu": cpu, "load_1min": os.getloadavg()[0] if hasattr(os, "getloadavg") else None}
 
 
-def paired_seconds(ours, theirs, repeat: int) -> tuple[float, float, float]:
-    """Median seconds of two solvers timed turn about, and the median of their per-turn ratio
-    (theirs / ours): on a shared machine the load changes within seconds, and a pair measured
-    back to back sees the same load where two separate runs of medians do not."""
-    ours(), theirs()  # warm up (and compile)
-    times = np.empty((repeat, 2))
+def turn_about(works, repeat: int) -> tuple[list[float], list[float]]:
+    """Median seconds of each work, timed turn about (a turn runs each once, in order), and the
+    median of each one's per-turn ratio to the last (last / this): on a shared machine the load
+    changes within seconds, and works measured back to back see the same load where separate
+    runs of medians do not."""
+    for work in works:
+        work()  # warm up (and compile)
+    times = np.empty((repeat, len(works)))
     for k in range(repeat):
-        for j, work in enumerate((ours, theirs)):
+        for j, work in enumerate(works):
             start = time.perf_counter()
             work()
             times[k, j] = time.perf_counter() - start
-    return float(np.median(times[:, 0])), float(np.median(times[:, 1])), float(np.median(times[:, 1] / times[:, 0]))
+    ratios = times[:, -1:] / times
+    return [float(v) for v in np.median(times, axis=0)], [float(v) for v in np.median(ratios, axis=0)]
 
 
 def measure(model_path: str | None, repeat: int) -> dict:
@@ -173,14 +176,18 @@ def measure(model_path: str | None, repeat: int) -> dict:
     figures["mlpg_frames"] = MLPG_FRAMES
     figures["machine"] = machine()
     reference = _nnmnkwii_mlpg()
+    # `mlpg` shares a long solve among the cores; the one-thread figure is the kernel alone
+    ours = [lambda: mlpg(means, variances), lambda: mlpg(means, variances, threads=1)]
+    figures["mlpg_threads"] = mlpg_threads(dimension)
     if reference:
-        ours, theirs, speedup = paired_seconds(lambda: mlpg(means, variances), lambda: reference(means, variances), repeat)
-        figures["mlpg_frames_per_s"] = MLPG_FRAMES / ours
-        figures["nnmnkwii_frames_per_s"] = MLPG_FRAMES / theirs
-        figures["mlpg_speedup_over_nnmnkwii"] = speedup
+        seconds, speedups = turn_about([*ours, lambda: reference(means, variances)], repeat)
+        figures["nnmnkwii_frames_per_s"] = MLPG_FRAMES / seconds[2]
+        figures["mlpg_speedup_over_nnmnkwii"], figures["mlpg_one_thread_speedup_over_nnmnkwii"] = speedups[:2]
     else:
-        figures["mlpg_frames_per_s"] = MLPG_FRAMES / median_seconds(lambda: mlpg(means, variances), repeat)
-        figures["nnmnkwii_frames_per_s"] = figures["mlpg_speedup_over_nnmnkwii"] = None
+        seconds, _ = turn_about(ours, repeat)
+        figures["nnmnkwii_frames_per_s"] = None
+        figures["mlpg_speedup_over_nnmnkwii"] = figures["mlpg_one_thread_speedup_over_nnmnkwii"] = None
+    figures["mlpg_frames_per_s"], figures["mlpg_one_thread_frames_per_s"] = (MLPG_FRAMES / v for v in seconds[:2])
 
     # the yardstick of the streaming figures: the bare solve of one window of the same size
     frames, blocks = 100, max(3, min(repeat, 9))  # the median of several blocks: one busy moment is not the figure

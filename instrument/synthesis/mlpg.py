@@ -13,23 +13,26 @@ this one loop, which is why it is a dependency.
 The same routine (`_solve`) continues a trajectory: frames already sent enter as fixed values,
 and only the frames after them are solved for, so a streamed walk has no jump where windows meet.
 
-A whole sequence from variances (`mlpg`, what `instrument bench` sets against nnmnkwii) has a
-kernel of its own, `_solve_sequence`: the same elimination without the row table and the fixed
-frames, its work arrays kept between calls (fresh ones came back from the allocator as fresh
-pages). What bound it, measured (docs/mlpg.md): a scalar division takes 1.45 ns here and a
-packed one 0.37 ns per value, and the old row loop, scalar, made four per unknown; the compiler
-would not vectorise it (it writes 11 arrays and reads 7: too many run-time overlap checks);
-where it did vectorise a row, the per-row call with a dozen array arguments and those checks
-ate the gain at 66 dimensions; and the loads of the next rows were issued late behind long
-chains of dependent arithmetic. So: the three precisions' divisions per unknown in a loop of
-their own (`_sequence_precisions`, vectorised), the elimination with one division and no pivot
-kept (`_sequence_row`, vectorised), both inlined into the sweep, and both sweeps prefetching
-rows a few ahead (`_prefetch`, llvm.prefetch through a numba intrinsic).
+A whole sequence from variances (`mlpg`, what `instrument bench` sets against nnmnkwii and
+`synth --method full` solves) has a kernel of its own, `_solve_sequence`: the same elimination
+without the row table and the fixed frames, its work arrays kept between calls (fresh ones came
+back from the allocator as fresh pages), its dimensions shared among the cores (each thread a
+range of them). How it was made fast, each step measured (docs/mlpg.md): the frame's precisions
+in a loop of their own from one division (`_sequence_precisions`) and the elimination with one
+division and no pivot kept (`_sequence_row`), both vectorised and inlined; rows taken as views
+that own nothing (`_part`) and the forward sweep unrolled so the ring rows it uses are
+constants, which spares the compiler's run-time overlap checks; the back substitution's row
+index hidden from the compiler (`_opaque`), whose one overlap check for the whole sweep always
+failed; and both sweeps asking for their rows ahead of time (`_prefetch`, llvm.prefetch through
+a numba intrinsic), since the loads of the next rows were issued late behind long chains of
+dependent arithmetic.
 """
 
 from __future__ import annotations
 
+import os
 import threading
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from llvmlite import ir
@@ -222,13 +225,14 @@ SAFE_PRODUCT = (1e-300, 1e300)  # where 1 / (v0 v1 v2) and the precisions taken 
 
 
 @njit(cache=True, nogil=True, fastmath=True, error_model="numpy", inline="always")
-def _prefetch_row(array, row):  # pragma: no cover - compiled
-    """Prefetch one row of a C-contiguous 2-D array, one hint per 64-byte line. The hint takes
-    the array's flat index: a reshape to 1-D here was a call into numba's helpers per row, a
-    tenth of the solve."""
-    width = array.shape[1]
-    for j in range(row * width, (row + 1) * width, 8):
+def _prefetch_row(array, row, start, length):  # pragma: no cover - compiled
+    """Prefetch array[row, start:start + length] of a C-contiguous 2-D array, one hint per 64-byte
+    line. The hint takes the array's flat index: a reshape to 1-D here was a call into numba's
+    helpers per row, a tenth of the solve."""
+    first = row * array.shape[1] + start
+    for j in range(first, first + length, 8):
         _prefetch(array, j)
+    _prefetch(array, first + length - 1)  # the last line, where the range does not start on one
 
 
 @njit(cache=True, nogil=True, fastmath=True, error_model="numpy", inline="always")
@@ -288,33 +292,34 @@ def _sequence_row(mu0, mu2, mu1_prev, mu2_prev, mu1_next, mu2_next, p0_here, p2_
 
 
 @njit(cache=True, nogil=True, fastmath=True, error_model="numpy", inline="always")
-def _sequence_step(t, means, variances, precisions, inverses, forward, l1_last, l1, l2, y,
+def _sequence_step(t, lo, means, variances, precisions, inverses, forward, l1_last, l1, l2, y,
                    here, before, after, parity):  # pragma: no cover - compiled
     """Row t of the forward sweep: frame t + 1's precisions into rows `after` of `precisions`,
     then row t formed from frames t - 1, t, t + 1 (rows `before`, `here`, `after`) and
     eliminated, row t - 1's inverse pivot and forward value read from row 1 - parity of
     `inverses` and `forward`, row t - 2's replaced by row t's in row `parity`."""
-    frames, n = y.shape
+    frames, dim, n = y.shape[0], means.shape[1] // 3, l1.shape[1]
     if t + PREFETCH_AHEAD < frames:
-        _prefetch_row(means, t + PREFETCH_AHEAD)
-        _prefetch_row(variances, t + PREFETCH_AHEAD)
+        for start in (lo, dim + lo, 2 * dim + lo):
+            _prefetch_row(means, t + PREFETCH_AHEAD, start, n)
+            _prefetch_row(variances, t + PREFETCH_AHEAD, start, n)
     dynamic = 1.0 if t + 1 < frames - 1 else 0.0  # windows centred on the last frame have zero precision
     tn, tp = min(t + 1, frames - 1), max(t - 1, 0)
-    _sequence_precisions(_part(variances, tn, 0, n), _part(variances, tn, n, n), _part(variances, tn, 2 * n, n), dynamic,
+    _sequence_precisions(_part(variances, tn, lo, n), _part(variances, tn, dim + lo, n), _part(variances, tn, 2 * dim + lo, n), dynamic,
                          _part(precisions, after, 0, n), _part(precisions, after + 1, 0, n), _part(precisions, after + 2, 0, n))
-    _sequence_row(_part(means, t, 0, n), _part(means, t, 2 * n, n),
-                  _part(means, tp, n, n), _part(means, tp, 2 * n, n),
-                  _part(means, tn, n, n), _part(means, tn, 2 * n, n),
+    _sequence_row(_part(means, t, lo, n), _part(means, t, 2 * dim + lo, n),
+                  _part(means, tp, dim + lo, n), _part(means, tp, 2 * dim + lo, n),
+                  _part(means, tn, dim + lo, n), _part(means, tn, 2 * dim + lo, n),
                   _part(precisions, here, 0, n), _part(precisions, here + 2, 0, n),
                   _part(precisions, before + 1, 0, n), _part(precisions, before + 2, 0, n),
                   _part(precisions, after + 1, 0, n), _part(precisions, after + 2, 0, n),
                   _part(inverses, 1 - parity, 0, n), _part(inverses, parity, 0, n),
                   _part(forward, 1 - parity, 0, n), _part(forward, parity, 0, n),
-                  l1_last, _part(l1, t, 0, n), _part(l2, t, 0, n), _part(y, t, 0, n))
+                  l1_last, _part(l1, t, 0, n), _part(l2, t, 0, n), _part(y, t, lo, n))
 
 
 @njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
-def _solve_sequence(means, variances, y, l1, l2):  # pragma: no cover - compiled
+def _solve_sequence(means, variances, y, l1, l2, lo):  # pragma: no cover - compiled
     """Whole-sequence MLPG from variances: means, variances (T, 3D), C-contiguous; y (T, D)
     receives the solution; l1, l2 (T, D) work, any content. The same elimination as `_solve`
     with no fixed frames and no row table; every buffer it reads it has written first.
@@ -325,34 +330,34 @@ def _solve_sequence(means, variances, y, l1, l2):  # pragma: no cover - compiled
     read a few rows ahead (`_prefetch_row`): the loops keep the core busy with long chains of
     dependent arithmetic, so the loads of the next rows were issued late."""
     frames, width = means.shape
-    n = width // 3
+    dim, n = width // 3, l1.shape[1]
     precisions = np.zeros((9, n))  # frame s's in rows 3 (s % 3) + window (static, delta, delta-delta)
     inverses, forward = np.ones((2, n)), np.zeros((2, n))  # inverse pivot and forward value of the last row of each parity
     l1_last = np.zeros(n)
     # frame -1's precisions stay zero; frame 0 has no dynamic ones
-    _sequence_precisions(_part(variances, 0, 0, n), _part(variances, 0, n, n), _part(variances, 0, 2 * n, n), 0.0,
+    _sequence_precisions(_part(variances, 0, lo, n), _part(variances, 0, dim + lo, n), _part(variances, 0, 2 * dim + lo, n), 0.0,
                          _part(precisions, 0, 0, n), _part(precisions, 1, 0, n), _part(precisions, 2, 0, n))
     t = 0
     while t + 6 <= frames:
-        _sequence_step(t, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 0, 6, 3, 0)
-        _sequence_step(t + 1, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 3, 0, 6, 1)
-        _sequence_step(t + 2, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 6, 3, 0, 0)
-        _sequence_step(t + 3, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 0, 6, 3, 1)
-        _sequence_step(t + 4, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 3, 0, 6, 0)
-        _sequence_step(t + 5, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 6, 3, 0, 1)
+        _sequence_step(t, lo, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 0, 6, 3, 0)
+        _sequence_step(t + 1, lo, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 3, 0, 6, 1)
+        _sequence_step(t + 2, lo, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 6, 3, 0, 0)
+        _sequence_step(t + 3, lo, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 0, 6, 3, 1)
+        _sequence_step(t + 4, lo, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 3, 0, 6, 0)
+        _sequence_step(t + 5, lo, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 6, 3, 0, 1)
         t += 6
     for t in range(t, frames):
-        _sequence_step(t, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 3 * (t % 3), 3 * ((t + 2) % 3), 3 * ((t + 1) % 3), t % 2)
+        _sequence_step(t, lo, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 3 * (t % 3), 3 * ((t + 2) % 3), 3 * ((t + 1) % 3), t % 2)
     if frames >= 2:
         for d in range(n):
-            y[frames - 2, d] -= l1[frames - 1, d] * y[frames - 1, d]
+            y[frames - 2, lo + d] -= l1[frames - 1, d] * y[frames - 1, lo + d]
     for t in range(frames - 3, -1, -1):
         if t >= PREFETCH_BEHIND:
-            _prefetch_row(y, t - PREFETCH_BEHIND)
-            _prefetch_row(l1, t - PREFETCH_BEHIND + 1)
-            _prefetch_row(l2, t - PREFETCH_BEHIND + 2)
+            _prefetch_row(y, t - PREFETCH_BEHIND, lo, n)
+            _prefetch_row(l1, t - PREFETCH_BEHIND + 1, 0, n)
+            _prefetch_row(l2, t - PREFETCH_BEHIND + 2, 0, n)
         row = _opaque(t)
-        _substitute_row(_part(y, row, 0, n), _part(y, row + 1, 0, n), _part(y, row + 2, 0, n),
+        _substitute_row(_part(y, row, lo, n), _part(y, row + 1, lo, n), _part(y, row + 2, lo, n),
                         _part(l1, row + 1, 0, n), _part(l2, row + 2, 0, n))
 
 
@@ -370,8 +375,8 @@ _scratch = threading.local()  # per thread: the kernels release the GIL, so thre
 
 def _work(frames: int, dim: int) -> tuple[np.ndarray, np.ndarray]:
     """Two (frames, dim) work arrays, kept between calls (growing only: each thread keeps 16 x T x D
-    bytes of its largest solve). Fresh arrays of this size came back from the allocator as fresh
-    pages, and faulting them in cost a quarter to a third of the solve."""
+    bytes of its largest part of a solve). Fresh arrays of this size came back from the allocator
+    as fresh pages, and faulting them in cost a quarter to a third of the solve."""
     size = 2 * frames * dim
     buffer = getattr(_scratch, "buffer", None)
     if buffer is None or buffer.size < size:
@@ -380,13 +385,64 @@ def _work(frames: int, dim: int) -> tuple[np.ndarray, np.ndarray]:
     return work[0], work[1]
 
 
-def mlpg(means: np.ndarray, variances: np.ndarray) -> np.ndarray:
-    """Static trajectories (T, D) from means and variances (T, 3D) of [o, delta o, delta-delta o]."""
+SHARE_FROM = 100_000  # T x D from which a solve is shared among cores (a hand-over costs some 50 us)
+PART_ALIGN = 8  # dimensions per 64-byte line: parts start on a line of a row, so two threads seldom write one
+
+
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def _parts(dim: int, threads: int) -> list[tuple[int, int]]:
+    """[lo, hi) column ranges of about equal size, their bounds on multiples of PART_ALIGN."""
+    threads = max(1, min(threads, dim // PART_ALIGN))
+    bounds = sorted({0, dim, *(round(dim * k / threads / PART_ALIGN) * PART_ALIGN for k in range(1, threads))})
+    return list(zip(bounds[:-1], bounds[1:]))
+
+
+def mlpg_threads(dim: int, frames: int = 1 << 62) -> int:
+    """How many threads `mlpg` shares a solve of `frames` x `dim` among by default."""
+    return len(_parts(dim, _cores() if frames * dim >= SHARE_FROM else 1))
+
+
+_helpers: list[ThreadPoolExecutor] = []  # made by the first solve that shares, kept for the process
+_helpers_made = threading.Lock()
+
+
+def _pool() -> ThreadPoolExecutor:
+    """Threads for the parts after the first (the caller solves that one): one fewer than the cores."""
+    with _helpers_made:
+        if not _helpers:
+            _helpers.append(ThreadPoolExecutor(max(_cores() - 1, 1), thread_name_prefix="mlpg"))
+        return _helpers[0]
+
+
+def _solve_part(means: np.ndarray, variances: np.ndarray, out: np.ndarray, lo: int, hi: int) -> None:
+    _solve_sequence(means, variances, out, *_work(len(means), hi - lo), lo)
+
+
+def mlpg(means: np.ndarray, variances: np.ndarray, threads: int | None = None) -> np.ndarray:
+    """Static trajectories (T, D) from means and variances (T, 3D) of [o, delta o, delta-delta o].
+
+    Dimensions are independent: a long sequence is shared among the cores this process may use,
+    each thread solving a range of them (`threads` sets how many; 1 keeps it in this thread).
+    The answer depends on the sharing only in rounding (the vector lanes group differently)."""
     means = np.ascontiguousarray(means, dtype=np.float64)
     variances = np.ascontiguousarray(variances, dtype=np.float64)
     frames, width = means.shape
-    out = np.empty((frames, width // 3))
+    dim = width // 3
+    out = np.empty((frames, dim))
     if frames == 0:  # the kernel reads frame 0 unchecked
         return out
-    _solve_sequence(means, variances, out, *_work(frames, width // 3))
+    first, *rest = _parts(dim, mlpg_threads(dim, frames) if threads is None else threads)
+    shared = [_pool().submit(_solve_part, means, variances, out, lo, hi) for lo, hi in rest]
+    _solve_part(means, variances, out, *first)
+    for (lo, hi), part in zip(rest, shared):
+        if part.cancel():  # no helper has taken it yet (all busy, or none left after a fork): solve it here
+            _solve_part(means, variances, out, lo, hi)
+        else:
+            part.result()
     return out

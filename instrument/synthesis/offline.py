@@ -13,7 +13,7 @@ from .contact import contact_space
 from .follow import strength
 from .footlock import FootLock
 from .interpolation import StyleSpace
-from .mlpg import mlpg_continued
+from .mlpg import mlpg
 from .stream import DEFAULT_LOOKAHEAD, Controls, Crowd
 from .widen import RangeSpace, Widen, range_space
 
@@ -51,7 +51,7 @@ def generate_with_states(space: StyleSpace, dimension: int, controls: Controls, 
     if method == "full":
         ids = walker.state_plan(controls, frames)
         lam = walker.lams[0]
-        static = mlpg_continued(lam.means[ids][None], lam.precisions[ids][None], np.zeros((1, 0, dimension)))[0]
+        static = mlpg(lam.means[ids], 1.0 / lam.precisions[ids])
         if widen is not None:
             scale = Widen(widen)
             static = np.array([scale.next(row, walker, controls) for row in static])
