@@ -181,9 +181,11 @@ def _prefetch(typingctx, flat, index):  # pragma: no cover - compiled
 @intrinsic
 def _part(typingctx, array, row, start, length):  # pragma: no cover - compiled
     """array[row, start:start + length] of a C-contiguous 2-D array, as a 1-D array that owns
-    nothing. The sweeps take some twenty row views a row: as numba slices (bounds normalised,
-    reference counted with atomic operations) they cost a quarter of the solve at 66 dimensions.
-    The caller holds `array` for as long as the view lives, and the bounds are the caller's."""
+    nothing. The sweeps take some twenty views a row; numba's slices normalise their bounds and
+    are reference-counted with atomic operations (a sixth of the samples sat on those, though
+    removing them alone gained nothing); these are an address and a length, so with the ring rows
+    constant (the unrolled sweep) the compiler can tell them apart. The caller holds `array` for
+    as long as the view lives, and the bounds are the caller's."""
     result = types.Array(array.dtype, 1, "C")
 
     def codegen(context, builder, signature, args):
@@ -238,7 +240,8 @@ def _prefetch_row(array, row, start, length):  # pragma: no cover - compiled
 @njit(cache=True, nogil=True, fastmath=True, error_model="numpy", inline="always")
 def _sequence_precisions(v0, v1, v2, dynamic, p0, p1, p2):  # pragma: no cover - compiled
     """One frame's precisions (1 / variance) for the static, delta and delta-delta windows, the
-    two dynamic ones times `dynamic` (0 for windows centred on the first or last frame), from one
+    two dynamic ones times `dynamic` (0 for windows centred on the first or last frame) and the
+    delta one also times D_PREV ** 2 (as every row uses it, `_sequence_row`), from one
     division per dimension: r = 1 / (v0 v1 v2), p0 = v1 v2 r, ... Divisions bound this loop (a
     packed one takes as long as a dozen multiplications); three per unknown were 1.13 x slower.
     The product leaves the range of doubles for variances far from 1 (below 1e-100 or above
