@@ -174,6 +174,11 @@ def test_a_solve_shared_among_threads_equals_one_solved_alone(model_input):
         assert np.all(np.abs(shared - alone) <= 1e-12 * scale), threads
 
 
+def test_empty_inputs_give_empty_trajectories():
+    assert mlpg(np.zeros((0, 6)), np.ones((0, 6))).shape == (0, 2)
+    assert mlpg(np.zeros((5, 0)), np.ones((5, 0))).shape == (5, 0)
+
+
 def test_parts_cover_every_dimension_once_on_line_bounds():
     from instrument.synthesis.mlpg import _parts
 

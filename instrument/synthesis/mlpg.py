@@ -438,7 +438,7 @@ def mlpg(means: np.ndarray, variances: np.ndarray, threads: int | None = None) -
     frames, width = means.shape
     dim = width // 3
     out = np.empty((frames, dim))
-    if frames == 0:  # the kernel reads frame 0 unchecked
+    if frames == 0 or dim == 0:  # the kernel reads frame 0 unchecked
         return out
     first, *rest = _parts(dim, mlpg_threads(dim, frames) if threads is None else threads)
     shared = [_pool().submit(_solve_part, means, variances, out, lo, hi) for lo, hi in rest]
