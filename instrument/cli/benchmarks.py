@@ -178,7 +178,7 @@ def measure(model_path: str | None, repeat: int) -> dict:
     reference = _nnmnkwii_mlpg()
     # `mlpg` shares a long solve among the cores; the one-thread figure is the kernel alone
     ours = [lambda: mlpg(means, variances), lambda: mlpg(means, variances, threads=1)]
-    figures["mlpg_threads"] = mlpg_threads(dimension)
+    figures["mlpg_threads"] = mlpg_threads(dimension, MLPG_FRAMES)
     if reference:
         seconds, speedups = turn_about([*ours, lambda: reference(means, variances)], repeat)
         figures["nnmnkwii_frames_per_s"] = MLPG_FRAMES / seconds[2]

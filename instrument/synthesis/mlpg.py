@@ -244,8 +244,8 @@ def _sequence_precisions(v0, v1, v2, dynamic, p0, p1, p2):  # pragma: no cover -
     delta one also times D_PREV ** 2 (as every row uses it, `_sequence_row`), from one
     division per dimension: r = 1 / (v0 v1 v2), p0 = v1 v2 r, ... Divisions bound this loop (a
     packed one takes as long as a dozen multiplications); three per unknown were 1.13 x slower.
-    The product leaves the range of doubles for variances far from 1 (below 1e-100 or above
-    1e100 each): those frames are divided one by one, as before."""
+    For variances within 1e-100..1e100 each this is exact to rounding; a frame whose product
+    leaves 1e-300..1e300 is divided one by one, as before."""
     outside = 0  # counted, not min/max: a running min and max made the loop 1.15 x slower
     for d in range(p0.shape[0]):
         v12 = v1[d] * v2[d]
@@ -308,7 +308,8 @@ def _sequence_step(t, lo, means, variances, precisions, inverses, forward, l1_la
             _prefetch_row(variances, t + PREFETCH_AHEAD, start, n)
     dynamic = 1.0 if t + 1 < frames - 1 else 0.0  # windows centred on the last frame have zero precision
     tn, tp = min(t + 1, frames - 1), max(t - 1, 0)
-    _sequence_precisions(_part(variances, tn, lo, n), _part(variances, tn, dim + lo, n), _part(variances, tn, 2 * dim + lo, n), dynamic,
+    _sequence_precisions(_part(variances, tn, lo, n), _part(variances, tn, dim + lo, n),
+                         _part(variances, tn, 2 * dim + lo, n), dynamic,
                          _part(precisions, after, 0, n), _part(precisions, after + 1, 0, n), _part(precisions, after + 2, 0, n))
     _sequence_row(_part(means, t, lo, n), _part(means, t, 2 * dim + lo, n),
                   _part(means, tp, dim + lo, n), _part(means, tp, 2 * dim + lo, n),
@@ -323,9 +324,10 @@ def _sequence_step(t, lo, means, variances, precisions, inverses, forward, l1_la
 
 @njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
 def _solve_sequence(means, variances, y, l1, l2, lo):  # pragma: no cover - compiled
-    """Whole-sequence MLPG from variances: means, variances (T, 3D), C-contiguous; y (T, D)
-    receives the solution; l1, l2 (T, D) work, any content. The same elimination as `_solve`
-    with no fixed frames and no row table; every buffer it reads it has written first.
+    """Whole-sequence MLPG from variances for the dimensions [lo, lo + n): means, variances
+    (T, 3D), C-contiguous; y (T, D) receives the solution in those columns; l1, l2 (T, n) work,
+    any content. The same elimination as `_solve` with no fixed frames and no row table; every
+    buffer it reads it has written first.
 
     The forward sweep is unrolled six rows at a time (frames in a three-row ring, pivots in a
     two-row one): the rows of the rings each step uses are constants, so the compiler can tell
@@ -341,7 +343,7 @@ def _solve_sequence(means, variances, y, l1, l2, lo):  # pragma: no cover - comp
     _sequence_precisions(_part(variances, 0, lo, n), _part(variances, 0, dim + lo, n), _part(variances, 0, 2 * dim + lo, n), 0.0,
                          _part(precisions, 0, 0, n), _part(precisions, 1, 0, n), _part(precisions, 2, 0, n))
     t = 0
-    while t + 6 <= frames:
+    while t + 6 <= frames:  # ring rows (here, before, after) = 3 (t, t - 1, t + 1) % 3, parity t % 2
         _sequence_step(t, lo, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 0, 6, 3, 0)
         _sequence_step(t + 1, lo, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 3, 0, 6, 1)
         _sequence_step(t + 2, lo, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 6, 3, 0, 0)
@@ -350,7 +352,8 @@ def _solve_sequence(means, variances, y, l1, l2, lo):  # pragma: no cover - comp
         _sequence_step(t + 5, lo, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 6, 3, 0, 1)
         t += 6
     for t in range(t, frames):
-        _sequence_step(t, lo, means, variances, precisions, inverses, forward, l1_last, l1, l2, y, 3 * (t % 3), 3 * ((t + 2) % 3), 3 * ((t + 1) % 3), t % 2)
+        _sequence_step(t, lo, means, variances, precisions, inverses, forward, l1_last, l1, l2, y,
+                       3 * (t % 3), 3 * ((t + 2) % 3), 3 * ((t + 1) % 3), t % 2)
     if frames >= 2:
         for d in range(n):
             y[frames - 2, lo + d] -= l1[frames - 1, d] * y[frames - 1, lo + d]
@@ -389,7 +392,7 @@ def _work(frames: int, dim: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 SHARE_FROM = 100_000  # T x D from which a solve is shared among cores (a hand-over costs some 50 us)
-PART_ALIGN = 8  # dimensions per 64-byte line: parts start on a line of a row, so two threads seldom write one
+PART_ALIGN = 8  # dimensions per 64-byte line: at a dimension count that is a multiple of 8, parts never share a line
 
 
 def _cores() -> int:
@@ -406,7 +409,7 @@ def _parts(dim: int, threads: int) -> list[tuple[int, int]]:
     return list(zip(bounds[:-1], bounds[1:]))
 
 
-def mlpg_threads(dim: int, frames: int = 1 << 62) -> int:
+def mlpg_threads(dim: int, frames: int) -> int:
     """How many threads `mlpg` shares a solve of `frames` x `dim` among by default."""
     return len(_parts(dim, _cores() if frames * dim >= SHARE_FROM else 1))
 
@@ -423,8 +426,28 @@ def _pool() -> ThreadPoolExecutor:
         return _helpers[0]
 
 
+def _forget_pool() -> None:
+    """In a forked child: the pool's threads did not come along, and a pool that believes it has
+    them would keep every part handed to it (taken back, but never removed from its queue)."""
+    global _helpers_made
+    _helpers.clear()
+    _helpers_made = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pool)
+
+
 def _solve_part(means: np.ndarray, variances: np.ndarray, out: np.ndarray, lo: int, hi: int) -> None:
     _solve_sequence(means, variances, out, *_work(len(means), hi - lo), lo)
+
+
+def _handed_over(means: np.ndarray, variances: np.ndarray, out: np.ndarray, parts: list[tuple[int, int]]) -> list:
+    """The parts given to the pool's threads, or none when it takes no more work (at exit)."""
+    try:
+        return [_pool().submit(_solve_part, means, variances, out, lo, hi) for lo, hi in parts]
+    except RuntimeError:  # the interpreter is shutting down: the caller solves them all
+        return []
 
 
 def mlpg(means: np.ndarray, variances: np.ndarray, threads: int | None = None) -> np.ndarray:
@@ -432,20 +455,27 @@ def mlpg(means: np.ndarray, variances: np.ndarray, threads: int | None = None) -
 
     Dimensions are independent: a long sequence is shared among the cores this process may use,
     each thread solving a range of them (`threads` sets how many; 1 keeps it in this thread).
-    The answer depends on the sharing only in rounding (the vector lanes group differently)."""
+    The answer depends on the sharing only in rounding (which dimensions go through the vector
+    loops and which through their scalar remainders changes with the parts)."""
     means = np.ascontiguousarray(means, dtype=np.float64)
     variances = np.ascontiguousarray(variances, dtype=np.float64)
+    if means.ndim != 2 or means.shape != variances.shape or means.shape[1] % 3:
+        raise ValueError(f"mlpg: means and variances must both be (T, 3D), not {means.shape} and {variances.shape}")
     frames, width = means.shape
     dim = width // 3
     out = np.empty((frames, dim))
-    if frames == 0 or dim == 0:  # the kernel reads frame 0 unchecked
+    if frames == 0 or dim == 0:  # nothing to solve (and the kernel reads frame 0 unchecked)
         return out
     first, *rest = _parts(dim, mlpg_threads(dim, frames) if threads is None else threads)
-    shared = [_pool().submit(_solve_part, means, variances, out, lo, hi) for lo, hi in rest]
-    _solve_part(means, variances, out, *first)
-    for (lo, hi), part in zip(rest, shared):
-        if part.cancel():  # no helper has taken it yet (all busy, or none left after a fork): solve it here
-            _solve_part(means, variances, out, lo, hi)
-        else:
-            part.result()
+    shared = _handed_over(means, variances, out, rest)
+    try:
+        _solve_part(means, variances, out, *first)
+        for (lo, hi), part in zip(rest, shared or [None] * len(rest)):
+            if part is None or part.cancel():  # no helper has taken it (all busy, or at exit): solve it here
+                _solve_part(means, variances, out, lo, hi)
+            else:
+                part.result()
+    finally:
+        for part in shared:  # after a failure: parts not yet started are not started for nothing
+            part.cancel()
     return out
