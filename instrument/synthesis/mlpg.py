@@ -38,7 +38,6 @@ import numpy as np
 from llvmlite import ir
 from numba import njit, types
 from numba.core import cgutils
-from numba.core.typing.templates import signature as signature_of
 from numba.extending import intrinsic
 from numba.np.arrayobj import populate_array
 
@@ -161,21 +160,21 @@ def mlpg_continued(means: np.ndarray, precisions: np.ndarray, fixed: np.ndarray,
 
 
 @intrinsic
-def _prefetch(typingctx, flat, index):  # pragma: no cover - compiled
-    """A hint to bring the cache line holding flat[index] into the caches (llvm.prefetch: read,
-    keep in all levels); no load, nothing waits for it."""
+def _prefetch(typingctx, array, index):  # pragma: no cover - compiled
+    """A hint to bring the cache line holding element `index` of `array`, counted in C order from
+    its start, into the caches (llvm.prefetch: read, keep in all levels); no load, nothing waits."""
 
     def codegen(context, builder, signature, args):
-        array = context.make_array(signature.args[0])(context, builder, args[0])
+        source = context.make_array(signature.args[0])(context, builder, args[0])
         byte_pointer = ir.IntType(8).as_pointer()
         int32 = ir.IntType(32)
         function = cgutils.get_or_insert_function(
             builder.module, ir.FunctionType(ir.VoidType(), [byte_pointer, int32, int32, int32]), "llvm.prefetch.p0i8")
-        address = builder.bitcast(builder.gep(array.data, [args[1]]), byte_pointer)
+        address = builder.bitcast(builder.gep(source.data, [args[1]]), byte_pointer)
         builder.call(function, [address, int32(0), int32(3), int32(1)])
         return context.get_dummy_value()
 
-    return types.void(flat, index), codegen
+    return types.void(array, index), codegen
 
 
 @intrinsic
@@ -214,7 +213,7 @@ def _opaque(typingctx, value):  # pragma: no cover - compiled
         kind = context.get_value_type(signature.args[0])
         return builder.asm(ir.FunctionType(kind, [kind]), "", "=r,0", [args[0]], side_effect=False)
 
-    return signature_of(value, value), codegen
+    return value(value), codegen
 
 
 # How far ahead the forward sweep asks for its input rows, and how far behind the back
