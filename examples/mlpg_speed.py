@@ -24,7 +24,8 @@ from instrument.cli.benchmarks import _nnmnkwii_mlpg, machine
 from instrument.models.modelfile import default_model_path, load_model
 from instrument.synthesis.interpolation import interpolate, style_space
 from instrument.synthesis.mlpg import mlpg, mlpg_continued
-from instrument.synthesis.stream import Controls, Crowd
+from instrument.synthesis.engine import Engine
+from instrument.synthesis.stream import Controls
 
 
 @njit(nogil=True, fastmath=True, error_model="numpy")
@@ -56,7 +57,9 @@ def main() -> None:
     model = load_model(default_model_path())
     space = style_space(model)
     controls = Controls(np.full(len(model.style_names), 1.5 / len(model.style_names)))
-    ids = Crowd(space).state_plan(controls, args.frames)
+    planner = Engine(model)
+    planner.retune(controls)
+    ids = planner.stream.state_plan(args.frames)
     lam = interpolate(space, controls.weights)
     means, variances = lam.means[ids], 1.0 / lam.precisions[ids]
     dim = means.shape[1] // 3

@@ -30,20 +30,17 @@ from instrument.models.adaptation import ONE_PASS_MAP  # noqa: E402
 from instrument.models.build import build_model  # noqa: E402
 from instrument.models.corpus import make_takes, read_motions, styled_takes  # noqa: E402
 from instrument.models.evaluation import heldout_table  # noqa: E402
-from instrument.motion.features import extract, restore  # noqa: E402
+from instrument.motion.features import extract  # noqa: E402
 from instrument.motion.steps import segment_steps  # noqa: E402
-from instrument.synthesis.interpolation import style_space  # noqa: E402
-from instrument.synthesis.offline import default_controls, synthesize  # noqa: E402
+from instrument.synthesis.engine import default_controls, render  # noqa: E402
 
 
 def recognised(classifier: LinearDiscriminant, model, style: str, walks: int, seconds: float) -> tuple[list[bool], list[bool]]:
     """(per walk, per step) whether synthesised walks of `style` are labelled `style`."""
-    space, dimension = style_space(model), model.layout.dimension
     takes, steps = [], []
     for seed in range(walks):
         controls = default_controls(model, {style: 1.0}, liveliness=1.0 if seed else 0.0)
-        static = synthesize(space, dimension, controls, int(seconds * model.fps), seed=seed)
-        motion = restore(static, model.layout, model.fps)
+        motion = render(model, controls, int(seconds * model.fps), seed=seed)  # as synth writes it
         again, _, _ = extract(motion, model.layout)  # the walk as the classifier sees real takes
         x = step_features(again, segment_steps(motion, model.layout).steps)
         takes.append(classifier.take_label(x) == style)

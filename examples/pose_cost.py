@@ -25,13 +25,14 @@ from instrument.motion.features import ROOT_FEATURES, FeatureLayout
 from instrument.motion.kinematics import _compose
 from instrument.motion.restore_frame import FrameRestorer
 from instrument.motion.rotations import axis_angle_matrix, expmap_to_matrix
-from instrument.runtime.pose import CrowdPoses
+from instrument.synthesis.posing import CrowdPoses
 from instrument.shipped import default_model_path
 from instrument.synthesis.contact import contact_space
 from instrument.synthesis.footlock import FootLock
 from instrument.synthesis.interpolation import interpolate, style_space
 from instrument.synthesis.mlpg import mlpg_continued
-from instrument.synthesis.offline import generate_with_states
+from instrument.synthesis.engine import walk_features
+from instrument.synthesis.widen import _without_range
 from instrument.synthesis.stream import DEFAULT_LOOKAHEAD, Controls
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
@@ -86,8 +87,8 @@ def main() -> None:
     model = load_model(default_model_path())
     space, contact, layout = style_space(model), contact_space(model), model.layout
     controls = Controls(np.full(len(model.style_names), 1.5 / len(model.style_names)))
-    static, ids = generate_with_states(space, layout.dimension, controls, args.frames, "stream", DEFAULT_LOOKAHEAD, 0)
-    shares = contact.shares(controls.weights)[ids]
+    static, ids = walk_features(_without_range(model), controls, args.frames)
+    shares = contact.shares(controls.weights)[0][ids]
     lam = interpolate(space, controls.weights)
     window = 2 + DEFAULT_LOOKAHEAD + 1
     means, precisions = lam.means[ids[None, :window]], lam.precisions[ids[None, :window]]

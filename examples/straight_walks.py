@@ -21,8 +21,7 @@ import numpy as np
 from instrument.models.modelfile import default_model_path, load_model
 from instrument.synthesis.durations import state_durations
 from instrument.synthesis.interpolation import interpolate, style_space
-from instrument.synthesis.offline import default_controls, generate_with_states
-from instrument.synthesis.widen import range_space
+from instrument.synthesis.engine import default_controls, walk_features
 
 SETTLE_FRAMES = 15  # as instrument evaluate: the first half second is left out
 
@@ -40,8 +39,7 @@ def main() -> None:
     for weight in (1.0, 2.0, -1.0):
         for style in model.style_names:
             controls = default_controls(model, {style: weight})
-            static, ids = generate_with_states(space, model.layout.dimension, controls, frames, "stream", 32, 0,
-                                               range_space(model))
+            static, ids = walk_features(model, controls, frames)
             static, label = static[SETTLE_FRAMES:], ids[SETTLE_FRAMES:] // states
             starts = np.flatnonzero(np.diff(label)) + 1
             yaw = np.degrees(np.concatenate([[0.0], np.cumsum(static[:, 3]) / fps]))

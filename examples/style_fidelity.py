@@ -19,10 +19,9 @@ from instrument.models.build import build_model
 from instrument.models.corpus import make_takes, read_motions, styled_takes
 from instrument.models.evaluation import split_holdout
 from instrument.models.recognition import LinearDiscriminant, step_features
-from instrument.motion.features import extract, restore
+from instrument.motion.features import extract
 from instrument.motion.steps import segment_steps
-from instrument.synthesis.interpolation import style_space
-from instrument.synthesis.offline import default_controls, synthesize
+from instrument.synthesis.engine import default_controls, render
 
 
 def main() -> None:
@@ -48,15 +47,13 @@ def main() -> None:
         real_hits.append(classifier.take_label(x) == t.style)
         real_steps += [label == t.style for label in classifier.step_labels(x)]
 
-    space = style_space(model)
     frames = int(args.seconds * model.fps)
     synth_hits: dict[str, list[bool]] = {}
     synth_steps: list[bool] = []
     for style in model.style_names:
         for seed in range(args.walks):
             controls = default_controls(model, {style: 1.0}, liveliness=1.0 if seed else 0.0)
-            static = synthesize(space, dimension, controls, frames, seed=seed)
-            motion = restore(static, model.layout, model.fps)
+            motion = render(model, controls, frames, seed=seed)  # as synth writes it
             again, _, _ = extract(motion, model.layout)  # the walk as the classifier sees real takes
             steps = segment_steps(motion, model.layout).steps
             x = step_features(again, steps)

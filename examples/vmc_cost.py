@@ -18,7 +18,7 @@ from instrument.motion.bvh import read_bvh
 from instrument.motion.kinematics import forward_kinematics, local_transforms
 from instrument.output.humanoid import guess_humanoid
 from instrument.output.outputs import make_profile
-from instrument.runtime.pose import Pose
+from instrument.synthesis.posing import Pose
 from instrument.shipped import default_model_path
 
 WALK = Path(__file__).resolve().parent / "data" / "dataset-2_walk_normal_001.bvh"

@@ -1,6 +1,6 @@
 """Test oracle: the foot lock as it was written in plain Python before the pose path was compiled
 (instrument.synthesis.footlock), kept to check that the compiled lock makes the same poses; and
-the one-character pose stream it ran in (instrument.runtime.pose before CrowdPoses).
+the one-character pose stream it ran in (instrument.synthesis.posing before CrowdPoses).
 See instrument.synthesis.contact's docstring for what the lock does."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from numba import njit
 from instrument.motion.features import FeatureLayout, restore_local
 from instrument.motion.kinematics import forward_kinematics
 from instrument.motion.limbs import centimetres_per_unit, find_limbs
-from instrument.runtime.pose import Pose
+from instrument.synthesis.posing import Pose
 from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, POSSIBLE,
                                           PLANTED, SWING_BENT, SWING_CM)
 from instrument.synthesis.follow import STRENGTH

@@ -8,11 +8,11 @@ import pytest
 from instrument.models.symmetry import symmetric_models
 from instrument.motion.features import extract
 from instrument.motion.kinematics import world_positions
-from instrument.runtime.pose import PoseStream
+from instrument.synthesis.posing import PoseStream
 from instrument.synthesis.contact import NEARLY_STRAIGHT, contact_space
 from instrument.synthesis.footlock import HEEL_RISE_SPEED, MAX_HEEL_RISE, FootLock, heel_rise, leg_swings
-from instrument.synthesis.interpolation import style_space
-from instrument.synthesis.offline import default_controls, generate_with_states, synthesize_motion
+from instrument.synthesis.engine import default_controls, render
+from walks import features, step
 from instrument.synthesis.stream import Controls, Crowd
 
 
@@ -134,8 +134,8 @@ def _walk(model, space, weights_per_frame, fps=None):
     out, raw, planted = [], [], []
     for weights in weights_per_frame:
         controls = Controls(np.asarray(weights, dtype=float))
-        frame = walker.step([controls])[0]
-        shares = contact.shares(controls.weights)[walker.history_ids[0, 1]]
+        frame = step(walker, [controls])[0]
+        shares = contact.shares(controls.weights)[0, walker.history_ids[0, 1]]
         out.append(poses.next(frame, shares))
         raw.append(plain.next(frame))
         planted.append(poses.lock_weights.copy())
@@ -325,13 +325,13 @@ def test_a_style_change_shows_in_the_next_frame_without_a_jump(model, space):
 
 def test_synth_plants_the_feet_and_a_model_without_contact_still_walks(model, space):
     controls = default_controls(model, {"normal": 1.0})
-    planted = synthesize_motion(model, space, controls, 90)
+    planted = render(model, controls, 90)
     bare = dataclasses.replace(model, extras={})
     assert contact_space(bare) is None
-    plain = synthesize_motion(bare, style_space(bare), controls, 90)
+    plain = render(bare, controls, 90)
     assert planted.channels.shape == plain.channels.shape and np.isfinite(plain.channels).all()
     assert np.abs(planted.channels - plain.channels).max() > 1e-3  # the lock did something
-    static, _ = generate_with_states(space, model.layout.dimension, controls, 90, "stream", 32, 0)
+    static, _ = features(model, controls, 90, widen=False)
     assert np.isfinite(world_positions(planted)).all() and static.shape[0] == 90
 
 
@@ -349,7 +349,7 @@ def test_step_models_are_mirror_images_in_the_root(model):
 def test_a_straight_walk_keeps_its_heading(model, space):
     for style in ("masculine", "elderly"):
         for weight in (1.0, 2.0):
-            motion = synthesize_motion(model, space, default_controls(model, {style: weight}), 400)
+            motion = render(model, default_controls(model, {style: weight}), 400)
             static, _, _ = extract(motion, model.layout)
             yaw = np.cumsum(static[:, 3]) / model.fps  # heading, radians
             seconds = (len(yaw) - 31) / model.fps

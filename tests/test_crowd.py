@@ -13,9 +13,8 @@ from instrument.cli.arguments import MAX_CHARACTERS
 from instrument.control.state import ControlState
 from instrument.motion.bvh import read_bvh
 from instrument.motion.kinematics import local_transforms
-from instrument.runtime.crowd import metres_to_units
-from instrument.runtime.performance import Engine
-from instrument.runtime.pose import quaternions
+from instrument.synthesis.engine import Engine, metres_to_units
+from instrument.synthesis.posing import quaternions
 from oscrecv import Receiver, frame_count
 from waiting import wait_until
 
@@ -225,46 +224,10 @@ def test_a_show_file_takes_a_crowd_and_names_its_bad_line(tmp_path):
     assert read_bvh(tmp_path / "c.bvh").frames == 30
 
 
-@pytest.mark.parametrize("elderly, parts", [(0.8, True), (0.8, False), (9.5, False)])  # 9.5: variances at their limit
-def test_the_batched_tables_of_a_crowd_are_each_characters_own(model, elderly, parts):
-    """Characters 1..N-1 get lambda*, durations, range targets and contact tables in one batched
-    pass; each must be what a walker of that character's own controls computes alone."""
-    from instrument.synthesis.contact import contact_space
-    from instrument.synthesis.stream import Crowd
-    from instrument.synthesis.widen import range_space, stride_mean
-
-    engine = Engine(model, characters=4)
-    state = ControlState(model.style_names, model.states)
-    for target, value in (("spread", 0.7), ("style/elderly", elderly), ("speed", 1.3), ("liveliness", 0.5), ("phase/2", 1.4)):
-        state.set(target, value)
-    if parts:
-        state.set(f"part/{model.style_names[1]}/legs", 1.2)
-    controls = state.snapshot()
-    engine.sample(0.0, controls, state.spread)
-    each = engine.each(controls, state.spread, engine.walker)
-    ranges, contact = range_space(model), contact_space(model)
-    for k in range(1, 4):
-        alone = Crowd(engine.space)
-        alone.refresh([each[k]])
-        for name in ("means", "precisions", "base", "sigma", "cadence"):
-            np.testing.assert_allclose(getattr(engine.walker, name)[k], getattr(alone, name)[0], rtol=1e-12, atol=1e-12,
-                                       err_msg=name)
-        mean, factor = engine.each.range_targets
-        np.testing.assert_allclose(mean[k - 1], stride_mean(alone), rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(factor[k - 1], ranges.factors(each[k].weights, each[k].part_weights), rtol=1e-12)
-        np.testing.assert_allclose(engine.each.share_tables[k - 1], contact.shares(each[k].weights, each[k].part_weights),
-                                   rtol=1e-12, atol=1e-12)
-
-
 def test_character_0_of_a_crowd_walks_exactly_as_a_run_of_one(model):
     """docs/crowds.md's promise: the lead does not change when a crowd grows around it (same
     frames, same planted feet, bit for bit), through a style jump out of the data."""
-    from instrument.runtime.crowd import floor_positions
-    from instrument.runtime.pose import CrowdPoses
-
     single, crowd = Engine(model), Engine(model, characters=3)
-    one = CrowdPoses(model.layout, model.fps, 1, single.foot_lock(model.fps))
-    many = CrowdPoses(model.layout, model.fps, 3, crowd.foot_lock(model.fps), positions=floor_positions(model, 3))
     state = ControlState(model.style_names, model.states)
     state.set("spread", 1.0)
     state.set("liveliness", 0.5)
@@ -273,35 +236,12 @@ def test_character_0_of_a_crowd_walks_exactly_as_a_run_of_one(model):
         if i == 45:
             state.set("style/feminine", 2.0)
         controls = state.snapshot()
-        alone = one.next(single.sample(i / model.fps, controls, state.spread), single.contact_shares, single.follow_strengths)
-        lead = many.next(crowd.sample(i / model.fps, controls, state.spread), crowd.contact_shares, crowd.follow_strengths)
+        alone = single.frame(i / model.fps, controls, state.spread)
+        lead = crowd.frame(i / model.fps, controls, state.spread)
         assert np.array_equal(alone.rotations[0], lead.rotations[0]), i
         assert np.array_equal(alone.world_positions[0], lead.world_positions[0]), i
         moved = max(moved, np.abs(lead.world_positions[1] - lead.world_positions[0]).max())
     assert moved > 0.0  # the others are elsewhere (and walk otherwise)
-
-
-def test_each_character_of_a_crowd_walks_as_it_would_alone(model):
-    """Character k of a crowd (one compiled step, batched tables, batched range filter) makes
-    the frames a walker of its own (its seed, start phase and controls) makes by itself."""
-    from instrument.synthesis.offline import drive
-    from instrument.synthesis.stream import Crowd
-    from instrument.synthesis.widen import Widen, range_space
-
-    engine = Engine(model, characters=3)
-    state = ControlState(model.style_names, model.states)
-    state.set("spread", 1.0)
-    state.set("liveliness", 0.6)
-    controls = state.snapshot()
-    made = np.array([engine.sample(i / model.fps, controls, state.spread) for i in range(40)])
-    each = engine.each(controls, state.spread, engine.walker)
-    for k in (1, 2):
-        alone = Crowd(engine.space, 1, seeds=[engine.cast.seeds[k]])
-        alone.start_at(engine.cast.phases[k:k + 1])
-        widen = Widen(range_space(model))
-        frames = [drive(widen.next(alone.step([each[k]])[0], alone, each[k]), alone.cadence[0], controls.turn) for _ in range(40)]
-        np.testing.assert_allclose(made[:, k], np.array(frames), rtol=1e-9, atol=1e-9)
-    assert np.abs(made[:, 1] - made[:, 2]).max() > 0.1
 
 
 def test_an_osc_surface_moves_the_spread_and_sees_it_echoed(tmp_path):

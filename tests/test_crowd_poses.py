@@ -5,12 +5,13 @@ import numpy as np
 import pytest
 
 import reference_lock as reference
-from instrument.runtime.pose import CrowdPoses, PoseStream
+from instrument.synthesis.posing import CrowdPoses, PoseStream
 from instrument.synthesis.contact import contact_space
 from instrument.synthesis.footlock import FootLock
 from instrument.synthesis.interpolation import GROUPS
-from instrument.synthesis.offline import drive
+from instrument.synthesis.engine import drive
 from instrument.synthesis.stream import Controls, Crowd
+from walks import step
 
 FIELDS = ("rotations", "translations", "world_rotations", "world_positions")
 
@@ -39,9 +40,9 @@ def _features(model, space, performances: list[list[Controls]]):
     walker = Crowd(space, len(performances), seeds=list(range(len(performances))))
     statics, shares = [], []
     for controls in zip(*performances):
-        frame = walker.step(list(controls))
+        frame = step(walker, list(controls))
         statics.append(np.stack([drive(frame[n], walker.cadence[n], c.turn) for n, c in enumerate(controls)]))
-        shares.append(np.stack([contact.shares(c.weights, c.part_weights)[walker.history_ids[n, 1]]
+        shares.append(np.stack([contact.shares(c.weights, c.part_weights)[0, walker.history_ids[n, 1]]
                                 for n, c in enumerate(controls)]))
     return np.array(statics), np.array(shares)
 

@@ -7,13 +7,13 @@ from instrument.motion.bvh import Motion
 from instrument.motion.kinematics import channels_from_local, world_positions
 from instrument.motion.limbs import centimetres_per_unit
 from instrument.motion.quality import walk_figures
-from instrument.runtime.pose import PoseStream
+from instrument.synthesis.posing import PoseStream
 from instrument.synthesis.contact import contact_space
 from instrument.synthesis.footlock import FootLock
 from instrument.synthesis.follow import STRENGTH, STRENGTH_OFF_DATA, RootFollow, strength
 from instrument.synthesis.interpolation import style_space
-from instrument.synthesis.offline import default_controls, generate_with_states, synthesize_motion
-from instrument.synthesis.widen import range_space
+from instrument.synthesis.engine import default_controls, render
+from walks import features, step
 
 
 def test_the_body_takes_its_share_of_a_planted_foots_slide_and_characters_stay_apart():
@@ -48,11 +48,11 @@ def test_the_body_takes_more_outside_the_data():
 
 def _figures(model, style: str, weight: float, follow: float | None, frames: int = 420) -> dict:
     """walk_figures of a walk with its feet planted, the body taking `follow` of the slide."""
-    space, contact = style_space(model), contact_space(model)
+    contact = contact_space(model)
     controls = default_controls(model, {style: weight})
-    static, ids = generate_with_states(space, model.layout.dimension, controls, frames, "stream", 32, 0, range_space(model))
+    static, ids = features(model, controls, frames)
     poses = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps))
-    shares = contact.shares(controls.weights)[ids]
+    shares = contact.shares(controls.weights)[0][ids]
     out = [poses.next(row, share, follow) for row, share in zip(static, shares)]
     skeleton = model.layout.skeleton
     channels = channels_from_local(skeleton, np.stack([p.rotations for p in out]), np.stack([p.translations for p in out]))
@@ -82,13 +82,13 @@ def test_an_exaggerated_walk_keeps_its_feet_planted(model):
 
 
 def test_synth_follows_as_the_live_path_does(model):
-    """synthesize_motion (synth, evaluate) passes the weights' strength, as the live engine does."""
+    """The engine (synth, evaluate) passes the weights' strength, as the live engine does."""
     controls = default_controls(model, {"youthful": 2.0})
-    motion = synthesize_motion(model, style_space(model), controls, 120)
-    space, contact = style_space(model), contact_space(model)
-    static, ids = generate_with_states(space, model.layout.dimension, controls, 120, "stream", 32, 0, range_space(model))
+    motion = render(model, controls, 120)
+    contact = contact_space(model)
+    static, ids = features(model, controls, 120)
     poses = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps))
-    shares = contact.shares(controls.weights)[ids]
+    shares = contact.shares(controls.weights)[0][ids]
     out = [poses.next(row, share, STRENGTH_OFF_DATA) for row, share in zip(static, shares)]
     skeleton = model.layout.skeleton
     again = channels_from_local(skeleton, np.stack([p.rotations for p in out]), np.stack([p.translations for p in out]))
@@ -110,8 +110,8 @@ def test_a_jump_out_of_the_data_changes_the_follow_without_a_jump_in_the_pose(mo
     planted, raw = [], []
     for weights in [calm] * 60 + [bold] * 30:
         controls = Controls(weights)
-        frame = walker.step([controls])[0]
-        shares = contact.shares(controls.weights)[walker.history_ids[0, 1]]
+        frame = step(walker, [controls])[0]
+        shares = contact.shares(controls.weights)[0, walker.history_ids[0, 1]]
         planted.append(poses.next(frame, shares, strength(contact.leg_weights(controls.weights))).world_positions)
         raw.append(plain.next(frame).world_positions)
     planted, raw = np.array(planted), np.array(raw)

@@ -12,6 +12,7 @@ from instrument.motion.features import WINDOWS
 from instrument.synthesis.interpolation import interpolate, style_space
 from instrument.synthesis.mlpg import mlpg, mlpg_continued
 from instrument.synthesis.stream import Controls, Crowd
+from walks import tune
 
 
 def dense_mlpg(means: np.ndarray, variances: np.ndarray) -> np.ndarray:
@@ -63,7 +64,9 @@ def model_input():
     model = load_model(default_model_path())
     space = style_space(model)
     controls = Controls(np.full(len(model.style_names), 1.5 / len(model.style_names)))
-    ids = Crowd(space).state_plan(controls, 3000)
+    planner = Crowd(space)
+    tune(planner, [controls])
+    ids = planner.state_plan(3000)
     lam = interpolate(space, controls.weights)
     return lam.means[ids], 1.0 / lam.precisions[ids]
 

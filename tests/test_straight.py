@@ -19,7 +19,8 @@ from instrument.motion.quality import heading_drift
 from instrument.motion.steps import segment_steps
 from instrument.synthesis.durations import state_durations
 from instrument.synthesis.interpolation import interpolate, style_space
-from instrument.synthesis.offline import default_controls, generate_with_states, synthesize_motion
+from instrument.synthesis.engine import default_controls, render
+import walks
 from instrument.synthesis.stream import Crowd
 
 RIGHT_STEP_TURN = np.radians(6.0)  # rad/s added to the yaw rate of every right step of the takes
@@ -72,7 +73,7 @@ def test_a_model_of_asymmetric_steps_walks_straight_at_turn_0(curved_model):
     step = state_durations(lam.duration_means, lam.duration_variances)[0].sum()
     for frames_per_step in (np.floor(step) + 0.5, np.floor(step) + 1.0, np.floor(step) + 1.3):
         controls = default_controls(model, {"normal": 1.0}, speed=step / frames_per_step)
-        static, ids = generate_with_states(space, model.layout.dimension, controls, 600, "stream", 32, 0)
+        static, ids = walks.features(model, controls, 600, widen=False)
         label = ids // model.states
         starts = np.flatnonzero(np.diff(label) == -1) + 1  # each stride from a right step's first frame
         yaw = np.degrees(np.concatenate([[0.0], np.cumsum(static[:, 3]) / model.fps]))
@@ -86,7 +87,7 @@ def test_a_model_of_asymmetric_steps_walks_straight_at_turn_0(curved_model):
 def test_the_walk_with_its_feet_planted_keeps_its_heading(curved_model):
     """The whole pose path (widen, foot lock, root integration) as `instrument evaluate` sees it."""
     model, _ = curved_model
-    motion = synthesize_motion(model, style_space(model), default_controls(model, {"normal": 1.0}), 15 + 360)
+    motion = render(model, default_controls(model, {"normal": 1.0}), 15 + 360)
     motion = Motion(motion.skeleton, motion.channels[15:], motion.fps)
     assert _drift(motion, model.layout.root) < 0.1  # deg/s (one carry across labels: 0.25)
 
@@ -115,7 +116,9 @@ def test_a_left_step_gets_the_frames_of_the_right_step_before_it(style, speed):
     model = load_model(default_model_path())
     space = style_space(model)
     controls = default_controls(model, {style: 1.0}, speed=speed)
-    ids = Crowd(space).state_plan(controls, 3000)
+    planner = Crowd(space)
+    walks.tune(planner, [controls])
+    ids = planner.state_plan(3000)
     change = np.flatnonzero(np.diff(ids)) + 1
     bounds = np.concatenate([[0], change])
     counts = np.diff(np.concatenate([bounds, [len(ids)]]))[: (len(bounds) - 1) // 10 * 10]
@@ -144,7 +147,7 @@ def test_a_walk_begun_anywhere_in_its_stride_pairs_its_steps_and_keeps_its_headi
     walker.start_at(np.array([phase]))
     static, labels = [], []
     for _ in range(1800):  # a minute
-        static.append(walker.step([controls])[0])
+        static.append(walks.step(walker, [controls])[0])
         labels.append(walker.history_ids[0, 1])
     ids = np.array(labels)
     bounds = np.concatenate([[0], np.flatnonzero(np.diff(ids)) + 1])

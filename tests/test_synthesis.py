@@ -6,8 +6,9 @@ import pytest
 from instrument.synthesis.durations import state_durations, whole_frames
 from instrument.synthesis.interpolation import GROUPS, interpolate
 from instrument.synthesis.mlpg import mlpg, mlpg_continued
-from instrument.synthesis.offline import default_controls, synthesize
+from instrument.synthesis.engine import Engine, default_controls
 from instrument.synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Crowd
+from walks import features, step, tune
 
 WINDOWS = [(0, 0, np.array([1.0])), (1, 1, np.array([-0.5, 0.0, 0.5])), (1, 1, np.array([1.0, -2.0, 1.0]))]
 
@@ -62,7 +63,7 @@ def test_variances_stay_positive_for_extreme_weights(model, space, weight):
     assert np.isfinite(lam.precisions).all() and (lam.precisions > 0).all()
     assert (lam.duration_variances > 0).all()
     walker = Crowd(space)
-    frames = np.vstack([walker.step([Controls(weights)]) for _ in range(40)])
+    frames = np.vstack([step(walker, [Controls(weights)]) for _ in range(40)])
     assert np.isfinite(frames).all()
 
 
@@ -109,32 +110,33 @@ def test_fractional_durations_never_drift():
 
 @pytest.mark.parametrize("speed", [0.5, 1.0, 2.0])
 def test_the_state_plan_follows_the_real_valued_durations(model, space, speed):
-    walker = Crowd(space)
-    plan = walker.state_plan(default_controls(model, speed=speed), 6000)
+    engine = Engine(model)
+    engine.retune(default_controls(model, speed=speed))
+    plan = engine.stream.state_plan(6000)
     states_entered = np.count_nonzero(np.diff(plan) != 0) + 1
-    mean_duration = np.mean(walker.base[0])  # real-valued frames per state after speed control
+    mean_duration = np.mean(engine.stream.base[0])  # real-valued frames per state after speed control
     assert 6000 / states_entered == pytest.approx(mean_duration, rel=0.01)
     if speed == 0.5:  # no state is near the one-frame floor: the step takes exactly twice as long
-        natural = Crowd(space)
-        natural.state_plan(default_controls(model), 10)
-        assert np.sum(walker.base[0]) == pytest.approx(2 * np.sum(natural.base[0]))
+        natural = Engine(model)
+        natural.retune(default_controls(model))
+        assert np.sum(engine.stream.base[0]) == pytest.approx(2 * np.sum(natural.stream.base[0]))
 
 
 @pytest.mark.parametrize("style", ["elderly", "youthful", None])
 def test_streaming_matches_full_mlpg_within_one_percent(model, space, style):
     controls = default_controls(model, {style: 1.0} if style else {})
     frames = 600
-    streamed = synthesize(space, model.layout.dimension, controls, frames, "stream", DEFAULT_LOOKAHEAD)
+    streamed = features(model, controls, frames, "stream", DEFAULT_LOOKAHEAD, widen=False)[0]
     # the stream never ends, so the full solve runs on past the compared frames (no end effect)
-    full = synthesize(space, model.layout.dimension, controls, frames + 150, "full")[:frames]
+    full = features(model, controls, frames + 150, "full", widen=False)[0][:frames]
     rms = np.sqrt(((streamed - full) ** 2).mean(axis=0))
     assert (rms <= 0.01 * model.static_std).all(), model.layout.names[int(np.argmax(rms / model.static_std))]
 
 
 def test_short_lookahead_is_measurably_worse(model, space):
     controls = default_controls(model, {"elderly": 1.0})
-    full = synthesize(space, model.layout.dimension, controls, 450, "full")[:300]
-    errors = [np.max(np.sqrt(((synthesize(space, model.layout.dimension, controls, 300, "stream", a) - full) ** 2).mean(0))
+    full = features(model, controls, 450, "full", widen=False)[0][:300]
+    errors = [np.max(np.sqrt(((features(model, controls, 300, "stream", a, widen=False)[0] - full) ** 2).mean(0))
                      / model.static_std) for a in (4, 16, 64)]
     assert errors[0] > errors[1] > errors[2]
 
@@ -149,7 +151,7 @@ def test_abrupt_weight_change_stays_within_recorded_pace(model, space, target):
             weights = np.zeros(len(names))
             if n >= 80:
                 weights[names.index(name)] = target
-            frames.append(walker.step([Controls(weights)])[0])
+            frames.append(step(walker, [Controls(weights)])[0])
         change = np.abs(np.diff(np.array(frames), axis=0))
         assert (change <= model.static_step_max * (1 + 1e-9)).all(), name
 
@@ -159,7 +161,7 @@ def test_without_the_rate_limit_an_abrupt_change_can_exceed_the_recorded_pace(mo
     worst = 0.0
     for name in ("active", "youthful"):
         walker = Crowd(space, max_step_ratio=0.0)
-        frames = [walker.step([Controls(2.0 * (np.arange(len(names)) == names.index(name)) * (n >= 80))])[0]
+        frames = [step(walker, [Controls(2.0 * (np.arange(len(names)) == names.index(name)) * (n >= 80))])[0]
                   for n in range(100)]
         worst = max(worst, (np.abs(np.diff(np.array(frames), axis=0)) / model.static_step_max).max())
     assert worst > 1.0  # so the limit in the test above is doing real work
@@ -170,33 +172,22 @@ def test_a_control_change_shows_in_the_very_next_frame(model, space):
     steady, changed = Crowd(space), Crowd(space)
     calm = Controls(np.zeros(len(names)))
     for _ in range(45):
-        a = steady.step([calm])
-        b = changed.step([calm])
+        a = step(steady, [calm])
+        b = step(changed, [calm])
         np.testing.assert_array_equal(a, b)
     bold = Controls(np.eye(len(names))[names.index("feminine")] * 2.0)
-    assert np.abs(changed.step([bold]) - steady.step([calm])).max() > 1e-3
+    assert np.abs(step(changed, [bold]) - step(steady, [calm])).max() > 1e-3
 
 
 def test_liveliness_is_deterministic_per_seed(model, space):
     controls = default_controls(model, {"normal": 1.0}, liveliness=1.0)
-    a = synthesize(space, model.layout.dimension, controls, 200, seed=5)
-    b = synthesize(space, model.layout.dimension, controls, 200, seed=5)
-    c = synthesize(space, model.layout.dimension, controls, 200, seed=6)
+    a = features(model, controls, 200, seed=5, widen=False)[0]
+    b = features(model, controls, 200, seed=5, widen=False)[0]
+    c = features(model, controls, 200, seed=6, widen=False)[0]
     np.testing.assert_array_equal(a, b)
     assert np.abs(a - c).max() > 1e-3
-    plain = synthesize(space, model.layout.dimension, default_controls(model, {"normal": 1.0}), 200, seed=5)
+    plain = features(model, default_controls(model, {"normal": 1.0}), 200, seed=5, widen=False)[0]
     assert np.abs(a - plain).max() > 1e-3
-
-
-def test_a_crowd_step_equals_each_walker_alone(model, space):
-    names = model.style_names
-    controls = [Controls(np.eye(len(names))[k % len(names)] * (0.5 + k)) for k in range(5)]
-    crowd = Crowd(space, 5)
-    alone = [Crowd(space, seeds=[k]) for k in range(5)]
-    for _ in range(40):
-        together = crowd.step(controls)
-        separate = np.vstack([w.step([c]) for w, c in zip(alone, controls)])
-        np.testing.assert_allclose(together, separate, atol=1e-12)
 
 
 def _performance(names, states, frame):
@@ -226,10 +217,12 @@ def test_the_compiled_path_makes_the_frames_the_python_path_made(model, space):
     walkers = [reference.Walker(d, seed=s, max_step_ratio=r) for s, r in zip([3, 11, 0], ratios)]
     for frame in range(400):
         controls = [_performance(names, space.states, frame + 17 * n) for n in range(3)]
-        new = crowd.step(controls)
+        new = step(crowd, controls)
         old = reference.step(space, walkers, controls)
         np.testing.assert_allclose(new, old, atol=1e-12, rtol=0, err_msg=f"frame {frame}")
         np.testing.assert_allclose(crowd.cadence, [w.cadence for w in walkers], rtol=1e-15)
     lively = default_controls(model, {"elderly": 1.0}, liveliness=1.0, speed=1.7)
-    np.testing.assert_array_equal(Crowd(space, seeds=[9]).state_plan(lively, 3000),
+    planner = Crowd(space, seeds=[9])
+    tune(planner, [lively])
+    np.testing.assert_array_equal(planner.state_plan(3000),
                                   reference.state_plan(space, reference.Walker(d, seed=9), lively, 3000))

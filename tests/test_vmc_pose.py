@@ -29,7 +29,7 @@ from instrument.motion.kinematics import channels_from_local, forward_kinematics
 from instrument.output.humanoid import guess_humanoid
 from instrument.output.outputs import make_profile
 from instrument.output.vmc import VmcProfile
-from instrument.runtime.pose import Pose
+from instrument.synthesis.posing import Pose
 from instrument.shipped import default_model_path
 
 WALKS = sorted((Path(__file__).resolve().parents[1] / "examples" / "data").glob("*.bvh"))

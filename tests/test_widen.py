@@ -5,19 +5,18 @@ import dataclasses
 import numpy as np
 import pytest
 
-from instrument.runtime.pose import PoseStream
-from instrument.synthesis.offline import default_controls, generate_with_states
+from instrument.synthesis.posing import PoseStream
+from instrument.synthesis.engine import Engine, default_controls
 from instrument.synthesis.stream import Controls, Crowd
-from instrument.synthesis.widen import KEPT, SETTLE, Widen, _generated_range, _spread, range_space, stride_mean
+from instrument.synthesis.widen import KEPT, SETTLE, _generated_range, _spread, range_space, stride_means
+from walks import features, step
 
 
 def _widened(model, space, weights_per_frame):
-    walker, widen = Crowd(space), Widen(range_space(model))
-    out = []
-    for weights in weights_per_frame:
-        controls = Controls(np.asarray(weights, dtype=float))
-        out.append(widen.next(walker.step([controls])[0], walker, controls))
-    return np.array(out), walker
+    """The engine's frames (range stage on) at these weights, one set a frame, and the engine."""
+    engine = Engine(model)
+    out = [engine.next_features(Controls(np.asarray(weights, dtype=float)))[0] for weights in weights_per_frame]
+    return np.array(out), engine
 
 
 def test_a_widened_walk_has_the_range_training_learnt_from_the_data(model, space):
@@ -25,10 +24,10 @@ def test_a_widened_walk_has_the_range_training_learnt_from_the_data(model, space
     rng = range_space(model)
     for style in ("masculine", "normal", "elderly"):
         weights = np.eye(len(names))[names.index(style)]
-        factor = rng.factors(weights)
-        made = _generated_range(space, weights)  # as training measured it
-        frames, walker = _widened(model, space, [weights] * 600)
-        widened = _spread(frames[SETTLE:] - stride_mean(walker))
+        factor = rng.factors(weights)[0]
+        made = _generated_range(model, weights)  # as training measured it
+        frames, engine = _widened(model, space, [weights] * 600)
+        widened = _spread(frames[SETTLE:] - stride_means(engine.stream.base, engine.stream.means)[0])
         moving = made > 1e-3 * made.max()  # features that swing (a few are nearly still)
         np.testing.assert_allclose(widened[moving], (made * factor)[moving], rtol=0.02)
         assert np.abs(np.log(factor[moving])).max() > 0.05  # the filter did something
@@ -47,7 +46,7 @@ def test_a_style_change_shows_in_the_next_frame_without_a_jump(model, space, sty
     # joints move across the change no further in a frame than the unwidened walk's do across it
     # (plus 20%; measured 0.98-1.14x over every style at 1, 2 and -1)
     walker = Crowd(space)
-    raw = [walker.step([Controls(w)])[0] for w in [calm] * 60 + [bold] * 30]
+    raw = [step(walker, [Controls(w)])[0] for w in [calm] * 60 + [bold] * 30]
 
     def largest_move(frames):
         poses = PoseStream(model.layout, model.fps)
@@ -61,10 +60,10 @@ def test_a_model_without_range_statistics_walks_as_before(model, space):
     bare = dataclasses.replace(model, extras={k: v for k, v in model.extras.items() if not k.startswith("range")})
     assert range_space(bare) is None
     controls = default_controls(model, {"normal": 1.0})
-    plain, _ = generate_with_states(space, model.layout.dimension, controls, 60, "stream", 32, 0, range_space(bare))
+    plain, _ = features(bare, controls, 60)
     walker = Crowd(space)
-    np.testing.assert_array_equal(plain[:, 4:], np.array([walker.step([controls])[0] for _ in range(60)])[:, 4:])
-    widened, _ = generate_with_states(space, model.layout.dimension, controls, 60, "stream", 32, 0, range_space(model))
+    np.testing.assert_array_equal(plain[:, 4:], np.array([step(walker, [controls])[0] for _ in range(60)])[:, 4:])
+    widened, _ = features(model, controls, 60)
     assert np.abs(widened - plain).max() > 1e-3
     np.testing.assert_array_equal(widened[:, list(KEPT)], plain[:, list(KEPT)])  # path and speed as made
 
@@ -74,14 +73,15 @@ def test_blends_are_widened_and_extrapolations_walk_as_made(model):
     names = model.style_names
     one = np.eye(len(names))
     pair = 0.5 * (one[0] + one[1])
-    np.testing.assert_allclose(np.log(rng.factors(pair)), 0.5 * np.log(rng.factors(one[0]) * rng.factors(one[1])))
+    factors = lambda *args: rng.factors(*args)[0]  # noqa: E731 (one character)
+    np.testing.assert_allclose(np.log(factors(pair)), 0.5 * np.log(factors(one[0]) * factors(one[1])))
     for outside in (2.0 * one[0], -one[0], one[0] + one[1]):
-        np.testing.assert_array_equal(rng.factors(outside), 1.0)
-    halfway = np.log(rng.factors(-0.5 * one[0]))  # fading out, continuously
-    np.testing.assert_allclose(halfway, 0.5 * np.log(rng.factors(np.zeros(len(names)))))
+        np.testing.assert_array_equal(factors(outside), 1.0)
+    halfway = np.log(factors(-0.5 * one[0]))  # fading out, continuously
+    np.testing.assert_allclose(halfway, 0.5 * np.log(factors(np.zeros(len(names)))))
     parts = np.full((len(names), 3), np.nan)
     parts[0, 1] = 2.0  # the legs of style 0 doubled: legs as made, the rest widened as at weight 1
     legs = rng.group_masks[1] > 0
-    factors = rng.factors(one[0], parts)
-    np.testing.assert_array_equal(factors[legs], 1.0)
-    np.testing.assert_allclose(factors[~legs], rng.factors(one[0])[~legs])
+    legged = factors(one[0], parts)
+    np.testing.assert_array_equal(legged[legs], 1.0)
+    np.testing.assert_allclose(legged[~legs], factors(one[0])[~legs])

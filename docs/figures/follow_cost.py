@@ -7,17 +7,17 @@ import time
 import numpy as np
 
 from instrument.models.modelfile import default_model_path, load_model
-from instrument.runtime.pose import PoseStream
+from instrument.synthesis.posing import PoseStream
 from instrument.synthesis.contact import contact_space
 from instrument.synthesis.footlock import FootLock
-from instrument.synthesis.interpolation import style_space
-from instrument.synthesis.offline import default_controls, generate_with_states
+from instrument.synthesis.engine import default_controls, walk_features
+from instrument.synthesis.widen import _without_range
 
 model = load_model(default_model_path())
 contact = contact_space(model)
 controls = default_controls(model, {"normal": 1.0})
-static, ids = generate_with_states(style_space(model), model.layout.dimension, controls, 300, "stream", 32, 0)
-shares = contact.shares(controls.weights)[ids]
+static, ids = walk_features(_without_range(model), controls, 300)
+shares = contact.shares(controls.weights)[0][ids]
 
 
 def per_frame_us(lock: bool, follow: bool = True) -> float:

@@ -13,14 +13,14 @@ import numpy as np
 from ..models.modelfile import default_model_path, load_model
 from ..motion.bvh import Joint, Motion, Skeleton, bvh_text, parse_bvh
 from ..motion.features import choose_layout, extract
-from ..runtime.pose import CrowdPoses, PoseStream
 from ..synthesis.contact import contact_space
+from ..synthesis.engine import Engine
 from ..synthesis.footlock import FootLock
-from ..synthesis.interpolation import interpolate, style_space
+from ..synthesis.interpolation import interpolate
 from ..synthesis.mlpg import mlpg, mlpg_continued, mlpg_threads
-from ..synthesis.offline import generate_with_states
-from ..synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Crowd
-from ..synthesis.widen import Widen, range_space
+from ..synthesis.posing import CrowdPoses, PoseStream
+from ..synthesis.stream import DEFAULT_LOOKAHEAD, Controls
+from ..synthesis.widen import RangeFilter
 from .crowd_bench import largest_crowd, measure_cost
 
 MLPG_FRAMES = 10_000
@@ -166,10 +166,12 @@ def measure(model_path: str | None, repeat: int) -> dict:
     figures["features_ms_500x22"] = 1000 * median_seconds(lambda: extract(motion, layout), repeat)
 
     model = load_model(model_path or default_model_path())
-    space = style_space(model)
     dimension = model.layout.dimension
     all_styles = Controls(np.full(len(model.style_names), 1.0 / len(model.style_names)) * 1.5)
-    ids = Crowd(space).state_plan(all_styles, MLPG_FRAMES)
+    planner = Engine(model)
+    planner.retune(all_styles)
+    ids = planner.stream.state_plan(MLPG_FRAMES)
+    space = planner.space
     lam = interpolate(space, all_styles.weights)
     means, variances = lam.means[ids], 1.0 / lam.precisions[ids]
     figures["dimension"] = dimension
@@ -196,17 +198,18 @@ def measure(model_path: str | None, repeat: int) -> dict:
     known = np.zeros((1, 2, dimension))
     figures["window_solve_us"] = 1e6 / frames * median_seconds(
         lambda: [mlpg_continued(window_means, window_precisions, known) for _ in range(frames)], blocks)
-    walker = Crowd(space)
-    controls = [all_styles]
-    figures["stream_us_per_frame"] = 1e6 / frames * median_seconds(lambda: [walker.step(controls) for _ in range(frames)], blocks)
-    crowd = Crowd(space, BATCH)
-    crowd_controls = [Controls(all_styles.weights * (1 + 0.01 * k)) for k in range(BATCH)]
+    # the engine's stream stage alone (plan, window solve, rate limit), its tables set by the other stages
+    walker = Engine(model)
+    walker.retune(all_styles)
+    figures["stream_us_per_frame"] = 1e6 / frames * median_seconds(lambda: [walker.stream.step() for _ in range(frames)], blocks)
+    crowd = Engine(model, BATCH)
+    crowd.retune(all_styles, spread=0.5)  # each character its own mix around the performed one
     figures["stream_us_per_frame_batch"] = 1e6 / 10 / BATCH * median_seconds(
-        lambda: [crowd.step(crowd_controls) for _ in range(10)], blocks)
+        lambda: [crowd.stream.step() for _ in range(10)], blocks)
     figures["stream_to_window_solve"] = figures["stream_us_per_frame"] / figures["window_solve_us"]
     figures["stream_batch_to_window_solve"] = figures["stream_us_per_frame_batch"] / figures["window_solve_us"]
     figures["lookahead"] = DEFAULT_LOOKAHEAD
-    figures |= measure_pose(model, space, all_styles, blocks, figures["window_solve_us"])
+    figures |= measure_pose(model, all_styles, blocks, figures["window_solve_us"])
     per_character = figures["stream_us_per_frame_batch"]
     figures["characters_at_30fps"] = int(1e6 / 30 / per_character)
     figures["characters_at_60fps"] = int(1e6 / 60 / per_character)
@@ -216,19 +219,23 @@ def measure(model_path: str | None, repeat: int) -> dict:
     return figures
 
 
-def measure_pose(model, space, controls: Controls, blocks: int, window_solve_us: float) -> dict:
+def measure_pose(model, controls: Controls, blocks: int, window_solve_us: float) -> dict:
     """The pose path per frame (features to world pose, the feet planted: one compiled call for
     all characters), for one character and per character in a crowd of BATCH, and the lock on its
-    own (what planting the feet adds); the widen filter per frame; each also against the window solve.
-    The pose figures are None without contact statistics, the widen ones without range ones."""
+    own (what planting the feet adds); the range stage per frame; each also against the window solve.
+    The pose figures are None without contact statistics, the range ones without range ones."""
     frames = 100
     figures: dict = {}
     contact = contact_space(model)
+    engine = Engine(model)
+    static, shares = np.empty((frames, model.layout.dimension)), np.empty((frames, 2))
+    for k in range(frames):
+        static[k] = engine.next_features(controls)[0]
+        if contact is not None:
+            shares[k] = engine.contact_shares[0]
     if contact is None:
         figures |= {"pose_us_per_frame": None, "contact_us_per_frame": None, "pose_us_per_character_batch": None}
     else:
-        static, ids = generate_with_states(space, model.layout.dimension, controls, frames, "stream", DEFAULT_LOOKAHEAD, 0)
-        shares = contact.shares(controls.weights, controls.part_weights)[ids]
         lock = FootLock(model.layout, contact.clearance, model.fps)
 
         def poses():
@@ -259,21 +266,22 @@ def measure_pose(model, space, controls: Controls, blocks: int, window_solve_us:
         figures |= {"pose_us_per_frame": 1e6 / frames * median_seconds(poses, blocks),
                     "contact_us_per_frame": 1e6 / frames * median_seconds(planting, blocks),
                     "pose_us_per_character_batch": 1e6 / frames / BATCH * median_seconds(crowd_poses, blocks)}
-    widen = range_space(model)
-    if widen is None:
+    if engine.range_targets is None:
         figures["widen_us_per_frame"] = None
     else:
-        walker = Crowd(space)
-        frame = walker.step([controls])[0]
+        frame = engine.stream.step()
+        targets = engine.range_targets
         live = [Controls(controls.weights.copy(), controls.part_weights) for _ in range(frames)]  # a new snapshot a frame, as live
 
-        def widened():
-            scale = Widen(widen)
+        def widened():  # what the range stage costs a frame: the controls compared, the swing scaled
+            scale = RangeFilter()
             for snapshot in live:
-                scale.next(frame, walker, snapshot)
+                engine.retune(snapshot)
+                scale(frame, targets.mean, targets.factor)
 
         figures["widen_us_per_frame"] = 1e6 / frames * median_seconds(widened, blocks)
     for name, ratio in (("pose_us_per_frame", "pose_to_window_solve"), ("pose_us_per_character_batch", "pose_batch_to_window_solve"),
                         ("widen_us_per_frame", "widen_to_window_solve")):
         figures[ratio] = None if figures[name] is None else figures[name] / window_solve_us
     return figures
+

@@ -27,13 +27,10 @@ def live_path(model: Model, count: int, spread: float = 0.5):
     from ..control.state import ControlState
     from ..output.outputs import make_profile
     from ..runtime.console import Console
-    from ..runtime.crowd import floor_positions
-    from ..runtime.pose import CrowdPoses
-    from ..runtime.performance import Engine
     from ..shipped import demo_score_path
+    from ..synthesis.engine import Engine
 
-    engine = Engine(model, characters=count)
-    poses = CrowdPoses(model.layout, CROWD_FPS, count, engine.foot_lock(CROWD_FPS), positions=floor_positions(model, count))
+    engine = Engine(model, count, CROWD_FPS)
     profile = make_profile("flat", model, characters=count)
     state = ControlState(model.style_names, model.states)
     state.set("spread", spread)
@@ -49,7 +46,7 @@ def live_path(model: Model, count: int, spread: float = 0.5):
         started = time.perf_counter()
         frames = engine.sample(now, state.snapshot(), state.spread)
         made = time.perf_counter()
-        crowd = poses.next(frames, engine.contact_shares, engine.follow_strengths)
+        crowd = engine.poses.next(frames, engine.contact_shares, engine.follow_strengths)
         posed = time.perf_counter()
         profile.datagrams(crowd, state.echo())
         times[:] += (made - started, posed - made, time.perf_counter() - posed)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import UserError
@@ -61,11 +62,11 @@ def run(args: argparse.Namespace) -> int:
     # the synthesizer's code (numpy, scipy, numba): loaded when run, not for --help
     from ..models.modelfile import load_model
     from ..motion.bvh import write_bvh
-    from ..motion.features import restore
-    from ..synthesis.interpolation import style_space
-    from ..synthesis.offline import default_controls, synthesize
-    from ..synthesis.widen import range_space
+    from ..synthesis.engine import default_controls, render
 
+    if not args.out.lower().endswith(".bvh"):
+        raise UserError(f"--out {args.out}: synth writes BVH (a .bvh file); it cannot write "
+                        f"{Path(args.out).suffix or 'a file without an extension'}")
     check_output(args.out, args.force)
     model = load_model(args.model or default_model_path())
     weights, part_weights = parse_weights(args.style, model.style_names)
@@ -76,8 +77,7 @@ def run(args: argparse.Namespace) -> int:
     seed = value("synth --seed", args.seed)
     frames = max(1, int(round(seconds * model.fps)))
     controls = default_controls(model, weights, part_weights=part_weights, speed=speed, liveliness=liveliness)
-    static = synthesize(style_space(model), model.layout.dimension, controls, frames, args.method, lookahead, seed,
-                        range_space(model))
-    write_bvh(args.out, restore(static, model.layout, model.fps))  # from the origin, heading 0
+    # the engine as `run` plays it, without a clock: the feet planted, from the origin, heading 0
+    write_bvh(args.out, render(model, controls, frames, args.method, lookahead, seed))
     print(f"wrote {frames} frames ({seconds:g} s) to {args.out}", file=sys.stderr)
     return 0

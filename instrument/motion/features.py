@@ -247,3 +247,9 @@ def with_deltas(static: np.ndarray) -> np.ndarray:
     padded = np.pad(static, ((1, 1), (0, 0)), mode="edge")
     parts = [w[0] * padded[:-2] + w[1] * padded[1:-1] + w[2] * padded[2:] for w in WINDOWS]
     return np.hstack(parts)
+
+
+def forward_direction(average_static_means: np.ndarray) -> np.ndarray:
+    """The direction of travel in the heading frame, from the model's mean root speeds."""
+    vx, vz = average_static_means[..., 1].mean(), average_static_means[..., 2].mean()
+    return np.array([vx, 0.0, vz])

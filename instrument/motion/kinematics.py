@@ -55,6 +55,27 @@ def channels_from_local(skeleton: Skeleton, rotations: np.ndarray, translations:
     return out
 
 
+class ChannelStream:
+    """BVH channel values of one frame at a time, each Euler angle unwrapped against the frame
+    before (the multiple of 360 degrees that brings it nearest), so a recording's curves never
+    jump a turn, as `channels_from_local` keeps a whole walk's. A recording and `synth` both
+    write through one, so the same poses give the same lines."""
+
+    def __init__(self, skeleton: Skeleton):
+        self.skeleton = skeleton
+        self.angles = np.array([c.endswith("rotation") for joint in skeleton.joints for c in joint.channels])
+        self.previous: np.ndarray | None = None
+
+    def next(self, rotations: np.ndarray, translations: np.ndarray) -> np.ndarray:
+        """Channel values (C,) of a frame's local rotations (J, 3, 3) and translations (J, 3)."""
+        out = channels_from_local(self.skeleton, rotations[None], translations[None])[0]
+        if self.previous is not None:
+            turns = np.round((out[self.angles] - self.previous[self.angles]) / 360.0)
+            out[self.angles] -= 360.0 * turns
+        self.previous = out
+        return out
+
+
 def forward_kinematics(
     skeleton: Skeleton, rotations: np.ndarray, translations: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:

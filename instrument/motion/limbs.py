@@ -18,7 +18,6 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..output.vmc import units_to_metres
 from .bvh import Motion, Skeleton
 from .features import FeatureLayout
 from .kinematics import forward_kinematics, local_transforms
@@ -134,6 +133,14 @@ def _find_limbs(skeleton: Skeleton, root: int, template: tuple[float, ...]) -> L
                 pass
     leg_length = float(np.mean([leg.thigh + leg.shin for leg in legs]))
     return Limbs(root, tuple(legs), tuple(arms), leg_length)
+
+
+def units_to_metres(hip_height: float) -> float:
+    """Guess the data's unit from the hips' height: centimetres, metres or inches."""
+    for scale in (0.01, 1.0, 0.0254):
+        if 0.5 <= hip_height * scale <= 1.5:
+            return scale
+    return 0.95 / hip_height if hip_height > 0 else 1.0
 
 
 def centimetres_per_unit(layout: FeatureLayout, world_template: np.ndarray) -> float:

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..runtime.pose import Pose, quaternions
+from ..synthesis.posing import Pose, quaternions
 from .osc import bundles, float_prefix, message
 
 

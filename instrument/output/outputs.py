@@ -5,13 +5,15 @@ from __future__ import annotations
 import numpy as np
 
 from ..models.modelfile import Model
+from ..motion.features import forward_direction
 from ..runtime.console import Console
-from ..runtime.pose import CrowdPose, Pose, pose_channels
+from ..motion.kinematics import ChannelStream
+from ..synthesis.posing import CrowdPose, Pose
 from .flat import FlatProfile
 from .humanoid import guess_humanoid, read_humanoid
 from .osc import OscTarget, UdpOut
 from .recorder import BvhRecorder
-from .vmc import VmcProfile, forward_direction
+from .vmc import VmcProfile
 
 
 class OscOutput:
@@ -39,11 +41,11 @@ class RecorderOutput:
     def __init__(self, path: str, model: Model, fps: float, replace: bool = False, character: int = 0):
         self.name = f"bvh {path}"
         self.character = character  # of a crowd, the one recorded
-        self.skeleton = model.layout.skeleton
+        self.channels = ChannelStream(model.layout.skeleton)
         self.recorder = BvhRecorder(path, model.layout.skeleton, fps, replace)
 
     def prepare(self, pose: Pose, echo: dict[str, float]):
-        return pose_channels(self.skeleton, pose)
+        return self.channels.next(pose.rotations, pose.translations)
 
     def send(self, channels) -> None:
         self.recorder.write(channels)

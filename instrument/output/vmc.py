@@ -22,8 +22,9 @@ import numpy as np
 from ..motion.bvh import Motion
 from ..motion.features import FeatureLayout, extract, restore_local
 from ..motion.kinematics import forward_kinematics
+from ..motion.limbs import units_to_metres
 from ..motion.rotations import axis_angle_matrix
-from ..runtime.pose import Pose, quaternions
+from ..synthesis.posing import Pose, quaternions
 from .osc import bundles, float_messages, float_prefix, message
 from .tpose import TPose
 
@@ -33,14 +34,6 @@ ROOT_CONVENTIONS = ("hips", "path")
 RELAXED_CURL = {"Thumb": (10.0, 10.0, 10.0), "Index": (15.0, 20.0, 10.0), "Middle": (20.0, 25.0, 10.0),
                 "Ring": (25.0, 25.0, 10.0), "Little": (30.0, 25.0, 10.0)}
 PHALANGES = ("Proximal", "Intermediate", "Distal")
-
-
-def units_to_metres(hip_height: float) -> float:
-    """Guess the data's unit from the hips' height: centimetres, metres or inches."""
-    for scale in (0.01, 1.0, 0.0254):
-        if 0.5 <= hip_height * scale <= 1.5:
-            return scale
-    return 0.95 / hip_height if hip_height > 0 else 1.0
 
 
 def _standing_world(layout: FeatureLayout, features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -144,9 +137,3 @@ class VmcProfile:
         messages += self.finger_messages
         messages += [message("/VMC/Ext/OK", 1), message("/VMC/Ext/T", float(pose.time))]
         return bundles(messages)
-
-
-def forward_direction(average_static_means: np.ndarray) -> np.ndarray:
-    """The direction of travel in the heading frame, from the model's mean root speeds."""
-    vx, vz = average_static_means[..., 1].mean(), average_static_means[..., 2].mean()
-    return np.array([vx, 0.0, vz])

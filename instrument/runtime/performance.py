@@ -20,18 +20,11 @@ from ..control.events import ControlEvent, LogReplay
 from ..control.hub import ControlHub
 from ..control.state import ControlState
 from ..models.modelfile import Model
-from ..synthesis import follow
-from ..synthesis.contact import contact_space
-from ..synthesis.footlock import FootLock
-from ..synthesis.interpolation import style_space
-from ..synthesis.offline import drive
-from ..synthesis.parameters import DEFAULT_SPACING
-from ..synthesis.stream import DEFAULT_LOOKAHEAD, Controls, Crowd
-from ..synthesis.widen import Widen, range_space
+from ..synthesis.engine import Engine
+from ..synthesis.parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING
+from ..synthesis.posing import Pose
 from .clock import IDLE_UNTIL, FrameClock
 from .console import Console
-from .crowd import CastControls, CrowdWiden, floor_positions, make_cast
-from .pose import CrowdPoses, Pose
 from .stopping import StopFlag
 
 STATUS_EVERY = 0.5  # seconds of wall time
@@ -54,61 +47,6 @@ class Output(Protocol):
     def send(self, prepared: object) -> None: ...
 
     def close(self) -> None: ...
-
-
-class Engine:
-    """The walk of every character at the model's rate, sampled at any output rate by
-    interpolating features. Character 0 is the performance itself; a crowd's others follow it
-    (runtime/crowd.py)."""
-
-    def __init__(self, model: Model, lookahead: int = DEFAULT_LOOKAHEAD, seed: int = 0, characters: int = 1):
-        self.model = model
-        self.space = style_space(model)
-        self.contact = contact_space(model)  # None: the model has no contact statistics
-        self.contact_shares: np.ndarray | None = None  # (N, 2) how surely each character's newest frame has each foot planted
-        self.follow_strengths: np.ndarray | None = None  # (N,) how much of a planted foot's slide each body takes (follow.py)
-        widen = range_space(model)
-        self.widen = None if widen is None else Widen(widen)  # None: the model has no range statistics
-        self.cast = make_cast(characters, len(model.style_names), model.states, seed)
-        self.each = CastControls(self.cast, self.space, widen, self.contact)  # the performed controls -> each character's
-        self.others_widen = CrowdWiden()  # characters 1..N-1
-        self.walker = Crowd(self.space, characters, lookahead, seeds=self.cast.seeds)
-        self.walker.start_at(self.cast.phases)
-        self.frames: list[np.ndarray] = []  # the last two model frames (N, D), driven
-        self.made = 0  # model frames made
-
-    def foot_lock(self, fps: float) -> FootLock | None:
-        return None if self.contact is None else FootLock(self.model.layout, self.contact.clearance, fps)
-
-    def sample(self, time_s: float, controls: Controls, spread: float = 0.0) -> np.ndarray:
-        """Static features (N, D) at performance time `time_s`, making model frames as needed.
-
-        At the model's own rate this is exactly the newest frame (no added latency); between
-        model frames it interpolates the two around `time_s`.
-        """
-        position = time_s * self.model.fps
-        newest = int(np.ceil(position - 1e-9))
-        crowd = self.walker.count > 1
-        while self.made <= newest:
-            frames = self.walker.step(self.each(controls, spread, self.walker))
-            if self.widen is not None:
-                frames[0] = self.widen.next(frames[0], self.walker, controls)
-                if crowd:
-                    frames[1:] = self.others_widen.next(frames[1:], self.each.range_targets)
-            self.frames = (self.frames + [drive(frames, self.walker.cadence, controls.turn)])[-2:]
-            self.made += 1
-            if self.contact is not None:
-                ids = self.walker.history_ids[:, 1]
-                shares = self.contact.shares(controls.weights, controls.part_weights)[ids[:1]]
-                strengths = follow.strength(self.contact.leg_weights(controls.weights, controls.part_weights))[None]
-                if crowd:
-                    shares = np.concatenate([shares, self.each.share_tables[np.arange(len(ids) - 1), ids[1:]]])
-                    strengths = np.concatenate([strengths, self.each.follow_strengths])
-                self.contact_shares, self.follow_strengths = shares, strengths
-        fraction = position - (newest - 1)
-        if fraction >= 1.0 - 1e-9 or len(self.frames) == 1:
-            return self.frames[-1]
-        return self.frames[0] + (self.frames[1] - self.frames[0]) * fraction
 
 
 @dataclass
@@ -157,12 +95,11 @@ def perform(
     `stop` is the flag Ctrl-C and SIGTERM set (installed here unless the caller did, so that a
     stop during its start-up is kept too).
     `on_frame`, when given, is called after each frame is sent (health, the systemd watchdog).
-    `characters` walk at once, `spacing` metres apart (runtime/crowd.py); an output gets the
+    `characters` walk at once, `spacing` metres apart (synthesis/engine.py); an output gets the
     pose of its `character` (0 unless it says), or the whole CrowdPose if it says `whole_crowd`."""
     state = state or ControlState(model.style_names, model.states)
     apply = apply or ControlHub([], console=console).apply  # checked, counted and warned as a show's events are
-    engine = Engine(model, lookahead, characters=characters)
-    poses = CrowdPoses(model.layout, fps, characters, engine.foot_lock(fps), positions=floor_positions(model, characters, spacing))
+    engine = Engine(model, characters, fps, lookahead, spacing=spacing)
     wanted = [None if getattr(output, "whole_crowd", False) else getattr(output, "character", 0) for output in outputs]
     if any(k is not None and not 0 <= k < characters for k in wanted):  # `run` checks this for the user
         raise ValueError(f"an output asks for a character outside the crowd of {characters}: {wanted}")
@@ -214,7 +151,7 @@ def perform(
             take_live(now)  # what came since the last look, while the loop waited
             state.advance(now)
             controls = state.snapshot()
-            crowd = poses.next(engine.sample(now, controls, state.spread), engine.contact_shares, engine.follow_strengths)
+            crowd = engine.frame(now, controls, state.spread)
             echo = state.echo()
             prepared = [_attempt(console, summary, output, output.prepare, crowd if k is None else crowd.character(k), echo)
                         for output, k in zip(outputs, wanted)]

@@ -23,8 +23,7 @@ from ..motion.kinematics import world_positions
 from ..motion.limbs import Limbs, centimetres_per_unit, clearance, find_limbs
 from ..motion.quality import pooled, walk_figures
 from ..motion.steps import segment_steps
-from .interpolation import style_space
-from .offline import default_controls, synthesize_motion
+from .engine import default_controls, render
 
 VARIANT_KINDS = ("one", "x2", "inverted", "pairs")  # also in cli/evaluate_cmd.py
 SETTLE_SECONDS = 0.5
@@ -102,11 +101,10 @@ def assess(
                 progress(f"{style} (real)")
     else:
         ground = _model_ground(model, limbs, template)
-    space = style_space(model)
     settle = int(round(SETTLE_SECONDS * model.fps))
     frames = settle + max(1, int(round(seconds * model.fps)))
     for name, weights in result.weights.items():
-        motion = synthesize_motion(model, space, default_controls(model, weights), frames)
+        motion = render(model, default_controls(model, weights), frames)
         motion = Motion(motion.skeleton, motion.channels[settle:], motion.fps)
         figures = walk_figures(motion, layout, limbs, ground, cm)
         figures["recognised"] = float("nan")

@@ -50,6 +50,8 @@ from ..models.hsmm import HSMM, forward_backward, pad_segments
 from ..motion.features import FeatureLayout, restore_local
 from ..motion.kinematics import forward_kinematics
 from ..motion.limbs import Limbs, centimetres_per_unit, clearance, find_limbs
+from .interpolation import part_weights_per_group
+from .parameters import GROUPS
 
 CONTACT_CM = 2.0
 CONTACT_SPEED_CM_S = 30.0
@@ -149,23 +151,22 @@ class ContactSpace:
     legs: int  # index of the legs' body group in per-part weights
 
     def shares(self, weights: np.ndarray, part_weights: np.ndarray | None = None) -> np.ndarray:
-        """(labels * states, 2): how surely each foot is planted in each state at these weights
-        (the legs' own weights when given per body part), 0 to 1."""
-        return np.clip(self.base + np.einsum("s,sif->if", self.leg_weights(weights, part_weights), self.offsets), 0.0, 1.0)
+        """(N, labels * states, 2): how surely each foot is planted in each state for N
+        characters at weights (N, styles) and part weights (N, styles, groups) (the legs' own
+        weights when given per body part), 0 to 1."""
+        legs = np.atleast_2d(self.leg_weights(weights, part_weights))
+        return np.clip(self.base + np.einsum("ns,sif->nif", legs, self.offsets), 0.0, 1.0)
 
     def leg_weights(self, weights: np.ndarray, part_weights: np.ndarray | None = None) -> np.ndarray:
-        """The style weights the legs walk with: their own where given per body part. Also for
-        many characters at once: weights (M, styles), part weights (M, styles, groups)."""
+        """The style weights the legs walk with, (..., styles): their own where given per body part."""
         weights = np.asarray(weights, dtype=np.float64)
-        if part_weights is not None:
-            legs = np.asarray(part_weights, dtype=np.float64)[..., self.legs]
-            weights = np.where(np.isnan(legs), weights, legs)
-        return weights
+        if part_weights is None:
+            return weights
+        return part_weights_per_group(weights, part_weights)[..., self.legs]
 
 
 def contact_space(model) -> ContactSpace | None:
     """None for a model trained without contact statistics (it then runs as before)."""
-    from .interpolation import GROUPS
 
     extras = getattr(model, "extras", {}) or {}
     base, styles = extras.get("contact_average"), extras.get("contact_styles")

@@ -106,30 +106,83 @@ def style_space(model: Model) -> StyleSpace:
     )
 
 
-def interpolate(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray | None = None) -> Lambda:
-    """lambda* for style weights (styles,) and optional per-group weights (styles, groups).
+def part_weights_per_group(weights: np.ndarray, part_weights: np.ndarray) -> np.ndarray:
+    """The one rule for body-part weights: (..., styles, groups), each group's own weight where
+    it is given and the style's overall weight where it is NaN. Interpolation, the range filter
+    and the foot contact all read part weights through this."""
+    weights = np.asarray(weights, dtype=np.float64)
+    return np.where(np.isnan(part_weights), weights[..., None], part_weights)
 
-    part_weights replaces the overall weight of a style for a body part; NaN entries fall back
-    to the overall weight.
-    """
+
+def style_change(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """How far lambda* moves from lambda 0 at one character's weights (styles,) and part
+    weights (styles, groups), before the variances' limit: (2, labels * states, 3D) means and
+    log variances, and (2, labels * states) of the durations (which follow the overall weights)."""
     weights = np.asarray(weights, dtype=np.float64)
     styles = len(weights)
     if part_weights is None:
         change = (weights @ space.offsets.reshape(styles, -1)).reshape(space.base.shape)
     else:
-        per_group = np.where(np.isnan(part_weights), weights[:, None], part_weights)
-        per_dim = per_group @ space.group_masks  # (styles, 3D): each dimension is in one group
+        per_dim = part_weights_per_group(weights, part_weights) @ space.group_masks  # each dimension is in one group
         change = np.einsum("sf,sxkf->xkf", per_dim, space.offsets)
-    means = space.base[0] + change[0]
-    precisions = np.exp(-(space.base[1] + _limited(change[1])))
-    duration_change = (weights @ space.duration_offsets.reshape(styles, -1)).reshape(space.duration_base.shape)
-    duration_means = space.duration_base[0] + duration_change[0]
-    duration_vars = np.exp(space.duration_base[1] + _limited(duration_change[1]))
-    shape = (space.labels, space.states)
-    return Lambda(means, precisions, duration_means.reshape(shape), duration_vars.reshape(shape))
+    return change, (weights @ space.duration_offsets.reshape(styles, -1)).reshape(space.duration_base.shape)
 
 
-def _limited(log_change: np.ndarray) -> np.ndarray:
-    """np.clip to +-MAX_LOG_VARIANCE_CHANGE, as two ufuncs (np.clip's own overhead is most of
-    its cost on arrays this small, and this runs whenever a control moves)."""
-    return np.minimum(np.maximum(log_change, -MAX_LOG_VARIANCE_CHANGE), MAX_LOG_VARIANCE_CHANGE)
+class StyleInterpolation:
+    """The engine's interpolation stage: lambda* of every character, batched.
+
+    Character n walks at the performed weights plus `spread` times its own style offset (a
+    crowd's cast; zeros for a single character). lambda*'s change is linear in the weights (part
+    weights too), so a character's change is the performance's plus spread times its offset's,
+    made once here: a moving fader then costs one pass over the tables for each character and
+    no matrix product. Means and precisions are written in place into the tables handed in (a
+    crowd's tables are megabytes, and fresh ones cost page faults every time)."""
+
+    def __init__(self, space: StyleSpace, offsets: np.ndarray):
+        self.space = space
+        styles = len(space.style_names)
+        self.offsets = np.asarray(offsets, dtype=np.float64)  # (N, styles)
+        self.offset_change = (self.offsets @ space.offsets.reshape(styles, -1)).reshape((-1,) + space.base.shape)
+        self.offset_duration_change = (self.offsets @ space.duration_offsets.reshape(styles, -1)).reshape(
+            (-1,) + space.duration_base.shape)
+        self._spread: float | None = None
+        self._mean_term = self._precision_factor = None
+
+    def __call__(self, weights: np.ndarray, part_weights: np.ndarray | None, spread: float, means: np.ndarray,
+                 precisions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Writes every character's lambda* means and precisions into `means` and `precisions`
+        (N, labels * states, 3D); returns the duration means and variances (N, labels, states)."""
+        space = self.space
+        if spread != self._spread:  # kept while the spread stays: what it adds, and its factor on the precisions
+            self._spread = spread
+            self._mean_term = spread * self.offset_change[:, 0]
+            self._precision_factor = np.exp(-spread * self.offset_change[:, 1])
+        change, duration_change = style_change(space, weights, part_weights)
+        limit = MAX_LOG_VARIANCE_CHANGE
+        np.add(self._mean_term, space.base[0] + change[0], out=means)
+        if np.abs(change[1]).max() + abs(spread) * np.abs(self.offset_change[:, 1]).max() <= limit:
+            # no variance at its limit: exp(-(a + b)) = exp(-a) exp(-b), the second kept while the spread stays
+            np.multiply(self._precision_factor, np.exp(-(space.base[1] + change[1])), out=precisions)
+        else:
+            np.multiply(self.offset_change[:, 1], spread, out=precisions)
+            precisions += change[1]
+            np.clip(precisions, -limit, limit, out=precisions)
+            precisions += space.base[1]
+            np.negative(precisions, out=precisions)
+            np.exp(precisions, out=precisions)
+        duration_change = duration_change + spread * self.offset_duration_change
+        shape = (len(means), space.labels, space.states)
+        return ((space.duration_base[0] + duration_change[:, 0]).reshape(shape),
+                np.exp(space.duration_base[1] + np.clip(duration_change[:, 1], -limit, limit)).reshape(shape))
+
+
+def interpolate(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray | None = None) -> Lambda:
+    """lambda* of one character at style weights (styles,) and optional per-group weights
+    (styles, groups), NaN entries following the overall weight: the engine's interpolation
+    stage for a single character (what the tests and the benchmarks' fixed solves use)."""
+    styles = len(space.style_names)
+    means, precisions = np.empty((1,) + space.base.shape[1:]), np.empty((1,) + space.base.shape[1:])
+    duration_means, duration_variances = StyleInterpolation(space, np.zeros((1, styles)))(
+        weights, part_weights, 0.0, means, precisions)
+    return Lambda(means[0], precisions[0], duration_means[0], duration_variances[0])

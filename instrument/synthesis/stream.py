@@ -21,7 +21,7 @@ import numpy as np
 from numba import njit
 
 from .durations import MIN_FRAMES, state_durations, whole_frames
-from .interpolation import Lambda, StyleSpace, interpolate
+from .interpolation import StyleSpace
 from .mlpg import _solve
 from .parameters import DEFAULT_LOOKAHEAD
 
@@ -82,9 +82,6 @@ class Crowd:
         self.base = np.ones((count, space.labels, space.states))  # frames per state before liveliness
         self.sigma = np.zeros((count, space.labels, space.states))  # duration sd times liveliness
         self.cadence = np.ones(count)  # model step length / planned step length (scales root speeds)
-        self.lams: list[Lambda | None] = [None] * count
-        self._keys: list[tuple | None] = [None] * count
-        self._last: list[Controls | None] = [None] * count
         self.rngs = [np.random.default_rng(seed) for seed in seeds]
         self.pool = np.zeros((count, 4 * (lookahead + 8)))
         self._buffers: dict[int, tuple] = {}
@@ -110,38 +107,16 @@ class Crowd:
                 carry = whole_frames(self.base[n, label, state], carry)[1]
             self.carry[n, label] = carry
 
-    def refresh(self, controls: list[Controls]) -> None:
-        """Recompute lambda* and the durations of the characters whose controls changed."""
-        for n, control in enumerate(controls):
-            if control is self._last[n]:
-                continue
-            self._last[n] = control
-            key = control.key()
-            if key == self._keys[n]:
-                continue
-            space = self.space
-            lam = interpolate(space, control.weights, control.part_weights)
-            scale = np.ones(space.states) if control.state_scale is None else np.asarray(control.state_scale, dtype=np.float64)
-            base = state_durations(lam.duration_means, lam.duration_variances, control.speed, scale)
-            self.lams[n], self._keys[n] = lam, key
-            self.means[n], self.precisions[n] = lam.means, lam.precisions
-            self.base[n] = base
-            self.sigma[n] = control.liveliness * np.sqrt(lam.duration_variances) * scale
-            self.cadence[n] = float(np.maximum(lam.duration_means, MIN_FRAMES).sum() / base.sum())
-
-    def assign(self, first: int, controls: list[Controls], means: np.ndarray | None, precisions: np.ndarray | None,
-               base: np.ndarray, sigma: np.ndarray, cadence: np.ndarray) -> None:
-        """Characters first, first + 1, ... take these controls with their lambda* tables (None:
-        already written into `self.means` and `self.precisions`) and durations computed together
-        elsewhere (a crowd's batched refresh, runtime/crowd.py); `refresh` leaves them be while
-        they are given the same Controls objects."""
-        chosen = slice(first, first + len(controls))
-        if means is not None:
-            self.means[chosen], self.precisions[chosen] = means, precisions
-        self.base[chosen] = base
-        self.sigma[chosen], self.cadence[chosen] = sigma, cadence
-        for n, control in enumerate(controls, start=first):
-            self._last[n], self._keys[n], self.lams[n] = control, None, None
+    def tune(self, duration_means: np.ndarray, duration_variances: np.ndarray, speed: float,
+             state_scale: np.ndarray | None, liveliness: float) -> None:
+        """The engine's durations stage: every character's frames per state (N, labels, states)
+        from its duration pdfs and the performed speed, phase stretch and liveliness, and the
+        cadence that scales its root speeds. (Its lambda* tables are written into `means` and
+        `precisions` by the interpolation stage.)"""
+        scale = np.ones(self.space.states) if state_scale is None else np.asarray(state_scale, dtype=np.float64)
+        self.base[:] = state_durations(duration_means, duration_variances, speed, scale)
+        self.sigma[:] = liveliness * np.sqrt(duration_variances) * scale
+        self.cadence[:] = np.maximum(duration_means, MIN_FRAMES).sum(axis=(1, 2)) / self.base.sum(axis=(1, 2))
 
     def _draws_for(self, frames: int) -> None:
         """Make sure every character has draws for a plan over `frames` frames (at most one state
@@ -181,9 +156,8 @@ class Crowd:
             )
         return self._buffers[fixed]
 
-    def step(self, controls: list[Controls]) -> np.ndarray:
-        """One frame for each character, (N, D)."""
-        self.refresh(controls)
+    def step(self) -> np.ndarray:
+        """One frame for each character, (N, D), from the tables the engine's stages set."""
         if self.sent == 0:
             self._carry_to_phase()
         self._draws_for(self.lookahead + 1)
@@ -195,10 +169,9 @@ class Crowd:
         self.sent += 1
         return frames
 
-    def state_plan(self, controls: Controls, frames: int) -> np.ndarray:
-        """The state indices character 0 would pass through over `frames` frames with constant
-        controls, without generating anything (the plan full-sequence MLPG uses)."""
-        self.refresh([controls] * self.count)
+    def state_plan(self, frames: int) -> np.ndarray:
+        """The state indices character 0 would pass through over `frames` frames with its
+        tables as they are, without generating anything (the plan full-sequence MLPG uses)."""
         if self.sent == 0:
             self._carry_to_phase()
         self._draws_for(frames)

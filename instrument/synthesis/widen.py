@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..motion.features import ROOT_FEATURES, heading_angle
-from .stream import Controls, Crowd
+from .interpolation import body_groups, part_weights_per_group
 
 STRENGTH = 1.0  # share of the learnt log factor applied (chosen by `instrument evaluate`, docs/evaluate.md)
 LIMIT = np.log(2.0)  # no feature's swing is scaled by more than 2x or less than 1/2
@@ -49,31 +49,30 @@ class RangeSpace:
     group_masks: np.ndarray  # (groups, D) which body part each feature belongs to
 
     def factors(self, weights: np.ndarray, part_weights: np.ndarray | None = None) -> np.ndarray:
-        """(D,) how far each feature's swing about the stride mean is scaled at these weights
-        (each feature by the weights of its body part when given per part).
+        """(N, D) how far each feature's swing about the stride mean is scaled for N characters
+        at weights (N, styles) and part weights (N, styles, groups) (each feature by the weights
+        of its body part when given per part).
 
         Inside the styles' blends (weights 0..1 adding to at most 1) the log factors blend like
         the other parameters. Outside, the learnt factors say nothing (an extrapolated walk's
         smoothing was never measured, and extrapolating them widened inverted walks into
         skating: elderly -1 from 23 to 85 cm/s), so the factor fades to 1 with the distance
         from that region: by an inverted weight of 1 or a total of 2 the walk is as made."""
-        weights = np.asarray(weights, dtype=np.float64)
-        per_dim = np.broadcast_to(weights[:, None], self.offsets.shape)
-        if part_weights is not None:
-            per_group = np.where(np.isnan(part_weights), weights[:, None], part_weights)
-            per_dim = per_group @ self.group_masks
+        weights = np.atleast_2d(np.asarray(weights, dtype=np.float64))
+        if part_weights is None:  # every feature has its style's one weight: the sums are per style, not per feature
+            per_dim = weights[:, :, None]
+        else:
+            per_dim = part_weights_per_group(weights, part_weights) @ self.group_masks  # (N, styles, D)
         positive = np.maximum(per_dim, 0.0)
-        total = positive.sum(axis=0)
-        outside = np.maximum(-per_dim, 0.0).sum(axis=0) + np.maximum(total - 1.0, 0.0)
-        inside = positive / np.maximum(total, 1.0)
-        blended = self.base + np.einsum("sd,sd->d", inside, self.offsets)
+        total = positive.sum(axis=1)
+        outside = np.maximum(-per_dim, 0.0).sum(axis=1) + np.maximum(total - 1.0, 0.0)
+        inside = positive / np.maximum(total, 1.0)[:, None]
+        blended = self.base + (inside * self.offsets).sum(axis=1)
         return np.exp(STRENGTH * np.clip(1.0 - outside, 0.0, 1.0) * np.clip(blended, -LIMIT, LIMIT))
 
 
 def range_space(model) -> RangeSpace | None:
     """None for a model trained without range statistics (it then runs as before)."""
-    from .interpolation import body_groups
-
     extras = getattr(model, "extras", {}) or {}
     base, styles = extras.get("range_average"), extras.get("range_styles")
     dimension = model.layout.dimension
@@ -82,42 +81,33 @@ def range_space(model) -> RangeSpace | None:
     return RangeSpace(base, styles - base, body_groups(model.layout).astype(np.float64))
 
 
-def stride_mean(walker: Crowd, n: int = 0) -> np.ndarray:
-    """(D,) what character n's walk averages over a stride: its lambda* state means weighted by
-    the frames planned for each state."""
-    frames = walker.base[n].reshape(-1)
-    dimension = walker.means.shape[2] // 3
-    return frames @ walker.means[n, :, :dimension] / frames.sum()
+def stride_means(base: np.ndarray, means: np.ndarray) -> np.ndarray:
+    """(N, D) what each character's walk averages over a stride: its lambda* state means
+    (N, labels * states, 3D) weighted by the frames planned for each state (N, labels, states)."""
+    frames = base.reshape(len(base), -1)
+    dimension = means.shape[2] // 3
+    return np.einsum("nk,nkd->nd", frames, means[:, :, :dimension]) / frames.sum(axis=1)[:, None]
 
 
-class Widen:
-    """One character's post-filter, carried from frame to frame (see the module's docstring)."""
+class RangeFilter:
+    """The engine's range stage for N characters, carried from frame to frame (see the module's
+    docstring): each frame the stride mean and the factor move a quarter of the way to their
+    targets, and each feature's swing about the mean is scaled."""
 
-    def __init__(self, space: RangeSpace):
-        self.space = space
+    def __init__(self):
         self.mean: np.ndarray | None = None
         self.factor: np.ndarray | None = None
-        self._controls: Controls | None = None
-        self._key: tuple | None = None
-        self._targets: tuple[np.ndarray, np.ndarray] | None = None
-        self._kept = list(KEPT)
+        self.kept = list(KEPT)
 
-    def next(self, frame: np.ndarray, walker: Crowd, controls: Controls, n: int = 0) -> np.ndarray:
-        """The frame character n of `walker` just made (after its controls were applied), its swing scaled."""
-        if controls is not self._controls:  # the targets change only with the controls (as lambda* does)
-            self._controls = controls
-            key = controls.key()
-            if key != self._key:
-                self._key = key
-                self._targets = stride_mean(walker, n), self.space.factors(controls.weights, controls.part_weights)
-        mean, factor = self._targets
+    def __call__(self, frames: np.ndarray, mean: np.ndarray, factor: np.ndarray) -> np.ndarray:
+        """Frames (N, D) as made, their swing scaled towards targets `mean` and `factor` (N, D)."""
         if self.mean is None:
             self.mean, self.factor = mean, factor
         else:
             self.mean = self.mean + (mean - self.mean) / EASE_FRAMES
             self.factor = self.factor + (factor - self.factor) / EASE_FRAMES
-        out = self.mean + self.factor * (frame - self.mean)
-        out[self._kept] = frame[self._kept]
+        out = self.mean + self.factor * (frames - self.mean)
+        out[:, self.kept] = frames[:, self.kept]
         return out
 
 
@@ -131,12 +121,23 @@ def _spread(values: np.ndarray) -> np.ndarray:
     return high - low
 
 
-def _generated_range(space, weights: np.ndarray) -> np.ndarray:
-    """Range of each feature of a walk the model makes at `weights`, about its stride mean."""
-    walker = Crowd(space)
+def _without_range(model):
+    """The model with no range statistics: the walk as MLPG makes it, the filter off."""
+    from dataclasses import replace
+
+    return replace(model, extras={k: v for k, v in (model.extras or {}).items() if not k.startswith("range_")})
+
+
+def _generated_range(model, weights: np.ndarray) -> np.ndarray:
+    """Range of each feature of a walk the model makes at `weights` (the range filter off),
+    about its stride mean."""
+    from .engine import Engine
+    from .stream import Controls
+
+    engine = Engine(_without_range(model))
     controls = Controls(weights)
-    frames = np.array([walker.step([controls])[0] for _ in range(TRAINING_FRAMES)])[SETTLE:]
-    return _spread(frames - stride_mean(walker))
+    frames = np.array([engine.next_features(controls)[0] for _ in range(TRAINING_FRAMES)])[SETTLE:]
+    return _spread(frames - stride_means(engine.stream.base, engine.stream.means)[0])
 
 
 def _real_range(takes, dimension: int) -> np.ndarray | None:
@@ -188,8 +189,8 @@ def _calibrate_knees(model, takes, log_factors: np.ndarray, weights: np.ndarray,
     from ..motion.bvh import Motion
     from ..motion.features import restore
     from ..motion.limbs import find_limbs
-    from .interpolation import style_space
-    from .offline import synthesize_motion
+    from .engine import render
+    from .stream import Controls
 
     layout = model.layout
     limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
@@ -204,7 +205,7 @@ def _calibrate_knees(model, takes, log_factors: np.ndarray, weights: np.ndarray,
     for _ in range(CALIBRATION_ROUNDS):
         trial = replace(model, extras=extras_with(log_factors))
         frames = int(round(CALIBRATION_SECONDS * model.fps))
-        made = synthesize_motion(trial, style_space(trial), Controls(weights), SETTLE + frames)
+        made = render(trial, Controls(weights), SETTLE + frames)
         made = Motion(made.skeleton, made.channels[SETTLE:], made.fps)
         step = np.log(real / _knee_range(made, limbs, layout.root))
         if not np.isfinite(step):  # a walk too short or too still to measure: keep what the features gave
@@ -217,9 +218,6 @@ def train_range(model, takes) -> dict[str, np.ndarray]:
     """Model-file arrays `range_average` (D,) and `range_styles` (styles, D): the log ratio of
     each feature's range in the data to its range in a walk the model makes, the knees' then
     calibrated on the walk as it is played (`_calibrate_knees`)."""
-    from .interpolation import style_space
-
-    space = style_space(model)
     dimension = model.layout.dimension
     names = model.style_names
 
@@ -227,7 +225,7 @@ def train_range(model, takes) -> dict[str, np.ndarray]:
         real = _real_range(chosen, dimension)
         if real is None:  # no walking frames (takes too short for a step): that walk is left as made
             return np.zeros(dimension)
-        made = _generated_range(space, weights)
+        made = _generated_range(model, weights)
         out = np.log(np.maximum(real, 1e-12) / np.maximum(made, 1e-12))
         out[list(KEPT)] = 0.0
         return np.clip(out, -LIMIT, LIMIT)

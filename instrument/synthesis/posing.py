@@ -9,13 +9,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..motion.features import FeatureLayout
-from ..motion.kinematics import _compose, channels_from_local
+from ..motion.kinematics import _compose
 from ..motion.restore_frame import FrameRestorer
 from ..motion.rotations import matrix_to_quat
-from ..synthesis.follow import STRENGTH, RootFollow
+from .follow import STRENGTH, RootFollow
 
 if TYPE_CHECKING:
-    from ..synthesis.footlock import FootLock
+    from .footlock import FootLock
 
 
 @dataclass
@@ -135,7 +135,3 @@ class PoseStream:
         follow = None if follow_strength is None else np.array([follow_strength], dtype=np.float64)
         return self.crowd.next(np.asarray(static)[None], shares, follow).character(0)
 
-
-def pose_channels(skeleton, pose: Pose) -> np.ndarray:
-    """BVH channel values of a pose (for recording)."""
-    return channels_from_local(skeleton, pose.rotations[None], pose.translations[None])[0]

@@ -1,0 +1,332 @@
+"""The engine: the one place every walk comes from (live, `synth`, `evaluate`, `bench`, crowds).
+
+Like hts_engine (label -> state stream -> parameter stream -> generated stream, behind one
+facade), a frame goes through named stages, each batched over the N characters it walks (one
+character is a crowd of one):
+
+    controls -> cast ------------- each character's weights: the performed ones plus `spread`
+                                   times its own style offset (zero for character 0)
+             -> interpolation ---- lambda* of every character (StyleInterpolation)
+             -> durations -------- frames per state from speed, phase stretch, liveliness
+             -> plan + stream ---- the state plan and streaming MLPG (Crowd: one compiled call)
+             -> range ------------ each feature's swing scaled to the data's (RangeFilter)
+             -> drive ------------ root speeds scaled by the cadence, the steering added
+             -> contact ---------- how surely each foot is planted in the frame's state
+             -> posing + lock ---- features to a world pose, the feet planted (CrowdPoses)
+
+The stages that move with the style weights (interpolation, durations, range targets, contact
+tables) are `StyleFeature`s: recomputed for every character at once when the performed controls
+or the spread change, and left alone otherwise. A model without range or contact statistics
+simply has fewer features. Offline generation (`render`) is the engine without a clock: the same
+calls, frame by frame, so `synth` and a recorded `run` make the same frames.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from ..models.modelfile import Model
+from ..motion.bvh import Motion
+from ..motion.features import FeatureLayout, forward_direction
+from ..motion.kinematics import ChannelStream, forward_kinematics, local_transforms
+from ..motion.limbs import units_to_metres
+from .contact import ContactSpace, contact_space
+from .follow import strength as follow_strength
+from .footlock import FootLock
+from .interpolation import StyleInterpolation, StyleSpace, style_space
+from .mlpg import mlpg
+from .parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING
+from .posing import CrowdPose, CrowdPoses
+from .stream import Controls, Crowd
+from .widen import RangeFilter, RangeSpace, range_space, stride_means
+
+ROOT_RATES = slice(1, 4)  # root.vx, root.vz, root.yaw_rate in the static features
+MIX_CONCENTRATION = 0.5  # of a crowd character's Dirichlet style draw: below 1 its mix leans on one or two styles
+MIX_STREAM = 1  # the draws of a character's mix and phase come from seed sequence (seed, MIX_STREAM)
+METHODS = ("stream", "full")
+
+
+# ---- the cast: who walks ---------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Cast:
+    """Who is in the crowd (docs/crowds.md): per character its seed, style offset and start phase.
+
+    Character 0 walks exactly as performed. Every other character k has, drawn once from its own
+    seed (seed + k, so a replay is exact), a style offset (a Dirichlet draw over the styles minus
+    the even mix, so its weights add up to 0: the `spread` control scales it), a start phase (the
+    step and state it starts in, so the crowd does not step in unison) and its own liveliness
+    draws (the stream's generator, seeded the same way)."""
+
+    seeds: list[int]
+    offsets: np.ndarray  # (N, styles) each character's style offset at spread 1; row 0 zeros (the performance itself)
+    phases: np.ndarray  # (N, 2): label (which foot steps) and state it starts in; row 0 zeros
+
+
+def make_cast(count: int, styles: int, states: int, seed: int = 0) -> Cast:
+    seeds = [seed + k for k in range(count)]
+    offsets = np.zeros((count, styles))
+    phases = np.zeros((count, 2), dtype=np.int64)
+    for k in range(1, count):
+        rng = np.random.default_rng([seeds[k], MIX_STREAM])
+        offsets[k] = rng.dirichlet(np.full(styles, MIX_CONCENTRATION)) - 1.0 / styles
+        phases[k] = rng.integers(0, 2), rng.integers(0, states)
+    return Cast(seeds, offsets, phases)
+
+
+def metres_to_units(layout: FeatureLayout) -> float:
+    """Model units per metre, from the template pose's hip height (as the VMC profile guesses)."""
+    template = Motion(layout.skeleton, np.asarray(layout.template)[None], 30.0)
+    positions = forward_kinematics(layout.skeleton, *local_transforms(template))[1][0]
+    return 1.0 / units_to_metres(float(positions[layout.root][1] - positions[:, 1].min()))
+
+
+def floor_positions(model: Model, count: int, spacing_m: float = DEFAULT_SPACING) -> np.ndarray:
+    """(N, 3) where each character starts, in model units: a grid of ceil(sqrt(N)) columns
+    across the direction of travel, rows behind one another, character 0 at the origin."""
+    layout = model.layout
+    forward = forward_direction(model.average.means[..., : layout.dimension])
+    forward = forward / max(np.linalg.norm(forward), 1e-12)
+    across = np.cross(np.array([0.0, 1.0, 0.0]), forward)
+    columns = int(np.ceil(np.sqrt(count)))
+    k = np.arange(count)
+    step = spacing_m * metres_to_units(layout)
+    return step * ((k % columns)[:, None] * across - (k // columns)[:, None] * forward) + 0.0  # + 0.0: no -0.0
+
+
+# ---- style features: what moves with the weights, for every character at once ------------------
+
+@dataclass(frozen=True)
+class Mix:
+    """The style weights of every character at one retune: the performed ones plus `spread`
+    times each character's offset (rows of `Cast.offsets`)."""
+
+    performed: Controls
+    spread: float
+    weights: np.ndarray  # (N, styles)
+    parts: np.ndarray | None  # (N, styles, groups), NaN following `weights`; None: no part weights
+
+
+class StyleFeature(Protocol):
+    """A stage whose tables move with the style weights. `retune` recomputes them for every
+    character when the performed controls or the spread change; the stages before it in
+    `Engine.features` have already been retuned."""
+
+    name: str
+
+    def retune(self, mix: Mix, stream: Crowd) -> None: ...
+
+
+class Interpolation:
+    """lambda* of every character, written into the stream's tables, and its duration pdfs."""
+
+    name = "interpolation"
+
+    def __init__(self, space: StyleSpace, offsets: np.ndarray):
+        self.stage = StyleInterpolation(space, offsets)
+        self.duration_means: np.ndarray | None = None  # (N, labels, states)
+        self.duration_variances: np.ndarray | None = None
+
+    def retune(self, mix: Mix, stream: Crowd) -> None:
+        controls = mix.performed
+        self.duration_means, self.duration_variances = self.stage(controls.weights, controls.part_weights, mix.spread,
+                                                                  stream.means, stream.precisions)
+
+
+class Durations:
+    """Frames per state of every character: speed and phase stretch through the HSMM duration
+    pdfs (HTS's rho), liveliness as a spread of draws, and the cadence that scales root speeds."""
+
+    name = "durations"
+
+    def __init__(self, interpolation: Interpolation):
+        self.interpolation = interpolation
+
+    def retune(self, mix: Mix, stream: Crowd) -> None:
+        controls = mix.performed
+        stream.tune(self.interpolation.duration_means, self.interpolation.duration_variances, controls.speed,
+                    controls.state_scale, controls.liveliness)
+
+
+class RangeTargets:
+    """Where the range filter scales each character's swing about: its stride mean and factors."""
+
+    name = "range"
+
+    def __init__(self, space: RangeSpace):
+        self.space = space
+        self.mean: np.ndarray | None = None  # (N, D)
+        self.factor: np.ndarray | None = None  # (N, D)
+
+    def retune(self, mix: Mix, stream: Crowd) -> None:
+        self.mean = stride_means(stream.base, stream.means)
+        self.factor = self.space.factors(mix.weights, mix.parts)
+
+
+class ContactTables:
+    """How surely each character's feet are planted in each state, and how much of a planted
+    foot's slide its body takes (follow.py)."""
+
+    name = "contact"
+
+    def __init__(self, space: ContactSpace):
+        self.space = space
+        self.shares: np.ndarray | None = None  # (N, labels * states, 2)
+        self.follow: np.ndarray | None = None  # (N,)
+
+    def retune(self, mix: Mix, stream: Crowd) -> None:
+        self.shares = self.space.shares(mix.weights, mix.parts)
+        self.follow = follow_strength(self.space.leg_weights(mix.weights, mix.parts))
+
+
+def drive(static: np.ndarray, cadence: np.ndarray, turn: float) -> np.ndarray:
+    """Root speeds (N, D) scaled by each character's cadence (a step taken faster covers the same
+    ground sooner, so the feet do not slide) and the steering added to the yaw rate."""
+    out = np.array(static, dtype=np.float64)
+    out[..., ROOT_RATES] *= np.asarray(cadence)[..., None]
+    out[..., 3] += turn
+    return out
+
+
+# ---- the engine ---------------------------------------------------------------------------------
+
+class Engine:
+    """N characters walking from one performance's controls, sampled at `fps` (the model's rate
+    unless given; other rates interpolate the model's frames), posed with planted feet.
+
+    `method="full"` (offline only: one character, constant controls, `frames` known) solves one
+    MLPG over the whole walk in place of the stream; every other stage is the same."""
+
+    def __init__(self, model: Model, characters: int = 1, fps: float | None = None, lookahead: int = DEFAULT_LOOKAHEAD,
+                 seed: int = 0, spacing: float = DEFAULT_SPACING, method: str = "stream", frames: int | None = None):
+        if method not in METHODS or (method == "full" and (characters != 1 or frames is None)):
+            raise ValueError(f"Engine: method {method!r} (full needs one character and the frame count)")
+        self.model = model
+        self.fps = float(model.fps if fps is None else fps)
+        self.count = characters
+        self.space = style_space(model)
+        self.cast = make_cast(characters, len(model.style_names), model.states, seed)
+        self.stream = Crowd(self.space, characters, lookahead, seeds=self.cast.seeds)
+        self.stream.start_at(self.cast.phases)
+        interpolation = Interpolation(self.space, self.cast.offsets)
+        self.features: list[StyleFeature] = [interpolation, Durations(interpolation)]
+        ranges, contact = range_space(model), contact_space(model)
+        self.range_targets = None if ranges is None else RangeTargets(ranges)
+        self.range_filter = None if ranges is None else RangeFilter()
+        self.contact = None if contact is None else ContactTables(contact)
+        self.features += [f for f in (self.range_targets, self.contact) if f is not None]
+        lock = None if contact is None else FootLock(model.layout, contact.clearance, self.fps)
+        self.poses = CrowdPoses(model.layout, self.fps, characters, lock, positions=floor_positions(model, characters, spacing))
+        self.frame_ids: np.ndarray | None = None  # (N,) the state (label * states + state) of each newest model frame
+        self.contact_shares: np.ndarray | None = None  # (N, 2) how surely each character's newest frame has each foot planted
+        self.follow_strengths: np.ndarray | None = None  # (N,) how much of a planted foot's slide each body takes
+        self.method, self.total_frames = method, frames
+        self._whole: tuple[np.ndarray, np.ndarray] | None = None  # method "full": the solved walk and its state ids
+        self._controls: Controls | None = None  # the last controls and spread retuned for
+        self._spread: float | None = None
+        self._key: tuple | None = None
+        self.frames: list[np.ndarray] = []  # the last two model frames (N, D), driven
+        self.made = 0  # model frames made
+
+    def retune(self, controls: Controls, spread: float = 0.0) -> None:
+        """Every style feature's tables for these controls, if they changed since the last call
+        (a Controls object seen before is not even compared)."""
+        spread = float(spread)
+        if controls is self._controls and spread == self._spread:
+            return
+        self._controls, self._spread = controls, spread
+        key = (controls.key(), spread)
+        if key == self._key:
+            return
+        self._key = key
+        offsets = self.cast.offsets
+        weights = controls.weights[None] + spread * offsets
+        parts = None if controls.part_weights is None else controls.part_weights[None] + spread * offsets[:, :, None]
+        mix = Mix(controls, spread, weights, parts)  # NaN parts (following the weights) stay NaN
+        for feature in self.features:
+            feature.retune(mix, self.stream)
+
+    def next_features(self, controls: Controls, spread: float = 0.0) -> np.ndarray:
+        """The next model frame of every character, (N, D): stream, range, drive; the frame's
+        contact shares and follow strengths are kept for posing it."""
+        self.retune(controls, spread)
+        if self.method == "full":
+            frames, ids = self._next_of_whole()
+        else:
+            frames = self.stream.step()
+            ids = self.stream.history_ids[:, 1]
+        if self.range_filter is not None:
+            frames = self.range_filter(frames, self.range_targets.mean, self.range_targets.factor)
+        frames = drive(frames, self.stream.cadence, controls.turn)
+        self.frame_ids = ids
+        if self.contact is not None:
+            self.contact_shares = self.contact.shares[np.arange(self.count), ids]
+            self.follow_strengths = self.contact.follow
+        self.made += 1
+        return frames
+
+    def _next_of_whole(self) -> tuple[np.ndarray, np.ndarray]:
+        """Method "full": the walk's frames solved at once at the first call (with the tables as
+        the first controls set them), then handed out one by one."""
+        if self._whole is None:
+            ids = self.stream.state_plan(self.total_frames)
+            stream = self.stream
+            self._whole = mlpg(stream.means[0][ids], 1.0 / stream.precisions[0][ids]), ids
+        static, ids = self._whole
+        k = min(self.made, len(ids) - 1)
+        return static[k][None], ids[k:k + 1]
+
+    def sample(self, time_s: float, controls: Controls, spread: float = 0.0) -> np.ndarray:
+        """Static features (N, D) at performance time `time_s`, making model frames as needed.
+
+        At the model's own rate this is exactly the newest frame (no added latency); between
+        model frames it interpolates the two around `time_s`."""
+        position = time_s * self.model.fps
+        newest = int(np.ceil(position - 1e-9))
+        while self.made <= newest:
+            self.frames = (self.frames + [self.next_features(controls, spread)])[-2:]
+        fraction = position - (newest - 1)
+        if fraction >= 1.0 - 1e-9 or len(self.frames) == 1:
+            return self.frames[-1]
+        return self.frames[0] + (self.frames[1] - self.frames[0]) * fraction
+
+    def frame(self, time_s: float, controls: Controls, spread: float = 0.0) -> CrowdPose:
+        """Every character's pose at performance time `time_s` (frames are asked for in order, at `fps`)."""
+        return self.poses.next(self.sample(time_s, controls, spread), self.contact_shares, self.follow_strengths)
+
+
+def default_controls(model: Model, weights: dict[str, float] | None = None, **kwargs) -> Controls:
+    """Controls with the named style weights (the others 0) and any other field of Controls."""
+    vector = np.zeros(len(model.style_names))
+    for name, value in (weights or {}).items():
+        vector[model.style_names.index(name)] = value
+    return Controls(vector, **kwargs)
+
+
+def walk_features(model: Model, controls: Controls, frames: int, method: str = "stream",
+                  lookahead: int = DEFAULT_LOOKAHEAD, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """A walk with constant controls before posing: its static features (frames, D), through
+    every stage up to the drive, and the state id (label * states + state) of each frame."""
+    engine = Engine(model, lookahead=lookahead, seed=seed, method=method, frames=frames)
+    static = np.empty((frames, model.layout.dimension))
+    ids = np.empty(frames, dtype=np.int64)
+    for k in range(frames):
+        static[k] = engine.next_features(controls)[0]
+        ids[k] = engine.frame_ids[0]
+    return static, ids
+
+
+def render(model: Model, controls: Controls, frames: int, method: str = "stream", lookahead: int = DEFAULT_LOOKAHEAD,
+           seed: int = 0) -> Motion:
+    """A walk with constant controls as a Motion on the model's skeleton, at the model's rate, from
+    the origin, heading 0: the engine without a clock (what `synth` writes and `evaluate` measures)."""
+    engine = Engine(model, lookahead=lookahead, seed=seed, method=method, frames=frames)
+    channels = ChannelStream(model.layout.skeleton)  # as a recording writes them
+    rows = []
+    for k in range(frames):
+        pose = engine.frame(k / engine.fps, controls)
+        rows.append(channels.next(pose.rotations[0], pose.translations[0]))
+    return Motion(model.layout.skeleton, np.array(rows), model.fps)

@@ -1,0 +1,39 @@
+"""Walks for tests, made through the engine's stages (instrument.synthesis.engine).
+
+`features` gives what the engine makes before posing (a walk's static features and the state of
+each frame); `tune` sets a stream's tables per character from arbitrary controls, as a test of the
+stream stage alone needs (the engine's own characters differ only by the cast's style offsets).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from instrument.synthesis.durations import MIN_FRAMES, state_durations
+from instrument.synthesis.engine import walk_features
+from instrument.synthesis.interpolation import interpolate
+from instrument.synthesis.stream import Controls, Crowd
+from instrument.synthesis.widen import _without_range
+
+
+def features(model, controls: Controls, frames: int, method: str = "stream", lookahead: int = 32, seed: int = 0,
+             widen: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """`walk_features`, with the range stage off unless `widen`."""
+    return walk_features(model if widen else _without_range(model), controls, frames, method, lookahead, seed)
+
+
+def tune(stream: Crowd, controls: list[Controls]) -> None:
+    """Each character n of the stream takes lambda* and durations of controls[n]."""
+    for n, control in enumerate(controls):
+        lam = interpolate(stream.space, control.weights, control.part_weights)
+        scale = np.ones(stream.space.states) if control.state_scale is None else np.asarray(control.state_scale, dtype=float)
+        stream.means[n], stream.precisions[n] = lam.means, lam.precisions
+        stream.base[n] = state_durations(lam.duration_means, lam.duration_variances, control.speed, scale)
+        stream.sigma[n] = control.liveliness * np.sqrt(lam.duration_variances) * scale
+        stream.cadence[n] = np.maximum(lam.duration_means, MIN_FRAMES).sum() / stream.base[n].sum()
+
+
+def step(stream: Crowd, controls: list[Controls]) -> np.ndarray:
+    """One frame of the stream stage alone, its characters at these controls (N, D)."""
+    tune(stream, controls)
+    return stream.step()
