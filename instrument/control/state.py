@@ -42,7 +42,7 @@ class ControlState:
         self.speed = 1.0
         self.turn = 0.0
         self.liveliness = 0.0
-        self.spread = 0.0  # read by a crowd (runtime/crowd.py), not part of one walker's Controls
+        self.spread = 0.0  # read by a crowd (synthesis/engine.py), not part of one walker's Controls
         self.state_scale = np.ones(self.states)
 
     def targets(self) -> list[str]:

@@ -15,7 +15,7 @@ MIN_SPEED, MAX_SPEED = 0.25, 4.0
 # frames the streaming MLPG looks ahead: one stride (two steps) at 30 fps; see the README for the trade-off
 DEFAULT_LOOKAHEAD = 32
 
-# a crowd (runtime/crowd.py): metres between neighbours on the floor, and how many characters a
+# a crowd (synthesis/engine.py): metres between neighbours on the floor, and how many characters a
 # VMC target sends unless asked (a VMC stream costs several times a character's walk)
 DEFAULT_SPACING = 1.5
 DEFAULT_VMC_CHARACTERS = 16

@@ -16,6 +16,7 @@ crowd of one.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -24,6 +25,35 @@ from .durations import MIN_FRAMES, state_durations, whole_frames
 from .interpolation import StyleSpace
 from .mlpg import _solve
 from .parameters import DEFAULT_LOOKAHEAD
+
+
+class StreamTables(NamedTuple):
+    """What the compiled frame step reads and writes, row n for character n: one record, not a
+    score of positional arrays."""
+
+    means: np.ndarray  # (N, labels * states, 3D) lambda* means
+    precisions: np.ndarray  # (N, labels * states, 3D)
+    base: np.ndarray  # (N, labels, states) frames per state before liveliness
+    sigma: np.ndarray  # (N, labels, states) duration sd times liveliness
+    counters: np.ndarray  # (N, 7) int: where each plan is (LABEL ... FOLLOWER below)
+    carry: np.ndarray  # (N, labels) the fraction of a frame each label's steps carry on
+    pool: np.ndarray  # (N, draws) liveliness draws
+    history: np.ndarray  # (N, 2, D) the last two frames sent
+    history_ids: np.ndarray  # (N, 2) int: their states
+    ratios: np.ndarray  # (N,) rate limit, times the data's largest change (0: none)
+    max_step: np.ndarray  # (D,) the data's largest frame-to-frame change
+
+
+class WindowWork(NamedTuple):
+    """The frame step's scratch arrays for one window length, kept between frames."""
+
+    rows: np.ndarray  # (N, window) int: each window's rows of the lambda* tables
+    solved: np.ndarray  # (N, window - fixed, D)
+    work1: np.ndarray  # (window, D) solver work
+    work2: np.ndarray  # (window, D)
+    ids: np.ndarray  # (N, lookahead + 1) int: planned states
+    counts: np.ndarray  # (N, lookahead + 3) int: frames of each state instance planned
+    carries: np.ndarray  # (N, lookahead + 3) and their carries
 
 
 # rows of Crowd.counters
@@ -142,11 +172,11 @@ class Crowd:
             counters[n, TAIL] -= first
             counters[n, FILLED] = self.pool.shape[1]
 
-    def _window_buffers(self, fixed: int) -> tuple:
+    def _window_buffers(self, fixed: int) -> WindowWork:
         if fixed not in self._buffers:
             window = fixed + self.lookahead + 1
             width = self.means.shape[2]
-            self._buffers[fixed] = (
+            self._buffers[fixed] = WindowWork(
                 np.zeros((self.count, window), dtype=np.int64),  # each window's rows of the lambda* tables
                 np.zeros((self.count, window - fixed, width // 3)),  # solved frames
                 np.zeros((window, width // 3)), np.zeros((window, width // 3)),  # solver work
@@ -163,9 +193,9 @@ class Crowd:
         self._draws_for(self.lookahead + 1)
         fixed = min(self.sent, 2)
         frames = np.empty((self.count, self.means.shape[2] // 3))
-        _advance(self.means, self.precisions, self.base, self.sigma, self.counters, self.carry, self.pool,
-                 self.history, self.history_ids, self.max_step_ratio, self.space.max_step, fixed,
-                 *self._window_buffers(fixed), frames)
+        tables = StreamTables(self.means, self.precisions, self.base, self.sigma, self.counters, self.carry, self.pool,
+                              self.history, self.history_ids, self.max_step_ratio, self.space.max_step)
+        _advance(tables, self._window_buffers(fixed), fixed, frames)
         self.sent += 1
         return frames
 
@@ -243,10 +273,14 @@ def _finish(counter, carry, n, carry_out, states):  # pragma: no cover - compile
 
 
 @njit(cache=True, nogil=True)
-def _advance(means, precisions, base, sigma, counters, carry, pool, history, history_ids, ratios, max_step, fixed,
-             rows, solved, work1, work2, ids, counts, carries, frames):  # pragma: no cover - compiled
+def _advance(tables, work, fixed, frames):  # pragma: no cover - compiled
     """Plan, solve, rate-limit and commit one frame for every character, in place. The solver
     reads each window's means and precisions from the character's lambda* tables (`rows`)."""
+    means, precisions, base, sigma, counters, carry, pool = (tables.means, tables.precisions, tables.base, tables.sigma,
+                                                             tables.counters, tables.carry, tables.pool)
+    history, history_ids, ratios, max_step = tables.history, tables.history_ids, tables.ratios, tables.max_step
+    rows, solved, work1, work2, ids, counts, carries = (work.rows, work.solved, work.work1, work.work2, work.ids,
+                                                        work.counts, work.carries)
     count, states = means.shape[0], base.shape[2]
     dimension = history.shape[2]
     for n in range(count):
