@@ -136,14 +136,14 @@ def test_spread_gives_each_character_its_own_style_and_none_alike_at_zero(model)
     assert apart(spread) > 0.05  # radians: a visible difference in some joint's average pose
     engine = Engine(model, characters=4)
     state = ControlState(model.style_names, model.states)
-    each = engine.each(state.snapshot(), 0.0, engine.walker)
-    assert all(np.array_equal(c.weights, each[0].weights) for c in each)
+    engine.retune(state.snapshot(), 0.0)
+    assert all(np.array_equal(w, engine.mix.weights[0]) for w in engine.mix.weights)
     state.set("spread", 1.0)
-    each = engine.each(state.snapshot(), state.spread, engine.walker)
-    assert np.array_equal(each[0].weights, state.weights)  # character 0 is the performance itself
+    engine.retune(state.snapshot(), state.spread)
+    assert np.array_equal(engine.mix.weights[0], state.weights)  # character 0 is the performance itself
     state.set("style/elderly", 1.0)
-    each = engine.each(state.snapshot(), state.spread, engine.walker)
-    mixes = [tuple(c.weights) for c in each[1:]]  # around the performed weights, each its own, none adding weight
+    engine.retune(state.snapshot(), state.spread)
+    mixes = [tuple(w) for w in engine.mix.weights[1:]]  # around the performed weights, each its own, none adding weight
     assert len(set(mixes)) == 3
     assert all(abs(sum(m) - 1) < 1e-9 and np.abs(np.subtract(m, state.weights)).max() > 0.2 for m in mixes)
 

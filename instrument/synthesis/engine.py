@@ -227,6 +227,7 @@ class Engine:
         self._whole: tuple[np.ndarray, np.ndarray] | None = None  # method "full": the solved walk and its state ids
         self._controls: Controls | None = None  # the last controls and spread retuned for
         self._spread: float | None = None
+        self.mix: Mix | None = None  # every character's weights, as last retuned
         self._key: tuple | None = None
         self.frames: list[np.ndarray] = []  # the last two model frames (N, D), driven
         self.made = 0  # model frames made
@@ -245,9 +246,9 @@ class Engine:
         offsets = self.cast.offsets
         weights = controls.weights[None] + spread * offsets
         parts = None if controls.part_weights is None else controls.part_weights[None] + spread * offsets[:, :, None]
-        mix = Mix(controls, spread, weights, parts)  # NaN parts (following the weights) stay NaN
+        self.mix = Mix(controls, spread, weights, parts)  # NaN parts (following the weights) stay NaN
         for feature in self.features:
-            feature.retune(mix, self.stream)
+            feature.retune(self.mix, self.stream)
 
     def next_features(self, controls: Controls, spread: float = 0.0) -> np.ndarray:
         """The next model frame of every character, (N, D): stream, range, drive; the frame's
