@@ -9,8 +9,8 @@ class FrameIndices:
     def __init__(self):
         self.indices: list[int] = []
 
-    def prepare(self, pose, echo):
-        return pose.index
+    def prepare(self, frame):
+        return frame.index
 
     def send(self, index):
         self.indices.append(index)

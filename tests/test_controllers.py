@@ -140,8 +140,8 @@ def test_simulated_dualshock4_steers_drives_a_style_and_survives_unplug(capsys):
     class Watch:
         name = "watch"
 
-        def prepare(self, pose, echo):
-            return (pose.index, echo["turn"], echo["style/active"], echo["speed"])
+        def prepare(self, frame):
+            return (frame.index, frame.echo["turn"], frame.echo["style/active"], frame.echo["speed"])
 
         def send(self, values):
             seen.append(values)

@@ -101,3 +101,41 @@ def test_render_is_the_engine_without_a_clock(model):
     again = channels_from_local(model.layout.skeleton, np.array([p.rotations[0] for p in poses]),
                                 np.array([p.translations[0] for p in poses]))
     np.testing.assert_allclose(motion.channels, again, atol=1e-9)  # unwrapped alike, frame by frame and at once
+
+
+def test_a_toy_sink_from_a_test_file_gets_every_frame(model, tmp_path):
+    """A sink written here (docs/extending.md), not in the package, plays a walk: it gets every
+    frame in order with the poses and every control value, and the values it gets are the ones
+    the frame was made with (a score ramps the speed)."""
+    from instrument.control.score import ScorePlayer, load_score
+    from instrument.runtime.console import Console
+    from instrument.runtime.performance import perform
+
+    class Hips:
+        name = "hips"
+        character = 0
+
+        def __init__(self):
+            self.got, self.closed = [], False
+
+        def prepare(self, frame):
+            return frame.index, frame.pose(self.character).world_positions[1].copy(), frame.values["speed"]
+
+        def send(self, prepared):
+            self.got.append(prepared)
+
+        def close(self):
+            self.closed = True
+
+    state = ControlState(model.style_names, model.states)
+    score = tmp_path / "speed.toml"
+    score.write_text('[[cue]]\nat = 0.5\nramp = { speed = 1.5 }\nover = 0.5\n')
+    player = ScorePlayer(load_score(str(score), state), state)
+    sink = Hips()
+    summary = perform(model, [sink], Console(quiet=True), fps=30, seconds=1.5, replay=player, fast=True, state=state)
+    assert summary.frames == 45 and sink.closed
+    assert [index for index, _, _ in sink.got] == list(range(45))
+    speeds = [speed for _, _, speed in sink.got]
+    assert speeds[0] == 1.0 and speeds[-1] == pytest.approx(1.5) and 1.0 < speeds[22] < 1.5
+    travelled = np.linalg.norm(sink.got[-1][1][[0, 2]] - sink.got[0][1][[0, 2]])
+    assert travelled > 30  # centimetres in 1.5 s: the character walks

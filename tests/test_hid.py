@@ -254,8 +254,8 @@ class Watch:
     def __init__(self, state: ControlState, target: str, script: dict):
         self.state, self.target, self.script, self.seen = state, target, script, {}
 
-    def prepare(self, pose, echo):
-        return pose.index
+    def prepare(self, frame):
+        return frame.index
 
     def send(self, index):
         self.seen[index] = self.state.get(self.target)

@@ -162,8 +162,8 @@ class Exploding:
     def __init__(self):
         self.calls = 0
 
-    def prepare(self, pose, echo):
-        return pose
+    def prepare(self, frame):
+        return frame.pose()
 
     def send(self, prepared):
         self.calls += 1
@@ -251,8 +251,8 @@ class Echoes:
     def __init__(self):
         self.frames = []
 
-    def prepare(self, pose, echo):
-        return pose.index, echo["style/elderly"]
+    def prepare(self, frame):
+        return frame.index, frame.echo["style/elderly"]
 
     def send(self, frame):
         self.frames.append(frame)

@@ -88,8 +88,8 @@ class Freezer:
         self.stuck = threading.Event()  # set while a frame is held in send()
         self.frames = 0
 
-    def prepare(self, pose, echo):
-        return pose.index
+    def prepare(self, frame):
+        return frame.index
 
     def send(self, index):
         self.frames += 1
@@ -289,8 +289,8 @@ def test_attract_drifts_when_idle_and_a_fader_takes_over_with_pickup(model):
     class Watch:
         name = "watch"
 
-        def prepare(self, pose, echo):
-            return echo["style/elderly"], attract.active
+        def prepare(self, frame):
+            return frame.echo["style/elderly"], attract.active
 
         def send(self, values):
             seen.append(values)

@@ -19,7 +19,7 @@ from ..control.targets import MAX_TURN, TABLE, WEIGHT_LIMIT
 from ..control.values import all_values
 from ..errors import UserError
 from ..runtime.console import Console
-from ..synthesis.posing import CrowdPose, Pose
+from ..synthesis.posing import Frame
 from ..synthesis.durations import MAX_SPEED, MIN_SPEED
 from ..synthesis.interpolation import GROUPS
 from .server import JSON, frame_packet
@@ -108,7 +108,7 @@ class ConsoleLink:
         self.port = answer["ready"]
         self.sock.setblocking(False)
         self.input = ConsoleInput(self, console)
-        self.output = ConsoleOutput(self, state, presets, sources)
+        self.output = ConsoleOutput(self, presets, sources)
 
     def url_at(self, host: str) -> str:
         return f"http://{host}:{self.port}/" + (f"?token={self.token}" if self.token else "")
@@ -202,10 +202,9 @@ class ConsoleOutput:
     crowd it sends the first SHOWN_CHARACTERS (a page's frame grows by about 0.5 kB of JSON a character of 22 joints)."""
 
     name = "console"
-    whole_crowd = True  # the live loop hands it every character's pose
 
-    def __init__(self, link: ConsoleLink, state: ControlState, presets: dict, sources: Callable[[], str]):
-        self.link, self.state, self.presets, self.sources = link, state, presets, sources
+    def __init__(self, link: ConsoleLink, presets: dict, sources: Callable[[], str]):
+        self.link, self.presets, self.sources = link, presets, sources
         self.clock = None
         self.sent_presets: tuple = ()
 
@@ -213,7 +212,7 @@ class ConsoleOutput:
         """Given the frame clock, so the pages show late and dropped frames."""
         self.clock = clock
 
-    def prepare(self, pose: Pose | CrowdPose, echo: dict[str, float]) -> list[bytes] | None:
+    def prepare(self, frame: Frame) -> list[bytes] | None:
         if not self.link.pages:
             return None
         packets = []
@@ -221,14 +220,12 @@ class ConsoleOutput:
         if stored != self.sent_presets:
             self.sent_presets = stored
             packets.append(JSON + json.dumps({"presets": self.presets}).encode("utf-8"))
-        if pose.index % SOURCES_EVERY == 0:
+        if frame.index % SOURCES_EVERY == 0:
             packets.append(JSON + json.dumps({"sources": self.sources()}).encode("utf-8"))
         late, dropped = (self.clock.late, self.clock.dropped) if self.clock else (0, 0)
-        values = np.fromiter(all_values(self.state).values(), float)
-        positions = pose.world_positions  # (joints, 3), or (characters, joints, 3) of a crowd
-        if positions.ndim == 3:
-            positions = positions[:SHOWN_CHARACTERS]
-        packets.append(frame_packet(pose.index, late, dropped, positions, values))
+        values = np.fromiter(frame.values.values(), float)
+        positions = frame.crowd.world_positions[:SHOWN_CHARACTERS]  # (characters, joints, 3)
+        packets.append(frame_packet(frame.index, late, dropped, positions, values))
         return packets
 
     def send(self, packets: list[bytes]) -> None:

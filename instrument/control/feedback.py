@@ -72,11 +72,11 @@ class MidiFeedback:
             self.sent = {c: math.nan for c in self.controls}  # a new port: show every value again
         return event in ("lost", "waiting")
 
-    def prepare(self, pose, echo) -> list:
+    def prepare(self, frame) -> list:
         messages = []
         awaiting, self.mapper.awaiting = self.mapper.awaiting, set()
         for spec in self.controls:
-            value = self.state.get(spec.target)
+            value = frame.values.get(spec.target, 0.0)  # a button (reset, cue) has no value to show
             if value != self.sent[spec] or spec in awaiting:
                 self.sent[spec] = value
                 for kind, number, raw in raw_values(spec, value):

@@ -120,7 +120,8 @@ class HidFeedback:
     def _framed(report_id: int, data: bytes) -> bytes:
         return data if report_id else b"\x00" + data  # hidapi: unnumbered reports start with a 0 byte
 
-    def prepare(self, pose, echo: dict[str, float]) -> list[bytes]:
+    def prepare(self, frame) -> list[bytes]:
+        echo = frame.echo
         if self.device.device is None or self.device.descriptor is None:
             return []
         fresh = self.device.connections != self.connection

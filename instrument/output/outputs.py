@@ -8,7 +8,7 @@ from ..models.modelfile import Model
 from ..motion.features import forward_direction
 from ..runtime.console import Console
 from ..motion.kinematics import ChannelStream
-from ..synthesis.posing import CrowdPose, Pose
+from ..synthesis.posing import Frame
 from .flat import FlatProfile
 from .humanoid import guess_humanoid, read_humanoid
 from .osc import OscTarget, UdpOut
@@ -27,8 +27,8 @@ class OscOutput:
         self.whole_crowd = getattr(profile, "whole_crowd", False)
         self.out = UdpOut(target, console)
 
-    def prepare(self, pose: Pose | CrowdPose, echo: dict[str, float]) -> list[bytes]:
-        return self.profile.datagrams(pose, echo)
+    def prepare(self, frame: Frame) -> list[bytes]:
+        return self.profile.datagrams(frame.crowd if self.whole_crowd else frame.pose(self.character), frame.echo)
 
     def send(self, datagrams: list[bytes]) -> None:
         self.out.send(datagrams)
@@ -44,7 +44,8 @@ class RecorderOutput:
         self.channels = ChannelStream(model.layout.skeleton)
         self.recorder = BvhRecorder(path, model.layout.skeleton, fps, replace)
 
-    def prepare(self, pose: Pose, echo: dict[str, float]):
+    def prepare(self, frame: Frame):
+        pose = frame.pose(self.character)
         return self.channels.next(pose.rotations, pose.translations)
 
     def send(self, channels) -> None:

@@ -22,7 +22,8 @@ from ..control.state import ControlState
 from ..models.modelfile import Model
 from ..synthesis.engine import Engine
 from ..synthesis.parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING
-from ..synthesis.posing import Pose
+from ..control.values import all_values
+from ..synthesis.posing import Frame
 from .clock import IDLE_UNTIL, FrameClock
 from .console import Console
 from .stopping import StopFlag
@@ -37,12 +38,17 @@ MAX_LEAD_FRAMES = 0.9
 INPUT_BUDGET = IDLE_UNTIL  # seconds of input handling per look: what is left waits for the next look
 
 
-class Output(Protocol):
-    """Made in two halves so the work is done before the deadline and only sending at it."""
+class Sink(Protocol):
+    """An output of the show (OSC targets, the BVH recorder, MIDI and HID feedback, the console).
+    Made in two halves so the work is done before the deadline and only sending at it: `prepare`
+    turns the frame (every pose and every control value: a sink never reads the control state)
+    into what `send` sends, or None for nothing this frame. A failure in either is counted and
+    said on the console; the show goes on. A sink that sends one character of a crowd says which
+    in `character` (checked against the crowd at the start)."""
 
     name: str
 
-    def prepare(self, pose: Pose, echo: dict[str, float]) -> object: ...
+    def prepare(self, frame: Frame) -> object: ...
 
     def send(self, prepared: object) -> None: ...
 
@@ -72,7 +78,7 @@ def close_all(things, console: Console) -> None:
 
 def perform(
     model: Model,
-    outputs: list[Output],
+    outputs: list[Sink],
     console: Console,
     fps: float = 30.0,
     seconds: float | None = None,
@@ -95,13 +101,13 @@ def perform(
     `stop` is the flag Ctrl-C and SIGTERM set (installed here unless the caller did, so that a
     stop during its start-up is kept too).
     `on_frame`, when given, is called after each frame is sent (health, the systemd watchdog).
-    `characters` walk at once, `spacing` metres apart (synthesis/engine.py); an output gets the
-    pose of its `character` (0 unless it says), or the whole CrowdPose if it says `whole_crowd`."""
+    `characters` walk at once, `spacing` metres apart (synthesis/engine.py); every output gets
+    the whole frame and takes the pose it sends from it."""
     state = state or ControlState(model.style_names, model.states)
     apply = apply or ControlHub([], console=console).apply  # checked, counted and warned as a show's events are
     engine = Engine(model, characters, fps, lookahead, spacing=spacing)
-    wanted = [None if getattr(output, "whole_crowd", False) else getattr(output, "character", 0) for output in outputs]
-    if any(k is not None and not 0 <= k < characters for k in wanted):  # `run` checks this for the user
+    wanted = [getattr(output, "character", 0) for output in outputs]
+    if any(not 0 <= k < characters for k in wanted):  # `run` checks this for the user
         raise ValueError(f"an output asks for a character outside the crowd of {characters}: {wanted}")
     clock = FrameClock(fps, realtime=not fast)
     for output in outputs:
@@ -152,9 +158,8 @@ def perform(
             state.advance(now)
             controls = state.snapshot()
             crowd = engine.frame(now, controls, state.spread)
-            echo = state.echo()
-            prepared = [_attempt(console, summary, output, output.prepare, crowd if k is None else crowd.character(k), echo)
-                        for output, k in zip(outputs, wanted)]
+            frame = Frame(index, now, crowd, all_values(state), state.echo())
+            prepared = [_attempt(console, summary, output, output.prepare, frame) for output in outputs]
             if index > 0:
                 work_times.append(time.monotonic() - work_started)
             else:  # the first frame compiled and loaded things: not what a frame takes
@@ -195,7 +200,7 @@ def perform(
     return summary
 
 
-def _attempt(console: Console, summary: Summary, output: Output, method, *args):
+def _attempt(console: Console, summary: Summary, output: Sink, method, *args):
     """Call an output's method; a failure is counted and reported, never raised."""
     try:
         return method(*args)

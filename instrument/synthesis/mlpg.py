@@ -206,8 +206,8 @@ def _opaque(typingctx, value):  # pragma: no cover - compiled
     computed. The back substitution's row index goes through it: seeing rows t, t + 1, t + 2 of
     one array, the compiler otherwise checks the whole range the loop over t sweeps for overlap,
     once, before it, finds that the rows read and the rows written overlap (they are the same
-    recurrence), and runs every row scalar (1.8 x slower); rows it cannot relate to t it checks
-    row by row, and those checks pass."""
+    recurrence), and runs every row scalar; rows it cannot relate to t it checks row by row, and
+    those checks pass (docs/mlpg.md, round 4, has the figures)."""
 
     def codegen(context, builder, signature, args):
         kind = context.get_value_type(signature.args[0])
@@ -217,10 +217,7 @@ def _opaque(typingctx, value):  # pragma: no cover - compiled
 
 
 # How far ahead the forward sweep asks for its input rows, and how far behind the back
-# substitution asks for its work rows. Measured on the 2-core Zen 1 machine with caches as cold as
-# the bench leaves them: 12 rows ahead is 6-10 % faster than 4, 8, 10, 11, 14, 16 or 24 at 50-100
-# dimensions and on every input tried (the bench's, one style, random), 4 % slower at 33; 4 rows
-# behind is as good as any.
+# substitution asks for its work rows: the best distances measured (docs/mlpg.md, round 4).
 PREFETCH_AHEAD, PREFETCH_BEHIND = 12, 4
 SAFE_PRODUCT = (1e-300, 1e300)  # where 1 / (v0 v1 v2) and the precisions taken from it keep full precision
 
@@ -228,8 +225,8 @@ SAFE_PRODUCT = (1e-300, 1e300)  # where 1 / (v0 v1 v2) and the precisions taken 
 @njit(cache=True, nogil=True, fastmath=True, error_model="numpy", inline="always")
 def _prefetch_row(array, row, start, length):  # pragma: no cover - compiled
     """Prefetch array[row, start:start + length] of a C-contiguous 2-D array, one hint per 64-byte
-    line. The hint takes the array's flat index: a reshape to 1-D here was a call into numba's
-    helpers per row, a tenth of the solve."""
+    line. The hint takes the array's flat index: a reshape to 1-D here would call into numba's
+    helpers for every row."""
     first = row * array.shape[1] + start
     for j in range(first, first + length, 8):
         _prefetch(array, j)
@@ -242,10 +239,10 @@ def _sequence_precisions(v0, v1, v2, dynamic, p0, p1, p2):  # pragma: no cover -
     two dynamic ones times `dynamic` (0 for windows centred on the first or last frame) and the
     delta one also times D_PREV ** 2 (as every row uses it, `_sequence_row`), from one
     division per dimension: r = 1 / (v0 v1 v2), p0 = v1 v2 r, ... Divisions bound this loop (a
-    packed one takes as long as a dozen multiplications); three per unknown were 1.13 x slower.
+    packed one takes as long as a dozen multiplications; docs/mlpg.md has the figures).
     For variances within 1e-100..1e100 each this is exact to rounding; a frame whose product
     leaves 1e-300..1e300 is divided one by one, as before."""
-    outside = 0  # counted, not min/max: a running min and max made the loop 1.15 x slower
+    outside = 0  # counted, not min/max: a running min and max is slower (docs/mlpg.md)
     for d in range(p0.shape[0]):
         v12 = v1[d] * v2[d]
         product = v0[d] * v12

@@ -46,6 +46,21 @@ class CrowdPose:
                     self.world_positions[n])
 
 
+@dataclass
+class Frame:
+    """What the live loop hands every sink once a frame: every character's pose and every control
+    value, so no sink reads the control state (and a sink sees the values the frame was made with)."""
+
+    index: int
+    time: float  # seconds of performance time
+    crowd: CrowdPose  # every character's pose (one character: a crowd of one)
+    values: dict[str, float]  # every target's value (control/values.all_values; NaN: a part weight that follows its style)
+    echo: dict[str, float]  # the values a control surface shows (ControlState.echo)
+
+    def pose(self, character: int = 0) -> Pose:
+        return self.crowd.character(character)
+
+
 def quaternions(rotations: np.ndarray) -> np.ndarray:
     """Rotation matrices (..., 3, 3) as quaternions (x, y, z, w) with w >= 0 (one sign for receivers)."""
     quats = matrix_to_quat(rotations)
