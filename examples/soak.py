@@ -50,7 +50,7 @@ from instrument.output.osc import OscTarget, message
 from instrument.output.outputs import OscOutput, make_profile
 from instrument.runtime.console import Console
 from instrument.runtime.health import Health, open_files, rss_bytes
-from instrument.runtime.performance import perform
+from instrument.runtime.performance import Show, perform
 from instrument.runtime.priority import realtime_scheduling
 from instrument.shipped import default_model_path
 
@@ -183,8 +183,9 @@ def main() -> int:
     start_rss, start_files = rss_bytes() / 1e6, open_files()
     crash = None
     try:
-        summary = perform(model, outputs, console, args.fps, args.hours * 3600.0, live_sources=[inject, attract.poll],
-                          fast=not args.realtime, apply=hub.apply, state=state, on_frame=on_frame)
+        show = Show(model, outputs, fast=not args.realtime, apply=hub.apply, state=state, fps=args.fps,
+                    seconds=args.hours * 3600.0, sources=[inject, attract.poll])
+        summary = perform(show, console, on_frame=on_frame)
     except Exception as error:  # the point of a soak: report it
         crash, summary = f"{type(error).__name__}: {error}", None
     for thing in (hid, surface_in, hub, health):

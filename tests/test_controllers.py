@@ -17,7 +17,7 @@ from instrument.control.mapping import load_mapping
 from instrument.control.state import ControlState
 from instrument.models.modelfile import default_model_path, load_model
 from instrument.runtime.console import Console
-from instrument.runtime.performance import perform
+from instrument.runtime.performance import Show, perform
 from oscrecv import Receiver, frame_count, free_port
 from waiting import StderrLines, wait_until
 
@@ -158,7 +158,7 @@ def test_simulated_dualshock4_steers_drives_a_style_and_survives_unplug(capsys):
         def close(self):
             pass
 
-    perform(model, [Watch()], console, fps=30, seconds=6.0, live_sources=[device.poll], apply=hub.apply, state=state)
+    perform(Show(model, [Watch()], fps=30, seconds=6.0, apply=hub.apply, state=state, sources=[device.poll]), console)
     err = capsys.readouterr().err
     assert [s[0] for s in seen] == list(range(180))  # the walk never stopped
     by_frame = {s[0]: s for s in seen}

@@ -109,7 +109,7 @@ def test_a_toy_sink_from_a_test_file_gets_every_frame(model, tmp_path):
     the frame was made with (a score ramps the speed)."""
     from instrument.control.score import ScorePlayer, load_score
     from instrument.runtime.console import Console
-    from instrument.runtime.performance import perform
+    from instrument.runtime.performance import Show, perform
 
     class Hips:
         name = "hips"
@@ -132,7 +132,8 @@ def test_a_toy_sink_from_a_test_file_gets_every_frame(model, tmp_path):
     score.write_text('[[cue]]\nat = 0.5\nramp = { speed = 1.5 }\nover = 0.5\n')
     player = ScorePlayer(load_score(str(score), state), state)
     sink = Hips()
-    summary = perform(model, [sink], Console(quiet=True), fps=30, seconds=1.5, replay=player, fast=True, state=state)
+    show = Show(model, [sink], fps=30, seconds=1.5, replay=player, fast=True, state=state)
+    summary = perform(show, Console(quiet=True))
     assert summary.frames == 45 and sink.closed
     assert [index for index, _, _ in sink.got] == list(range(45))
     speeds = [speed for _, _, speed in sink.got]

@@ -405,7 +405,7 @@ def test_a_device_poll_or_an_event_that_raises_is_counted_and_the_show_goes_on(m
     import io
 
     from instrument.runtime.console import Console
-    from instrument.runtime.performance import perform
+    from instrument.runtime.performance import Show, perform
 
     state = ControlState(model.style_names, model.states)
     hub = ControlHub([], console=Console(quiet=True))
@@ -424,8 +424,9 @@ def test_a_device_poll_or_an_event_that_raises_is_counted_and_the_show_goes_on(m
         return hub.apply(state, event)
 
     frames, said = FrameIndices(), io.StringIO()
-    summary = perform(model, [frames], Console(stream=said), fps=30, seconds=1.0, fast=True,
-                      live_sources=[unplugged_mid_read, surface], apply=apply, state=state)
+    show = Show(model, [frames], fps=30, seconds=1.0, fast=True, apply=apply, state=state,
+                sources=[unplugged_mid_read, surface])
+    summary = perform(show, Console(stream=said))
     assert frames.indices == list(range(30))  # every frame made
     assert summary.input_errors == {f"poll {unplugged_mid_read.__qualname__}": len(polls), "apply osc": 1}
     assert len(polls) >= 30

@@ -33,7 +33,7 @@ from instrument.control.mapping import Mapper, load_mapping
 from instrument.control.state import ControlState
 from instrument.errors import UserError
 from instrument.runtime.console import Console
-from instrument.runtime.performance import perform
+from instrument.runtime.performance import Show, perform
 from instrument.shipped import shipped_mappings
 from instrument.tomlfile import read_toml
 
@@ -287,7 +287,7 @@ def test_every_shipped_hid_mapping_drives_the_walk(model, name, descriptor, ids,
     device = HidInput(console, *ids, hid=hid)
     hub = ControlHub([mapping])
     watch = Watch(state, target, {5: lambda: sim.send(report)})
-    perform(model, [watch], console, fps=30, seconds=1.0, live_sources=[device.poll], apply=hub.apply, state=state)
+    perform(Show(model, [watch], fps=30, seconds=1.0, apply=hub.apply, state=state, sources=[device.poll]), console)
     assert list(watch.seen) == list(range(30))  # the walk went on every frame
     assert watch.seen[4] != pytest.approx(value)
     assert watch.seen[20] == pytest.approx(value)
@@ -308,7 +308,7 @@ def test_spacemouse_push_and_tilt_move_the_style_blend_and_a_button_recalls_a_pr
                Watch(state, "style/normal", {}), Watch(state, "style/exhausted", {}), Watch(state, "speed", {})]
     hub = ControlHub([mapping])
     hub.start(state)  # the mapping's morph time, as `run` starts it
-    perform(model, watches, console, fps=30, seconds=3.0, live_sources=[device.poll], apply=hub.apply, state=state)
+    perform(Show(model, watches, fps=30, seconds=3.0, apply=hub.apply, state=state, sources=[device.poll]), console)
     masculine, feminine, normal, exhausted, speed = (w.seen for w in watches)
     assert masculine[4] == pytest.approx(0.0) and masculine[12] == pytest.approx(1.5)  # push: masculine up...
     assert feminine[12] == pytest.approx(-1.5)  # ...and feminine down, the blend moved
@@ -479,7 +479,8 @@ def test_spacemouse_unplugged_and_replugged_its_led_on_each_time(model):
                 twist()
 
     watch = TwistAfterReconnect(state, "turn", {10: unplug, 20: replug})
-    perform(model, [watch, feedback], console, fps=30, seconds=3.0, live_sources=[device.poll], apply=hub.apply, state=state)
+    show = Show(model, [watch, feedback], fps=30, seconds=3.0, apply=hub.apply, state=state, sources=[device.poll])
+    perform(show, console)
     assert list(watch.seen) == list(range(90))  # the walk never stopped
     assert "lost" in text.getvalue() and "reconnected" in text.getvalue()
     assert sim.written == [bytes([4, 1]), bytes([4, 1])]  # report 4, LED bit on: at connect and at reconnect
@@ -497,8 +498,9 @@ def test_dualshock4_light_bar_shows_the_leading_styles_colour(model):
     feedback = HidFeedback(device, mapping.feedback, console)
     watch = Watch(state, "style/active", {5: lambda: sim.send(ds4_report(r2=255)),
                                           15: lambda: sim.send(ds4_report(r2=100, l2=200))})
-    perform(model, [watch, feedback], console, fps=30, seconds=1.0, live_sources=[device.poll],
-            apply=ControlHub([mapping]).apply, state=state)
+    show = Show(model, [watch, feedback], fps=30, seconds=1.0, apply=ControlHub([mapping]).apply, state=state,
+                sources=[device.poll])
+    perform(show, console)
     assert [len(r) for r in sim.written] == [32] * len(sim.written)  # report 5's length, from the descriptor
     assert all(r[0] == 5 and r[1] == 0x02 for r in sim.written)  # report id, "set the light bar"
     assert [r[6:9] for r in sim.written] == [rgb["none"], rgb["active"], rgb["exhausted"]]
@@ -515,8 +517,9 @@ def test_dualshock4_light_bar_stays_dark_over_bluetooth_and_the_console_says_why
     device = HidInput(console, 0x054C, 0x05C4, hid=SimulatedHid(sim))
     feedback = HidFeedback(device, mapping.feedback, console)
     watch = Watch(state, "style/active", {5: lambda: sim.send(ds4_report(r2=255)[:10])})
-    perform(model, [watch, feedback], console, fps=30, seconds=0.5, live_sources=[device.poll],
-            apply=ControlHub([mapping]).apply, state=state)
+    show = Show(model, [watch, feedback], fps=30, seconds=0.5, apply=ControlHub([mapping]).apply, state=state,
+                sources=[device.poll])
+    perform(show, console)
     assert watch.seen[14] == pytest.approx(2.0)  # it plays
     assert sim.written == []
     assert "no output report 5 long enough for the light bar" in text.getvalue()

@@ -17,7 +17,7 @@ from instrument.output.osc import MAX_BUNDLE, parse_target
 from instrument.output.recorder import BvhRecorder
 from instrument.runtime.clock import IDLE_EVERY, IDLE_UNTIL, FrameClock
 from instrument.runtime.console import Console
-from instrument.runtime.performance import perform
+from instrument.runtime.performance import Show, perform
 from frame_indices import FrameIndices
 from oscrecv import Receiver, frame_count, free_port
 from waiting import wait_until
@@ -176,7 +176,7 @@ class Exploding:
 def test_an_output_that_fails_never_stops_the_clock_or_the_others(model, capsys):
     exploding, collecting = Exploding(), FrameIndices()
     console = Console()
-    summary = perform(model, [exploding, collecting], console, fps=30, seconds=1.0, fast=True)
+    summary = perform(Show(model, [exploding, collecting], fps=30, seconds=1.0, fast=True), console)
     assert collecting.indices == list(range(30))
     assert exploding.calls == 30 and summary.output_errors == {"exploding": 30}
     err = capsys.readouterr().err
@@ -274,7 +274,7 @@ def test_live_events_taken_while_waiting_count_for_the_coming_frame(model):
         return [event]
 
     echoes = Echoes()
-    perform(model, [echoes], Console(quiet=True), fps=fps, seconds=0.5, live_sources=[source])
+    perform(Show(model, [echoes], fps=fps, seconds=0.5, sources=[source]), Console(quiet=True))
     assert [i for i, _ in echoes.frames] == list(range(15))
     assert all(abs(t * fps - round(t * fps)) < 1e-9 for t in calls)  # always a frame's time
     assert len(calls) > 3 * len(echoes.frames)  # looked at while waiting, not once a frame

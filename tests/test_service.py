@@ -24,7 +24,7 @@ from instrument.control.state import ControlState
 from instrument.runtime.console import Console
 from instrument.runtime.health import Health
 from instrument.runtime.notify import SystemdNotifier
-from instrument.runtime.performance import perform
+from instrument.runtime.performance import Show, perform
 from oscrecv import Receiver, frame_count, free_port
 from waiting import StderrLines, wait_until
 
@@ -142,7 +142,7 @@ def test_the_frame_loop_pets_the_watchdog_and_a_frozen_loop_stops(model, tmp_pat
     watcher = threading.Thread(target=systemd_side, daemon=True)
     watcher.start()
     try:
-        perform(model, [freezer], Console(quiet=True), fps=30, seconds=120.0, on_frame=health.frame)
+        perform(Show(model, [freezer], fps=30, seconds=120.0), Console(quiet=True), on_frame=health.frame)
     finally:
         watcher.join(30)
         listener.close()
@@ -298,7 +298,9 @@ def test_attract_drifts_when_idle_and_a_fader_takes_over_with_pickup(model):
         def close(self):
             pass
 
-    perform(model, [Watch()], console, fps=30, seconds=8.0, live_sources=[attract.poll], apply=hub.apply, state=state, fast=True)
+    show = Show(model, [Watch()], fps=30, seconds=8.0, apply=hub.apply, state=state, fast=True,
+                sources=[attract.poll])
+    perform(show, console)
     assert not any(active for _, active in seen[:45])  # the fader was touched at frame 15: idle from then on
     assert seen[50][1] and 0.0 < seen[60][0] < 1.0 and seen[100][0] == 1.0  # the tour eased into "old"
     assert seen[149] == (1.0, True)

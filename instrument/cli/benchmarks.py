@@ -36,7 +36,7 @@ def measure_pacing(model_path: str | None, seconds: float, fps: float, console_a
     from ..output.osc import OscTarget
     from ..output.outputs import OscOutput, make_profile
     from ..runtime.console import Console
-    from ..runtime.performance import perform
+    from ..runtime.performance import Show, perform
     from ..runtime.priority import realtime_scheduling
     from ..control.score import ScorePlayer, load_score
     from ..control.state import ControlState
@@ -59,7 +59,8 @@ def measure_pacing(model_path: str | None, seconds: float, fps: float, console_a
     state = link.output.state if link else ControlState(model.style_names, model.states)
     demo = ScorePlayer(load_score(demo_score_path(), state, loop=True), state)
     try:
-        summary = perform(model, outputs, console, fps, seconds, demo, timing=timing, live_sources=live_sources, state=state)
+        summary = perform(Show(model, outputs, fps, seconds, state=state, replay=demo, sources=live_sources), console,
+                          timing=timing)
     finally:
         if link:
             open_pages = link.pages

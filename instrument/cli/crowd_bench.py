@@ -76,7 +76,7 @@ def keeps_time(model: Model, count: int, seconds: float = TRIAL_SECONDS) -> tupl
     from ..output.osc import OscTarget
     from ..output.outputs import OscOutput, make_profile
     from ..runtime.console import Console
-    from ..runtime.performance import perform
+    from ..runtime.performance import Show, perform
     from ..shipped import demo_score_path
 
     sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -92,7 +92,8 @@ def keeps_time(model: Model, count: int, seconds: float = TRIAL_SECONDS) -> tupl
     demo = ScorePlayer(load_score(demo_score_path(), state, loop=True), state, start=-DEMO_FIRST_RAMP_S)
     timing: list[float] = []
     try:
-        summary = perform(model, [output], console, CROWD_FPS, seconds, demo, timing=timing, state=state, characters=count)
+        summary = perform(Show(model, [output], CROWD_FPS, seconds, characters=count, state=state, replay=demo), console,
+                          timing=timing)
     finally:
         sink.close()
     p99 = float(np.percentile(np.maximum(np.array(timing[1:]), 0.0), 99)) * 1000.0

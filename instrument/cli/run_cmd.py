@@ -225,7 +225,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     from ..models.modelfile import load_model
     from ..output.outputs import OscOutput, RecorderOutput, make_profile
     from ..output.vmc import ROOT_CONVENTIONS
-    from ..runtime.performance import close_all, perform
+    from ..runtime.performance import Show, close_all, perform
 
     show_presets, show_text = apply_show_file(args) if args.config else ({}, "")
     check_needs("run", args)
@@ -355,10 +355,10 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
             close_all(reversed(outputs), console)  # files first, as at the end of a show
             console.say(f"stopped by {stop.by} before the first frame")
             return 0
-        summary = perform(model, outputs, console, fps, seconds, replay, live_sources=live_sources, fast=args.fast,
-                          apply=hub.apply,
-                          describe_sources=lambda: ", ".join(d.describe() for d in devices) or ("score" if score_path else "replay"),
-                          state=state, stop=stop, on_frame=health.frame, characters=characters, spacing=spacing)
+        show = Show(model, outputs, fps, seconds, args.fast, characters, spacing, state=state, replay=replay,
+                    sources=live_sources, apply=hub.apply,
+                    describe_sources=lambda: ", ".join(d.describe() for d in devices) or ("score" if score_path else "replay"))
+        summary = perform(show, console, stop, on_frame=health.frame)
     finally:
         health.notifier.stopping()
         close_all([hub] + devices + [health, health.notifier], console)  # the recording first, as the outputs' files

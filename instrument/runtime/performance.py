@@ -76,40 +76,60 @@ def close_all(things, console: Console) -> None:
             console.warn(f"close {name}", f"{name} did not close cleanly: {error}")
 
 
-def perform(
-    model: Model,
-    outputs: list[Sink],
-    console: Console,
-    fps: float = 30.0,
-    seconds: float | None = None,
-    replay: LogReplay | None = None,
-    live_sources: list[Callable[[float], list[ControlEvent]]] = (),
-    fast: bool = False,
-    apply: Callable[[ControlState, ControlEvent], bool] | None = None,
-    describe_sources: Callable[[], str] = lambda: "",
-    lookahead: int = DEFAULT_LOOKAHEAD,
-    timing: list[float] | None = None,
-    state: ControlState | None = None,
-    stop: StopFlag | None = None,
-    on_frame: Callable[[int, FrameClock, Summary], None] | None = None,
-    characters: int = 1,
-    spacing: float = DEFAULT_SPACING,
-) -> Summary:
-    """Run until `seconds` of performance time, the end of a non-looping replay, or Ctrl-C.
+@dataclass
+class Show:
+    """One performance, assembled and checked once: `run` builds it from the command line and a
+    show file, `bench` and the crowd bench from their own choices, a test from its own; `perform`
+    plays it.
 
-    `timing`, when given, receives each frame's send time minus its deadline (seconds).
+    `sinks` get every frame (their `character` must be in the crowd); `sources` are polled for
+    live control events between and at the start of frames (a device's `poll`); `replay` is a
+    controller log or a score played by performance time; `apply` puts one event into `state`
+    (the hub's, so events are checked and counted as a show's are; default: a hub of no device);
+    `describe_sources` names the live sources on the status line."""
+
+    model: Model
+    sinks: list[Sink]
+    fps: float = 30.0
+    seconds: float | None = None  # of performance time; None: until the replay ends, or Ctrl-C
+    fast: bool = False  # no realtime pacing: as fast as the CPU allows
+    characters: int = 1
+    spacing: float = DEFAULT_SPACING  # metres between a crowd's characters
+    lookahead: int = DEFAULT_LOOKAHEAD
+    state: ControlState | None = None  # default: the model's, at rest
+    replay: LogReplay | None = None
+    sources: list[Callable[[float], list[ControlEvent]]] = field(default_factory=list)
+    apply: Callable[[ControlState, ControlEvent], bool] | None = None
+    describe_sources: Callable[[], str] = lambda: ""
+
+    def __post_init__(self):
+        # `run` refuses these for the user with one line; here they are a caller's mistake
+        if not self.fps > 0 or self.characters < 1 or self.lookahead < 1 or (self.seconds is not None and self.seconds < 0):
+            raise ValueError(f"Show: fps {self.fps}, characters {self.characters}, lookahead {self.lookahead}, "
+                             f"seconds {self.seconds}")
+        wanted = [getattr(sink, "character", 0) for sink in self.sinks]
+        if any(not 0 <= k < self.characters for k in wanted):
+            raise ValueError(f"a sink asks for a character outside the crowd of {self.characters}: {wanted}")
+        if self.state is None:
+            self.state = ControlState(self.model.style_names, self.model.states)
+
+
+def perform(show: Show, console: Console, stop: StopFlag | None = None,
+            on_frame: Callable[[int, FrameClock, Summary], None] | None = None,
+            timing: list[float] | None = None) -> Summary:
+    """Play the show until its `seconds` of performance time, the end of a non-looping replay, or
+    Ctrl-C.
+
     `stop` is the flag Ctrl-C and SIGTERM set (installed here unless the caller did, so that a
-    stop during its start-up is kept too).
-    `on_frame`, when given, is called after each frame is sent (health, the systemd watchdog).
-    `characters` walk at once, `spacing` metres apart (synthesis/engine.py); every output gets
-    the whole frame and takes the pose it sends from it."""
-    state = state or ControlState(model.style_names, model.states)
-    apply = apply or ControlHub([], console=console).apply  # checked, counted and warned as a show's events are
-    engine = Engine(model, characters, fps, lookahead, spacing=spacing)
-    wanted = [getattr(output, "character", 0) for output in outputs]
-    if any(not 0 <= k < characters for k in wanted):  # `run` checks this for the user
-        raise ValueError(f"an output asks for a character outside the crowd of {characters}: {wanted}")
-    clock = FrameClock(fps, realtime=not fast)
+    stop during its start-up is kept too). `on_frame`, when given, is called after each frame is
+    sent (health, the systemd watchdog). `timing`, when given, receives each frame's send time
+    minus its deadline (seconds). Every sink gets the whole frame and takes the pose it sends
+    from it."""
+    model, outputs, state, fps, seconds, replay = show.model, show.sinks, show.state, show.fps, show.seconds, show.replay
+    live_sources, describe_sources = show.sources, show.describe_sources
+    apply = show.apply or ControlHub([], console=console).apply  # checked, counted and warned as a show's events are
+    engine = Engine(model, show.characters, fps, show.lookahead, spacing=show.spacing)
+    clock = FrameClock(fps, realtime=not show.fast)
     for output in outputs:
         if hasattr(output, "watch"):  # an output that shows late frames (the console)
             output.watch(clock)
@@ -178,7 +198,7 @@ def perform(
             summary.frames += 1
             if on_frame is not None:
                 on_frame(index, clock, summary)
-            if not fast and sent_at - last_status >= STATUS_EVERY:
+            if not show.fast and sent_at - last_status >= STATUS_EVERY:
                 last_status = sent_at
                 console.status(_status(index, fps, clock, state, describe_sources()))
             # wake early enough for what a frame has recently taken, and at once after a jump;
