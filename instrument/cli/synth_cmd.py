@@ -24,7 +24,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         f"NAME.PART=W sets it for one body part ({', '.join(GROUPS)}), e.g. elderly.legs=1")
     p.add_argument("--speed", default="1", help=f"step rate relative to the model's ({MIN_SPEED:g} to {MAX_SPEED:g})")
     p.add_argument("--seconds", default="10", help="length of the walk (default 10)")
-    p.add_argument("--out", required=True, metavar="FILE.bvh")
+    p.add_argument("--out", required=True, metavar="FILE.bvh", help="the walk's file: .bvh, or .glb for binary glTF 2.0")
     p.add_argument("--force", action="store_true", help="overwrite the --out file if it exists (default: refuse)")
     p.add_argument("--method", choices=("stream", "full"), default="stream",
                    help="stream: frame by frame as live (default); full: one MLPG over the whole walk")
@@ -60,8 +60,8 @@ def parse_weights(items: list[str], styles: list[str]) -> tuple[dict[str, float]
 def run(args: argparse.Namespace) -> int:
     # the synthesizer's code (numpy, scipy, numba): loaded when run, not for --help
     from ..models.modelfile import load_model
-    from ..motion.bvh import write_bvh
     from ..motion.features import restore
+    from ..output.export import write_motion
     from ..synthesis.interpolation import style_space
     from ..synthesis.offline import default_controls, synthesize
     from ..synthesis.widen import range_space
@@ -78,6 +78,6 @@ def run(args: argparse.Namespace) -> int:
     controls = default_controls(model, weights, part_weights=part_weights, speed=speed, liveliness=liveliness)
     static = synthesize(style_space(model), model.layout.dimension, controls, frames, args.method, lookahead, seed,
                         range_space(model))
-    write_bvh(args.out, restore(static, model.layout, model.fps))  # from the origin, heading 0
+    write_motion(args.out, restore(static, model.layout, model.fps))  # from the origin, heading 0
     print(f"wrote {frames} frames ({seconds:g} s) to {args.out}", file=sys.stderr)
     return 0

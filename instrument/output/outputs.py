@@ -9,7 +9,7 @@ from ..runtime.console import Console
 from ..runtime.pose import CrowdPose, Pose, pose_channels
 from .flat import FlatProfile
 from .humanoid import guess_humanoid, read_humanoid
-from .osc import OscTarget, UdpOut
+from .osc import OscTarget, UdpOut, unbundled
 from .recorder import BvhRecorder
 from .vmc import VmcProfile, forward_direction
 
@@ -23,10 +23,12 @@ class OscOutput:
         self.profile = profile
         self.character = character
         self.whole_crowd = getattr(profile, "whole_crowd", False)
+        self.bundled = target.bundled
         self.out = UdpOut(target, console)
 
     def prepare(self, pose: Pose | CrowdPose, echo: dict[str, float]) -> list[bytes]:
-        return self.profile.datagrams(pose, echo)
+        datagrams = self.profile.datagrams(pose, echo)
+        return datagrams if self.bundled else unbundled(datagrams)
 
     def send(self, datagrams: list[bytes]) -> None:
         self.out.send(datagrams)
