@@ -35,9 +35,13 @@ JSON_CHUNK, BIN_CHUNK = b"JSON", b"BIN\0"
 
 
 def motion_scale(motion: Motion) -> float:
-    """Metres per file unit, guessed from the first frame's hips height above its lowest joint."""
-    positions = world_positions(Motion(motion.skeleton, motion.channels[:1], motion.fps))[0]
-    return units_to_metres(float(positions[0, 1] - positions[:, 1].min()))
+    """Metres per file unit, guessed from the first frame's hips height above its lowest joint;
+    the hips are the first joint the body branches at (the spine and the legs), as the root may be
+    a joint on the floor."""
+    skeleton = motion.skeleton
+    positions = world_positions(Motion(skeleton, motion.channels[:1], motion.fps))[0]
+    hips = next((j for j in range(len(skeleton.joints)) if len(skeleton.children(j)) > 1), 0)
+    return units_to_metres(float(positions[hips, 1] - positions[:, 1].min()))
 
 
 class _Buffer:

@@ -5,39 +5,21 @@
 
 Per file: the scene's frame rate and, per armature object, the frames keyed on each bone's
 rotation (its first quaternion curve) and, at its last keyed frame, each bone's head and tail in
-world space. Reads Actions both ways Blender has stored them: the curves of the Action itself
-(3.4) and the curves of the object's slot in a layered Action (4.4 and later; 5.0 has no other).
+world space.
 """
 
 import json
-import re
+import os
 import sys
 
 import bpy
 
-BONE_PATH = re.compile(r'pose\.bones\["(.+)"\]\.rotation_quaternion')
-
-
-def fcurves(obj) -> list:
-    """The F-curves animating `obj`, wherever this Blender keeps them."""
-    data = obj.animation_data
-    if data is None or data.action is None:
-        return []
-    slot = getattr(data, "action_slot", None)
-    if slot is not None:
-        from bpy_extras.anim_utils import action_get_channelbag_for_slot
-
-        channelbag = action_get_channelbag_for_slot(data.action, slot)
-        return list(channelbag.fcurves) if channelbag is not None else []
-    return list(data.action.fcurves)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from actions import rotation_keys  # noqa: E402 (beside this script)
 
 
 def armature_report(obj) -> dict:
-    keys = {}
-    for curve in fcurves(obj):
-        match = BONE_PATH.fullmatch(curve.data_path)
-        if match and curve.array_index == 0:
-            keys[match.group(1)] = [point.co.x for point in curve.keyframe_points]
+    keys = rotation_keys(obj)
     last = max((frames[-1] for frames in keys.values() if frames), default=None)
     if last is not None:
         bpy.context.scene.frame_set(int(round(last)))
