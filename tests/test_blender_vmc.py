@@ -151,3 +151,18 @@ def test_rigs_are_rested_as_the_check_says(driven):
     assert rigs["MIXAMO"]["names"]["LeftUpperArm"] == "mixamorig:LeftArm"
     assert rigs["RIGIFY"]["names"]["LeftUpperArm"] == "upper_arm.L"
     assert rigs["VRM"]["names"]["LeftUpperArm"] == "J_Bip_L_UpperArm"
+
+
+@pytest.mark.parametrize("host", HOSTS)
+def test_batch_recording_refuses_to_start_without_a_place_to_save(rest, tmp_path, host):
+    """Nothing is recorded that could not be kept: no --save (and no .blend open), or a --save
+    file that exists without --force, ends the run before it listens, saying why."""
+    kept = tmp_path / "kept.blend"
+    kept.write_bytes(b"an earlier take")
+    for extra, reason in (([], "needs --save FILE.blend"), (["--save", str(kept)], "already exists; give --force")):
+        result = subprocess.run(blender_command(host, ADDON, "--rest", str(rest), "--port", str(free_port()), "--record",
+                                                *extra),
+                                capture_output=True, text=True, timeout=300, env=blender_env(tmp_path))
+        assert result.returncode != 0 and reason in result.stdout + result.stderr, (host, result.stdout[-2000:])
+        assert "listening on" not in result.stdout
+    assert kept.read_bytes() == b"an earlier take"

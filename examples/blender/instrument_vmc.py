@@ -36,6 +36,7 @@ import struct
 import threading
 
 import bpy
+from bpy_extras.io_utils import ImportHelper
 from mathutils import Matrix, Vector
 
 bl_info = {
@@ -368,33 +369,28 @@ def stop() -> None:
         bpy.app.timers.unregister(_drain)
 
 
-class INSTRUMENT_OT_import_rest(bpy.types.Operator):
+class _PickBvh(ImportHelper):
+    """A file browser for .bvh files (Blender's ImportHelper: `filepath`, and invoke opens the browser)."""
+
+    filename_ext = ".bvh"
+    filter_glob: bpy.props.StringProperty(default="*.bvh", options={"HIDDEN"})
+
+
+class INSTRUMENT_OT_import_rest(bpy.types.Operator, _PickBvh):
     bl_idname = "instrument.import_rest"
     bl_label = "Import rest"
     bl_description = "Import the T-pose skeleton written by `instrument skeleton` (metres, the scene at its frame rate)"
-    filepath: bpy.props.StringProperty(subtype="FILE_PATH")
-    filter_glob: bpy.props.StringProperty(default="*.bvh", options={"HIDDEN"})
-
-    def invoke(self, context, event):
-        context.window_manager.fileselect_add(self)
-        return {"RUNNING_MODAL"}
 
     def execute(self, context):
         context.scene.instrument_armature = import_rest(self.filepath)
         return {"FINISHED"}
 
 
-class INSTRUMENT_OT_import_motion(bpy.types.Operator):
+class INSTRUMENT_OT_import_motion(bpy.types.Operator, _PickBvh):
     bl_idname = "instrument.import_motion"
     bl_label = "Import BVH"
     bl_description = ("Import a walk or recording written by the instrument (metres, the scene at its frame rate); "
                       "works where File > Import > BVH fails (Blender 3.4 with Python 3.11)")
-    filepath: bpy.props.StringProperty(subtype="FILE_PATH")
-    filter_glob: bpy.props.StringProperty(default="*.bvh", options={"HIDDEN"})
-
-    def invoke(self, context, event):
-        context.window_manager.fileselect_add(self)
-        return {"RUNNING_MODAL"}
 
     def execute(self, context):
         import_bvh(self.filepath)
