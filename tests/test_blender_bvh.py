@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from blender_hosts import blender_command, blender_env
+from samples import cmu_style_walk
 
 from instrument.motion.bvh import parse_bvh, read_bvh, write_bvh
 from instrument.motion.features import choose_layout, extract, restore
 from instrument.motion.kinematics import world_positions
-from blender_hosts import blender_command, blender_env
-from samples import cmu_style_walk
 
 CHECK = Path(__file__).parent / "blender" / "import_bvh_check.py"
 ADDON = Path(__file__).resolve().parents[1] / "examples" / "blender" / "instrument_vmc.py"

@@ -8,12 +8,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from blender_hosts import HOSTS, blender_command, blender_env
+from oscrecv import free_port
 
 from instrument.motion.bvh import read_bvh
 from instrument.motion.kinematics import local_transforms, world_positions
 from instrument.motion.rotations import matrix_to_quat
-from blender_hosts import HOSTS, blender_command, blender_env
-from oscrecv import free_port
 
 RECEIVER = Path(__file__).resolve().parents[1] / "examples" / "blender" / "walk_receiver.py"
 

@@ -15,14 +15,14 @@ import sys
 import bpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from actions import rotation_keys  # noqa: E402 (beside this script)
+from actions import rotation_keys  # the module beside this script
 
 
 def armature_report(obj) -> dict:
     keys = rotation_keys(obj)
     last = max((frames[-1] for frames in keys.values() if frames), default=None)
     if last is not None:
-        bpy.context.scene.frame_set(int(round(last)))
+        bpy.context.scene.frame_set(round(last))
         bpy.context.view_layer.update()
     bones = obj.pose.bones
     return {"keys": keys, "frame": last,

@@ -14,7 +14,7 @@ import sys
 import bpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from actions import rotation_keys  # noqa: E402 (beside this script)
+from actions import rotation_keys  # the module beside this script
 
 fps, path, report, *frames = sys.argv[sys.argv.index("--") + 1 :]
 scene = bpy.context.scene
@@ -25,7 +25,7 @@ keys = rotation_keys(armature)
 first = min(frames_keyed[0] for frames_keyed in keys.values())
 heads = {}
 for frame in map(int, frames):
-    scene.frame_set(int(round(first)) + frame)
+    scene.frame_set(round(first) + frame)
     bpy.context.view_layer.update()
     heads[frame] = {b.name: list(armature.matrix_world @ b.head) for b in armature.pose.bones}
 with open(report, "w") as f:
