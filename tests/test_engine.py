@@ -54,7 +54,7 @@ def test_synth_plants_the_feet_as_the_live_path_does(tmp_path, style, weight):
     assert under < 0.01
 
 
-@pytest.mark.parametrize("name", ["walk.glb", "walk.BVH.txt", "walk"])
+@pytest.mark.parametrize("name", ["walk.gltf", "walk.BVH.txt", "walk"])
 def test_synth_refuses_a_file_it_cannot_write_in_one_line(tmp_path, name):
     result = cli("synth", "--seconds", "1", "--out", str(tmp_path / name))
     assert result.returncode == 1

@@ -5,6 +5,7 @@ VMC receiver". The panel is in the 3D view's sidebar (N), tab "Instrument":
   - Import rest: the T-pose skeleton from `instrument skeleton --out rest.bvh` (metres; the
     scene's frame rate is set to the file's), for a character rigged to it. It works where
     File > Import > BVH fails (Blender 3.4 with Python 3.11, as in Debian: "invalid mode: 'rU'");
+  - Import BVH: a walk or recording the instrument wrote, with its motion (same fixes);
   - Armature: the armature to drive, and its bone names (Humanoid = the names in that rest
     file and in VMC, Mixamo, Rigify metarig, VRM/VRoid);
   - Port (39539, where `instrument run` sends VMC by default), Start / Stop;
@@ -18,8 +19,12 @@ any rest works: a T-pose, an A-pose, any bone roll, or a pose applied as rest. B
 leaves out follow their parents.
 
 Headless (for tests and batch recording; timers never fire in -b mode, so the main thread
-polls the socket):
-    blender -b --factory-startup --python instrument_vmc.py -- --rest rest.bvh --frames 60
+polls the socket); the recording is saved when it ends, after --frames, --timeout or Ctrl-C:
+    blender -b --factory-startup --python instrument_vmc.py -- --rest rest.bvh --frames 300 \
+        --record --save take.blend
+or, with PyPI's bpy module (Blender 4.5 LTS, 5.0) in a Python 3.11 environment:
+    python instrument_vmc.py -- --rest rest.bvh --frames 300 --record --save take.blend
+Tested headless in Blender 3.4 (Debian), 4.5 LTS and 5.0 (PyPI's bpy).
 Self-contained: a small OSC decoder is included, so Blender needs no extra Python packages.
 """
 
@@ -31,6 +36,7 @@ import struct
 import threading
 
 import bpy
+from bpy_extras.io_utils import ImportHelper
 from mathutils import Matrix, Vector
 
 bl_info = {
@@ -139,19 +145,33 @@ def parse_osc(data: bytes) -> list[tuple[str, list]]:
     return [(address, args)]
 
 
-def import_rest(path: str):
-    """The rest skeleton as an armature in metres; the scene takes the file's frame rate."""
-    import io_anim_bvh.import_bvh as import_bvh
+def import_bvh(path: str, keep_motion: bool = True):
+    """A BVH file written by the instrument (a recording, a walk, the rest skeleton) as an
+    armature in metres, its motion as an Action unless `keep_motion` is false; the scene takes the
+    file's frame rate. Blender's own importer, with what it gets wrong for these files put right:
+    Blender 3.4 opens files with mode 'rU', which Python 3.11 (Debian 12's) rejects ("invalid
+    mode: 'rU'"), and reads 30 fps as 30.00003 from the frame time's six decimals."""
+    import io_anim_bvh.import_bvh as importer
 
-    # Blender 3.4's importer opens files with mode 'rU', which Python 3.11 rejects
-    import_bvh.open = lambda p, mode="r", *a, **k: builtins.open(p, mode.replace("U", ""), *a, **k)
-    bpy.ops.import_anim.bvh(filepath=path, global_scale=0.01, rotate_mode="QUATERNION", update_scene_fps=True)
+    importer.open = lambda p, mode="r", *a, **k: builtins.open(p, mode.replace("U", ""), *a, **k)
+    try:  # (Blender 4.5 and 5.0 open with 'r': the same call)
+        bpy.ops.import_anim.bvh(filepath=path, global_scale=0.01, rotate_mode="QUATERNION", update_scene_fps=True,
+                                update_scene_duration=keep_motion)
+    finally:
+        del importer.open
     render = bpy.context.scene.render
     rate = render.fps / render.fps_base
-    if abs(rate - round(rate)) < 1e-3:  # the file's frame time has six decimals: 30 fps reads as 30.00003
+    if abs(rate - round(rate)) < 1e-3:
         render.fps, render.fps_base = round(rate), 1.0
     armature = bpy.context.active_object
-    armature.animation_data_clear()  # the rest frame's keys: recording makes an Action of its own
+    if not keep_motion:
+        armature.animation_data_clear()  # the rest frame's keys: recording makes an Action of its own
+    return armature
+
+
+def import_rest(path: str):
+    """The rest skeleton as an armature in metres, without keys, its hips free to move."""
+    armature = import_bvh(path, keep_motion=False)
     bpy.ops.object.mode_set(mode="EDIT")
     for bone in armature.data.edit_bones:  # the importer connects the hips to the root joint's tail: they could not move
         if bone.name == "Hips":
@@ -345,21 +365,35 @@ def stop() -> None:
     if state is not None:
         state["stopping"].set()
         state["thread"].join()  # the port is free again when Stop returns
+    if bpy.app.timers.is_registered(_drain):  # nothing left behind (a timer left at exit hangs PyPI's bpy)
+        bpy.app.timers.unregister(_drain)
 
 
-class INSTRUMENT_OT_import_rest(bpy.types.Operator):
+class _PickBvh(ImportHelper):
+    """A file browser for .bvh files (Blender's ImportHelper: `filepath`, and invoke opens the browser)."""
+
+    filename_ext = ".bvh"
+    filter_glob: bpy.props.StringProperty(default="*.bvh", options={"HIDDEN"})
+
+
+class INSTRUMENT_OT_import_rest(bpy.types.Operator, _PickBvh):
     bl_idname = "instrument.import_rest"
     bl_label = "Import rest"
     bl_description = "Import the T-pose skeleton written by `instrument skeleton` (metres, the scene at its frame rate)"
-    filepath: bpy.props.StringProperty(subtype="FILE_PATH")
-    filter_glob: bpy.props.StringProperty(default="*.bvh", options={"HIDDEN"})
-
-    def invoke(self, context, event):
-        context.window_manager.fileselect_add(self)
-        return {"RUNNING_MODAL"}
 
     def execute(self, context):
         context.scene.instrument_armature = import_rest(self.filepath)
+        return {"FINISHED"}
+
+
+class INSTRUMENT_OT_import_motion(bpy.types.Operator, _PickBvh):
+    bl_idname = "instrument.import_motion"
+    bl_label = "Import BVH"
+    bl_description = ("Import a walk or recording written by the instrument (metres, the scene at its frame rate); "
+                      "works where File > Import > BVH fails (Blender 3.4 with Python 3.11)")
+
+    def execute(self, context):
+        import_bvh(self.filepath)
         return {"FINISHED"}
 
 
@@ -399,7 +433,9 @@ class INSTRUMENT_PT_panel(bpy.types.Panel):
 
     def draw(self, context):
         scene, layout = context.scene, self.layout
-        layout.operator("instrument.import_rest")
+        row = layout.row()
+        row.operator("instrument.import_rest")
+        row.operator("instrument.import_motion")
         layout.prop(scene, "instrument_armature")
         layout.prop(scene, "instrument_preset")
         layout.prop(scene, "instrument_port")
@@ -412,7 +448,7 @@ class INSTRUMENT_PT_panel(bpy.types.Panel):
         layout.label(text=f"received {state['driver'].count} frames" if state else "stopped")
 
 
-CLASSES = (INSTRUMENT_OT_import_rest, INSTRUMENT_OT_start, INSTRUMENT_OT_stop, INSTRUMENT_PT_panel)
+CLASSES = (INSTRUMENT_OT_import_rest, INSTRUMENT_OT_import_motion, INSTRUMENT_OT_start, INSTRUMENT_OT_stop, INSTRUMENT_PT_panel)
 
 
 def register() -> None:
@@ -442,37 +478,75 @@ def unregister() -> None:
 
 
 def run_headless(driver: VmcDriver, port: int, frames: int, timeout: float) -> None:
-    """Poll the socket on the main thread until `frames` frames were applied."""
+    """Poll the socket on the main thread until `frames` frames were applied, `timeout` seconds
+    passed or Ctrl-C; the caller saves what was recorded in every case."""
     import time
 
     sock = open_socket(port)
     sock.settimeout(0.05)
     print(f"listening on 127.0.0.1:{port}", flush=True)
     deadline = time.monotonic() + timeout
-    while driver.count < frames and time.monotonic() < deadline:
-        try:
-            data = sock.recv(65536)
-        except socket.timeout:
-            continue
-        for address, args in parse_osc(data):
-            driver.handle(address, args)
-    sock.close()
+    try:
+        while driver.count < frames and time.monotonic() < deadline:
+            try:
+                data = sock.recv(65536)
+            except socket.timeout:
+                continue
+            for address, args in parse_osc(data):
+                driver.handle(address, args)
+    except KeyboardInterrupt:
+        print(f"interrupted after {driver.count} frames", flush=True)
+    finally:
+        sock.close()
 
 
-if __name__ == "__main__":  # run as a script: blender [-b] --python instrument_vmc.py -- --rest rest.bvh ...
+def save_path(save: str | None, force: bool) -> str:
+    """Where a batch recording is saved: --save, else the .blend Blender opened; checked before
+    listening, so a recording is never made that cannot be kept."""
+    import os
+
+    path = save or bpy.data.filepath
+    if not path:
+        raise SystemExit("instrument_vmc.py: --record in the background needs --save FILE.blend (or a .blend to open)")
+    path = os.path.abspath(path)
+    if save and os.path.exists(path) and not force:
+        raise SystemExit(f"instrument_vmc.py: {path} already exists; give --force to overwrite it")
+    if not os.path.isdir(os.path.dirname(path)):
+        raise SystemExit(f"instrument_vmc.py: {path}: the folder does not exist")
+    return path
+
+
+def main(argv: list[str]) -> None:
+    """blender [-b] --python instrument_vmc.py -- --rest rest.bvh ... (or python instrument_vmc.py -- ...
+    with PyPI's bpy): register the add-on; with --rest, import it and, headless, drive it."""
     import argparse
-    import sys
 
     parser = argparse.ArgumentParser(prog="instrument_vmc.py")
     parser.add_argument("--rest", help="import this rest skeleton and drive it")
     parser.add_argument("--port", type=int, default=PORT)
     parser.add_argument("--frames", type=int, default=60, help="headless: stop after this many frames")
-    parser.add_argument("--timeout", type=float, default=60.0)
-    parser.add_argument("--record", action="store_true")
-    options = parser.parse_args(sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else [])
+    parser.add_argument("--timeout", type=float, default=60.0, help="headless: stop after this many seconds")
+    parser.add_argument("--record", action="store_true", help="key every received frame into an Action")
+    parser.add_argument("--save", metavar="FILE.blend", help="headless --record: save the recording here when it ends")
+    parser.add_argument("--force", action="store_true", help="let --save overwrite an existing file")
+    options = parser.parse_args(argv)
+    headless = bpy.app.background and options.rest
+    target = save_path(options.save, options.force) if headless and options.record else None
     register()
     if options.rest:
         bpy.context.scene.instrument_armature = import_rest(options.rest)
-    if bpy.app.background and options.rest:
-        run_headless(VmcDriver(bpy.context.scene.instrument_armature, record=options.record), options.port, options.frames,
-                     options.timeout)
+    if headless:
+        driver = VmcDriver(bpy.context.scene.instrument_armature, record=options.record)
+        try:
+            run_headless(driver, options.port, options.frames, options.timeout)
+        finally:  # whatever ended it, what was recorded is kept
+            if target:
+                bpy.ops.wm.save_as_mainfile(filepath=target)
+                print(f"saved {driver.count} recorded frames to {target}", flush=True)
+            unregister()  # PyPI's bpy hangs at exit while an add-on's classes are registered
+
+
+if __name__ == "__main__":  # run as a script: blender [-b] --python instrument_vmc.py -- --rest rest.bvh ...
+    import sys
+
+    main(sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else [])

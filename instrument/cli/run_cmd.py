@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import re
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -15,7 +16,7 @@ from ..control.hid_feedback import HidFeedback
 from ..control.loghead import header_line, logged_crowd, logged_mappings, unreadable_sources
 from ..control.mapping import load_mapping, parse_hid_id, preset_problems, style_problems, target_line
 from ..errors import UserError
-from ..output.osc import FLAT_PORT, VMC_PORT, OscTarget, parse_target
+from ..output.osc import FLAT_PORT, VMC_PORT, parse_target
 from ..outputfile import check_output
 from ..runtime.console import Console
 from ..runtime.health import Health
@@ -47,6 +48,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seconds", help="stop after this many seconds of performance (default: until Ctrl-C)")
     p.add_argument("--osc", action="append", metavar="HOST:PORT[/vmc|/flat]",
                    help=f"OSC target, repeatable (default: {' and '.join(DEFAULT_TARGETS)}); "
+                        "/vmc-unbundled or /flat-unbundled: one message per datagram, for receivers that reject bundles; "
                         "a broadcast (x.x.x.255) or multicast (224-239.x.x.x) address sends to many")
     p.add_argument("--no-osc", action="store_true", default=None, help="send no OSC at all")
     p.add_argument("--bvh", metavar="OUT.bvh", help="record the performance as BVH while it plays")
@@ -317,7 +319,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
                     for kind in {t.profile for t in targets}}
         for t in targets:  # a crowd's flat target carries every character; VMC: character k on port + k
             crowd = range(vmc_characters) if t.profile == "vmc" else [0]
-            outputs += [OscOutput(OscTarget(t.host, t.port + k, t.profile), profiles[t.profile], console, k) for k in crowd]
+            outputs += [OscOutput(replace(t, port=t.port + k), profiles[t.profile], console, k) for k in crowd]
         if args.console:
             outputs.append(link.output)  # after the OSC targets: their datagrams leave first at the deadline
         # files last: a start-up that fails leaves nothing behind, so the corrected command runs

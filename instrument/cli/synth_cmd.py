@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import UserError
@@ -25,7 +24,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         f"NAME.PART=W sets it for one body part ({', '.join(GROUPS)}), e.g. elderly.legs=1")
     p.add_argument("--speed", default="1", help=f"step rate relative to the model's ({MIN_SPEED:g} to {MAX_SPEED:g})")
     p.add_argument("--seconds", default="10", help="length of the walk (default 10)")
-    p.add_argument("--out", required=True, metavar="FILE.bvh")
+    p.add_argument("--out", required=True, metavar="FILE.bvh", help="the walk's file: .bvh, or .glb for binary glTF 2.0")
     p.add_argument("--force", action="store_true", help="overwrite the --out file if it exists (default: refuse)")
     p.add_argument("--method", choices=("stream", "full"), default="stream",
                    help="stream: frame by frame as live (default); full: one MLPG over the whole walk")
@@ -61,12 +60,10 @@ def parse_weights(items: list[str], styles: list[str]) -> tuple[dict[str, float]
 def run(args: argparse.Namespace) -> int:
     # the synthesizer's code (numpy, scipy, numba): loaded when run, not for --help
     from ..models.modelfile import load_model
-    from ..motion.bvh import write_bvh
+    from ..output.export import motion_format, write_motion
     from ..synthesis.engine import default_controls, render
 
-    if not args.out.lower().endswith(".bvh"):
-        raise UserError(f"--out {args.out}: synth writes BVH (a .bvh file); it cannot write "
-                        f"{Path(args.out).suffix or 'a file without an extension'}")
+    motion_format(args.out)  # an extension it cannot write is refused before any work
     check_output(args.out, args.force)
     model = load_model(args.model or default_model_path())
     weights, part_weights = parse_weights(args.style, model.style_names)
@@ -78,6 +75,6 @@ def run(args: argparse.Namespace) -> int:
     frames = max(1, int(round(seconds * model.fps)))
     controls = default_controls(model, weights, part_weights=part_weights, speed=speed, liveliness=liveliness)
     # the engine as `run` plays it, without a clock: the feet planted, from the origin, heading 0
-    write_bvh(args.out, render(model, controls, frames, args.method, lookahead, seed))
+    write_motion(args.out, render(model, controls, frames, args.method, lookahead, seed))
     print(f"wrote {frames} frames ({seconds:g} s) to {args.out}", file=sys.stderr)
     return 0

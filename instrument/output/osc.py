@@ -1,4 +1,5 @@
-"""OSC over UDP: targets given as HOST:PORT[/profile], datagrams packed into small bundles.
+"""OSC over UDP: targets given as HOST:PORT[/profile], datagrams packed into small bundles (or,
+for receivers that reject bundles, HOST:PORT/profile-unbundled: one message per datagram).
 
 A target that is down, unreachable or whose name does not resolve yet never stops the
 instrument: the error is reported (once a minute per target) and sending goes on, so the
@@ -27,22 +28,29 @@ MAX_BUNDLE = 1400  # bytes: receivers read 8 KB at most, and one Ethernet frame 
 PROFILES = ("flat", "vmc")
 
 
+UNBUNDLED = "-unbundled"  # a profile's suffix: one message per datagram, for receivers that reject bundles
+
+
 @dataclass(frozen=True)
 class OscTarget:
     host: str
     port: int
     profile: str
+    bundled: bool = True  # False: every message in a datagram of its own (HOST:PORT/vmc-unbundled)
 
     def __str__(self) -> str:
-        return f"{self.host}:{self.port}/{self.profile}"
+        return f"{self.host}:{self.port}/{self.profile}{'' if self.bundled else UNBUNDLED}"
 
 
 def parse_target(text: str) -> OscTarget:
-    """HOST:PORT[/vmc|/flat]; without a profile, port 39539 means VMC and any other the flat profile."""
+    """HOST:PORT[/vmc|/flat][-unbundled]; without a profile, port 39539 means VMC and any other the
+    flat profile."""
     address, _, profile = text.partition("/")
+    bundled = not profile.endswith(UNBUNDLED)
+    profile = profile.removesuffix(UNBUNDLED)
     host, sep, port_text = address.rpartition(":")
     if not sep or not host:
-        raise UserError(f"--osc {text!r}: expected HOST:PORT[/vmc|/flat], e.g. 127.0.0.1:39539/vmc")
+        raise UserError(f"--osc {text!r}: expected HOST:PORT[/vmc|/flat][-unbundled], e.g. 127.0.0.1:39539/vmc")
     try:
         port = int(port_text)
     except ValueError:
@@ -51,8 +59,8 @@ def parse_target(text: str) -> OscTarget:
         raise UserError(f"--osc {text!r}: port must be 1 to 65535")
     profile = profile or ("vmc" if port == VMC_PORT else "flat")
     if profile not in PROFILES:
-        raise UserError(f"--osc {text!r}: unknown profile {profile!r} (vmc or flat)")
-    return OscTarget(host, port, profile)
+        raise UserError(f"--osc {text!r}: unknown profile {profile!r} (vmc or flat, either with -unbundled)")
+    return OscTarget(host, port, profile, bundled)
 
 
 def _padded(text: str) -> bytes:
@@ -104,6 +112,22 @@ def bundles(messages: list[bytes], limit: int = MAX_BUNDLE) -> list[bytes]:
         size += 4 + len(m)
     if current:
         out.append(_bundle(current))
+    return out
+
+
+def unbundled(datagrams: list[bytes]) -> list[bytes]:
+    """The messages of `datagrams` in order, one per datagram: bundles (as `bundles` makes them,
+    no nesting) opened, plain messages kept."""
+    out = []
+    for dgram in datagrams:
+        if not dgram.startswith(b"#bundle\0"):
+            out.append(dgram)
+            continue
+        pos = 16
+        while pos < len(dgram):
+            (size,) = struct.unpack_from(">i", dgram, pos)
+            out.append(dgram[pos + 4 : pos + 4 + size])
+            pos += 4 + size
     return out
 
 

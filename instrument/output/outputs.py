@@ -11,7 +11,7 @@ from ..motion.kinematics import ChannelStream
 from ..synthesis.posing import Frame
 from .flat import FlatProfile
 from .humanoid import guess_humanoid, read_humanoid
-from .osc import OscTarget, UdpOut
+from .osc import OscTarget, UdpOut, unbundled
 from .recorder import BvhRecorder
 from .vmc import VmcProfile
 
@@ -25,10 +25,12 @@ class OscOutput:
         self.profile = profile
         self.character = character
         self.whole_crowd = getattr(profile, "whole_crowd", False)
+        self.bundled = target.bundled
         self.out = UdpOut(target, console)
 
     def prepare(self, frame: Frame) -> list[bytes]:
-        return self.profile.datagrams(frame.crowd if self.whole_crowd else frame.pose(self.character), frame.echo)
+        datagrams = self.profile.datagrams(frame.crowd if self.whole_crowd else frame.pose(self.character), frame.echo)
+        return datagrams if self.bundled else unbundled(datagrams)
 
     def send(self, datagrams: list[bytes]) -> None:
         self.out.send(datagrams)

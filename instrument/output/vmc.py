@@ -1,11 +1,12 @@
-"""The VMC profile: the de facto OSC stream for humanoid avatars (EVMC4U, VMC4UE, VMC4B, VSeeFace, Warudo...).
+"""The VMC profile: the de facto OSC stream for humanoid avatars (EVMC4U, VMC4UE, VMC4B, VSeeFace, Warudo, VNyan...).
 
 Receivers set each humanoid bone's local rotation on a normalised avatar, whose bones all have
 identity rotations in a T-pose facing +Z (Unity: left-handed, Y up, metres). So each bone's
 rotation is sent relative to our skeleton's own pose in that T-pose (see tpose.py): its world
 rotation times its T-pose rotation's inverse, expressed in the frame of its humanoid parent.
 
-Per frame, in bundles of at most 1,400 bytes:
+Per frame, in bundles of at most 1,400 bytes (a target given as HOST:PORT/vmc-unbundled gets the
+same messages one per datagram, see osc.py), in the order of the VMC specification's receivers:
     /VMC/Ext/Root/Pos  s"root" fff ffff    the avatar's origin: identity with root="hips"
                                            (the hips carry the walk, as VirtualMotionCapture's
                                            tracked body does); the path on the floor and the

@@ -1,7 +1,8 @@
 """Run inside Blender: drive armatures that are not ours with the VMC add-on, and report.
 
     blender -b --factory-startup --python-exit-code 1 --python vmc_addon_check.py -- \\
-        ADDON.py REST.bvh PORT FRAMES SCALE REPORT.json
+        ADDON.py REST.bvh PORT FRAMES SCALE REPORT.json SAVED.blend
+    (or `python vmc_addon_check.py -- ...` with PyPI's bpy)
 
 One Blender run drives several rigs from the same stream, each an import of the rest skeleton:
 
@@ -13,8 +14,10 @@ One Blender run drives several rigs from the same stream, each an import of the 
   down, spine 10 degrees forward) and that pose applied as its rest (Pose > Apply > Apply Pose
   as Rest Pose).
 
-Each rig records an Action until FRAMES frames came in; the report holds the last frame's
-messages as received and, per rig, its bones' heads and tails (by humanoid name) and its keys.
+Each rig records an Action until FRAMES frames came in, and the scene is saved to SAVED.blend
+(blend_check.py reads the keys and the last frame's pose back from it). The report holds the
+last frame's messages as received and, per rig, its object, its bone names, its last recorded
+frame and how its rest differs from the sent one.
 """
 
 import importlib.util
@@ -26,7 +29,7 @@ import sys
 import bpy
 from mathutils import Matrix
 
-addon_path, rest, port, frames, scale, report = sys.argv[sys.argv.index("--") + 1 :]
+addon_path, rest, port, frames, scale, report, saved = sys.argv[sys.argv.index("--") + 1 :]
 port, frames, scale = int(port), int(frames), float(scale)
 spec = importlib.util.spec_from_file_location("instrument_vmc", addon_path)
 addon = importlib.util.module_from_spec(spec)
@@ -135,14 +138,6 @@ bpy.context.view_layer.update()
 
 results = {}
 for rig, (armature, preset, rig_scale, names) in rigs.items():
-    human_of = {name: human for human, name in names.items()}
-    bones = [b for b in armature.pose.bones if b.name in human_of]
-    action = armature.animation_data.action if armature.animation_data else None
-    keys = {}
-    if action is not None:
-        for curve in action.fcurves:
-            if curve.data_path.endswith("rotation_quaternion") and curve.array_index == 0:
-                keys[curve.group.name if curve.group else curve.data_path] = [k.co.x for k in curve.keyframe_points]
     # the panel's operators: Start listens with the scene's settings, Stop closes the socket
     scene = bpy.context.scene
     scene.instrument_armature, scene.instrument_preset, scene.instrument_port = armature, preset, port
@@ -153,10 +148,9 @@ for rig, (armature, preset, rig_scale, names) in rigs.items():
         "rest_arm_drop": math.degrees(math.asin(-rest_of["LeftUpperArm"].normalized().z)),
         "rest_spine_lean": math.degrees(math.asin(-rest_of["Spine"].normalized().y)),
         "preset": preset, "scale": rig_scale, "count": drivers[rig].count, "names": names,
-        "heads": {human_of[b.name]: list(armature.matrix_world @ b.head) for b in bones},
-        "tails": {human_of[b.name]: list(armature.matrix_world @ b.tail) for b in bones if not b.children},
-        "keys": keys, "action": action.name if action else None, "operators": started and stopped}
+        "object": armature.name, "last_frame": drivers[rig].last_frame, "operators": started and stopped}
 addon.unregister()
+bpy.ops.wm.save_as_mainfile(filepath=saved)
 with open(report, "w") as f:
     json.dump({"fps": fps, "messages": fanout.last, "rigs": results}, f)
 print(f"applied {fanout.count} frames to {len(rigs)} rigs", flush=True)
