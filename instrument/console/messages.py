@@ -14,9 +14,9 @@ refused with a reason; it never reaches the frame loop.
 from __future__ import annotations
 
 import json
-import math
 
-from ..control.targets import PRESET_NAME
+from ..control.checks import row_of, unknown, value_refusal
+from ..control.spec import TABLE
 
 MAX_MESSAGE = 4096  # bytes: the largest message a page has any reason to send
 
@@ -28,7 +28,9 @@ class Refused(ValueError):
 def parse(text: str, targets: frozenset[str]) -> tuple[str, str, float]:
     """One page message as (kind, control, value) for the control hub, or Refused.
 
-    kind is "event" (a control event: control and value) or "save"."""
+    kind is "event" (a control event: control and value) or "save". `targets` are the model's
+    (ControlState.targets); each value goes through the one check of every input (control/checks.py),
+    so the page refuses what a file, OSC or a log would."""
     if len(text) > MAX_MESSAGE:
         raise Refused("message too long")
     try:
@@ -39,16 +41,20 @@ def parse(text: str, targets: frozenset[str]) -> tuple[str, str, float]:
         raise Refused("expected a JSON object")
     if set(item) == {"set", "value"}:
         target, value = item["set"], item["value"]
-        if not isinstance(target, str) or target not in targets:
-            raise Refused(f"unknown target {str(target)[:60]!r}")
-        if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
-            raise Refused(f"{target}: value must be a finite number")
+        row = TABLE[target.split("/")[0]] if isinstance(target, str) and target in targets else None  # the model's
+        if row is None or row.kind in ("preset", "store"):
+            raise Refused(unknown(target).text)
+        why = value_refusal(row, target, value)
+        if why is not None:
+            raise Refused(why.text)
         return "event", target, float(value)
     if len(item) == 1 and ("preset" in item or "store" in item):
         kind, name = next(iter(item.items()))
-        if not isinstance(name, str) or not PRESET_NAME.match(name):
-            raise Refused(f"{kind}: a name of 1 to 40 letters, digits, '_', '.', '-'")
-        return "event", f"{kind}/{name}", 1.0
+        target = f"{kind}/{name}" if isinstance(name, str) else kind
+        if row_of(target, (), 0) is None:
+            raise Refused(unknown(target).text)
+        return "event", target, 1.0
     if set(item) == {"save"} and item["save"] is True:
         return "save", "", 0.0
     raise Refused(f"unknown message {sorted(item)[:4]}")
+

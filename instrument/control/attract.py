@@ -16,7 +16,8 @@ from typing import Callable
 
 from ..errors import UserError
 from ..runtime.console import Console
-from ..tomlfile import read_toml
+from ..tomlfile import TomlFile
+from .checks import is_number
 from .events import ControlEvent
 from .score import Score, ScorePlayer, load_score, preset_tour
 from .state import ControlState
@@ -31,18 +32,15 @@ class AttractSettings:
     score: Score
 
 
-def load_attract(show: str | Path, state: ControlState, presets: dict[str, dict[str, float]]) -> AttractSettings | None:
+def load_attract(show: TomlFile, state: ControlState, presets: dict[str, dict[str, float]]) -> AttractSettings | None:
     """The show file's [attract] table, checked; None when it has none."""
-    show = Path(show)
-    text, data = read_toml(show)
-    table = data.get("attract")
+    table = show.data.get("attract")
     if table is None:
         return None
 
     def fail(message: str, key: str) -> UserError:
-        begin = max(text.find("[attract]"), 0)
-        at = text.find(key, begin)
-        return UserError(f"{show}:{text.count(chr(10), 0, at if at >= 0 else begin) + 1}: attract.{key}: {message}")
+        whole = key == "attract"
+        return show.error(("attract",) if whole else ("attract", key), message, "attract" if whole else f"attract.{key}")
 
     if not isinstance(table, dict):
         raise fail("expected an [attract] table", "attract")
@@ -51,7 +49,7 @@ def load_attract(show: str | Path, state: ControlState, presets: dict[str, dict[
             raise fail(f"unknown key (expected one of {', '.join(KEYS)})", key)
     for key in ("after", "morph", "hold"):
         value = table.get(key)
-        if value is not None and (not isinstance(value, (int, float)) or isinstance(value, bool) or not value > 0):
+        if value is not None and not (is_number(value) and value > 0):
             raise fail("expected a positive number" + (" of minutes" if key == "after" else " of seconds"), key)
     if "after" not in table:
         raise fail("missing: minutes without performer input before the walk drifts on its own", "after")
@@ -60,7 +58,7 @@ def load_attract(show: str | Path, state: ControlState, presets: dict[str, dict[
     if "score" in table:
         if not isinstance(table["score"], str):
             raise fail("expected the path of a score file", "score")
-        score = load_score(show.parent / table["score"], state, presets, loop=True)
+        score = load_score(Path(show.path).parent / table["score"], state, presets, loop=True)
     else:
         names = table["presets"]
         if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
