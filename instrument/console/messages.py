@@ -43,7 +43,7 @@ def parse(text: str, targets: frozenset[str]) -> tuple[str, str, float]:
         target, value = item["set"], item["value"]
         row = TABLE[target.split("/")[0]] if isinstance(target, str) and target in targets else None  # the model's
         if row is None or row.kind in ("preset", "store"):
-            raise Refused(unknown(target).text)
+            raise Refused(unknown(target, [t[len("style/"):] for t in targets if t.startswith("style/")]).text)
         why = value_refusal(row, target, value)
         if why is not None:
             raise Refused(why.text)

@@ -72,7 +72,7 @@ def unknown(target: object, styles: Collection[str] | None = None) -> Refusal:
     shown = str(target)[:60]
     head = shown.split("/")[0]
     if styles is not None and head in ("style", "part"):
-        hint = f" (this model's styles: {', '.join(styles)})"
+        hint = f" (this model's styles: {', '.join(sorted(styles))})"
     elif head in ("preset", "store"):
         hint = " (a preset name is 1 to 40 letters, digits, '_', '.', '-')"
     else:

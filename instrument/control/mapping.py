@@ -180,7 +180,7 @@ def _control(item: dict, index: int, fail, model: tuple) -> ControlSpec:
     if row is None or row.kind == "store":
         raise fail(unknown(target, model[0]).text if row is None else f"{target}: a mapping recalls presets, "
                    "it does not store them", "target", index)
-    for end in values.get("range", (0.0, 1.0)):  # every value the control can send is inside the target's range
+    for end in item.get("range", (0.0, 1.0)):  # every value the control can send is inside the target's range
         why = value_refusal(row, target, end)
         if why is not None:
             raise fail(f"the control's range sends {end:g}: {why.text}", "range" if "range" in values else "target", index)
