@@ -13,6 +13,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..cli.arguments import host_port
 from ..control.events import ControlEvent
 from ..control.state import ControlState
 from ..control.spec import rows_for_page
@@ -31,14 +32,7 @@ SOURCES_EVERY = 15  # frames between two updates of the control sources shown on
 
 def split_address(address: str) -> tuple[str, int, bool]:
     """`[HOST:]PORT` as (host, port, host named); one-line error for anything else."""
-    host, _, port = address.rpartition(":")
-    try:
-        number = int(port)
-    except ValueError:
-        raise UserError(f"--console {address!r}: expected [HOST:]PORT") from None
-    if not 0 <= number <= 65535:
-        raise UserError(f"--console {address!r}: port must be 0 to 65535")
-    return host or "127.0.0.1", number, bool(host)
+    return host_port("run --console", address)
 
 
 def network_addresses() -> list[str]:
