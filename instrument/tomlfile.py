@@ -4,7 +4,9 @@ naming the file, and the line and key at fault (`TomlFile.error`)."""
 from __future__ import annotations
 
 import json
+import math
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import UserError
@@ -198,6 +200,55 @@ class _KeyScanner:
                 self._advance()
 
 
+@dataclass(frozen=True)
+class Field:
+    """What one key of a file's table takes: its type, and for a number its range. A file's
+    schema is a dict of key -> Field; `TomlFile.check` reads a table against it. (Control
+    targets are checked by their rows instead: control/presetfile.py.)"""
+
+    kind: str  # "number" (real), "whole", "bool", "string", "choice", "list", "table"
+    low: float | None = None
+    high: float | None = None
+    above_low: bool = False  # low itself refused (> low)
+    below_high: bool = False  # high itself refused (< high)
+    choices: tuple[str, ...] = ()
+    units: str = ""  # what a number counts, for the message ("seconds")
+    required: str = ""  # when required: what the key is for, said when it is missing
+
+    def describe(self) -> str:
+        if self.kind in ("number", "whole"):
+            text = ("a whole number" if self.kind == "whole" else "a number") + (f" of {self.units}" if self.units else "")
+            low = None if self.low is None else f"{self.low:g}"
+            high = None if self.high is None else f"{self.high:g}"
+            if low is not None and high is not None:
+                return f"{text} from {low}{' (not included)' if self.above_low else ''} to {high}" \
+                       + (" (not included)" if self.below_high else "")
+            if low is not None:
+                return f"{text} above {low}" if self.above_low else f"{text}, {low} or more"
+            return text
+        return {"bool": "true or false", "string": "a string", "list": "a list", "table": "a table"}.get(
+            self.kind, f"one of {', '.join(self.choices)}")
+
+    def problem(self, value: object) -> str | None:
+        """Why `value` does not fit, or None."""
+        if self.kind == "choice":
+            return None if value in self.choices else f"{value!r} is not one of {', '.join(self.choices)}"
+        fits = {"bool": lambda: isinstance(value, bool), "string": lambda: isinstance(value, str),
+                "list": lambda: isinstance(value, list), "table": lambda: isinstance(value, dict),
+                "whole": lambda: isinstance(value, int) and not isinstance(value, bool) and self._inside(value),
+                "number": lambda: isinstance(value, (int, float)) and not isinstance(value, bool)
+                and math.isfinite(value) and self._inside(value)}[self.kind]
+        try:
+            return None if fits() else f"expected {self.describe()}"
+        except OverflowError:  # an integer too large for a float
+            return f"expected {self.describe()}"
+
+    def _inside(self, value: float) -> bool:
+        if self.low is not None and (value <= self.low if self.above_low else value < self.low):
+            return False
+        return self.high is None or (value < self.high if self.below_high else value <= self.high)
+
+
 class TomlFile:
     """A TOML file read whole: its parsed `data`, and one-line errors `file:line: key: problem`
     naming the line where the key is written (`key_lines`)."""
@@ -221,6 +272,24 @@ class TomlFile:
             if path[:k] in self.lines:
                 return self.lines[path[:k]]
         return 1
+
+    def check(self, path: Key, table: object, schema: dict[str, Field], prefix: str = "") -> dict:
+        """`table` (found at `path`) read against `schema`: an unknown key, a missing one or a
+        value that does not fit is a UserError naming the line and the key (shown after
+        `prefix`, e.g. "attract."). Checks that span keys are the caller's."""
+        if not isinstance(table, dict):
+            raise self.error(path, "expected a table", prefix.rstrip(".") or None)
+        for key, value in table.items():
+            field = schema.get(key)
+            if field is None:
+                raise self.error(path + (key,), f"unknown key (expected one of {', '.join(schema)})", prefix + key)
+            problem = field.problem(value)
+            if problem is not None:
+                raise self.error(path + (key,), problem, prefix + key)
+        for key, field in schema.items():
+            if field.required and key not in table:
+                raise self.error(path + (key,), f"missing: {field.required}", prefix + key)
+        return table
 
     def error(self, path: Key, problem: str, key: str | None = None) -> UserError:
         """`file:line: key: problem`, the key shown as `key` or its names joined by dots."""

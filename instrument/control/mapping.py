@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import UserError
-from ..tomlfile import TomlFile, key_lines
+from ..tomlfile import Field, TomlFile, key_lines
 from .events import ControlEvent
 from .hid import DS4_NAMES, canonical_input, is_usage_name, legacy_event, unit_with_deadzone
 from .hid_feedback import FeedbackSpec, parse_feedback
@@ -33,6 +33,19 @@ TAKEOVERS = ("none", "pickup", "scale")
 CURVES = ("linear", "exp")
 PICKUP_THRESHOLD = 3.0 / 128.0  # of the target's range (Mixxx)
 FAST_SWEEP = 0.050  # seconds: a value this soon after an accepted one is accepted too (Mixxx)
+# a mapping's schema (tomlfile.Field): the top, and each [[control]] table; what depends on other keys is
+# checked in load_mapping and _control ([presets]: control/presetfile.py)
+TOP = {"name": Field("string"), "device": Field("table"), "control": Field("list"), "presets": Field("table"),
+       "morph": Field("number", TABLE["morph"].low, TABLE["morph"].high, units="seconds"), "feedback": Field("table")}
+# a [[control]] table's schema (tomlfile.Field); what depends on other keys (number's limit, input) is checked in _control
+CONTROL = {
+    "message": Field("choice", choices=MESSAGES, required=f"the kind of message ({', '.join(MESSAGES)})"),
+    "target": Field("string", required="the control target it drives (docs/controls.md)"),
+    "channel": Field("whole", 1, 16), "number": Field("whole", 0, 16383), "input": Field("string"),
+    "mode": Field("choice", choices=MODES), "range": Field("list"), "curve": Field("choice", choices=CURVES),
+    "takeover": Field("choice", choices=TAKEOVERS), "step": Field("number", 0, above_low=True),
+    "deadzone": Field("number", 0, 1, below_high=True), "invert": Field("bool"),
+}
 
 
 @dataclass(frozen=True, eq=False)  # identity: each control of a file is its own, and hashing stays cheap
@@ -96,13 +109,8 @@ def load_mapping(path: str | Path, state: ControlState | None = None, text: str 
         places = [(key,), ("device", key), ("feedback", key), ("feedback", "colours", key)]
         return doc.error(next((p for p in places if p in doc.lines), (key,)), message, key)
 
-    allowed_top = {"name", "device", "control", "presets", "morph", "feedback"}
-    for key in data:
-        if key not in allowed_top:
-            raise fail(f"unknown key (expected one of {', '.join(sorted(allowed_top))})", key)
+    doc.check((), data, TOP)
     device = data.get("device", {})
-    if not isinstance(device, dict):
-        raise fail("must be a table", "device")
     midi, hid = device.get("midi"), device.get("hid")
     for key in device:
         if key not in ("midi", "hid", "hid-usages"):
@@ -121,48 +129,25 @@ def load_mapping(path: str | Path, state: ControlState | None = None, text: str 
     hid_ids = None
     if hid is not None:
         hid_ids = tuple(parse_hid_id(h, lambda m: fail(m, "hid")) for h in (hid if isinstance(hid, list) else [hid]))
-    raw_controls = data.get("control", [])
-    if not isinstance(raw_controls, list):
-        raise fail("use [[control]] tables", "control")
-    controls = [_control(item, k, fail, model) for k, item in enumerate(raw_controls)]
+    controls = [_control(doc, item, k, fail, model) for k, item in enumerate(data.get("control", []))]
     presets = read_presets(doc, model)
     morph = data.get("morph", 0.0)
-    if value_refusal(TABLE["morph"], "morph", morph) is not None:
-        raise fail(f"must be a number of seconds, {TABLE['morph'].describe_range()}", "morph")
     feedback = parse_feedback(data["feedback"], fail) if "feedback" in data else None
     return Mapping(str(data.get("name", path.stem)), str(path), midi, hid_ids, tuple(controls), presets, float(morph),
                    tuple(usages), feedback, text)
 
 
-def _control(item: dict, index: int, fail, model: tuple) -> ControlSpec:
-    if not isinstance(item, dict):
-        raise fail("must be a table", "control", index)
-    known = {f for f in ControlSpec.__dataclass_fields__}
-    for key in item:
-        if key not in known:
-            raise fail(f"unknown key (expected {', '.join(sorted(known))})", key, index)
-    for key in ("message", "target"):
-        if key not in item:
-            raise fail("missing", key, index)
+def _control(doc: TomlFile, item: dict, index: int, fail, model: tuple) -> ControlSpec:
+    doc.check(("control", index), item, CONTROL)
     message = item["message"]
-    if message not in MESSAGES:
-        raise fail(f"{message!r} is not one of {', '.join(MESSAGES)}", "message", index)
     values = dict(item)
     if "range" in values:
         r = values["range"]
-        if not (isinstance(r, list) and len(r) == 2 and all(is_number(v) for v in r) and r[0] != r[1]):
+        if not (len(r) == 2 and all(is_number(v) for v in r) and r[0] != r[1]):
             raise fail("expected [low, high], two different finite numbers", "range", index)
         values["range"] = (float(r[0]), float(r[1]))
-    checks = [
-        ("mode", MODES), ("takeover", TAKEOVERS), ("curve", CURVES),
-    ]
-    for key, choices in checks:
-        if key in values and values[key] not in choices:
-            raise fail(f"{values[key]!r} is not one of {', '.join(choices)}", key, index)
-    if "channel" in values and not (isinstance(values["channel"], int) and 1 <= values["channel"] <= 16):
-        raise fail("must be 1 to 16", "channel", index)
     limit = 16383 if message == "nrpn" else 127
-    if message in ("cc", "cc14", "nrpn", "note") and not (isinstance(values.get("number"), int) and 0 <= values["number"] <= limit):
+    if message in ("cc", "cc14", "nrpn", "note") and not ("number" in values and values["number"] <= limit):
         raise fail(f"must be a whole number 0 to {limit}", "number", index)
     if message == "cc14" and values["number"] > 31:
         raise fail("a 14-bit pair has its MSB on CC 0 to 31 (the LSB is number + 32)", "number", index)
@@ -171,10 +156,6 @@ def _control(item: dict, index: int, fail, model: tuple) -> ControlSpec:
         if values["input"] is None:
             raise fail(f"{item.get('input')!r} is not a HID usage name (X, Y, Z, Rx, Ry, Rz, Slider, Dial, Wheel, Hat/up, "
                        "Button 1, PPPP:UUUU, ...)", "input", index)
-    if "step" in values and not (is_number(values["step"]) and values["step"] > 0):
-        raise fail("must be a number above 0", "step", index)
-    if "deadzone" in values and not (is_number(values["deadzone"]) and 0 <= values["deadzone"] < 1):
-        raise fail("must be a share of the half-travel, 0 or more and below 1", "deadzone", index)
     target = values["target"]
     row = row_of(target, *model)
     if row is None or row.kind == "store":

@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import UserError
-from ..tomlfile import TomlFile
-from .checks import between, is_number
+from ..tomlfile import Field, TomlFile
+from .checks import between
 from .events import ControlEvent
 from .presetfile import held_values, model_of, read_presets
 from .state import ControlState
@@ -29,8 +29,12 @@ from .state import ControlState
 SOURCE = "score"
 CURVES = ("linear", "ease")
 ACTIONS = ("ramp", "preset", "hold", "wait", "repeat")
-CUE_KEYS = ("at", "after", "mark", "over", "curve", "times") + ACTIONS
-TOP_KEYS = ("name", "loop", "presets", "cue")
+SECONDS = Field("number", 0, units="seconds")
+# the file's schema (tomlfile.Field); what spans keys (one action a cue, at or after, ...) is checked in _cue
+TOP = {"name": Field("string"), "loop": Field("bool"), "presets": Field("table"), "cue": Field("list")}
+CUE = {"at": SECONDS, "after": SECONDS, "mark": Field("string"), "over": SECONDS, "curve": Field("choice", choices=CURVES),
+       "times": Field("whole", 1), "ramp": Field("table"), "preset": Field("string"), "hold": SECONDS,
+       "wait": Field("string"), "repeat": Field("string")}
 
 
 @dataclass(frozen=True)
@@ -67,13 +71,7 @@ def load_score(path: str | Path, state: ControlState, presets: dict[str, dict[st
     def fail(message: str, key: str, index: int | None = None) -> UserError:
         return doc.error((key,) if index is None else ("cue", index, key), message, key)
 
-    for key in data:
-        if key not in TOP_KEYS:
-            raise fail(f"unknown key (expected one of {', '.join(TOP_KEYS)})", key)
-    if not isinstance(data.get("loop", False), bool):
-        raise fail("expected true or false", "loop")
-    if not isinstance(data.get("name", ""), str):
-        raise fail("expected a string", "name")
+    doc.check((), data, TOP)
     known = dict(presets or {})
     known.update(read_presets(doc, model))
     raw = data.get("cue", [])
@@ -103,11 +101,7 @@ def _lasts(cues: list[Cue], since: float = 0.0) -> bool:
 
 
 def _cue(item: object, index: int, doc: TomlFile, model: tuple, presets: dict, marks: dict, fail) -> Cue:
-    if not isinstance(item, dict):
-        raise fail("must be a table", "cue")
-    for key in item:
-        if key not in CUE_KEYS:
-            raise fail(f"unknown key (expected one of {', '.join(CUE_KEYS)})", key)
+    doc.check(("cue", index), item, CUE)
     actions = [a for a in ACTIONS if a in item]
     if len(actions) != 1:
         raise fail(f"a cue does one thing: one of {', '.join(ACTIONS)}" + (f", not {' and '.join(actions)}" if actions else ""),
@@ -115,24 +109,17 @@ def _cue(item: object, index: int, doc: TomlFile, model: tuple, presets: dict, m
     action = actions[0]
     if "at" in item and "after" in item:
         raise fail("give at or after, not both", "after")
-    for key in ("at", "after", "over", "hold"):
-        if key in item and not (is_number(item[key]) and item[key] >= 0):
-            raise fail("expected a number of seconds, 0 or more", key)
     for key in ("over", "curve"):
         if key in item and action not in ("ramp", "preset"):
             raise fail(f"only for a ramp or a preset, not for {action}", key)
     if "times" in item and action != "repeat":
         raise fail("only for a repeat", "times")
     curve = item.get("curve", "linear")
-    if curve not in CURVES:
-        raise fail(f"{curve!r} is not one of {', '.join(CURVES)}", "curve")
     mark = item.get("mark")
-    if mark is not None and (not isinstance(mark, str) or mark in marks):
+    if mark in marks:
         raise fail("expected a name no other cue has", "mark")
     kwargs: dict = {}
     if action == "ramp":
-        if not isinstance(item["ramp"], dict) or not item["ramp"]:
-            raise fail("expected a table of target = value, e.g. { \"style/elderly\" = 1.0 }", "ramp")
         kwargs["ramp"] = held_values(doc, ("cue", index, "ramp"), item["ramp"], model, "ramp")
     elif action == "preset":
         if item["preset"] not in presets:
@@ -150,8 +137,6 @@ def _cue(item: object, index: int, doc: TomlFile, model: tuple, presets: dict, m
         if item["repeat"] not in marks:
             raise fail(f"no earlier cue has mark = {item['repeat']!r}", "repeat")
         times = item.get("times")
-        if times is not None and not (isinstance(times, int) and not isinstance(times, bool) and times >= 1):
-            raise fail("expected a whole number, 1 or more", "times")
         kwargs.update(repeat=marks[item["repeat"]], times=times)
     return Cue(line=doc.line("cue", index), at=float(item["at"]) if "at" in item else None, after=float(item.get("after", 0.0)),
                over=float(item.get("over", 0.0)), curve=curve, mark=mark, **kwargs)
