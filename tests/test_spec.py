@@ -27,14 +27,14 @@ from instrument.control.devices import OscInput
 from instrument.control.events import LogReplay, read_log
 from instrument.control.hub import ControlHub
 from instrument.control.mapping import load_mapping
-from instrument.control.presetfile import model_of, read_presets
+from instrument.control.presetfile import model_of, read_presets, read_presets_file
 from instrument.control.score import load_score
 from instrument.control.spec import TABLE, markdown_table
 from instrument.control.state import ControlState
 from instrument.control.values import all_values
 from instrument.errors import UserError
 from instrument.runtime.console import Console
-from instrument.tomlfile import TomlFile, key_lines
+from instrument.tomlfile import key_lines
 
 HUGE = 10 ** 400  # an integer no float holds
 # (target, value, the kind of refusal every path must give)
@@ -82,7 +82,7 @@ def comment(target: str) -> str:
 def presets_file(tmp_path: Path, state: ControlState, target: str, value: object) -> None:
     path = tmp_path / "mine.toml"
     path.write_text(comment(target) + '[presets.calm]\nspread = 0.5\n' + entry(target, value) + "\n")
-    read_presets(TomlFile(path), model_of(state))
+    read_presets_file(path, model_of(state))
 
 
 def show_file(tmp_path: Path, state: ControlState, target: str, value: object) -> None:
@@ -236,6 +236,13 @@ def test_the_console_page_refuses_alike(state_of, target, value, kind):
     with pytest.raises(Refused) as refused:
         parse(json.dumps({"set": target, "value": value}), frozenset(state.targets()))
     assert str(refused.value) == expected.text
+
+
+def test_a_presets_file_holds_presets_and_nothing_else(tmp_path, state_of):
+    path = tmp_path / "mine.toml"
+    path.write_text('# saved\n[preset.calm]\nspeed = 1.0\n')  # [preset...] for [presets...]: not silently ignored
+    with pytest.raises(UserError, match=f"^{path}:2: preset: unknown key"):
+        read_presets_file(path, model_of(state_of()))
 
 
 def test_actions_are_pressed_not_held(tmp_path, state_of):

@@ -14,7 +14,7 @@ from ..control.hid import choose_mapping as choose_hid_mapping
 from ..control.hid_feedback import HidFeedback
 from ..control.loghead import header_line, logged_crowd, logged_mappings, unreadable_sources
 from ..control.mapping import load_mapping, parse_hid_id, preset_problems, style_problems, target_line
-from ..control.presetfile import model_of, read_presets
+from ..control.presetfile import model_of, read_presets, read_presets_file
 from ..errors import UserError
 from ..output.osc import FLAT_PORT, VMC_PORT, OscTarget, parse_target
 from ..outputfile import check_output
@@ -234,7 +234,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     state = ControlState(model.style_names, model.states)
     presets = read_presets(show, model_of(state)) if show else {}
     if args.presets and (Path(args.presets).exists() or not args.console):  # the console may save to a new file
-        presets.update(read_presets(TomlFile(args.presets), model_of(state)))
+        presets.update(read_presets_file(args.presets, model_of(state)))
     check_recordings(args)
     logged = logged_mappings(args.replay, state) if args.replay and not args.mapping else []  # as recorded
     mappings = logged + choose_mappings(args, state, console)

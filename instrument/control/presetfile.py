@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Collection
 
-from ..tomlfile import Key, TomlFile
+from ..tomlfile import Field, Key, TomlFile
 from .checks import held_refusal
 from .spec import PRESET_NAME
 
@@ -53,6 +53,13 @@ def held_values(doc: TomlFile, path: Key, values: object, model: tuple[Collectio
             raise doc.error(path + (target,), why.text, shown)
         out[target] = float(value)
     return out
+
+
+def read_presets_file(path: str, model: tuple[Collection[str], int]) -> dict[str, dict[str, float]]:
+    """A presets file (`--presets`, what the console saves): [presets.NAME] tables and nothing else."""
+    doc = TomlFile(path)
+    doc.check((), doc.data, {"presets": Field("table")})
+    return read_presets(doc, model)
 
 
 def read_presets(doc: TomlFile, model: tuple[Collection[str], int], path: Key = ("presets",)) -> dict[str, dict[str, float]]:
