@@ -325,3 +325,15 @@ def test_a_shipped_mapping_may_name_styles_another_model_lacks_but_not_bad_value
     path.write_text('[device]\nmidi = "x"\n[presets.calm]\n"style/nobody" = 11.0\n')
     with pytest.raises(UserError, match=f"^{path}:4: presets.calm: style/nobody: 11.0 is {OUT_OF_RANGE}"):
         load_mapping(path, state)
+
+
+def test_every_shipped_mapping_fits_the_rows_for_the_default_model(state_of):
+    """Each shipped control's range and preset lies inside its target's row: nothing a shipped
+    controller sends is refused as out of range."""
+    from instrument.shipped import shipped_mappings
+
+    for path in shipped_mappings():
+        mapping = load_mapping(path, state_of(), strict_styles=True)
+        for control in mapping.controls:
+            row = TABLE[control.target.split("/")[0]]
+            assert row.low <= min(control.range) and max(control.range) <= row.high, (path, control.target)
