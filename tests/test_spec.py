@@ -337,3 +337,16 @@ def test_every_shipped_mapping_fits_the_rows_for_the_default_model(state_of):
         for control in mapping.controls:
             row = TABLE[control.target.split("/")[0]]
             assert row.low <= min(control.range) and max(control.range) <= row.high, (path, control.target)
+
+
+@pytest.mark.parametrize("target", ["speed", "phase/1", "style/elderly", "liveliness", "turn", "morph", "reset"])
+def test_what_learn_writes_for_a_button_loads(tmp_path, state_of, target):
+    """A button learned onto any target gives a mapping the one check accepts (a button sends 0
+    and 1, which speed or a phase would refuse: learn gives them the row's fader range)."""
+    from instrument.control.learn import Learned
+
+    block = Learned("note", 1, 36, "toggle").toml(target, TABLE[target.split("/")[0]].fader)
+    path = tmp_path / "learned.toml"
+    path.write_text('[device]\nmidi = "x"\n' + block)
+    (control,) = load_mapping(path, state_of(), strict_styles=True).controls
+    assert refusal(target, control.range[0], state_of().style_index, state_of().states) is None
