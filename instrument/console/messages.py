@@ -2,13 +2,14 @@
 
 A page sends JSON objects, one a WebSocket message:
 
-    {"set": "style/elderly", "value": 1.2}   a target of the control state (clamped by the state)
+    {"set": "style/elderly", "value": 1.2}   a target of the control state, inside its range
     {"preset": "calm"}                       recall a preset (over the morph time: the target "morph")
     {"store": "calm"}                        store the current values as preset "calm"
     {"save": true}                           write the presets to the preset file
 
-Anything else (not JSON, unknown keys or targets, wrong types, names with odd characters) is
-refused with a reason; it never reaches the frame loop.
+Anything else (not JSON, unknown keys or targets, wrong types, values out of range, names with
+odd characters) is refused with a reason, the same a file or OSC would get (control/checks.py);
+it never reaches the frame loop.
 """
 
 from __future__ import annotations
