@@ -350,3 +350,19 @@ def test_what_learn_writes_for_a_button_loads(tmp_path, state_of, target):
     path.write_text('[device]\nmidi = "x"\n' + block)
     (control,) = load_mapping(path, state_of(), strict_styles=True).controls
     assert refusal(target, control.range[0], state_of().style_index, state_of().states) is None
+
+
+def test_a_score_recalls_a_shipped_mappings_preset_without_the_styles_the_model_lacks(tmp_path, state_of):
+    """A mapping read for another model keeps a preset's unknown style (for a warning); a score's
+    preset cue ramps only what the model has, rather than failing when it plays."""
+    from instrument.control.score import ScorePlayer
+
+    state = state_of()
+    mapping = tmp_path / "m.toml"
+    mapping.write_text('[device]\nmidi = "x"\n[presets.calm]\n"style/nobody" = 1.0\n"style/elderly" = 0.5\n')
+    presets = load_mapping(mapping, state).presets
+    score = tmp_path / "s.toml"
+    score.write_text('[[cue]]\npreset = "calm"\nover = 1\n')
+    player = ScorePlayer(load_score(score, state, presets), state)
+    events = player.due(0.0) + player.due(2.0)
+    assert {e.control for e in events} == {"style/elderly"} and events[-1].value == 0.5

@@ -56,7 +56,8 @@ def load_attract(show: TomlFile, state: ControlState, presets: dict[str, dict[st
         for name in names:
             if name not in presets:
                 raise fail(f"no preset {name!r} (known: {', '.join(sorted(presets)) or 'none'})", "presets")
-        score = preset_tour(names, presets, float(table.get("morph", 8.0)), float(table.get("hold", 30.0)))
+        known = {name: {t: v for t, v in presets[name].items() if state.knows(t)} for name in names}  # (as a score's preset cue)
+        score = preset_tour(names, known, float(table.get("morph", 8.0)), float(table.get("hold", 30.0)))
     return AttractSettings(float(table["after"]) * 60.0, score)
 
 

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from ..errors import UserError
 from ..tomlfile import Field, TomlFile
-from .checks import between
+from .checks import between, row_of
 from .events import ControlEvent
 from .presetfile import held_values, model_of, read_presets
 from .state import ControlState
@@ -124,7 +124,8 @@ def _cue(item: object, index: int, doc: TomlFile, model: tuple, presets: dict, m
     elif action == "preset":
         if item["preset"] not in presets:
             raise fail(f"no preset {item['preset']!r} (known: {', '.join(sorted(presets)) or 'none'})", "preset")
-        kwargs["ramp"] = dict(presets[item["preset"]])
+        # a shipped mapping's preset may name a style this model lacks (kept for a warning): not rampable
+        kwargs["ramp"] = {t: v for t, v in presets[item["preset"]].items() if row_of(t, *model) is not None}
     elif action == "hold":
         if item["hold"] <= 0:
             raise fail("expected a positive number of seconds", "hold")
