@@ -14,14 +14,12 @@ import sys
 import pytest
 
 from conftest import REPO
-from instrument.cli.arguments import OPTIONS, WEIGHT_LIMIT
+from instrument.cli.arguments import OPTIONS
 from instrument.cli.main import main
 from instrument.control.events import ControlEvent, read_log
 from instrument.control.hub import ControlHub
 from instrument.control.loghead import logged_mappings
 from instrument.control.mapping import load_mapping
-from instrument.control.targets import TABLE
-from instrument.control.targets import WEIGHT_LIMIT as STATE_WEIGHT_LIMIT
 from instrument.control.state import ControlState
 from instrument.errors import UserError
 from instrument.motion.bvh import read_bvh
@@ -123,12 +121,6 @@ def test_an_option_without_the_one_it_belongs_to_is_refused(capsys, argv, messag
     status, err = cli(capsys, *argv)
     assert status == 1
     assert message in one_line(err)
-
-
-def test_the_option_table_and_the_control_state_agree():
-    assert WEIGHT_LIMIT == STATE_WEIGHT_LIMIT
-    assert OPTIONS["synth --style"].high == STATE_WEIGHT_LIMIT
-    assert (OPTIONS["run --morph"].low, OPTIONS["run --morph"].high) == (TABLE["morph"].low, TABLE["morph"].high)
 
 
 @pytest.mark.parametrize("kind", ["garbage", "utf16"])

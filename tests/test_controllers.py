@@ -221,13 +221,17 @@ def test_show_file_starts_the_whole_setup(tmp_path):
     ('seconds = [2]\n', "show.toml:1: seconds: expected a string or a number"),
     ('seconds = 2\nfps = 200\n', "show.toml:2: fps: expected a number from 24 to 120, not '200'"),
     ('seconds = 2\nosc = ["127.0.0.1:9000", "127.0.0.1:99999"]\n', "show.toml:2: osc: '127.0.0.1:99999': port must be 1 to 65535"),
-    ('seconds = 2\n[presets.x]\n"style/sleepy" = 1\n', "show.toml:3: presets.x: unknown target 'style/sleepy'"),
+    ('seconds = 2\n[presets.x]\n"style/sleepy" = 1\n', "show.toml:3: presets.x: style/sleepy: unknown target"),
     ('seconds = 2\n\n[presets.calm]\n"speed" = 1\n\n[presets."x"]  # a note\n"speed" = 2\n"style/sleepy" = 1\n',
-     "show.toml:8: presets.x: unknown target 'style/sleepy'"),
+     "show.toml:8: presets.x: style/sleepy: unknown target"),
     ('seconds = 2\n[presets.x]\nspeed = 1\nturn = "left"\n', "show.toml:4: presets.x: turn: not a finite number, not 'left'"),
-    ('seconds = 2\npresets.x = 3\n', "show.toml:2: presets.x: expected target = number pairs"),
+    ('seconds = 2\npresets.x = 3\n', "show.toml:2: presets.x: expected a table of target = number"),
     ('seconds = 2\npresets.calm.speed = 1\npresets.calm.turn = true\n', "show.toml:3: presets.calm: turn: not a finite number"),
     ('seconds = 2\nconsole-token = "s3cret"\n', "--console-token means nothing without --console"),
+    ('# fps is set below\nseconds = 2\n\nfps = 500\n', "show.toml:4: fps: expected a number from 24 to 120"),
+    ('seconds = 2\nname = "fps = 1"\n', "show.toml:2: name: unknown option"),
+    ('seconds = 2\nosc-in = "127.0.0.1:x"\n', "show.toml:2: osc-in: expected [HOST:]PORT"),
+    ('seconds = 2\nosc = [\n  "127.0.0.1:9000",\n  "127.0.0.1:99999",\n]\n', "show.toml:4: osc: '127.0.0.1:99999'"),
 ])
 def test_bad_show_files_are_one_line_errors(tmp_path, text, message):
     show = tmp_path / "show.toml"
@@ -243,7 +247,7 @@ def test_a_bad_preset_file_names_its_line(tmp_path):
     result = subprocess.run(RUN + ["--presets", str(presets), "--no-osc", "--seconds", "1"], capture_output=True, text=True,
                             timeout=60)
     assert result.returncode == 1
-    assert f"{presets}:6: presets.x: unknown target 'style/nope'" in result.stderr
+    assert f"{presets}:6: presets.x: style/nope: unknown target" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
 
 

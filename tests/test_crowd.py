@@ -151,7 +151,8 @@ def test_spread_gives_each_character_its_own_style_and_none_alike_at_zero(model)
 def test_spread_is_a_control_target_like_the_others():
     state = ControlState(["elderly"], 5)
     assert "spread" in state.targets() and state.knows("spread")
-    assert state.set("spread", 3.0) and state.spread == 1.0  # clamped to its range
+    assert not state.set("spread", 3.0) and state.spread == 0.0  # out of its range: refused (control/checks.py)
+    assert state.set("spread", 1.0) and state.spread == 1.0
     assert not state.set("spread", float("nan"))
     assert state.echo()["spread"] == 1.0
     state.set("reset", 1.0)

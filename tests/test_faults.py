@@ -88,9 +88,10 @@ def test_the_table_accepts_only_targets_of_the_model_and_finite_numbers(model):
         assert problem("speed", bad, styles, states) == "not a finite number", bad
     assert problem("style/nobody", 1.0, styles, states) == "unknown target"
     assert problem(f"style/{model.style_names[0]}/extra", 1.0, styles, states) == "unknown target"
-    # out of range is clamped to the table's ends, not refused
-    assert state.set("speed", 99.0) and state.speed == TABLE["speed"].high
-    assert state.set("turn", -99) and state.turn == TABLE["turn"].low
+    # out of range is refused, as a file refuses it (control/checks.py), not clamped
+    assert problem("speed", 99.0, styles, states) == "out of range" and not state.set("speed", 99.0)
+    assert not state.set("turn", -99) and state.turn == 0.0
+    assert state.set("speed", TABLE["speed"].high) and state.speed == TABLE["speed"].high
     assert not state.set("speed", "2") and state.speed == TABLE["speed"].high
 
 

@@ -42,14 +42,14 @@ def test_absolute_cc_with_range_and_clamping(tmp_path):
 
 
 def test_fourteen_bit_pairs_reset_the_lsb_on_a_new_msb(tmp_path):
-    m = mapper(tmp_path, '[[control]]\nmessage = "cc14"\nnumber = 1\ntarget = "speed"\nrange = [0.0, 4.0]\n')
+    m = mapper(tmp_path, '[[control]]\nmessage = "cc14"\nnumber = 1\ntarget = "speed"\nrange = [0.25, 4.0]\n')
     s = state()
     send(m, s, "cc/1/1", 64)  # MSB
-    assert s.speed == pytest.approx(4.0 * 64 * 128 / 16383)
+    assert s.speed == pytest.approx(0.25 + 3.75 * 64 * 128 / 16383)
     send(m, s, "cc/1/33", 100)  # LSB
-    assert s.speed == pytest.approx(4.0 * (64 * 128 + 100) / 16383)
+    assert s.speed == pytest.approx(0.25 + 3.75 * (64 * 128 + 100) / 16383)
     send(m, s, "cc/1/1", 65)  # a new MSB: LSB back to 0
-    assert s.speed == pytest.approx(4.0 * 65 * 128 / 16383)
+    assert s.speed == pytest.approx(0.25 + 3.75 * 65 * 128 / 16383)
 
 
 def test_nrpn_data_entry_and_increments(tmp_path):
@@ -231,7 +231,7 @@ def test_state_ignores_non_numbers_and_unknown_targets():
     s = state()
     assert not s.set("style/elderly", math.nan)
     assert not s.set("nonsense", 1.0)
-    assert s.set("speed", 99.0) and s.speed == 4.0
+    assert not s.set("speed", 99.0) and s.speed == 1.0  # out of range: refused (control/checks.py), not clamped
 
 
 def test_a_preset_button_with_no_such_preset_is_refused_at_start(tmp_path, capsys):

@@ -230,9 +230,9 @@ def test_live_osc_rides_on_top_and_the_cue_button_releases_a_wait(tmp_path):
 
 
 @pytest.mark.parametrize("text,message", [
-    ('[[cue]]\nat = 1\nramp = { "style/sleepy" = 1 }\n', "s.toml:3: style/sleepy: not a target a score can move"),
+    ('[[cue]]\nat = 1\nramp = { "style/sleepy" = 1 }\n', "s.toml:3: ramp: style/sleepy: unknown target (this model's styles: "),
     ('[[cue]]\nramp = { speed = 1 }\n\n[[cue]]\nhold = 1\nover = 2\n', "s.toml:6: over: only for a ramp or a preset"),
-    ('[[cue]]\nramp = { speed = 9 }\n', "s.toml:2: speed: 9 is out of range"),
+    ('[[cue]]\nramp = { speed = 9 }\n', "s.toml:2: ramp: speed: 9 is out of range (0.25 to 4)"),
     ('[[cue]]\npreset = "nowhere"\n', "s.toml:2: preset: no preset 'nowhere'"),
     ('[[cue]]\nhold = 1\n[[cue]]\nrepeat = "x"\n', "s.toml:4: repeat: no earlier cue has mark = 'x'"),
     ('[[cue]]\nhold = 1\nwait = "cue"\n', "s.toml:3: wait: a cue does one thing"),

@@ -398,7 +398,7 @@ def test_a_show_file_attract_mode_plays_a_score_and_an_osc_move_takes_over(tmp_p
     ('[attract]\npresets = ["calm"]\n', "show.toml:4: attract.after: missing"),
     ('[attract]\nafter = 5\npresets = ["nope"]\n', "show.toml:6: attract.presets: no preset 'nope'"),
     ('[attract]\nafter = 5\n', "attract.score: give either score"),
-    ('[attract]\nafter = -1\npresets = ["calm"]\n', "show.toml:5: attract.after: expected a positive number of minutes"),
+    ('[attract]\nafter = -1\npresets = ["calm"]\n', "show.toml:5: attract.after: expected a number of minutes above 0"),
     ('[attract]\nafter = 1\nscore = "missing.toml"\n', "missing.toml: cannot read"),
 ])
 def test_bad_attract_tables_are_one_line_errors(tmp_path, table, message):

@@ -14,12 +14,11 @@ import argparse
 import math
 from dataclasses import dataclass
 
+from ..control.spec import TABLE
 from ..errors import UserError
-from ..synthesis.parameters import MAX_SPEED, MIN_SPEED
 
 MAX_SECONDS = 7 * 24 * 3600.0  # a week: longer is a typo
 MAX_CHARACTERS = 1000  # a crowd larger than this is a typo (docs/crowds.md: how many keep time)
-WEIGHT_LIMIT = 10.0  # as far as a style weight goes: control.targets.WEIGHT_LIMIT (a test keeps them equal)
 
 
 @dataclass(frozen=True)
@@ -54,6 +53,12 @@ class Accepts:
         return number
 
 
+def target(kind: str) -> Accepts:
+    """What an option that sets a control target accepts: that target's row (control/spec.py),
+    so `synth --speed 9` is refused as a show's `speed = 9` is."""
+    return Accepts(float, TABLE[kind].low, TABLE[kind].high)
+
+
 PORT = Accepts(int, 1, 65535)
 POSITIVE_SECONDS = Accepts(float, 0, MAX_SECONDS, above_low=True)
 
@@ -61,9 +66,10 @@ POSITIVE_SECONDS = Accepts(float, 0, MAX_SECONDS, above_low=True)
 OPTIONS: dict[str, Accepts] = {
     "run --fps": Accepts(float, 24, 120),
     "run --seconds": POSITIVE_SECONDS,
-    "run --morph": Accepts(float, 0, 600),  # as the control target morph (control.targets.MAX_MORPH; a test keeps them equal)
+    "run --morph": target("morph"),
     "run --osc-in": PORT,  # the port of [HOST:]PORT
     "run --status-port": PORT,  # the port of [HOST:]PORT
+    "run --console": Accepts(int, 0, 65535),  # the port of [HOST:]PORT; 0: any free port
     "run --health-every": Accepts(float, 0, 86400),  # seconds; 0: no health line
     "run --characters": Accepts(int, 1, MAX_CHARACTERS),
     "run --spacing": Accepts(float, 0, 100, above_low=True),  # metres
@@ -75,11 +81,11 @@ OPTIONS: dict[str, Accepts] = {
     "log --fps": Accepts(float, 0, 1000, above_low=True),
     "train --fps": Accepts(float, 1, 1000),
     "train --states": Accepts(int, 1, 12),
-    "synth --style": Accepts(float, -WEIGHT_LIMIT, WEIGHT_LIMIT),  # the weight of NAME=W
-    "synth --speed": Accepts(float, MIN_SPEED, MAX_SPEED),
+    "synth --style": target("style"),  # the weight of NAME=W
+    "synth --speed": target("speed"),
     "synth --seconds": Accepts(float, 0, 3600, above_low=True),
     "synth --lookahead": Accepts(int, 1, 1000),
-    "synth --liveliness": Accepts(float, 0, 1),
+    "synth --liveliness": target("liveliness"),
     "synth --seed": Accepts(int, 0, 2**32 - 1),
     "bench --repeat": Accepts(int, 1, 1000),
     "bench --pacing": POSITIVE_SECONDS,
@@ -113,6 +119,21 @@ def value(key: str, text: object, where: str | None = None):
         return OPTIONS[key].read(text)
     except ValueError as e:
         raise UserError(f"{where or key.split(' ', 1)[1]}: {e}") from None
+
+
+def host_port(key: str, text: object, where: str | None = None) -> tuple[str, int, bool]:
+    """`[HOST:]PORT` of option `key` as (host, port, whether a host was named); the port read as
+    OPTIONS[key] says, the host 127.0.0.1 when none is named. A one-line UserError naming the
+    option (or `where`) for anything else."""
+    where = where or f"{key.split(' ', 1)[1]} {text!r}"
+    host, _, port = str(text).rpartition(":")
+    if not port.strip().isdigit():
+        raise UserError(f"{where}: expected [HOST:]PORT, e.g. 127.0.0.1:9000 or 9000")
+    try:
+        number = OPTIONS[key].read(port)
+    except ValueError as e:
+        raise UserError(f"{where}: port: {e}") from None
+    return host or "127.0.0.1", number, bool(host)
 
 
 def checked(key: str):

@@ -10,6 +10,7 @@ from ..control.devices import MidiInput
 from ..control.hid import HidInput, detect_hid
 from ..control.learn import detect
 from ..control.mapping import parse_hid_id
+from ..control.spec import TABLE
 from ..errors import UserError
 from ..outputfile import check_output, written
 from ..runtime.console import Console
@@ -19,8 +20,6 @@ from .arguments import checked
 
 QUIET_AFTER = 0.8  # seconds without messages that end a capture
 HID_JITTER = 0.02  # share of an axis's range a HID control must move by to count as moving
-RANGES = {"style": (-1.0, 2.0), "part": (-1.0, 2.0), "speed": (0.5, 2.0), "phase": (0.5, 2.0), "turn": (-1.0, 1.0),
-          "liveliness": (0.0, 1.0), "spread": (0.0, 1.0)}
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -91,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
                 print(f"learned HID {learned.input} ({'button' if learned.button else 'axis'}) -> {target}", flush=True)
             else:
                 print(f"learned {learned.message} channel {learned.channel} number {learned.number} ({learned.mode}) -> {target}", flush=True)
-            blocks.append(learned.toml(target, RANGES.get(target.split("/")[0])))
+            blocks.append(learned.toml(target, TABLE[target.split("/")[0]].fader))  # a learned fader's range: the row's
     finally:
         device.close()
     if not blocks:

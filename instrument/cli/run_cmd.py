@@ -15,6 +15,7 @@ from ..control.hid import choose_mapping as choose_hid_mapping
 from ..control.hid_feedback import HidFeedback
 from ..control.loghead import header_line, logged_crowd, logged_mappings, unreadable_sources
 from ..control.mapping import load_mapping, parse_hid_id, preset_problems, style_problems, target_line
+from ..control.presetfile import model_of, read_presets, read_presets_file
 from ..errors import UserError
 from ..output.osc import FLAT_PORT, VMC_PORT, parse_target
 from ..outputfile import check_output
@@ -25,8 +26,8 @@ from ..runtime.priority import realtime_scheduling
 from ..runtime.stopping import StopFlag
 from ..shipped import default_model_path, demo_score_path, shipped_mappings
 from ..synthesis.parameters import DEFAULT_SPACING, DEFAULT_VMC_CHARACTERS
-from ..tomlfile import key_line, read_toml
-from .arguments import OPTIONS, check_needs
+from ..tomlfile import TomlFile
+from .arguments import OPTIONS, check_needs, host_port
 from .arguments import value as option_value
 
 if TYPE_CHECKING:
@@ -37,6 +38,7 @@ DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "
             "normal_priority": False, "force": False, "vmc_root": "hips", "no_relaxed_hands": False}
 LISTS = ("osc", "mapping")
 SHOW_FILE_CHECKS = {"osc": parse_target, "hid": parse_hid_id}  # checked as the file is read, so errors name its line
+ADDRESSES = ("osc_in", "status_port", "console")  # [HOST:]PORT options (arguments.host_port)
 PATHS = ("model", "bvh", "replay", "score", "record", "humanoid", "presets", "mapping")  # relative to the show file
 
 
@@ -94,69 +96,54 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def apply_show_file(args: argparse.Namespace) -> tuple[dict, str]:
-    """Fill options not given on the command line from the show file; returns its presets and its text."""
-    path = Path(args.config)
-    text, data = read_toml(path)
-    presets = data.pop("presets", {})
-    data.pop("attract", None)  # [attract]: read by the attract mode itself
+def apply_show_file(args: argparse.Namespace) -> TomlFile:
+    """Fill options not given on the command line from the show file, each checked as the command
+    line's are (cli/arguments.py), an error naming the file, the key's line and the key; the file
+    read, for its [presets] (checked once the model is known: `read_presets`) and [attract]."""
+    show = TomlFile(args.config)
+    path = show.path
     options = {a for a in vars(args) if a not in ("config", "run", "command")}
-    for key, value in data.items():
+    for key, value in show.data.items():
+        if key in ("presets", "attract"):  # read once the model is known (control/presetfile.py, control/attract.py)
+            continue
         dest = key.replace("-", "_")
-        line = text[: text.find(key)].count("\n") + 1 if key in text else 1
+        where = f"{path}:{show.line(key)}: {key}"
         if dest not in options:
-            raise UserError(f"{path}:{line}: {key}: unknown option (the show file takes the flags of `instrument run`)")
+            raise UserError(f"{where}: unknown option (the show file takes the flags of `instrument run`)")
         if dest in LISTS:
             value = value if isinstance(value, list) else [value]
             if not all(isinstance(v, str) for v in value):
-                raise UserError(f"{path}:{line}: {key}: expected a string or a list of strings")
+                raise UserError(f"{where}: expected a string or a list of strings")
         elif isinstance(DEFAULTS.get(dest), bool):
             if not isinstance(value, bool):
-                raise UserError(f"{path}:{line}: {key}: expected true or false")
+                raise UserError(f"{where}: expected true or false")
         elif not isinstance(value, (str, int, float)) or isinstance(value, bool):
-            raise UserError(f"{path}:{line}: {key}: expected a string or a number")
+            raise UserError(f"{where}: expected a string or a number")
         else:
             value = str(value)
         option = f"run --{dest.replace('_', '-')}"
-        if option in OPTIONS:  # the same table as the command line, the error naming file, line and key
-            option_value(option, value.rpartition(":")[2] if dest == "osc_in" else value, where=f"{path}:{line}: {key}")
-        for text in (value if isinstance(value, list) else [value]) if dest in SHOW_FILE_CHECKS else ():
+        if dest in ADDRESSES:
+            host_port(option, value, where=where)
+        elif option in OPTIONS:  # the same table as the command line, the error naming file, line and key
+            option_value(option, value, where=where)
+        for k, text in enumerate(value if isinstance(value, list) else [value]) if dest in SHOW_FILE_CHECKS else ():
             try:
                 SHOW_FILE_CHECKS[dest](text)
             except UserError as e:
+                line = show.line(key, k) if isinstance(value, list) else show.line(key)
                 raise UserError(f"{path}:{line}: {key}: {str(e).removeprefix('--osc ')}") from None
         if getattr(args, dest) is None:
             setattr(args, dest, value)
         if dest in PATHS:
-            base = path.parent
+            base = Path(path).parent
             current = getattr(args, dest)
             if current is value:  # came from the file: paths are relative to it
                 setattr(args, dest, [str(base / v) for v in value] if isinstance(value, list) else str(base / value))
-    if not isinstance(presets, dict):
-        raise UserError(f"{path}: presets: expected [presets.NAME] tables")
-    return presets, text
-
-
-def check_presets(presets: dict, state: ControlState, path: str, text: str) -> dict[str, dict[str, float]]:
-    """The [presets.NAME] tables of the TOML `text` read from `path`, checked against the table of
-    targets (control/targets.py); a bad entry is one line naming the file, the line and the key."""
-    out = {}
-    for name, values in presets.items():
-        if not isinstance(values, dict):
-            raise UserError(f"{path}:{key_line(text, ('presets', name))}: presets.{name}: expected target = number pairs")
-        for target, value in values.items():
-            why = state.problem(target, value)
-            where = f"{path}:{key_line(text, ('presets', name), target)}: presets.{name}"
-            if why == "unknown target":
-                raise UserError(f"{where}: unknown target {target!r}")
-            if why is not None:
-                raise UserError(f"{where}: {target}: {why}, not {value!r}")
-        out[name] = {k: float(v) for k, v in values.items()}
-    return out
+    return show
 
 
 def choose_mappings(args: argparse.Namespace, state: ControlState, console: Console) -> list:
-    mappings = [load_mapping(m, state) for m in (args.mapping or [])]
+    mappings = [load_mapping(m, state, strict_styles=True) for m in (args.mapping or [])]
     wanted_midi = args.midi or args.midi_virtual
     if wanted_midi and not any(m.midi for m in mappings):
         shipped = [load_mapping(p, state) for p in shipped_mappings()]
@@ -229,7 +216,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     from ..output.vmc import ROOT_CONVENTIONS
     from ..runtime.performance import Show, close_all, perform
 
-    show_presets, show_text = apply_show_file(args) if args.config else ({}, "")
+    show = apply_show_file(args) if args.config else None
     check_needs("run", args)
     for key, value in DEFAULTS.items():
         if getattr(args, key) is None:
@@ -239,19 +226,17 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     morph = 0.0 if args.morph is None else option_value("run --morph", args.morph)
     health_every = 60.0 if args.health_every is None else option_value("run --health-every", args.health_every)
     characters, spacing, bvh_character, vmc_characters = crowd_options(args)
-    if args.osc_in:
-        option_value("run --osc-in", args.osc_in.rpartition(":")[2], where=f"--osc-in {args.osc_in}: port")
-    if args.status_port:
-        option_value("run --status-port", args.status_port.rpartition(":")[2], where=f"--status-port {args.status_port}: port")
+    for dest in ADDRESSES:
+        if getattr(args, dest):
+            host_port(f"run --{dest.replace('_', '-')}", getattr(args, dest))
     if args.vmc_root not in ROOT_CONVENTIONS:
         raise UserError(f"--vmc-root must be {' or '.join(ROOT_CONVENTIONS)}, not {args.vmc_root!r}")
     model = load_model(args.model or default_model_path())
     console = Console(quiet=args.quiet)
     state = ControlState(model.style_names, model.states)
-    presets = check_presets(show_presets, state, args.config or "show file", show_text)
+    presets = read_presets(show, model_of(state)) if show else {}
     if args.presets and (Path(args.presets).exists() or not args.console):  # the console may save to a new file
-        text, data = read_toml(args.presets)
-        presets.update(check_presets(data.get("presets", {}), state, args.presets, text))
+        presets.update(read_presets_file(args.presets, model_of(state)))
     check_recordings(args)
     logged = logged_mappings(args.replay, state) if args.replay and not args.mapping else []  # as recorded
     mappings = logged + choose_mappings(args, state, console)
@@ -289,7 +274,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
             replay = ScorePlayer(load_score(score_path, state, hub.presets, loop=True if args.loop else None), state)
         if args.fast and seconds is None and (replay is None or replay.loop or not replay.events):
             raise UserError("--fast needs an end: give --seconds, or a --replay log or a --score (played once)")
-        attract = load_attract(args.config, state, hub.presets) if args.config else None
+        attract = load_attract(show, state, hub.presets) if show else None
         if attract and not live:
             raise UserError(f"{args.config}: attract: needs a controller (midi, hid or osc-in) whose input it waits for")
         if args.midi or args.midi_virtual:

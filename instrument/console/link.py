@@ -13,20 +13,18 @@ from typing import Callable
 
 import numpy as np
 
+from ..cli.arguments import host_port
 from ..control.events import ControlEvent
 from ..control.state import ControlState
-from ..control.targets import MAX_TURN, TABLE, WEIGHT_LIMIT
+from ..control.spec import rows_for_page
 from ..control.values import all_values
 from ..errors import UserError
 from ..runtime.console import Console
 from ..synthesis.posing import Frame
-from ..synthesis.durations import MAX_SPEED, MIN_SPEED
 from ..synthesis.interpolation import GROUPS
 from .server import JSON, frame_packet
 
 SOURCE = "console"  # the source name of the page's events in a controller log
-SLIDER_WEIGHTS = (-2.0, 4.0)  # the style sliders' travel; the number box beside takes the whole +-WEIGHT_LIMIT
-MORPH_SLIDER = (0.0, 10.0)  # the morph time slider's travel in seconds; the number box takes the table's whole range
 START_SECONDS = 60.0  # the server process has this long to start listening (a busy machine imports slowly)
 EVERY_INTERFACE = ("0.0.0.0", "")  # a host meaning "listen on every interface": not an address to open
 SOURCES_EVERY = 15  # frames between two updates of the control sources shown on the pages
@@ -34,14 +32,7 @@ SOURCES_EVERY = 15  # frames between two updates of the control sources shown on
 
 def split_address(address: str) -> tuple[str, int, bool]:
     """`[HOST:]PORT` as (host, port, host named); one-line error for anything else."""
-    host, _, port = address.rpartition(":")
-    try:
-        number = int(port)
-    except ValueError:
-        raise UserError(f"--console {address!r}: expected [HOST:]PORT") from None
-    if not 0 <= number <= 65535:
-        raise UserError(f"--console {address!r}: port must be 0 to 65535")
-    return host or "127.0.0.1", number, bool(host)
+    return host_port("run --console", address)
 
 
 def network_addresses() -> list[str]:
@@ -71,10 +62,7 @@ def hello(model, state: ControlState, presets: dict, save_path: str | None, fps:
         "type": "hello", "styles": state.style_names, "groups": list(GROUPS), "states": state.states,
         "joints": list(skeleton.names), "parents": [j.parent for j in skeleton.joints], "root": model.layout.root,
         "fps": fps, "save": save_path, "presets": sorted(presets), "order": list(all_values(state)),
-        "ranges": {"weight": [-WEIGHT_LIMIT, WEIGHT_LIMIT], "slider": list(SLIDER_WEIGHTS), "speed": [MIN_SPEED, MAX_SPEED],
-                   "turn": [-MAX_TURN, MAX_TURN], "liveliness": [TABLE["liveliness"].low, TABLE["liveliness"].high],
-                   "spread": [TABLE["spread"].low, TABLE["spread"].high], "phase": [MIN_SPEED, MAX_SPEED],
-                   "morph": [TABLE["morph"].low, TABLE["morph"].high], "morph_slider": list(MORPH_SLIDER)},
+        "rows": rows_for_page(),  # the sliders: control/spec.py's rows (console.js builds them from these)
     }
 
 

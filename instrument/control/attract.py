@@ -16,13 +16,17 @@ from typing import Callable
 
 from ..errors import UserError
 from ..runtime.console import Console
-from ..tomlfile import read_toml
+from ..tomlfile import Field, TomlFile
 from .events import ControlEvent
 from .score import Score, ScorePlayer, load_score, preset_tour
 from .state import ControlState
 
 SOURCE = "attract"
-KEYS = ("after", "score", "presets", "morph", "hold")
+# the [attract] table's schema (tomlfile.Field); score or presets, not both, is checked in load_attract
+SCHEMA = {"after": Field("number", 0, above_low=True, units="minutes",
+                         required="minutes without performer input before the walk drifts on its own"),
+          "score": Field("string"), "presets": Field("list"),
+          "morph": Field("number", 0, above_low=True, units="seconds"), "hold": Field("number", 0, above_low=True, units="seconds")}
 
 
 @dataclass(frozen=True)
@@ -31,44 +35,29 @@ class AttractSettings:
     score: Score
 
 
-def load_attract(show: str | Path, state: ControlState, presets: dict[str, dict[str, float]]) -> AttractSettings | None:
+def load_attract(show: TomlFile, state: ControlState, presets: dict[str, dict[str, float]]) -> AttractSettings | None:
     """The show file's [attract] table, checked; None when it has none."""
-    show = Path(show)
-    text, data = read_toml(show)
-    table = data.get("attract")
+    table = show.data.get("attract")
     if table is None:
         return None
 
     def fail(message: str, key: str) -> UserError:
-        begin = max(text.find("[attract]"), 0)
-        at = text.find(key, begin)
-        return UserError(f"{show}:{text.count(chr(10), 0, at if at >= 0 else begin) + 1}: attract.{key}: {message}")
+        return show.error(("attract", key), message, f"attract.{key}")
 
-    if not isinstance(table, dict):
-        raise fail("expected an [attract] table", "attract")
-    for key in table:
-        if key not in KEYS:
-            raise fail(f"unknown key (expected one of {', '.join(KEYS)})", key)
-    for key in ("after", "morph", "hold"):
-        value = table.get(key)
-        if value is not None and (not isinstance(value, (int, float)) or isinstance(value, bool) or not value > 0):
-            raise fail("expected a positive number" + (" of minutes" if key == "after" else " of seconds"), key)
-    if "after" not in table:
-        raise fail("missing: minutes without performer input before the walk drifts on its own", "after")
+    show.check(("attract",), table, SCHEMA, "attract.")
     if ("score" in table) == ("presets" in table):
         raise fail("give either score (a score file) or presets (a list of preset names)", "score")
     if "score" in table:
-        if not isinstance(table["score"], str):
-            raise fail("expected the path of a score file", "score")
-        score = load_score(show.parent / table["score"], state, presets, loop=True)
+        score = load_score(Path(show.path).parent / table["score"], state, presets, loop=True)
     else:
         names = table["presets"]
-        if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
+        if not names or not all(isinstance(n, str) for n in names):
             raise fail("expected a list of preset names", "presets")
         for name in names:
             if name not in presets:
                 raise fail(f"no preset {name!r} (known: {', '.join(sorted(presets)) or 'none'})", "presets")
-        score = preset_tour(names, presets, float(table.get("morph", 8.0)), float(table.get("hold", 30.0)))
+        known = {name: {t: v for t, v in presets[name].items() if state.knows(t)} for name in names}  # (as a score's preset cue)
+        score = preset_tour(names, known, float(table.get("morph", 8.0)), float(table.get("hold", 30.0)))
     return AttractSettings(float(table["after"]) * 60.0, score)
 
 

@@ -24,6 +24,8 @@ class Learned:
         if value_range is not None and not self.mode.startswith("relative") and self.message != "note":
             lines.append(f"range = [{value_range[0]}, {value_range[1]}]")
             lines.append('takeover = "pickup"')
+        elif value_range is not None and self.message == "note" and not value_range[0] <= 0 < 1 <= value_range[1]:
+            lines.append(f"range = [{value_range[0]}, {value_range[1]}]")  # a button's 0 and 1 would be out of range
         return "\n".join(lines) + "\n"
 
 

@@ -16,11 +16,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import UserError
-from ..tomlfile import parse_toml, read_toml
+from ..tomlfile import Field, TomlFile, key_lines
 from .events import ControlEvent
 from .hid import DS4_NAMES, canonical_input, is_usage_name, legacy_event, unit_with_deadzone
 from .hid_feedback import FeedbackSpec, parse_feedback
-from .targets import PRESET_NAME, is_number
+from .checks import between, is_number, row_of, unknown, value_refusal
+from .presetfile import model_of, read_presets
+from .spec import TABLE
 
 if TYPE_CHECKING:  # (numpy and the synthesis behind it: not needed to read a mapping)
     from .state import ControlState
@@ -31,6 +33,19 @@ TAKEOVERS = ("none", "pickup", "scale")
 CURVES = ("linear", "exp")
 PICKUP_THRESHOLD = 3.0 / 128.0  # of the target's range (Mixxx)
 FAST_SWEEP = 0.050  # seconds: a value this soon after an accepted one is accepted too (Mixxx)
+# a mapping's schema (tomlfile.Field): the top, and each [[control]] table; what depends on other keys is
+# checked in load_mapping and _control ([presets]: control/presetfile.py)
+TOP = {"name": Field("string"), "device": Field("table"), "control": Field("list"), "presets": Field("table"),
+       "morph": Field("number", TABLE["morph"].low, TABLE["morph"].high, units="seconds"), "feedback": Field("table")}
+# a [[control]] table's schema (tomlfile.Field); what depends on other keys (number's limit, input) is checked in _control
+CONTROL = {
+    "message": Field("choice", choices=MESSAGES, required=f"the kind of message ({', '.join(MESSAGES)})"),
+    "target": Field("string", required="the control target it drives (docs/controls.md)"),
+    "channel": Field("whole", 1, 16), "number": Field("whole", 0, 16383), "input": Field("string"),
+    "mode": Field("choice", choices=MODES), "range": Field("list"), "curve": Field("choice", choices=CURVES),
+    "takeover": Field("choice", choices=TAKEOVERS), "step": Field("number", 0, above_low=True),
+    "deadzone": Field("number", 0, 1, below_high=True), "invert": Field("bool"),
+}
 
 
 @dataclass(frozen=True, eq=False)  # identity: each control of a file is its own, and hashing stays cheap
@@ -75,30 +90,27 @@ def parse_hid_id(text: object, fail=None) -> tuple[int, int]:
     return int(match.group(1), 16), int(match.group(2), 16)
 
 
-def _line_of(text: str, needle: str, start: int = 0) -> int:
-    """1-based line of the first `needle` at or after character `start` (for error messages)."""
-    at = text.find(needle, start)
-    return text.count("\n", 0, at) + 1 if at >= 0 else 0
+def load_mapping(path: str | Path, state: ControlState | None = None, text: str | None = None,
+                 strict_styles: bool = False) -> Mapping:
+    """The mapping file at `path` (or, given `text`, that TOML, with errors naming `path`).
 
-
-def load_mapping(path: str | Path, state: ControlState | None = None, text: str | None = None) -> Mapping:
-    """The mapping file at `path` (or, given `text`, that TOML, with errors naming `path`)."""
+    Its [presets] and the ranges of its controls are checked by the one check of every control
+    value (control/checks.py). With `state`, targets are checked against its model; a style the
+    model lacks is refused with `strict_styles` (a mapping the user names), else left for
+    `style_problems` to warn about (a shipped or logged mapping, written for another model)."""
     path = Path(path)
-    text, data = read_toml(path) if text is None else (text, parse_toml(text, path))
-    starts = [m.start() for m in re.finditer(r"^\s*\[\[control\]\]", text, re.MULTILINE)]
+    doc = TomlFile(path, text)
+    text, data = doc.text, doc.data
+    model = model_of(state, strict_styles)
 
     def fail(message: str, key: str, index: int | None = None) -> UserError:
-        begin = starts[index] if index is not None and index < len(starts) else 0
-        line = _line_of(text, key, begin) or (_line_of(text, "[[control]]", begin) if index is not None else 1)
-        return UserError(f"{path}:{line}: {key}: {message}")
+        if index is not None:
+            return doc.error(("control", index, key), message, key)
+        places = [(key,), ("device", key), ("feedback", key), ("feedback", "colours", key)]
+        return doc.error(next((p for p in places if p in doc.lines), (key,)), message, key)
 
-    allowed_top = {"name", "device", "control", "presets", "morph", "feedback"}
-    for key in data:
-        if key not in allowed_top:
-            raise fail(f"unknown key (expected one of {', '.join(sorted(allowed_top))})", key)
+    doc.check((), data, TOP)
     device = data.get("device", {})
-    if not isinstance(device, dict):
-        raise fail("must be a table", "device")
     midi, hid = device.get("midi"), device.get("hid")
     for key in device:
         if key not in ("midi", "hid", "hid-usages"):
@@ -117,55 +129,25 @@ def load_mapping(path: str | Path, state: ControlState | None = None, text: str 
     hid_ids = None
     if hid is not None:
         hid_ids = tuple(parse_hid_id(h, lambda m: fail(m, "hid")) for h in (hid if isinstance(hid, list) else [hid]))
-    raw_controls = data.get("control", [])
-    if not isinstance(raw_controls, list):
-        raise fail("use [[control]] tables", "control")
-    controls = [_control(item, k, fail, state) for k, item in enumerate(raw_controls)]
-    presets = {}
-    for name, values in (data.get("presets") or {}).items():
-        if not isinstance(values, dict) or not all(is_number(v) for v in values.values()):
-            raise fail("a preset is a table of target = finite number", name)
-        for target in values:
-            if state is not None and not state.knows(target) and target.split("/")[0] not in ("style", "part"):
-                raise fail(f"unknown target {target!r}", target)
-        presets[name] = {k: float(v) for k, v in values.items()}
+    controls = [_control(doc, item, k, fail, model) for k, item in enumerate(data.get("control", []))]
+    presets = read_presets(doc, model)
     morph = data.get("morph", 0.0)
-    if not isinstance(morph, (int, float)) or morph < 0:
-        raise fail("must be a number of seconds, 0 or more", "morph")
     feedback = parse_feedback(data["feedback"], fail) if "feedback" in data else None
     return Mapping(str(data.get("name", path.stem)), str(path), midi, hid_ids, tuple(controls), presets, float(morph),
                    tuple(usages), feedback, text)
 
 
-def _control(item: dict, index: int, fail, state: ControlState | None) -> ControlSpec:
-    if not isinstance(item, dict):
-        raise fail("must be a table", "control", index)
-    known = {f for f in ControlSpec.__dataclass_fields__}
-    for key in item:
-        if key not in known:
-            raise fail(f"unknown key (expected {', '.join(sorted(known))})", key, index)
-    for key in ("message", "target"):
-        if key not in item:
-            raise fail("missing", key, index)
+def _control(doc: TomlFile, item: dict, index: int, fail, model: tuple) -> ControlSpec:
+    doc.check(("control", index), item, CONTROL)
     message = item["message"]
-    if message not in MESSAGES:
-        raise fail(f"{message!r} is not one of {', '.join(MESSAGES)}", "message", index)
     values = dict(item)
     if "range" in values:
         r = values["range"]
-        if not (isinstance(r, list) and len(r) == 2 and all(is_number(v) for v in r) and r[0] != r[1]):
+        if not (len(r) == 2 and all(is_number(v) for v in r) and r[0] != r[1]):
             raise fail("expected [low, high], two different finite numbers", "range", index)
         values["range"] = (float(r[0]), float(r[1]))
-    checks = [
-        ("mode", MODES), ("takeover", TAKEOVERS), ("curve", CURVES),
-    ]
-    for key, choices in checks:
-        if key in values and values[key] not in choices:
-            raise fail(f"{values[key]!r} is not one of {', '.join(choices)}", key, index)
-    if "channel" in values and not (isinstance(values["channel"], int) and 1 <= values["channel"] <= 16):
-        raise fail("must be 1 to 16", "channel", index)
     limit = 16383 if message == "nrpn" else 127
-    if message in ("cc", "cc14", "nrpn", "note") and not (isinstance(values.get("number"), int) and 0 <= values["number"] <= limit):
+    if message in ("cc", "cc14", "nrpn", "note") and not ("number" in values and values["number"] <= limit):
         raise fail(f"must be a whole number 0 to {limit}", "number", index)
     if message == "cc14" and values["number"] > 31:
         raise fail("a 14-bit pair has its MSB on CC 0 to 31 (the LSB is number + 32)", "number", index)
@@ -174,17 +156,15 @@ def _control(item: dict, index: int, fail, state: ControlState | None) -> Contro
         if values["input"] is None:
             raise fail(f"{item.get('input')!r} is not a HID usage name (X, Y, Z, Rx, Ry, Rz, Slider, Dial, Wheel, Hat/up, "
                        "Button 1, PPPP:UUUU, ...)", "input", index)
-    if "step" in values and not (is_number(values["step"]) and values["step"] > 0):
-        raise fail("must be a number above 0", "step", index)
-    if "deadzone" in values and not (is_number(values["deadzone"]) and 0 <= values["deadzone"] < 1):
-        raise fail("must be a share of the half-travel, 0 or more and below 1", "deadzone", index)
     target = values["target"]
-    style_target = isinstance(target, str) and target.split("/")[0] in ("style", "part")  # checked against the model later
-    if not isinstance(target, str) or (state is not None and not style_target and not state.knows(target)
-                                       and not target.startswith("preset/")):
-        raise fail(f"unknown target {target!r}", "target", index)
-    if target.startswith("preset/") and not PRESET_NAME.match(target[len("preset/"):]):
-        raise fail(f"{target!r}: a preset name is 1 to 40 letters, digits, '_', '.', '-'", "target", index)
+    row = row_of(target, *model)
+    if row is None or row.kind == "store":
+        raise fail(unknown(target, model[0]).text if row is None else f"{target}: a mapping recalls presets, "
+                   "it does not store them", "target", index)
+    for end in item.get("range", (0.0, 1.0)):  # every value the control can send is inside the target's range
+        why = value_refusal(row, target, end)
+        if why is not None:
+            raise fail(f"the control's range sends {end:g}: {why.text}", "range" if "range" in values else "target", index)
     return ControlSpec(**values)
 
 
@@ -195,9 +175,9 @@ def preset_problems(mapping: Mapping, presets: dict[str, dict[str, float]]) -> l
 
 
 def target_line(mapping: Mapping, target: str) -> int:
-    """The 1-based line of the mapping's text that sets `target = "..."` (for error messages), or 1."""
-    found = re.search(rf"""^[ \t]*target[ \t]*=[ \t]*["']{re.escape(target)}["']""", mapping.text, re.MULTILINE)
-    return mapping.text.count("\n", 0, found.start()) + 1 if found else 1
+    """The 1-based line of the mapping's text where a control's `target = "..."` is `target` (for error messages), or 1."""
+    index = next((k for k, c in enumerate(mapping.controls) if c.target == target), None)
+    return 1 if index is None else key_lines(mapping.text).get(("control", index, "target"), 1)
 
 
 def style_problems(mapping: Mapping, state: ControlState) -> list[str]:
@@ -312,7 +292,7 @@ class Mapper:
         if spec.curve == "exp":
             unit = unit * unit
         low, high = spec.range
-        return low + (high - low) * unit
+        return between(low + (high - low) * unit, low, high)
 
     def _relative(self, state: ControlState, spec: ControlSpec, ticks: int) -> float:
         low, high = sorted(spec.range)
@@ -346,7 +326,7 @@ class Mapper:
                 return position
             value = current + (position - previous) * (end - current) / (end - previous)
             memory.last_accepted = time
-            return value
+            return between(value, current, end)
         near = abs(position - current) <= PICKUP_THRESHOLD * span
         crossed = (previous - current) * (position - current) < 0
         recent = time - memory.last_accepted <= FAST_SWEEP

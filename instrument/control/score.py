@@ -16,20 +16,25 @@ performance time; a performer who moves a ramped target takes it over and the ra
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import UserError
-from ..tomlfile import read_toml
+from ..tomlfile import Field, TomlFile
+from .checks import between, row_of
 from .events import ControlEvent
+from .presetfile import held_values, model_of, read_presets
 from .state import ControlState
 
 SOURCE = "score"
 CURVES = ("linear", "ease")
 ACTIONS = ("ramp", "preset", "hold", "wait", "repeat")
-CUE_KEYS = ("at", "after", "mark", "over", "curve", "times") + ACTIONS
-TOP_KEYS = ("name", "loop", "presets", "cue")
+SECONDS = Field("number", 0, units="seconds")
+# the file's schema (tomlfile.Field); what spans keys (one action a cue, at or after, ...) is checked in _cue
+TOP = {"name": Field("string"), "loop": Field("bool"), "presets": Field("table"), "cue": Field("list")}
+CUE = {"at": SECONDS, "after": SECONDS, "mark": Field("string"), "over": SECONDS, "curve": Field("choice", choices=CURVES),
+       "times": Field("whole", 1), "ramp": Field("table"), "preset": Field("string"), "hold": SECONDS,
+       "wait": Field("string"), "repeat": Field("string")}
 
 
 @dataclass(frozen=True)
@@ -55,49 +60,27 @@ class Score:
     loop: bool = False
 
 
-def _number(value: object) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-
-
 def load_score(path: str | Path, state: ControlState, presets: dict[str, dict[str, float]] | None = None,
                loop: bool | None = None) -> Score:
     """Read and check a score against the model's targets and the known presets; a mistake is
     one line naming the file, the line and the key."""
-    path = Path(path)
-    text, data = read_toml(path)
-    starts = [m.start() for m in re.finditer(r"^\s*\[\[cue\]\]", text, re.MULTILINE)]
-
-    def line_of(key: str, begin: int = 0) -> int:
-        found = re.search(rf"(^|[{{,])\s*\"?{re.escape(key)}\"?\s*=", text[begin:], re.MULTILINE)  # also inside { }
-        return text.count("\n", 0, begin + found.start()) + 1 if found else text.count("\n", 0, begin) + 1
+    doc = TomlFile(path)
+    data = doc.data
+    model = model_of(state)
 
     def fail(message: str, key: str, index: int | None = None) -> UserError:
-        begin = starts[index] if index is not None and index < len(starts) else 0
-        return UserError(f"{path}:{line_of(key, begin)}: {key}: {message}")
+        return doc.error((key,) if index is None else ("cue", index, key), message, key)
 
-    for key in data:
-        if key not in TOP_KEYS:
-            raise fail(f"unknown key (expected one of {', '.join(TOP_KEYS)})", key)
-    if not isinstance(data.get("loop", False), bool):
-        raise fail("expected true or false", "loop")
-    if not isinstance(data.get("name", ""), str):
-        raise fail("expected a string", "name")
+    doc.check((), data, TOP)
     known = dict(presets or {})
-    own = data.get("presets", {})
-    if not isinstance(own, dict):
-        raise fail("expected [presets.NAME] tables", "presets")
-    for name, values in own.items():
-        if not isinstance(values, dict):
-            raise fail("a preset is a table of target = number", name)
-        known[name] = _values(values, state, lambda message, key: fail(message, key))
+    known.update(read_presets(doc, model))
     raw = data.get("cue", [])
     if not isinstance(raw, list) or not raw:
-        raise UserError(f"{path}:1: cue: a score needs [[cue]] tables")
+        raise UserError(f"{doc.path}:1: cue: a score needs [[cue]] tables")
     cues: list[Cue] = []
     marks: dict[str, int] = {}
     for index, item in enumerate(raw):
-        cue = _cue(item, index, state, known, marks, lambda message, key, i=index: fail(message, key, i),
-                   line=text.count("\n", 0, starts[index]) + 1 if index < len(starts) else 1)
+        cue = _cue(item, index, doc, model, known, marks, lambda message, key, i=index: fail(message, key, i))
         if cue.at is not None:
             earlier = [c.at for c in cues if c.at is not None]
             if earlier and cue.at < earlier[-1]:
@@ -109,7 +92,7 @@ def load_score(path: str | Path, state: ControlState, presets: dict[str, dict[st
         cues.append(cue)
     if (data.get("loop", False) if loop is None else loop) and not _lasts(cues):
         raise fail("a looping score must take some time (add a hold or a ramp's over)", "loop")
-    return Score(data.get("name", path.stem), str(path), tuple(cues), data.get("loop", False) if loop is None else loop)
+    return Score(data.get("name", Path(path).stem), str(path), tuple(cues), data.get("loop", False) if loop is None else loop)
 
 
 def _lasts(cues: list[Cue], since: float = 0.0) -> bool:
@@ -117,29 +100,8 @@ def _lasts(cues: list[Cue], since: float = 0.0) -> bool:
     return any(c.wait or c.hold > 0 or c.over > 0 or c.after > 0 or (c.at or 0.0) > since for c in cues)
 
 
-def _values(values: dict, state: ControlState, fail) -> dict[str, float]:
-    """target = number pairs, each a target the state knows and a value inside its range."""
-    probe = ControlState(state.style_names, state.states)
-    out = {}
-    for target, value in values.items():
-        if target in ("reset", "cue") or not state.knows(target):
-            raise fail("not a target a score can move (style/<name>, part/<style>/<group>, speed, turn, "
-                       "liveliness, spread, phase/<k>)", target)
-        if not _number(value):
-            raise fail("expected a number", target)
-        probe.set(target, float(value))
-        if probe.get(target) != float(value):
-            raise fail(f"{value} is out of range (this target goes to {probe.get(target):g})", target)
-        out[target] = float(value)
-    return out
-
-
-def _cue(item: object, index: int, state: ControlState, presets: dict, marks: dict, fail, line: int) -> Cue:
-    if not isinstance(item, dict):
-        raise fail("must be a table", "cue")
-    for key in item:
-        if key not in CUE_KEYS:
-            raise fail(f"unknown key (expected one of {', '.join(CUE_KEYS)})", key)
+def _cue(item: object, index: int, doc: TomlFile, model: tuple, presets: dict, marks: dict, fail) -> Cue:
+    doc.check(("cue", index), item, CUE)
     actions = [a for a in ACTIONS if a in item]
     if len(actions) != 1:
         raise fail(f"a cue does one thing: one of {', '.join(ACTIONS)}" + (f", not {' and '.join(actions)}" if actions else ""),
@@ -147,29 +109,23 @@ def _cue(item: object, index: int, state: ControlState, presets: dict, marks: di
     action = actions[0]
     if "at" in item and "after" in item:
         raise fail("give at or after, not both", "after")
-    for key in ("at", "after", "over", "hold"):
-        if key in item and not (_number(item[key]) and item[key] >= 0):
-            raise fail("expected a number of seconds, 0 or more", key)
     for key in ("over", "curve"):
         if key in item and action not in ("ramp", "preset"):
             raise fail(f"only for a ramp or a preset, not for {action}", key)
     if "times" in item and action != "repeat":
         raise fail("only for a repeat", "times")
     curve = item.get("curve", "linear")
-    if curve not in CURVES:
-        raise fail(f"{curve!r} is not one of {', '.join(CURVES)}", "curve")
     mark = item.get("mark")
-    if mark is not None and (not isinstance(mark, str) or mark in marks):
+    if mark in marks:
         raise fail("expected a name no other cue has", "mark")
     kwargs: dict = {}
     if action == "ramp":
-        if not isinstance(item["ramp"], dict) or not item["ramp"]:
-            raise fail("expected a table of target = value, e.g. { \"style/elderly\" = 1.0 }", "ramp")
-        kwargs["ramp"] = _values(item["ramp"], state, fail)
+        kwargs["ramp"] = held_values(doc, ("cue", index, "ramp"), item["ramp"], model, "ramp")
     elif action == "preset":
         if item["preset"] not in presets:
             raise fail(f"no preset {item['preset']!r} (known: {', '.join(sorted(presets)) or 'none'})", "preset")
-        kwargs["ramp"] = dict(presets[item["preset"]])
+        # a shipped mapping's preset may name a style this model lacks (kept for a warning): not rampable
+        kwargs["ramp"] = {t: v for t, v in presets[item["preset"]].items() if row_of(t, *model) is not None}
     elif action == "hold":
         if item["hold"] <= 0:
             raise fail("expected a positive number of seconds", "hold")
@@ -182,10 +138,8 @@ def _cue(item: object, index: int, state: ControlState, presets: dict, marks: di
         if item["repeat"] not in marks:
             raise fail(f"no earlier cue has mark = {item['repeat']!r}", "repeat")
         times = item.get("times")
-        if times is not None and not (isinstance(times, int) and not isinstance(times, bool) and times >= 1):
-            raise fail("expected a whole number, 1 or more", "times")
         kwargs.update(repeat=marks[item["repeat"]], times=times)
-    return Cue(line=line, at=float(item["at"]) if "at" in item else None, after=float(item.get("after", 0.0)),
+    return Cue(line=doc.line("cue", index), at=float(item["at"]) if "at" in item else None, after=float(item.get("after", 0.0)),
                over=float(item.get("over", 0.0)), curve=curve, mark=mark, **kwargs)
 
 
@@ -214,7 +168,9 @@ class _Ramp:
 
     def value(self, now: float) -> float:
         share = 1.0 if self.over <= 0 else min(max((now - self.start) / self.over, 0.0), 1.0)
-        return self.last if share >= 1.0 else self.first + (self.last - self.first) * eased(share, self.curve)
+        if share >= 1.0:
+            return self.last
+        return between(self.first + (self.last - self.first) * eased(share, self.curve), self.first, self.last)
 
 
 class ScorePlayer:

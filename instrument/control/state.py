@@ -1,16 +1,8 @@
 """Control state: what the performer has set, as named targets, snapshotted once per frame.
 
-Targets (what each accepts, and the one check every input goes through: control/targets.py):
-    style/<name>            weight of a style (0 absent, 1 the style, >1 exaggerated, <0 inverted)
-    part/<style>/<group>    weight of a style for one body part (root, legs, upper); NaN follows style/<name>
-    speed                   step rate relative to the model's (0.25 to 4)
-    phase/<k>               stretch of state k (1-based) of every step (0.25 to 4)
-    turn                    steering, radians per second (positive turns left)
-    liveliness              0: every step alike; 1: durations drawn from the model
-    spread                  a crowd's style spread: 0 every character as performed; 1 each its own mix
-    morph                   seconds a recalled preset takes to arrive (0: at once); a reset keeps it
-    reset                   any value: everything back to the start
-    cue                     a press: a score waiting for the performer goes on
+The targets, what each accepts and where it starts are the rows of control/spec.py; every value
+is checked by control/checks.py before it lands here (a refused value changes nothing). The
+action rows preset/<name> and store/<name> are the hub's (it holds the presets).
 
 Presets are named sets of target values; recalling one moves there at once or over the morph
 time, by performance time (so a replayed performance morphs identically). The morph time is a
@@ -23,7 +15,8 @@ import numpy as np
 
 from ..synthesis.parameters import GROUPS
 from ..synthesis.stream import Controls
-from .targets import clamped, kind_of, problem
+from . import spec
+from .checks import Refusal, between, refusal, row_of
 
 
 class ControlState:
@@ -32,40 +25,49 @@ class ControlState:
         self.style_index = {name: k for k, name in enumerate(self.style_names)}
         self.states = states
         self.cue_presses = 0  # how often the performer pressed the score's cue button (a reset keeps it)
-        self.morph_time = 0.0  # seconds a recall takes: how presets behave, not a performed value (a reset keeps it)
+        self.morph_time = spec.TABLE["morph"].default  # seconds a recall takes: how presets behave (a reset keeps it)
+        names = spec.names(self.style_names, states)
+        self.value_targets = [t for t in names if not spec.TABLE[t.split("/")[0]].action]  # in the rows' order
+        self.echoed_targets = [t for t in names if spec.TABLE[t.split("/")[0]].echoed]
         self.reset()
 
     def reset(self) -> None:
         self.morph: tuple[float, float, dict[str, tuple[float, float]]] | None = None  # start, seconds, target: (from, to)
-        self.weights = np.zeros(len(self.style_names))
-        self.part_weights = np.full((len(self.style_names), len(GROUPS)), np.nan)
-        self.speed = 1.0
-        self.turn = 0.0
-        self.liveliness = 0.0
-        self.spread = 0.0  # read by a crowd (synthesis/engine.py), not part of one walker's Controls
-        self.state_scale = np.ones(self.states)
+        rows = spec.TABLE
+        self.weights = np.full(len(self.style_names), rows["style"].default)
+        self.part_weights = np.full((len(self.style_names), len(GROUPS)), rows["part"].default)
+        self.speed = rows["speed"].default
+        self.turn = rows["turn"].default
+        self.liveliness = rows["liveliness"].default
+        self.spread = rows["spread"].default  # read by a crowd (synthesis/engine.py), not part of one walker's Controls
+        self.state_scale = np.full(self.states, rows["phase"].default)
 
     def targets(self) -> list[str]:
-        names = [f"style/{s}" for s in self.style_names]
-        names += [f"part/{s}/{g}" for s in self.style_names for g in GROUPS]
-        names += ["speed", "turn", "liveliness", "spread", "morph", "reset", "cue"] + [f"phase/{k + 1}" for k in range(self.states)]
-        return names
+        """Every target of this model (spec.names: preset/<name> and store/<name> aside)."""
+        return spec.names(self.style_names, self.states)
 
     def knows(self, target: str) -> bool:
-        return kind_of(target, self.style_index, self.states) is not None
+        return row_of(target, self.style_index, self.states) is not None
+
+    def refusal(self, target: object, value: object) -> Refusal | None:
+        """Why this state would refuse (target, value) (control/checks.py), or None."""
+        return refusal(target, value, self.style_index, self.states)
 
     def problem(self, target: object, value: object) -> str | None:
-        """Why this state would refuse (target, value) (see control/targets.py), or None."""
-        return problem(target, value, self.style_index, self.states)
+        """The kind of `refusal` ('unknown target', 'out of range', ...): what a live input counts by."""
+        why = self.refusal(target, value)
+        return None if why is None else why.kind
 
     def set(self, target: str, value: float) -> bool:
-        """Apply one value, clamped to the target's range; False (and nothing changes) for an
-        unknown target or a value that is not a finite number."""
-        if self.problem(target, value) is not None:
+        """Apply one value; False (and nothing changes) when checks.refusal refuses it (an
+        unknown target, not a finite number, out of range), or for the hub's preset/ and store/."""
+        if self.refusal(target, value) is not None:
             return False
-        kind = kind_of(target, self.style_index, self.states)
         parts = target.split("/")
-        value = clamped(kind, value)
+        kind = parts[0]
+        value = float(value)
+        if kind in ("preset", "store"):
+            return False
         if kind == "style":
             self.weights[self.style_index[parts[1]]] = value
         elif kind == "part":
@@ -114,7 +116,7 @@ class ControlState:
         start, seconds, moves = self.morph
         share = min(max((now - start) / seconds, 0.0), 1.0)
         for target, (first, last) in moves.items():
-            self.set(target, first + (last - first) * share)
+            self.set(target, last if share >= 1.0 else between(first + (last - first) * share, first, last))
         if share >= 1.0:
             self.morph = None
 
@@ -123,7 +125,5 @@ class ControlState:
         return Controls(self.weights.copy(), parts, self.speed, self.state_scale.copy(), self.liveliness, self.turn)
 
     def echo(self) -> dict[str, float]:
-        """The values a control surface shows: every style weight, speed, turn, liveliness, spread."""
-        out = {f"style/{s}": float(w) for s, w in zip(self.style_names, self.weights)}
-        out.update(speed=self.speed, turn=self.turn, liveliness=self.liveliness, spread=self.spread)
-        return out
+        """The values a control surface shows: the targets of the rows marked `echoed` (control/spec.py)."""
+        return {t: self.get(t) for t in self.echoed_targets}

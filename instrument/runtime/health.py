@@ -15,6 +15,7 @@ import socket
 import time
 from typing import Callable
 
+from ..cli.arguments import host_port
 from ..errors import UserError
 from .clock import FrameClock
 from .console import Console
@@ -59,11 +60,7 @@ class Health:
         self.frames = self.late = self.dropped = 0
         self.sock = None
         if status_address:
-            host, _, port = status_address.rpartition(":")
-            try:
-                number = int(port)
-            except ValueError:
-                raise UserError(f"--status-port {status_address!r}: expected [HOST:]PORT") from None
+            host, number, _ = host_port("run --status-port", status_address)
             self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             try:
                 self.sock.bind((host or "127.0.0.1", number))

@@ -90,25 +90,32 @@ function zones(low, high) {
   return div;
 }
 
+// The sliders are the instrument's table of targets (control/spec.py), as the hello message
+// carries it: one row a kind of target, with its range, the slider's travel and its section.
+function expand(row) {
+  // [target, label, group title or null] of each target a row stands for, for this model
+  if (row.kind === "style") return hello.styles.map((s) => ["style/" + s, s, null]);
+  if (row.kind === "part") return hello.styles.flatMap((s) => hello.groups.map((g, k) => [`part/${s}/${g}`, g, k === 0 ? s : null]));
+  if (row.kind === "phase") return Array.from({ length: hello.states }, (_, k) => ["phase/" + (k + 1), "state " + (k + 1), null]);
+  return [[row.pattern, row.units === "s" ? row.kind + " s" : row.kind, null]];
+}
+
 function build(message) {
   hello = message;
   controls.clear();
   for (const id of ["styles", "walk", "parts", "phases", "morph", "pad-styles"]) $(id).replaceChildren();
-  const r = hello.ranges;
-  for (const style of hello.styles) slider($("styles"), "style/" + style, style, r.weight, r.slider, true);
-  slider($("walk"), "speed", "speed", r.speed);
-  slider($("walk"), "turn", "turn", r.turn);
-  slider($("walk"), "liveliness", "liveliness", r.liveliness);
-  slider($("walk"), "spread", "spread", r.spread);
-  for (const style of hello.styles) {
-    const title = document.createElement("div");
-    title.className = "group";
-    title.textContent = style;
-    $("parts").append(title);
-    for (const group of hello.groups) slider($("parts"), `part/${style}/${group}`, group, r.weight, r.slider);
+  for (const row of hello.rows) {
+    for (const [target, label, title] of expand(row)) {
+      if (title) {
+        const div = document.createElement("div");
+        div.className = "group";
+        div.textContent = title;
+        $(row.section).append(div);
+      }
+      slider($(row.section), target, label, row.range, row.travel, row.kind === "style");
+      controls.get(target).row.title = row.help;
+    }
   }
-  for (let k = 1; k <= hello.states; k++) slider($("phases"), "phase/" + k, "state " + k, r.phase);
-  slider($("morph"), "morph", "morph s", r.morph, r.morph_slider);
   $("save").disabled = !hello.save;
   $("save").title = hello.save ? "write every preset to " + hello.save : "start the instrument with --presets FILE to save";
   buildPad();
@@ -186,7 +193,8 @@ window.addEventListener("keydown", (event) => {
     if (!event.repeat) setTarget("turn", key === "ArrowLeft" ? 1.0 : -1.0);  // positive turns left
     steering = true;
   } else if (key === "ArrowUp" || key === "ArrowDown") {
-    setTarget("speed", Math.round((latest.v.speed + (key === "ArrowUp" ? 0.1 : -0.1)) * 100) / 100);
+    const [low, high] = hello.rows.find((row) => row.kind === "speed").range;  // past the range is refused: stop at its ends
+    setTarget("speed", Math.min(Math.max(Math.round((latest.v.speed + (key === "ArrowUp" ? 0.1 : -0.1)) * 100) / 100, low), high));
   } else if (/^[1-9]$/.test(key)) {
     const name = latest.presets[Number(key) - 1];
     if (name !== undefined) send({ preset: name });
