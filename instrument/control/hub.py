@@ -14,6 +14,7 @@ from ..runtime.console import Console
 from .eventlog import EventLog
 from .events import ControlEvent
 from .loghead import header_line
+from .kinds import kind_of, reads
 from .mapping import Mapper, Mapping
 from .state import ControlState
 from .targets import PRESET_NAME, raw_problem
@@ -28,8 +29,8 @@ class ControlHub:
             self.presets.update(m.presets)
         self.presets.update(presets or {})  # a show file's presets win over a mapping's
         self.morph = morph or max([m.morph for m in mappings], default=0.0)  # the state's start morph time (start())
-        self.midi = next((Mapper(m, self.presets) for m in mappings if m.midi is not None), None)
-        self.hid = next((Mapper(m, self.presets) for m in mappings if m.hid is not None or m.hid_usages), None)
+        self.midi = next((Mapper(m, self.presets) for m in mappings if reads("midi", m)), None)
+        self.hid = next((Mapper(m, self.presets) for m in mappings if reads("hid", m)), None)
         self.console = console
         self.refused: dict[str, int] = {}  # kind of refusal -> events refused
         self.log: EventLog | None = None
@@ -65,7 +66,7 @@ class ControlHub:
         """Why the event was refused, or None once it is applied."""
         if not isinstance(event.source, str):
             return "no source"
-        device = event.source.split(":")[0]
+        device = kind_of(event.source)
         if device in ("midi", "hid"):
             why = raw_problem(event.source, event.control, event.value)
             if why is not None:

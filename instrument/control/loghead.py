@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 from ..errors import located
 from ..textfile import read_text
 from .events import ControlEvent
+from .kinds import MAPPED, kind_of, reads, title
 from .mapping import Mapping, load_mapping
 
 if TYPE_CHECKING:
@@ -88,10 +89,5 @@ def logged_crowd(path: str | Path) -> tuple[dict, str]:
 
 def unreadable_sources(events: list[ControlEvent], mappings: list[Mapping]) -> list[str]:
     """Device kinds ("MIDI", "HID") that have events in the log but no mapping to read them."""
-    kinds = {e.source.split(":", 1)[0] for e in events}
-    missing = []
-    if "midi" in kinds and not any(m.midi is not None for m in mappings):
-        missing.append("MIDI")
-    if "hid" in kinds and not any(m.hid is not None for m in mappings):
-        missing.append("HID")
-    return missing
+    kinds = {kind_of(e.source) for e in events}
+    return [title(kind) for kind in MAPPED if kind in kinds and not any(reads(kind, m) for m in mappings)]
