@@ -12,7 +12,7 @@ from ..control.events import LogReplay, read_log
 from ..control.hid import HidInput
 from ..control.hid import choose_mapping as choose_hid_mapping
 from ..control.hid_feedback import HidFeedback
-from ..control.loghead import header_line, logged_crowd, logged_mappings, unreadable_sources
+from ..control.loghead import header_line, logged_crowd, logged_mappings, logged_per_device, unreadable_sources
 from ..control.mapping import load_mapping, parse_hid_id, preset_problems, style_problems, target_line
 from ..errors import UserError
 from ..output.osc import FLAT_PORT, VMC_PORT, OscTarget, parse_target
@@ -260,8 +260,8 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
               if args.replay else None)
     missing = unreadable_sources(replay.events, mappings) if replay else []
     if missing:
-        raise UserError(f"{args.replay}: has {' and '.join(missing)} events but no mapping to read them "
-                        "(the log has no mapping header): give the --mapping it was recorded with")
+        raise UserError(f"{args.replay}: has {' and '.join(missing)} events but no mapping to read them: "
+                        "give the --mapping it was recorded with")
     score_path = args.score or (None if live or args.replay else demo_score_path())
     targets = [] if args.no_osc else [parse_target(t) for t in (args.osc or DEFAULT_TARGETS)]
     for target in targets:
@@ -270,7 +270,8 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
                             f"{target.port + vmc_characters - 1}, past 65535")
     outputs, devices, hub, created, health = [], [], None, [], None
     try:
-        hub = ControlHub(mappings, presets, None, morph, console)
+        hub = ControlHub(mappings, presets, None, morph, console,
+                         per_device=logged_per_device(args.replay) if args.replay else True)  # as the log was played
         hub.start(state)
         for mapping in mappings:
             for target in preset_problems(mapping, hub.presets):
@@ -292,13 +293,15 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
             raise UserError(f"{args.config}: attract: needs a controller (midi, hid or osc-in) whose input it waits for")
         if args.midi or args.midi_virtual:
             devices.append(MidiInput(console, args.midi, args.midi_virtual, args.midi_api))
-            if hub.midi is not None and not args.no_feedback:
-                outputs.append(MidiFeedback(hub.midi, state, console, args.midi, args.midi_virtual, args.midi_api))
+            mapper = hub.mapper(devices[-1].source)  # the device's own, which its feedback follows
+            if mapper is not None and not args.no_feedback:
+                outputs.append(MidiFeedback(mapper, state, console, args.midi, args.midi_virtual, args.midi_api))
         if args.hid:
             vendor, product = parse_hid_id(args.hid)
             devices.append(HidInput(console, vendor, product))
-            if hub.hid is not None and hub.hid.mapping.feedback is not None and not args.no_feedback:
-                outputs.append(HidFeedback(devices[-1], hub.hid.mapping.feedback, console))
+            mapper = hub.mapper(devices[-1].source)
+            if mapper is not None and mapper.mapping.feedback is not None and not args.no_feedback:
+                outputs.append(HidFeedback(devices[-1], mapper.mapping.feedback, console))
         if args.osc_in:
             devices.append(OscInput(console, args.osc_in if ":" in args.osc_in else f"127.0.0.1:{args.osc_in}"))
         if args.console:
@@ -325,7 +328,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
             outputs.append(RecorderOutput(args.bvh, model, fps, replace=args.force, character=bvh_character))
             created.append(args.bvh)
         if args.record:
-            hub.start_recording(args.record, header_line(mappings, characters, spacing), replace=args.force)
+            hub.start_recording(args.record, header_line(mappings, characters, spacing, hub.per_device), replace=args.force)
             created.append(args.record)
         health = Health(console, outputs, devices, SystemdNotifier(), health_every, args.status_port)  # watches every output
     except UserError:
