@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import re
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -12,6 +11,7 @@ from ..control.events import LogReplay, read_log
 from ..control.hid import HidInput
 from ..control.hid import choose_mapping as choose_hid_mapping
 from ..control.hid_feedback import HidFeedback
+from ..control.kinds import midi_fits
 from ..control.loghead import header_line, logged_crowd, logged_mappings, logged_per_device, unreadable_sources
 from ..control.mapping import load_mapping, parse_hid_id, preset_problems, style_problems, target_line
 from ..errors import UserError
@@ -158,13 +158,7 @@ def choose_mappings(args: argparse.Namespace, state: ControlState, console: Cons
     wanted_midi = args.midi or args.midi_virtual
     if wanted_midi and not any(m.midi for m in mappings):
         shipped = [load_mapping(p, state) for p in shipped_mappings()]
-        def fits(m) -> bool:  # the device's pattern matches what the user named, or the other way round
-            try:
-                return bool(re.search(m.midi, wanted_midi, re.IGNORECASE) or re.search(wanted_midi, m.midi, re.IGNORECASE))
-            except re.error:
-                return False
-
-        matching = [m for m in shipped if m.midi and m.midi != "." and fits(m)]
+        matching = [m for m in shipped if midi_fits(m, wanted_midi) == 2]  # the hub's rule (control/kinds.py)
         generic = [m for m in shipped if m.midi == "."]
         chosen = (matching or generic)[:1]
         if chosen:

@@ -7,6 +7,7 @@ console and reopened about once a second, while the walk goes on.
 
 from __future__ import annotations
 
+import functools
 import re
 import socket
 import time
@@ -48,6 +49,14 @@ def midi_raw(message) -> tuple[str, float] | None:
 def raw_from_bytes(data: list[int]) -> tuple[str, float] | None:
     """A MIDI message as the port delivered it (status and data bytes), parsed by mido, as a raw
     control id and value; None for other messages and for bytes that are no message at all."""
+    return _raw_from_bytes(tuple(data))
+
+
+@functools.lru_cache(maxsize=4096)
+def _raw_from_bytes(data: tuple[int, ...]) -> tuple[str, float] | None:
+    """Remembered: a controller sends the same few hundred messages over and over, and mido's
+    parsing (a few microseconds) would otherwise cost a flood several times what the frame
+    loop's input budget takes of the old hand decoding."""
     import mido
 
     try:
@@ -178,8 +187,7 @@ class MidiInput:
     def describe(self) -> str:
         if self.remaker is not None and self.remaker.busy:
             return f"{self.source} waiting for the JACK server"
-        port = f" ({self.port_name})" if self.open and self.port_name != self.virtual else ""
-        return f"{self.source}{port} {'on' if self.open else 'waiting'}"
+        return f"{self.source} {'on' if self.open else 'waiting'}"  # the port it found: said when it connects
 
     def close(self) -> None:
         if self.remaker is not None:

@@ -108,7 +108,8 @@ def read_log(path: str | Path, warn: Callable[[str], None] | None = None) -> lis
 
 
 class LogReplay:
-    """Hands out a log's events as performance time passes; loops when asked."""
+    """Hands out a log's events as performance time passes; loops when asked. A device like any
+    other (control/kinds.py): `poll` is `due`."""
 
     def __init__(self, events: list[RawEvent], loop: bool = False):
         self.events = events
@@ -130,6 +131,14 @@ class LogReplay:
             out.append(event)
             self.position += 1
 
+    poll = due
+
     @property
     def finished(self) -> bool:
         return not self.loop and self.position >= len(self.events)
+
+    def describe(self) -> str:
+        return f"log of {len(self.events)} events" + (" (looped)" if self.loop else "")
+
+    def close(self) -> None:
+        pass

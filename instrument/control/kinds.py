@@ -29,9 +29,9 @@ if TYPE_CHECKING:  # (the hub and the state pull in numpy and the synthesis: not
 
 class Device(Protocol):
     """An input device as the live loop sees it. It never raises into the performance: a device
-    that goes away says so on the console, returns no events and tries again."""
-
-    source: Source  # what its events carry: its kind and its name (stable for the whole run)
+    that goes away says so on the console, returns no events and tries again. A single device
+    also has `source`, the `Source` its events carry (its kind and its name, stable all run long:
+    the hub keeps one decoder per source)."""
 
     def poll(self, now: float) -> list[RawEvent]:
         """What came since the last poll, stamped `now` (performance seconds); quick, never blocking."""
@@ -112,9 +112,11 @@ def unreadable_kinds(sources: set[str], mappings: list[Mapping]) -> list[str]:
             if name in kinds and k.reads is not None and not any(k.reads(m) for m in mappings)]
 
 
-def _midi_fits(mapping: Mapping, name: str) -> int:
+def midi_fits(mapping: Mapping, name: str) -> int:
     """2: the mapping's port pattern and the device's name (a port name or the pattern it was
-    opened by) match one another; 1: a mapping for any port ("."); 0: neither."""
+    opened by) match one another; 1: a mapping for any port ("."); 0: neither (or not a MIDI mapping)."""
+    if mapping.midi is None:
+        return 0
     if mapping.midi == ".":
         return 1
     try:
@@ -130,7 +132,7 @@ def _hid_fits(mapping: Mapping, name: str) -> int:
     return 1 if mapping.hid_usages else 0
 
 
-register(DeviceKind("midi", "MIDI", MappedDecoder, lambda m: m.midi is not None, _midi_fits))
+register(DeviceKind("midi", "MIDI", MappedDecoder, lambda m: m.midi is not None, midi_fits))
 register(DeviceKind("hid", "HID", MappedDecoder, lambda m: m.hid is not None or bool(m.hid_usages), _hid_fits))
 for _direct in ("osc", "console", "score"):  # named, so that docs and messages can list them
     register(DeviceKind(_direct, _direct, DirectDecoder))
