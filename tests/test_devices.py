@@ -204,3 +204,48 @@ def test_a_toy_device_registered_from_a_test_file_drives_the_walk(model, tmp_pat
     finally:
         kinds.REGISTRY.pop("toy")
         receiver.close()
+
+
+def test_run_plays_two_midi_controllers_each_through_its_own_mapping(jack, tmp_path):
+    """`run --midi-virtual A --midi-virtual B` with a mapping for each: the same CC on the two ports
+    drives two targets; the recorded log replays (its header's two mappings) to the same BVH."""
+    import subprocess
+    import sys
+
+    import mido
+    from test_controllers import frames_and_echo, last_frame, wait_for_port
+
+    from oscrecv import Receiver
+    from waiting import wait_until
+
+    files = []
+    for side, target, low, high in (("left", "speed", 0.5, 1.5), ("right", "turn", -1.0, 1.0)):
+        path = tmp_path / f"{side}.toml"
+        path.write_text(f'name = "{side}"\n[device]\nmidi = "cli-{side}"\n'
+                        f'[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "{target}"\nrange = [{low}, {high}]\n')
+        files.append(str(path))
+    receiver = Receiver()
+    log, live, replay = tmp_path / "two.jsonl", tmp_path / "live.bvh", tmp_path / "replay.bvh"
+    command = [sys.executable, "-m", "instrument", "run", "--quiet", "--midi-api", "jack"]
+    process = subprocess.Popen(command + ["--midi-virtual", "cli-left", "--midi-virtual", "cli-right",
+                                          "--mapping", files[0], "--mapping", files[1], "--seconds", "8",
+                                          "--osc", f"127.0.0.1:{receiver.port}/flat", "--record", str(log),
+                                          "--bvh", str(live)], stderr=subprocess.PIPE, text=True)
+    try:
+        senders = [jack.open_output(wait_for_port(jack, f"cli-{side}")) for side in ("left", "right")]
+        wait_until(lambda: last_frame(receiver) >= 15, "15 frames")
+        senders[0].send(mido.Message("control_change", channel=0, control=1, value=127))
+        senders[1].send(mido.Message("control_change", channel=0, control=1, value=0))
+        wait_until(lambda: frames_and_echo(receiver, "/walk/turn")[-1][1] == -1.0, "the right port's turn")
+        for sender in senders:
+            sender.close()
+    finally:
+        stderr = process.communicate(timeout=120)[1]
+        receiver.close()
+    assert process.returncode == 0, stderr
+    assert frames_and_echo(receiver, "/walk/speed")[-1][1] == 1.5  # the left port's, through its own mapping
+    assert {json.loads(line)["source"] for line in log.read_text().splitlines()[1:]} == {"midi:cli-left", "midi:cli-right"}
+    result = subprocess.run(command + ["--replay", str(log), "--no-osc", "--fast", "--seconds", "8", "--bvh", str(replay)],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert filecmp.cmp(live, replay, shallow=False)

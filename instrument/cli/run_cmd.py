@@ -34,7 +34,7 @@ if TYPE_CHECKING:
 DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
 DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "fast": False, "quiet": False,
             "normal_priority": False, "force": False, "vmc_root": "hips", "no_relaxed_hands": False}
-LISTS = ("osc", "mapping")
+LISTS = ("osc", "mapping", "midi", "midi_virtual")
 SHOW_FILE_CHECKS = {"osc": parse_target, "hid": parse_hid_id}  # checked as the file is read, so errors name its line
 PATHS = ("model", "bvh", "replay", "score", "record", "humanoid", "presets", "mapping")  # relative to the show file
 
@@ -56,8 +56,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bvh-character", metavar="K", help="of a crowd, the character --bvh records (default 0)")
     p.add_argument("--vmc-characters", metavar="M", help=f"of a crowd, how many characters (0 to M-1) a VMC target sends, "
                    f"character K on its port + K (default {DEFAULT_VMC_CHARACTERS}; the flat profile carries them all)")
-    p.add_argument("--midi", metavar="PATTERN", help="MIDI input: the first port whose name matches (regular expression)")
-    p.add_argument("--midi-virtual", metavar="NAME", help="create a virtual MIDI input port NAME that other programs connect to")
+    p.add_argument("--midi", action="append", metavar="PATTERN",
+                   help="MIDI input: the first port whose name matches (regular expression); repeatable, one controller each")
+    p.add_argument("--midi-virtual", action="append", metavar="NAME",
+                   help="create a virtual MIDI input port NAME that other programs connect to; repeatable")
     p.add_argument("--midi-api", choices=("alsa", "jack"), help="MIDI system (default: rtmidi's choice, ALSA on Linux)")
     p.add_argument("--no-feedback", action="store_true", default=None,
                    help="send nothing back to the MIDI controller (default: LEDs and motor faders follow the state)")
@@ -155,15 +157,14 @@ def check_presets(presets: dict, state: ControlState, path: str, text: str) -> d
 
 def choose_mappings(args: argparse.Namespace, state: ControlState, console: Console) -> list:
     mappings = [load_mapping(m, state) for m in (args.mapping or [])]
-    wanted_midi = args.midi or args.midi_virtual
+    wanted_midi = (args.midi or []) + (args.midi_virtual or [])  # each port gets the mapping fitting it (control/kinds.py)
     if wanted_midi and not any(m.midi for m in mappings):
         shipped = [load_mapping(p, state) for p in shipped_mappings()]
-        matching = [m for m in shipped if midi_fits(m, wanted_midi) == 2]  # the hub's rule (control/kinds.py)
-        generic = [m for m in shipped if m.midi == "."]
-        chosen = (matching or generic)[:1]
-        if chosen:
-            console.say(f"MIDI mapping: {chosen[0].name} ({chosen[0].path})")
-        mappings += chosen
+        for wanted in wanted_midi:
+            chosen = [m for m in shipped if midi_fits(m, wanted) == 2] or [m for m in shipped if m.midi == "."]
+            if chosen and chosen[0] not in mappings:  # two ports of one model: one mapping, a decoder each
+                console.say(f"MIDI mapping: {chosen[0].name} ({chosen[0].path})")
+                mappings.append(chosen[0])
     if args.hid and not any(m.hid or m.hid_usages for m in mappings):
         shipped = [load_mapping(p, state) for p in shipped_mappings()]
         chosen, why = choose_hid_mapping(shipped, *parse_hid_id(args.hid))
@@ -285,11 +286,11 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         attract = load_attract(args.config, state, hub.presets) if args.config else None
         if attract and not live:
             raise UserError(f"{args.config}: attract: needs a controller (midi, hid or osc-in) whose input it waits for")
-        if args.midi or args.midi_virtual:
-            devices.append(MidiInput(console, args.midi, args.midi_virtual, args.midi_api))
+        for pattern, virtual in [(p, None) for p in args.midi or []] + [(None, v) for v in args.midi_virtual or []]:
+            devices.append(MidiInput(console, pattern, virtual, args.midi_api))
             mapper = hub.mapper(devices[-1].source)  # the device's own, which its feedback follows
             if mapper is not None and not args.no_feedback:
-                outputs.append(MidiFeedback(mapper, state, console, args.midi, args.midi_virtual, args.midi_api))
+                outputs.append(MidiFeedback(mapper, state, console, pattern, virtual, args.midi_api))
         if args.hid:
             vendor, product = parse_hid_id(args.hid)
             devices.append(HidInput(console, vendor, product))
