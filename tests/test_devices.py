@@ -249,3 +249,34 @@ def test_run_plays_two_midi_controllers_each_through_its_own_mapping(jack, tmp_p
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
     assert filecmp.cmp(live, replay, shallow=False)
+
+
+def test_a_log_recorded_before_decoders_per_device_replays_as_it_was_played(model, tmp_path):
+    """A header without "decoders" (every log recorded before): every MIDI device went through the
+    first MIDI mapping, with one memory; the replay does the same, while a new log splits them."""
+    from instrument.control.events import RawEvent, read_log
+    from instrument.control.hub import ControlHub
+    from instrument.control.loghead import header_line, logged_mappings, logged_per_device
+    from instrument.control.mapping import load_mapping
+    from instrument.control.state import ControlState
+
+    state = ControlState(model.style_names, model.states)
+    texts = {"left": 'midi = "left"\n[[control]]\nmessage = "cc14"\nnumber = 1\ntarget = "speed"\nrange = [0.5, 1.5]\n',
+             "right": 'midi = "right"\n[[control]]\nmessage = "cc14"\nnumber = 1\ntarget = "turn"\nrange = [-1.0, 1.0]\n'}
+    mappings = []
+    for side, text in texts.items():
+        (tmp_path / f"{side}.toml").write_text(f'name = "{side}"\n[device]\n' + text)
+        mappings.append(load_mapping(tmp_path / f"{side}.toml", state))
+    # the MSB from one port, the LSB from the other: one pair for a decoder per kind, two halves apart
+    events = [RawEvent(0.0, "midi:left", "cc/1/1", 127.0), RawEvent(0.1, "midi:right", "cc/1/33", 127.0)]
+    results = {}
+    for per_device in (False, True):
+        log = tmp_path / f"{per_device}.jsonl"
+        log.write_text(header_line(mappings, per_device=per_device) + "\n" + "".join(e.to_json() + "\n" for e in events))
+        again = ControlState(model.style_names, model.states)
+        hub = ControlHub(logged_mappings(log, again), per_device=logged_per_device(log))
+        assert all(hub.apply(again, e) for e in read_log(log))
+        results[per_device] = (again.get("speed"), again.get("turn"))
+    assert results[False] == (1.5, 0.0)  # as played then: the left mapping's pair, completed by the right port's LSB
+    # a decoder each: the left's MSB alone (LSB 0), the right's LSB with no MSB yet (nothing)
+    assert results[True][0] == pytest.approx(0.5 + 127 * 128 / 16383) and results[True][1] == 0.0
