@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import re
 
 from ..control.devices import midi_backend
 from ..control.hid import choose_mapping as choose_hid_mapping
 from ..control.hid import describe_controls, device_descriptor, hidapi
+from ..control.kinds import midi_fits
 from ..control.mapping import load_mapping
 from ..errors import UserError
 from ..shipped import shipped_mappings
@@ -30,7 +30,7 @@ def run(args: argparse.Namespace) -> int:
         names = []
         print(f"  (MIDI not available: {error})")
     for name in names:
-        fit = next((m for m in mappings if m.midi and m.midi != "." and re.search(m.midi, name, re.IGNORECASE)), None)
+        fit = next((m for m in mappings if midi_fits(m, name) == 2), None)  # as `run` gives the port its mapping
         print(f"  {name}  ->  {fit.path if fit else 'no shipped mapping (generic: mappings/generic-8-faders.toml)'}")
     if not names:
         print("  none")

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import re
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -13,7 +12,8 @@ from ..control.events import LogReplay, read_log
 from ..control.hid import HidInput
 from ..control.hid import choose_mapping as choose_hid_mapping
 from ..control.hid_feedback import HidFeedback
-from ..control.loghead import header_line, logged_crowd, logged_mappings, unreadable_sources
+from ..control.kinds import midi_fits
+from ..control.loghead import header_line, logged_crowd, logged_mappings, logged_per_device, unreadable_sources
 from ..control.mapping import load_mapping, parse_hid_id, preset_problems, style_problems, target_line
 from ..control.presetfile import model_of, read_presets, read_presets_file
 from ..errors import UserError
@@ -36,7 +36,7 @@ if TYPE_CHECKING:
 DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
 DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "fast": False, "quiet": False,
             "normal_priority": False, "force": False, "vmc_root": "hips", "no_relaxed_hands": False}
-LISTS = ("osc", "mapping")
+LISTS = ("osc", "mapping", "midi", "midi_virtual")
 SHOW_FILE_CHECKS = {"osc": parse_target, "hid": parse_hid_id}  # checked as the file is read, so errors name its line
 ADDRESSES = ("osc_in", "status_port", "console")  # [HOST:]PORT options (arguments.host_port)
 PATHS = ("model", "bvh", "replay", "score", "record", "humanoid", "presets", "mapping")  # relative to the show file
@@ -60,8 +60,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bvh-character", metavar="K", help="of a crowd, the character --bvh records (default 0)")
     p.add_argument("--vmc-characters", metavar="M", help=f"of a crowd, how many characters (0 to M-1) a VMC target sends, "
                    f"character K on its port + K (default {DEFAULT_VMC_CHARACTERS}; the flat profile carries them all)")
-    p.add_argument("--midi", metavar="PATTERN", help="MIDI input: the first port whose name matches (regular expression)")
-    p.add_argument("--midi-virtual", metavar="NAME", help="create a virtual MIDI input port NAME that other programs connect to")
+    p.add_argument("--midi", action="append", metavar="PATTERN",
+                   help="MIDI input: the first port whose name matches (regular expression); repeatable, one controller each")
+    p.add_argument("--midi-virtual", action="append", metavar="NAME",
+                   help="create a virtual MIDI input port NAME that other programs connect to; repeatable")
     p.add_argument("--midi-api", choices=("alsa", "jack"), help="MIDI system (default: rtmidi's choice, ALSA on Linux)")
     p.add_argument("--no-feedback", action="store_true", default=None,
                    help="send nothing back to the MIDI controller (default: LEDs and motor faders follow the state)")
@@ -144,21 +146,14 @@ def apply_show_file(args: argparse.Namespace) -> TomlFile:
 
 def choose_mappings(args: argparse.Namespace, state: ControlState, console: Console) -> list:
     mappings = [load_mapping(m, state, strict_styles=True) for m in (args.mapping or [])]
-    wanted_midi = args.midi or args.midi_virtual
+    wanted_midi = (args.midi or []) + (args.midi_virtual or [])  # each port gets the mapping fitting it (control/kinds.py)
     if wanted_midi and not any(m.midi for m in mappings):
         shipped = [load_mapping(p, state) for p in shipped_mappings()]
-        def fits(m) -> bool:  # the device's pattern matches what the user named, or the other way round
-            try:
-                return bool(re.search(m.midi, wanted_midi, re.IGNORECASE) or re.search(wanted_midi, m.midi, re.IGNORECASE))
-            except re.error:
-                return False
-
-        matching = [m for m in shipped if m.midi and m.midi != "." and fits(m)]
-        generic = [m for m in shipped if m.midi == "."]
-        chosen = (matching or generic)[:1]
-        if chosen:
-            console.say(f"MIDI mapping: {chosen[0].name} ({chosen[0].path})")
-        mappings += chosen
+        for wanted in wanted_midi:
+            chosen = [m for m in shipped if midi_fits(m, wanted) == 2] or [m for m in shipped if m.midi == "."]
+            if chosen and chosen[0] not in mappings:  # two ports of one model: one mapping, a decoder each
+                console.say(f"MIDI mapping: {chosen[0].name} ({chosen[0].path})")
+                mappings.append(chosen[0])
     if args.hid and not any(m.hid or m.hid_usages for m in mappings):
         shipped = [load_mapping(p, state) for p in shipped_mappings()]
         chosen, why = choose_hid_mapping(shipped, *parse_hid_id(args.hid))
@@ -247,8 +242,8 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
               if args.replay else None)
     missing = unreadable_sources(replay.events, mappings) if replay else []
     if missing:
-        raise UserError(f"{args.replay}: has {' and '.join(missing)} events but no mapping to read them "
-                        "(the log has no mapping header): give the --mapping it was recorded with")
+        raise UserError(f"{args.replay}: has {' and '.join(missing)} events but no mapping to read them: "
+                        "give the --mapping it was recorded with")
     score_path = args.score or (None if live or args.replay else demo_score_path())
     targets = [] if args.no_osc else [parse_target(t) for t in (args.osc or DEFAULT_TARGETS)]
     for target in targets:
@@ -257,7 +252,8 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
                             f"{target.port + vmc_characters - 1}, past 65535")
     outputs, devices, hub, created, health = [], [], None, [], None
     try:
-        hub = ControlHub(mappings, presets, None, morph, console)
+        hub = ControlHub(mappings, presets, None, morph, console,
+                         per_device=logged_per_device(args.replay) if args.replay else True)  # as the log was played
         hub.start(state)
         for mapping in mappings:
             for target in preset_problems(mapping, hub.presets):
@@ -277,15 +273,17 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         attract = load_attract(show, state, hub.presets) if show else None
         if attract and not live:
             raise UserError(f"{args.config}: attract: needs a controller (midi, hid or osc-in) whose input it waits for")
-        if args.midi or args.midi_virtual:
-            devices.append(MidiInput(console, args.midi, args.midi_virtual, args.midi_api))
-            if hub.midi is not None and not args.no_feedback:
-                outputs.append(MidiFeedback(hub.midi, state, console, args.midi, args.midi_virtual, args.midi_api))
+        for pattern, virtual in [(p, None) for p in args.midi or []] + [(None, v) for v in args.midi_virtual or []]:
+            devices.append(MidiInput(console, pattern, virtual, args.midi_api))
+            mapper = hub.mapper(devices[-1].source)  # the device's own, which its feedback follows
+            if mapper is not None and not args.no_feedback:
+                outputs.append(MidiFeedback(mapper, state, console, pattern, virtual, args.midi_api))
         if args.hid:
             vendor, product = parse_hid_id(args.hid)
             devices.append(HidInput(console, vendor, product))
-            if hub.hid is not None and hub.hid.mapping.feedback is not None and not args.no_feedback:
-                outputs.append(HidFeedback(devices[-1], hub.hid.mapping.feedback, console))
+            mapper = hub.mapper(devices[-1].source)
+            if mapper is not None and mapper.mapping.feedback is not None and not args.no_feedback:
+                outputs.append(HidFeedback(devices[-1], mapper.mapping.feedback, console))
         if args.osc_in:
             devices.append(OscInput(console, args.osc_in if ":" in args.osc_in else f"127.0.0.1:{args.osc_in}"))
         if args.console:
@@ -312,7 +310,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
             outputs.append(RecorderOutput(args.bvh, model, fps, replace=args.force, character=bvh_character))
             created.append(args.bvh)
         if args.record:
-            hub.start_recording(args.record, header_line(mappings, characters, spacing), replace=args.force)
+            hub.start_recording(args.record, header_line(mappings, characters, spacing, hub.per_device), replace=args.force)
             created.append(args.record)
         health = Health(console, outputs, devices, SystemdNotifier(), health_every, args.status_port)  # watches every output
     except UserError:

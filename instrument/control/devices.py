@@ -1,12 +1,13 @@
 """Input devices: MIDI ports (mido + python-rtmidi) and OSC surfaces (HID controllers are in hid.py).
 
-Each device is polled once per frame and returns raw control events; it never raises into the
-performance. A device that goes away is reported on the console and reopened about once a
-second, while the walk goes on.
+Each follows the device protocol of control/kinds.py: polled once per frame, it returns raw
+events and never raises into the performance. A device that goes away is reported on the
+console and reopened about once a second, while the walk goes on.
 """
 
 from __future__ import annotations
 
+import functools
 import re
 import socket
 import time
@@ -15,7 +16,7 @@ from typing import Iterator
 from ..errors import UserError
 from ..runtime.console import Console
 from . import oscparse
-from .events import ControlEvent
+from .events import RawEvent, Source
 from .jackwatch import Remaker
 
 RETRY_SECONDS = 1.0
@@ -30,25 +31,38 @@ def midi_backend(api: str | None = None):
     return mido.Backend(name, load=True)
 
 
-def raw_from_bytes(data: list[int]) -> tuple[str, float] | None:
-    """A MIDI message (status and data bytes) as a raw control id and value, or None."""
-    if len(data) < 2:
-        return None
-    kind, channel = data[0] & 0xF0, (data[0] & 0x0F) + 1
-    if kind == 0xB0 and len(data) >= 3:
-        return f"cc/{channel}/{data[1]}", float(data[2])
-    if kind == 0x90 and len(data) >= 3:
-        return f"note/{channel}/{data[1]}", float(data[2])
-    if kind == 0x80 and len(data) >= 3:
-        return f"note/{channel}/{data[1]}", 0.0
-    if kind == 0xE0 and len(data) >= 3:
-        return f"pitchbend/{channel}/0", float(data[1] | (data[2] << 7))
+def midi_raw(message) -> tuple[str, float] | None:
+    """A mido message as a raw control id and value (cc/<channel>/<number>, note/<channel>/<note>,
+    pitchbend/<channel>/0 with 0..16383, a note off as velocity 0), or None for any other message."""
+    kind = message.type
+    if kind == "control_change":
+        return f"cc/{message.channel + 1}/{message.control}", float(message.value)
+    if kind == "note_on":
+        return f"note/{message.channel + 1}/{message.note}", float(message.velocity)
+    if kind == "note_off":
+        return f"note/{message.channel + 1}/{message.note}", 0.0
+    if kind == "pitchwheel":
+        return f"pitchbend/{message.channel + 1}/0", float(message.pitch + 8192)
     return None
 
 
-def midi_raw(message) -> tuple[str, float] | None:
-    """A mido message as a raw control id and value (for MIDI files)."""
-    return None if message.is_meta else raw_from_bytes(message.bytes())
+def raw_from_bytes(data: list[int]) -> tuple[str, float] | None:
+    """A MIDI message as the port delivered it (status and data bytes), parsed by mido, as a raw
+    control id and value; None for other messages and for bytes that are no message at all."""
+    return _raw_from_bytes(tuple(data))
+
+
+@functools.lru_cache(maxsize=4096)
+def _raw_from_bytes(data: tuple[int, ...]) -> tuple[str, float] | None:
+    """Remembered: a controller sends the same few hundred messages over and over, and mido's
+    parsing (a few microseconds) would otherwise cost a flood several times what the frame
+    loop's input budget takes of the old hand decoding."""
+    import mido
+
+    try:
+        return midi_raw(mido.Message.from_bytes(data))
+    except (ValueError, TypeError):  # a status byte with the wrong number of data bytes, ...
+        return None
 
 
 RTMIDI_APIS = {"jack": "API_UNIX_JACK", "alsa": "API_LINUX_ALSA", None: "API_UNSPECIFIED", "": "API_UNSPECIFIED"}
@@ -72,6 +86,9 @@ class MidiInput:
 
         self.rtmidi = rtmidi
         self.console, self.pattern, self.virtual = console, pattern, virtual
+        # named by what the user gave (the virtual port, or the pattern), not by the port it finds:
+        # the same device, with the same decoder, after it is unplugged and plugged back in
+        self.source = Source.of("midi", virtual or pattern)
         self.api = getattr(rtmidi, RTMIDI_APIS[api])
         try:
             self.port = self._new_port()
@@ -111,10 +128,6 @@ class MidiInput:
             self.console.warn(f"midi server {self.source}",
                               f"the JACK server went away: {self.source} waits for it; the walk goes on")
         return event in ("lost", "waiting")
-
-    @property
-    def source(self) -> str:
-        return f"midi:{self.virtual or self.port_name or self.pattern}"
 
     def _open(self, first: bool = False) -> None:
         now = time.monotonic()
@@ -156,7 +169,7 @@ class MidiInput:
                 out.append(raw)
         return out
 
-    def poll(self, now: float) -> list[ControlEvent]:
+    def poll(self, now: float) -> list[RawEvent]:
         if self._restarts():
             return []
         if not self.open:
@@ -167,14 +180,14 @@ class MidiInput:
                 self.console.warn(f"midi gone {self.port_name}", f"MIDI input {self.port_name!r} unplugged; the walk goes on, waiting for it")
                 self.port.close_port()
                 self.open = False
-        events = [ControlEvent(now, self.source, control, value) for control, value in self.read_raw()] if self.open else []
+        events = [RawEvent(now, self.source, control, value) for control, value in self.read_raw()] if self.open else []
         self.received += len(events)
         return events
 
     def describe(self) -> str:
         if self.remaker is not None and self.remaker.busy:
             return f"{self.source} waiting for the JACK server"
-        return f"{self.source} {'on' if self.open else 'waiting'}"
+        return f"{self.source} {'on' if self.open else 'waiting'}"  # the port it found: said when it connects
 
     def close(self) -> None:
         if self.remaker is not None:
@@ -190,7 +203,7 @@ class OscInput:
     """Control surfaces (TouchOSC, Open Stage Control) sending the flat profile's control
     addresses: /walk/style/<name>, /walk/speed, /walk/turn, /walk/liveliness, /walk/preset/<name>."""
 
-    source = "osc"
+    source = Source.of("osc")
 
     def __init__(self, console: Console, address: str):
         host, _, port = address.rpartition(":")
@@ -209,10 +222,10 @@ class OscInput:
         self.walking: Iterator[bytes] | None = None  # the messages of a packet not yet taken
         self.refused: dict[str, int] = {}  # kind -> messages refused before they became events
 
-    def poll(self, now: float) -> list[ControlEvent]:
+    def poll(self, now: float) -> list[RawEvent]:
         """What arrived, for at most POLL_BUDGET seconds of parsing: the rest of a big bundle
         and later packets wait for the next poll (the socket's buffer holds them)."""
-        events = []
+        events: list[RawEvent] = []
         until = time.monotonic() + POLL_BUDGET
         while time.monotonic() < until:
             if self.walking is None:
@@ -230,7 +243,7 @@ class OscInput:
                 self._refuse("malformed", f"ignored a malformed OSC packet on {self.address} ({error})")
         return events
 
-    def _take(self, message: bytes, now: float, events: list[ControlEvent]) -> None:
+    def _take(self, message: bytes, now: float, events: list[RawEvent]) -> None:
         try:
             address, value, tag = oscparse.first_number(message)
         except oscparse.Malformed as error:
@@ -242,7 +255,7 @@ class OscInput:
             self._refuse("argument", f"ignored {address[:60]} on {self.address}: "
                          + (f"its argument (type {tag!r}) is not a number" if tag else "it has no argument (a number is needed)"))
         else:
-            events.append(ControlEvent(now, self.source, address[len("/walk/"):], value))
+            events.append(RawEvent(now, self.source, address[len("/walk/"):], value))
 
     def _refuse(self, kind: str, message: str) -> None:
         self.refused[kind] = self.refused.get(kind, 0) + 1

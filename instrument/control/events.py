@@ -1,29 +1,75 @@
-"""Control events and controller logs (JSON Lines, one event a line)."""
+"""The two kinds of event and controller logs (JSON Lines, one raw event a line).
+
+A `RawEvent` is what a device produced, in the device's own terms: a MIDI message as its control
+id (cc/1/7 = 64), a HID report's changed controls by usage (X = 0.5), an OSC surface's or a
+console page's message (speed = 1.2), a score's cue. It is what the hub checks, what a log records
+and what a replay hands back. A `TargetEvent` is what a decoder makes of it: a target of the
+control state and its value. For a device with a mapping (MIDI, HID) the mapping decides; for a
+direct device (OSC, console, score) the control id already is the target name.
+"""
 
 from __future__ import annotations
 
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, NamedTuple
 
 from ..errors import located
 from ..textfile import read_text
 from .targets import is_number
 
 
+class Source(str):
+    """Which device an event came from, as a log writes it: "midi:nanoKONTROL2", "hid:054c:09cc",
+    "osc". It is that text (a log line, a message or a test reads it as before) with its parts read
+    once, here: `kind`, the registry's key (control/kinds.py), and `name`, the device within its kind."""
+
+    kind: str
+    name: str
+
+    def __new__(cls, text: str) -> Source:
+        self = super().__new__(cls, text)
+        self.kind, _, self.name = text.partition(":")
+        return self
+
+    @classmethod
+    def of(cls, kind: str, name: str = "") -> Source:
+        """The source of device `name` (may be empty) of `kind`."""
+        return cls(f"{kind}:{name}" if name else kind)
+
+
 @dataclass(frozen=True)
-class ControlEvent:
+class RawEvent:
+    """What a device produced, before any mapping (see the module docstring)."""
+
     time: float  # seconds since the performance started
-    source: str  # which device: "demo", "midi:nanoKONTROL2", "hid:054c:09cc", "osc"
+    source: Source  # which device (a plain str is made a Source)
     control: str  # the device's control id, or a target name for a direct source
     value: float
+
+    def __post_init__(self) -> None:
+        if type(self.source) is str:  # noqa: E721 (a Source is a str too, and is kept)
+            object.__setattr__(self, "source", Source(self.source))
 
     def to_json(self) -> str:
         return json.dumps({"t": self.time, "source": self.source, "control": self.control, "value": self.value})  # exact: replays hit the same frame
 
 
-def read_log(path: str | Path, warn: Callable[[str], None] | None = None) -> list[ControlEvent]:
+ControlEvent = RawEvent  # the older name, kept for the modules and logs' readers that use it
+
+
+class TargetEvent(NamedTuple):
+    """A target of the control state and the value a decoder asks for it (the hub checks it
+    against the table of targets before it changes anything). A tuple: made for every event of
+    a direct device, it costs a third of a frozen dataclass."""
+
+    time: float
+    target: str  # speed, style/NAME, preset/NAME, store/NAME, ...
+    value: float
+
+
+def read_log(path: str | Path, warn: Callable[[str], None] | None = None) -> list[RawEvent]:
     """Every event of a log, in time order; a bad line is a one-line error naming file and line.
 
     A last line without its newline that does not parse was cut by a killed run: the events
@@ -56,22 +102,23 @@ def read_log(path: str | Path, warn: Callable[[str], None] | None = None) -> lis
         t, value = item["t"], item["value"]
         if not (is_number(t) and is_number(value)) or t < 0:
             raise located(path, "'t' and 'value' must be finite numbers, 't' not negative", number)
-        events.append(ControlEvent(float(t), str(item["source"]), str(item["control"]), float(value)))
+        events.append(RawEvent(float(t), Source(str(item["source"])), str(item["control"]), float(value)))
     events.sort(key=lambda e: e.time)
     return events
 
 
 class LogReplay:
-    """Hands out a log's events as performance time passes; loops when asked."""
+    """Hands out a log's events as performance time passes; loops when asked. A device like any
+    other (control/kinds.py): `poll` is `due`."""
 
-    def __init__(self, events: list[ControlEvent], loop: bool = False):
+    def __init__(self, events: list[RawEvent], loop: bool = False):
         self.events = events
         self.loop = loop and bool(events)
         self.length = (events[-1].time + 1.0) if events else 0.0
         self.position = 0
         self.offset = 0.0
 
-    def due(self, now: float) -> list[ControlEvent]:
+    def due(self, now: float) -> list[RawEvent]:
         out = []
         while True:
             if self.position >= len(self.events):
@@ -84,6 +131,14 @@ class LogReplay:
             out.append(event)
             self.position += 1
 
+    poll = due
+
     @property
     def finished(self) -> bool:
         return not self.loop and self.position >= len(self.events)
+
+    def describe(self) -> str:
+        return f"log of {len(self.events)} events" + (" (looped)" if self.loop else "")
+
+    def close(self) -> None:
+        pass

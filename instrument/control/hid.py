@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 from ..errors import UserError
 from ..runtime.console import Console
-from .events import ControlEvent
+from .events import RawEvent, Source
 from .hid_report_descriptor import DescriptorError, parse_report_descriptor
 
 RETRY_SECONDS = 1.0
@@ -307,6 +307,7 @@ class HidInput:
     def __init__(self, console: Console, vendor: int, product: int, hid=None):
         self.hid = hid if hid is not None else hidapi()
         self.console, self.vendor, self.product = console, vendor, product
+        self.source = Source.of("hid", f"{vendor:04x}:{product:04x}")
         self.device = None
         self.descriptor: Descriptor | None = None
         self.last: dict[int, list[int]] = {}  # report id -> logical values last seen
@@ -318,10 +319,6 @@ class HidInput:
         self.reports = 0
         self.read_size = 64
         self._open()  # before the performance starts: the first descriptor is parsed here, not in a frame
-
-    @property
-    def source(self) -> str:
-        return f"hid:{self.vendor:04x}:{self.product:04x}"
 
     def _open(self) -> None:
         now = time.monotonic()
@@ -425,8 +422,8 @@ class HidInput:
                 out.append((name, value))
         return out
 
-    def poll(self, now: float) -> list[ControlEvent]:
-        return [ControlEvent(now, self.source, control, value) for control, value in self.read_raw()]
+    def poll(self, now: float) -> list[RawEvent]:
+        return [RawEvent(now, self.source, control, value) for control, value in self.read_raw()]
 
     def write(self, report: bytes) -> bool:
         """Send an output report (feedback); False if the device is not open or refused it."""

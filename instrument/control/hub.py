@@ -1,9 +1,12 @@
-"""Where raw events meet the control state: each device's mapping, direct sources, presets, and
-the controller log that records every raw event the state accepted.
+"""Where raw events meet the control state: each device's decoder (its mapping, for MIDI and HID),
+presets, and the controller log that records every raw event the state accepted.
 
-Every event is checked against the table of targets (control/targets.py) first; one that is
-refused changes nothing, is not recorded, is counted in `refused` by kind and warned about
-once a minute per source and kind.
+Every event goes to the decoder of the device that sent it, made the first time the device is
+heard from, by its kind's entry in the registry (control/kinds.py): one per device, so two
+controllers of one kind, each with its own mapping, play at once. What a decoder asks for is
+checked against the table of targets (control/targets.py) first; an event that is refused changes
+nothing, is not recorded, is counted in `refused` by kind and warned about once a minute per
+source and kind.
 """
 
 from __future__ import annotations
@@ -11,8 +14,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..runtime.console import Console
+from . import kinds
 from .eventlog import EventLog
-from .events import ControlEvent
+from .events import RawEvent, Source, TargetEvent
 from .loghead import header_line
 from .mapping import Mapper, Mapping
 from .state import ControlState
@@ -22,19 +26,23 @@ from .values import preset_values
 
 class ControlHub:
     def __init__(self, mappings: list[Mapping], presets: dict[str, dict[str, float]] | None = None,
-                 record: str | Path | None = None, morph: float = 0.0, console: Console | None = None):
+                 record: str | Path | None = None, morph: float = 0.0, console: Console | None = None,
+                 per_device: bool = True):
+        """`per_device` False reads every device of a kind through one decoder of the kind's first
+        mapping, as logs recorded before devices had their own were played (control/loghead.py)."""
+        self.mappings = list(mappings)
         self.presets: dict[str, dict[str, float]] = {}
         for m in mappings:
             self.presets.update(m.presets)
         self.presets.update(presets or {})  # a show file's presets win over a mapping's
         self.morph = morph or max([m.morph for m in mappings], default=0.0)  # the state's start morph time (start())
-        self.midi = next((Mapper(m, self.presets) for m in mappings if m.midi is not None), None)
-        self.hid = next((Mapper(m, self.presets) for m in mappings if m.hid is not None or m.hid_usages), None)
+        self.per_device = per_device
+        self.decoders: dict[str, kinds.Decoder | None] = {}  # by source (by kind when not per device)
         self.console = console
         self.refused: dict[str, int] = {}  # kind of refusal -> events refused
         self.log: EventLog | None = None
         if record:
-            self.start_recording(record, header_line(mappings))
+            self.start_recording(record, header_line(mappings, per_device=per_device))
 
     def start(self, state: ControlState) -> None:
         """Give the state what the options and mappings set before the show: the morph time
@@ -45,14 +53,32 @@ class ControlHub:
         """Record every accepted event from now on to a new log at `path` (an existing one only with `replace`)."""
         self.log = EventLog(path, header, replace)
 
-    def apply(self, state: ControlState, event: ControlEvent) -> bool:
+    def decoder(self, source: Source) -> kinds.Decoder | None:
+        """The decoder of the device `source` names (made on first use); None for a device whose
+        kind needs a mapping and has none."""
+        key = source if self.per_device else source.kind
+        if key not in self.decoders:
+            kind = kinds.kind(source.kind)
+            if kind.reads is None:
+                self.decoders[key] = kind.decoder(None, self)
+            else:
+                mapping = (kind.mapping_for(source.name, self.mappings) if self.per_device
+                           else next((m for m in self.mappings if kind.reads(m)), None))
+                self.decoders[key] = None if mapping is None else kind.decoder(mapping, self)
+        return self.decoders[key]
+
+    def mapper(self, source: Source) -> Mapper | None:
+        """The mapping reader of a device read through a mapping (feedback follows its controls)."""
+        return getattr(self.decoder(source), "mapper", None)
+
+    def apply(self, state: ControlState, event: RawEvent) -> bool:
         """Apply the event and record it; False (nothing changes, nothing is recorded) if it is
         refused or nothing knows what it means."""
         why = self._apply(state, event)
         if why is not None:
             self.refused[why] = self.refused.get(why, 0) + 1
             if self.console is not None:
-                origin = event.source.split(":")[0][:20]
+                origin = event.source.kind[:20] if isinstance(event.source, Source) else "?"
                 self.console.warn(f"refused {origin} {why}",
                                   f"ignored {_short(event.source)} {_short(event.control)!r} = {event.value!r}: {why} "
                                   "(such events are counted; the next is shown in a minute)")
@@ -61,34 +87,35 @@ class ControlHub:
             self.log.write(event)
         return True
 
-    def _apply(self, state: ControlState, event: ControlEvent) -> str | None:
+    def _apply(self, state: ControlState, event: RawEvent) -> str | None:
         """Why the event was refused, or None once it is applied."""
-        if not isinstance(event.source, str):
+        if not isinstance(event.source, Source):
             return "no source"
-        device = event.source.split(":")[0]
-        if device in ("midi", "hid"):
-            why = raw_problem(event.source, event.control, event.value)
-            if why is not None:
-                return why
-            mapper = self.midi if device == "midi" else self.hid
-            if mapper is None:
-                return f"no {device.upper()} mapping"
-            return None if mapper.apply(state, event) else "not mapped"
-        if isinstance(event.control, str) and event.control.startswith("preset/"):
-            preset = self.presets.get(event.control[len("preset/"):])
+        decoder = self.decoder(event.source)
+        if decoder is None:  # a bad event is named as such first, as when there is a mapping
+            return (raw_problem(event.source, event.control, event.value)
+                    or f"no {kinds.kind(event.source.kind).title} mapping")
+        return decoder.apply(state, event)
+
+    def apply_target(self, state: ControlState, event: TargetEvent) -> str | None:
+        """Set a target (recall or store a preset), checked against the table of targets; None
+        once applied, else why it was refused. What a direct device's decoder does with its events."""
+        target = event.target
+        if isinstance(target, str) and target.startswith("preset/"):
+            preset = self.presets.get(target[len("preset/"):])
             if preset is None:
                 return "unknown preset"
             state.recall(preset, event.time)
             return None
-        if isinstance(event.control, str) and event.control.startswith("store/"):  # the current values as a new preset
-            name = event.control[len("store/"):]
+        if isinstance(target, str) and target.startswith("store/"):  # the current values as a new preset
+            name = target[len("store/"):]
             if not PRESET_NAME.match(name):
                 return "bad preset name"
             self.presets[name] = preset_values(state)
             return None
-        why = state.problem(event.control, event.value)
+        why = state.problem(target, event.value)
         if why is None:
-            state.set(event.control, event.value)
+            state.set(target, event.value)
         return why
 
     def close(self) -> None:

@@ -19,7 +19,8 @@ from typing import TYPE_CHECKING
 
 from ..errors import located
 from ..textfile import read_text
-from .events import ControlEvent
+from .events import RawEvent
+from .kinds import unreadable_kinds
 from .mapping import Mapping, load_mapping
 
 if TYPE_CHECKING:
@@ -27,14 +28,18 @@ if TYPE_CHECKING:
 
 HEADER_KEY = "instrument_log"  # {"instrument_log": 1, "mappings": [...]}
 VERSION = 1
+PER_DEVICE = "per-device"  # the header's "decoders": each device had its own (before: one per kind)
 
 
-def header_line(mappings: list[Mapping], characters: int = 1, spacing: float | None = None) -> str:
+def header_line(mappings: list[Mapping], characters: int = 1, spacing: float | None = None,
+                per_device: bool = True) -> str:
     """The JSON header line (no newline) for a log recorded with these mappings (and, for a
-    crowd, its size and spacing in metres)."""
+    crowd, its size and spacing in metres), each device read by its own decoder (`per_device`)."""
     entries = [{"name": m.name, "file": m.path, "sha256": hashlib.sha256(m.text.encode("utf-8")).hexdigest(), "toml": m.text}
                for m in mappings]
     header: dict = {HEADER_KEY: VERSION, "mappings": entries}
+    if per_device:
+        header["decoders"] = PER_DEVICE
     if characters > 1:
         header["crowd"] = {"characters": characters, "spacing": spacing}
     return json.dumps(header, ensure_ascii=False)
@@ -86,12 +91,14 @@ def logged_crowd(path: str | Path) -> tuple[dict, str]:
     return crowd, f"{path}:{number}: header crowd"
 
 
-def unreadable_sources(events: list[ControlEvent], mappings: list[Mapping]) -> list[str]:
-    """Device kinds ("MIDI", "HID") that have events in the log but no mapping to read them."""
-    kinds = {e.source.split(":", 1)[0] for e in events}
-    missing = []
-    if "midi" in kinds and not any(m.midi is not None for m in mappings):
-        missing.append("MIDI")
-    if "hid" in kinds and not any(m.hid is not None for m in mappings):
-        missing.append("HID")
-    return missing
+def logged_per_device(path: str | Path) -> bool:
+    """Whether a log was recorded with a decoder per device (control/hub.py): a log recorded
+    before (a header without "decoders", or none) is read as it was played, one per kind."""
+    item, _ = _header(path)
+    return item is not None and item.get("decoders") == PER_DEVICE
+
+
+def unreadable_sources(events: list[RawEvent], mappings: list[Mapping]) -> list[str]:
+    """Device kinds ("MIDI", "HID") that have events in the log but no mapping to read them
+    (the rule the hub routes by: control/kinds.py)."""
+    return unreadable_kinds({e.source for e in events}, mappings)
