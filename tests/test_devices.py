@@ -59,8 +59,8 @@ class Watch:
         self.seen: list[tuple[int, float, float]] = []
         self.done, self.stop = done, StopFlag()
 
-    def prepare(self, pose, echo):
-        return pose.index, echo["speed"], echo["turn"]
+    def prepare(self, frame):
+        return frame.index, frame.echo["speed"], frame.echo["turn"]
 
     def send(self, values):
         self.seen.append(values)
@@ -84,7 +84,7 @@ def test_two_midi_controllers_each_play_through_their_own_mapping(jack, model, t
     from instrument.control.mapping import load_mapping
     from instrument.control.state import ControlState
     from instrument.runtime.console import Console
-    from instrument.runtime.performance import perform
+    from instrument.runtime.performance import Show, perform
 
     state = ControlState(model.style_names, model.states)
     files = []
@@ -102,8 +102,9 @@ def test_two_midi_controllers_each_play_through_their_own_mapping(jack, model, t
         senders[0].send(mido.Message("control_change", channel=0, control=1, value=127))  # speed 1.5
         senders[1].send(mido.Message("control_change", channel=0, control=1, value=0))  # turn -1
         watch = Watch(lambda seen: seen[-1][1] == 1.5 and seen[-1][2] == -1.0)
-        perform(model, [watch], console, fps=30, seconds=120.0, live_sources=[left.poll, right.poll],
-                apply=hub.apply, state=state, stop=watch.stop)
+        show = Show(model, [watch], fps=30, seconds=120.0, apply=hub.apply, state=state,
+                    sources=[left.poll, right.poll])
+        perform(show, console, stop=watch.stop)
         hub.close()
     finally:
         for thing in senders + [left, right]:
@@ -115,8 +116,9 @@ def test_two_midi_controllers_each_play_through_their_own_mapping(jack, model, t
     again = ControlState(model.style_names, model.states)
     replay_hub = ControlHub(logged_mappings(log, again), per_device=logged_per_device(log))
     echo = Watch()
-    perform(model, [echo], console, fps=30, seconds=len(watch.seen) / 30, replay=LogReplay(read_log(log)),
-            fast=True, apply=replay_hub.apply, state=again)
+    show = Show(model, [echo], fps=30, seconds=len(watch.seen) / 30, replay=LogReplay(read_log(log)), fast=True,
+                apply=replay_hub.apply, state=again)
+    perform(show, console)
     assert echo.seen == watch.seen
 
 
@@ -167,7 +169,7 @@ def test_a_toy_device_registered_from_a_test_file_drives_the_walk(model, tmp_pat
     from instrument.output.osc import OscTarget
     from instrument.output.outputs import OscOutput, make_profile
     from instrument.runtime.console import Console
-    from instrument.runtime.performance import perform
+    from instrument.runtime.performance import Show, perform
     from oscrecv import Receiver
     from waiting import wait_until
 
@@ -184,7 +186,8 @@ def test_a_toy_device_registered_from_a_test_file_drives_the_walk(model, tmp_pat
 
         watch = Watch(turn)
         osc = OscOutput(OscTarget("127.0.0.1", receiver.port, "flat"), make_profile("flat", model), console)
-        perform(model, [osc, watch], console, fps=30, seconds=1.5, live_sources=[knob.poll], apply=hub.apply, state=state)
+        show = Show(model, [osc, watch], fps=30, seconds=1.5, apply=hub.apply, state=state, sources=[knob.poll])
+        perform(show, console)
         hub.close()
         wait_until(lambda: len(frames_and_echo(receiver, "/walk/speed")) >= 45, "45 frames on the socket")
         echo = frames_and_echo(receiver, "/walk/speed")
@@ -198,8 +201,9 @@ def test_a_toy_device_registered_from_a_test_file_drives_the_walk(model, tmp_pat
         # the log holds the toy's raw events; the registered kind reads them again in a replay
         assert {e.source for e in read_log(log)} == {"toy:knob"}
         again = Watch()
-        perform(model, [again], console, fps=30, seconds=1.5, replay=LogReplay(read_log(log)), fast=True,
-                apply=ControlHub([]).apply, state=ControlState(model.style_names, model.states))
+        show = Show(model, [again], fps=30, seconds=1.5, replay=LogReplay(read_log(log)), fast=True,
+                    apply=ControlHub([]).apply, state=ControlState(model.style_names, model.states))
+        perform(show, console)
         assert again.seen == watch.seen
     finally:
         kinds.REGISTRY.pop("toy")

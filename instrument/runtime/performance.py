@@ -145,7 +145,7 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
         try:
             return apply(state, event)
         except Exception as error:  # a bad event never stops the show
-            _count(console, summary.input_errors, f"apply {event.source.split(':')[0]}", error)
+            _count(console, summary.input_errors, f"apply {event.source.kind}", error)
             return False
 
     def take_live(now: float) -> None:
