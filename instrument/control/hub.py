@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..errors import UserError
 from ..runtime.console import Console
 from .eventlog import EventLog
 from .events import ControlEvent
@@ -19,6 +20,8 @@ from .state import ControlState
 from .targets import PRESET_NAME, raw_problem
 from .values import preset_values
 
+MAX_PRESETS = 1000  # presets a show holds at most: stores from a page or an OSC surface beyond it are refused
+
 
 class ControlHub:
     def __init__(self, mappings: list[Mapping], presets: dict[str, dict[str, float]] | None = None,
@@ -27,6 +30,9 @@ class ControlHub:
         for m in mappings:
             self.presets.update(m.presets)
         self.presets.update(presets or {})  # a show file's presets win over a mapping's
+        if len(self.presets) > MAX_PRESETS:
+            raise UserError(f"{len(self.presets)} presets (mappings, show file and --presets together): "
+                            f"at most {MAX_PRESETS}")
         self.morph = morph or max([m.morph for m in mappings], default=0.0)  # the state's start morph time (start())
         self.midi = next((Mapper(m, self.presets) for m in mappings if m.midi is not None), None)
         self.hid = next((Mapper(m, self.presets) for m in mappings if m.hid is not None or m.hid_usages), None)
@@ -82,8 +88,10 @@ class ControlHub:
             return None
         if isinstance(event.control, str) and event.control.startswith("store/"):  # the current values as a new preset
             name = event.control[len("store/"):]
-            if not PRESET_NAME.match(name):
+            if not PRESET_NAME.fullmatch(name):
                 return "bad preset name"
+            if name not in self.presets and len(self.presets) >= MAX_PRESETS:
+                return f"already {MAX_PRESETS} presets, the most a show holds (store over an existing name)"
             self.presets[name] = preset_values(state)
             return None
         why = state.problem(event.control, event.value)
