@@ -300,3 +300,14 @@ def test_midi_feedback_follows_a_preset_recall(jack, tmp_path):
     values = {m.control: m.value for m in received if m.type == "control_change"}
     assert {control: values.get(control) for control in expected} == expected
     assert len({m.value for m in received if m.type == "control_change" and m.control == 4}) > 2  # it moved there, not jumped
+
+
+@pytest.mark.skipif(__import__("os").path.exists("/dev/snd/seq"), reason="this machine has ALSA MIDI: nothing fails")
+def test_midi_through_a_missing_alsa_suggests_jack():
+    """Where there is no ALSA sequencer (a container, a JACK-only machine) the error names ALSA's
+    failure and says how to use JACK instead."""
+    result = subprocess.run(RUN + ["--midi-virtual", "instr-nowhere", "--no-osc", "--seconds", "1"], capture_output=True,
+                            text=True, timeout=120)
+    assert result.returncode == 1
+    error = [line for line in result.stderr.splitlines() if line.startswith("instrument run: error:")]
+    assert error and "MIDI is not available" in error[0] and "give --midi-api jack" in error[0]
