@@ -46,7 +46,7 @@ def parse(text: str, targets: frozenset[str]) -> tuple[str, str, float]:
         return "event", target, float(value)
     if len(item) == 1 and ("preset" in item or "store" in item):
         kind, name = next(iter(item.items()))
-        if not isinstance(name, str) or not PRESET_NAME.match(name):
+        if not isinstance(name, str) or not PRESET_NAME.fullmatch(name):
             raise Refused(f"{kind}: a name of 1 to 40 letters, digits, '_', '.', '-'")
         return "event", f"{kind}/{name}", 1.0
     if set(item) == {"save"} and item["save"] is True:
