@@ -247,6 +247,7 @@ class ConsoleOutput:
         self.link, self.state, self.presets, self.sources = link, state, presets, sources
         self.clock = None
         self.sent_presets: dict[str, dict] = {}  # name -> the preset (the very dict) the server has
+        self.sent_all: int | None = None  # the presets' store count (hub.Presets.stored) when the server had them all
 
     @property
     def down(self) -> bool:
@@ -276,6 +277,9 @@ class ConsoleOutput:
 
     def _preset_packets(self) -> list[tuple[bytes, Callable]]:
         """The presets stored since the server last had them, in parts (a stored preset is a new dict)."""
+        stored = getattr(self.presets, "stored", None)  # a plain dict (the bench's) is compared every frame
+        if stored is not None and stored == self.sent_all:
+            return []
         sent = self.sent_presets
         changed = [(name, values) for name, values in self.presets.items() if sent.get(name) is not values]
         packets, part, size = [], {}, 0
@@ -291,6 +295,11 @@ class ConsoleOutput:
             part[name], size = values, size + len(text)
         if part:
             packets.append(self._presets_packet(part))
+        if not packets:
+            self.sent_all = stored
+        else:  # once the last part went, the server has them all (a part not sent: compared again next frame)
+            packet, went = packets[-1]
+            packets[-1] = (packet, lambda: (went(), setattr(self, "sent_all", stored)))
         return packets
 
     def _presets_packet(self, part: dict[str, dict]) -> tuple[bytes, Callable]:

@@ -23,10 +23,21 @@ from .values import preset_values
 MAX_PRESETS = 1000  # presets a show holds at most: stores from a page or an OSC surface beyond it are refused
 
 
+class Presets(dict):
+    """The show's presets by name; `stored` counts the stores since the start, so the console
+    notices one without comparing every preset each frame."""
+
+    stored = 0
+
+    def __setitem__(self, name: str, values: dict[str, float]) -> None:
+        super().__setitem__(name, values)
+        self.stored += 1
+
+
 class ControlHub:
     def __init__(self, mappings: list[Mapping], presets: dict[str, dict[str, float]] | None = None,
                  record: str | Path | None = None, morph: float = 0.0, console: Console | None = None):
-        self.presets: dict[str, dict[str, float]] = {}
+        self.presets = Presets()
         for m in mappings:
             self.presets.update(m.presets)
         self.presets.update(presets or {})  # a show file's presets win over a mapping's
