@@ -1018,3 +1018,28 @@ def test_a_stopped_console_server_is_said_and_shown_down_in_health():
         asker.close()
         stderr = show.stop()
     assert show.process.returncode == 0, stderr
+
+
+def test_a_presets_file_of_hundreds_reaches_the_pages_and_saves_whole(tmp_path):
+    """The table a presets file brings at start is larger than the link's queue: it goes over in
+    parts across frames, and a save waits for them all."""
+    import tomllib
+
+    styles = ("active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful")
+    whole = "".join(f'"style/{s}" = 0.25\n' + "".join(f'"part/{s}/{g}" = 0.5\n' for g in ("root", "legs", "upper"))
+                    for s in styles) + "speed = 1.5\nliveliness = 0.5\n"  # every target a preset keeps: ~1 kB
+    saved = tmp_path / "many.toml"
+    saved.write_text("".join(f'[presets.p{k:03d}]\n"phase/1" = {1 + k / 1000}\n{whole}\n' for k in range(900)))
+    show = Instrument("--console", "0", "--quiet", "--no-osc", "--presets", str(saved))
+    try:
+        page = Page(show.url)
+        until(lambda: len(page.presets()) == 900, 120, "900 presets on the page")
+        page.send({"save": True})
+        until(lambda: page.of("saved"), 60, "the save")
+        assert page.of("saved")[0].get("text", "").startswith("saved 900 presets"), page.of("saved")
+        page.close()
+    finally:
+        stderr = show.stop()
+    assert show.process.returncode == 0, stderr
+    presets = tomllib.loads(saved.read_text())["presets"]
+    assert len(presets) == 900 and presets["p123"]["phase/1"] == 1.123 and presets["p899"]["part/youthful/upper"] == 0.5

@@ -144,11 +144,12 @@ def check_presets(presets: dict, state: ControlState, path: str, text: str) -> d
             raise UserError(f"{path}:{key_line(text, ('presets', name))}: presets.{name}: expected target = number pairs")
         for target, value in values.items():
             why = state.problem(target, value)
-            where = f"{path}:{key_line(text, ('presets', name), target)}: presets.{name}"
+            if why is None:
+                continue
+            where = f"{path}:{key_line(text, ('presets', name), target)}: presets.{name}"  # a search of the text: only for an error
             if why == "unknown target":
                 raise UserError(f"{where}: unknown target {target!r}")
-            if why is not None:
-                raise UserError(f"{where}: {target}: {why}, not {value!r}")
+            raise UserError(f"{where}: {target}: {why}, not {value!r}")
         out[name] = {k: float(v) for k, v in values.items()}
     return out
 
