@@ -761,3 +761,286 @@ def test_a_taken_port_is_a_one_line_error():
                                 timeout=60)
     assert result.returncode == 1
     assert f"--console '{port}': cannot listen" in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+# ---- what a peer can make the console hold, and what it must never do --------------------------
+
+def console_port(url: str) -> int:
+    return int(url.split("?")[0].rstrip("/").rsplit(":", 1)[1])
+
+
+def handshake(port: int, host: str, origin: str | None = None, path: str = "/ws") -> int:
+    """The HTTP status a WebSocket handshake gets with these Host and Origin headers (a raw socket:
+    what a browser whose page was served from another name sends)."""
+    import base64
+    import socket
+
+    key = base64.b64encode(os.urandom(16)).decode()
+    request = (f"GET {path} HTTP/1.1\r\nHost: {host}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+               f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n" + (f"Origin: {origin}\r\n" if origin else "")
+               + "\r\n")
+    with socket.create_connection(("127.0.0.1", port), timeout=30) as sock:
+        sock.sendall(request.encode())
+        status = b""
+        while b"\r\n" not in status:
+            chunk = sock.recv(1024)
+            if not chunk:
+                break
+            status += chunk
+    return int(status.split()[1])
+
+
+class Page:
+    """A page as a plain WebSocket client in a thread of its own: sends what it is given, keeps
+    everything it is sent (the presets' names, frames, refusals, saves)."""
+
+    def __init__(self, url: str):
+        self.url, self.replies, self.outbox = url, [], None
+        self.loop = asyncio.new_event_loop()
+        self.ready = threading.Event()
+        self.thread = threading.Thread(target=self.loop.run_until_complete, args=(self._run(),), daemon=True)
+        self.thread.start()
+        assert self.ready.wait(60), "the page never connected"
+
+    async def _run(self) -> None:
+        import aiohttp
+
+        self.outbox = asyncio.Queue()
+        async with aiohttp.ClientSession() as session:
+            async with session.ws_connect(socket_url(self.url)) as ws:
+                self.ready.set()
+
+                async def sender():
+                    while (text := await self.outbox.get()) is not None:
+                        await ws.send_str(text)
+                    await ws.close()
+
+                task = asyncio.ensure_future(sender())
+                async for message in ws:
+                    if message.type == aiohttp.WSMsgType.TEXT:
+                        self.replies.append(json.loads(message.data))
+                await task
+
+    def send(self, *items: dict) -> None:
+        for item in items:
+            self.loop.call_soon_threadsafe(self.outbox.put_nowait, json.dumps(item))
+
+    def presets(self) -> list[str]:
+        """The names the instrument last told this page (with its hello, then as they change)."""
+        told = [r["presets"] for r in self.replies if r["type"] in ("hello", "presets")]
+        return told[-1] if told else []
+
+    def frames(self) -> int:
+        return sum(r["type"] == "frame" for r in self.replies)
+
+    def of(self, kind: str) -> list[dict]:
+        return [r for r in self.replies if r["type"] == kind]
+
+    def close(self) -> None:
+        self.loop.call_soon_threadsafe(self.outbox.put_nowait, None)
+        self.thread.join(30)
+
+
+def test_hundreds_of_presets_stored_from_a_page_keep_the_console_alive():
+    """Once the preset table outgrew one packet of the link (~620 presets) the link closed without
+    a word: frames stopped, controls did nothing. Now it goes in parts."""
+    receiver = Receiver()
+    show = Instrument("--console", "0", "--quiet", "--osc", f"127.0.0.1:{receiver.port}/flat")
+    try:
+        page = Page(show.url)
+        names = [f"look-{k:03d}" for k in range(700)]
+        for start in range(0, 700, 50):  # in batches the link's queue holds (a flood is refused: another test)
+            for k in range(start, start + 50):
+                page.send({"set": "speed", "value": 0.5 + k / 1000}, {"store": names[k]})
+            until(lambda: page.presets() == names[: start + 50], 120, f"{start + 50} presets on the page")
+        frames = page.frames()
+        until(lambda: page.frames() > frames + 30, 60, "frames after the presets")
+        page.send({"set": "style/active", "value": 0.7})  # the controls still work
+        until(lambda: echoed(receiver, "/walk/style/active")[-1:] == [pytest.approx(0.7)], what="a control after")
+        later = Page(show.url)  # and a page opened now is told them all
+        until(lambda: later.presets() == names, 60, "the presets on a new page")
+        later.close()
+        page.send({"preset": "look-650"})  # a preset stored late recalls what it stored
+        until(lambda: echoed(receiver, "/walk/speed")[-1:] == [pytest.approx(1.15, abs=1e-4)], what="look-650 recalled")
+        page.close()
+    finally:
+        stderr = show.stop()
+        receiver.close()
+    assert show.process.returncode == 0, stderr
+    assert "console gone" not in stderr and "server process stopped" not in stderr and "Traceback" not in stderr
+
+
+def test_presets_stored_over_osc_and_from_pages_stop_at_the_documented_maximum():
+    """Each new name over /walk/store/<name> kept another preset for ever (+1.25 kB a message)."""
+    from pythonosc.udp_client import SimpleUDPClient
+
+    from instrument.control.hub import MAX_PRESETS
+    from oscrecv import free_port
+
+    control_port = free_port()
+    show = Instrument("--console", "0", "--quiet", "--no-osc", "--osc-in", str(control_port))
+    client = SimpleUDPClient("127.0.0.1", control_port)
+    try:
+        page = Page(show.url)
+        sent = 0
+        while sent < MAX_PRESETS + 50:  # in batches the UDP buffer holds, each seen on the page before the next
+            for k in range(sent, sent + 100):
+                client.send_message(f"/walk/store/osc-{k:05d}", 1.0)
+            sent += 100
+            until(lambda: len(page.presets()) >= min(sent, MAX_PRESETS), 120, f"{min(sent, MAX_PRESETS)} presets")
+        show.wait_for(f"already {MAX_PRESETS} presets, the most a show holds")
+        page.send({"store": "one-more"})  # the page is told why
+        until(lambda: any("the most a show holds" in r["reason"] for r in page.of("refused")), what="the refusal")
+        page.send({"set": "speed", "value": 1.5}, {"store": "osc-00007"})  # an existing name is stored over
+        page.close()
+        later = Page(show.url)
+        until(lambda: later.presets(), what="the presets on a new page")
+        assert len(later.presets()) == MAX_PRESETS and "one-more" not in later.presets()
+        assert later.presets()[-1] == f"osc-{MAX_PRESETS - 1:05d}"
+        later.close()
+    finally:
+        stderr = show.stop()
+    assert show.process.returncode == 0, stderr
+    assert "Traceback" not in stderr
+
+
+def test_a_page_served_from_another_name_is_refused_dns_rebinding():
+    """Without a host given there is no token: the Host header must name this console, or another
+    site whose name now points at 127.0.0.1 could drive it."""
+    import urllib.error
+    import urllib.request
+
+    receiver = Receiver()
+    show = Instrument("--console", "0", "--quiet", "--osc", f"127.0.0.1:{receiver.port}/flat")
+    try:
+        port = console_port(show.url)
+        evil = f"rebind.evil.example:{port}"
+        assert handshake(port, evil, origin=f"http://{evil}") == 403
+        assert handshake(port, evil) == 403
+        assert handshake(port, "127.0.0.1:1") == 403  # another port of this machine: another site
+        for host in (f"127.0.0.1:{port}", f"localhost:{port}", f"[::1]:{port}", f"LOCALHOST:{port}"):
+            assert handshake(port, host, origin=f"http://{host}") == 101, host
+        request = urllib.request.Request(show.url, headers={"Host": evil})
+        with pytest.raises(urllib.error.HTTPError) as refused:
+            urllib.request.urlopen(request, timeout=30)
+        assert refused.value.code == 403
+        assert urllib.request.urlopen(show.url, timeout=30).status == 200
+        show.wait_for("refused a request for host 'rebind.evil.example")
+    finally:
+        stderr = show.stop()
+        receiver.close()
+    assert show.process.returncode == 0, stderr
+
+
+def test_saving_first_thing_keeps_every_preset_and_any_name_reads_back(tmp_path):
+    """A save that came before the first frame after a page connected wrote "saved 0 presets"
+    over the file; a name beyond U+FFFF was written as JSON's surrogate pair, which TOML refuses."""
+    import tomllib
+
+    saved = tmp_path / "presets.toml"
+    saved.write_text('[presets."walk 🎵"]\n"style/elderly" = 1.5\n\n[presets.\'say "hi" \\ back\']\nspeed = 1.25\n',
+                     encoding="utf-8")
+    before = tomllib.loads(saved.read_text(encoding="utf-8"))["presets"]
+    show = Instrument("--console", "0", "--quiet", "--no-osc", "--presets", str(saved))
+    try:
+        page = Page(show.url)
+        page.send({"save": True})  # the very first thing the page does
+        until(lambda: page.of("saved"), what="the save")
+        assert page.of("saved")[0].get("text", "").startswith("saved 2 presets"), page.of("saved")
+        page.close()
+    finally:
+        stderr = show.stop()
+    assert show.process.returncode == 0, stderr
+    after = tomllib.loads(saved.read_text(encoding="utf-8"))["presets"]
+    assert after == before
+    result = subprocess.run(RUN + ["--presets", str(saved), "--no-osc", "--seconds", "0.5", "--fast", "--quiet"],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+
+
+def test_presets_that_would_replace_a_show_file_are_refused(tmp_path):
+    show_file = tmp_path / "show.toml"
+    show_file.write_text('no-osc = true\nseconds = 1\n\n[presets.calm]\n"style/elderly" = 0.5\n')
+    before = show_file.read_bytes()
+    result = subprocess.run(RUN + ["--config", str(show_file), "--console", "0", "--presets", str(show_file)],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 1
+    assert f"{show_file}: holds more than presets (no-osc, seconds)" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert show_file.read_bytes() == before
+
+
+def test_pages_beyond_the_maximum_are_refused_and_the_others_go_on():
+    from instrument.console.server import MAX_PAGES
+
+    show = Instrument("--console", "0", "--quiet", "--no-osc")
+    pages = []
+    try:
+        pages = [Page(show.url) for _ in range(MAX_PAGES)]
+        until(lambda: all(page.frames() for page in pages), 120, "frames on every page")
+        assert status_of(show.url) == 503
+        show.wait_for(f"already {MAX_PAGES} open")
+        pages.pop().close()
+        until(lambda: status_of(show.url) == 101, 60, "room for one page again")
+    finally:
+        for page in pages:
+            page.close()
+        stderr = show.stop()
+    assert show.process.returncode == 0, stderr
+
+
+def test_a_stopped_console_server_is_said_and_shown_down_in_health():
+    import signal
+    import socket
+
+    from oscrecv import free_port
+
+    status_port = free_port()
+    show = Instrument("--console", "0", "--quiet", "--no-osc", "--status-port", str(status_port))
+    asker = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    asker.settimeout(30)
+
+    def report() -> dict:
+        asker.sendto(b"status", ("127.0.0.1", status_port))
+        return json.loads(asker.recv(65536))
+
+    try:
+        until(lambda: report()["outputs"].get("console") == "up", 60, "the console up")
+        children = open(f"/proc/{show.process.pid}/task/{show.process.pid}/children").read().split()
+        servers = [int(c) for c in children if "instrument.console.server" in open(f"/proc/{c}/cmdline").read()]
+        assert len(servers) == 1
+        os.kill(servers[0], signal.SIGKILL)
+        show.wait_for("console: the server process stopped; the show goes on without it")
+        down = until(lambda: (r := report())["outputs"]["console"] == "down" and r, 60, "the console down")
+        assert any("stopped" in d for d in down["devices"] if d.startswith("console"))
+        frames = down["frames"]
+        until(lambda: report()["frames"] > frames + 30, 60, "the show to go on")
+    finally:
+        asker.close()
+        stderr = show.stop()
+    assert show.process.returncode == 0, stderr
+
+
+def test_a_presets_file_of_hundreds_reaches_the_pages_and_saves_whole(tmp_path):
+    """The table a presets file brings at start is larger than the link's queue: it goes over in
+    parts across frames, and a save waits for them all."""
+    import tomllib
+
+    styles = ("active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful")
+    whole = "".join(f'"style/{s}" = 0.25\n' + "".join(f'"part/{s}/{g}" = 0.5\n' for g in ("root", "legs", "upper"))
+                    for s in styles) + "speed = 1.5\nliveliness = 0.5\n"  # every target a preset keeps: ~1 kB
+    saved = tmp_path / "many.toml"
+    saved.write_text("".join(f'[presets.p{k:03d}]\n"phase/1" = {1 + k / 1000}\n{whole}\n' for k in range(900)))
+    show = Instrument("--console", "0", "--quiet", "--no-osc", "--presets", str(saved))
+    try:
+        page = Page(show.url)
+        until(lambda: len(page.presets()) == 900, 120, "900 presets on the page")
+        page.send({"save": True})
+        until(lambda: page.of("saved"), 60, "the save")
+        assert page.of("saved")[0].get("text", "").startswith("saved 900 presets"), page.of("saved")
+        page.close()
+    finally:
+        stderr = show.stop()
+    assert show.process.returncode == 0, stderr
+    presets = tomllib.loads(saved.read_text())["presets"]
+    assert len(presets) == 900 and presets["p123"]["phase/1"] == 1.123 and presets["p899"]["part/youthful/upper"] == 0.5

@@ -189,44 +189,101 @@ def test_a_frozen_instrument_is_restarted_by_its_watchdog(tmp_path):
     assert len(listener.times("READY=1")) == 2
 
 
+class StatusAsker:
+    """Asks an instrument's status port over real UDP, waiting generously for each reply."""
+
+    def __init__(self, port: int):
+        self.port, self.replies = port, {}
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.settimeout(10)  # a busy machine may answer late: then the request is sent again
+
+    def ask(self, request: bytes) -> bytes:
+        """The reply to `request` (an OSC one starts with "/", a JSON one with "{"); a late reply
+        to an earlier request that crosses it is kept as the newest of its kind."""
+        wanted = b"/" if request.startswith(b"/") else b"{"
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            self.sock.sendto(request, ("127.0.0.1", self.port))
+            try:
+                reply = self.sock.recv(65536)
+            except socket.timeout:
+                continue
+            except ConnectionRefusedError:  # not listening yet: the instrument is still starting
+                time.sleep(0.2)
+                continue
+            self.replies[reply[:1]] = reply
+            if reply[:1] == wanted:
+                return reply
+        raise AssertionError(f"no reply to {request!r} in 120 s")
+
+    def osc(self):
+        from pythonosc.osc_message import OscMessage
+
+        return OscMessage(self.ask(b"/walk/status\0\0\0\0,\0\0\0"))  # an OSC message without arguments
+
+    def json(self) -> dict:
+        return json.loads(self.ask(b"status"))
+
+    def close(self) -> None:
+        self.sock.close()
+
+
 def test_health_line_and_status_endpoint_over_udp(tmp_path):
     receiver, status_port, dead = Receiver(), free_port(), free_port()
     process = subprocess.Popen(RUN + ["--osc", f"127.0.0.1:{receiver.port}/flat", "--osc", f"127.0.0.1:{dead}/flat",
                                       "--status-port", str(status_port), "--health-every", "1", "--seconds", "60", "--quiet"],
                                stderr=subprocess.PIPE, text=True)
-    asker = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    asker.settimeout(0.2)
-    replies = {}
+    asker = StatusAsker(status_port)
     try:
-        from pythonosc.osc_message import OscMessage
-
-        def running_for(seconds: float) -> bool:  # the run's own uptime, so a health line is due
-            return b"s" in replies and json.loads(replies[b"s"])["uptime"] >= seconds
-
-        deadline = time.monotonic() + 120
-        while not (b"/" in replies and running_for(2.5)) and time.monotonic() < deadline:
-            for request in (b"/walk/status\0\0\0\0,\0\0\0", b"status"):  # an OSC message without arguments, then plain text
-                asker.sendto(request, ("127.0.0.1", status_port))
-                try:
-                    reply = asker.recv(65536)
-                except (socket.timeout, ConnectionRefusedError):
-                    continue
-                replies[b"/" if reply.startswith(b"/") else b"s"] = reply  # by what came back: a late reply may cross a request
-            time.sleep(0.2)
+        wait_until(lambda: asker.json()["uptime"] >= 2.5, "2.5 s of the run's own uptime (a health line due)", every=0.2)
+        osc, report = asker.osc(), asker.json()
     finally:
         process.terminate()
         stderr = process.communicate(timeout=60)[1]
         receiver.close()
         asker.close()
     assert process.returncode == 0, stderr
-    osc = OscMessage(replies[b"/"])
     frames, late, dropped, uptime, rss, files, outputs, devices = osc.params
     assert osc.address == "/walk/status" and frames > 0 and uptime > 0 and rss > 10 and files > 2
     assert f"osc 127.0.0.1:{receiver.port}/flat up" in outputs and f"osc 127.0.0.1:{dead}/flat down" in outputs
-    report = json.loads(replies[b"s"])
     assert report["frames"] > 0 and report["outputs"][f"osc 127.0.0.1:{dead}/flat"] == "down"
     lines = [line for line in stderr.splitlines() if line.startswith("health: ")]
     assert lines and "frames" in lines[-1] and "late" in lines[-1] and f"{dead}/flat down" in lines[-1]
+
+
+def test_health_never_tells_the_console_token_and_an_unresolved_target_is_down(tmp_path):
+    """The token was in every health line (the journal, systemd's STATUS=) and in the status
+    port's replies, which anyone who reaches the port gets; a target whose name never resolved
+    sent nothing, so nothing failed, and it was reported up."""
+    receiver, status_port, listener = Receiver(), free_port(), NotifyListener(tmp_path)
+    token = "s3cr3t-tok3n"
+    process = subprocess.Popen(RUN + ["--console", "127.0.0.1:0", "--console-token", token, "--osc", "nowhere.invalid:9000/flat",
+                                      "--osc", f"127.0.0.1:{receiver.port}/flat", "--status-port", str(status_port),
+                                      "--health-every", "1", "--seconds", "60", "--quiet"],
+                               stderr=subprocess.PIPE, text=True, env=dict(os.environ, NOTIFY_SOCKET=listener.env))
+    stderr_lines = StderrLines(process)
+    asker = StatusAsker(status_port)
+    try:
+        wait_until(lambda: any("STATUS=health:" in text for _, text in listener.received), "a health line to systemd")
+        wait_until(lambda: any(line.startswith("health: ") for line in stderr_lines.lines), "a health line")
+        osc, report = asker.osc(), asker.json()
+    finally:
+        process.terminate()
+        process.wait(60)
+        stderr_lines.thread.join(10)
+        receiver.close()
+        asker.close()
+        listener.close()
+    stderr = "".join(stderr_lines.lines)
+    assert process.returncode == 0, stderr
+    assert f"?token={token}" in stderr  # said once at start: the URL to open
+    health = [line for line in stderr.splitlines() if line.startswith("health: ")]
+    said = health + [text for _, text in listener.received] + [str(osc.params), json.dumps(report)]
+    assert not [text for text in said if token in text]
+    assert any("console http://127.0.0.1:" in text for text in said)  # the console is still named
+    assert report["outputs"]["osc nowhere.invalid:9000/flat"] == "down"
+    assert report["outputs"][f"osc 127.0.0.1:{receiver.port}/flat"] == "up"
+    assert "osc nowhere.invalid:9000/flat down" in osc.params[6] and "osc nowhere.invalid:9000/flat down" in health[-1]
 
 
 def test_the_generated_unit_restarts_on_failure_with_a_watchdog(tmp_path):

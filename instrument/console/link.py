@@ -4,6 +4,7 @@ an OSC target. Both run in the frame loop's thread; the server runs in its own p
 
 from __future__ import annotations
 
+import errno
 import json
 import secrets
 import socket
@@ -15,6 +16,7 @@ import numpy as np
 
 from ..cli.arguments import host_port
 from ..control.events import ControlEvent
+from ..control.hub import MAX_PRESETS
 from ..control.state import ControlState
 from ..control.spec import rows_for_page
 from ..control.values import all_values
@@ -22,12 +24,15 @@ from ..errors import UserError
 from ..runtime.console import Console
 from ..synthesis.posing import Frame
 from ..synthesis.interpolation import GROUPS
-from .server import JSON, frame_packet
+from .presets import check_presets_file
+from .server import JSON, MAX_PACKET, frame_packet
 
 SOURCE = "console"  # the source name of the page's events in a controller log
 START_SECONDS = 60.0  # the server process has this long to start listening (a busy machine imports slowly)
 EVERY_INTERFACE = ("0.0.0.0", "")  # a host meaning "listen on every interface": not an address to open
 SOURCES_EVERY = 15  # frames between two updates of the control sources shown on the pages
+PRESETS_PART = 32 * 1024  # bytes of presets a packet carries at most: a big table goes over in parts
+GONE = (errno.EPIPE, errno.ECONNRESET, errno.ENOTCONN, errno.EBADF)  # the server's end of the pair is closed
 
 
 def split_address(address: str) -> tuple[str, int, bool]:
@@ -55,13 +60,14 @@ def network_addresses() -> list[str]:
     return list(dict.fromkeys(a for a in found if not a.startswith("127.") and a != "0.0.0.0"))
 
 
-def hello(model, state: ControlState, presets: dict, save_path: str | None, fps: float) -> dict:
-    """What a page is told once, on connecting: the model's styles and skeleton, the ranges."""
+def hello(model, state: ControlState, save_path: str | None, fps: float) -> dict:
+    """What a page is told once, on connecting: the model's styles and skeleton, the ranges (the
+    server adds the names of the presets it holds)."""
     skeleton = model.layout.skeleton
     return {
         "type": "hello", "styles": state.style_names, "groups": list(GROUPS), "states": state.states,
         "joints": list(skeleton.names), "parents": [j.parent for j in skeleton.joints], "root": model.layout.root,
-        "fps": fps, "save": save_path, "presets": sorted(presets), "order": list(all_values(state)),
+        "fps": fps, "save": save_path, "order": list(all_values(state)),
         "rows": rows_for_page(),  # the sliders: control/spec.py's rows (console.js builds them from these)
     }
 
@@ -73,9 +79,13 @@ class ConsoleLink:
                  fps: float, token: str | None = None, save_path: str | None = None,
                  sources: Callable[[], str] = lambda: ""):
         host, port, named = split_address(address)
+        if save_path is not None:
+            check_presets_file(save_path)  # at start, not at the first save: a show file given by mistake
         # a named host may be reached from the network: then the page needs the token
         self.token = token or (secrets.token_urlsafe(16) if named else None)
-        self.host, self.pages, self.open = host, 0, True
+        self.host, self.pages, self.open, self.console = host, 0, True, console
+        self.failure: str | None = None  # why the link stopped, once it has
+        self.save_asked = False  # a page asked to save: the presets then the save go to the server in order
         # looked up once (a host name lookup may wait on DNS): describe() is called from the frame loop
         self.addresses = network_addresses() if host in EVERY_INTERFACE else []
         self.sock, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
@@ -83,7 +93,7 @@ class ConsoleLink:
                                         pass_fds=[theirs.fileno()])
         theirs.close()
         config = {"host": host, "port": port, "token": self.token, "targets": state.targets(), "save": save_path,
-                  "hello": hello(model, state, presets, save_path, fps)}
+                  "max_presets": MAX_PRESETS, "hello": hello(model, state, save_path, fps)}
         self.sock.sendall(JSON + json.dumps(config).encode("utf-8"))
         self.sock.settimeout(START_SECONDS)
         try:
@@ -98,15 +108,19 @@ class ConsoleLink:
         self.input = ConsoleInput(self, console)
         self.output = ConsoleOutput(self, presets, sources)
 
-    def url_at(self, host: str) -> str:
-        return f"http://{host}:{self.port}/" + (f"?token={self.token}" if self.token else "")
+    def url_at(self, host: str, token: bool = True) -> str:
+        """The page's URL at `host`; with the token only when told at start (never in a health line)."""
+        return f"http://{host}:{self.port}/" + (f"?token={self.token}" if self.token and token else "")
+
+    def page_url(self, token: bool = True) -> str:
+        """The URL to open: on a console listening on every interface, at this machine's network address."""
+        if self.host in EVERY_INTERFACE:
+            return self.url_at(next(iter(self.addresses), "127.0.0.1"), token)
+        return self.url_at(self.host, token)
 
     @property
     def url(self) -> str:
-        """The URL to open: on a console listening on every interface, at this machine's network address."""
-        if self.host in EVERY_INTERFACE:
-            return self.url_at(next(iter(self.addresses), "127.0.0.1"))
-        return self.url_at(self.host)
+        return self.page_url()
 
     def announcement(self) -> list[str]:
         """The lines said at start: the URL to open, and on every interface, which address is for what."""
@@ -120,15 +134,31 @@ class ConsoleLink:
         lines += [f"console: {self.url_at(a)} (another address of this machine)" for a in addresses[1:]]
         return lines + [f"console: {self.url_at('127.0.0.1')} (on this machine)"]
 
-    def send(self, packet: bytes) -> None:
-        """To the server, never waiting: when its queue is full (a stalled server) the packet is dropped."""
+    def send(self, packet: bytes) -> bool:
+        """To the server, never waiting; True if it went. When the server's queue is full (a
+        stalled server) the packet is not sent: a frame is simply skipped, presets go next frame."""
+        if not self.open:
+            return False
+        if len(packet) > MAX_PACKET:  # a packet the pair cannot carry: refused here, said, the link goes on
+            self.console.warn("console packet", f"console: a {len(packet)}-byte packet is too large for the link; not sent")
+            return False
+        try:
+            self.sock.send(packet)
+            return True
+        except BlockingIOError:
+            return False
+        except OSError as error:
+            if error.errno in GONE:
+                self.lost(f"the server process stopped ({error.strerror})")
+            else:  # no memory for the packet, or too large after all: this one is lost, the link goes on
+                self.console.warn("console packet", f"console: a packet to the server failed ({error.strerror or error})")
+            return False
+
+    def lost(self, why: str) -> None:
+        """The link is gone for good: said once on the console, and in health (the output is down)."""
         if self.open:
-            try:
-                self.sock.send(packet)
-            except BlockingIOError:
-                pass
-            except OSError:  # the server process is gone: the input says so
-                self.open = False
+            self.open, self.failure = False, why
+            self.console.warn("console gone", f"console: {why}; the show goes on without it")
 
     def close(self) -> None:
         self.open = False
@@ -158,11 +188,12 @@ class ConsoleInput:
             except OSError:
                 packet = b""
             if not packet:
-                self.link.open = False
-                self.console.warn("console gone", "console: the server process stopped; the show goes on without it")
+                self.link.lost("the server process stopped")
                 break
             item = json.loads(packet[1:])
-            if "event" in item:
+            if "save" in item:  # sent on by the output, after the presets stored so far (ConsoleOutput.prepare)
+                self.link.save_asked = True
+            elif "event" in item:
                 control, value = item["event"]
                 events.append(ControlEvent(now, SOURCE, control, float(value)))
             elif "note" in item:
@@ -176,7 +207,10 @@ class ConsoleInput:
         return events
 
     def describe(self) -> str:
-        return f"console {self.link.url} ({self.link.pages} pages)"
+        """For the status line, health lines and status replies: never the token."""
+        if self.link.failure:
+            return f"console {self.link.page_url(token=False)} (stopped: {self.link.failure})"
+        return f"console {self.link.page_url(token=False)} ({self.link.pages} pages)"
 
     def close(self) -> None:
         self.link.close()
@@ -186,39 +220,85 @@ SHOWN_CHARACTERS = 20  # of a crowd, the most the page draws (character 0, which
 
 
 class ConsoleOutput:
-    """Hands each frame to the server as one packet; costs nothing while no page is open. Of a
-    crowd it sends the first SHOWN_CHARACTERS (a page's frame grows by about 0.5 kB of JSON a character of 22 joints)."""
+    """Hands each frame to the server as one packet; frames cost nothing while no page is open. Of a
+    crowd it sends the first SHOWN_CHARACTERS (a page's frame grows by about 0.5 kB of JSON a character of 22 joints).
+
+    The presets go to the server whether a page is open or not (a save needs them), as they change:
+    each stored preset once, in packets of at most PRESETS_PART bytes, each marked sent only once it
+    went (a full queue sends the rest next frame). A save a page asked for follows them, so what is
+    saved is every preset stored before it."""
 
     name = "console"
 
     def __init__(self, link: ConsoleLink, presets: dict, sources: Callable[[], str]):
         self.link, self.presets, self.sources = link, presets, sources
         self.clock = None
-        self.sent_presets: tuple = ()
+        self.sent_presets: dict[str, dict] = {}  # name -> the preset (the very dict) the server has
+        self.sent_all: int | None = None  # the presets' store count (hub.Presets.stored) when the server had them all
+
+    @property
+    def down(self) -> bool:
+        """The link has failed: health shows the console as down."""
+        return not self.link.open
 
     def watch(self, clock) -> None:
         """Given the frame clock, so the pages show late and dropped frames."""
         self.clock = clock
 
-    def prepare(self, frame: Frame) -> list[bytes] | None:
-        if not self.link.pages:
-            return None
-        packets = []
-        stored = tuple(map(id, self.presets.values()))  # a stored preset is a new dict: cheap to notice
-        if stored != self.sent_presets:
-            self.sent_presets = stored
-            packets.append(JSON + json.dumps({"presets": self.presets}).encode("utf-8"))
-        if frame.index % SOURCES_EVERY == 0:
-            packets.append(JSON + json.dumps({"sources": self.sources()}).encode("utf-8"))
-        late, dropped = (self.clock.late, self.clock.dropped) if self.clock else (0, 0)
-        values = np.fromiter(frame.values.values(), float)
-        positions = frame.crowd.world_positions[:SHOWN_CHARACTERS]  # (characters, joints, 3)
-        packets.append(frame_packet(frame.index, late, dropped, positions, values))
+    def prepare(self, frame: Frame) -> list[tuple[bytes, Callable | None]] | None:
+        """The packets of this frame, each with what to note once it went."""
+        packets = self._preset_packets()
+        if self.link.save_asked:
+            # with how many there are: a server that holds fewer (one too large for the link) does not save
+            packets.append((JSON + json.dumps({"save": len(self.presets)}).encode("utf-8"), self._saved))
+        if self.link.pages:
+            if frame.index % SOURCES_EVERY == 0:
+                packets.append((JSON + json.dumps({"sources": self.sources()}).encode("utf-8"), None))
+            late, dropped = (self.clock.late, self.clock.dropped) if self.clock else (0, 0)
+            values = np.fromiter(frame.values.values(), float)
+            positions = frame.crowd.world_positions[:SHOWN_CHARACTERS]  # (characters, joints, 3)
+            packets.append((frame_packet(frame.index, late, dropped, positions, values), None))
+        return packets or None
+
+    def _preset_packets(self) -> list[tuple[bytes, Callable]]:
+        """The presets stored since the server last had them, in parts (a stored preset is a new dict)."""
+        stored = getattr(self.presets, "stored", None)  # a plain dict (the bench's) is compared every frame
+        if stored is not None and stored == self.sent_all:
+            return []
+        sent = self.sent_presets
+        changed = [(name, values) for name, values in self.presets.items() if sent.get(name) is not values]
+        packets, part, size = [], {}, 0
+        for name, values in changed:
+            text = json.dumps({name: values})
+            if len(text) > PRESETS_PART:  # only a preset file's own names can be that long: not on the pages
+                sent[name] = values
+                self.link.console.warn("console preset", f"console: preset {name[:40]!r}... is too large for the pages (and a save)")
+                continue
+            if part and size + len(text) > PRESETS_PART:
+                packets.append(self._presets_packet(part))
+                part, size = {}, 0
+            part[name], size = values, size + len(text)
+        if part:
+            packets.append(self._presets_packet(part))
+        if not packets:
+            self.sent_all = stored
+        else:  # once the last part went, the server has them all (a part not sent: compared again next frame)
+            packet, went = packets[-1]
+            packets[-1] = (packet, lambda: (went(), setattr(self, "sent_all", stored)))
         return packets
 
-    def send(self, packets: list[bytes]) -> None:
-        for packet in packets:
-            self.link.send(packet)
+    def _presets_packet(self, part: dict[str, dict]) -> tuple[bytes, Callable]:
+        return JSON + json.dumps({"presets": part}).encode("utf-8"), lambda: self.sent_presets.update(part)
+
+    def _saved(self) -> None:
+        self.link.save_asked = False
+
+    def send(self, packets: list[tuple[bytes, Callable | None]]) -> None:
+        for packet, went in packets:
+            if not self.link.send(packet):
+                return  # in order or not at all: what follows waits for the next frame
+            if went is not None:
+                went()
 
     def close(self) -> None:
         pass  # the server is closed with the input, after the loop

@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 
 from ..control.checks import row_of, unknown, value_refusal
-from ..control.spec import TABLE
+from ..control.spec import PRESET_NAME, TABLE
 
 MAX_MESSAGE = 4096  # bytes: the largest message a page has any reason to send
 
@@ -51,7 +51,9 @@ def parse(text: str, targets: frozenset[str]) -> tuple[str, str, float]:
         return "event", target, float(value)
     if len(item) == 1 and ("preset" in item or "store" in item):
         kind, name = next(iter(item.items()))
-        target = f"{kind}/{name}" if isinstance(name, str) else kind
+        if not isinstance(name, str) or not PRESET_NAME.fullmatch(name):
+            raise Refused(f"{kind}: a name of 1 to 40 letters, digits, '_', '.', '-'")
+        target = f"{kind}/{name}"
         if row_of(target, (), 0) is None:
             raise Refused(unknown(target).text)
         return "event", target, 1.0

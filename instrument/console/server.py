@@ -36,6 +36,10 @@ from .messages import MAX_MESSAGE, Refused, parse
 from .presets import save_presets
 
 SLOW_SECONDS = 5.0  # a page that has not taken a frame for this long is dropped
+MAX_PAGES = 32  # pages open at once; one more is refused (each costs a frame's JSON sent every frame)
+MAX_PACKET = 64 * 1024  # bytes: the largest packet between the frame loop and the server (presets go in parts)
+LOOPBACK = ("127.0.0.1", "localhost", "::1")  # the names a page on this machine reaches the console by
+EVERY_INTERFACE = ("0.0.0.0", "", "::")  # listening on every interface: a token is always needed, it protects
 STATIC = {"/": ("index.html", "text/html"), "/console.js": ("console.js", "text/javascript"),
           "/console.css": ("console.css", "text/css")}
 SECURITY = {"Content-Security-Policy": "default-src 'self'; img-src 'self' data:; connect-src 'self'",
@@ -87,8 +91,10 @@ class ConsoleServer:
         self.joints = len(self.hello["joints"])
         self.targets = frozenset(config["targets"])
         self.save_path: str | None = config["save"]
-        self.presets: dict[str, dict[str, float]] = {}
-        self.extra = {"presets": self.hello["presets"], "sources": "", "pages": 0}  # sent with every frame
+        self.max_presets: int = config["max_presets"]
+        self.presets: dict[str, dict[str, float]] = {}  # as the frame loop sends them, in parts
+        self.names: list[str] = []  # the presets' names, sorted, as the pages were last told
+        self.extra = {"sources": "", "pages": 0}  # sent with every frame
         self.files = {route: (resources.files(__package__).joinpath("static", name).read_bytes(), kind)
                       for route, (name, kind) in STATIC.items()}
         self.pages: set[Page] = set()
@@ -129,9 +135,10 @@ class ConsoleServer:
     def _from_instrument(self) -> None:
         """Read every packet waiting; only the newest frame is sent on (a backlog is skipped)."""
         newest = None
+        presets_came = False
         while True:
             try:
-                packet = self.link.recv(1 << 20)
+                packet = self.link.recv(MAX_PACKET)
             except BlockingIOError:
                 break
             except OSError:
@@ -144,11 +151,17 @@ class ConsoleServer:
                 newest = packet
             else:
                 item = json.loads(packet[1:])
-                if "presets" in item:
-                    self.presets = item["presets"]
-                    self.extra["presets"] = sorted(self.presets)
+                if "presets" in item:  # a part: the presets stored since the last
+                    self.presets.update(item["presets"])
+                    presets_came = True
+                if "save" in item:  # a page asked for it; every preset stored before has come
+                    self._save(item["save"])
                 if "sources" in item:
                     self.extra["sources"] = item["sources"]
+        if presets_came and sorted(self.presets) != self.names:
+            self.names = sorted(self.presets)
+            for page in self.pages:
+                self._tell(page, {"type": "presets", "presets": self.names})
         if self.unsaid and self._note(f"console: refused {self.unsaid} page messages (too many at once)", "console flood"):
             self.unsaid = 0
         if newest is not None and self.pages:
@@ -170,12 +183,31 @@ class ConsoleServer:
     # --- the pages' side ----------------------------------------------------------------------
 
     def _allowed(self, request) -> bool:
-        """The token when one is needed, and no page of another site talking to us (a browser
-        lets any web page open a WebSocket to 127.0.0.1: its Origin gives it away)."""
+        """The token when one is needed, a Host this console is known by, and no page of another
+        site talking to us (a browser lets any web page open a WebSocket to 127.0.0.1: its Origin
+        gives it away)."""
         if self.token is not None and not secrets.compare_digest(request.query.get("token", ""), self.token):
+            return False
+        if not self._known_host(request.headers.get("Host", "")):
+            self._note(f"console: refused a request for host {request.headers.get('Host', '')[:60]!r} "
+                       "(not this console's address)", "console host")
             return False
         origin = request.headers.get("Origin")
         return origin is None or urlsplit(origin).netloc == request.host
+
+    def _known_host(self, host: str) -> bool:
+        """The Host header names this console: its own address or this machine's loopback, and
+        its port. Against DNS rebinding: another site's page whose name was made to point at
+        127.0.0.1 sends its own name (and a matching Origin), which is neither. On every
+        interface any name may reach it, and the token that is always needed there protects it."""
+        if self.host in EVERY_INTERFACE:
+            return True
+        try:
+            parts = urlsplit("//" + host)
+            name, port = parts.hostname, parts.port or 80
+        except ValueError:
+            return False
+        return port == self.port and name is not None and name in (*LOOPBACK, self.host.lower().strip("[]"))
 
     async def _file(self, request):
         from aiohttp import web
@@ -190,6 +222,9 @@ class ConsoleServer:
 
         if not self._allowed(request):
             return web.Response(status=403, text="forbidden")
+        if len(self.pages) >= MAX_PAGES:
+            self._note(f"console: refused a page: already {MAX_PAGES} open, the most the console serves", "console pages")
+            return web.Response(status=503, text=f"too many pages: the console serves {MAX_PAGES} at once")
         ws = web.WebSocketResponse(max_msg_size=MAX_MESSAGE)  # no heartbeat: a stalled page is found by its frames
         await ws.prepare(request)
         page = Page(ws, request.transport)
@@ -197,7 +232,7 @@ class ConsoleServer:
         self._note(f"console: a page connected from {request.remote} ({len(self.pages)} open)")
         sender = asyncio.ensure_future(self._sender(page))
         try:
-            await ws.send_str(json.dumps({**self.hello, "presets": self.extra["presets"]}))
+            await ws.send_str(json.dumps({**self.hello, "presets": self.names}))
             async for message in ws:
                 if message.type == WSMsgType.TEXT:
                     self._receive(page, message.data)
@@ -224,7 +259,12 @@ class ConsoleServer:
             self._refuse(page, str(refusal))
             return
         if kind == "save":
-            self._save(page)
+            if self.save_path is None:
+                self._tell(page, {"type": "saved", "error": "no preset file: start with --presets FILE"})
+            elif not self._tell_instrument({"save": True}):  # it answers with the presets, then the save
+                self._refuse(page, "too many messages at once")
+        elif control.startswith("store/") and control[6:] not in self.presets and len(self.presets) >= self.max_presets:
+            self._refuse(page, f"already {self.max_presets} presets, the most a show holds: store over an existing name")
         elif not self._tell_instrument({"event": [control, value]}):
             self._refuse(page, "too many messages at once")
 
@@ -233,20 +273,23 @@ class ConsoleServer:
             self.unsaid += 1  # the instrument's queue is full: said with the next frame
         self._tell(page, {"type": "refused", "reason": reason})
 
-    def _save(self, page: Page) -> None:
-        if self.save_path is None:
-            self._tell(page, {"type": "saved", "error": "no preset file: start with --presets FILE"})
-            return
+    def _save(self, count: int) -> None:
+        """Write the presets, when the frame loop says they have all come (`count` of them): every
+        page is told how it went."""
         try:
+            if len(self.presets) != count:
+                raise UserError(f"{self.save_path}: not saved: {count - len(self.presets)} of the {count} presets "
+                                "are too large for the console")
             save_presets(self.save_path, self.presets)
         except UserError as error:
             self._note(f"console: {error}", "console save")
-            self._tell(page, {"type": "saved", "error": str(error)})
+            for page in self.pages:
+                self._tell(page, {"type": "saved", "error": str(error)})
             return
         said = f"saved {len(self.presets)} presets to {self.save_path}"
         self._note(f"console: {said}")
-        for other in self.pages:
-            self._tell(other, {"type": "saved", "text": said})
+        for page in self.pages:
+            self._tell(page, {"type": "saved", "text": said})
 
     def _tell(self, page: Page, item: dict) -> None:
         if not page.ws.closed:
@@ -294,7 +337,7 @@ def main() -> None:
     packet on it is the configuration."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the instrument's: it closes the pair, and we end
     link = socket.socket(fileno=int(sys.argv[1]))
-    config = json.loads(link.recv(1 << 20)[1:])
+    config = json.loads(link.recv(1 << 20)[1:])  # the model's names and skeleton: well under a megabyte
     ConsoleServer(link, config).run()
 
 

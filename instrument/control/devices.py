@@ -65,6 +65,13 @@ def _raw_from_bytes(data: tuple[int, ...]) -> tuple[str, float] | None:
         return None
 
 
+def midi_hint(api: str | None) -> str:
+    """What to try when MIDI through `api` fails: the other system (rtmidi's default is ALSA)."""
+    if api == "jack":
+        return " (is the JACK server running? for ALSA MIDI give --midi-api alsa)"
+    return " (for JACK MIDI give --midi-api jack)"
+
+
 RTMIDI_APIS = {"jack": "API_UNIX_JACK", "alsa": "API_LINUX_ALSA", None: "API_UNSPECIFIED", "": "API_UNSPECIFIED"}
 QUEUE_LIMIT = 65536  # messages rtmidi holds between two polls: a flood is queued, not lost
 
@@ -89,11 +96,11 @@ class MidiInput:
         # named by what the user gave (the virtual port, or the pattern), not by the port it finds:
         # the same device, with the same decoder, after it is unplugged and plugged back in
         self.source = Source.of("midi", virtual or pattern)
-        self.api = getattr(rtmidi, RTMIDI_APIS[api])
+        self.api, self.api_name = getattr(rtmidi, RTMIDI_APIS[api]), api
         try:
             self.port = self._new_port()
         except Exception as error:  # no MIDI system at all (no ALSA, no JACK server)
-            raise UserError(f"MIDI is not available ({api or 'default'} API): {error}") from None
+            raise UserError(f"MIDI is not available ({api or 'default'} API): {error}{midi_hint(api)}") from None
         self.open = False
         self.port_name = ""
         self.next_attempt = 0.0
@@ -151,7 +158,7 @@ class MidiInput:
                     self.console.say(f"MIDI input {self.port_name!r} connected")
             self.open = True
         except Exception as error:
-            self.console.warn(f"midi {self.pattern or self.virtual}", f"cannot open MIDI input: {error}")
+            self.console.warn(f"midi {self.pattern or self.virtual}", f"cannot open MIDI input: {error}{midi_hint(self.api_name)}")
 
     def read_raw(self) -> list[tuple[str, float]]:
         """The messages queued since the last read, decoded, for at most POLL_BUDGET seconds

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..errors import UserError
 from ..runtime.console import Console
 from . import kinds
 from .eventlog import EventLog
@@ -23,6 +24,19 @@ from .state import ControlState
 from .targets import PRESET_NAME, raw_problem
 from .values import preset_values
 
+MAX_PRESETS = 1000  # presets a show holds at most: stores from a page or an OSC surface beyond it are refused
+
+
+class Presets(dict):
+    """The show's presets by name; `stored` counts the stores since the start, so the console
+    notices one without comparing every preset each frame."""
+
+    stored = 0
+
+    def __setitem__(self, name: str, values: dict[str, float]) -> None:
+        super().__setitem__(name, values)
+        self.stored += 1
+
 
 class ControlHub:
     def __init__(self, mappings: list[Mapping], presets: dict[str, dict[str, float]] | None = None,
@@ -31,10 +45,13 @@ class ControlHub:
         """`per_device` False reads every device of a kind through one decoder of the kind's first
         mapping, as logs recorded before devices had their own were played (control/loghead.py)."""
         self.mappings = list(mappings)
-        self.presets: dict[str, dict[str, float]] = {}
+        self.presets = Presets()
         for m in mappings:
             self.presets.update(m.presets)
         self.presets.update(presets or {})  # a show file's presets win over a mapping's
+        if len(self.presets) > MAX_PRESETS:
+            raise UserError(f"{len(self.presets)} presets (mappings, show file and --presets together): "
+                            f"at most {MAX_PRESETS}")
         self.morph = morph or max([m.morph for m in mappings], default=0.0)  # the state's start morph time (start())
         self.per_device = per_device
         self.decoders: dict[str, kinds.Decoder | None] = {}  # by source (by kind when not per device)
@@ -109,8 +126,10 @@ class ControlHub:
             return None
         if isinstance(target, str) and target.startswith("store/"):  # the current values as a new preset
             name = target[len("store/"):]
-            if not PRESET_NAME.match(name):
+            if not PRESET_NAME.fullmatch(name):
                 return "bad preset name"
+            if name not in self.presets and len(self.presets) >= MAX_PRESETS:
+                return f"already {MAX_PRESETS} presets, the most a show holds (store over an existing name)"
             self.presets[name] = preset_values(state)
             return None
         why = state.problem(target, event.value)

@@ -201,6 +201,11 @@ class UdpOut:
         self.failed += 1
         self.console.warn(f"osc {self.target}", f"OSC target {self.target}: {error.strerror or error} (still trying)")
 
+    @property
+    def down(self) -> bool:
+        """Nothing can be sent yet: the host name has not resolved (health reports the target down)."""
+        return self.resolved is None
+
     def send(self, datagrams: list[bytes]) -> None:
         if self.sock is None:
             if self.resolved is None:

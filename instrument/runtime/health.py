@@ -4,7 +4,10 @@ Driven by the frame loop once per frame (so what it reports is the loop's own pu
 the systemd watchdog, writes a status line every minute (to the journal under systemd), and
 answers status requests on a local UDP port: an OSC message `/walk/status` gets an OSC reply
 `/walk/status` (frames, late, dropped, uptime, rss MB, open files, outputs, devices), and a
-plain `status` datagram gets the same as one JSON line.
+plain `status` datagram gets the same as one JSON line. An output is "down" while it fails (and
+DOWN_FOR seconds after), or while it says so itself (an OSC target's name not resolved, the
+console's link stopped). Nothing in a line or a reply is secret: the status port answers anyone
+who can reach it, and devices describe themselves without the console's token.
 """
 
 from __future__ import annotations
@@ -45,6 +48,12 @@ def open_files() -> int:
 def _failures(output, errors: dict[str, int]) -> int:
     """How often an output has failed so far: raised errors, plus sends an OSC target refused."""
     return errors.get(output.name, 0) + int(getattr(getattr(output, "out", None), "failed", 0))
+
+
+def _down(output) -> bool:
+    """An output that says it is down, failures or not: an OSC target whose name never resolved
+    (nothing is sent, so nothing fails), the console whose link has stopped."""
+    return bool(getattr(output, "down", False) or getattr(getattr(output, "out", None), "down", False))
 
 
 class Health:
@@ -92,7 +101,7 @@ class Health:
         now = self.now()
         return {
             "uptime": round(now - self.started, 3), "frames": self.frames, "late": self.late, "dropped": self.dropped,
-            "outputs": {o.name: "down" if now - t < DOWN_FOR else "up" for o, t in zip(self.outputs, self.failed_at)},
+            "outputs": {o.name: "down" if now - t < DOWN_FOR or _down(o) else "up" for o, t in zip(self.outputs, self.failed_at)},
             "devices": [d.describe() for d in self.devices], "rss_mb": round(rss_bytes() / 1e6, 1), "open_files": open_files(),
         }
 

@@ -1,6 +1,7 @@
 // The instrument's console: a mixer of the style space and the character drawn live.
 // One WebSocket to the instrument: the page sends control events ({set, value}, {preset},
-// {store}, {save}) and receives, each frame, every control value and the joints' positions.
+// {store}, {save}) and receives, each frame, every control value and the joints' positions
+// (and the presets' names when they change).
 // The page holds no state of its own: every slider shows what the instrument says, so all
 // pages and all controllers (MIDI, HID, OSC, a replayed log) move the same parameters.
 "use strict";
@@ -26,6 +27,7 @@ function connect() {
     else if (message.type === "frame") onFrame(message);
     else if (message.type === "refused") say("refused: " + message.reason);
     else if (message.type === "saved") $("saved").textContent = message.error || message.text;
+    else if (message.type === "presets") showPresets(message.presets);  // when a preset is stored
   };
 }
 
@@ -123,11 +125,9 @@ function build(message) {
   figure.setup(hello);
 }
 
-let shownPresets = "";
+let presetNames = [];  // as the instrument last said: the number keys recall the first nine
 function showPresets(names) {
-  const key = names.join("\n");
-  if (key === shownPresets) return;
-  shownPresets = key;
+  presetNames = names;
   $("presets").replaceChildren(...names.map((name, k) => {
     const button = document.createElement("button");
     button.dataset.preset = name;
@@ -154,7 +154,6 @@ function onFrame(message) {
     if (Number(input.value) !== value) input.value = value;
     if (document.activeElement !== box) box.value = fmt(value);
   }
-  showPresets(message.presets);
   $("frame").textContent = "frame " + message.frame;
   $("late").textContent = `late ${message.late}` + (message.dropped ? ` (dropped ${message.dropped})` : "");
   $("pages").textContent = message.pages + (message.pages === 1 ? " page" : " pages");
@@ -196,7 +195,7 @@ window.addEventListener("keydown", (event) => {
     const [low, high] = hello.rows.find((row) => row.kind === "speed").range;  // past the range is refused: stop at its ends
     setTarget("speed", Math.min(Math.max(Math.round((latest.v.speed + (key === "ArrowUp" ? 0.1 : -0.1)) * 100) / 100, low), high));
   } else if (/^[1-9]$/.test(key)) {
-    const name = latest.presets[Number(key) - 1];
+    const name = presetNames[Number(key) - 1];
     if (name !== undefined) send({ preset: name });
   } else return;
   event.preventDefault();
