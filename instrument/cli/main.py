@@ -42,6 +42,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "service": ("service_cmd", "write a systemd unit that runs a show file unattended (restart, watchdog)"),
 }
 EVERY = "*"  # build_parser(EVERY): import every subcommand (the tests check them all)
+WITHOUT_NUMBA = {"recover", "log", "devices", "learn", "service"}  # the others compile numba kernels on a first run
 
 
 def chosen_command(argv: list[str]) -> str | None:
@@ -147,6 +148,10 @@ def _command(argv: list[str] | None) -> int:
     finally:
         _set_handlers(COMMAND_HANDLERS)
     try:
+        if args.command not in WITHOUT_NUMBA:
+            from .progress import watch_compiling
+
+            watch_compiling()  # a first run says why it waits (numba: loaded now, as the command would)
         return int(args.run(args) or 0)
     except UserError as error:
         print(f"instrument {args.command}: error: {error}", file=sys.stderr)

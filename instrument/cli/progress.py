@@ -1,7 +1,9 @@
-"""A one-line progress bar on stderr (plain lines when stderr is not a terminal)."""
+"""What a long wait is: a one-line progress bar on stderr (plain lines when stderr is not a
+terminal), and the notice that the kernels are being compiled on a first run."""
 
 from __future__ import annotations
 
+import os
 import sys
 
 
@@ -24,3 +26,60 @@ class Progress:
         elif done >= total and phase != self.last_phase:
             print(f"{phase}: {total}/{total}", file=sys.stderr)
             self.last_phase = phase
+
+
+class CompileNotice:
+    """Says on stderr, the moment numba starts compiling one of the instrument's kernels, what the
+    wait is: the first command on a machine (or after an upgrade) compiles them for about half a
+    minute before anything else happens, and silence then looks like a hang. Later commands load
+    them from the cache and say nothing. On a terminal a counter follows the kernels compiled."""
+
+    def __init__(self, stream=None):
+        self.stream = stream if stream is not None else sys.stderr
+        self.compiled = 0
+        self.said = False
+
+    def on_start(self, function) -> None:
+        if not getattr(function, "__module__", "").startswith("instrument."):
+            return
+        if not self.said:
+            self.said = True
+            self._write("compiling the walk's kernels for this machine (once: about half a minute on a first run, "
+                        f"then cached in {os.environ.get('NUMBA_CACHE_DIR', 'numba cache')})\n")
+
+    def on_end(self, function) -> None:
+        if not getattr(function, "__module__", "").startswith("instrument."):
+            return
+        self.compiled += 1
+        if self._tty():
+            self._write(f"\rcompiled {self.compiled} kernels ({function.__qualname__})".ljust(79)[:79] + "\r")
+
+    def _tty(self) -> bool:
+        try:
+            return self.stream.isatty()
+        except (AttributeError, OSError, ValueError):
+            return False
+
+    def _write(self, text: str) -> None:
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except (AttributeError, OSError, ValueError):  # no stderr, or a closed one: the command goes on
+            pass
+
+
+def watch_compiling(stream=None) -> CompileNotice:
+    """Register a CompileNotice with numba's compile events (imports numba: only for commands that use it)."""
+    from numba.core import event
+
+    notice = CompileNotice(stream)
+
+    class Listener(event.Listener):
+        def on_start(self, ev) -> None:
+            notice.on_start(ev.data["dispatcher"].py_func)
+
+        def on_end(self, ev) -> None:
+            notice.on_end(ev.data["dispatcher"].py_func)
+
+    event.register("numba:compile", Listener())
+    return notice

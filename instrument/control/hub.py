@@ -43,7 +43,8 @@ class ControlHub:
 
     def start_recording(self, path: str | Path, header: str, replace: bool = False) -> None:
         """Record every accepted event from now on to a new log at `path` (an existing one only with `replace`)."""
-        self.log = EventLog(path, header, replace)
+        warn = None if self.console is None else lambda line: self.console.warn("record stopped", line)
+        self.log = EventLog(path, header, replace, warn)
 
     def apply(self, state: ControlState, event: ControlEvent) -> bool:
         """Apply the event and record it; False (nothing changes, nothing is recorded) if it is
