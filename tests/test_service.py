@@ -474,7 +474,7 @@ def test_the_system_unit_runs_unprivileged_in_a_sandbox_systemd_rates_safe(tmp_p
     assert result.returncode == 0, result.stderr
     lines = unit.read_text().splitlines()
     assert ("DynamicUser=yes" in lines) == (run_as is None) and (f"User={run_as}" in lines) == (run_as is not None)
-    assert f'ReadWritePaths="{tmp_path / "takes"}"' in lines  # where the show records, and nothing else of the disk
+    assert f'ReadWritePaths="-{tmp_path / "takes"}"' in lines  # where the show records, and nothing else of the disk
     assert exposure(unit) <= 5.0
     verify = subprocess.run([SYSTEMD_ANALYZE, "verify", str(unit)], capture_output=True, text=True, timeout=120)
     assert verify.returncode == 0 and "Unknown" not in verify.stderr, verify.stderr

@@ -129,7 +129,8 @@ def unit_text(show: Path, watchdog: float, user_unit: bool, run_as: str | None, 
     else:
         lines += [f"User={run_as}" if run_as else "DynamicUser=yes", "SupplementaryGroups=audio",
                   "CacheDirectory=instrument", "StateDirectory=instrument", *SANDBOX]
-        lines += [f"ReadWritePaths={unit_word(str(folder), 'path')}" for folder in sorted(set(writes))]
+        # "-": a folder missing at start does not stop the unit (run then says which, in one line)
+        lines += [f"ReadWritePaths={unit_word('-' + str(folder), 'path')}" for folder in sorted(set(writes))]
     lines += ["", "[Install]", f"WantedBy={'default.target' if user_unit else 'multi-user.target'}", ""]
     return "\n".join(lines).strip() + "\n"
 
