@@ -4,6 +4,9 @@ Only the chosen subcommand's module is imported (numpy, scipy and numba take sec
 so `instrument --version`, `instrument --help` and each command start without the others' cost.
 Usage errors (an unknown option, a missing argument) are argparse's: one line, exit 2.
 
+A command that uses numba (all but WITHOUT_NUMBA) says on stderr when it starts compiling the
+kernels, which a first run after installing does for about half a minute (progress.CompileNotice).
+
 Ctrl-C and SIGTERM while the parser and the chosen command's module load end the process at once
 (exit 130 or 143, no traceback: nothing has been written yet). Once the command runs they are
 its own: `run` turns both into a stop flag, the others see KeyboardInterrupt ("interrupted", 130).

@@ -48,7 +48,6 @@ SANDBOX = (
     "RestrictNamespaces=yes",
     "RestrictSUIDSGID=yes",
     "LockPersonality=yes",
-    "RemoveIPC=yes",
     "SystemCallArchitectures=native",
     "SystemCallFilter=@system-service",
     "SystemCallErrorNumber=EPERM",
@@ -56,6 +55,8 @@ SANDBOX = (
     # MemoryDenyWriteExecute= stays off: numba compiles the kernels into memory it then runs
     # RestrictRealtime= stays off: the frame loop asks for SCHED_FIFO (LimitRTPRIO= below)
     # PrivateUsers= stays off: it would hide the audio group the sound devices belong to
+    # RemoveIPC= is not set: DynamicUser= implies it, and for a --run-as account running the JACK
+    # server it would remove the server's shared memory when the service stops
 )
 USER_NAME = re.compile(r"[a-z_][a-z0-9_-]{0,30}")  # what systemd takes in User= (its "strict" rule)
 # what a user unit can have without privileges (mount namespaces would need PrivateUsers=, which hides the devices)
