@@ -528,6 +528,7 @@ def test_a_newline_in_a_path_is_refused_not_written_as_a_second_line(tmp_path):
     'presets = 3\n',
     'seconds = -4\n',
     'fps = ',
+    'console-token = "abc"\n',
 ])
 def test_a_show_run_refuses_gets_no_unit_and_the_same_one_line_error(tmp_path, show_text):
     show = tmp_path / "show.toml"

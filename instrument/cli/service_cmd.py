@@ -139,6 +139,7 @@ def unit_text(show: Path, watchdog: float, user_unit: bool, run_as: str | None, 
 def show_outputs(show: Path) -> tuple[Path, ...]:
     """Read the show file exactly as `run` does (a show `run` refuses is refused here, in the same
     line), and return the folders its recordings go to."""
+    from .arguments import check_needs
     from .run_cmd import add_parser as add_run_parser
     from .run_cmd import apply_show_file
 
@@ -146,6 +147,7 @@ def show_outputs(show: Path) -> tuple[Path, ...]:
     add_run_parser(parser.add_subparsers(dest="command"))
     args = parser.parse_args(["run", "--config", str(show)])
     apply_show_file(args)
+    check_needs("run", args)  # what `run` checks next, before it loads the model
     return tuple(Path(p).resolve().parent for p in (args.bvh, args.record) if p)
 
 
