@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 
 
 class Progress:
@@ -32,37 +33,25 @@ class CompileNotice:
     """Says on stderr, the moment numba starts compiling one of the instrument's kernels, what the
     wait is: the first command on a machine (or after an upgrade) compiles them for about half a
     minute before anything else happens, and silence then looks like a hang. Later commands load
-    them from the cache and say nothing. On a terminal a counter follows the kernels compiled."""
+    them from the cache and say nothing. One line, never more: the command's own console owns
+    the terminal's status line."""
 
     def __init__(self, stream=None):
         self.stream = stream if stream is not None else sys.stderr
-        self.compiled = 0
         self.said = False
 
     def on_start(self, function) -> None:
-        if not getattr(function, "__module__", "").startswith("instrument."):
+        if self.said or not getattr(function, "__module__", "").startswith("instrument."):
             return
-        if not self.said:
-            self.said = True
-            self._write("compiling the walk's kernels for this machine (once: about half a minute on a first run, "
-                        f"then cached in {os.environ.get('NUMBA_CACHE_DIR', 'numba cache')})\n")
+        self.said = True
+        line = ("compiling the walk's kernels for this machine (once: about half a minute on a first run, "
+                f"then cached in {os.environ.get('NUMBA_CACHE_DIR', 'numba cache')})\n")
+        # from a thread of its own: a stderr nobody reads never holds up the compile (nor a frame loop that set it off)
+        threading.Thread(target=self._write, args=(line,), name="compile notice", daemon=True).start()
 
-    def on_end(self, function) -> None:
-        if not getattr(function, "__module__", "").startswith("instrument."):
-            return
-        self.compiled += 1
-        if self._tty():
-            self._write(f"\rcompiled {self.compiled} kernels ({function.__qualname__})".ljust(79)[:79] + "\r")
-
-    def _tty(self) -> bool:
+    def _write(self, line: str) -> None:
         try:
-            return self.stream.isatty()
-        except (AttributeError, OSError, ValueError):
-            return False
-
-    def _write(self, text: str) -> None:
-        try:
-            self.stream.write(text)
+            self.stream.write(line)
             self.stream.flush()
         except (AttributeError, OSError, ValueError):  # no stderr, or a closed one: the command goes on
             pass
@@ -79,7 +68,7 @@ def watch_compiling(stream=None) -> CompileNotice:
             notice.on_start(ev.data["dispatcher"].py_func)
 
         def on_end(self, ev) -> None:
-            notice.on_end(ev.data["dispatcher"].py_func)
+            pass
 
     event.register("numba:compile", Listener())
     return notice
