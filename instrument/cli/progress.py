@@ -44,7 +44,7 @@ class CompileNotice:
         if self.said or not getattr(function, "__module__", "").startswith("instrument."):
             return
         self.said = True
-        line = ("compiling the walk's kernels for this machine (once: about half a minute on a first run, "
+        line = ("compiling the walk's kernels for this machine (once: half a minute or more on a first run, "
                 f"then cached in {os.environ.get('NUMBA_CACHE_DIR', 'numba cache')})\n")
         # from a thread of its own: a stderr nobody reads never holds up the compile (nor a frame loop that set it off)
         threading.Thread(target=self._write, args=(line,), name="compile notice", daemon=True).start()
