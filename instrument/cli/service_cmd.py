@@ -25,9 +25,20 @@ from ..errors import UserError
 from ..runtime.priority import PRIORITY
 from .arguments import checked
 
-# the sandbox of a system unit; docs/installations.md says why each need leaves a directive off
-SANDBOX = (
+USER_NAME = re.compile(r"[a-z_][a-z0-9_-]{0,30}")  # what systemd takes in User= (its "strict" rule)
+# the sandbox a user unit can have without privileges (mount namespaces would need PrivateUsers=, which hides the devices)
+USER_SANDBOX = (
     "NoNewPrivileges=yes",
+    "RestrictAddressFamilies=AF_INET AF_INET6 AF_UNIX AF_NETLINK",  # PrivateNetwork= stays off: OSC in and out
+    "RestrictNamespaces=yes",
+    "RestrictSUIDSGID=yes",
+    "LockPersonality=yes",
+    "SystemCallArchitectures=native",
+    "SystemCallFilter=@system-service",
+    "SystemCallErrorNumber=EPERM",
+)
+# the sandbox of a system unit; docs/installations.md says why each need leaves a directive off
+SANDBOX = USER_SANDBOX + (
     "CapabilityBoundingSet=",
     "AmbientCapabilities=",
     "ProtectSystem=strict",
@@ -44,31 +55,12 @@ SANDBOX = (
     "ProtectClock=yes",
     "ProtectHostname=yes",
     "ProtectProc=invisible",
-    "RestrictAddressFamilies=AF_INET AF_INET6 AF_UNIX AF_NETLINK",  # PrivateNetwork= stays off: OSC in and out
-    "RestrictNamespaces=yes",
-    "RestrictSUIDSGID=yes",
-    "LockPersonality=yes",
-    "SystemCallArchitectures=native",
-    "SystemCallFilter=@system-service",
-    "SystemCallErrorNumber=EPERM",
     "UMask=0027",
     # MemoryDenyWriteExecute= stays off: numba compiles the kernels into memory it then runs
     # RestrictRealtime= stays off: the frame loop asks for SCHED_FIFO (LimitRTPRIO= below)
     # PrivateUsers= stays off: it would hide the audio group the sound devices belong to
     # RemoveIPC= is not set: DynamicUser= implies it, and for a --run-as account running the JACK
     # server it would remove the server's shared memory when the service stops
-)
-USER_NAME = re.compile(r"[a-z_][a-z0-9_-]{0,30}")  # what systemd takes in User= (its "strict" rule)
-# what a user unit can have without privileges (mount namespaces would need PrivateUsers=, which hides the devices)
-USER_SANDBOX = (
-    "NoNewPrivileges=yes",
-    "RestrictAddressFamilies=AF_INET AF_INET6 AF_UNIX AF_NETLINK",
-    "RestrictNamespaces=yes",
-    "RestrictSUIDSGID=yes",
-    "LockPersonality=yes",
-    "SystemCallArchitectures=native",
-    "SystemCallFilter=@system-service",
-    "SystemCallErrorNumber=EPERM",
 )
 
 
