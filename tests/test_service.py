@@ -4,6 +4,7 @@ status endpoint over real UDP, the generated unit, and attract mode with pick-up
 
 import json
 import os
+import re
 import shutil
 import signal
 import socket
@@ -295,7 +296,7 @@ def test_the_generated_unit_restarts_on_failure_with_a_watchdog(tmp_path):
     assert result.returncode == 0, result.stderr
     text = unit.read_text()
     for line in ("Type=notify", "Restart=on-failure", "WatchdogSec=5", "LimitRTPRIO=5", "WantedBy=multi-user.target",
-                 f"ExecStart={sys.executable} -m instrument run --config {show.resolve()} --quiet"):
+                 f'ExecStart="{sys.executable}" "-m" "instrument" "run" "--config" "{show.resolve()}" "--quiet"'):
         assert line in text.splitlines(), line
     again = subprocess.run([sys.executable, "-m", "instrument", "service", "--config", str(show), "--out", str(unit)],
                            capture_output=True, text=True, timeout=60)
@@ -501,3 +502,98 @@ def test_the_soak_example_runs(tmp_path):
     assert 10 < soak["rss_mb_start"] and 10 < soak["rss_mb_end"]
     assert 0 < soak["open_files_end"] <= soak["open_files_start"]  # everything it opened, it closed
     assert "cannot open" not in result.stdout + result.stderr and "Traceback" not in result.stderr
+
+
+SYSTEMD_ANALYZE = shutil.which("systemd-analyze")
+needs_systemd_analyze = pytest.mark.skipif(SYSTEMD_ANALYZE is None, reason="systemd-analyze is not installed")
+
+
+def write_unit(tmp_path, show, *options):
+    unit = tmp_path / f"walk{len(list(tmp_path.glob('*.service')))}.service"
+    result = subprocess.run([sys.executable, "-m", "instrument", "service", "--config", str(show), "--out", str(unit), *options],
+                            capture_output=True, text=True, timeout=120)
+    return result, unit
+
+
+def exposure(unit) -> float:
+    """systemd's own rating of the unit's sandbox (0 safe ... 10 unsafe)."""
+    result = subprocess.run([SYSTEMD_ANALYZE, "security", "--offline=yes", str(unit)], capture_output=True, text=True, timeout=120)
+    found = re.search(r"Overall exposure level for \S+: (\d+\.\d+)", result.stdout)
+    assert found, result.stdout + result.stderr
+    return float(found.group(1))
+
+
+@needs_systemd_analyze
+@pytest.mark.parametrize("run_as", [None, "walker"])
+def test_the_system_unit_runs_unprivileged_in_a_sandbox_systemd_rates_safe(tmp_path, run_as):
+    show = tmp_path / "show.toml"
+    show.write_text('osc = ["127.0.0.1:9000/flat"]\nbvh = "takes/tonight.bvh"\n')
+    (tmp_path / "takes").mkdir()
+    result, unit = write_unit(tmp_path, show, *(["--run-as", run_as] if run_as else []))
+    assert result.returncode == 0, result.stderr
+    lines = unit.read_text().splitlines()
+    assert ("DynamicUser=yes" in lines) == (run_as is None) and (f"User={run_as}" in lines) == (run_as is not None)
+    assert f'ReadWritePaths="-{tmp_path / "takes"}"' in lines  # where the show records, and nothing else of the disk
+    assert exposure(unit) <= 5.0
+    verify = subprocess.run([SYSTEMD_ANALYZE, "verify", str(unit)], capture_output=True, text=True, timeout=120)
+    assert verify.returncode == 0 and "Unknown" not in verify.stderr, verify.stderr
+
+
+@needs_systemd_analyze
+def test_paths_with_spaces_percent_dollar_quotes_and_backslashes_reach_systemd_whole(tmp_path):
+    """The interpreter itself sits in such a folder: `systemd-analyze verify` checks the command
+    systemd reads from the unit names an executable, so a path split or mangled fails here."""
+    folder = tmp_path / "My Show 100% $HOME"
+    (folder / '"q" \\x').mkdir(parents=True)
+    show = folder / '"q" \\x' / "show file.toml"
+    show.write_text('osc = ["127.0.0.1:9000/flat"]\n')
+    python = folder / "python 3"  # (systemd refuses quotes and backslashes in an executable's path: tested below)
+    python.symlink_to(sys.executable)
+    result = subprocess.run([str(python), "-m", "instrument", "service", "--config", str(show), "--out", str(tmp_path / "walk.service")],
+                            capture_output=True, text=True, timeout=120, env=dict(os.environ, PYTHONPATH=os.environ.get("PYTHONPATH", str(REPO))))
+    assert result.returncode == 0, result.stderr
+    verify = subprocess.run([SYSTEMD_ANALYZE, "verify", str(tmp_path / "walk.service")], capture_output=True, text=True, timeout=120)
+    assert verify.returncode == 0 and verify.stderr == "", verify.stderr
+
+
+def test_an_interpreter_systemd_cannot_start_is_named_in_one_line(tmp_path):
+    folder = tmp_path / 'it\'s "here"'
+    folder.mkdir()
+    (folder / "python").symlink_to(sys.executable)
+    show = tmp_path / "show.toml"
+    show.write_text('osc = ["127.0.0.1:9000/flat"]\n')
+    result = subprocess.run([str(folder / "python"), "-m", "instrument", "service", "--config", str(show), "--out",
+                             str(tmp_path / "walk.service")], capture_output=True, text=True, timeout=120,
+                            env=dict(os.environ, PYTHONPATH=os.environ.get("PYTHONPATH", str(REPO))))
+    assert result.returncode == 1 and len(result.stderr.strip().splitlines()) == 1, result.stderr
+    assert "systemd refuses an executable" in result.stderr and not (tmp_path / "walk.service").exists()
+
+
+def test_a_newline_in_a_path_is_refused_not_written_as_a_second_line(tmp_path):
+    folder = tmp_path / "show\nExecStartPre=!touch owned"
+    folder.mkdir()
+    show = folder / "show.toml"
+    show.write_text('osc = ["127.0.0.1:9000/flat"]\n')
+    result, unit = write_unit(tmp_path, show)
+    assert result.returncode == 1 and len(result.stderr.strip().splitlines()) == 1, result.stderr
+    assert "control character" in result.stderr and not unit.exists()
+
+
+@pytest.mark.parametrize("show_text", [
+    'fps = 500\n',
+    'osc = ["nowhere:port"]\n',
+    'colour = "red"\n',
+    'no-osc = "yes"\n',
+    'presets = 3\n',
+    'seconds = -4\n',
+    'fps = ',
+    'console-token = "abc"\n',
+])
+def test_a_show_run_refuses_gets_no_unit_and_the_same_one_line_error(tmp_path, show_text):
+    show = tmp_path / "show.toml"
+    show.write_text(show_text)
+    refused = subprocess.run(RUN + ["--config", str(show), "--seconds", "1"], capture_output=True, text=True, timeout=300)
+    assert refused.returncode == 1, refused.stderr
+    result, unit = write_unit(tmp_path, show)
+    assert result.returncode == 1 and not unit.exists()
+    assert result.stderr.removeprefix("instrument service: ") == refused.stderr.removeprefix("instrument run: ")

@@ -4,6 +4,9 @@ Only the chosen subcommand's module is imported (numpy, scipy and numba take sec
 so `instrument --version`, `instrument --help` and each command start without the others' cost.
 Usage errors (an unknown option, a missing argument) are argparse's: one line, exit 2.
 
+A command that uses numba (all but WITHOUT_NUMBA) says on stderr when it starts compiling the
+kernels, which a first run after installing does for about half a minute (progress.CompileNotice).
+
 Ctrl-C and SIGTERM while the parser and the chosen command's module load end the process at once
 (exit 130 or 143, no traceback: nothing has been written yet). Once the command runs they are
 its own: `run` turns both into a stop flag, the others see KeyboardInterrupt ("interrupted", 130).
@@ -43,6 +46,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "service": ("service_cmd", "write a systemd unit that runs a show file unattended (restart, watchdog)"),
 }
 EVERY = "*"  # build_parser(EVERY): import every subcommand (the tests check them all)
+WITHOUT_NUMBA = {"recover", "log", "devices", "learn", "service"}  # the others compile numba kernels on a first run
 
 
 def chosen_command(argv: list[str]) -> str | None:
@@ -148,6 +152,10 @@ def _command(argv: list[str] | None) -> int:
     finally:
         _set_handlers(COMMAND_HANDLERS)
     try:
+        if args.command not in WITHOUT_NUMBA:
+            from .progress import watch_compiling
+
+            watch_compiling()  # a first run says why it waits (numba: loaded now, as the command would)
         return int(args.run(args) or 0)
     except UserError as error:
         print(f"instrument {args.command}: error: {error}", file=sys.stderr)

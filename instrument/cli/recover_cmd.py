@@ -7,7 +7,7 @@ import argparse
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("recover", help="repair the frame count of a BVH recording left by a killed run")
-    p.add_argument("bvh", metavar="FILE.bvh")
+    p.add_argument("bvh", metavar="FILE.bvh", help="the recording (its FILE.bvh.part, if the run was killed before the first frame)")
     p.set_defaults(run=run)
 
 
@@ -15,10 +15,13 @@ def run(args: argparse.Namespace) -> int:
     from ..motion.bvh import read_bvh  # (numpy: loaded when run, not for --help)
     from ..output.recorder import recover
 
-    before, after = recover(args.bvh)
-    read_bvh(args.bvh)  # proves the result reads
+    before, after, path = recover(args.bvh)
+    if after == 0:
+        print(f"{path}: the run was stopped before its first frame: nothing was recorded; removed it")
+        return 0
+    read_bvh(path)  # proves the result reads
     if before == after:
-        print(f"{args.bvh}: {after} frames, as the header says; left as it is")
+        print(f"{path}: {after} frames, as the header says; left as it is")
     else:
-        print(f"{args.bvh}: {after} frames (the header said {before})")
+        print(f"{path}: {after} frames (the header said {before})")
     return 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..errors import UserError
 from ..outputfile import check_output
 from ..shipped import default_model_path
 
@@ -26,6 +27,9 @@ def run(args: argparse.Namespace) -> int:
     from ..models.modelfile import load_model
     from ..motion.bvh import Motion, write_bvh
 
+    if args.template and args.humanoid:
+        raise UserError("--humanoid maps the joints for the T-pose rest; --template writes the model's own skeleton as it "
+                        "is: give one of them")
     check_output(args.out, args.force)
     model = load_model(args.model or default_model_path())
     layout = model.layout

@@ -6,15 +6,21 @@ file in order and a flood of events costs the frame loop no system calls. Closin
 is left. A run killed outright loses at most the last WRITE_EVERY seconds, and a line it cut
 is dropped with a warning when the log is read. The file stops growing at LIMIT bytes (about
 2.5 hours of a 10,000 messages a second flood): the run goes on, and says so.
+
+A disk that refuses a batch (full, a size limit, an I/O error) ends the recording at once: the
+part of the batch that got written is cut off, so the log ends on a whole line; `warn` is told
+in one line when it happens (not only at the end of the show), and the run goes on.
 """
 
 from __future__ import annotations
 
 import os
 import threading
+from collections.abc import Callable
 from pathlib import Path
 
 from ..errors import UserError
+from ..outputfile import write_all
 from .events import ControlEvent
 
 WRITE_EVERY = 0.1  # seconds between two batches
@@ -23,19 +29,28 @@ PENDING_LIMIT = 1_000_000  # lines waiting for a stuck disk; more are counted as
 
 
 class EventLog:
-    def __init__(self, path: str | Path, header: str, replace: bool = False):
+    def __init__(self, path: str | Path, header: str, replace: bool = False, warn: Callable[[str], None] | None = None):
         """A new log at `path` (an existing file only with `replace`), starting with `header`: the
-        line that tells a replay what it needs (control.loghead)."""
+        line that tells a replay what it needs (control.loghead). `warn` hears, from the writer
+        thread, the one line saying the recording stopped."""
         self.path = Path(path)
         try:
             self.fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | (os.O_TRUNC if replace else os.O_EXCL), 0o644)
-            os.write(self.fd, (header + "\n").encode("utf-8"))
         except FileExistsError:
             raise UserError(f"{self.path}: already exists; record to a new file, or give --force") from None
         except OSError as e:
             raise UserError(f"{self.path}: cannot record: {e.strerror or e}") from None
+        first = (header + "\n").encode("utf-8")
+        try:
+            write_all(self.fd, first)
+        except OSError as e:  # a disk full from the start: no empty log is left behind
+            os.close(self.fd)
+            self.path.unlink(missing_ok=True)
+            raise UserError(f"{self.path}: cannot record: {e.strerror or e}") from None
+        self.header_size = len(first)
+        self.warn = warn
         self.pending: list[str] = []
-        self.written = 0  # bytes in the file
+        self.written = 0  # bytes in the file after the header
         self.lost = 0  # events not recorded: the size limit reached, the disk stuck or failing
         self.error: str | None = None  # why recording stopped, once it has
         self.lock = threading.Lock()
@@ -67,13 +82,22 @@ class EventLog:
         if self.written + len(data) > LIMIT:
             self.error = f"the log reached its limit of {LIMIT >> 20} MiB"
             self.lost += len(batch)
+            if self.warn is not None:
+                self.warn(f"{self.path}: {self.error}: recording stopped (the show goes on)")
             return
         try:
-            os.write(self.fd, data)  # one write: a kill cuts at most the last line
+            write_all(self.fd, data)  # one write unless the disk cuts it short: a kill cuts at most the last line
             self.written += len(data)
         except OSError as e:
             self.error = f"cannot write: {e.strerror or e}"
             self.lost += len(batch)
+            try:
+                os.ftruncate(self.fd, self.header_size + self.written)  # the log ends on a whole line
+            except OSError:
+                pass  # a cut last line: the reader drops it with a warning
+            if self.warn is not None:
+                self.warn(f"{self.path}: {e.strerror or e}: recording stopped; the log keeps the events before it "
+                          "(the show goes on)")
 
     def close(self) -> None:
         if self.fd is None:

@@ -68,7 +68,8 @@ class ControlHub:
 
     def start_recording(self, path: str | Path, header: str, replace: bool = False) -> None:
         """Record every accepted event from now on to a new log at `path` (an existing one only with `replace`)."""
-        self.log = EventLog(path, header, replace)
+        warn = None if self.console is None else lambda line: self.console.warn("record stopped", line)
+        self.log = EventLog(path, header, replace, warn)
 
     def decoder(self, source: Source) -> kinds.Decoder | None:
         """The decoder of the device `source` names (made on first use); None for a device whose

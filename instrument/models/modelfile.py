@@ -32,6 +32,7 @@ from .hsmm import HSMM
 FORMAT = "instrument-style-model"
 FORMAT_VERSION = 1
 PARAMETERS = ("means", "variances", "duration_means", "duration_variances")
+LARGEST = 1e6  # no mean, duration or deviation of a trained walk comes near this (the shipped model's largest: 142)
 OPTIONAL = ("contact_average", "contact_styles", "range_average", "range_styles")  # arrays a model may hold; their users check their shapes
 
 
@@ -93,8 +94,15 @@ def save_model(path: str | Path, model: Model) -> None:
 
 def load_model(path: str | Path) -> Model:
     path = Path(path)
+    if path.is_dir():
+        raise UserError(f"{path}: is a folder, not a model file")
     if not path.is_file():
         raise UserError(f"{path}: no such model file")
+    try:  # (is_zipfile calls a file it cannot read "not a zip file")
+        with open(path, "rb") as f:
+            f.read(4)
+    except OSError as e:
+        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
     if not zipfile.is_zipfile(path):
         raise UserError(f"{path}: not a model file (a model is an .npz archive, as `instrument train` writes)")
     try:
@@ -112,11 +120,74 @@ def load_model(path: str | Path) -> Model:
         raise UserError(f"{path}: not an instrument style model")
     if metadata.get("format_version") != FORMAT_VERSION:
         raise UserError(f"{path}: model format version {metadata.get('format_version')} is not supported (this instrument reads {FORMAT_VERSION})")
+    _check_metadata(path, metadata)
     _check_shapes(path, metadata, arrays)
     average = HSMM(*(arrays[f"average_{p}"] for p in PARAMETERS))
     styles = HSMM(*(arrays[f"style_{p}"] for p in PARAMETERS))
     extras = {name: arrays[name] for name in OPTIONAL if name in arrays and np.isfinite(arrays[name]).all()}
     return Model(metadata, average, styles, arrays["static_std"], arrays["static_step_max"], extras)
+
+
+CHANNELS = {f"{axis}{kind}" for axis in "XYZ" for kind in ("rotation", "position")}
+
+
+def _check_metadata(path: Path, metadata: dict) -> None:
+    """Every metadata entry a command reads has the type it needs, so a model broken by hand or
+    by another program is one line naming the entry, never a traceback in `info`, `run` or `skeleton`."""
+    def broken(key: str, expected: str) -> UserError:
+        shown = json.dumps(metadata.get(key))
+        return UserError(f"{path}: metadata {key!r}: expected {expected}, not {shown[:60]}{'...' if len(shown) > 60 else ''}")
+
+    def number(value) -> bool:
+        return isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value)
+
+    for key in ("fps", "states", "labels", "styles", "skeleton", "features"):
+        if key not in metadata:
+            raise UserError(f"{path}: metadata lacks {key!r}")
+    if not number(metadata["fps"]) or not 1 <= metadata["fps"] <= 1000:
+        raise broken("fps", "a frame rate from 1 to 1000")
+    if not isinstance(metadata["states"], int) or isinstance(metadata["states"], bool) or metadata["states"] < 1:
+        raise broken("states", "a whole number of at least 1")
+    for key in ("labels", "styles"):
+        names = metadata[key]
+        if not isinstance(names, list) or not names or not all(isinstance(n, str) and n for n in names) or len(set(names)) < len(names):
+            raise broken(key, "a list of different names")
+    try:
+        skeleton = Skeleton.from_dict(metadata["skeleton"])
+        layout = FeatureLayout.from_dict(skeleton, metadata["features"])
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as e:
+        raise UserError(f"{path}: metadata 'skeleton' or 'features' is broken ({type(e).__name__}: {e})") from None
+    for k, joint in enumerate(skeleton.joints):
+        if not (joint.parent == -1 if k == 0 else 0 <= joint.parent < k) or not set(joint.channels) <= CHANNELS:
+            raise UserError(f"{path}: metadata 'skeleton': joint {k} ({joint.name}) has a parent or channels no skeleton has")
+    if len(layout.template) != sum(len(j.channels) for j in skeleton.joints) or not all(map(number, layout.template)):
+        raise UserError(f"{path}: metadata 'features': the template pose does not fit the skeleton's channels")
+    names = metadata["features"].get("names")
+    if not isinstance(names, list) or len(names) != layout.dimension:
+        raise UserError(f"{path}: metadata 'features': 'names' does not list the {layout.dimension} features of its joints")
+    optional = {  # entries `info` and the synthesis read when they are there
+        "data": (lambda v: isinstance(v, list) and all(isinstance(d, dict) and isinstance(d.get("frames"), int)
+                                                         and isinstance(d.get("file", ""), str) and isinstance(d.get("style", ""), str)
+                                                         for d in v),
+                 "a list of takes, each with its file, style and frames"),
+        "mean_step_frames": (lambda v: isinstance(v, dict) and all(map(number, v.values())), "a table of numbers"),
+        "training": (lambda v: isinstance(v, dict), "a table"),
+        "contact": (lambda v: isinstance(v, dict) and _numbers_2d(v.get("clearance", [[0.0]])), "a table whose clearance is rows of numbers"),
+        "licence": (lambda v: isinstance(v, str), "a text"),
+        "attribution": (lambda v: isinstance(v, str), "a text"),
+    }
+    for key, (fits, expected) in optional.items():
+        if key in metadata and not fits(metadata[key]):
+            raise broken(key, expected)
+
+
+def _numbers_2d(value) -> bool:
+    """True for rows of finite numbers, all as long (a table numpy reads as a 2-D float array)."""
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return False
+    return array.ndim == 2 and bool(np.isfinite(array).all())
 
 
 def _check_shapes(path: Path, metadata: dict, arrays: dict) -> None:
@@ -144,6 +215,10 @@ def _check_shapes(path: Path, metadata: dict, arrays: dict) -> None:
             raise UserError(f"{path}: array {name!r} has shape {arrays[name].shape}, the metadata says {shape}")
         if not np.isfinite(arrays[name]).all():
             raise UserError(f"{path}: array {name!r} holds values that are not finite")
+        limit = LARGEST ** 2 if "variances" in name else LARGEST
+        if np.abs(arrays[name]).max(initial=0.0) > limit:
+            raise UserError(f"{path}: array {name!r} holds values beyond {limit:g}, far past any walk's angles, "
+                            "distances or durations (the synthesis would overflow): not a trained model")
     for name in ("average_variances", "style_variances", "average_duration_variances", "style_duration_variances"):
         if (arrays[name] <= 0).any():
             raise UserError(f"{path}: array {name!r} holds variances that are not positive")
