@@ -293,3 +293,18 @@ def test_the_docs_say_what_every_option_accepts():
         assert row is not None, key
         bounds = [b for b in (accepts.low, accepts.high) if b is not None]
         assert all((f"{b:g}" if accepts.kind is float else f"{int(b)}") in row for b in bounds), (key, row)
+
+
+def test_no_osc_with_osc_is_refused_not_dropped(tmp_path):
+    """`run --no-osc --osc HOST:PORT` used to drop the target silently; a show file likewise."""
+    import subprocess
+    import sys
+
+    result = subprocess.run([sys.executable, "-m", "instrument", "run", "--no-osc", "--osc", "127.0.0.1:9000/flat",
+                             "--fast", "--seconds", "1"], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 1 and "contradict" in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    show = tmp_path / "show.toml"
+    show.write_text('no-osc = true\nosc = ["127.0.0.1:9000/flat"]\nfast = true\nseconds = 1\n')
+    result = subprocess.run([sys.executable, "-m", "instrument", "run", "--config", str(show)], capture_output=True,
+                            text=True, timeout=300)
+    assert result.returncode == 1 and "contradict" in result.stderr and len(result.stderr.strip().splitlines()) == 1

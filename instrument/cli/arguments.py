@@ -104,13 +104,28 @@ NEEDS: dict[str, str] = {
 }
 
 
+# "COMMAND --option": the option it contradicts (both given: refused rather than one dropped)
+EXCLUDES: dict[str, str] = {
+    "run --no-osc": "--osc",
+}
+
+
+def _given(args: argparse.Namespace, option: str) -> bool:
+    value = getattr(args, option[2:].replace("-", "_"), None)
+    return value is not None and value is not False  # a flag left off is False
+
+
 def check_needs(command: str, args: argparse.Namespace) -> None:
-    """A one-line UserError for an option given without the option it belongs to (NEEDS)."""
+    """A one-line UserError for an option given without the option it belongs to (NEEDS), or with
+    one it contradicts (EXCLUDES)."""
     for key, partner in NEEDS.items():
         name, option = key.split(" ", 1)
-        if name == command and getattr(args, option[2:].replace("-", "_")) is not None \
-                and getattr(args, partner[2:].replace("-", "_")) is None:
+        if name == command and _given(args, option) and not _given(args, partner):
             raise UserError(f"{option} means nothing without {partner} (on the command line or in the show file)")
+    for key, other in EXCLUDES.items():
+        name, option = key.split(" ", 1)
+        if name == command and _given(args, option) and _given(args, other):
+            raise UserError(f"{option} and {other} contradict each other: give one (on the command line or in the show file)")
 
 
 def value(key: str, text: object, where: str | None = None):
