@@ -12,7 +12,7 @@ from ..control.learn import detect
 from ..control.mapping import parse_hid_id
 from ..errors import UserError
 from ..outputfile import check_output, written
-from ..runtime.console import Console
+from ..terminal import Console
 from ..shipped import default_model_path
 from ..tomlfile import toml_string
 from .arguments import checked

@@ -17,7 +17,7 @@ from ..control.mapping import load_mapping, parse_hid_id, preset_problems, style
 from ..errors import UserError
 from ..output.osc import FLAT_PORT, VMC_PORT, OscTarget, parse_target
 from ..outputfile import check_output
-from ..runtime.console import Console
+from ..terminal import Console
 from ..runtime.health import Health
 from ..runtime.notify import SystemdNotifier
 from ..runtime.priority import realtime_scheduling

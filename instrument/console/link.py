@@ -18,7 +18,7 @@ from ..control.state import ControlState
 from ..control.targets import MAX_TURN, TABLE, WEIGHT_LIMIT
 from ..control.values import all_values
 from ..errors import UserError
-from ..runtime.console import Console
+from ..terminal import Console
 from ..synthesis.posing import CrowdPose, Pose
 from ..synthesis.durations import MAX_SPEED, MIN_SPEED
 from ..synthesis.interpolation import GROUPS

@@ -13,7 +13,7 @@ import time
 from typing import Iterator
 
 from ..errors import UserError
-from ..runtime.console import Console
+from ..terminal import Console
 from . import oscparse
 from .events import ControlEvent
 from .jackwatch import Remaker

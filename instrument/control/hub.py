@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..runtime.console import Console
+from ..terminal import Console
 from .eventlog import EventLog
 from .events import ControlEvent
 from .loghead import header_line

@@ -17,7 +17,7 @@ from typing import Callable
 
 from ..errors import UserError
 from .clock import FrameClock
-from .console import Console
+from ..terminal import Console
 from .notify import SystemdNotifier
 
 DOWN_FOR = 2.0  # seconds after an output's last failure during which it counts as down

@@ -24,7 +24,7 @@ from ..synthesis.engine import Engine
 from ..synthesis.parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING
 from ..synthesis.posing import Pose
 from .clock import IDLE_UNTIL, FrameClock
-from .console import Console
+from ..terminal import Console
 from .stopping import StopFlag
 
 STATUS_EVERY = 0.5  # seconds of wall time
