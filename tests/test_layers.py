@@ -62,8 +62,8 @@ CASES = {
 def test_each_contract_breaks_when_its_rule_is_broken(tmp_path, case):
     shutil.copytree(ROOT / "instrument", tmp_path / "instrument", ignore=shutil.ignore_patterns("__pycache__", "static"))
     shutil.copy(ROOT / "pyproject.toml", tmp_path)
-    name, line, where, broken = CASES[case]
-    path = tmp_path / "instrument" / name
+    file, line, where, broken = CASES[case]
+    path = tmp_path / "instrument" / file
     if where is None:
         path.write_text(line + "\n")
     elif where == AT_THE_TOP:
@@ -73,4 +73,4 @@ def test_each_contract_breaks_when_its_rule_is_broken(tmp_path, case):
     else:
         path.write_text(path.read_text() + where.format(line))
     verdicts, report = lint_imports(tmp_path)
-    assert {name for name, verdict in verdicts.items() if verdict == "BROKEN"} == broken, report
+    assert {contract for contract, verdict in verdicts.items() if verdict == "BROKEN"} == broken, report
