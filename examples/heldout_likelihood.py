@@ -14,10 +14,10 @@ import json
 import time
 
 from instrument.errors import run_script
-from instrument.models.adaptation import ONE_PASS_MAP
-from instrument.models.build import build_model
-from instrument.models.corpus import styled_takes
-from instrument.models.evaluation import format_table, heldout_table, split_holdout
+from instrument.training.adaptation import ONE_PASS_MAP
+from instrument.training.build import build_model
+from instrument.training.corpus import styled_takes
+from instrument.evaluation.heldout import format_table, heldout_table, split_holdout
 
 
 def main() -> None:

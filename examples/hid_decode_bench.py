@@ -27,7 +27,7 @@ from hid_sim import SimulatedDevice, SimulatedHid  # noqa: E402
 
 from instrument.control.hid import HidInput  # noqa: E402
 from instrument.control.hid_report_descriptor import parse_report_descriptor  # noqa: E402
-from instrument.runtime.console import Console  # noqa: E402
+from instrument.terminal import Console  # noqa: E402
 
 
 def median_us(action, repeat: int) -> float:

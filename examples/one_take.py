@@ -26,10 +26,10 @@ sys.path.insert(0, str(Path(__file__).parent))
 from style_fidelity import LinearDiscriminant, step_features  # noqa: E402
 
 from instrument.errors import UserError, run_script  # noqa: E402
-from instrument.models.adaptation import ONE_PASS_MAP  # noqa: E402
-from instrument.models.build import build_model  # noqa: E402
-from instrument.models.corpus import make_takes, read_motions, styled_takes  # noqa: E402
-from instrument.models.evaluation import heldout_table  # noqa: E402
+from instrument.training.adaptation import ONE_PASS_MAP  # noqa: E402
+from instrument.training.build import build_model  # noqa: E402
+from instrument.training.corpus import make_takes, read_motions, styled_takes  # noqa: E402
+from instrument.evaluation.heldout import heldout_table  # noqa: E402
 from instrument.motion.features import extract  # noqa: E402
 from instrument.motion.steps import segment_steps  # noqa: E402
 from instrument.synthesis.engine import default_controls, render  # noqa: E402

@@ -48,7 +48,7 @@ from instrument.control.state import ControlState
 from instrument.models.modelfile import load_model
 from instrument.output.osc import OscTarget, message
 from instrument.output.outputs import OscOutput, make_profile
-from instrument.runtime.console import Console
+from instrument.terminal import Console
 from instrument.runtime.health import Health, open_files, rss_bytes
 from instrument.runtime.performance import Show, perform
 from instrument.runtime.priority import realtime_scheduling

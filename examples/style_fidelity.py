@@ -15,10 +15,10 @@ import argparse
 import numpy as np
 
 from instrument.errors import UserError, run_script
-from instrument.models.build import build_model
-from instrument.models.corpus import make_takes, read_motions, styled_takes
-from instrument.models.evaluation import split_holdout
-from instrument.models.recognition import LinearDiscriminant, step_features
+from instrument.training.build import build_model
+from instrument.training.corpus import make_takes, read_motions, styled_takes
+from instrument.evaluation.heldout import split_holdout
+from instrument.evaluation.recognition import LinearDiscriminant, step_features
 from instrument.motion.features import extract
 from instrument.motion.steps import segment_steps
 from instrument.synthesis.engine import default_controls, render

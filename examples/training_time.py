@@ -12,9 +12,9 @@ import argparse
 import time
 
 from instrument.errors import run_script
-from instrument.models.adaptation import ONE_PASS_MAP
-from instrument.models.build import build_model
-from instrument.models.corpus import styled_takes
+from instrument.training.adaptation import ONE_PASS_MAP
+from instrument.training.build import build_model
+from instrument.training.corpus import styled_takes
 
 
 def main() -> None:

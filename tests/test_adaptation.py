@@ -5,10 +5,10 @@ the duration floor, and settings chosen by held-out likelihood."""
 import numpy as np
 import pytest
 
-from instrument.models.adaptation import (DEFAULT, ONE_PASS_MAP, Settings, adapt, adapt_styles, duration_floor,
+from instrument.training.adaptation import (DEFAULT, ONE_PASS_MAP, Settings, adapt, adapt_styles, duration_floor,
                                           floored_keeping_length, heldout_score)
 from instrument.models.hsmm import Floors
-from instrument.models.training import train_average
+from instrument.training.average import train_average
 from test_hsmm import STATES, TRUE_DURATION_MEANS, sample
 
 FLOORS = Floors(np.full(2, 1e-3))

@@ -13,7 +13,7 @@ from samples import cmu_named_walk
 from test_vmc_pose import assert_close, compare
 
 from instrument.errors import UserError
-from instrument.models.corpus import (
+from instrument.training.corpus import (
     DEFAULT_STYLE_PATTERN,
     load_corpus,
     make_takes,
@@ -299,7 +299,7 @@ def test_evaluating_against_takes_of_another_skeleton_is_a_one_line_error(cmu_mo
 
 
 def test_a_style_whose_takes_have_no_steps_is_said_to_be_left_out(real_walks, tmp_path):
-    from instrument.models.build import build_model
+    from instrument.training.build import build_model
     from instrument.motion.bvh import Motion, write_bvh
 
     pairs = [(p, "normal") for p in real_walks if "_normal_" in p.name][:2]

@@ -1,7 +1,7 @@
 """Every command, every edge: bad values, bad files and outputs give one line (exit 1, or 2 for
 a usage error) naming the option or the file, line and key; never a traceback.
 
-The bad option values are made from the option table itself (instrument.cli.arguments.OPTIONS),
+The bad option values are made from the option table itself (instrument.control.options.OPTIONS),
 so an option added to the table is tested here without a new line in this file.
 """
 
@@ -14,7 +14,7 @@ import sys
 import pytest
 
 from conftest import REPO
-from instrument.cli.arguments import OPTIONS
+from instrument.control.options import OPTIONS
 from instrument.cli.main import main
 from instrument.control.events import ControlEvent, read_log
 from instrument.control.hub import ControlHub

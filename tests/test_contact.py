@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from instrument.models.symmetry import symmetric_models
+from instrument.training.symmetry import symmetric_models
 from instrument.motion.features import extract
 from instrument.motion.kinematics import world_positions
 from instrument.synthesis.posing import PoseStream

@@ -16,7 +16,7 @@ from instrument.control.hub import ControlHub
 from instrument.control.mapping import load_mapping
 from instrument.control.state import ControlState
 from instrument.models.modelfile import default_model_path, load_model
-from instrument.runtime.console import Console
+from instrument.terminal import Console
 from instrument.runtime.performance import Show, perform
 from oscrecv import Receiver, frame_count, free_port
 from waiting import StderrLines, wait_until

@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from instrument.cli.arguments import MAX_CHARACTERS
+from instrument.control.options import MAX_CHARACTERS
 from instrument.control.state import ControlState
 from instrument.motion.bvh import read_bvh
 from instrument.motion.kinematics import local_transforms

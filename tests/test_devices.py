@@ -83,7 +83,7 @@ def test_two_midi_controllers_each_play_through_their_own_mapping(jack, model, t
     from instrument.control.loghead import logged_mappings, logged_per_device
     from instrument.control.mapping import load_mapping
     from instrument.control.state import ControlState
-    from instrument.runtime.console import Console
+    from instrument.terminal import Console
     from instrument.runtime.performance import Show, perform
 
     state = ControlState(model.style_names, model.states)
@@ -168,7 +168,7 @@ def test_a_toy_device_registered_from_a_test_file_drives_the_walk(model, tmp_pat
     from instrument.control.state import ControlState
     from instrument.output.osc import OscTarget
     from instrument.output.outputs import OscOutput, make_profile
-    from instrument.runtime.console import Console
+    from instrument.terminal import Console
     from instrument.runtime.performance import Show, perform
     from oscrecv import Receiver
     from waiting import wait_until

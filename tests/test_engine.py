@@ -108,7 +108,7 @@ def test_a_toy_sink_from_a_test_file_gets_every_frame(model, tmp_path):
     frame in order with the poses and every control value, and the values it gets are the ones
     the frame was made with (a score ramps the speed)."""
     from instrument.control.score import ScorePlayer, load_score
-    from instrument.runtime.console import Console
+    from instrument.terminal import Console
     from instrument.runtime.performance import Show, perform
 
     class Hips:

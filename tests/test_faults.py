@@ -405,7 +405,7 @@ def test_a_signal_while_the_command_loads_ends_it_quietly_with_nothing_written(t
 def test_a_device_poll_or_an_event_that_raises_is_counted_and_the_show_goes_on(model):
     import io
 
-    from instrument.runtime.console import Console
+    from instrument.terminal import Console
     from instrument.runtime.performance import Show, perform
 
     state = ControlState(model.style_names, model.states)
@@ -723,7 +723,7 @@ def test_a_target_name_that_does_not_resolve_yet_is_tried_until_it_does(capsys):
     """The network's name service is the one stand-in here (a test must not send DNS queries
     off the machine): it answers as glibc does for an unknown name until the renderer is "on"."""
     from instrument.output.osc import OscTarget, UdpOut
-    from instrument.runtime.console import Console
+    from instrument.terminal import Console
 
     receiver = Receiver()
     switched_on = [False]
@@ -760,8 +760,8 @@ def test_a_target_name_that_does_not_resolve_yet_is_tried_until_it_does(capsys):
 def test_console_lines_to_a_stalled_pipe_are_queued_then_dropped_never_blocking():
     import threading
 
-    from instrument.runtime import console as console_module
-    from instrument.runtime.console import Console
+    from instrument import terminal as console_module
+    from instrument.terminal import Console
 
     read_end, write_end = stalled_pipe()
     stream = os.fdopen(write_end, "w")

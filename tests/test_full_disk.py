@@ -26,7 +26,7 @@ from instrument.control.events import read_log
 from instrument.errors import UserError
 from instrument.motion.bvh import read_bvh
 from instrument.output.recorder import BvhRecorder
-from instrument.runtime.console import Console
+from instrument.terminal import Console
 from waiting import wait_until
 
 INSTRUMENT = [sys.executable, "-m", "instrument"]

@@ -1,8 +1,8 @@
 """Quality of the style models on takes they never saw."""
 
-from instrument.models.build import build_model
-from instrument.models.corpus import DEFAULT_STYLE_PATTERN, style_from_name
-from instrument.models.evaluation import heldout_table, own_style_wins, split_holdout
+from instrument.training.build import build_model
+from instrument.training.corpus import DEFAULT_STYLE_PATTERN, style_from_name
+from instrument.evaluation.heldout import heldout_table, own_style_wins, split_holdout
 
 
 def test_each_style_model_explains_its_own_held_out_takes_best(real_walks):

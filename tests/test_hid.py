@@ -32,7 +32,7 @@ from instrument.control.hub import ControlHub
 from instrument.control.mapping import Mapper, load_mapping
 from instrument.control.state import ControlState
 from instrument.errors import UserError
-from instrument.runtime.console import Console
+from instrument.terminal import Console
 from instrument.runtime.performance import Show, perform
 from instrument.shipped import shipped_mappings
 from instrument.tomlfile import read_toml

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from instrument.models.hsmm import HSMM, Floors, expected_statistics, forward_backward, pad_segments
-from instrument.models.training import TrainingReport, train_average
+from instrument.training.average import TrainingReport, train_average
 
 STATES = 4
 TRUE_MEANS = np.array([[[0.0, 5.0], [4.0, -3.0], [8.0, 2.0], [-4.0, 0.0]], [[1.0, -5.0], [-3.0, 3.0], [6.0, 6.0], [2.0, -8.0]]])

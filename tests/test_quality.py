@@ -82,7 +82,7 @@ def _x_channel(motion: Motion, joint: int) -> int:
 def test_played_walks_swing_knees_and_hips_through_the_takes_ranges(model):
     """Issue 10's range target on the shipped model: the walk as played (range filter, feet
     planted) against the real takes of its style, measured as `instrument evaluate` does."""
-    from instrument.synthesis.assessment import assess
+    from instrument.evaluation.assessment import assess
 
     result = assess(model, seconds=12.0, real=SHARED_WALKS, styles=["elderly", "feminine", "exhausted"], kinds=("one",))
     for style in ("elderly", "feminine", "exhausted"):
@@ -132,7 +132,7 @@ def test_a_style_of_one_take_has_no_recognition_figure_rather_than_zero():
     classifier that never saw the style, so its figure is missing ('-'), not 0."""
     from types import SimpleNamespace
 
-    from instrument.synthesis.assessment import _cross_validated
+    from instrument.evaluation.assessment import _cross_validated
 
     rng = np.random.default_rng(0)
     centres = {"a": np.zeros(4), "b": np.full(4, 5.0), "c": np.full(4, -5.0)}

@@ -16,7 +16,7 @@ from instrument.motion.bvh import read_bvh
 from instrument.output.osc import MAX_BUNDLE, parse_target
 from instrument.output.recorder import BvhRecorder
 from instrument.runtime.clock import IDLE_EVERY, IDLE_UNTIL, FrameClock
-from instrument.runtime.console import Console
+from instrument.terminal import Console
 from instrument.runtime.performance import Show, perform
 from frame_indices import FrameIndices
 from oscrecv import Receiver, frame_count, free_port

@@ -22,7 +22,7 @@ from instrument.control.hub import ControlHub
 from instrument.control.mapping import load_mapping
 from instrument.control.score import preset_tour
 from instrument.control.state import ControlState
-from instrument.runtime.console import Console
+from instrument.terminal import Console
 from instrument.runtime.health import Health
 from instrument.runtime.notify import SystemdNotifier
 from instrument.runtime.performance import Show, perform

@@ -33,7 +33,7 @@ from instrument.control.spec import TABLE, markdown_table
 from instrument.control.state import ControlState
 from instrument.control.values import all_values
 from instrument.errors import UserError
-from instrument.runtime.console import Console
+from instrument.terminal import Console
 from instrument.tomlfile import key_lines
 
 HUGE = 10 ** 400  # an integer no float holds
@@ -281,7 +281,7 @@ def test_the_docs_table_is_the_rows():
 
 
 def test_command_line_options_that_set_targets_take_the_rows_range(capsys):
-    from instrument.cli.arguments import OPTIONS
+    from instrument.control.options import OPTIONS
 
     for option, kind in (("synth --speed", "speed"), ("synth --liveliness", "liveliness"), ("synth --style", "style"),
                          ("run --morph", "morph")):

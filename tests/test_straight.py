@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from instrument.models.build import build_model
+from instrument.training.build import build_model
 from instrument.models.modelfile import default_model_path, load_model
 from instrument.motion.bvh import Motion, read_bvh, write_bvh
 from instrument.motion.features import choose_layout, extract, heading_angle, restore

@@ -8,7 +8,8 @@ import pytest
 from instrument.synthesis.posing import PoseStream
 from instrument.synthesis.engine import Engine, default_controls
 from instrument.synthesis.stream import Controls, Crowd
-from instrument.synthesis.widen import KEPT, SETTLE, _generated_range, _spread, range_space, stride_means
+from instrument.synthesis.widen import KEPT, range_space, stride_means
+from instrument.training.widen import SETTLE, _generated_range, _spread
 from walks import features, step
 
 

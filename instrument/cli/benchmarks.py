@@ -35,7 +35,7 @@ def measure_pacing(model_path: str | None, seconds: float, fps: float, console_a
 
     from ..output.osc import OscTarget
     from ..output.outputs import OscOutput, make_profile
-    from ..runtime.console import Console
+    from ..terminal import Console
     from ..runtime.performance import Show, perform
     from ..runtime.priority import realtime_scheduling
     from ..control.score import ScorePlayer, load_score

@@ -26,7 +26,7 @@ def live_path(model: Model, count: int, spread: float = 0.5):
     from ..control.score import ScorePlayer, load_score
     from ..control.state import ControlState
     from ..output.outputs import make_profile
-    from ..runtime.console import Console
+    from ..terminal import Console
     from ..shipped import demo_score_path
     from ..synthesis.engine import Engine
 
@@ -75,7 +75,7 @@ def keeps_time(model: Model, count: int, seconds: float = TRIAL_SECONDS) -> tupl
     from ..control.state import ControlState
     from ..output.osc import OscTarget
     from ..output.outputs import OscOutput, make_profile
-    from ..runtime.console import Console
+    from ..terminal import Console
     from ..runtime.performance import Show, perform
     from ..shipped import demo_score_path
 

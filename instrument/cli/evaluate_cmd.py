@@ -12,7 +12,7 @@ from ..errors import UserError
 from ..shipped import default_model_path
 from .arguments import checked
 
-VARIANT_KINDS = ("one", "x2", "inverted", "pairs")  # as synthesis.assessment names them (imported when run: it is slow to load)
+VARIANT_KINDS = ("one", "x2", "inverted", "pairs")  # as evaluation.assessment names them (imported when run: it is slow to load)
 
 COLUMNS = (  # (figure, heading, scale, format)
     ("step_s", "step s", 1.0, "{:.3f}"),
@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--styles: the model has no style {unknown[0]!r} (it has {', '.join(model.style_names)})")
     styles = [s for s in model.style_names if s in styles]  # the model's order, whatever the command line's
     kinds = args.variants
-    from ..synthesis.assessment import assess
+    from ..evaluation.assessment import assess
 
     progress = None if args.json else (lambda name: print(f"  measured {name}", file=sys.stderr))
     result = assess(model, seconds, Path(args.real) if args.real else None, styles, kinds, progress)

@@ -59,7 +59,7 @@ def _text(info: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..models.corpus import bvh_files
+    from ..training.corpus import bvh_files
 
     results, failed = [], 0
     for path in bvh_files(args.paths):

@@ -13,7 +13,7 @@ from ..control.mapping import parse_hid_id
 from ..control.spec import TABLE
 from ..errors import UserError
 from ..outputfile import check_output, written
-from ..runtime.console import Console
+from ..terminal import Console
 from ..shipped import default_model_path
 from ..tomlfile import toml_string
 from .arguments import checked

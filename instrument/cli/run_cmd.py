@@ -19,7 +19,7 @@ from ..control.presetfile import model_of, read_presets, read_presets_file
 from ..errors import UserError
 from ..output.osc import FLAT_PORT, VMC_PORT, parse_target
 from ..outputfile import check_output
-from ..runtime.console import Console
+from ..terminal import Console
 from ..runtime.health import Health
 from ..runtime.notify import SystemdNotifier
 from ..runtime.priority import realtime_scheduling
@@ -27,8 +27,9 @@ from ..runtime.stopping import StopFlag
 from ..shipped import default_model_path, demo_score_path, shipped_mappings
 from ..synthesis.parameters import DEFAULT_SPACING, DEFAULT_VMC_CHARACTERS
 from ..tomlfile import TomlFile
-from .arguments import OPTIONS, check_needs, host_port
-from .arguments import value as option_value
+from ..control.options import OPTIONS, host_port
+from ..control.options import value as option_value
+from .arguments import check_needs
 
 if TYPE_CHECKING:
     from ..control.state import ControlState
@@ -38,7 +39,7 @@ DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "
             "normal_priority": False, "force": False, "vmc_root": "hips", "no_relaxed_hands": False}
 LISTS = ("osc", "mapping", "midi", "midi_virtual")
 SHOW_FILE_CHECKS = {"osc": parse_target, "hid": parse_hid_id}  # checked as the file is read, so errors name its line
-ADDRESSES = ("osc_in", "status_port", "console")  # [HOST:]PORT options (arguments.host_port)
+ADDRESSES = ("osc_in", "status_port", "console")  # [HOST:]PORT options (control/options.host_port)
 PATHS = ("model", "bvh", "replay", "score", "record", "humanoid", "presets", "mapping")  # relative to the show file
 
 
@@ -100,7 +101,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def apply_show_file(args: argparse.Namespace) -> TomlFile:
     """Fill options not given on the command line from the show file, each checked as the command
-    line's are (cli/arguments.py), an error naming the file, the key's line and the key; the file
+    line's are (control/options.py), an error naming the file, the key's line and the key; the file
     read, for its [presets] (checked once the model is known: `read_presets`) and [attract]."""
     show = TomlFile(args.config)
     path = show.path

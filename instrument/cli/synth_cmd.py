@@ -10,7 +10,7 @@ from ..errors import UserError
 from ..outputfile import check_output
 from ..shipped import default_model_path
 from ..synthesis.parameters import DEFAULT_LOOKAHEAD, GROUPS, MAX_SPEED, MIN_SPEED
-from .arguments import value
+from ..control.options import value
 
 if TYPE_CHECKING:
     import numpy as np

@@ -33,7 +33,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _pairs(args: argparse.Namespace) -> list[tuple[Path, str]]:
-    from ..models.corpus import DEFAULT_STYLE_PATTERN, read_manifest, styled_takes
+    from ..training.corpus import DEFAULT_STYLE_PATTERN, read_manifest, styled_takes
 
     style_from = args.style_from or DEFAULT_STYLE_PATTERN
     pairs: list[tuple[Path, str]] = []
@@ -54,7 +54,7 @@ def _pairs(args: argparse.Namespace) -> list[tuple[Path, str]]:
 
 def run(args: argparse.Namespace) -> int:
     # the training code (numpy, scipy, numba): loaded when run, not for --help
-    from ..models.build import UNSPECIFIED_LICENCE, build_model
+    from ..training.build import UNSPECIFIED_LICENCE, build_model
     from ..models.modelfile import save_model
 
     check_output(args.out, args.force)

@@ -14,14 +14,14 @@ from typing import Callable
 
 import numpy as np
 
-from ..cli.arguments import host_port
+from ..control.options import host_port
 from ..control.events import ControlEvent
 from ..control.hub import MAX_PRESETS
 from ..control.state import ControlState
 from ..control.spec import rows_for_page
 from ..control.values import all_values
 from ..errors import UserError
-from ..runtime.console import Console
+from ..terminal import Console
 from ..synthesis.posing import Frame
 from ..synthesis.interpolation import GROUPS
 from .presets import check_presets_file

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Callable
 
 from ..errors import UserError
-from ..runtime.console import Console
+from ..terminal import Console
 from ..tomlfile import Field, TomlFile
 from .events import ControlEvent
 from .score import Score, ScorePlayer, load_score, preset_tour

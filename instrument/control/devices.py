@@ -14,7 +14,7 @@ import time
 from typing import Iterator
 
 from ..errors import UserError
-from ..runtime.console import Console
+from ..terminal import Console
 from . import oscparse
 from .events import RawEvent, Source
 from .jackwatch import Remaker

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import re
 
-from ..runtime.console import Console
+from ..terminal import Console
 from .devices import midi_backend
 from .jackwatch import Remaker
 from .mapping import ControlSpec, Mapper

@@ -31,7 +31,7 @@ import time
 from dataclasses import dataclass, field
 
 from ..errors import UserError
-from ..runtime.console import Console
+from ..terminal import Console
 from .events import RawEvent, Source
 from .hid_report_descriptor import DescriptorError, parse_report_descriptor
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 
-from ..runtime.console import Console
+from ..terminal import Console
 from .hid import LEDS, HidInput
 
 FEEDBACK_KEYS = ("leds", "report", "fixed", "light-bar", "colours")

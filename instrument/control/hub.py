@@ -14,7 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import UserError
-from ..runtime.console import Console
+from ..terminal import Console
 from . import kinds
 from .eventlog import EventLog
 from .events import RawEvent, Source, TargetEvent

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import UserError
-from ..runtime.console import Console
+from ..terminal import Console
 
 VMC_PORT = 39539
 FLAT_PORT = 9000

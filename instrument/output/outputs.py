@@ -6,7 +6,7 @@ import numpy as np
 
 from ..models.modelfile import Model
 from ..motion.features import forward_direction
-from ..runtime.console import Console
+from ..terminal import Console
 from ..motion.kinematics import ChannelStream
 from ..synthesis.posing import Frame
 from .flat import FlatProfile

@@ -18,10 +18,10 @@ import socket
 import time
 from typing import Callable
 
-from ..cli.arguments import host_port
+from ..control.options import host_port
 from ..errors import UserError
 from .clock import FrameClock
-from .console import Console
+from ..terminal import Console
 from .notify import SystemdNotifier
 
 DOWN_FOR = 2.0  # seconds after an output's last failure during which it counts as down

@@ -25,7 +25,7 @@ from ..synthesis.parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING
 from ..control.values import all_values
 from ..synthesis.posing import Frame
 from .clock import IDLE_UNTIL, FrameClock
-from .console import Console
+from ..terminal import Console
 from .stopping import StopFlag
 
 STATUS_EVERY = 0.5  # seconds of wall time

@@ -1,6 +1,6 @@
 """What a performer can ask of the synthesizer and a crowd, as plain names and numbers (no numpy).
 
-The control table (control/targets.py) and the command line's option table (cli/arguments.py)
+The control table (control/targets.py) and the command line's option table (control/options.py)
 name these; keeping them here, apart from the code that uses them, lets those tables load in a
 few milliseconds (`instrument COMMAND --help` imports no numpy, scipy or numba).
 """

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .hsmm import HSMM
+from ..models.hsmm import HSMM
 
 ROOT_EVEN = (0, 2)  # root.height, root.vz: the same in a step and its mirror image
 ROOT_ODD = (1, 3)  # root.vx, root.yaw_rate: negated in the mirror image

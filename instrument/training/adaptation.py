@@ -25,7 +25,7 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
-from .hsmm import HSMM, Floors, Statistics, expected_statistics, log_likelihood, map_update
+from ..models.hsmm import HSMM, Floors, Statistics, expected_statistics, log_likelihood, map_update
 
 DEPTHS = (None, 0, 1, 2)  # None: no transform (MAP only); 0: one class; 1: one per label; 2: one per state
 TAUS = (16.0, 64.0, 256.0)  # MAP prior weights tried, in frames

@@ -10,7 +10,7 @@ from typing import Callable
 
 import numpy as np
 
-from .hsmm import HSMM, Floors, expected_statistics, map_update, uniform_statistics
+from ..models.hsmm import HSMM, Floors, expected_statistics, map_update, uniform_statistics
 
 VARIANCE_FLOOR_RATIO = 0.01  # of the global variance of each feature, as in HTS
 

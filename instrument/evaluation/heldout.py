@@ -4,10 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-
-from .corpus import Take, make_takes, read_motions
-from .hsmm import HSMM, log_likelihood
-from .modelfile import Model
+from ..models.hsmm import HSMM, log_likelihood
+from ..models.modelfile import Model
+from ..training.corpus import Take, make_takes, read_motions
 
 
 def split_holdout(pairs: list[tuple[Path, str]], every: int = 5) -> tuple[list[tuple[Path, str]], list[tuple[Path, str]]]:

@@ -10,15 +10,15 @@ from typing import Callable
 import numpy as np
 
 from .. import __version__
+from ..models.modelfile import Model
 from ..motion.features import WINDOWS
 from ..motion.steps import LABELS
 from .adaptation import Settings, adapt_styles
+from .average import TrainingReport, train_average, variance_floors
+from .contact import train_contact
 from .corpus import Take, load_corpus, segments_by_label
-from .modelfile import Model
-from ..synthesis.contact import train_contact
-from ..synthesis.widen import train_range
 from .symmetry import symmetric_models
-from .training import TrainingReport, train_average, variance_floors
+from .widen import train_range
 
 UNSPECIFIED_LICENCE = "unspecified: the licence of the training data applies"
 

@@ -14,16 +14,16 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
-from ..models.corpus import make_takes, read_motions
 from ..models.modelfile import Model
-from ..models.recognition import LinearDiscriminant, step_features
 from ..motion.bvh import Motion
 from ..motion.features import extract
 from ..motion.kinematics import world_positions
 from ..motion.limbs import Limbs, centimetres_per_unit, clearance, find_limbs
 from ..motion.quality import pooled, walk_figures
 from ..motion.steps import segment_steps
-from .engine import default_controls, render
+from ..synthesis.engine import default_controls, render
+from ..training.corpus import make_takes, read_motions
+from .recognition import LinearDiscriminant, step_features
 
 VARIANT_KINDS = ("one", "x2", "inverted", "pairs")  # also in cli/evaluate_cmd.py
 SETTLE_SECONDS = 0.5

@@ -1,0 +1,135 @@
+"""Training's half of the full-range filter: how far each feature's swing must be scaled.
+
+For the average model and for each style, every static feature's range (1st to 99th
+percentile) is measured in the real walking frames and in a walk the model makes with the
+filter off, and the log of their ratio stored; the knees' factors are then calibrated on the
+walk as the instrument plays it, feet planted (`_calibrate_knees`). What the factors mean and
+how the engine applies them is described in `instrument.synthesis.widen`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from scipy.ndimage import uniform_filter1d
+
+from ..motion.bvh import Motion
+from ..motion.features import ROOT_FEATURES, heading_angle, restore
+from ..motion.kinematics import forward_kinematics, local_transforms
+from ..motion.limbs import find_limbs
+from ..motion.quality import limb_ranges
+from ..synthesis.engine import Engine, render
+from ..synthesis.stream import Controls
+from ..synthesis.widen import KEPT, LIMIT, _without_range, stride_means
+
+TRAINING_FRAMES = 600  # frames of each generated walk measured in training (the first SETTLE dropped)
+SETTLE = 60
+RANGE_PERCENTILES = (1.0, 99.0)  # a feature's range, as `instrument evaluate` measures a joint's
+CALIBRATION_ROUNDS = 3  # the knees' factors corrected on a played walk this many times
+CALIBRATION_SECONDS = 12.0  # each calibration walk, after SETTLE frames from rest
+
+
+def _spread(values: np.ndarray) -> np.ndarray:
+    """Each column's range between its 1st and 99th percentiles: the peaks a viewer sees, which
+    MLPG rounds off more than it lowers the variance (matching variances left the knee 5-18%
+    short of the takes' range)."""
+    low, high = np.percentile(values, RANGE_PERCENTILES, axis=0)
+    return high - low
+
+
+def _generated_range(model, weights: np.ndarray) -> np.ndarray:
+    """Range of each feature of a walk the model makes at `weights` (the range filter off),
+    about its stride mean."""
+    engine = Engine(_without_range(model))
+    controls = Controls(weights)
+    frames = np.array([engine.next_features(controls)[0] for _ in range(TRAINING_FRAMES)])[SETTLE:]
+    return _spread(frames - stride_means(engine.stream.base, engine.stream.means)[0])
+
+
+def _real_range(takes, dimension: int) -> np.ndarray | None:
+    """Each feature's range in the walking frames (inside steps) of each take about its stride
+    mean (the average over the stride around it, as the made walk's is about its stride mean: a
+    take's slower changes, turning, speeding up, settling, are not swing the model should make),
+    averaged over the takes by their walking frames."""
+    total, count = np.zeros(dimension), 0
+    for take in takes:  # None when no take has a step: nothing to match
+        if not take.steps:
+            continue
+        stride = max(3, int(round(2.0 * np.mean([s.frames for s in take.steps]))))
+        static = take.observations[:, :dimension]
+        mean = uniform_filter1d(static, stride, axis=0, mode="nearest")
+        rows = np.concatenate([np.arange(s.start, s.end) for s in take.steps])
+        total += _spread(static[rows] - mean[rows]) * len(rows)
+        count += len(rows)
+    return total / count if count else None
+
+
+def _knee_columns(layout, limbs) -> list[int]:
+    """The feature columns of both knees' rotations."""
+    return [len(ROOT_FEATURES) + 3 * layout.joints.index(leg.knee) + a for leg in limbs.legs if leg.knee in layout.joints
+            for a in range(3)]
+
+
+def _knee_range(motion, limbs, root: int) -> float:
+    """The knees' range of a walk in degrees, as `instrument evaluate` measures it."""
+    world_rot, world_pos = forward_kinematics(motion.skeleton, *local_transforms(motion))
+    return limb_ranges(world_pos, heading_angle(world_rot[:, root]), limbs, root)["knee_deg"]
+
+
+def _calibrate_knees(model, takes, log_factors: np.ndarray, weights: np.ndarray, extras_with) -> None:
+    """Moves the knees' log factors (in place, CALIBRATION_ROUNDS times) so that the walk the
+    instrument plays at `weights`, feet planted, bends its knees through the takes' range (a
+    walk it cannot measure leaves them as they are). The foot lock keeps a planted leg's
+    generated bend where it can (a heel rises instead), but a swinging foot kept off the floor
+    bends its knee more, so the features' range alone left the played knee up to 13% short
+    (elderly). The hips are not calibrated: a planted thigh's swing is the lock's geometry, not
+    its features (a correction on them did not converge). `extras_with(log_factors)` gives the
+    model's extras with these factors in their place."""
+    layout = model.layout
+    limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
+    chosen = [t for t in takes if t.steps]
+    if limbs is None or not chosen:
+        return
+    knees = _knee_columns(layout, limbs)
+    if not knees:  # the knees are not modelled (a skeleton whose legs the layout leaves out)
+        return
+    real = np.average([_knee_range(restore(t.observations[:, : layout.dimension], layout, model.fps), limbs, layout.root)
+                       for t in chosen], weights=[t.frames for t in chosen])
+    for _ in range(CALIBRATION_ROUNDS):
+        trial = replace(model, extras=extras_with(log_factors))
+        frames = int(round(CALIBRATION_SECONDS * model.fps))
+        made = render(trial, Controls(weights), SETTLE + frames)
+        made = Motion(made.skeleton, made.channels[SETTLE:], made.fps)
+        step = np.log(real / _knee_range(made, limbs, layout.root))
+        if not np.isfinite(step):  # a walk too short or too still to measure: keep what the features gave
+            return
+        log_factors[knees] += step
+        np.clip(log_factors, -LIMIT, LIMIT, out=log_factors)
+
+
+def train_range(model, takes) -> dict[str, np.ndarray]:
+    """Model-file arrays `range_average` (D,) and `range_styles` (styles, D): the log ratio of
+    each feature's range in the data to its range in a walk the model makes, the knees' then
+    calibrated on the walk as it is played (`_calibrate_knees`)."""
+    dimension = model.layout.dimension
+    names = model.style_names
+
+    def log_factor(chosen, weights):
+        real = _real_range(chosen, dimension)
+        if real is None:  # no walking frames (takes too short for a step): that walk is left as made
+            return np.zeros(dimension)
+        made = _generated_range(model, weights)
+        out = np.log(np.maximum(real, 1e-12) / np.maximum(made, 1e-12))
+        out[list(KEPT)] = 0.0
+        return np.clip(out, -LIMIT, LIMIT)
+
+    average = log_factor(takes, np.zeros(len(names)))
+    styles = np.stack([log_factor([t for t in takes if t.style == name], np.eye(len(names))[s]) for s, name in enumerate(names)])
+    def extras_with(_changed: np.ndarray) -> dict:  # the factors are calibrated in place, in these arrays
+        return dict(model.extras) | {"range_average": average, "range_styles": styles}
+
+    _calibrate_knees(model, takes, average, np.zeros(len(names)), extras_with)
+    for s, name in enumerate(names):
+        _calibrate_knees(model, [t for t in takes if t.style == name], styles[s], np.eye(len(names))[s], extras_with)
+    return {"range_average": average, "range_styles": styles}
