@@ -108,6 +108,9 @@ def apply_show_file(args: argparse.Namespace) -> TomlFile:
     options = {a for a in vars(args) if a not in ("config", "run", "command")}
     for key, value in show.data.items():
         if key in ("presets", "attract"):  # read once the model is known (control/presetfile.py, control/attract.py)
+            if not isinstance(value, dict):  # its shape is known before: `service` refuses what `run` will
+                tables = "[presets.NAME] tables" if key == "presets" else "an [attract] table"
+                raise UserError(f"{path}:{show.line(key)}: {key}: expected {tables}")
             continue
         dest = key.replace("-", "_")
         where = f"{path}:{show.line(key)}: {key}"

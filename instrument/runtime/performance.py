@@ -149,8 +149,9 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             return False
 
     def take_live(now: float) -> None:
-        """Apply what devices sent, for at most INPUT_BUDGET seconds; the rest waits its turn
-        (stamped with the time it is applied at, so a replay of the record hits the same frame)."""
+        """Apply what devices sent, for at most INPUT_BUDGET seconds but at least one event (so a
+        machine too busy for the budget still moves on); the rest waits its turn (stamped with the
+        time it is applied at, so a replay of the record hits the same frame)."""
         until = time.monotonic() + INPUT_BUDGET
         if not backlog:
             for source in live_sources:
@@ -158,7 +159,9 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
                     backlog.extend(source(now))
                 except Exception as error:  # a device that fails is reported; the walk goes on
                     _count(console, summary.input_errors, f"poll {getattr(source, '__qualname__', 'device')}", error)
-        while backlog and time.monotonic() < until:
+        first = True
+        while backlog and (first or time.monotonic() < until):
+            first = False
             event = backlog.popleft()
             guarded_apply(event if event.time == now else ControlEvent(now, event.source, event.control, event.value))
 
