@@ -36,6 +36,8 @@ def parse_toml(text: str, path: str | Path) -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise UserError(f"{path}: {e}") from None
+    except RecursionError:  # arrays or inline tables nested deeper than Python's stack
+        raise UserError(f"{path}: arrays or tables nested too deeply") from None
 
 
 Key = tuple  # a key's path in the parsed data: names, and indices of arrays (of tables)
@@ -46,8 +48,14 @@ def key_lines(text: str) -> dict[Key, int]:
     written, by its path in the parsed data: ("presets", "calm", "style/elderly"), ("cue", 2,
     "ramp", "speed"), ("osc", 1) for an array's element. Found by reading the TOML's structure
     (tables, arrays of tables, dotted and quoted keys, inline tables, strings, comments), so a
-    comment or a string mentioning a key never matches. The first place a path is written wins."""
-    return _KeyScanner(text).lines
+    comment or a string mentioning a key never matches. The first place a path is written wins.
+    Values nested deeper than Python's stack keep the lines found before them."""
+    scanner = _KeyScanner(text)
+    try:
+        scanner.scan()
+    except RecursionError:
+        pass
+    return scanner.lines
 
 
 class _KeyScanner:
@@ -59,7 +67,9 @@ class _KeyScanner:
         self.lines: dict[Key, int] = {}
         self.arrays: dict[Key, int] = {}  # an array of tables -> how many tables it has so far
         self.prefix: Key = ()
-        while self._skip(newlines=True) < len(text):
+
+    def scan(self) -> None:
+        while self._skip(newlines=True) < len(self.text):
             self._statement()
 
     def _note(self, path: Key, line: int) -> None:

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Callable, NamedTuple
 
 from ..errors import located
-from ..textfile import read_text
+from ..textfile import NotJson, parse_json, read_text
 from .targets import is_number
 
 
@@ -84,14 +84,14 @@ def read_log(path: str | Path, warn: Callable[[str], None] | None = None) -> lis
         if not line.strip() or line.lstrip().startswith("#"):
             continue
         try:
-            item = json.loads(line)
-        except (json.JSONDecodeError, RecursionError) as e:
+            item = parse_json(line)
+        except NotJson as e:
             if cut and number == len(lines):
                 if warn is not None:
                     warn(f"{path}:{number}: the last line is cut off (a killed run?): "
                          f"replaying the {len(events)} events before it")
                 break
-            raise located(path, f"not JSON: {getattr(e, 'msg', 'nested too deeply')}", number) from None
+            raise located(path, f"not JSON: {e}", number) from None
         if isinstance(item, dict) and "instrument_log" in item:
             continue  # the header line: the mappings in force (control.loghead)
         if not isinstance(item, dict):

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import located
-from ..textfile import read_text
+from ..textfile import NotJson, parse_json, read_text
 from .events import RawEvent
 from .kinds import unreadable_kinds
 from .mapping import Mapping, load_mapping
@@ -55,8 +55,8 @@ def _header(path: str | Path) -> tuple[dict | None, int]:
         if not line.strip() or line.lstrip().startswith("#"):
             continue
         try:
-            item = json.loads(line)
-        except (json.JSONDecodeError, RecursionError):  # too deeply nested is bad JSON too
+            item = parse_json(line)
+        except NotJson:
             return None, 0  # not a header: read_log names the bad line
         return (item, number) if is_header(item) else (None, 0)
     return None, 0
