@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass
 
 from ..control.spec import TABLE
-from ..errors import UserError
+from ..errors import UserError, quoted
 
 MAX_SECONDS = 7 * 24 * 3600.0  # a week: longer is a typo
 MAX_CHARACTERS = 1000  # a crowd larger than this is a typo (docs/crowds.md: how many keep time)
@@ -46,10 +46,10 @@ class Accepts:
         except (TypeError, ValueError, OverflowError):
             number = None
         if number is None or (self.kind is float and not math.isfinite(number)):
-            raise ValueError(f"expected {self.describe()}, not {text!r}")
+            raise ValueError(f"expected {self.describe()}, not {quoted(text)}")
         too_low = self.low is not None and (number <= self.low if self.above_low else number < self.low)
         if too_low or (self.high is not None and number > self.high):
-            raise ValueError(f"expected {self.describe()}, not {text!r}")
+            raise ValueError(f"expected {self.describe()}, not {quoted(text)}")
         return number
 
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from numbers import Real
 from typing import Collection
 
+from ..errors import quoted
 from ..synthesis.parameters import GROUPS
 from .spec import PRESET_NAME, TABLE, Row
 
@@ -83,9 +84,9 @@ def unknown(target: object, styles: Collection[str] | None = None) -> Refusal:
 def value_refusal(row: Row, target: str, value: object) -> Refusal | None:
     """Why `value` is refused for `target` of `row` (a name already known), or None."""
     if not is_number(value):
-        return Refusal(NOT_A_NUMBER, f"{target}: {NOT_A_NUMBER}, not {_shown(value)}")
+        return Refusal(NOT_A_NUMBER, f"{target}: {NOT_A_NUMBER}, not {quoted(value)}")
     if not row.low <= value <= row.high:
-        return Refusal(OUT_OF_RANGE, f"{target}: {_shown(value)} is {OUT_OF_RANGE} ({row.describe_range()})")
+        return Refusal(OUT_OF_RANGE, f"{target}: {quoted(value)} is {OUT_OF_RANGE} ({row.describe_range()})")
     return None
 
 
@@ -109,11 +110,6 @@ def between(value: float, a: float, b: float) -> float:
     """`value` kept between `a` and `b`: arithmetic between two accepted values (a morph, a ramp,
     a fader's travel) may land an ulp outside them, and must not then be refused."""
     return min(max(value, min(a, b)), max(a, b))
-
-
-def _shown(value: object) -> str:
-    text = repr(value)
-    return text if len(text) <= 40 else text[:40] + "..."
 
 
 def raw_problem(source: str, control: object, value: object) -> str | None:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, NamedTuple
 
-from ..errors import located
+from ..errors import located, quoted
 from ..textfile import NotJson, parse_json, read_text
 from .targets import is_number
 
@@ -98,7 +98,7 @@ def read_log(path: str | Path, warn: Callable[[str], None] | None = None) -> lis
             raise located(path, "expected an object with t, source, control, value", number)
         missing = [k for k in ("t", "source", "control", "value") if k not in item]
         if missing:
-            raise located(path, f"missing key {missing[0]!r}", number)
+            raise located(path, f"missing key {quoted(missing[0])}", number)
         t, value = item["t"], item["value"]
         if not (is_number(t) and is_number(value)) or t < 0:
             raise located(path, "'t' and 'value' must be finite numbers, 't' not negative", number)
