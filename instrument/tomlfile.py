@@ -10,7 +10,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import UserError, quoted
+from .errors import UserError, printable, quoted
 from .textfile import read_text
 
 if sys.version_info >= (3, 11):
@@ -310,6 +310,6 @@ class TomlFile:
     def error(self, path: Key, problem: str, key: str | None = None) -> UserError:
         """`file:line: key: problem`, the key shown as `key` or its names joined by dots."""
         shown = key if key is not None else ".".join(str(p) for p in path if not isinstance(p, int))
-        shown = shown if len(shown) <= 80 else shown[:80] + "..."  # a key of 140 kB stays a readable line
+        shown = printable(shown, 80)  # a key of 140 kB, or one with a newline, stays one readable line
         return UserError(f"{self.path}:{self.line(*path)}: {shown}: {problem}" if shown else
                          f"{self.path}:{self.line(*path)}: {problem}")

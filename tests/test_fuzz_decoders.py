@@ -31,8 +31,8 @@ from instrument.runtime.console import Console
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]  # the shipped model's
 STATES = 5
 TARGETS = frozenset(ControlState(STYLES, STATES).targets())
-EXAMPLES = int(os.environ.get("INSTRUMENT_FUZZ_EXAMPLES", "120"))  # a deeper search: INSTRUMENT_FUZZ_EXAMPLES=5000
-FUZZ = settings(max_examples=EXAMPLES * 3, deadline=None, derandomize=True, database=None,
+EXAMPLES = int(os.environ.get("INSTRUMENT_FUZZ_EXAMPLES", "300"))  # a deeper search: INSTRUMENT_FUZZ_EXAMPLES=5000
+FUZZ = settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None,
                 suppress_health_check=[HealthCheck.too_slow])
 DIGITS = sys.get_int_max_str_digits()
 
@@ -68,6 +68,7 @@ def as_text(item: object) -> str:
 @example(text='{"set": "speed", "value": ' + "9" * 4000 + "}")  # fits in a message, not in a float
 @example(text="[" * 2000 + "]" * 2000)
 @example(text='{"set": "speed", "value": 1e999}')
+@example(text='{"set": "\\n", "value": 0.0}')  # a newline in a target's name
 def test_a_page_message_is_an_event_of_a_good_value_or_refused_in_one_line(text):
     try:
         kind, target, value = parse(text, TARGETS)

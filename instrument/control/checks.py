@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from numbers import Real
 from typing import Collection
 
-from ..errors import quoted
+from ..errors import printable, quoted
 from ..synthesis.parameters import GROUPS
 from .spec import PRESET_NAME, TABLE, Row
 
@@ -70,7 +70,7 @@ def row_of(target: object, styles: Collection[str], states: int) -> Row | None:
 
 def unknown(target: object, styles: Collection[str] | None = None) -> Refusal:
     """The refusal of a name no row answers; naming the model's styles when a style was meant."""
-    shown = str(target)[:60]
+    shown = printable(str(target))
     head = shown.split("/")[0]
     if styles is not None and head in ("style", "part"):
         hint = f" (this model's styles: {', '.join(sorted(styles))})"

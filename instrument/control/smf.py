@@ -13,7 +13,7 @@ from pathlib import Path
 
 import mido
 
-from ..errors import UserError
+from ..errors import UserError, printable
 from .checks import raw_problem
 from .events import ControlEvent
 
@@ -76,8 +76,11 @@ def import_smf(path: str | Path, fps: float = 30.0) -> list[ControlEvent]:
 
     try:
         midi = mido.MidiFile(str(path))
-    except (OSError, EOFError, ValueError, KeyError) as e:
-        raise UserError(f"{path}: not a readable MIDI file ({e})") from None
+    except (OSError, EOFError, ValueError, KeyError, IndexError) as e:  # (mido's parser: whatever a broken file makes it raise)
+        raise UserError(f"{path}: not a readable MIDI file ({printable(str(e), 120)})") from None
+    if midi.ticks_per_beat <= 0:  # (mido reads the field signed: SMPTE timing is negative)
+        raise UserError(f"{path}: the MIDI file's time division is {midi.ticks_per_beat}: expected ticks per beat above 0 "
+                        "(SMPTE time is not read)")
     scale = 1.0 / midi.ticks_per_beat  # beats per tick; tempo is read from the file
     events: list[ControlEvent] = []
     tempo = 500_000
