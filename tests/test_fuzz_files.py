@@ -483,3 +483,65 @@ def test_log_import_writes_a_log_that_reads_back_or_refuses_in_one_line(ops):
         assert all(raw_problem(e.source, e.control, e.value) is None for e in read_log(out))
     else:
         assert not out.exists(), "a refused import left a file"
+
+
+# --- the cases of issue 24 (item 11), each once by name ----------------------------------------
+
+def refused(call, pattern: str) -> None:
+    with pytest.raises(UserError) as caught:
+        call()
+    assert "\n" not in str(caught.value) and re.fullmatch(pattern, str(caught.value)), str(caught.value)[:300]
+
+
+@pytest.mark.parametrize("value", ["[" * 3000 + "]" * 3000, "{ a = " * 3000 + "1" + " }" * 3000])
+def test_deeply_nested_toml_is_one_line(value):
+    path = written("deep.toml", f'name = "deep"\nx = {value}\n'.encode())
+    refused(lambda: load_mapping(path), re.escape(f"{path}: arrays or tables nested too deeply"))
+
+
+def test_a_toml_integer_of_over_4300_digits_is_one_line_naming_its_line():
+    path = written("huge.toml", f'[presets.calm]\nspeed = 1\nturn = {HUGE}\n'.encode())
+    refused(lambda: read_presets_file(str(path), model_of(state())), re.escape(f"{path}:3: a number of more than {DIGITS} digits"))
+
+
+@pytest.mark.parametrize("text", ["[presets]\ncalm = 5\n", "presets = 5\n"])
+def test_presets_that_are_not_tables_are_one_line(text):
+    path = written("presets5.toml", text.encode())
+    refused(lambda: read_presets_file(str(path), model_of(state())), re.escape(str(path)) + r":\d: .*")
+
+
+@pytest.mark.parametrize("field,value", [("value", HUGE), ("t", HUGE), ("t", "1e308")])
+def test_a_log_line_of_a_huge_number_is_one_line_naming_it(field, value):
+    event = {"t": "0.5", "source": '"midi:x"', "control": '"cc/1/1"', "value": "3"}
+    event[field] = value
+    line = "{" + ", ".join(f'"{k}": {v}' for k, v in event.items()) + "}"
+    path = written("huge.jsonl", ('{"t": 0, "source": "midi:x", "control": "cc/1/1", "value": 1}\n' + line + "\n").encode())
+    refused(lambda: read_log(path), re.escape(f"{path}:2: ") + ("not JSON: a number of more than .*" if value == HUGE else ".*'t'.*"))
+
+
+def test_a_log_header_of_a_huge_number_is_one_line():
+    path = written("huge-header.jsonl", ('{"instrument_log": ' + HUGE + ', "mappings": []}\n').encode())
+    refused(lambda: read_log(path), re.escape(f"{path}:1: not JSON: ") + ".*")
+    assert logged_mappings(path) == []  # (not a header: read_log names the line)
+
+
+@pytest.mark.parametrize("control,value,problem", [("cc/17/1", 1, "not a MIDI control id"), ("cc/1/200", 1, "not a MIDI control id"),
+                                                   ("cc/1/1", 300, "MIDI value out of range"), ("zz", 1, "not a MIDI control id")])
+def test_log_export_refuses_what_a_midi_file_cannot_hold(control, value, problem):
+    out = WORK / "refused.mid"
+    out.unlink(missing_ok=True)
+    refused(lambda: export_smf([ControlEvent(0.0, "midi:x", control, float(value))], out, "my.jsonl"),
+            re.escape(f"my.jsonl: event {control!r} of 'midi:x' at t = 0 s: {problem}"))
+    assert not out.exists()
+
+
+def test_log_export_keeps_a_non_latin_1_device_name():
+    out = WORK / "names.mid"
+    names = ["midi:Контроллер", "midi:端口 \U0001F600", "midi:Café"]
+    export_smf([ControlEvent(k / 10, name, "cc/1/1", 64.0) for k, name in enumerate(names)], out)
+    assert sorted(e.source for e in import_smf(out)) == sorted(names)
+
+
+def test_a_csv_manifest_field_of_140_kb_is_one_line():
+    path = written("long.csv", f"file,style\n{LONG}.bvh,elderly\n".encode())
+    refused(lambda: read_manifest(path), re.escape(f"{path}:2: not a CSV manifest: field larger than field limit ") + r".*")

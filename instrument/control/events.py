@@ -69,6 +69,9 @@ class TargetEvent(NamedTuple):
     value: float
 
 
+MAX_TIME = 1e9  # seconds (32 years): a later event was not recorded but edited in (t = 1e308 would make a replay endless)
+
+
 def read_log(path: str | Path, warn: Callable[[str], None] | None = None) -> list[RawEvent]:
     """Every event of a log, in time order; a bad line is a one-line error naming file and line.
 
@@ -100,8 +103,8 @@ def read_log(path: str | Path, warn: Callable[[str], None] | None = None) -> lis
         if missing:
             raise located(path, f"missing key {quoted(missing[0])}", number)
         t, value = item["t"], item["value"]
-        if not (is_number(t) and is_number(value)) or t < 0:
-            raise located(path, "'t' and 'value' must be finite numbers, 't' not negative", number)
+        if not (is_number(t) and is_number(value)) or not 0 <= t <= MAX_TIME:
+            raise located(path, f"'t' and 'value' must be finite numbers, 't' from 0 to {MAX_TIME:.0f} seconds", number)
         events.append(RawEvent(float(t), Source(str(item["source"])), str(item["control"]), float(value)))
     events.sort(key=lambda e: e.time)
     return events
