@@ -15,6 +15,8 @@ input that once broke a loader is kept as an `@example`.
 from __future__ import annotations
 
 import argparse
+import hashlib
+import json
 import math
 import os
 import re
@@ -230,6 +232,14 @@ def midi_log() -> str:
     return "\n".join([header_line([mapping], characters=3, spacing=1.5)] + [e.to_json() for e in events]) + "\n"
 
 
+def signed_log(mapping_text: str) -> str:
+    """A log whose header carries `mapping_text` with its true sha256 (so the mapping inside is read, not refused as edited)."""
+    entry = {"name": "fuzzed", "file": "fuzzed.toml", "sha256": hashlib.sha256(mapping_text.encode("utf-8", "surrogatepass")).hexdigest(),
+             "toml": mapping_text}
+    header = json.dumps({"instrument_log": 1, "mappings": [entry], "decoders": "per-device"}, ensure_ascii=False)
+    return header + "\n" + midi_log().split("\n", 1)[1]
+
+
 # --- the loaders -------------------------------------------------------------------------------
 
 @FUZZ
@@ -247,16 +257,21 @@ def test_a_mapping_is_valid_or_one_line(base, ops):
         except UserError as error:
             one_line(error, path)
             continue
-        for control in mapping.controls:
-            assert 1 <= control.channel <= 16 and 0 <= control.number <= 16383
-            row = row_of(control.target, STYLES if strict else _AnyStyles(), STATES)
-            assert row is not None, control.target
-            assert all(value_refusal(row, control.target, end) is None for end in control.range), control
-            assert math.isfinite(control.step) and 0 <= control.deadzone < 1
-        for values in mapping.presets.values():
-            for target, value in values.items():
-                assert math.isfinite(value) and (not strict or held_refusal(target, value, STYLES, STATES) is None)
-        assert 0 <= mapping.morph <= 600
+        valid_mapping(mapping, strict)
+
+
+def valid_mapping(mapping, strict: bool) -> None:
+    """Every control of an accepted mapping sends only values its target takes; its presets hold good values."""
+    for control in mapping.controls:
+        assert 1 <= control.channel <= 16 and 0 <= control.number <= 16383
+        row = row_of(control.target, STYLES if strict else _AnyStyles(), STATES)
+        assert row is not None, control.target
+        assert all(value_refusal(row, control.target, end) is None for end in control.range), control
+        assert math.isfinite(control.step) and 0 <= control.deadzone < 1
+    for values in mapping.presets.values():
+        for target, value in values.items():
+            assert math.isfinite(value) and (not strict or held_refusal(target, value, STYLES, STATES) is None)
+    assert 0 <= mapping.morph <= 600
 
 
 class _AnyStyles:
@@ -335,6 +350,21 @@ def _run_args(path: Path) -> argparse.Namespace:
 @example(ops=[("number", 2, "17")])
 def test_a_log_is_valid_or_one_line(ops):
     path = written("log.jsonl", mutated(midi_log(), ops))
+    check_log(path)
+
+
+@FUZZ
+@given(base=st.sampled_from(sorted(MAPPINGS)), ops=mutations())
+@example(base="korg-nanokontrol2.toml", ops=[("insert", 0, f"x = {'[' * 3000}{']' * 3000}")])
+def test_a_log_whose_header_carries_a_broken_mapping_is_valid_or_one_line(base, ops):
+    text = mutated(MAPPINGS[base], ops).decode("utf-8", "replace")
+    path = written("signed.jsonl", signed_log(text).encode("utf-8"))
+    check_log(path)
+
+
+def check_log(path: Path) -> None:
+    """A log read as `run --replay` reads it: events, the mappings of its header, its crowd;
+    then exported to an SMF that reads back."""
     try:
         events = read_log(path, warn=lambda _: None)
         mappings = logged_mappings(path, state())
@@ -343,7 +373,8 @@ def test_a_log_is_valid_or_one_line(ops):
         one_line(error, path)
         return
     assert all(math.isfinite(e.time) and e.time >= 0 and math.isfinite(e.value) for e in events)
-    assert all(m.controls or m.presets or m.midi or m.hid for m in mappings)
+    for mapping in mappings:
+        valid_mapping(mapping, strict=False)
     assert isinstance(crowd, dict)
     # what `log export` writes from it is a MIDI file that reads back, or a one-line refusal
     out = WORK / "log.mid"
@@ -463,6 +494,15 @@ def test_log_export_writes_a_midi_file_that_reads_back_or_refuses_in_one_line(op
         assert sorted({e.source for e in back}) == sorted({e.source for e in exported})  # names as written
     else:
         assert not out.exists(), "a refused export left a file"
+
+
+@CLI
+@given(ops=mutations())
+@example(ops=[("number", 2, "1e308")])  # t = 1e308: refused, not an endless --fast replay
+@example(ops=[("string", 2, '"cc/17/1"')])  # channel 17: warned about, the show goes on
+def test_run_replaying_a_log_plays_or_refuses_in_one_line(ops):
+    path = written("cli-replay.jsonl", mutated(midi_log(), ops))
+    done_or_one_line(command("run", "--replay", str(path), "--fast", "--no-osc"), path)
 
 
 @CLI
