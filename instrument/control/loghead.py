@@ -17,7 +17,7 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..errors import located, quoted
+from ..errors import located, printable, quoted
 from ..textfile import NotJson, parse_json, read_text
 from .events import RawEvent
 from .kinds import unreadable_kinds
@@ -75,7 +75,7 @@ def logged_mappings(path: str | Path, state: ControlState | None = None) -> list
         text = entry["toml"]
         if entry.get("sha256") != hashlib.sha256(text.encode("utf-8")).hexdigest():
             raise located(path, f"header: mapping {quoted(entry.get('name'))} does not match its sha256 (the log was edited)", number)
-        mappings.append(load_mapping(f"{path}:{number}: mapping {entry.get('name', '?')}", state, text=text))
+        mappings.append(load_mapping(f"{path}:{number}: mapping {printable(str(entry.get('name', '?')))}", state, text=text))
     return mappings
 
 

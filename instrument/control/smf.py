@@ -13,7 +13,7 @@ from pathlib import Path
 
 import mido
 
-from ..errors import UserError, printable
+from ..errors import UserError, printable, quoted
 from .checks import raw_problem
 from .events import ControlEvent
 
@@ -41,7 +41,7 @@ def export_smf(events: list[ControlEvent], path: str | Path, log: str | Path = "
     edited to hold channel 17 or t = 1e308 is refused naming the event, not written half."""
     tracks: dict[str, list[ControlEvent]] = {}
     for event in events:
-        where = f"{log}: event {event.control[:40]!r} of {event.source[:40]!r} at t = {event.time:g} s"
+        where = f"{log}: event {quoted(event.control)} of {quoted(event.source)} at t = {event.time:g} s"
         if not event.source.startswith("midi:"):
             raise UserError(f"{where}: only MIDI events go into a MIDI file")
         problem = raw_problem(event.source, event.control, event.value)
