@@ -446,7 +446,7 @@ def test_a_manifest_is_valid_or_one_line(kind, ops):
 
 CLI = settings(max_examples=max(EXAMPLES // 50, 4), deadline=None, derandomize=True, database=None,
                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
-CLI_SHOW = "seconds = 1\nfps = 30\ncharacters = 2\n\n[presets.calm]\n\"style/elderly\" = 0.5\nspeed = 0.8\n"
+CLI_SHOW = "seconds = 1\nfps = 30\nbvh = \"cli-show.bvh\"\n\n[presets.calm]\n\"style/elderly\" = 0.5\nspeed = 0.8\n"
 
 
 def command(*words: str) -> subprocess.CompletedProcess:
@@ -474,7 +474,12 @@ def done_or_one_line(result: subprocess.CompletedProcess, path: Path) -> bool:
 @example(ops=[("number", 0, HUGE)])
 def test_run_with_a_show_file_plays_or_refuses_in_one_line(ops):
     path = written("cli-show.toml", mutated(CLI_SHOW, ops))
-    done_or_one_line(command("run", "--config", str(path), "--fast", "--seconds", "0.2", "--no-osc"), path)
+    recording = WORK / "cli-show.bvh"
+    recording.unlink(missing_ok=True)
+    done = done_or_one_line(command("run", "--config", str(path), "--fast", "--seconds", "0.2", "--no-osc"), path)
+    if recording.exists():  # what was written is whole: a BVH whose header counts its frames
+        assert done, "a refused show left a recording"
+        assert len(read_bvh(recording).channels) > 0
 
 
 @CLI
