@@ -9,6 +9,20 @@ class UserError(Exception):
     """Bad input from the user (a file, an option, a control). Its message is shown as is."""
 
 
+def quoted(value: object, limit: int = 40) -> str:
+    """A user's value as an error message quotes it (repr), cut short: a 5000-digit number or a
+    140 kB string in a file stays a readable line."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
+def printable(text: str, limit: int = 60) -> str:
+    """A name from a user's file or message as an error shows it (unquoted), cut short and with
+    characters that are not printable escaped: a newline in a key keeps the error one line."""
+    text = text[:limit] + ("..." if len(text) > limit else "")
+    return text if text.isprintable() else "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 def located(path: object, message: str, line: int | None = None) -> UserError:
     """A UserError whose text starts with `file:line:` so an editor can jump to it."""
     where = f"{path}:{line}" if line is not None else f"{path}"

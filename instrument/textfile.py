@@ -6,6 +6,8 @@ UTF-16 included, is refused naming the file and the line where the first bad byt
 
 from __future__ import annotations
 
+import json
+import sys
 from pathlib import Path
 
 from .errors import UserError
@@ -24,3 +26,20 @@ def read_text(path: str | Path) -> str:
         line = data[: e.start].count(b"\n") + 1
         utf16 = data[:2] in (b"\xff\xfe", b"\xfe\xff")
         raise UserError(f"{path}:{line}: not UTF-8 text" + ("; it is UTF-16: save it as UTF-8" if utf16 else "")) from None
+
+
+class NotJson(ValueError):
+    """A line of a user's file (a log, a page's message) that is not JSON; the text says why in a few words."""
+
+
+def parse_json(text: str) -> object:
+    """One JSON value, or NotJson: bad syntax, nesting too deep for Python's stack, or an integer
+    of more digits than Python converts (sys.get_int_max_str_digits) are all "not JSON" to a user."""
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as e:
+        raise NotJson(e.msg) from None
+    except RecursionError:
+        raise NotJson("nested too deeply") from None
+    except ValueError:  # int() refused a number of too many digits
+        raise NotJson(f"a number of more than {sys.get_int_max_str_digits()} digits") from None

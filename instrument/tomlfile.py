@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from .errors import UserError
+from .errors import UserError, printable, quoted
 from .textfile import read_text
 
 if sys.version_info >= (3, 11):
@@ -36,6 +37,13 @@ def parse_toml(text: str, path: str | Path) -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise UserError(f"{path}: {e}") from None
+    except RecursionError:  # arrays or inline tables nested deeper than Python's stack
+        raise UserError(f"{path}: arrays or tables nested too deeply") from None
+    except ValueError:  # int() refused a number of more digits than Python converts
+        limit = sys.get_int_max_str_digits()
+        digits = re.search(r"[0-9_]{%d,}" % (limit + 1), text)
+        line = text.count("\n", 0, digits.start()) + 1 if digits else 1
+        raise UserError(f"{path}:{line}: a number of more than {limit} digits") from None
 
 
 Key = tuple  # a key's path in the parsed data: names, and indices of arrays (of tables)
@@ -46,8 +54,14 @@ def key_lines(text: str) -> dict[Key, int]:
     written, by its path in the parsed data: ("presets", "calm", "style/elderly"), ("cue", 2,
     "ramp", "speed"), ("osc", 1) for an array's element. Found by reading the TOML's structure
     (tables, arrays of tables, dotted and quoted keys, inline tables, strings, comments), so a
-    comment or a string mentioning a key never matches. The first place a path is written wins."""
-    return _KeyScanner(text).lines
+    comment or a string mentioning a key never matches. The first place a path is written wins.
+    Values nested deeper than Python's stack keep the lines found before them."""
+    scanner = _KeyScanner(text)
+    try:
+        scanner.scan()
+    except RecursionError:
+        pass
+    return scanner.lines
 
 
 class _KeyScanner:
@@ -59,7 +73,9 @@ class _KeyScanner:
         self.lines: dict[Key, int] = {}
         self.arrays: dict[Key, int] = {}  # an array of tables -> how many tables it has so far
         self.prefix: Key = ()
-        while self._skip(newlines=True) < len(text):
+
+    def scan(self) -> None:
+        while self._skip(newlines=True) < len(self.text):
             self._statement()
 
     def _note(self, path: Key, line: int) -> None:
@@ -232,7 +248,7 @@ class Field:
     def problem(self, value: object) -> str | None:
         """Why `value` does not fit, or None."""
         if self.kind == "choice":
-            return None if value in self.choices else f"{value!r} is not one of {', '.join(self.choices)}"
+            return None if value in self.choices else f"{quoted(value)} is not one of {', '.join(self.choices)}"
         fits = {"bool": lambda: isinstance(value, bool), "string": lambda: isinstance(value, str),
                 "list": lambda: isinstance(value, list), "table": lambda: isinstance(value, dict),
                 "whole": lambda: isinstance(value, int) and not isinstance(value, bool) and self._inside(value),
@@ -294,5 +310,6 @@ class TomlFile:
     def error(self, path: Key, problem: str, key: str | None = None) -> UserError:
         """`file:line: key: problem`, the key shown as `key` or its names joined by dots."""
         shown = key if key is not None else ".".join(str(p) for p in path if not isinstance(p, int))
+        shown = printable(shown, 80)  # a key of 140 kB, or one with a newline, stays one readable line
         return UserError(f"{self.path}:{self.line(*path)}: {shown}: {problem}" if shown else
                          f"{self.path}:{self.line(*path)}: {problem}")

@@ -27,7 +27,7 @@ def run(args: argparse.Namespace) -> int:
     if args.action == "export":
         events = read_log(args.source)
         with written(out) as part:
-            count = export_smf(events, part)
+            count = export_smf(events, part, args.source)
     else:
         events = import_smf(args.source, args.fps)
         with written(out) as part:

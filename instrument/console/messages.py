@@ -14,10 +14,9 @@ it never reaches the frame loop.
 
 from __future__ import annotations
 
-import json
-
 from ..control.checks import row_of, unknown, value_refusal
 from ..control.spec import PRESET_NAME, TABLE
+from ..textfile import NotJson, parse_json
 
 MAX_MESSAGE = 4096  # bytes: the largest message a page has any reason to send
 
@@ -35,8 +34,8 @@ def parse(text: str, targets: frozenset[str]) -> tuple[str, str, float]:
     if len(text) > MAX_MESSAGE:
         raise Refused("message too long")
     try:
-        item = json.loads(text)
-    except (json.JSONDecodeError, RecursionError):
+        item = parse_json(text)
+    except NotJson:
         raise Refused("not JSON") from None
     if not isinstance(item, dict):
         raise Refused("expected a JSON object")

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from ..errors import UserError
+from ..errors import UserError, quoted
 from ..terminal import Console
 from ..tomlfile import Field, TomlFile
 from .events import ControlEvent
@@ -55,7 +55,7 @@ def load_attract(show: TomlFile, state: ControlState, presets: dict[str, dict[st
             raise fail("expected a list of preset names", "presets")
         for name in names:
             if name not in presets:
-                raise fail(f"no preset {name!r} (known: {', '.join(sorted(presets)) or 'none'})", "presets")
+                raise fail(f"no preset {quoted(name)} (known: {', '.join(sorted(presets)) or 'none'})", "presets")
         known = {name: {t: v for t, v in presets[name].items() if state.knows(t)} for name in names}  # (as a score's preset cue)
         score = preset_tour(names, known, float(table.get("morph", 8.0)), float(table.get("hold", 30.0)))
     return AttractSettings(float(table["after"]) * 60.0, score)

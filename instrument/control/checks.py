@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from numbers import Real
 from typing import Collection
 
+from ..errors import printable, quoted
 from ..synthesis.parameters import GROUPS
 from .spec import PRESET_NAME, TABLE, Row
 
@@ -69,7 +70,7 @@ def row_of(target: object, styles: Collection[str], states: int) -> Row | None:
 
 def unknown(target: object, styles: Collection[str] | None = None) -> Refusal:
     """The refusal of a name no row answers; naming the model's styles when a style was meant."""
-    shown = str(target)[:60]
+    shown = printable(str(target))
     head = shown.split("/")[0]
     if styles is not None and head in ("style", "part"):
         hint = f" (this model's styles: {', '.join(sorted(styles))})"
@@ -83,9 +84,9 @@ def unknown(target: object, styles: Collection[str] | None = None) -> Refusal:
 def value_refusal(row: Row, target: str, value: object) -> Refusal | None:
     """Why `value` is refused for `target` of `row` (a name already known), or None."""
     if not is_number(value):
-        return Refusal(NOT_A_NUMBER, f"{target}: {NOT_A_NUMBER}, not {_shown(value)}")
+        return Refusal(NOT_A_NUMBER, f"{target}: {NOT_A_NUMBER}, not {quoted(value)}")
     if not row.low <= value <= row.high:
-        return Refusal(OUT_OF_RANGE, f"{target}: {_shown(value)} is {OUT_OF_RANGE} ({row.describe_range()})")
+        return Refusal(OUT_OF_RANGE, f"{target}: {quoted(value)} is {OUT_OF_RANGE} ({row.describe_range()})")
     return None
 
 
@@ -109,11 +110,6 @@ def between(value: float, a: float, b: float) -> float:
     """`value` kept between `a` and `b`: arithmetic between two accepted values (a morph, a ramp,
     a fader's travel) may land an ulp outside them, and must not then be refused."""
     return min(max(value, min(a, b)), max(a, b))
-
-
-def _shown(value: object) -> str:
-    text = repr(value)
-    return text if len(text) <= 40 else text[:40] + "..."
 
 
 def raw_problem(source: str, control: object, value: object) -> str | None:

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, NamedTuple
 
-from ..errors import located
-from ..textfile import read_text
+from ..errors import located, quoted
+from ..textfile import NotJson, parse_json, read_text
 from .targets import is_number
 
 
@@ -69,6 +69,9 @@ class TargetEvent(NamedTuple):
     value: float
 
 
+MAX_TIME = 1e9  # seconds (32 years): a later event was not recorded but edited in (t = 1e308 would make a replay endless)
+
+
 def read_log(path: str | Path, warn: Callable[[str], None] | None = None) -> list[RawEvent]:
     """Every event of a log, in time order; a bad line is a one-line error naming file and line.
 
@@ -84,24 +87,24 @@ def read_log(path: str | Path, warn: Callable[[str], None] | None = None) -> lis
         if not line.strip() or line.lstrip().startswith("#"):
             continue
         try:
-            item = json.loads(line)
-        except (json.JSONDecodeError, RecursionError) as e:
+            item = parse_json(line)
+        except NotJson as e:
             if cut and number == len(lines):
                 if warn is not None:
                     warn(f"{path}:{number}: the last line is cut off (a killed run?): "
                          f"replaying the {len(events)} events before it")
                 break
-            raise located(path, f"not JSON: {getattr(e, 'msg', 'nested too deeply')}", number) from None
+            raise located(path, f"not JSON: {e}", number) from None
         if isinstance(item, dict) and "instrument_log" in item:
             continue  # the header line: the mappings in force (control.loghead)
         if not isinstance(item, dict):
             raise located(path, "expected an object with t, source, control, value", number)
         missing = [k for k in ("t", "source", "control", "value") if k not in item]
         if missing:
-            raise located(path, f"missing key {missing[0]!r}", number)
+            raise located(path, f"missing key {quoted(missing[0])}", number)
         t, value = item["t"], item["value"]
-        if not (is_number(t) and is_number(value)) or t < 0:
-            raise located(path, "'t' and 'value' must be finite numbers, 't' not negative", number)
+        if not (is_number(t) and is_number(value)) or not 0 <= t <= MAX_TIME:
+            raise located(path, f"'t' and 'value' must be finite numbers, 't' from 0 to {MAX_TIME:.0f} seconds", number)
         events.append(RawEvent(float(t), Source(str(item["source"])), str(item["control"]), float(value)))
     events.sort(key=lambda e: e.time)
     return events

@@ -22,6 +22,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 
+from ..errors import quoted
 from ..terminal import Console
 from .hid import LEDS, HidInput
 
@@ -69,7 +70,7 @@ def parse_feedback(table: object, fail) -> FeedbackSpec:
     for name, text in (table.get("colours") or {}).items():
         colour = _colour(text)
         if colour is None:
-            raise fail(f"{text!r}: expected a colour as \"#rrggbb\"", name)
+            raise fail(f"{quoted(text)}: expected a colour as \"#rrggbb\"", name)
         colours[name] = colour
     return FeedbackSpec(leds, report, tuple((int(k), v) for k, v in fixed.items()), light_bar, colours)
 

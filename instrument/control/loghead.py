@@ -17,8 +17,8 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..errors import located
-from ..textfile import read_text
+from ..errors import located, printable, quoted
+from ..textfile import NotJson, parse_json, read_text
 from .events import RawEvent
 from .kinds import unreadable_kinds
 from .mapping import Mapping, load_mapping
@@ -55,8 +55,8 @@ def _header(path: str | Path) -> tuple[dict | None, int]:
         if not line.strip() or line.lstrip().startswith("#"):
             continue
         try:
-            item = json.loads(line)
-        except (json.JSONDecodeError, RecursionError):  # too deeply nested is bad JSON too
+            item = parse_json(line)
+        except NotJson:
             return None, 0  # not a header: read_log names the bad line
         return (item, number) if is_header(item) else (None, 0)
     return None, 0
@@ -74,8 +74,8 @@ def logged_mappings(path: str | Path, state: ControlState | None = None) -> list
     for entry in entries:
         text = entry["toml"]
         if entry.get("sha256") != hashlib.sha256(text.encode("utf-8")).hexdigest():
-            raise located(path, f"header: mapping {entry.get('name')!r} does not match its sha256 (the log was edited)", number)
-        mappings.append(load_mapping(f"{path}:{number}: mapping {entry.get('name', '?')}", state, text=text))
+            raise located(path, f"header: mapping {quoted(entry.get('name'))} does not match its sha256 (the log was edited)", number)
+        mappings.append(load_mapping(f"{path}:{number}: mapping {printable(str(entry.get('name', '?')))}", state, text=text))
     return mappings
 
 

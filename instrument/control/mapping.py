@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..errors import UserError
+from ..errors import UserError, quoted
 from ..tomlfile import Field, TomlFile, key_lines
 from .events import ControlEvent
 from .hid import DS4_NAMES, canonical_input, is_usage_name, legacy_event, unit_with_deadzone
@@ -85,7 +85,7 @@ class Mapping:
 def parse_hid_id(text: object, fail=None) -> tuple[int, int]:
     match = re.fullmatch(r"([0-9a-fA-F]{4}):([0-9a-fA-F]{4})", str(text))
     if not match:
-        message = f"{text!r}: expected VVVV:PPPP (hexadecimal vendor and product id, e.g. 054c:09cc)"
+        message = f"{quoted(text)}: expected VVVV:PPPP (hexadecimal vendor and product id, e.g. 054c:09cc)"
         raise fail(message) if fail else UserError(message)
     return int(match.group(1), 16), int(match.group(2), 16)
 
@@ -154,7 +154,7 @@ def _control(doc: TomlFile, item: dict, index: int, fail, model: tuple) -> Contr
     if message == "hid":
         values["input"] = canonical_input(str(values.get("input")))
         if values["input"] is None:
-            raise fail(f"{item.get('input')!r} is not a HID usage name (X, Y, Z, Rx, Ry, Rz, Slider, Dial, Wheel, Hat/up, "
+            raise fail(f"{quoted(item.get('input'))} is not a HID usage name (X, Y, Z, Rx, Ry, Rz, Slider, Dial, Wheel, Hat/up, "
                        "Button 1, PPPP:UUUU, ...)", "input", index)
     target = values["target"]
     row = row_of(target, *model)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..errors import UserError
+from ..errors import UserError, quoted
 from .spec import TABLE
 
 MAX_SECONDS = 7 * 24 * 3600.0  # a week: longer is a typo
@@ -46,10 +46,10 @@ class Accepts:
         except (TypeError, ValueError, OverflowError):
             number = None
         if number is None or (self.kind is float and not math.isfinite(number)):
-            raise ValueError(f"expected {self.describe()}, not {text!r}")
+            raise ValueError(f"expected {self.describe()}, not {quoted(text)}")
         too_low = self.low is not None and (number <= self.low if self.above_low else number < self.low)
         if too_low or (self.high is not None and number > self.high):
-            raise ValueError(f"expected {self.describe()}, not {text!r}")
+            raise ValueError(f"expected {self.describe()}, not {quoted(text)}")
         return number
 
 

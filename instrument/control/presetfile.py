@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Collection
 
+from ..errors import quoted
 from ..tomlfile import Field, Key, TomlFile
 from .checks import held_refusal
 from .spec import PRESET_NAME
@@ -72,7 +73,7 @@ def read_presets(doc: TomlFile, model: tuple[Collection[str], int], path: Key = 
     out = {}
     for name, values in tables.items():
         if not PRESET_NAME.match(name):
-            raise doc.error(path + (name,), f"{name!r}: a preset name is 1 to 40 letters, digits, '_', '.', '-'",
+            raise doc.error(path + (name,), f"{quoted(name)}: a preset name is 1 to 40 letters, digits, '_', '.', '-'",
                             ".".join(path))
         out[name] = held_values(doc, path + (name,), values, model, ".".join(path + (name,)), empty=True)
     return out

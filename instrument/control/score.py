@@ -19,7 +19,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import UserError
+from ..errors import UserError, quoted
 from ..tomlfile import Field, TomlFile
 from .checks import between, row_of
 from .events import ControlEvent
@@ -123,7 +123,7 @@ def _cue(item: object, index: int, doc: TomlFile, model: tuple, presets: dict, m
         kwargs["ramp"] = held_values(doc, ("cue", index, "ramp"), item["ramp"], model, "ramp")
     elif action == "preset":
         if item["preset"] not in presets:
-            raise fail(f"no preset {item['preset']!r} (known: {', '.join(sorted(presets)) or 'none'})", "preset")
+            raise fail(f"no preset {quoted(item['preset'])} (known: {', '.join(sorted(presets)) or 'none'})", "preset")
         # a shipped mapping's preset may name a style this model lacks (kept for a warning): not rampable
         kwargs["ramp"] = {t: v for t, v in presets[item["preset"]].items() if row_of(t, *model) is not None}
     elif action == "hold":
@@ -136,7 +136,7 @@ def _cue(item: object, index: int, doc: TomlFile, model: tuple, presets: dict, m
         kwargs["wait"] = True
     else:
         if item["repeat"] not in marks:
-            raise fail(f"no earlier cue has mark = {item['repeat']!r}", "repeat")
+            raise fail(f"no earlier cue has mark = {quoted(item['repeat'])}", "repeat")
         times = item.get("times")
         kwargs.update(repeat=marks[item["repeat"]], times=times)
     return Cue(line=doc.line("cue", index), at=float(item["at"]) if "at" in item else None, after=float(item.get("after", 0.0)),

@@ -2,7 +2,9 @@
 
 At 1000 ticks per beat and 60 beats per minute one tick is one millisecond, so event times
 survive the round trip to the millisecond (a log's frame times are multiples of 1/fps, which
-land back on the same frames when read). Track names carry the device (the log's `source`).
+land back on the same frames when read). Track names carry the device (the log's `source`) in
+UTF-8, which the SMF leaves open (mido's Latin-1 cannot hold a name like `Контроллер`); a name
+that is not UTF-8 (an older file's Latin-1) is read as Latin-1.
 """
 
 from __future__ import annotations
@@ -11,11 +13,13 @@ from pathlib import Path
 
 import mido
 
-from ..errors import UserError
+from ..errors import UserError, printable, quoted
+from .checks import raw_problem
 from .events import ControlEvent
 
 TICKS_PER_BEAT = 1000
 TEMPO = 1_000_000  # microseconds per beat: 60 bpm, so a tick is a millisecond
+MAX_DELTA = 0x0FFFFFFF  # ticks: the largest time between two events a MIDI file can hold (about 74 hours)
 
 
 def _message(event: ControlEvent) -> mido.Message:
@@ -31,26 +35,39 @@ def _message(event: ControlEvent) -> mido.Message:
     raise ValueError(event.control)
 
 
-def export_smf(events: list[ControlEvent], path: str | Path) -> int:
-    """Write the MIDI events of a log; returns how many events were written."""
+def export_smf(events: list[ControlEvent], path: str | Path, log: str | Path = "the log") -> int:
+    """Write the MIDI events of a log (named `log` in errors); returns how many events were
+    written. Each event is checked first as a device's raw event is (control/checks.py), so a log
+    edited to hold channel 17 or t = 1e308 is refused naming the event, not written half."""
     tracks: dict[str, list[ControlEvent]] = {}
     for event in events:
+        where = f"{log}: event {quoted(event.control)} of {quoted(event.source)} at t = {event.time:g} s"
         if not event.source.startswith("midi:"):
-            raise UserError(f"{event.source}: only MIDI events go into a MIDI file (this log also holds {event.source!r})")
-        tracks.setdefault(event.source, []).append(event)
-    midi = mido.MidiFile(type=1, ticks_per_beat=TICKS_PER_BEAT)
+            raise UserError(f"{where}: only MIDI events go into a MIDI file")
+        problem = raw_problem(event.source, event.control, event.value)
+        if problem is not None:
+            raise UserError(f"{where}: {problem}")
+        previous = tracks.setdefault(event.source, [])
+        if _tick(event) - (_tick(previous[-1]) if previous else 0) > MAX_DELTA:
+            raise UserError(f"{where}: more than {MAX_DELTA // 3_600_000} hours after the event before it (a MIDI file cannot hold the gap)")
+        previous.append(event)
+    midi = mido.MidiFile(type=1, ticks_per_beat=TICKS_PER_BEAT, charset="utf-8")
     tempo = mido.MidiTrack([mido.MetaMessage("set_tempo", tempo=TEMPO, time=0)])
     midi.tracks.append(tempo)
     for source, track_events in tracks.items():
         track = mido.MidiTrack([mido.MetaMessage("track_name", name=source[len("midi:"):], time=0)])
         now = 0
         for event in track_events:
-            tick = int(round(event.time * 1000))
+            tick = _tick(event)
             track.append(_message(event).copy(time=tick - now))
             now = tick
         midi.tracks.append(track)
     midi.save(str(path))
     return len(events)
+
+
+def _tick(event: ControlEvent) -> int:
+    return int(round(event.time * 1000)) if event.time < MAX_DELTA else MAX_DELTA + 1  # (1e308 s: past any gap)
 
 
 def import_smf(path: str | Path, fps: float = 30.0) -> list[ControlEvent]:
@@ -59,13 +76,16 @@ def import_smf(path: str | Path, fps: float = 30.0) -> list[ControlEvent]:
 
     try:
         midi = mido.MidiFile(str(path))
-    except (OSError, EOFError, ValueError, KeyError) as e:
-        raise UserError(f"{path}: not a readable MIDI file ({e})") from None
+    except (OSError, EOFError, ValueError, KeyError, IndexError) as e:  # (mido's parser: whatever a broken file makes it raise)
+        raise UserError(f"{path}: not a readable MIDI file ({printable(str(e), 120)})") from None
+    if midi.ticks_per_beat <= 0:  # (mido reads the field signed: SMPTE timing is negative)
+        raise UserError(f"{path}: the MIDI file's time division is {midi.ticks_per_beat}: expected ticks per beat above 0 "
+                        "(SMPTE time is not read)")
     scale = 1.0 / midi.ticks_per_beat  # beats per tick; tempo is read from the file
     events: list[ControlEvent] = []
     tempo = 500_000
     for track in midi.tracks:
-        name = next((m.name for m in track if m.type == "track_name"), "midi")
+        name = _utf8(next((m.name for m in track if m.type == "track_name"), "midi"))
         seconds, tick_tempo = 0.0, tempo
         for message in track:
             seconds += message.time * scale * tick_tempo / 1e6
@@ -78,3 +98,11 @@ def import_smf(path: str | Path, fps: float = 30.0) -> list[ControlEvent]:
                 events.append(ControlEvent(frame / fps, f"midi:{name}", raw[0], raw[1]))
     events.sort(key=lambda e: e.time)
     return events
+
+
+def _utf8(name: str) -> str:
+    """A track name mido read as Latin-1, as the UTF-8 it was written in (else as it was read)."""
+    try:
+        return name.encode("latin-1").decode("utf-8")
+    except UnicodeError:
+        return name

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import UserError, located
+from ..errors import UserError, located, quoted
 
 POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
 ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
@@ -150,7 +150,7 @@ def _floats(lines: _Lines, tokens: list[str], count: int, what: str) -> tuple[fl
     try:
         values = tuple(float(t) for t in tokens)
     except ValueError:
-        raise lines.error(f"{what} has a value that is not a number: {' '.join(tokens)!r}") from None
+        raise lines.error(f"{what} has a value that is not a number: {quoted(' '.join(tokens))}") from None
     if not all(math.isfinite(v) for v in values):
         raise lines.error(f"{what} has a value that is not finite")
     return values
@@ -162,7 +162,7 @@ def _parse_hierarchy(lines: _Lines) -> Skeleton:
         raise lines.error("a BVH file starts with HIERARCHY")
     tokens = lines.next_tokens()
     if tokens[0].upper() != "ROOT":
-        raise lines.error(f"expected ROOT, found {tokens[0]!r}")
+        raise lines.error(f"expected ROOT, found {quoted(tokens[0])}")
     joints: list[dict] = []
     stack: list[int] = []  # open joints; -2 marks an open End Site
     end_owner = -1  # the joint whose End Site is open
@@ -172,7 +172,7 @@ def _parse_hierarchy(lines: _Lines) -> Skeleton:
             name, parent = pending
             pending = None
             if lines.next_tokens() != ["{"]:
-                raise lines.error(f"expected '{{' after joint {name!r}")
+                raise lines.error(f"expected '{{' after joint {quoted(name)}")
             joints.append({"name": name, "parent": parent, "offset": None, "channels": (), "end_site": None})
             stack.append(len(joints) - 1)
             continue
@@ -197,7 +197,7 @@ def _parse_hierarchy(lines: _Lines) -> Skeleton:
                 raise lines.error(f"CHANNELS says {count} channels but lists {len(names)}")
             unknown = [n for n in names if n.lower() not in KNOWN_CHANNELS]
             if unknown:
-                raise lines.error(f"unknown channel {unknown[0]!r}")
+                raise lines.error(f"unknown channel {quoted(unknown[0])}")
             channels = tuple(KNOWN_CHANNELS[n.lower()] for n in names)
             if len(set(channels)) != len(channels):
                 raise lines.error("a channel is listed twice")
@@ -220,10 +220,10 @@ def _parse_hierarchy(lines: _Lines) -> Skeleton:
         elif key == "MOTION":
             raise lines.error("MOTION before the hierarchy was closed (a '}' is missing)")
         else:
-            raise lines.error(f"unexpected {tokens[0]!r} in HIERARCHY")
+            raise lines.error(f"unexpected {quoted(tokens[0])} in HIERARCHY")
     for j in joints:
         if j["offset"] is None:
-            raise lines.error(f"joint {j['name']!r} has no OFFSET")
+            raise lines.error(f"joint {quoted(j['name'])} has no OFFSET")
     names = [j["name"] for j in joints]
     if len(set(names)) != len(names):
         raise lines.error("two joints have the same name")
@@ -291,9 +291,9 @@ def _raise_frame_error(path: str, rows: list[str], first_line: int, width: int) 
             try:
                 v = float(t)
             except ValueError:
-                raise located(path, f"not a number: {t!r}", first_line + k) from None
+                raise located(path, f"not a number: {quoted(t)}", first_line + k) from None
             if not math.isfinite(v):
-                raise located(path, f"not a finite number: {t!r}", first_line + k)
+                raise located(path, f"not a finite number: {quoted(t)}", first_line + k)
     raise located(path, "frame data could not be read")
 
 

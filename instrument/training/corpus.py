@@ -79,12 +79,16 @@ def read_manifest(path: Path) -> list[tuple[Path, str]]:
         if not isinstance(takes, list) or not takes:
             raise UserError(f"{path}: expected [[take]] tables with keys 'file' and 'style'")
         for k, take in enumerate(takes, 1):
-            if not isinstance(take.get("file"), str) or not isinstance(take.get("style"), str):
+            if not isinstance(take, dict) or not isinstance(take.get("file"), str) or not isinstance(take.get("style"), str):
                 raise UserError(f"{path}: take {k}: needs string keys 'file' and 'style'")
             pairs.append((base / take["file"], take["style"]))
         return pairs
     text = read_text(path)
-    rows = list(csv.reader(text.splitlines()))
+    reader = csv.reader(text.splitlines())
+    try:
+        rows = list(reader)
+    except csv.Error as e:  # a field longer than csv's limit (128 kB), a NUL byte
+        raise located(path, f"not a CSV manifest: {e}", reader.line_num) from None
     if not rows or [c.strip().lower() for c in rows[0][:2]] != ["file", "style"]:
         raise located(path, "a CSV manifest starts with the header 'file,style'", 1)
     for number, row in enumerate(rows[1:], 2):
