@@ -149,13 +149,13 @@ def _command(argv: list[str] | None) -> int:
         if args.command is None:
             parser.print_help()
             return 2
-    finally:
-        _set_handlers(COMMAND_HANDLERS)
-    try:
-        if args.command not in WITHOUT_NUMBA:
+        if args.command not in WITHOUT_NUMBA:  # still loading: a signal now ends the process at once
             from .progress import watch_compiling
 
             watch_compiling()  # a first run says why it waits (numba: loaded now, as the command would)
+    finally:
+        _set_handlers(COMMAND_HANDLERS)
+    try:
         return int(args.run(args) or 0)
     except UserError as error:
         print(f"instrument {args.command}: error: {error}", file=sys.stderr)
