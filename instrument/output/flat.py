@@ -23,12 +23,11 @@ after character 0's root and before the echo. The echo and /walk/frame are sent 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
+from numba import njit
 
 from ..synthesis.posing import Pose, quaternions
-from .osc import bundles, float_prefix, message
+from .osc import Datagrams, bundles, float_prefix, message
 
 
 def character_prefix(k: int) -> str:
@@ -37,19 +36,13 @@ def character_prefix(k: int) -> str:
     return "/walk" if k == 0 else f"/walk/character/{k}"
 
 
-@dataclass(frozen=True)
 class FrameTemplate:
     """A frame's bundles with every value left as a slot: every message of the profile has a
     fixed size, so the bundles are cut the same way every frame, and a frame is the template
-    with its float32 values (and the frame index) written in by one numpy scatter."""
+    with its float32 values (and the frame index) written in place by one compiled call into a
+    buffer kept from frame to frame (`Datagrams`: the bundles as views of it, sent as they are)."""
 
-    data: np.ndarray  # uint8: every datagram of a frame, back to back
-    float_slots: np.ndarray  # (values, 4) byte positions of each float32, in message order
-    index_slot: np.ndarray  # (4,) byte positions of /walk/frame's int32
-    bounds: list[tuple[int, int]]  # each datagram's start and end in `data`
-
-    @classmethod
-    def build(cls, prefixes: list[bytes], widths: list[int]) -> FrameTemplate:
+    def __init__(self, prefixes: list[bytes], widths: list[int]):
         """For messages of `widths[k]` float32 values after `prefixes[k]`, then /walk/frame."""
         frame = message("/walk/frame", 0, 0.0)
         datagrams = bundles([p + bytes(4 * w) for p, w in zip(prefixes, widths)] + [frame])
@@ -62,19 +55,31 @@ class FrameTemplate:
                 at += 4 + size
             bounds.append((base, base + len(datagram)))
             base += len(datagram)
-        lanes = np.arange(4)
-        floats = [start + len(p) + 4 * i for start, p, w in zip(starts, prefixes, widths) for i in range(w)]
         frame_values = starts[-1] + len(frame) - 8  # the int32 index, then the float32 time
-        floats.append(frame_values + 4)
-        return cls(np.frombuffer(b"".join(datagrams), dtype=np.uint8).copy(), np.array(floats)[:, None] + lanes,
-                   frame_values + lanes, bounds)
+        # each message's first float32 and how many follow it; the frame's time is a message of one
+        self.float_starts = np.array([start + len(p) for start, p in zip(starts, prefixes)] + [frame_values + 4],
+                                     dtype=np.int64)
+        self.float_widths = np.array(list(widths) + [1], dtype=np.int64)
+        self.index_slot = frame_values
+        self.buffer = Datagrams(np.frombuffer(b"".join(datagrams), dtype=np.uint8).copy(), bounds)
 
-    def fill(self, values: np.ndarray, index: int) -> list[bytes]:
-        data = self.data.copy()
-        data[self.float_slots] = np.ascontiguousarray(values, dtype=">f4").view(np.uint8).reshape(-1, 4)
-        data[self.index_slot] = np.array([index], dtype=">i4").view(np.uint8)
-        raw = data.tobytes()
-        return [raw[a:b] for a, b in self.bounds]
+    def fill(self, values: np.ndarray, index: int) -> Datagrams:
+        """The frame's datagrams with `values` (every float, in message order) written in: views
+        of the kept buffer, good until the next fill."""
+        data = self.buffer.data
+        _write(data, self.float_starts, self.float_widths, np.ascontiguousarray(values, dtype=">f4").view(np.uint8))
+        data[self.index_slot : self.index_slot + 4] = np.array([index], dtype=">i4").view(np.uint8)
+        return self.buffer
+
+
+@njit(cache=True, nogil=True)
+def _write(data, starts, widths, values):  # pragma: no cover - compiled
+    """Copies the big-endian float32 bytes `values` into the messages' runs of float slots."""
+    at = 0
+    for m in range(starts.shape[0]):
+        run = 4 * widths[m]
+        data[starts[m] : starts[m] + run] = values[at : at + run]
+        at += run
 
 
 class FlatProfile:
@@ -97,6 +102,11 @@ class FlatProfile:
     def datagrams(self, pose: Pose, echo: dict[str, float]) -> list[bytes]:
         """One frame's bundles: of one character (a Pose), or of a crowd (a CrowdPose: the same
         arrays with a leading character axis)."""
+        return self.encode(pose, echo).copies()
+
+    def encode(self, pose: Pose, echo: dict[str, float]) -> Datagrams:
+        """`datagrams`, written into the profile's kept buffer (good until the next call): what
+        the live loop sends, in one system call where the kernel has `sendmmsg`."""
         arrays = (pose.rotations, pose.world_rotations, pose.world_positions, pose.translations)
         if pose.rotations.ndim == 3:  # one character: a crowd of one
             arrays = tuple(a[None] for a in arrays)
@@ -108,6 +118,6 @@ class FlatProfile:
         names = tuple(echo)
         if self._template is None or self._template[0] != names:
             echo_prefixes = [float_prefix(f"/walk/{name}", 1) for name in names]
-            self._template = names, FrameTemplate.build(self.prefixes + echo_prefixes, self.widths + [1] * len(names))
+            self._template = names, FrameTemplate(self.prefixes + echo_prefixes, self.widths + [1] * len(names))
         everything = np.concatenate([values.ravel(), np.fromiter(echo.values(), float, len(names)), [float(pose.time)]])
         return self._template[1].fill(everything, int(pose.index))

@@ -21,6 +21,7 @@ from ..models.modelfile import Model
 from ..motion.bvh import Motion
 from ..motion.features import ROOT_FEATURES, FeatureLayout
 from ..motion.kinematics import forward_kinematics, local_transforms
+from .cores import over_cores
 from .parameters import GROUPS
 
 MAX_LOG_VARIANCE_CHANGE = float(np.log(1e4))  # extreme weights may scale a variance 10^4 times, no more
@@ -160,17 +161,25 @@ class StyleInterpolation:
             self._precision_factor = np.exp(-spread * self.offset_change[:, 1])
         change, duration_change = style_change(space, weights, part_weights)
         limit = MAX_LOG_VARIANCE_CHANGE
-        np.add(self._mean_term, space.base[0] + change[0], out=means)
-        if np.abs(change[1]).max() + abs(spread) * np.abs(self.offset_change[:, 1]).max() <= limit:
-            # no variance at its limit: exp(-(a + b)) = exp(-a) exp(-b), the second kept while the spread stays
-            np.multiply(self._precision_factor, np.exp(-(space.base[1] + change[1])), out=precisions)
-        else:
-            np.multiply(self.offset_change[:, 1], spread, out=precisions)
-            precisions += change[1]
-            np.clip(precisions, -limit, limit, out=precisions)
-            precisions += space.base[1]
-            np.negative(precisions, out=precisions)
-            np.exp(precisions, out=precisions)
+        shared_mean = space.base[0] + change[0]
+        # no variance at its limit: exp(-(a + b)) = exp(-a) exp(-b), the second kept while the spread stays
+        factored = np.abs(change[1]).max() + abs(spread) * np.abs(self.offset_change[:, 1]).max() <= limit
+        shared_precision = np.exp(-(space.base[1] + change[1])) if factored else None
+
+        def write(start: int, stop: int) -> None:  # characters start to stop (numpy lets go of the GIL)
+            np.add(self._mean_term[start:stop], shared_mean, out=means[start:stop])
+            if factored:
+                np.multiply(self._precision_factor[start:stop], shared_precision, out=precisions[start:stop])
+                return
+            part = precisions[start:stop]
+            np.multiply(self.offset_change[start:stop, 1], spread, out=part)
+            part += change[1]
+            np.clip(part, -limit, limit, out=part)
+            part += space.base[1]
+            np.negative(part, out=part)
+            np.exp(part, out=part)
+
+        over_cores(write, len(means))
         duration_change = duration_change + spread * self.offset_duration_change
         shape = (len(means), space.labels, space.states)
         return ((space.duration_base[0] + duration_change[:, 0]).reshape(shape),

@@ -12,6 +12,7 @@ from ..motion.features import FeatureLayout
 from ..motion.kinematics import _compose
 from ..motion.restore_frame import FrameRestorer
 from ..motion.rotations import matrix_to_quat
+from .cores import over_cores
 from .follow import STRENGTH, RootFollow
 
 if TYPE_CHECKING:
@@ -106,11 +107,21 @@ class CrowdPoses:
         rotations = np.empty((self.count, joints, 3, 3))
         translations = np.empty((self.count, joints, 3))
         world_rot, world_pos = np.empty_like(rotations), np.empty_like(translations)
-        self._restorer.next(static, self.positions, self.headings, rotations, translations)
-        _compose(self._parents, rotations, translations, world_rot, world_pos)
+        static = np.ascontiguousarray(static)
+
+        def made(start: int, stop: int) -> None:  # characters start to stop, on a core of their own
+            self._restorer.next(static[start:stop], self.positions[start:stop], self.headings[start:stop],
+                                rotations[start:stop], translations[start:stop])
+            _compose(self._parents, rotations[start:stop], translations[start:stop], world_rot[start:stop],
+                     world_pos[start:stop])
+
+        over_cores(made, self.count)
         if self.lock is not None and shares is not None:
             self._follow(translations, world_pos, np.full(self.count, STRENGTH) if follow is None else follow)
-            self.lock.apply(self.lock_state, rotations, translations, shares, world_rot, world_pos)
+            shares = np.ascontiguousarray(shares, dtype=np.float64)
+            over_cores(lambda start, stop: self.lock.apply(self.lock_state.part(start, stop), rotations[start:stop],
+                                                           translations[start:stop], shares[start:stop],
+                                                           world_rot[start:stop], world_pos[start:stop]), self.count)
         elif self.lock is not None:  # no feet planted this frame: the body stays where following took it
             self._shift(translations, world_pos, self.follow.offset)
         pose = CrowdPose(self.index, self.index / self.fps, rotations, translations, world_rot, world_pos)

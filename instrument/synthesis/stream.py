@@ -23,6 +23,7 @@ from numba import njit
 
 from .durations import MIN_FRAMES, state_durations, whole_frames
 from .interpolation import StyleSpace
+from .cores import over_cores
 from .mlpg import _solve
 from .parameters import DEFAULT_LOOKAHEAD
 
@@ -195,7 +196,16 @@ class Crowd:
         frames = np.empty((self.count, self.means.shape[2] // 3))
         tables = StreamTables(self.means, self.precisions, self.base, self.sigma, self.counters, self.carry, self.pool,
                               self.history, self.history_ids, self.max_step_ratio, self.space.max_step)
-        _advance(tables, self._window_buffers(fixed), fixed, frames)
+        buffers = self._window_buffers(fixed)
+        limited = bool((self.max_step_ratio > 0).any())  # the whole crowd's, so a part limits as the crowd does
+
+        def part(start: int, stop: int) -> None:  # characters start to stop, on a core of their own
+            work = WindowWork(*(b[start:stop] for b in buffers[:2]), np.zeros_like(buffers.work1),
+                              np.zeros_like(buffers.work2), *(b[start:stop] for b in buffers[4:]))
+            _advance(StreamTables(*(t[start:stop] for t in tables[:-1]), tables.max_step), work, fixed,
+                     frames[start:stop], limited)
+
+        over_cores(part, self.count)
         self.sent += 1
         return frames
 
@@ -273,9 +283,11 @@ def _finish(counter, carry, n, carry_out, states):  # pragma: no cover - compile
 
 
 @njit(cache=True, nogil=True)
-def _advance(tables, work, fixed, frames):  # pragma: no cover - compiled
-    """Plan, solve, rate-limit and commit one frame for every character, in place. The solver
-    reads each window's means and precisions from the character's lambda* tables (`rows`)."""
+def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - compiled
+    """Plan, solve, rate-limit and commit one frame for every character of `tables` (a crowd or a
+    part of one), in place. The solver reads each window's means and precisions from the
+    character's lambda* tables (`rows`). `limit_any`: whether any character of the crowd has a
+    rate limit (then every frame goes through the limit's arithmetic)."""
     means, precisions, base, sigma, counters, carry, pool = (tables.means, tables.precisions, tables.base, tables.sigma,
                                                              tables.counters, tables.carry, tables.pool)
     history, history_ids, ratios, max_step = tables.history, tables.history_ids, tables.ratios, tables.max_step
@@ -294,9 +306,6 @@ def _advance(tables, work, fixed, frames):  # pragma: no cover - compiled
     work2[:] = 0.0
     solved[:] = 0.0
     _solve(means, precisions, rows, False, np.ascontiguousarray(known), fixed, solved, work1, work2)
-    limit_any = False
-    for n in range(count):
-        limit_any = limit_any or ratios[n] > 0
     for n in range(count):
         for d in range(dimension):
             value = solved[n, 0, d]
