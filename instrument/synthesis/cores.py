@@ -23,15 +23,17 @@ def parts(count: int, least: int = LEAST_PER_PART) -> list[tuple[int, int]]:
     return list(zip(bounds[:-1], bounds[1:]))
 
 
-def over_cores(work: Callable[[int, int], None], count: int, least: int = LEAST_PER_PART) -> None:
-    """Runs `work(start, stop)` over the parts of `count` characters, the first part in this
-    thread and the others on the pool's; returns when all are done (an error in any is raised)."""
-    cut = parts(count, least)
+def over_cores(kernel: Callable[..., object], arguments: list[tuple]) -> None:
+    """Runs `kernel(*arguments[k])` for each part k (from `parts`): the first in this thread, the
+    others on the pool's. The arguments are made by the caller, so a helper thread goes straight
+    into the kernel (no Python of its own to wait for the GIL with). Returns when all are done;
+    an error in any is raised."""
     try:
-        others = [_pool().submit(work, start, stop) for start, stop in cut[1:]]
-    except RuntimeError:  # the interpreter is shutting down: this thread does it all
+        others = [_pool().submit(kernel, *args) for args in arguments[1:]]
+    except RuntimeError:  # the interpreter is shutting down: this thread does them all
         others = []
-        cut = [(0, count)]
-    work(*cut[0])
+        for args in arguments[1:]:
+            kernel(*args)
+    kernel(*arguments[0])
     for other in others:
         other.result()

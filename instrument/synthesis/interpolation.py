@@ -21,7 +21,6 @@ from ..models.modelfile import Model
 from ..motion.bvh import Motion
 from ..motion.features import ROOT_FEATURES, FeatureLayout
 from ..motion.kinematics import forward_kinematics, local_transforms
-from .cores import over_cores
 from .parameters import GROUPS
 
 MAX_LOG_VARIANCE_CHANGE = float(np.log(1e4))  # extreme weights may scale a variance 10^4 times, no more
@@ -136,9 +135,8 @@ class StyleInterpolation:
     Character n walks at the performed weights plus `spread` times its own style offset (a
     crowd's cast; zeros for a single character). lambda*'s change is linear in the weights (part
     weights too), so a character's change is the performance's plus spread times its offset's,
-    made once here: a moving fader then costs one pass over the tables for each character and
-    no matrix product. Means and precisions are written in place into the tables handed in (a
-    crowd's tables are megabytes, and fresh ones cost page faults every time)."""
+    made once here (`CrowdLambda`'s own factors): a moving fader then costs only the shared
+    factors, one small table, and no pass over the crowd's (megabytes)."""
 
     def __init__(self, space: StyleSpace, offsets: np.ndarray):
         self.space = space
@@ -148,12 +146,13 @@ class StyleInterpolation:
         self.offset_duration_change = (self.offsets @ space.duration_offsets.reshape(styles, -1)).reshape(
             (-1,) + space.duration_base.shape)
         self._spread: float | None = None
+        self._own_reach = float(np.abs(self.offset_change[:, 1]).max(initial=0.0))  # the largest log variance offset
         self._mean_term = self._precision_factor = None
 
-    def __call__(self, weights: np.ndarray, part_weights: np.ndarray | None, spread: float, means: np.ndarray,
-                 precisions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Writes every character's lambda* means and precisions into `means` and `precisions`
-        (N, labels * states, 3D); returns the duration means and variances (N, labels, states)."""
+    def __call__(self, weights: np.ndarray, part_weights: np.ndarray | None, spread: float
+                 ) -> tuple[CrowdLambda, np.ndarray, np.ndarray]:
+        """Every character's lambda* (its two factors) and its duration means and variances (N,
+        labels, states)."""
         space = self.space
         if spread != self._spread:  # kept while the spread stays: what it adds, and its factor on the precisions
             self._spread = spread
@@ -161,29 +160,45 @@ class StyleInterpolation:
             self._precision_factor = np.exp(-spread * self.offset_change[:, 1])
         change, duration_change = style_change(space, weights, part_weights)
         limit = MAX_LOG_VARIANCE_CHANGE
-        shared_mean = space.base[0] + change[0]
-        # no variance at its limit: exp(-(a + b)) = exp(-a) exp(-b), the second kept while the spread stays
-        factored = np.abs(change[1]).max() + abs(spread) * np.abs(self.offset_change[:, 1]).max() <= limit
-        shared_precision = np.exp(-(space.base[1] + change[1])) if factored else None
-
-        def write(start: int, stop: int) -> None:  # characters start to stop (numpy lets go of the GIL)
-            np.add(self._mean_term[start:stop], shared_mean, out=means[start:stop])
-            if factored:
-                np.multiply(self._precision_factor[start:stop], shared_precision, out=precisions[start:stop])
-                return
-            part = precisions[start:stop]
-            np.multiply(self.offset_change[start:stop, 1], spread, out=part)
-            part += change[1]
-            np.clip(part, -limit, limit, out=part)
-            part += space.base[1]
-            np.negative(part, out=part)
-            np.exp(part, out=part)
-
-        over_cores(write, len(means))
+        if np.abs(change[1]).max() + abs(spread) * self._own_reach <= limit:
+            # no variance at its limit: exp(-(a + b)) = exp(-a) exp(-b), the second kept while the spread stays
+            tables = CrowdLambda(self._mean_term, space.base[0] + change[0], self._precision_factor,
+                                 np.exp(-(space.base[1] + change[1])))
+        else:  # some variance at its limit: every character's tables made whole (what an extreme weight costs)
+            means = np.add(self._mean_term, space.base[0] + change[0])
+            precisions = np.multiply(self.offset_change[:, 1], spread)
+            precisions += change[1]
+            np.clip(precisions, -limit, limit, out=precisions)
+            precisions += space.base[1]
+            np.negative(precisions, out=precisions)
+            np.exp(precisions, out=precisions)
+            tables = CrowdLambda(means, np.zeros(means.shape[1:]), precisions, np.ones(means.shape[1:]))
         duration_change = duration_change + spread * self.offset_duration_change
-        shape = (len(means), space.labels, space.states)
-        return ((space.duration_base[0] + duration_change[:, 0]).reshape(shape),
+        shape = (len(self.offsets), space.labels, space.states)
+        return (tables, (space.duration_base[0] + duration_change[:, 0]).reshape(shape),
                 np.exp(space.duration_base[1] + np.clip(duration_change[:, 1], -limit, limit)).reshape(shape))
+
+
+@dataclass(frozen=True)
+class CrowdLambda:
+    """lambda* of N characters, (N, labels * states, 3D) each, kept as two factors: a character's
+    means are its own term plus the term all share, its precisions its own factor times the
+    shared one. The character's own factors move only with the spread, the shared ones with the
+    performed weights, so a moving fader rewrites two small tables, not megabytes per character:
+    the stream puts a character's tables together in the cache as it solves its window."""
+
+    mean_own: np.ndarray  # (N, labels * states, 3D)
+    mean_shared: np.ndarray  # (labels * states, 3D)
+    precision_own: np.ndarray  # (N, labels * states, 3D)
+    precision_shared: np.ndarray  # (labels * states, 3D)
+
+    @property
+    def means(self) -> np.ndarray:
+        return self.mean_own + self.mean_shared
+
+    @property
+    def precisions(self) -> np.ndarray:
+        return self.precision_own * self.precision_shared
 
 
 def interpolate(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray | None = None) -> Lambda:
@@ -191,7 +206,6 @@ def interpolate(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray
     (styles, groups), NaN entries following the overall weight: the engine's interpolation
     stage for a single character (what the tests and the benchmarks' fixed solves use)."""
     styles = len(space.style_names)
-    means, precisions = np.empty((1,) + space.base.shape[1:]), np.empty((1,) + space.base.shape[1:])
-    duration_means, duration_variances = StyleInterpolation(space, np.zeros((1, styles)))(
-        weights, part_weights, 0.0, means, precisions)
-    return Lambda(means[0], precisions[0], duration_means[0], duration_variances[0])
+    tables, duration_means, duration_variances = StyleInterpolation(space, np.zeros((1, styles)))(
+        weights, part_weights, 0.0)
+    return Lambda(tables.means[0], tables.precisions[0], duration_means[0], duration_variances[0])
