@@ -65,6 +65,28 @@ def test_one_character_is_encoded_as_before(model, crowd_frames):
     assert FlatProfile(names, root).datagrams(crowd.character(0), {}) == reference(names, root, first, {})
 
 
+def test_the_compiled_quaternions_are_scipys_to_the_last_bit(crowd_frames):
+    from scipy.spatial.transform import Rotation
+
+    from instrument.output.flat import _pose_values
+
+    turns = [np.eye(3), np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, 1.0, -1.0]), np.diag([-1.0, -1.0, 1.0])]
+    matrices = np.concatenate([Rotation.random(20000, random_state=3).as_matrix(), turns]
+                              + [f.rotations.reshape(-1, 3, 3) for f in crowd_frames])
+    count = len(matrices)  # each matrix as the root of a one-joint character: its quaternion comes 4 values in
+    values = np.empty(count * 17)
+    zeros = np.zeros((count, 1, 3))
+    _pose_values(matrices[:, None], matrices[:, None], zeros, zeros, 0, values)
+    got = values.reshape(count, 17)[:, :4]
+    assert np.array_equal(got.view(np.uint64), quaternions(matrices).view(np.uint64))
+    assert np.array_equal(values.reshape(count, 17)[:, 10:14], got)  # the root's world rotation: the same kernel
+
+
+def test_a_pose_of_another_crowd_size_is_refused(model, crowd_frames):
+    with pytest.raises(ValueError, match="characters"):
+        FlatProfile(model.layout.skeleton.names, model.layout.root, CHARACTERS - 1).encode(crowd_frames[0], ECHO)
+
+
 def receive(sock: socket.socket, count: int) -> list[bytes]:
     got: list[bytes] = []
     sock.settimeout(30.0)
