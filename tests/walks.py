@@ -29,7 +29,8 @@ def tune(stream: Crowd, controls: list[Controls]) -> None:
         lam = interpolate(stream.space, control.weights, control.part_weights)
         scale = np.ones(stream.space.states) if control.state_scale is None else np.asarray(control.state_scale, dtype=float)
         means[n], precisions[n] = lam.means, lam.precisions
-        stream.tables = CrowdLambda(means, np.zeros(means.shape[1:]), precisions, np.ones(means.shape[1:]))
+        stream.tables = CrowdLambda(means, np.zeros(means.shape[1:]), precisions, np.ones(means.shape[1:]),
+                                    np.zeros(len(means), dtype=bool))
         stream.base[n] = state_durations(lam.duration_means, lam.duration_variances, control.speed, scale)
         stream.sigma[n] = control.liveliness * np.sqrt(lam.duration_variances) * scale
         stream.cadence[n] = np.maximum(lam.duration_means, MIN_FRAMES).sum() / stream.base[n].sum()

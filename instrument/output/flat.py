@@ -185,8 +185,12 @@ class FlatProfile:
                              f"{arrays[0].shape[0]}")
         arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in arrays]
         each = poses // len(arrays[0])  # values per character
-        over_cores(_pose_values, [(*(a[start:stop] for a in arrays), self.root, values[start * each : stop * each])
-                                  for start, stop in parts(len(arrays[0]))])
+        cut = parts(len(arrays[0]))
+        if len(cut) == 1:
+            _pose_values(*arrays, self.root, values[:poses])
+        else:
+            over_cores(_pose_values, [(*(a[start:stop] for a in arrays), self.root, values[start * each : stop * each])
+                                      for start, stop in cut])
         values[poses:-1] = np.fromiter(echo.values(), float, len(names))
         values[-1] = float(pose.time)
         return self._template[1].fill(values, int(pose.index))

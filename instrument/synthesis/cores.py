@@ -18,6 +18,8 @@ LEAST_PER_PART = 16  # characters: below this a part is not worth a thread's han
 
 def parts(count: int, least: int = LEAST_PER_PART) -> list[tuple[int, int]]:
     """[start, stop) ranges of about equal size covering `count` characters, one per core at most."""
+    if count < 2 * least:  # the common case of one character: no need to ask how many cores
+        return [(0, count)]
     share = max(1, min(_cores(), count // max(least, 1)))
     bounds = [count * k // share for k in range(share + 1)]
     return list(zip(bounds[:-1], bounds[1:]))

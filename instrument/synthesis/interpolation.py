@@ -158,12 +158,13 @@ class StyleInterpolation:
             self._spread = spread
             self._mean_term = spread * self.offset_change[:, 0]
             self._precision_factor = np.exp(-spread * self.offset_change[:, 1])
+            self._plain = ~(self._mean_term.any(axis=(1, 2)) | (self._precision_factor != 1.0).any(axis=(1, 2)))
         change, duration_change = style_change(space, weights, part_weights)
         limit = MAX_LOG_VARIANCE_CHANGE
         if np.abs(change[1]).max() + abs(spread) * self._own_reach <= limit:
             # no variance at its limit: exp(-(a + b)) = exp(-a) exp(-b), the second kept while the spread stays
             tables = CrowdLambda(self._mean_term, space.base[0] + change[0], self._precision_factor,
-                                 np.exp(-(space.base[1] + change[1])))
+                                 np.exp(-(space.base[1] + change[1])), self._plain)
         else:  # some variance at its limit: every character's tables made whole (what an extreme weight costs)
             means = np.add(self._mean_term, space.base[0] + change[0])
             precisions = np.multiply(self.offset_change[:, 1], spread)
@@ -172,7 +173,8 @@ class StyleInterpolation:
             precisions += space.base[1]
             np.negative(precisions, out=precisions)
             np.exp(precisions, out=precisions)
-            tables = CrowdLambda(means, np.zeros(means.shape[1:]), precisions, np.ones(means.shape[1:]))
+            tables = CrowdLambda(means, np.zeros(means.shape[1:]), precisions, np.ones(means.shape[1:]),
+                                 np.zeros(len(means), dtype=bool))
         duration_change = duration_change + spread * self.offset_duration_change
         shape = (len(self.offsets), space.labels, space.states)
         return (tables, (space.duration_base[0] + duration_change[:, 0]).reshape(shape),
@@ -191,6 +193,7 @@ class CrowdLambda:
     mean_shared: np.ndarray  # (labels * states, 3D)
     precision_own: np.ndarray  # (N, labels * states, 3D)
     precision_shared: np.ndarray  # (labels * states, 3D)
+    plain: np.ndarray  # (N,) bool: the character's own term is 0 and factor 1 (its lambda* is the shared one)
 
     @property
     def means(self) -> np.ndarray:

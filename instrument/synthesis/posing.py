@@ -109,13 +109,19 @@ class CrowdPoses:
         world_rot, world_pos = np.empty_like(rotations), np.empty_like(translations)
         static = np.ascontiguousarray(static)
         cut = parts(self.count)
-        over_cores(self._made, [(static[a:b], self.positions[a:b], self.headings[a:b], rotations[a:b], translations[a:b],
-                                 world_rot[a:b], world_pos[a:b]) for a, b in cut])
+        if len(cut) == 1:  # one core's worth (one character): no parts to cut
+            self._made(static, self.positions, self.headings, rotations, translations, world_rot, world_pos)
+        else:
+            over_cores(self._made, [(static[a:b], self.positions[a:b], self.headings[a:b], rotations[a:b],
+                                     translations[a:b], world_rot[a:b], world_pos[a:b]) for a, b in cut])
         if self.lock is not None and shares is not None:
             self._follow(translations, world_pos, np.full(self.count, STRENGTH) if follow is None else follow)
-            shares = np.ascontiguousarray(shares, dtype=np.float64)
-            over_cores(self.lock.apply, [(self.lock_state.part(a, b), rotations[a:b], translations[a:b], shares[a:b],
-                                          world_rot[a:b], world_pos[a:b]) for a, b in cut])
+            if len(cut) == 1:
+                self.lock.apply(self.lock_state, rotations, translations, shares, world_rot, world_pos)
+            else:
+                shares = np.ascontiguousarray(shares, dtype=np.float64)
+                over_cores(self.lock.apply, [(self.lock_state.part(a, b), rotations[a:b], translations[a:b], shares[a:b],
+                                              world_rot[a:b], world_pos[a:b]) for a, b in cut])
         elif self.lock is not None:  # no feet planted this frame: the body stays where following took it
             self._shift(translations, world_pos, self.follow.offset)
         pose = CrowdPose(self.index, self.index / self.fps, rotations, translations, world_rot, world_pos)

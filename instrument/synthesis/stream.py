@@ -36,6 +36,7 @@ class StreamTables(NamedTuple):
     mean_shared: np.ndarray  # (labels * states, 3D) plus the term all share
     precision_own: np.ndarray  # (N, labels * states, 3D) precisions: each character's own factor
     precision_shared: np.ndarray  # (labels * states, 3D) times the factor all share
+    plain: np.ndarray  # (N,) bool: the character's lambda* is the shared one (own term 0, factor 1)
     base: np.ndarray  # (N, labels, states) frames per state before liveliness
     sigma: np.ndarray  # (N, labels, states) duration sd times liveliness
     counters: np.ndarray  # (N, 7) int: where each plan is (LABEL ... FOLLOWER below)
@@ -122,7 +123,8 @@ class Crowd:
         # a frame's change is limited to this times the data's largest (0: no limit)
         self.max_step_ratio = np.broadcast_to(np.asarray(max_step_ratio, dtype=np.float64), (count,)).copy()
         self.tables = CrowdLambda(np.zeros((count, labels_states, width)), np.zeros((labels_states, width)),
-                                  np.ones((count, labels_states, width)), np.ones((labels_states, width)))
+                                  np.ones((count, labels_states, width)), np.ones((labels_states, width)),
+                                  np.ones(count, dtype=bool))
         self.base = np.ones((count, space.labels, space.states))  # frames per state before liveliness
         self.sigma = np.zeros((count, space.labels, space.states))  # duration sd times liveliness
         self.cadence = np.ones(count)  # model step length / planned step length (scales root speeds)
@@ -218,12 +220,16 @@ class Crowd:
         fixed = min(self.sent, 2)
         frames = np.empty((self.count, self.space.base.shape[2] // 3))
         lam = self.tables
-        tables = StreamTables(lam.mean_own, lam.mean_shared, lam.precision_own, lam.precision_shared, self.base,
+        tables = StreamTables(lam.mean_own, lam.mean_shared, lam.precision_own, lam.precision_shared, lam.plain, self.base,
                               self.sigma, self.counters, self.carry, self.pool, self.history, self.history_ids,
                               self.max_step_ratio, self.space.max_step)
         buffers = self._window_buffers(fixed)
         limited = bool((self.max_step_ratio > 0).any())  # the whole crowd's, so a part limits as the crowd does
         cut = parts(self.count)
+        if len(cut) == 1:  # one core's worth (one character): no parts to cut
+            _advance(tables, buffers, fixed, frames, limited)
+            self.sent += 1
+            return frames
         for k in range(1, len(cut)):  # each part's own solver work (the first's is the buffers')
             if (fixed, k) not in self._parts_work:
                 self._parts_work[fixed, k] = np.zeros_like(buffers.work1), np.zeros_like(buffers.work2)
@@ -323,15 +329,22 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
     work1[:] = 0.0
     work2[:] = 0.0
     solved[:] = 0.0
-    # the character's lambda* put together here, in the cache, as the solver reads it
+    # the character's lambda* put together here, in the cache, as the solver reads it (or the shared one as it is)
     means = np.empty((1,) + mean_shared.shape)
     precisions = np.empty((1,) + mean_shared.shape)
+    shared_means = mean_shared.reshape((1,) + mean_shared.shape)
+    shared_precisions = precision_shared.reshape((1,) + precision_shared.shape)
+    plain = tables.plain
     for n in range(count):
         counters[n, TAIL] = _plan(base[n], sigma[n], counters[n], carry[n], pool[n], ids[n], counts[n], carries[n])[1]
         for m in range(fixed):
             rows[n, m] = history_ids[n, 2 - fixed + m]
         for m in range(ids.shape[1]):
             rows[n, fixed + m] = ids[n, m]
+        if plain[n]:  # 0 + x and 1 x are x: the shared tables are the character's, to the bit
+            _solve(shared_means, shared_precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved[n : n + 1],
+                   work1, work2)
+            continue
         for r in range(mean_shared.shape[0]):
             for c in range(mean_shared.shape[1]):
                 means[0, r, c] = mean_own[n, r, c] + mean_shared[r, c]
