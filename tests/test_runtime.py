@@ -369,10 +369,12 @@ class Phases:
         self.collections: list[tuple[int, bool]] = []  # (frame, began while a frame was being made)
         self.frame = -1
         self.enabled_during: list[bool] = []
+        self.kept: list[list] = []
 
     def prepare(self, frame):
         self.frame = frame.index
         self.enabled_during.append(gc.isenabled())
+        self.kept.append([[] for _ in range(20)])  # containers that live on: the collector has work to do
         return frame.index
 
     def send(self, index):
