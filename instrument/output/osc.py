@@ -273,7 +273,7 @@ class UdpOut:
         """Nothing can be sent yet: the host name has not resolved (health reports the target down)."""
         return self.resolved is None
 
-    def send(self, datagrams: list[bytes]) -> None:
+    def send(self, datagrams: list[bytes] | Datagrams) -> None:
         if self.sock is None:
             if self.resolved is None:
                 return
