@@ -1,6 +1,7 @@
 """The live instrument end to end: real UDP on 127.0.0.1, real processes, real files."""
 
 import filecmp
+import gc
 import os
 import signal
 import subprocess
@@ -355,3 +356,57 @@ def test_a_python_osc_server_receives_consecutive_frames():
     assert result.returncode == 0, result.stderr
     assert sorted(frames) == list(range(300))
     assert max(elderly) == pytest.approx(1.0)  # the demo sweeps elderly up to 1 from 4 s to 8 s
+
+
+class Phases:
+    """A sink that notes whether the loop is making a frame (from its start to `send`) when each
+    collection of Python's garbage collector begins."""
+
+    name = "phases"
+
+    def __init__(self):
+        self.in_frame = False
+        self.collections: list[tuple[int, bool]] = []  # (frame, began while a frame was being made)
+        self.frame = -1
+        self.enabled_during: list[bool] = []
+        self.kept: list[list] = []
+
+    def prepare(self, frame):
+        self.frame = frame.index
+        self.enabled_during.append(gc.isenabled())
+        self.kept.append([[] for _ in range(20)])  # containers that live on: the collector has work to do
+        return frame.index
+
+    def send(self, index):
+        self.in_frame = False  # sent: the next frame's work begins at its wake-up
+
+    def started(self, phase, info):
+        if phase == "start" and self.frame >= 1:
+            self.collections.append((self.frame, self.in_frame))
+
+    def close(self):
+        pass
+
+
+def test_the_garbage_collector_runs_between_frames_never_inside_one(model):
+    phases = Phases()
+    original_advance = FrameClock.advance
+
+    def advance(clock, *args, **kwargs):  # a frame's work begins when the clock wakes the loop
+        original_advance(clock, *args, **kwargs)
+        phases.in_frame = True
+
+    thresholds = gc.get_threshold()
+    gc.set_threshold(50, 2, 2)  # collections often enough to see where they fall
+    gc.callbacks.append(phases.started)
+    FrameClock.advance = advance
+    try:
+        perform(Show(model, [phases], fps=120, seconds=4.0, fast=True), Console(quiet=True))
+    finally:
+        FrameClock.advance = original_advance
+        gc.callbacks.remove(phases.started)
+        gc.set_threshold(*thresholds)
+    assert len(phases.collections) > 3  # the show made garbage, and it was collected
+    assert not any(during for _, during in phases.collections), phases.collections
+    assert phases.enabled_during[0] and not any(phases.enabled_during[1:])  # off once the first frame warmed up
+    assert gc.isenabled()  # and on again after the show

@@ -11,7 +11,7 @@ import numpy as np
 
 from instrument.synthesis.durations import MIN_FRAMES, state_durations
 from instrument.synthesis.engine import walk_features
-from instrument.synthesis.interpolation import interpolate
+from instrument.synthesis.interpolation import CrowdLambda, interpolate
 from instrument.synthesis.stream import Controls, Crowd
 from instrument.synthesis.widen import _without_range
 
@@ -24,10 +24,13 @@ def features(model, controls: Controls, frames: int, method: str = "stream", loo
 
 def tune(stream: Crowd, controls: list[Controls]) -> None:
     """Each character n of the stream takes lambda* and durations of controls[n]."""
+    means, precisions = stream.means, stream.precisions  # put together: each character's own, whole
     for n, control in enumerate(controls):
         lam = interpolate(stream.space, control.weights, control.part_weights)
         scale = np.ones(stream.space.states) if control.state_scale is None else np.asarray(control.state_scale, dtype=float)
-        stream.means[n], stream.precisions[n] = lam.means, lam.precisions
+        means[n], precisions[n] = lam.means, lam.precisions
+        stream.tables = CrowdLambda(means, np.zeros(means.shape[1:]), precisions, np.ones(means.shape[1:]),
+                                    np.zeros(len(means), dtype=bool))
         stream.base[n] = state_durations(lam.duration_means, lam.duration_variances, control.speed, scale)
         stream.sigma[n] = control.liveliness * np.sqrt(lam.duration_variances) * scale
         stream.cadence[n] = np.maximum(lam.duration_means, MIN_FRAMES).sum() / stream.base[n].sum()

@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     # what is measured (numpy, scipy, numba): loaded when run, not for --help nor --startup
     from .benchmarks import BATCH, measure, measure_pacing
-    from .crowd_bench import LATENESS_P99_MS
+    from .crowd_bench import LATENESS_P99_MS, STAGES
 
     if args.pacing:
         f = measure_pacing(args.model, args.pacing, args.fps, args.console, args.console_pages or 0)
@@ -86,6 +86,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"live crowd of {f['crowd_size_for_cost']}, per character:     {f['stream_us_per_character']:8.1f} us/frame "
           f"(x{f['stream_per_character_to_window_solve']:.2f} the window solve: engine {f['crowd_engine_us_per_character']:.1f}, "
           f"pose {f['crowd_pose_us_per_character']:.1f}, flat OSC {f['crowd_flat_us_per_character']:.1f})")
+    print("  its stages, per character (x the window solve): " + ", ".join(
+        f"{stage} {f[f'crowd_{stage}_us_per_character']:.1f} (x{f[f'crowd_{stage}_to_window_solve']:.2f})" for stage in STAGES))
     print(f"largest live crowd at 30 fps:           {f['largest_crowd_30fps']:8d} characters (p99 lateness under "
           f"{LATENESS_P99_MS:g} ms, flat OSC to 127.0.0.1, {f['largest_crowd_scheduling']} scheduling; "
           f"tried {f['largest_crowd_tried']} in {f['largest_crowd_search_s']:.0f} s)")

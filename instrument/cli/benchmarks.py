@@ -214,7 +214,7 @@ def measure(model_path: str | None, repeat: int) -> dict:
     per_character = figures["stream_us_per_frame_batch"]
     figures["characters_at_30fps"] = int(1e6 / 30 / per_character)
     figures["characters_at_60fps"] = int(1e6 / 60 / per_character)
-    figures |= measure_cost(model)  # the whole live path of a crowd, per character
+    figures |= measure_cost(model, figures["window_solve_us"])  # the whole live path of a crowd, per character and stage
     figures["stream_per_character_to_window_solve"] = figures["stream_us_per_character"] / figures["window_solve_us"]
     figures |= largest_crowd(model, figures["stream_us_per_character"])
     return figures

@@ -19,52 +19,87 @@ COST_CROWD = 100  # characters in the crowd whose per-character cost is measured
 COST_FRAMES = 30
 
 
+STAGES = ("cast", "interpolation", "durations", "stream", "range", "drive", "contact", "posing", "encoding", "sending")
+
+
 def live_path(model: Model, count: int, spread: float = 0.5):
-    """A frame of the live crowd path without the clock: the engine, the poses and the flat
-    profile's datagrams for `count` characters, with the demo's controls moving."""
+    """A frame of the live crowd path without the clock: the engine (its stages timed), the
+    flat profile's datagrams for `count` characters written and sent to a local UDP socket, with
+    the demo's controls moving from its first ramp on (the weights change every frame). Returns
+    the frame function, the seconds per stage (added up over the frames made) and a closer."""
     from ..control.hub import ControlHub
     from ..control.score import ScorePlayer, load_score
     from ..control.state import ControlState
+    from ..output.osc import OscTarget, UdpOut
     from ..output.outputs import make_profile
     from ..terminal import Console
     from ..shipped import demo_score_path
     from ..synthesis.engine import Engine
 
     engine = Engine(model, count, CROWD_FPS)
+    engine.stage_seconds = seconds = {}
     profile = make_profile("flat", model, characters=count)
     state = ControlState(model.style_names, model.states)
     state.set("spread", spread)
-    demo = ScorePlayer(load_score(demo_score_path(), state, loop=True), state)
-    apply = ControlHub([], console=Console(quiet=True)).apply  # as the live loop applies a score's events
-    times = np.zeros(3)
+    demo = ScorePlayer(load_score(demo_score_path(), state, loop=True), state, start=-DEMO_FIRST_RAMP_S)
+    console = Console(quiet=True)
+    apply = ControlHub([], console=console).apply  # as the live loop applies a score's events
+    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink.bind(("127.0.0.1", 0))
+    out = UdpOut(OscTarget("127.0.0.1", sink.getsockname()[1], "flat"), console)
 
     def frame(index: int) -> None:
         now = index / CROWD_FPS
         for event in demo.due(now):
             apply(state, event)
         state.advance(now)
+        crowd = engine.frame(now, state.snapshot(), state.spread)
         started = time.perf_counter()
-        frames = engine.sample(now, state.snapshot(), state.spread)
-        made = time.perf_counter()
-        crowd = engine.poses.next(frames, engine.contact_shares, engine.follow_strengths)
-        posed = time.perf_counter()
-        profile.datagrams(crowd, state.echo())
-        times[:] += (made - started, posed - made, time.perf_counter() - posed)
+        datagrams = profile.encode(crowd, state.echo())
+        encoded = time.perf_counter()
+        out.send(datagrams)
+        seconds["encoding"] = seconds.get("encoding", 0.0) + encoded - started
+        seconds["sending"] = seconds.get("sending", 0.0) + time.perf_counter() - encoded
+        drain(sink)
 
-    return frame, times
+    def close() -> None:
+        out.close()
+        sink.close()
+
+    return frame, seconds, close
 
 
-def measure_cost(model: Model) -> dict:
-    """Microseconds per character per frame of the live crowd path, and of its three parts."""
-    frame, times = live_path(model, COST_CROWD)
-    frame(0)  # compiles and loads
-    times[:] = 0.0
-    for index in range(1, COST_FRAMES + 1):
-        frame(index)
-    engine, pose, flat = times * 1e6 / COST_FRAMES / COST_CROWD
-    return {"crowd_size_for_cost": COST_CROWD, "stream_us_per_character": engine + pose + flat,
-            "crowd_engine_us_per_character": engine, "crowd_pose_us_per_character": pose,
-            "crowd_flat_us_per_character": flat}
+def drain(sink: socket.socket) -> None:
+    """Reads away what the sink holds (so the next frame's datagrams are not dropped unsent)."""
+    sink.setblocking(False)
+    try:
+        while sink.recv(65536):
+            pass
+    except BlockingIOError:
+        pass
+
+
+def measure_cost(model: Model, window_solve_us: float) -> dict:
+    """Microseconds per character per frame of the live crowd path and of each of its stages,
+    each also as a ratio to the bare solve of one window (`window_solve_us`, the same run's)."""
+    frame, seconds, close = live_path(model, COST_CROWD)
+    try:
+        frame(0)  # compiles and loads
+        seconds.clear()
+        for index in range(1, COST_FRAMES + 1):
+            frame(index)
+    finally:
+        close()
+    per_character = {stage: seconds.get(stage, 0.0) * 1e6 / COST_FRAMES / COST_CROWD for stage in STAGES}
+    total = sum(per_character.values())
+    figures = {"crowd_size_for_cost": COST_CROWD, "stream_us_per_character": total,
+               "crowd_engine_us_per_character": sum(per_character[s] for s in STAGES[:7]),
+               "crowd_pose_us_per_character": per_character["posing"],
+               "crowd_flat_us_per_character": per_character["encoding"] + per_character["sending"]}
+    for stage, cost in per_character.items():
+        figures[f"crowd_{stage}_us_per_character"] = cost
+        figures[f"crowd_{stage}_to_window_solve"] = cost / window_solve_us
+    return figures
 
 
 def keeps_time(model: Model, count: int, seconds: float = TRIAL_SECONDS) -> tuple[bool, float, int]:

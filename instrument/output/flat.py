@@ -23,12 +23,12 @@ after character 0's root and before the echo. The echo and /walk/frame are sent 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
+from numba import njit
 
-from ..synthesis.posing import Pose, quaternions
-from .osc import bundles, float_prefix, message
+from ..synthesis.cores import over_cores, parts
+from ..synthesis.posing import Pose
+from .osc import Datagrams, bundles, float_prefix, message
 
 
 def character_prefix(k: int) -> str:
@@ -37,19 +37,13 @@ def character_prefix(k: int) -> str:
     return "/walk" if k == 0 else f"/walk/character/{k}"
 
 
-@dataclass(frozen=True)
 class FrameTemplate:
     """A frame's bundles with every value left as a slot: every message of the profile has a
     fixed size, so the bundles are cut the same way every frame, and a frame is the template
-    with its float32 values (and the frame index) written in by one numpy scatter."""
+    with its float32 values (and the frame index) written in place by one compiled call into a
+    buffer kept from frame to frame (`Datagrams`: the bundles as views of it, sent as they are)."""
 
-    data: np.ndarray  # uint8: every datagram of a frame, back to back
-    float_slots: np.ndarray  # (values, 4) byte positions of each float32, in message order
-    index_slot: np.ndarray  # (4,) byte positions of /walk/frame's int32
-    bounds: list[tuple[int, int]]  # each datagram's start and end in `data`
-
-    @classmethod
-    def build(cls, prefixes: list[bytes], widths: list[int]) -> FrameTemplate:
+    def __init__(self, prefixes: list[bytes], widths: list[int]):
         """For messages of `widths[k]` float32 values after `prefixes[k]`, then /walk/frame."""
         frame = message("/walk/frame", 0, 0.0)
         datagrams = bundles([p + bytes(4 * w) for p, w in zip(prefixes, widths)] + [frame])
@@ -62,19 +56,93 @@ class FrameTemplate:
                 at += 4 + size
             bounds.append((base, base + len(datagram)))
             base += len(datagram)
-        lanes = np.arange(4)
-        floats = [start + len(p) + 4 * i for start, p, w in zip(starts, prefixes, widths) for i in range(w)]
         frame_values = starts[-1] + len(frame) - 8  # the int32 index, then the float32 time
-        floats.append(frame_values + 4)
-        return cls(np.frombuffer(b"".join(datagrams), dtype=np.uint8).copy(), np.array(floats)[:, None] + lanes,
-                   frame_values + lanes, bounds)
+        # each message's first float32 and how many follow it; the frame's time is a message of one
+        self.float_starts = np.array([start + len(p) for start, p in zip(starts, prefixes)] + [frame_values + 4],
+                                     dtype=np.int64)
+        self.float_widths = np.array(list(widths) + [1], dtype=np.int64)
+        self.index_slot = frame_values
+        if self.float_starts.size and (self.float_starts % 4).any():  # cannot be: OSC aligns every argument
+            raise ValueError("flat profile: a float slot off a 4-byte boundary")
+        self.buffer = Datagrams(np.frombuffer(b"".join(datagrams), dtype=np.uint8).copy(), bounds)
 
-    def fill(self, values: np.ndarray, index: int) -> list[bytes]:
-        data = self.data.copy()
-        data[self.float_slots] = np.ascontiguousarray(values, dtype=">f4").view(np.uint8).reshape(-1, 4)
-        data[self.index_slot] = np.array([index], dtype=">i4").view(np.uint8)
-        raw = data.tobytes()
-        return [raw[a:b] for a, b in self.bounds]
+    def fill(self, values: np.ndarray, index: int) -> Datagrams:
+        """The frame's datagrams with `values` (every float, in message order) written in: views
+        of the kept buffer, good until the next fill."""
+        data = self.buffer.data
+        _write(data.view(np.uint32), self.float_starts, self.float_widths,
+               np.ascontiguousarray(values, dtype=">f4").view(np.uint32))
+        data[self.index_slot : self.index_slot + 4] = np.array([index], dtype=">i4").view(np.uint8)
+        return self.buffer
+
+
+@njit(cache=True, nogil=True)
+def _write(words, starts, widths, values):  # pragma: no cover - compiled
+    """Copies the big-endian float32s `values` (as 4-byte words) into the messages' runs of float
+    slots; `words` is the frame's buffer as 4-byte words (OSC keeps every argument on a multiple
+    of 4 bytes, and so does a bundle), `starts` in bytes."""
+    at = 0
+    for m in range(starts.shape[0]):
+        start = starts[m] // 4
+        for i in range(widths[m]):
+            words[start + i] = values[at + i]
+        at += widths[m]
+
+
+@njit(cache=True, nogil=True)
+def _quaternion(a, q):  # pragma: no cover - compiled
+    """Rotation matrix `a` (3, 3) as a unit quaternion (x, y, z, w), w >= 0, into `q`: scipy's
+    `Rotation.from_matrix(assume_valid=True)` (Markley's method) step by step, so the same
+    numbers to the last bit as `posing.quaternions` (tests/test_flat_encoding.py)."""
+    trace = a[0, 0] + a[1, 1] + a[2, 2]
+    choice, best = 0, a[0, 0]
+    if a[1, 1] > best:
+        choice, best = 1, a[1, 1]
+    if a[2, 2] > best:
+        choice, best = 2, a[2, 2]
+    if trace > best:
+        choice = 3
+    if choice != 3:
+        i = choice
+        j = (i + 1) % 3
+        k = (j + 1) % 3
+        q[i] = 1 - trace + 2 * a[i, i]
+        q[j] = a[j, i] + a[i, j]
+        q[k] = a[k, i] + a[i, k]
+        q[3] = a[k, j] - a[j, k]
+    else:
+        q[0] = a[2, 1] - a[1, 2]
+        q[1] = a[0, 2] - a[2, 0]
+        q[2] = a[1, 0] - a[0, 1]
+        q[3] = 1 + trace
+    norm = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    for c in range(4):
+        q[c] /= norm
+    if q[3] < 0:
+        for c in range(4):
+            q[c] = -q[c]
+
+
+@njit(cache=True, nogil=True)
+def _pose_values(rotations, world_rotations, world_positions, translations, root, out):  # pragma: no cover - compiled
+    """Every character's values in the order they are sent (see the module's text): a quaternion
+    per joint, a position per joint, the root's position, world quaternion and translation."""
+    joints = rotations.shape[1]
+    at = 0
+    for n in range(rotations.shape[0]):
+        for j in range(joints):
+            _quaternion(rotations[n, j], out[at : at + 4])
+            at += 4
+        for j in range(joints):
+            for c in range(3):
+                out[at + c] = world_positions[n, j, c]
+            at += 3
+        for c in range(3):
+            out[at + c] = world_positions[n, root, c]
+        _quaternion(world_rotations[n, root], out[at + 3 : at + 7])
+        for c in range(3):
+            out[at + 7 + c] = translations[n, root, c]
+        at += 10
 
 
 class FlatProfile:
@@ -93,21 +161,36 @@ class FlatProfile:
                               for kind, width in (("pos", 3), ("quat", 4), ("local", 3))]
             self.widths += [4] * joints + [3] * joints + [3, 4, 3]
         self._template: tuple[tuple[str, ...], FrameTemplate] | None = None  # for the echo's names
+        self._values = np.empty(0)
 
     def datagrams(self, pose: Pose, echo: dict[str, float]) -> list[bytes]:
         """One frame's bundles: of one character (a Pose), or of a crowd (a CrowdPose: the same
         arrays with a leading character axis)."""
+        return self.encode(pose, echo).copies()
+
+    def encode(self, pose: Pose, echo: dict[str, float]) -> Datagrams:
+        """`datagrams`, written into the profile's kept buffer (good until the next call): what
+        the live loop sends, in one system call where the kernel has `sendmmsg`."""
         arrays = (pose.rotations, pose.world_rotations, pose.world_positions, pose.translations)
         if pose.rotations.ndim == 3:  # one character: a crowd of one
             arrays = tuple(a[None] for a in arrays)
-        rotations, world_rotations, world_positions, translations = arrays
-        root, count = self.root, rotations.shape[0]
-        quats = quaternions(np.concatenate([rotations, world_rotations[:, root, None]], axis=1))  # local, then the root's world
-        values = np.concatenate([quats[:, :-1].reshape(count, -1), world_positions.reshape(count, -1), world_positions[:, root],
-                                 quats[:, -1], translations[:, root]], axis=1)
         names = tuple(echo)
         if self._template is None or self._template[0] != names:
             echo_prefixes = [float_prefix(f"/walk/{name}", 1) for name in names]
-            self._template = names, FrameTemplate.build(self.prefixes + echo_prefixes, self.widths + [1] * len(names))
-        everything = np.concatenate([values.ravel(), np.fromiter(echo.values(), float, len(names)), [float(pose.time)]])
-        return self._template[1].fill(everything, int(pose.index))
+            self._template = names, FrameTemplate(self.prefixes + echo_prefixes, self.widths + [1] * len(names))
+            self._values = np.empty(sum(self.widths) + len(names) + 1)  # every float of a frame, in message order
+        values, poses = self._values, len(self._values) - len(names) - 1
+        if arrays[0].shape[0] * (7 * len(self.names) + 10) != poses:  # the kernel does not check its bounds
+            raise ValueError(f"flat profile of {len(self.prefixes) // (2 * len(self.names) + 3)} characters given "
+                             f"{arrays[0].shape[0]}")
+        arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in arrays]
+        each = poses // len(arrays[0])  # values per character
+        cut = parts(len(arrays[0]))
+        if len(cut) == 1:
+            _pose_values(*arrays, self.root, values[:poses])
+        else:
+            over_cores(_pose_values, [(*(a[start:stop] for a in arrays), self.root, values[start * each : stop * each])
+                                      for start, stop in cut])
+        values[poses:-1] = np.fromiter(echo.values(), float, len(names))
+        values[-1] = float(pose.time)
+        return self._template[1].fill(values, int(pose.index))

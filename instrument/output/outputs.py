@@ -29,7 +29,10 @@ class OscOutput:
         self.out = UdpOut(target, console)
 
     def prepare(self, frame: Frame) -> list[bytes]:
-        datagrams = self.profile.datagrams(frame.crowd if self.whole_crowd else frame.pose(self.character), frame.echo)
+        pose = frame.crowd if self.whole_crowd else frame.pose(self.character)
+        if self.bundled and hasattr(self.profile, "encode"):  # written in place, sent from there (flat)
+            return self.profile.encode(pose, frame.echo)
+        datagrams = self.profile.datagrams(pose, frame.echo)
         return datagrams if self.bundled else unbundled(datagrams)
 
     def send(self, datagrams: list[bytes]) -> None:

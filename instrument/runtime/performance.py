@@ -140,6 +140,7 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
     started = time.monotonic()
     work_times: deque[float] = deque(maxlen=300)  # how long making a frame took, recently
     backlog: deque[ControlEvent] = deque()  # taken from devices, not yet applied (over the budget)
+    collecting = False  # the collector was on, and is kept off the frames' work (turned back on at the end)
 
     def guarded_apply(event: ControlEvent) -> bool:
         try:
@@ -190,6 +191,8 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
                 # a full collection during the performance walks only what the performance made
                 gc.collect()
                 gc.freeze()
+                collecting = gc.isenabled()
+                gc.disable()  # from now on the collector runs after a frame is sent (`collect_between_frames`)
                 clock.restart()  # the first frame paid for warming up: the schedule starts now
             clock.hold()
             sent_at = time.monotonic()
@@ -204,6 +207,8 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             if not show.fast and sent_at - last_status >= STATUS_EVERY:
                 last_status = sent_at
                 console.status(_status(index, fps, clock, state, describe_sources()))
+            if collecting:
+                collect_between_frames()
             # wake early enough for what a frame has recently taken, and at once after a jump;
             # meanwhile take live events as they come (stamped with the coming frame's time, as
             # if taken at its start), so a flood of them is handled while waiting, not at the frame
@@ -214,6 +219,8 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
     except KeyboardInterrupt:  # a caller that kept Python's own SIGINT handler
         pass
     finally:
+        if collecting:
+            gc.enable()
         if own_stop:
             stop.restore()
         # files (listed last) first: a device library that crashes closing its port takes nothing written with it
@@ -221,6 +228,20 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
     summary.late, summary.dropped = clock.late, clock.dropped
     summary.seconds = time.monotonic() - started
     return summary
+
+
+def collect_between_frames() -> None:
+    """What Python's collector would have done during the frame's work (when a generation's
+    count passes its threshold, that generation and the younger ones), done once the frame is
+    sent: a collection never delays a frame, and the time from a control to its frame does not
+    grow by one. The oldest generation walks only what the show made (the rest is frozen)."""
+    counts, thresholds = gc.get_count(), gc.get_threshold()
+    if counts[0] <= thresholds[0]:
+        return
+    generation = 0
+    while generation < 2 and counts[generation + 1] > thresholds[generation + 1]:
+        generation += 1
+    gc.collect(generation)
 
 
 def _attempt(console: Console, summary: Summary, output: Sink, method, *args):

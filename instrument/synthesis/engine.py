@@ -23,6 +23,7 @@ calls, frame by frame, so `synth` and a recorded `run` make the same frames.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -132,8 +133,8 @@ class Interpolation:
 
     def retune(self, mix: Mix, stream: Crowd) -> None:
         controls = mix.performed
-        self.duration_means, self.duration_variances = self.stage(controls.weights, controls.part_weights, mix.spread,
-                                                                  stream.means, stream.precisions)
+        stream.tables, self.duration_means, self.duration_variances = self.stage(controls.weights, controls.part_weights,
+                                                                                 mix.spread)
 
 
 class Durations:
@@ -162,7 +163,7 @@ class RangeTargets:
         self.factor: np.ndarray | None = None  # (N, D)
 
     def retune(self, mix: Mix, stream: Crowd) -> None:
-        self.mean = stride_means(stream.base, stream.means)
+        self.mean = stride_means(stream.base, stream.tables.mean_own, stream.tables.mean_shared)
         self.factor = self.space.factors(mix.weights, mix.parts)
 
 
@@ -231,6 +232,20 @@ class Engine:
         self._key: tuple | None = None
         self.frames: list[np.ndarray] = []  # the last two model frames (N, D), driven
         self.made = 0  # model frames made
+        # when a dict: seconds spent in each stage, added up frame after frame (`instrument bench`'s stage costs)
+        self.stage_seconds: dict[str, float] | None = None
+        self._clock = 0.0
+
+    def _timed(self, stage: str) -> None:
+        """Charges the time since the last mark to `stage` (only while `stage_seconds` is kept)."""
+        if self.stage_seconds is not None:
+            now = time.perf_counter()
+            self.stage_seconds[stage] = self.stage_seconds.get(stage, 0.0) + now - self._clock
+            self._clock = now
+
+    def _mark(self) -> None:
+        if self.stage_seconds is not None:
+            self._clock = time.perf_counter()
 
     def retune(self, controls: Controls, spread: float = 0.0) -> None:
         """Every style feature's tables for these controls, if they changed since the last call
@@ -243,29 +258,37 @@ class Engine:
         if key == self._key:
             return
         self._key = key
+        self._mark()
         offsets = self.cast.offsets
         weights = controls.weights[None] + spread * offsets
         parts = None if controls.part_weights is None else controls.part_weights[None] + spread * offsets[:, :, None]
         self.mix = Mix(controls, spread, weights, parts)  # NaN parts (following the weights) stay NaN
+        self._timed("cast")
         for feature in self.features:
             feature.retune(self.mix, self.stream)
+            self._timed(feature.name)
 
     def next_features(self, controls: Controls, spread: float = 0.0) -> np.ndarray:
         """The next model frame of every character, (N, D): stream, range, drive; the frame's
         contact shares and follow strengths are kept for posing it."""
         self.retune(controls, spread)
+        self._mark()
         if self.method == "full":
             frames, ids = self._next_of_whole()
         else:
             frames = self.stream.step()
             ids = self.stream.history_ids[:, 1]
+        self._timed("stream")
         if self.range_filter is not None:
             frames = self.range_filter(frames, self.range_targets.mean, self.range_targets.factor)
+            self._timed("range")
         frames = drive(frames, self.stream.cadence, controls.turn)
+        self._timed("drive")
         self.frame_ids = ids
         if self.contact is not None:
             self.contact_shares = self.contact.shares[np.arange(self.count), ids]
             self.follow_strengths = self.contact.follow
+            self._timed("contact")
         self.made += 1
         return frames
 
@@ -296,7 +319,11 @@ class Engine:
 
     def frame(self, time_s: float, controls: Controls, spread: float = 0.0) -> CrowdPose:
         """Every character's pose at performance time `time_s` (frames are asked for in order, at `fps`)."""
-        return self.poses.next(self.sample(time_s, controls, spread), self.contact_shares, self.follow_strengths)
+        static = self.sample(time_s, controls, spread)
+        self._mark()
+        pose = self.poses.next(static, self.contact_shares, self.follow_strengths)
+        self._timed("posing")
+        return pose
 
 
 def default_controls(model: Model, weights: dict[str, float] | None = None, **kwargs) -> Controls:

@@ -28,7 +28,7 @@ row per character.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from numba import njit
@@ -57,6 +57,10 @@ class LockState:
     previous: np.ndarray  # (N, 2, 3) each pivot's position in the frame before, the body's follow offset
     # included (NaN at first): what the lock's 'nearly still' test measures; not RootFollow.previous
     rises: np.ndarray  # (N, 2) each foot's heel rise in the frame before (radians)
+
+    def part(self, start: int, stop: int) -> LockState:
+        """Characters start to stop: views of the same arrays, for a part of the crowd on a core."""
+        return LockState(*(getattr(self, f.name)[start:stop] for f in fields(self)))
 
     def release(self, n: int) -> None:
         """Character n's feet unlocked, as before its first frame (it was put somewhere else)."""

@@ -135,9 +135,8 @@ class StyleInterpolation:
     Character n walks at the performed weights plus `spread` times its own style offset (a
     crowd's cast; zeros for a single character). lambda*'s change is linear in the weights (part
     weights too), so a character's change is the performance's plus spread times its offset's,
-    made once here: a moving fader then costs one pass over the tables for each character and
-    no matrix product. Means and precisions are written in place into the tables handed in (a
-    crowd's tables are megabytes, and fresh ones cost page faults every time)."""
+    made once here (`CrowdLambda`'s own factors): a moving fader then costs only the shared
+    factors, one small table, and no pass over the crowd's (megabytes)."""
 
     def __init__(self, space: StyleSpace, offsets: np.ndarray):
         self.space = space
@@ -147,34 +146,62 @@ class StyleInterpolation:
         self.offset_duration_change = (self.offsets @ space.duration_offsets.reshape(styles, -1)).reshape(
             (-1,) + space.duration_base.shape)
         self._spread: float | None = None
+        self._own_reach = float(np.abs(self.offset_change[:, 1]).max(initial=0.0))  # the largest log variance offset
         self._mean_term = self._precision_factor = None
 
-    def __call__(self, weights: np.ndarray, part_weights: np.ndarray | None, spread: float, means: np.ndarray,
-                 precisions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Writes every character's lambda* means and precisions into `means` and `precisions`
-        (N, labels * states, 3D); returns the duration means and variances (N, labels, states)."""
+    def __call__(self, weights: np.ndarray, part_weights: np.ndarray | None, spread: float
+                 ) -> tuple[CrowdLambda, np.ndarray, np.ndarray]:
+        """Every character's lambda* (its two factors) and its duration means and variances (N,
+        labels, states)."""
         space = self.space
         if spread != self._spread:  # kept while the spread stays: what it adds, and its factor on the precisions
             self._spread = spread
             self._mean_term = spread * self.offset_change[:, 0]
             self._precision_factor = np.exp(-spread * self.offset_change[:, 1])
+            self._plain = ~(self._mean_term.any(axis=(1, 2)) | (self._precision_factor != 1.0).any(axis=(1, 2)))
         change, duration_change = style_change(space, weights, part_weights)
         limit = MAX_LOG_VARIANCE_CHANGE
-        np.add(self._mean_term, space.base[0] + change[0], out=means)
-        if np.abs(change[1]).max() + abs(spread) * np.abs(self.offset_change[:, 1]).max() <= limit:
+        if np.abs(change[1]).max() + abs(spread) * self._own_reach <= limit:
             # no variance at its limit: exp(-(a + b)) = exp(-a) exp(-b), the second kept while the spread stays
-            np.multiply(self._precision_factor, np.exp(-(space.base[1] + change[1])), out=precisions)
-        else:
-            np.multiply(self.offset_change[:, 1], spread, out=precisions)
+            tables = CrowdLambda(self._mean_term, space.base[0] + change[0], self._precision_factor,
+                                 np.exp(-(space.base[1] + change[1])), self._plain)
+        else:  # some variance at its limit: every character's tables made whole (what an extreme weight costs)
+            means = np.add(self._mean_term, space.base[0] + change[0])
+            precisions = np.multiply(self.offset_change[:, 1], spread)
             precisions += change[1]
             np.clip(precisions, -limit, limit, out=precisions)
             precisions += space.base[1]
             np.negative(precisions, out=precisions)
             np.exp(precisions, out=precisions)
+            tables = CrowdLambda(means, np.zeros(means.shape[1:]), precisions, np.ones(means.shape[1:]),
+                                 np.zeros(len(means), dtype=bool))
         duration_change = duration_change + spread * self.offset_duration_change
-        shape = (len(means), space.labels, space.states)
-        return ((space.duration_base[0] + duration_change[:, 0]).reshape(shape),
+        shape = (len(self.offsets), space.labels, space.states)
+        return (tables, (space.duration_base[0] + duration_change[:, 0]).reshape(shape),
                 np.exp(space.duration_base[1] + np.clip(duration_change[:, 1], -limit, limit)).reshape(shape))
+
+
+@dataclass(frozen=True)
+class CrowdLambda:
+    """lambda* of N characters, (N, labels * states, 3D) each, kept as two factors: a character's
+    means are its own term plus the term all share, its precisions its own factor times the
+    shared one. The character's own factors move only with the spread, the shared ones with the
+    performed weights, so a moving fader rewrites two small tables, not megabytes per character:
+    the stream puts a character's tables together in the cache as it solves its window."""
+
+    mean_own: np.ndarray  # (N, labels * states, 3D)
+    mean_shared: np.ndarray  # (labels * states, 3D)
+    precision_own: np.ndarray  # (N, labels * states, 3D)
+    precision_shared: np.ndarray  # (labels * states, 3D)
+    plain: np.ndarray  # (N,) bool: the character's own term is 0 and factor 1 (its lambda* is the shared one)
+
+    @property
+    def means(self) -> np.ndarray:
+        return self.mean_own + self.mean_shared
+
+    @property
+    def precisions(self) -> np.ndarray:
+        return self.precision_own * self.precision_shared
 
 
 def interpolate(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray | None = None) -> Lambda:
@@ -182,7 +209,6 @@ def interpolate(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray
     (styles, groups), NaN entries following the overall weight: the engine's interpolation
     stage for a single character (what the tests and the benchmarks' fixed solves use)."""
     styles = len(space.style_names)
-    means, precisions = np.empty((1,) + space.base.shape[1:]), np.empty((1,) + space.base.shape[1:])
-    duration_means, duration_variances = StyleInterpolation(space, np.zeros((1, styles)))(
-        weights, part_weights, 0.0, means, precisions)
-    return Lambda(means[0], precisions[0], duration_means[0], duration_variances[0])
+    tables, duration_means, duration_variances = StyleInterpolation(space, np.zeros((1, styles)))(
+        weights, part_weights, 0.0)
+    return Lambda(tables.means[0], tables.precisions[0], duration_means[0], duration_variances[0])

@@ -12,6 +12,7 @@ from ..motion.features import FeatureLayout
 from ..motion.kinematics import _compose
 from ..motion.restore_frame import FrameRestorer
 from ..motion.rotations import matrix_to_quat
+from .cores import over_cores, parts
 from .follow import STRENGTH, RootFollow
 
 if TYPE_CHECKING:
@@ -106,16 +107,32 @@ class CrowdPoses:
         rotations = np.empty((self.count, joints, 3, 3))
         translations = np.empty((self.count, joints, 3))
         world_rot, world_pos = np.empty_like(rotations), np.empty_like(translations)
-        self._restorer.next(static, self.positions, self.headings, rotations, translations)
-        _compose(self._parents, rotations, translations, world_rot, world_pos)
+        static = np.ascontiguousarray(static)
+        cut = parts(self.count)
+        if len(cut) == 1:  # one core's worth (one character): no parts to cut
+            self._made(static, self.positions, self.headings, rotations, translations, world_rot, world_pos)
+        else:
+            over_cores(self._made, [(static[a:b], self.positions[a:b], self.headings[a:b], rotations[a:b],
+                                     translations[a:b], world_rot[a:b], world_pos[a:b]) for a, b in cut])
         if self.lock is not None and shares is not None:
             self._follow(translations, world_pos, np.full(self.count, STRENGTH) if follow is None else follow)
-            self.lock.apply(self.lock_state, rotations, translations, shares, world_rot, world_pos)
+            if len(cut) == 1:
+                self.lock.apply(self.lock_state, rotations, translations, shares, world_rot, world_pos)
+            else:
+                shares = np.ascontiguousarray(shares, dtype=np.float64)
+                over_cores(self.lock.apply, [(self.lock_state.part(a, b), rotations[a:b], translations[a:b], shares[a:b],
+                                              world_rot[a:b], world_pos[a:b]) for a, b in cut])
         elif self.lock is not None:  # no feet planted this frame: the body stays where following took it
             self._shift(translations, world_pos, self.follow.offset)
         pose = CrowdPose(self.index, self.index / self.fps, rotations, translations, world_rot, world_pos)
         self.index += 1
         return pose
+
+    def _made(self, static: np.ndarray, positions: np.ndarray, headings: np.ndarray, rotations: np.ndarray,
+              translations: np.ndarray, world_rot: np.ndarray, world_pos: np.ndarray) -> None:
+        """Some characters' poses as made (before the lock): restored, then their world transforms."""
+        self._restorer.next(static, positions, headings, rotations, translations)
+        _compose(self._parents, rotations, translations, world_rot, world_pos)
 
     def _follow(self, translations: np.ndarray, world_pos: np.ndarray, strengths: np.ndarray) -> None:
         """Moves each body after its stance foot (follow.py) in place, by the lock's blend of each

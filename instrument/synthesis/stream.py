@@ -22,7 +22,8 @@ import numpy as np
 from numba import njit
 
 from .durations import MIN_FRAMES, state_durations, whole_frames
-from .interpolation import StyleSpace
+from .interpolation import CrowdLambda, StyleSpace
+from .cores import over_cores, parts
 from .mlpg import _solve
 from .parameters import DEFAULT_LOOKAHEAD
 
@@ -31,8 +32,11 @@ class StreamTables(NamedTuple):
     """What the compiled frame step reads and writes, row n for character n: one record, not a
     score of positional arrays."""
 
-    means: np.ndarray  # (N, labels * states, 3D) lambda* means
-    precisions: np.ndarray  # (N, labels * states, 3D)
+    mean_own: np.ndarray  # (N, labels * states, 3D) lambda* means: each character's own term (CrowdLambda)
+    mean_shared: np.ndarray  # (labels * states, 3D) plus the term all share
+    precision_own: np.ndarray  # (N, labels * states, 3D) precisions: each character's own factor
+    precision_shared: np.ndarray  # (labels * states, 3D) times the factor all share
+    plain: np.ndarray  # (N,) bool: the character's lambda* is the shared one (own term 0, factor 1)
     base: np.ndarray  # (N, labels, states) frames per state before liveliness
     sigma: np.ndarray  # (N, labels, states) duration sd times liveliness
     counters: np.ndarray  # (N, 7) int: where each plan is (LABEL ... FOLLOWER below)
@@ -42,6 +46,11 @@ class StreamTables(NamedTuple):
     history_ids: np.ndarray  # (N, 2) int: their states
     ratios: np.ndarray  # (N,) rate limit, times the data's largest change (0: none)
     max_step: np.ndarray  # (D,) the data's largest frame-to-frame change
+
+    def part(self, start: int, stop: int) -> StreamTables:
+        """Characters start to stop (views), for a part of the crowd on a core of its own."""
+        shared = {"mean_shared", "precision_shared", "max_step"}
+        return StreamTables(*(t if name in shared else t[start:stop] for name, t in zip(self._fields, self)))
 
 
 class WindowWork(NamedTuple):
@@ -54,6 +63,12 @@ class WindowWork(NamedTuple):
     ids: np.ndarray  # (N, lookahead + 1) int: planned states
     counts: np.ndarray  # (N, lookahead + 3) int: frames of each state instance planned
     carries: np.ndarray  # (N, lookahead + 3) and their carries
+
+    def part(self, start: int, stop: int, work: tuple[np.ndarray, np.ndarray] | None = None) -> WindowWork:
+        """Characters start to stop (views), with solver work of their own (`work`) when given."""
+        work1, work2 = (self.work1, self.work2) if work is None else work
+        return WindowWork(self.rows[start:stop], self.solved[start:stop], work1, work2, self.ids[start:stop],
+                          self.counts[start:stop], self.carries[start:stop])
 
 
 # rows of Crowd.counters
@@ -107,14 +122,16 @@ class Crowd:
         self.history_ids = np.zeros((count, 2), dtype=np.int64)
         # a frame's change is limited to this times the data's largest (0: no limit)
         self.max_step_ratio = np.broadcast_to(np.asarray(max_step_ratio, dtype=np.float64), (count,)).copy()
-        self.means = np.zeros((count, labels_states, width))
-        self.precisions = np.ones((count, labels_states, width))
+        self.tables = CrowdLambda(np.zeros((count, labels_states, width)), np.zeros((labels_states, width)),
+                                  np.ones((count, labels_states, width)), np.ones((labels_states, width)),
+                                  np.ones(count, dtype=bool))
         self.base = np.ones((count, space.labels, space.states))  # frames per state before liveliness
         self.sigma = np.zeros((count, space.labels, space.states))  # duration sd times liveliness
         self.cadence = np.ones(count)  # model step length / planned step length (scales root speeds)
         self.rngs = [np.random.default_rng(seed) for seed in seeds]
         self.pool = np.zeros((count, 4 * (lookahead + 8)))
         self._buffers: dict[int, tuple] = {}
+        self._parts_work: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}  # (fixed, k): part k's solver work
 
     def start_at(self, phases: np.ndarray) -> None:
         """Each character begins at its own (label, state) of the step cycle, before its first
@@ -141,8 +158,8 @@ class Crowd:
              state_scale: np.ndarray | None, liveliness: float) -> None:
         """The engine's durations stage: every character's frames per state (N, labels, states)
         from its duration pdfs and the performed speed, phase stretch and liveliness, and the
-        cadence that scales its root speeds. (Its lambda* tables are written into `means` and
-        `precisions` by the interpolation stage.)"""
+        cadence that scales its root speeds. (Its lambda* tables, `tables`, are set by the
+        interpolation stage.)"""
         scale = np.ones(self.space.states) if state_scale is None else np.asarray(state_scale, dtype=np.float64)
         self.base[:] = state_durations(duration_means, duration_variances, speed, scale)
         self.sigma[:] = liveliness * np.sqrt(duration_variances) * scale
@@ -172,10 +189,19 @@ class Crowd:
             counters[n, TAIL] -= first
             counters[n, FILLED] = self.pool.shape[1]
 
+    @property
+    def means(self) -> np.ndarray:
+        """(N, labels * states, 3D) every character's lambda* means, put together."""
+        return self.tables.means
+
+    @property
+    def precisions(self) -> np.ndarray:
+        return self.tables.precisions
+
     def _window_buffers(self, fixed: int) -> WindowWork:
         if fixed not in self._buffers:
             window = fixed + self.lookahead + 1
-            width = self.means.shape[2]
+            width = self.tables.mean_shared.shape[1]
             self._buffers[fixed] = WindowWork(
                 np.zeros((self.count, window), dtype=np.int64),  # each window's rows of the lambda* tables
                 np.zeros((self.count, window - fixed, width // 3)),  # solved frames
@@ -192,10 +218,23 @@ class Crowd:
             self._carry_to_phase()
         self._draws_for(self.lookahead + 1)
         fixed = min(self.sent, 2)
-        frames = np.empty((self.count, self.means.shape[2] // 3))
-        tables = StreamTables(self.means, self.precisions, self.base, self.sigma, self.counters, self.carry, self.pool,
-                              self.history, self.history_ids, self.max_step_ratio, self.space.max_step)
-        _advance(tables, self._window_buffers(fixed), fixed, frames)
+        frames = np.empty((self.count, self.space.base.shape[2] // 3))
+        lam = self.tables
+        tables = StreamTables(lam.mean_own, lam.mean_shared, lam.precision_own, lam.precision_shared, lam.plain, self.base,
+                              self.sigma, self.counters, self.carry, self.pool, self.history, self.history_ids,
+                              self.max_step_ratio, self.space.max_step)
+        buffers = self._window_buffers(fixed)
+        limited = bool((self.max_step_ratio > 0).any())  # the whole crowd's, so a part limits as the crowd does
+        cut = parts(self.count)
+        if len(cut) == 1:  # one core's worth (one character): no parts to cut
+            _advance(tables, buffers, fixed, frames, limited)
+            self.sent += 1
+            return frames
+        for k in range(1, len(cut)):  # each part's own solver work (the first's is the buffers')
+            if (fixed, k) not in self._parts_work:
+                self._parts_work[fixed, k] = np.zeros_like(buffers.work1), np.zeros_like(buffers.work2)
+        over_cores(_advance, [(tables.part(start, stop), buffers.part(start, stop, self._parts_work.get((fixed, k))),
+                               fixed, frames[start:stop], limited) for k, (start, stop) in enumerate(cut)])
         self.sent += 1
         return frames
 
@@ -273,30 +312,44 @@ def _finish(counter, carry, n, carry_out, states):  # pragma: no cover - compile
 
 
 @njit(cache=True, nogil=True)
-def _advance(tables, work, fixed, frames):  # pragma: no cover - compiled
-    """Plan, solve, rate-limit and commit one frame for every character, in place. The solver
-    reads each window's means and precisions from the character's lambda* tables (`rows`)."""
-    means, precisions, base, sigma, counters, carry, pool = (tables.means, tables.precisions, tables.base, tables.sigma,
-                                                             tables.counters, tables.carry, tables.pool)
+def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - compiled
+    """Plan, solve, rate-limit and commit one frame for every character of `tables` (a crowd or a
+    part of one), in place. The solver reads each window's means and precisions from the
+    character's lambda* tables (`rows`). `limit_any`: whether any character of the crowd has a
+    rate limit (then every frame goes through the limit's arithmetic)."""
+    mean_own, mean_shared, precision_own, precision_shared = (tables.mean_own, tables.mean_shared, tables.precision_own,
+                                                              tables.precision_shared)
+    base, sigma, counters, carry, pool = tables.base, tables.sigma, tables.counters, tables.carry, tables.pool
     history, history_ids, ratios, max_step = tables.history, tables.history_ids, tables.ratios, tables.max_step
     rows, solved, work1, work2, ids, counts, carries = (work.rows, work.solved, work.work1, work.work2, work.ids,
                                                         work.counts, work.carries)
-    count, states = means.shape[0], base.shape[2]
+    count, states = mean_own.shape[0], base.shape[2]
     dimension = history.shape[2]
+    known = np.ascontiguousarray(history[:, 2 - fixed:]) if fixed else np.zeros((count, 1, dimension))
+    work1[:] = 0.0
+    work2[:] = 0.0
+    solved[:] = 0.0
+    # the character's lambda* put together here, in the cache, as the solver reads it (or the shared one as it is)
+    means = np.empty((1,) + mean_shared.shape)
+    precisions = np.empty((1,) + mean_shared.shape)
+    shared_means = mean_shared.reshape((1,) + mean_shared.shape)
+    shared_precisions = precision_shared.reshape((1,) + precision_shared.shape)
+    plain = tables.plain
     for n in range(count):
         counters[n, TAIL] = _plan(base[n], sigma[n], counters[n], carry[n], pool[n], ids[n], counts[n], carries[n])[1]
         for m in range(fixed):
             rows[n, m] = history_ids[n, 2 - fixed + m]
         for m in range(ids.shape[1]):
             rows[n, fixed + m] = ids[n, m]
-    known = history[:, 2 - fixed:] if fixed else np.zeros((count, 1, dimension))
-    work1[:] = 0.0
-    work2[:] = 0.0
-    solved[:] = 0.0
-    _solve(means, precisions, rows, False, np.ascontiguousarray(known), fixed, solved, work1, work2)
-    limit_any = False
-    for n in range(count):
-        limit_any = limit_any or ratios[n] > 0
+        if plain[n]:  # 0 + x and 1 x are x: the shared tables are the character's, to the bit
+            _solve(shared_means, shared_precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved[n : n + 1],
+                   work1, work2)
+            continue
+        for r in range(mean_shared.shape[0]):
+            for c in range(mean_shared.shape[1]):
+                means[0, r, c] = mean_own[n, r, c] + mean_shared[r, c]
+                precisions[0, r, c] = precision_own[n, r, c] * precision_shared[r, c]
+        _solve(means, precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved[n : n + 1], work1, work2)
     for n in range(count):
         for d in range(dimension):
             value = solved[n, 0, d]

@@ -26,6 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numba import njit
 
 from ..motion.features import ROOT_FEATURES
 from .interpolation import body_groups, part_weights_per_group
@@ -63,7 +64,8 @@ class RangeSpace:
         total = positive.sum(axis=1)
         outside = np.maximum(-per_dim, 0.0).sum(axis=1) + np.maximum(total - 1.0, 0.0)
         inside = positive / np.maximum(total, 1.0)[:, None]
-        blended = self.base + (inside * self.offsets).sum(axis=1)
+        blended = np.empty((len(inside), len(self.base)))
+        _blend(self.base, inside, self.offsets, blended)
         return np.exp(STRENGTH * np.clip(1.0 - outside, 0.0, 1.0) * np.clip(blended, -LIMIT, LIMIT))
 
 
@@ -77,12 +79,40 @@ def range_space(model) -> RangeSpace | None:
     return RangeSpace(base, styles - base, body_groups(model.layout).astype(np.float64))
 
 
-def stride_means(base: np.ndarray, means: np.ndarray) -> np.ndarray:
+def stride_means(base: np.ndarray, means: np.ndarray, shared: np.ndarray | None = None) -> np.ndarray:
     """(N, D) what each character's walk averages over a stride: its lambda* state means
-    (N, labels * states, 3D) weighted by the frames planned for each state (N, labels, states)."""
-    frames = base.reshape(len(base), -1)
-    dimension = means.shape[2] // 3
-    return np.einsum("nk,nkd->nd", frames, means[:, :, :dimension]) / frames.sum(axis=1)[:, None]
+    (N, labels * states, 3D), plus `shared` (labels * states, 3D) when they are kept as two terms
+    (`CrowdLambda`), weighted by the frames planned for each state (N, labels, states)."""
+    frames = np.ascontiguousarray(base.reshape(len(base), -1))
+    out = np.empty((len(base), means.shape[2] // 3))
+    _stride_means(frames, frames.sum(axis=1), means, np.zeros(means.shape[1:]) if shared is None else shared, out)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _stride_means(frames, totals, own, shared, out):  # pragma: no cover - compiled
+    """out[n] = sum_k frames[n, k] (own[n, k] + shared[k]) / totals[n] over the static columns,
+    added in k's order (as numpy's einsum adds them: the same numbers to the last bit)."""
+    for n in range(out.shape[0]):
+        for d in range(out.shape[1]):
+            total = frames[n, 0] * (own[n, 0, d] + shared[0, d])
+            for k in range(1, frames.shape[1]):
+                total += frames[n, k] * (own[n, k, d] + shared[k, d])
+            out[n, d] = total / totals[n]
+
+
+@njit(cache=True, nogil=True)
+def _blend(base, inside, offsets, out):  # pragma: no cover - compiled
+    """out[n, d] = base[d] + sum_s inside[n, s, d] offsets[s, d] (`inside`'s last axis 1 or D),
+    added in the styles' order (as numpy's sum over that axis adds them)."""
+    per_feature = inside.shape[2] > 1
+    for n in range(out.shape[0]):
+        for d in range(out.shape[1]):
+            e = d if per_feature else 0
+            total = inside[n, 0, e] * offsets[0, d]
+            for s in range(1, offsets.shape[0]):
+                total += inside[n, s, e] * offsets[s, d]
+            out[n, d] = base[d] + total
 
 
 class RangeFilter:

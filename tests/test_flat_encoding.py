@@ -1,0 +1,140 @@
+"""The flat profile's compiled encoder and the batched send: a crowd's datagrams are byte for byte
+the messages the profile documents (built here one by one with the plain OSC encoder), and
+what a real UDP socket receives from `UdpOut` (sendmmsg, or one send each) is the same and
+parses with python-osc."""
+
+from __future__ import annotations
+
+import socket
+
+import numpy as np
+import pytest
+from pythonosc.osc_bundle import OscBundle
+
+from instrument.output import osc
+from instrument.output.flat import FlatProfile, character_prefix
+from instrument.output.osc import OscTarget, UdpOut, bundles, message
+from instrument.runtime.console import Console
+from instrument.synthesis.engine import Engine, default_controls
+from instrument.synthesis.posing import CrowdPose, quaternions
+from waiting import wait_until
+
+CHARACTERS = 5
+ECHO = {"style/elderly": 0.25, "speed": 1.1, "turn": -0.3}
+
+
+@pytest.fixture(scope="module")
+def crowd_frames(model):
+    """Three frames of a crowd walking with its spread, so every character's pose differs."""
+    engine = Engine(model, CHARACTERS, 30.0)
+    controls = default_controls(model, {"elderly": 0.25}, liveliness=0.5)
+    return [engine.frame(k / 30.0, controls, 0.5) for k in range(3)]
+
+
+def reference(names: list[str], root: int, pose, echo: dict[str, float]) -> list[bytes]:
+    """The frame as docs/osc.md lists it, each message encoded on its own."""
+    messages = []
+    for k in range(pose.rotations.shape[0]):
+        head = character_prefix(k)
+        local = quaternions(pose.rotations[k])
+        messages += [message(f"{head}/bone/{n}/quat", *map(float, local[j])) for j, n in enumerate(names)]
+        messages += [message(f"{head}/bone/{n}/pos", *map(float, pose.world_positions[k, j])) for j, n in enumerate(names)]
+        messages.append(message(f"{head}/root/pos", *map(float, pose.world_positions[k, root])))
+        messages.append(message(f"{head}/root/quat", *map(float, quaternions(pose.world_rotations[k, root]))))
+        messages.append(message(f"{head}/root/local", *map(float, pose.translations[k, root])))
+    messages += [message(f"/walk/{name}", float(value)) for name, value in echo.items()]
+    messages.append(message("/walk/frame", int(pose.index), float(pose.time)))
+    return bundles(messages)
+
+
+def test_a_crowds_datagrams_are_the_messages_encoded_one_by_one(model, crowd_frames):
+    names, root = model.layout.skeleton.names, model.layout.root
+    profile = FlatProfile(names, root, CHARACTERS)
+    for pose in crowd_frames:
+        expected = reference(names, root, pose, ECHO)
+        assert len(expected) > CHARACTERS  # a crowd's frame takes many bundles
+        assert profile.datagrams(pose, ECHO) == expected
+        assert [bytes(d) for d in profile.encode(pose, ECHO)] == expected  # the views the live loop sends
+
+
+def test_one_character_is_encoded_as_before(model, crowd_frames):
+    names, root = model.layout.skeleton.names, model.layout.root
+    crowd = crowd_frames[-1]
+    first = CrowdPose(crowd.index, crowd.time, crowd.rotations[:1], crowd.translations[:1], crowd.world_rotations[:1],
+                      crowd.world_positions[:1])
+    assert FlatProfile(names, root).datagrams(crowd.character(0), {}) == reference(names, root, first, {})
+
+
+def test_the_compiled_quaternions_are_scipys_to_the_last_bit(crowd_frames):
+    from scipy.spatial.transform import Rotation
+
+    from instrument.output.flat import _pose_values
+
+    turns = [np.eye(3), np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, 1.0, -1.0]), np.diag([-1.0, -1.0, 1.0])]
+    matrices = np.concatenate([Rotation.random(20000, random_state=3).as_matrix(), turns]
+                              + [f.rotations.reshape(-1, 3, 3) for f in crowd_frames])
+    count = len(matrices)  # each matrix as the root of a one-joint character: its quaternion comes 4 values in
+    values = np.empty(count * 17)
+    zeros = np.zeros((count, 1, 3))
+    _pose_values(matrices[:, None], matrices[:, None], zeros, zeros, 0, values)
+    got = values.reshape(count, 17)[:, :4]
+    assert np.array_equal(got.view(np.uint64), quaternions(matrices).view(np.uint64))
+    assert np.array_equal(values.reshape(count, 17)[:, 10:14], got)  # the root's world rotation: the same kernel
+
+
+def test_a_pose_of_another_crowd_size_is_refused(model, crowd_frames):
+    with pytest.raises(ValueError, match="characters"):
+        FlatProfile(model.layout.skeleton.names, model.layout.root, CHARACTERS - 1).encode(crowd_frames[0], ECHO)
+
+
+def receive(sock: socket.socket, count: int) -> list[bytes]:
+    got: list[bytes] = []
+    sock.settimeout(30.0)
+    while len(got) < count:
+        got.append(sock.recv(65536))
+    return got
+
+
+@pytest.mark.parametrize("batched", [True, False])
+def test_the_datagrams_arrive_as_encoded_and_parse(model, crowd_frames, batched):
+    names, root = model.layout.skeleton.names, model.layout.root
+    profile = FlatProfile(names, root, CHARACTERS)
+    receiver = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    receiver.bind(("127.0.0.1", 0))
+    receiver.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+    out = UdpOut(OscTarget("127.0.0.1", receiver.getsockname()[1], "flat"), Console(quiet=True))
+    out.batched = batched
+    try:
+        for pose in crowd_frames:
+            expected = reference(names, root, pose, ECHO)
+            out.send(profile.encode(pose, ECHO))
+            assert receive(receiver, len(expected)) == expected
+        assert out.sent == sum(len(reference(names, root, p, ECHO)) for p in crowd_frames)
+        last = crowd_frames[-1]
+        values = {m.address: m.params for data in expected for m in OscBundle(data)}
+        k = CHARACTERS - 1
+        np.testing.assert_allclose(values[f"/walk/character/{k}/bone/{names[root]}/pos"], last.world_positions[k, root],
+                                   rtol=1e-6)
+        assert values["/walk/frame"][0] == last.index
+    finally:
+        out.close()
+        receiver.close()
+
+
+@pytest.mark.skipif(osc.SENDMMSG is None, reason="no sendmmsg in this libc")
+def test_a_refused_target_is_reported_by_the_batched_send_and_the_show_goes_on(model, crowd_frames):
+    names, root = model.layout.skeleton.names, model.layout.root
+    profile = FlatProfile(names, root, CHARACTERS)
+    closed = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    closed.bind(("127.0.0.1", 0))
+    port = closed.getsockname()[1]
+    closed.close()  # nobody listens there: the kernel answers with "connection refused"
+    warnings: list[str] = []
+    console = Console(quiet=True)
+    console.warn = lambda key, text: warnings.append(text)
+    out = UdpOut(OscTarget("127.0.0.1", port, "flat"), console)
+    try:
+        wait_until(lambda: out.send(profile.encode(crowd_frames[0], ECHO)) or out.failed, "the refusal to be reported")
+        assert any("refused" in w.lower() for w in warnings), warnings
+    finally:
+        out.close()
