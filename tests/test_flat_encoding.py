@@ -14,7 +14,7 @@ from pythonosc.osc_bundle import OscBundle
 from instrument.output import osc
 from instrument.output.flat import FlatProfile, character_prefix
 from instrument.output.osc import OscTarget, UdpOut, bundles, message
-from instrument.runtime.console import Console
+from instrument.terminal import Console
 from instrument.synthesis.engine import Engine, default_controls
 from instrument.synthesis.posing import CrowdPose, quaternions
 from waiting import wait_until
