@@ -12,6 +12,11 @@ Per frame, in bundles of at most 1,400 bytes, in this order:
     /walk/frame              i f       frame index and performance time in seconds; sent last,
                                        so a receiver can apply the frame when it arrives
 
+and, in a bundle of their own before the frame's, one message per foot that landed in the frame:
+
+    /walk/footfall           s i f f   side ("left" or "right"), character, performance time in
+                                       seconds, the foot's speed at impact in metres per second
+
 Coordinates are the model's: right-handed, Y up, the units of the training data (centimetres
 for the shipped model).
 
@@ -27,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..synthesis.footfalls import SIDES, Footfall
 from ..synthesis.posing import Pose, quaternions
 from .osc import bundles, float_prefix, message
 
@@ -111,3 +117,10 @@ class FlatProfile:
             self._template = names, FrameTemplate.build(self.prefixes + echo_prefixes, self.widths + [1] * len(names))
         everything = np.concatenate([values.ravel(), np.fromiter(echo.values(), float, len(names)), [float(pose.time)]])
         return self._template[1].fill(everything, int(pose.index))
+
+
+def footfall_datagrams(footfalls: list[Footfall], characters: range) -> list[bytes]:
+    """The /walk/footfall messages of a frame's footfalls of `characters`, bundled (none: [])."""
+    messages = [message("/walk/footfall", SIDES[f.side], f.character, f.time, f.speed)
+                for f in footfalls if f.character in characters]
+    return bundles(messages) if messages else []

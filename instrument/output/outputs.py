@@ -9,7 +9,7 @@ from ..motion.features import forward_direction
 from ..terminal import Console
 from ..motion.kinematics import ChannelStream
 from ..synthesis.posing import Frame
-from .flat import FlatProfile
+from .flat import FlatProfile, footfall_datagrams
 from .humanoid import guess_humanoid, read_humanoid
 from .osc import OscTarget, UdpOut, unbundled
 from .recorder import BvhRecorder
@@ -30,6 +30,9 @@ class OscOutput:
 
     def prepare(self, frame: Frame) -> list[bytes]:
         datagrams = self.profile.datagrams(frame.crowd if self.whole_crowd else frame.pose(self.character), frame.echo)
+        if frame.footfalls and isinstance(self.profile, FlatProfile):  # before the frame, whose /walk/frame comes last
+            whose = range(frame.crowd.rotations.shape[0]) if self.whole_crowd else range(self.character, self.character + 1)
+            datagrams = footfall_datagrams(frame.footfalls, whose) + datagrams
         return datagrams if self.bundled else unbundled(datagrams)
 
     def send(self, datagrams: list[bytes]) -> None:

@@ -28,7 +28,7 @@ from ..synthesis.posing import Frame
 from .clock import IDLE_UNTIL, FrameClock
 from ..terminal import Console
 from .stopping import StopFlag
-from .tempo import BeatLock, Tempo, snap_ratio, step_seconds
+from .tempo import BeatLock, snap_ratio, step_seconds
 
 STATUS_EVERY = 0.5  # seconds of wall time
 LEAD_MARGIN = 0.0005  # seconds added to the expected work of a frame when waking before its deadline
@@ -103,7 +103,7 @@ class Show:
     sources: list[Callable[[float], list[ControlEvent]]] = field(default_factory=list)
     apply: Callable[[ControlState, ControlEvent], bool] | None = None
     describe_sources: Callable[[], str] = lambda: ""
-    tempo: Tempo | None = None  # a tempo source the steps lock to (runtime/tempo.py; realtime only)
+    beat_lock: BeatLock | None = None  # steps locked to a tempo source's beats (runtime/tempo.py; realtime only)
 
     def __post_init__(self):
         # `run` refuses these for the user with one line; here they are a caller's mistake
@@ -113,7 +113,7 @@ class Show:
         wanted = [getattr(sink, "character", 0) for sink in self.sinks]
         if any(not 0 <= k < self.characters for k in wanted):
             raise ValueError(f"a sink asks for a character outside the crowd of {self.characters}: {wanted}")
-        if self.tempo is not None and self.fast:
+        if self.beat_lock is not None and self.fast:
             raise ValueError("Show: a tempo source needs realtime pacing")
         if self.state is None:
             self.state = ControlState(self.model.style_names, self.model.states)
@@ -136,7 +136,7 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
     engine = Engine(model, show.characters, fps, show.lookahead, spacing=show.spacing)
     clock = FrameClock(fps, realtime=not show.fast)
     feet = Footfalls(engine.poses)
-    beat_lock = None if show.tempo is None else BeatLock(show.tempo)
+    beat_lock = show.beat_lock
     landed_at: float | None = None  # when character 0's foot landed in the frame before (the beat lock's cue)
     for output in outputs:
         if hasattr(output, "watch"):  # an output that shows late frames (the console)

@@ -154,6 +154,18 @@ class BeatLock:
             self._speed = self._next_speed(controls.speed, step_seconds_at_1(), beat, landed_at, steps_per_beat)
         return replace(controls, speed=self._speed)
 
+    def describe(self) -> str:
+        """For the status line: the tempo, the steps per beat chosen and the last footfall's offset."""
+        beat, report = self.tempo.period(), self.report
+        if beat is None:
+            return "sync: no tempo yet"
+        text = f"sync {60.0 / beat:.1f} bpm" + ("" if self.tempo.running else " (stopped)")
+        if report.ratio is not None:
+            text += f", {report.ratio:g} steps/beat"
+        if report.offset is not None:
+            text += f", footfall {1000.0 * report.offset:+.0f} ms"
+        return text
+
     def _next_speed(self, performed: float, step_at_1: float, beat: float, landed_at: float | None,
                     forced: float) -> float:
         ratio = forced if forced > 0 else choose_ratio(step_at_1 / performed, beat, self.report.ratio)
