@@ -129,7 +129,8 @@ def run(bpm: float, seconds: float = 16.0, fps: float = 30.0, extra: list[str] |
         ready = time.monotonic() + 120
         while time.monotonic() < ready and not select.select([sock], [], [], 0.5)[0]:
             pass
-        start = time.monotonic() + 1.0
+        # beats at a random phase of the frame grid (the frames are sent on it): as a real band would be
+        start = time.monotonic() + 1.0 + np.random.default_rng(int(bpm)).uniform(0.0, 1.0 / fps)
         sender = threading.Thread(target=send_clock, args=(midi_out, bpm, start, seconds, stop), daemon=True)
         sender.start()
         falls = footfall_times(sock, start + seconds)

@@ -4,12 +4,18 @@ Link (PyPI LinkPython-extern, which bundles Ableton's Link library under the GPL
 later) shares a beat timeline between the music programs of a local network. Installing the
 extra and distributing the instrument with it makes the combined work GPL: the instrument itself
 does not import it unless `--sync link` is asked for. Link's clock is the system's monotonic
-clock in microseconds, the clock `time.monotonic()` reads, so its beats and the frames' deadlines
-are compared directly. Link joins a session by multicast on the local network's interfaces (that
+clock in microseconds, so its beats and the frames' deadlines (`time.monotonic()`)
+are compared after one subtraction. Link joins a session by multicast on the local network's interfaces (that
 is what Link is); alone, it keeps its own timeline at the tempo it started with.
+
+Link's clock is not `time.monotonic()`'s on Linux (it reads CLOCK_MONOTONIC_RAW, which the
+system's clock adjustments do not slew: here they were 0.1 s apart), so a moment is moved onto
+Link's clock by their difference, read anew at each question.
 """
 
 from __future__ import annotations
+
+import time
 
 from ..errors import UserError
 
@@ -35,7 +41,8 @@ class LinkTempo:
         return 60.0 / self.link.captureAppSessionState().tempo()
 
     def beat_at(self, moment: float) -> float:
-        return self.link.captureAppSessionState().beatAtTime(int(moment * 1e6), QUANTUM)
+        on_link = moment + self.link.clock().micros() * 1e-6 - time.monotonic()
+        return self.link.captureAppSessionState().beatAtTime(int(on_link * 1e6), QUANTUM)
 
     def peers(self) -> int:
         return self.link.numPeers()

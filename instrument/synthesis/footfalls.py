@@ -17,8 +17,9 @@ import numpy as np
 from .posing import CrowdPose, CrowdPoses
 
 SIDES = ("left", "right")
-LEFT = re.compile(r"left|(^|[_.])L($|[_.])|^L(?=[A-Z])", re.IGNORECASE)
-RIGHT = re.compile(r"right|(^|[_.])R($|[_.])|^R(?=[A-Z])", re.IGNORECASE)
+# "left" in any case, or a lone l/L between separators, or a capital L before a capital (LHipJoint)
+LEFT = re.compile(r"(?i:left)|(^|[_.])[Ll]($|[_.])|^L(?=[A-Z])")
+RIGHT = re.compile(r"(?i:right)|(^|[_.])[Rr]($|[_.])|^R(?=[A-Z])")
 
 
 def side_of(name: str, fallback: int) -> int:
