@@ -29,8 +29,11 @@ import sys
 import threading
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # private_jack: is a JACK server up
 
 LOCK_MS = 40.0  # a footfall within this of a beat is on it
 SETTLE = 4.0  # seconds after the clock's start before the offsets are counted
@@ -165,17 +168,6 @@ def measure(bpm: float, start: float, times: list[float], late: int | None) -> R
                   float(np.percentile(settled, 95)), lock, len(times), late)
 
 
-def jack_running() -> bool:
-    import rtmidi
-
-    try:
-        probe = rtmidi.MidiOut(rtmidi.API_UNIX_JACK, name="tempo-probe")
-    except Exception:
-        return False
-    probe.delete()
-    return True
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bpm", type=float, nargs="+", default=[80.0, 120.0, 174.0])
@@ -183,12 +175,15 @@ def main() -> None:
     parser.add_argument("--fps", type=float, default=30.0)
     args = parser.parse_args()
     os.environ["JACK_NO_START_SERVER"] = "1"
+    import rtmidi
+    from private_jack import server_up
+
     server = None
-    if not jack_running():
+    if not server_up(rtmidi):
         server = subprocess.Popen(["jackd", "--no-realtime", "-d", "dummy", "-r", "48000", "-p", "256"],
                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         until = time.monotonic() + 30
-        while not jack_running() and time.monotonic() < until:
+        while not server_up(rtmidi) and time.monotonic() < until:
             time.sleep(0.2)
     try:
         for bpm in args.bpm:
