@@ -236,3 +236,57 @@ def test_a_link_session_sets_the_tempo_and_beats():
     finally:
         peer.enabled = False
         ours.close()
+
+
+# ---- the live loop: the lock as `perform` runs it, and the `sync` control ------------------------------
+
+class SteadyTempo:
+    """A tempo source that cannot exist here otherwise without a second machine: a steady
+    beat on the monotonic clock from its making (what a perfect clock or Link would give)."""
+
+    running = True
+
+    def __init__(self, bpm: float):
+        self.beat, self.start = 60.0 / bpm, time.monotonic()
+
+    def period(self) -> float:
+        return self.beat
+
+    def beat_at(self, moment: float) -> float:
+        return (moment - self.start) / self.beat
+
+
+class FootfallSink:
+    name = "footfalls"
+
+    def __init__(self):
+        self.times: list[float] = []
+
+    def prepare(self, frame):
+        self.times += [f.time for f in frame.footfalls if f.character == 0]
+
+    def send(self, prepared) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+@pytest.mark.parametrize("sync", [1.0, 0.0])
+def test_perform_locks_the_steps_unless_the_sync_control_is_off(model, sync):
+    """At 90 bpm (steps of 667 ms: the average style's own are about 520 ms) the locked walk's
+    steps take a beat; with `sync` 0 the walk keeps its own time."""
+    from instrument.control.state import ControlState
+    from instrument.runtime.performance import Show, perform
+    from instrument.terminal import Console
+
+    state = ControlState(model.style_names, model.states)
+    state.set("sync", sync)
+    sink = FootfallSink()
+    lock = BeatLock(SteadyTempo(90.0))
+    perform(Show(model, [sink], FPS, seconds=8.0, state=state, beat_lock=lock), Console(quiet=True))
+    step = np.mean(np.diff([t for t in sink.times if t > 3.0]))
+    if sync:
+        assert lock.report.ratio == 1.0 and step == pytest.approx(60.0 / 90.0, rel=0.03)
+    else:
+        assert lock.report.ratio is None and step < 0.6

@@ -68,6 +68,8 @@ _ROWS = (
         stored=True, echoed=True, section="walk", fader=(0.0, 1.0)),
     Row("spread", 0.0, 1.0, 0.0, "", "a crowd's style spread: 0 every character as performed; 1 each its own style mix",
         stored=True, echoed=True, section="walk", fader=(0.0, 1.0)),
+    Row("sync", 0.0, 1.0, 1.0, "", "with run --sync: 1 steps on the music's beat, 0 keeps the walk's own time",
+        section="walk", fader=(0.0, 1.0)),
     Row("steps-per-beat", 0.0, 2.0, 0.0, "steps",
         "with run --sync: steps per beat the walk locks to, 0.5, 1 or 2 (nearest); below 0.25 the lock chooses",
         stored=True, section="walk", fader=(0.0, 2.0)),

@@ -41,7 +41,8 @@ class ControlState:
         self.liveliness = rows["liveliness"].default
         self.spread = rows["spread"].default  # read by a crowd (synthesis/engine.py), not part of one walker's Controls
         self.state_scale = np.full(self.states, rows["phase"].default)
-        self.steps_per_beat = rows["steps-per-beat"].default  # read by the beat lock (runtime/tempo.py)
+        self.sync = rows["sync"].default  # the beat lock on (1) or off (0) (runtime/tempo.py)
+        self.steps_per_beat = rows["steps-per-beat"].default  # read by the beat lock
 
     def targets(self) -> list[str]:
         """Every target of this model (spec.names: preset/<name> and store/<name> aside)."""
@@ -82,7 +83,7 @@ class ControlState:
             self.cue_presses += value > 0
         elif kind == "morph":
             self.morph_time = value
-        else:  # speed, turn, liveliness, spread, steps-per-beat
+        else:  # speed, turn, liveliness, spread, sync, steps-per-beat
             setattr(self, kind.replace("-", "_"), value)
         return True
 

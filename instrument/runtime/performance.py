@@ -185,7 +185,7 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             take_live(now)  # what came since the last look, while the loop waited
             state.advance(now)
             controls = state.snapshot()
-            if beat_lock is not None:
+            if beat_lock is not None and state.sync > 0:
                 controls = beat_lock.controls(controls, lambda: step_seconds(engine, controls), landed_at,
                                               snap_ratio(state.steps_per_beat))
             crowd = engine.frame(now, controls, state.spread)
