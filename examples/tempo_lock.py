@@ -39,8 +39,9 @@ LOCK_MS = 40.0  # a footfall within this of a beat is on it
 SETTLE = 4.0  # seconds after the clock's start before the offsets are counted
 
 
-def send_clock(port, bpm: float, start: float, seconds: float, stop: threading.Event) -> None:
-    """MIDI start just before `start`, then ticks at start + k * tick until `seconds` have gone."""
+def send_clock(port, bpm: float, start: float, seconds: float, stop: threading.Event, lateness: list[float]) -> None:
+    """MIDI start just before `start`, then ticks at start + k * tick until `seconds` have gone;
+    `lateness` gets how late each tick left (the sender's own jitter on a busy machine)."""
     tick = 60.0 / bpm / 24
     port.send_message([0xFA])
     k = 0
@@ -52,6 +53,7 @@ def send_clock(port, bpm: float, start: float, seconds: float, stop: threading.E
         while time.monotonic() < due:
             pass
         port.send_message([0xF8])
+        lateness.append(time.monotonic() - due)
         k += 1
     port.send_message([0xFC])
 
@@ -68,6 +70,7 @@ class Result:
     lock_footfall: int | None  # counted from 1 after the clock's start; None: never locked
     footfalls: int
     late: int | None
+    sender_p95_ms: float  # how late the sender's ticks left, 95th percentile
 
     def line(self) -> str:
         error = 100 * (self.median_interval / self.target_interval - 1)
@@ -75,7 +78,8 @@ class Result:
         return (f"{self.bpm:5.0f} bpm  {self.ratio:g} steps/beat  step {self.median_interval * 1000:.0f} ms median "
                 f"({error:+.1f}%), {self.mean_interval * 1000:.1f} ms mean ({mean_error:+.2f}%) of {self.target_interval * 1000:.1f}"
                 f"  footfall-to-beat {self.offset_median_ms:.1f} ms median, {self.offset_p95_ms:.1f} ms p95"
-                f"  locked from footfall {self.lock_footfall}  ({self.footfalls} footfalls, late frames {self.late})")
+                f"  locked from footfall {self.lock_footfall}  ({self.footfalls} footfalls, late frames {self.late}; "
+                f"sender's ticks late by {self.sender_p95_ms:.1f} ms p95)")
 
 
 def footfall_times(sock: socket.socket, until: float) -> list[tuple[float, str, int]]:
@@ -126,6 +130,7 @@ def run(bpm: float, seconds: float = 16.0, fps: float = 30.0, extra: list[str] |
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     midi_out = rtmidi.MidiOut(rtmidi.API_UNIX_JACK, name="tempo-sender")
     stop = threading.Event()
+    lateness: list[float] = []
     try:
         midi_out.open_port(wait_for_port(midi_out, name, time.monotonic() + 120), "clock")
         # the walk is running once frames arrive: wait for one, then start the clock
@@ -134,7 +139,7 @@ def run(bpm: float, seconds: float = 16.0, fps: float = 30.0, extra: list[str] |
             pass
         # beats at a random phase of the frame grid (the frames are sent on it): as a real band would be
         start = time.monotonic() + 1.0 + np.random.default_rng(int(bpm)).uniform(0.0, 1.0 / fps)
-        sender = threading.Thread(target=send_clock, args=(midi_out, bpm, start, seconds, stop), daemon=True)
+        sender = threading.Thread(target=send_clock, args=(midi_out, bpm, start, seconds, stop, lateness), daemon=True)
         sender.start()
         falls = footfall_times(sock, start + seconds)
         sender.join(10)
@@ -149,10 +154,11 @@ def run(bpm: float, seconds: float = 16.0, fps: float = 30.0, extra: list[str] |
     for line in output.splitlines():
         if "stopped after" in line and "late" in line:
             late = int(line.split("late ")[1].split(",")[0])
-    return measure(bpm, start, [t for t, _, character in falls if character == 0], late)
+    return measure(bpm, start, [t for t, _, character in falls if character == 0], late,
+                   1000.0 * float(np.percentile(lateness, 95)))
 
 
-def measure(bpm: float, start: float, times: list[float], late: int | None) -> Result:
+def measure(bpm: float, start: float, times: list[float], late: int | None, sender_p95_ms: float = 0.0) -> Result:
     """The figures of footfall times (monotonic) against beats at start + k * 60 / bpm."""
     beat = 60.0 / bpm
     times = np.array([t for t in times if t > start])
@@ -165,7 +171,7 @@ def measure(bpm: float, start: float, times: list[float], late: int | None) -> R
     off = np.flatnonzero(offsets > LOCK_MS)
     lock = 1 if len(off) == 0 else (int(off[-1]) + 2 if off[-1] + 1 < len(offsets) else None)
     return Result(bpm, ratio, float(np.median(intervals)), float(np.mean(intervals)), period, float(np.median(settled)),
-                  float(np.percentile(settled, 95)), lock, len(times), late)
+                  float(np.percentile(settled, 95)), lock, len(times), late, sender_p95_ms)
 
 
 def main() -> None:

@@ -11,6 +11,7 @@ import functools
 import re
 import socket
 import time
+from collections import deque
 from typing import Iterator
 
 from ..errors import UserError
@@ -77,7 +78,7 @@ QUEUE_LIMIT = 65536  # messages rtmidi holds between two polls: a flood is queue
 
 
 CLOCK_KINDS = {0xF8: "clock", 0xFA: "start", 0xFB: "continue", 0xFC: "stop", 0xF2: "songpos"}
-OFFSET_LEAK = 1e-5  # seconds a read lets the estimated offset between rtmidi's and the monotonic clock grow
+OFFSET_WINDOW = 2.0  # seconds of clock messages over which the smallest read-minus-stamp difference is taken
 
 
 class MidiClockReader:
@@ -86,14 +87,14 @@ class MidiClockReader:
 
     rtmidi gives each message the seconds since the one before, timed by the MIDI system when it
     came in; their running sum is its arrival on rtmidi's clock. That clock is put on
-    `time.monotonic()` by the smallest difference seen between a read and the sum (a message is
-    read after it arrives, never before), let grow by OFFSET_LEAK per message so that the two
-    clocks' drift over a long show is followed."""
+    `time.monotonic()` by the smallest difference between a read and the sum over the last
+    OFFSET_WINDOW seconds (a message is read after it arrives, never before, and some read comes
+    soon after its message), so a glitch of either clock is forgotten within the window."""
 
     def __init__(self, follow):
         self.follow = follow  # callable(kind, moment, value)
         self.stamp = 0.0  # rtmidi's clock: the running sum of the deltas
-        self.offset = float("inf")
+        self.differences: deque[tuple[float, float]] = deque()  # (stamp, read - stamp), increasing differences
 
     def take(self, data: list[int], delta: float) -> bool:
         """True if the message was a clock message (then given to the follower)."""
@@ -101,9 +102,14 @@ class MidiClockReader:
         kind = CLOCK_KINDS.get(data[0]) if data else None
         if kind is None:
             return False
-        self.offset = min(self.offset + OFFSET_LEAK, time.monotonic() - self.stamp)
+        difference = time.monotonic() - self.stamp
+        while self.differences and self.differences[-1][1] >= difference:
+            self.differences.pop()
+        self.differences.append((self.stamp, difference))
+        while self.differences[0][0] < self.stamp - OFFSET_WINDOW:
+            self.differences.popleft()
         value = data[1] | data[2] << 7 if kind == "songpos" and len(data) == 3 else 0
-        self.follow(kind, self.stamp + self.offset, value)
+        self.follow(kind, self.stamp + self.differences[0][1], value)
         return True
 
 
