@@ -43,6 +43,8 @@ def send_clock(port, bpm: float, start: float, seconds: float, stop: threading.E
     """MIDI start just before `start`, then ticks at start + k * tick until `seconds` have gone;
     `lateness` gets how late each tick left (the sender's own jitter on a busy machine)."""
     tick = 60.0 / bpm / 24
+    while time.monotonic() < start - tick:  # start one tick before the first, as a sequencer does
+        time.sleep(0.001)
     port.send_message([0xFA])
     k = 0
     while not stop.is_set() and k * tick < seconds:

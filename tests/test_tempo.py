@@ -55,6 +55,13 @@ def test_the_follower_smooths_a_jittering_clock_and_follows_a_tempo_change_withi
     assert follower.beat_at(3.0 + TICKS_PER_BEAT * new_tick) == pytest.approx(5.0, abs=0.02)
 
 
+def test_a_clock_joined_mid_song_gives_its_tempo_without_a_start():
+    """A source already playing (or one that always sends its clock) is followed from its ticks."""
+    follower = TempoFollower()
+    clock_ticks(follower, 130, 2.0, 30, np.random.default_rng(3))
+    assert follower.running and follower.period() == pytest.approx(60.0 / 130, rel=0.01)
+
+
 def test_a_stopped_clock_keeps_its_tempo_and_song_position_sets_the_beat():
     rng = np.random.default_rng(1)
     follower = TempoFollower()
@@ -172,7 +179,7 @@ def test_a_midi_clock_through_jack_puts_the_footfalls_on_the_beat(jack):
     result = run(120.0, seconds=10.0)
     assert result.ratio == 1.0
     assert abs(result.mean_interval / 0.5 - 1) < 0.05
-    assert result.offset_median_ms < 40.0
+    assert result.offset_median_ms < 60.0  # a beat is 500 ms: drifting footfalls spread over +-250
 
 
 def test_footfalls_are_notes_on_the_midi_out_port(jack, tmp_path):

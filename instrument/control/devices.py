@@ -78,7 +78,8 @@ QUEUE_LIMIT = 65536  # messages rtmidi holds between two polls: a flood is queue
 
 
 CLOCK_KINDS = {0xF8: "clock", 0xFA: "start", 0xFB: "continue", 0xFC: "stop", 0xF2: "songpos"}
-OFFSET_WINDOW = 2.0  # seconds of clock messages over which the smallest read-minus-stamp difference is taken
+OFFSET_WINDOW = 10.0  # seconds of clock messages over which the smallest read-minus-stamp difference is taken
+OFFSET_SLEW = 1e-4  # seconds the offset in use moves per clock message towards that smallest difference
 
 
 class MidiClockReader:
@@ -89,12 +90,15 @@ class MidiClockReader:
     came in; their running sum is its arrival on rtmidi's clock. That clock is put on
     `time.monotonic()` by the smallest difference between a read and the sum over the last
     OFFSET_WINDOW seconds (a message is read after it arrives, never before, and some read comes
-    soon after its message), so a glitch of either clock is forgotten within the window."""
+    soon after its message), so a glitch of either clock is forgotten within the window. The offset
+    in use moves towards it by at most OFFSET_SLEW a message (2.4 ms a beat): a step would bend the
+    fitted tempo for a beat; a slow ramp barely moves it."""
 
     def __init__(self, follow):
         self.follow = follow  # callable(kind, moment, value)
         self.stamp = 0.0  # rtmidi's clock: the running sum of the deltas
         self.differences: deque[tuple[float, float]] = deque()  # (stamp, read - stamp), increasing differences
+        self.offset: float | None = None  # rtmidi's clock to the monotonic clock, in use
 
     def take(self, data: list[int], delta: float) -> bool:
         """True if the message was a clock message (then given to the follower)."""
@@ -108,8 +112,11 @@ class MidiClockReader:
         self.differences.append((self.stamp, difference))
         while self.differences[0][0] < self.stamp - OFFSET_WINDOW:
             self.differences.popleft()
+        smallest = self.differences[0][1]
+        self.offset = smallest if self.offset is None else \
+            self.offset + max(-OFFSET_SLEW, min(OFFSET_SLEW, smallest - self.offset))
         value = data[1] | data[2] << 7 if kind == "songpos" and len(data) == 3 else 0
-        self.follow(kind, self.stamp + self.differences[0][1], value)
+        self.follow(kind, self.stamp + self.offset, value)
         return True
 
 

@@ -61,8 +61,11 @@ class TempoFollower:
     def __init__(self, fit_ticks: int = FIT_TICKS):
         self.ticks: deque[tuple[int, float]] = deque(maxlen=fit_ticks)  # (tick number, arrival time)
         self.position = 0  # the number the next tick gets (song position: ticks from the song's start)
-        self.running = False
+        # ticks before any start, stop or continue (a source already playing, or one that always
+        # sends its clock) count: the tempo is right at once, the beat from the first tick seen
+        self.running = True
         self._fit: tuple[float, float] | None = None  # time = a + b * tick
+        self._stale = False  # ticks came since the line was fitted (fitted when next asked: once a footfall)
         self.received = 0
 
     def message(self, kind: str, moment: float, value: int = 0) -> None:
@@ -73,7 +76,7 @@ class TempoFollower:
             if self.running:
                 self.ticks.append((self.position, moment))
                 self.position += 1
-                self._refit()
+                self._stale = True
         elif kind == "start":  # the next tick is the song's first
             self.running, self.position = True, 0
             self.ticks.clear()
@@ -87,6 +90,9 @@ class TempoFollower:
             self.ticks.clear()
 
     def _refit(self) -> None:
+        if not self._stale:
+            return
+        self._stale = False
         if len(self.ticks) < MIN_TICKS and self._fit is None:
             return
         if len(self.ticks) < 2:
@@ -102,9 +108,11 @@ class TempoFollower:
             self._fit = (intercept - slope * tick[-1], slope)
 
     def period(self) -> float | None:
+        self._refit()
         return None if self._fit is None else self._fit[1] * TICKS_PER_BEAT
 
     def beat_at(self, moment: float) -> float | None:
+        self._refit()
         if self._fit is None:
             return None
         a, b = self._fit
