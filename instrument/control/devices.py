@@ -11,7 +11,6 @@ import functools
 import re
 import socket
 import time
-from collections import deque
 from typing import Iterator
 
 from ..errors import UserError
@@ -78,8 +77,6 @@ QUEUE_LIMIT = 65536  # messages rtmidi holds between two polls: a flood is queue
 
 
 CLOCK_KINDS = {0xF8: "clock", 0xFA: "start", 0xFB: "continue", 0xFC: "stop", 0xF2: "songpos"}
-OFFSET_WINDOW = 10.0  # seconds of clock messages over which the smallest read-minus-stamp difference is taken
-OFFSET_SLEW = 1e-4  # seconds the offset in use moves per clock message towards that smallest difference
 
 
 class MidiClockReader:
@@ -87,37 +84,34 @@ class MidiClockReader:
     tempo follower (runtime/tempo.py `TempoFollower.message`), each stamped with when it arrived.
 
     rtmidi gives each message the seconds since the one before, timed by the MIDI system when it
-    came in; their running sum is its arrival on rtmidi's clock. That clock is put on
-    `time.monotonic()` by the smallest difference between a read and the sum over the last
-    OFFSET_WINDOW seconds (a message is read after it arrives, never before, and some read comes
-    soon after its message), so a glitch of either clock is forgotten within the window. The offset
-    in use moves towards it by at most OFFSET_SLEW a message (2.4 ms a beat): a step would bend the
-    fitted tempo for a beat; a slow ramp barely moves it."""
+    came in. The messages of one read are put on `time.monotonic()` by those gaps, the newest at
+    the time of the read: the device is read every frame and every 2 ms while the loop waits
+    (runtime/clock.py), so that is a few milliseconds late at most, and the tempo's line fit
+    averages it out. (Anchoring on the smallest read-minus-stamp difference over a window was
+    tried: each time the window's minimum moved, every later tick jumped with it, and the fitted
+    phase with them, by tens of milliseconds on this busy machine.)"""
 
     def __init__(self, follow):
         self.follow = follow  # callable(kind, moment, value)
-        self.stamp = 0.0  # rtmidi's clock: the running sum of the deltas
-        self.differences: deque[tuple[float, float]] = deque()  # (stamp, read - stamp), increasing differences
-        self.offset: float | None = None  # rtmidi's clock to the monotonic clock, in use
+        self.stamp = 0.0  # rtmidi's clock: the running sum of the gaps
+        self.pending: list[tuple[str, float, int]] = []  # this read's clock messages: (kind, stamp, value)
 
     def take(self, data: list[int], delta: float) -> bool:
-        """True if the message was a clock message (then given to the follower)."""
+        """True if the message was a clock message (kept for `flush`)."""
         self.stamp += delta
         kind = CLOCK_KINDS.get(data[0]) if data else None
         if kind is None:
             return False
-        difference = time.monotonic() - self.stamp
-        while self.differences and self.differences[-1][1] >= difference:
-            self.differences.pop()
-        self.differences.append((self.stamp, difference))
-        while self.differences[0][0] < self.stamp - OFFSET_WINDOW:
-            self.differences.popleft()
-        smallest = self.differences[0][1]
-        self.offset = smallest if self.offset is None else \
-            self.offset + max(-OFFSET_SLEW, min(OFFSET_SLEW, smallest - self.offset))
         value = data[1] | data[2] << 7 if kind == "songpos" and len(data) == 3 else 0
-        self.follow(kind, self.stamp + self.offset, value)
+        self.pending.append((kind, self.stamp, value))
         return True
+
+    def flush(self) -> None:
+        """Give this read's clock messages to the follower, the newest message stamped now."""
+        now = time.monotonic()
+        for kind, stamp, value in self.pending:
+            self.follow(kind, now - (self.stamp - stamp), value)
+        self.pending.clear()
 
 
 class MidiInput:
@@ -236,6 +230,8 @@ class MidiInput:
                 self.port.close_port()
                 self.open = False
         events = [RawEvent(now, self.source, control, value) for control, value in self.read_raw()] if self.open else []
+        if self.clock is not None:
+            self.clock.flush()
         self.received += len(events)
         return events
 
