@@ -38,6 +38,8 @@ MIN_TICKS = 6  # before this many ticks since a start there is no tempo yet (a q
 RATIOS = (0.5, 1.0, 2.0)  # steps per beat the lock chooses from
 SWITCH_MARGIN = 1.15  # another ratio must fit the style's cadence this much better to be chosen instead
 MAX_CORRECTION = 0.3  # of the step period: the most one step is lengthened or shortened to reach the beat
+LOST_AFTER = 0.75  # ticks a tick may come later than the fitted line expects before ticks count as lost
+CLEAN_TICKS = 0.15  # RMS jitter (ticks) under which a late tick is told apart from a lost one
 MIN_BPM, MAX_BPM = 20.0, 400.0  # a fitted tempo outside these is a broken clock, not music
 
 
@@ -65,6 +67,7 @@ class TempoFollower:
         # sends its clock) count: the tempo is right at once, the beat from the first tick seen
         self.running = True
         self._fit: tuple[float, float] | None = None  # time = a + b * tick
+        self._jitter = np.inf  # RMS distance of the ticks from the fitted line, in ticks
         self._stale = False  # ticks came since the line was fitted (fitted when next asked: once a footfall)
         self.received = 0
 
@@ -74,6 +77,7 @@ class TempoFollower:
         self.received += 1
         if kind == "clock":
             if self.running:
+                self.position += self._lost(moment)
                 self.ticks.append((self.position, moment))
                 self.position += 1
                 self._stale = True
@@ -89,6 +93,22 @@ class TempoFollower:
             self.position = int(value) * TICKS_PER_SIXTEENTH
             self.ticks.clear()
 
+    def _lost(self, moment: float) -> int:
+        """How many ticks went missing before one arriving at `moment`: a tick later than the
+        fitted line expects the next by more than LOST_AFTER ticks took the place of the ticks
+        skipped (over JACK a client that misses a cycle of a busy server loses that cycle's MIDI;
+        counted as if nothing was lost, the beat slipped by a tick each time). Only told apart
+        from jitter when the clock is steady (its ticks within CLEAN_TICKS of the line, RMS): over
+        a JACK server of long periods, whose cycles bunch the ticks, a late tick is just late."""
+        if len(self.ticks) < MIN_TICKS:
+            return 0
+        self._refit()
+        if self._fit is None or self._jitter > CLEAN_TICKS:
+            return 0
+        a, b = self._fit
+        ahead = (moment - a) / b - self.position
+        return int(round(ahead)) if ahead > LOST_AFTER else 0
+
     def _refit(self) -> None:
         if not self._stale:
             return
@@ -98,14 +118,18 @@ class TempoFollower:
         if len(self.ticks) < 2:
             return
         data = np.array(self.ticks, dtype=np.float64)
-        tick, moment = data[:, 0], data[:, 1]
-        slope, intercept = np.polyfit(tick - tick[-1], moment, 1)  # about the newest tick: well conditioned
+        tick, moment = data[:, 0] - data[-1, 0], data[:, 1]  # about the newest tick: well conditioned
+        x, y = tick - tick.mean(), moment - moment.mean()
+        slope = float(x @ y / (x @ x)) if x @ x > 0 else 0.0
+        intercept = float(moment.mean() - slope * tick.mean())
+        if slope > 0:
+            self._jitter = float(np.sqrt(np.mean((moment - intercept - slope * tick) ** 2))) / slope
         if len(self.ticks) < MIN_TICKS:  # a restart: keep the last tempo, move the phase to the newest tick
             slope = self._fit[1]
             intercept = moment[-1]
         bpm = 60.0 / (slope * TICKS_PER_BEAT) if slope > 0 else 0.0
         if MIN_BPM <= bpm <= MAX_BPM:
-            self._fit = (intercept - slope * tick[-1], slope)
+            self._fit = (intercept - slope * data[-1, 0], slope)
 
     def period(self) -> float | None:
         self._refit()
