@@ -107,7 +107,10 @@ class TempoFollower:
             return 0
         a, b = self._fit
         ahead = (moment - a) / b - self.position
-        return int(round(ahead)) if ahead > LOST_AFTER else 0
+        if abs(ahead) <= LOST_AFTER:
+            return 0
+        # a tick a cycle late, counted as a loss, is followed by one that seems early: taken back
+        return max(int(round(ahead)), self.ticks[-1][0] + 1 - self.position)
 
     def _refit(self) -> None:
         if not self._stale:
