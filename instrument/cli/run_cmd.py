@@ -7,7 +7,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..control.devices import MidiInput, OscInput
+from ..control.devices import MidiClockReader, MidiInput, OscInput
 from ..control.events import LogReplay, read_log
 from ..control.hid import HidInput
 from ..control.hid import choose_mapping as choose_hid_mapping
@@ -66,6 +66,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--midi-virtual", action="append", metavar="NAME",
                    help="create a virtual MIDI input port NAME that other programs connect to; repeatable")
     p.add_argument("--midi-api", choices=("alsa", "jack"), help="MIDI system (default: rtmidi's choice, ALSA on Linux)")
+    p.add_argument("--sync", choices=("midi", "link"),
+                   help="step on the beat: follow MIDI clock on the MIDI inputs, or join an Ableton Link session "
+                        "(docs/tempo.md)")
+    p.add_argument("--midi-out", metavar="NAME",
+                   help="a virtual MIDI output port NAME sending each footfall as a note (left 36, right 38, channel 10)")
     p.add_argument("--no-feedback", action="store_true", default=None,
                    help="send nothing back to the MIDI controller (default: LEDs and motor faders follow the state)")
     p.add_argument("--hid", metavar="VVVV:PPPP", help="HID game controller by vendor and product id, e.g. 054c:09cc")
@@ -213,7 +218,10 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     from ..models.modelfile import load_model
     from ..output.outputs import OscOutput, RecorderOutput, make_profile
     from ..output.vmc import ROOT_CONVENTIONS
+    from ..output.footfall_midi import FootfallMidi
+    from ..runtime.link import LinkTempo
     from ..runtime.performance import Show, close_all, perform
+    from ..runtime.tempo import BeatLock, TempoFollower
 
     show = apply_show_file(args) if args.config else None
     check_needs("run", args)
@@ -240,6 +248,10 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     logged = logged_mappings(args.replay, state) if args.replay and not args.mapping else []  # as recorded
     mappings = logged + choose_mappings(args, state, console)
     live = bool(args.midi or args.midi_virtual or args.hid or args.osc_in or args.console)
+    if args.sync == "midi" and not (args.midi or args.midi_virtual):
+        raise UserError("--sync midi follows the clock of a MIDI input: give --midi or --midi-virtual")
+    if args.sync and args.fast:
+        raise UserError("--sync follows the music in real time: not with --fast")
     if args.replay and args.score:
         raise UserError("give --replay or --score, not both")
     replay = (LogReplay(read_log(args.replay, warn=lambda m: console.warn("log cut", m)), loop=args.loop)
@@ -254,8 +266,9 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         if target.profile == "vmc" and target.port + vmc_characters - 1 > 65535:
             raise UserError(f"--osc {target}: {vmc_characters} characters need VMC ports {target.port} to "
                             f"{target.port + vmc_characters - 1}, past 65535")
-    outputs, devices, hub, created, health = [], [], None, [], None
+    outputs, devices, hub, created, health, tempo = [], [], None, [], None, None
     try:
+        tempo = TempoFollower() if args.sync == "midi" else LinkTempo() if args.sync == "link" else None
         hub = ControlHub(mappings, presets, None, morph, console,
                          per_device=logged_per_device(args.replay) if args.replay else True)  # as the log was played
         hub.start(state)
@@ -278,7 +291,8 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         if attract and not live:
             raise UserError(f"{args.config}: attract: needs a controller (midi, hid or osc-in) whose input it waits for")
         for pattern, virtual in [(p, None) for p in args.midi or []] + [(None, v) for v in args.midi_virtual or []]:
-            devices.append(MidiInput(console, pattern, virtual, args.midi_api))
+            clock = MidiClockReader(tempo.message) if args.sync == "midi" else None
+            devices.append(MidiInput(console, pattern, virtual, args.midi_api, clock))
             mapper = hub.mapper(devices[-1].source)  # the device's own, which its feedback follows
             if mapper is not None and not args.no_feedback:
                 outputs.append(MidiFeedback(mapper, state, console, pattern, virtual, args.midi_api))
@@ -307,6 +321,8 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         for t in targets:  # a crowd's flat target carries every character; VMC: character k on port + k
             crowd = range(vmc_characters) if t.profile == "vmc" else [0]
             outputs += [OscOutput(replace(t, port=t.port + k), profiles[t.profile], console, k) for k in crowd]
+        if args.midi_out:
+            outputs.append(FootfallMidi(args.midi_out, args.midi_api))
         if args.console:
             outputs.append(link.output)  # after the OSC targets: their datagrams leave first at the deadline
         # files last: a start-up that fails leaves nothing behind, so the corrected command runs
@@ -318,7 +334,8 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
             created.append(args.record)
         health = Health(console, outputs, devices, SystemdNotifier(), health_every, args.status_port)  # watches every output
     except UserError:
-        close_all(outputs + devices + [t for t in (hub, health) if t is not None], console)
+        close_all(outputs + devices + [t for t in (hub, health) if t is not None] + ([tempo] if hasattr(tempo, "close") else []),
+                  console)
         for path in created:
             Path(path).unlink(missing_ok=True)
         raise
@@ -344,13 +361,16 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
             close_all(reversed(outputs), console)  # files first, as at the end of a show
             console.say(f"stopped by {stop.by} before the first frame")
             return 0
+        beat_lock = None if tempo is None else BeatLock(tempo)
         show = Show(model, outputs, fps, seconds, args.fast, characters, spacing, state=state, replay=replay,
-                    sources=live_sources, apply=hub.apply,
-                    describe_sources=lambda: ", ".join(d.describe() for d in devices) or ("score" if score_path else "replay"))
+                    sources=live_sources, apply=hub.apply, beat_lock=beat_lock,
+                    describe_sources=lambda: ", ".join([d.describe() for d in devices]
+                                                       + ([beat_lock.describe()] if beat_lock else []))
+                    or ("score" if score_path else "replay"))
         summary = perform(show, console, stop, on_frame=health.frame)
     finally:
         health.notifier.stopping()
-        close_all([hub] + devices + [health, health.notifier], console)  # the recording first, as the outputs' files
+        close_all([hub] + devices + [health, health.notifier] + ([tempo] if hasattr(tempo, "close") else []), console)  # the recording first, as the outputs' files
         console.flush()
     refused = dict(hub.refused)
     for device in devices:

@@ -76,6 +76,44 @@ RTMIDI_APIS = {"jack": "API_UNIX_JACK", "alsa": "API_LINUX_ALSA", None: "API_UNS
 QUEUE_LIMIT = 65536  # messages rtmidi holds between two polls: a flood is queued, not lost
 
 
+CLOCK_KINDS = {0xF8: "clock", 0xFA: "start", 0xFB: "continue", 0xFC: "stop", 0xF2: "songpos"}
+
+
+class MidiClockReader:
+    """MIDI clock messages (clock, start, continue, stop, song position) from an input port to a
+    tempo follower (runtime/tempo.py `TempoFollower.message`), each stamped with when it arrived.
+
+    rtmidi gives each message the seconds since the one before, timed by the MIDI system when it
+    came in. The messages of one read are put on `time.monotonic()` by those gaps, the newest at
+    the time of the read: the device is read every frame and every 2 ms while the loop waits
+    (runtime/clock.py), so that is a few milliseconds late at most, and the tempo's line fit
+    averages it out. (Anchoring on the smallest read-minus-stamp difference over a window was
+    tried: each time the window's minimum moved, every later tick jumped with it, and the fitted
+    phase with them, by tens of milliseconds on this busy machine.)"""
+
+    def __init__(self, follow):
+        self.follow = follow  # callable(kind, moment, value)
+        self.stamp = 0.0  # rtmidi's clock: the running sum of the gaps
+        self.pending: list[tuple[str, float, int]] = []  # this read's clock messages: (kind, stamp, value)
+
+    def take(self, data: list[int], delta: float) -> bool:
+        """True if the message was a clock message (kept for `flush`)."""
+        self.stamp += delta
+        kind = CLOCK_KINDS.get(data[0]) if data else None
+        if kind is None:
+            return False
+        value = data[1] | data[2] << 7 if kind == "songpos" and len(data) == 3 else 0
+        self.pending.append((kind, self.stamp, value))
+        return True
+
+    def flush(self) -> None:
+        """Give this read's clock messages to the follower, the newest message stamped now."""
+        now = time.monotonic()
+        for kind, stamp, value in self.pending:
+            self.follow(kind, now - (self.stamp - stamp), value)
+        self.pending.clear()
+
+
 class MidiInput:
     """The first input port whose name matches a pattern, or a virtual port others connect to.
 
@@ -88,10 +126,12 @@ class MidiInput:
     walk goes on and the status line says "waiting".
     """
 
-    def __init__(self, console: Console, pattern: str | None = None, virtual: str | None = None, api: str | None = None):
+    def __init__(self, console: Console, pattern: str | None = None, virtual: str | None = None, api: str | None = None,
+                 clock: MidiClockReader | None = None):
         import rtmidi
 
         self.rtmidi = rtmidi
+        self.clock = clock  # MIDI clock messages go here (with --sync midi), not through the mapping
         self.console, self.pattern, self.virtual = console, pattern, virtual
         # named by what the user gave (the virtual port, or the pattern), not by the port it finds:
         # the same device, with the same decoder, after it is unplugged and plugged back in
@@ -110,7 +150,7 @@ class MidiInput:
 
     def _new_port(self):
         port = self.rtmidi.MidiIn(self.api, name="instrument", queue_size_limit=QUEUE_LIMIT)
-        port.ignore_types(sysex=True, timing=True, active_sense=True)
+        port.ignore_types(sysex=True, timing=self.clock is None, active_sense=True)
         return port
 
     def _remake(self):
@@ -171,6 +211,8 @@ class MidiInput:
             if item is None:
                 return out
             taken += 1
+            if self.clock is not None and self.clock.take(item[0], item[1]):
+                continue
             raw = raw_from_bytes(item[0])
             if raw is not None:
                 out.append(raw)
@@ -188,6 +230,8 @@ class MidiInput:
                 self.port.close_port()
                 self.open = False
         events = [RawEvent(now, self.source, control, value) for control, value in self.read_raw()] if self.open else []
+        if self.clock is not None:
+            self.clock.flush()
         self.received += len(events)
         return events
 

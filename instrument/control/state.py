@@ -41,6 +41,8 @@ class ControlState:
         self.liveliness = rows["liveliness"].default
         self.spread = rows["spread"].default  # read by a crowd (synthesis/engine.py), not part of one walker's Controls
         self.state_scale = np.full(self.states, rows["phase"].default)
+        self.sync = rows["sync"].default  # the beat lock on (1) or off (0) (runtime/tempo.py)
+        self.steps_per_beat = rows["steps-per-beat"].default  # read by the beat lock
 
     def targets(self) -> list[str]:
         """Every target of this model (spec.names: preset/<name> and store/<name> aside)."""
@@ -81,8 +83,8 @@ class ControlState:
             self.cue_presses += value > 0
         elif kind == "morph":
             self.morph_time = value
-        else:  # speed, turn, liveliness, spread
-            setattr(self, kind, value)
+        else:  # speed, turn, liveliness, spread, sync, steps-per-beat
+            setattr(self, kind.replace("-", "_"), value)
         return True
 
     def get(self, target: str) -> float:
@@ -97,7 +99,7 @@ class ControlState:
             return 0.0
         if target == "morph":
             return self.morph_time
-        return float(getattr(self, target))
+        return float(getattr(self, target.replace("-", "_")))
 
     def recall(self, preset: dict[str, float], now: float) -> None:
         """Go to a preset's values, at once or over the morph time (performance time)."""

@@ -12,6 +12,11 @@ Per frame, in bundles of at most 1,400 bytes, in this order:
     /walk/frame              i f       frame index and performance time in seconds; sent last,
                                        so a receiver can apply the frame when it arrives
 
+and, in a bundle of their own before the frame's, one message per foot that landed in the frame:
+
+    /walk/footfall           s i f f   side ("left" or "right"), character, performance time in
+                                       seconds, the foot's speed at impact in metres per second
+
 Coordinates are the model's: right-handed, Y up, the units of the training data (centimetres
 for the shipped model).
 
@@ -27,6 +32,7 @@ import numpy as np
 from numba import njit
 
 from ..synthesis.cores import over_cores, parts
+from ..synthesis.footfalls import SIDES, Footfall
 from ..synthesis.posing import Pose
 from .osc import Datagrams, bundles, float_prefix, message
 
@@ -194,3 +200,10 @@ class FlatProfile:
         values[poses:-1] = np.fromiter(echo.values(), float, len(names))
         values[-1] = float(pose.time)
         return self._template[1].fill(values, int(pose.index))
+
+
+def footfall_datagrams(footfalls: list[Footfall], characters: range) -> list[bytes]:
+    """The /walk/footfall messages of a frame's footfalls of `characters`, bundled (none: [])."""
+    messages = [message("/walk/footfall", SIDES[f.side], f.character, f.time, f.speed)
+                for f in footfalls if f.character in characters]
+    return bundles(messages) if messages else []

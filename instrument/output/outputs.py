@@ -9,9 +9,9 @@ from ..motion.features import forward_direction
 from ..terminal import Console
 from ..motion.kinematics import ChannelStream
 from ..synthesis.posing import Frame
-from .flat import FlatProfile
+from .flat import FlatProfile, footfall_datagrams
 from .humanoid import guess_humanoid, read_humanoid
-from .osc import OscTarget, UdpOut, unbundled
+from .osc import Datagrams, OscTarget, UdpOut, unbundled
 from .recorder import BvhRecorder
 from .vmc import VmcProfile
 
@@ -28,14 +28,23 @@ class OscOutput:
         self.bundled = target.bundled
         self.out = UdpOut(target, console)
 
-    def prepare(self, frame: Frame) -> list[bytes]:
+    def prepare(self, frame: Frame) -> tuple[list[bytes], list[bytes] | Datagrams]:
+        """The frame's footfalls (flat profile; sent first: the frame's /walk/frame comes last),
+        and the frame itself (a crowd's flat profile written in place, sent from there)."""
         pose = frame.crowd if self.whole_crowd else frame.pose(self.character)
-        if self.bundled and hasattr(self.profile, "encode"):  # written in place, sent from there (flat)
-            return self.profile.encode(pose, frame.echo)
+        footfalls = []
+        if frame.footfalls and isinstance(self.profile, FlatProfile):
+            whose = range(frame.crowd.rotations.shape[0]) if self.whole_crowd else range(self.character, self.character + 1)
+            footfalls = footfall_datagrams(frame.footfalls, whose)
+        if self.bundled and hasattr(self.profile, "encode"):
+            return footfalls, self.profile.encode(pose, frame.echo)
         datagrams = self.profile.datagrams(pose, frame.echo)
-        return datagrams if self.bundled else unbundled(datagrams)
+        return (footfalls, datagrams) if self.bundled else (unbundled(footfalls), unbundled(datagrams))
 
-    def send(self, datagrams: list[bytes]) -> None:
+    def send(self, prepared: tuple[list[bytes], list[bytes] | Datagrams]) -> None:
+        footfalls, datagrams = prepared
+        if footfalls:
+            self.out.send(footfalls)
         self.out.send(datagrams)
 
     def close(self) -> None:

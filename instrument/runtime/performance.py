@@ -23,10 +23,12 @@ from ..models.modelfile import Model
 from ..synthesis.engine import Engine
 from ..synthesis.parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING
 from ..control.values import all_values
+from ..synthesis.footfalls import Footfalls
 from ..synthesis.posing import Frame
 from .clock import IDLE_UNTIL, FrameClock
 from ..terminal import Console
 from .stopping import StopFlag
+from .tempo import BeatLock, snap_ratio, step_seconds
 
 STATUS_EVERY = 0.5  # seconds of wall time
 LEAD_MARGIN = 0.0005  # seconds added to the expected work of a frame when waking before its deadline
@@ -101,6 +103,7 @@ class Show:
     sources: list[Callable[[float], list[ControlEvent]]] = field(default_factory=list)
     apply: Callable[[ControlState, ControlEvent], bool] | None = None
     describe_sources: Callable[[], str] = lambda: ""
+    beat_lock: BeatLock | None = None  # steps locked to a tempo source's beats (runtime/tempo.py; realtime only)
 
     def __post_init__(self):
         # `run` refuses these for the user with one line; here they are a caller's mistake
@@ -110,6 +113,8 @@ class Show:
         wanted = [getattr(sink, "character", 0) for sink in self.sinks]
         if any(not 0 <= k < self.characters for k in wanted):
             raise ValueError(f"a sink asks for a character outside the crowd of {self.characters}: {wanted}")
+        if self.beat_lock is not None and self.fast:
+            raise ValueError("Show: a tempo source needs realtime pacing")
         if self.state is None:
             self.state = ControlState(self.model.style_names, self.model.states)
 
@@ -130,6 +135,9 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
     apply = show.apply or ControlHub([], console=console).apply  # checked, counted and warned as a show's events are
     engine = Engine(model, show.characters, fps, show.lookahead, spacing=show.spacing)
     clock = FrameClock(fps, realtime=not show.fast)
+    feet = Footfalls(engine.poses)
+    beat_lock = show.beat_lock
+    landed_at: float | None = None  # when character 0's foot landed in the frame before (the beat lock's cue)
     for output in outputs:
         if hasattr(output, "watch"):  # an output that shows late frames (the console)
             output.watch(clock)
@@ -181,8 +189,13 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             take_live(now)  # what came since the last look, while the loop waited
             state.advance(now)
             controls = state.snapshot()
+            if beat_lock is not None and state.sync > 0:
+                controls = beat_lock.controls(controls, lambda: step_seconds(engine, controls), landed_at,
+                                              snap_ratio(state.steps_per_beat))
             crowd = engine.frame(now, controls, state.spread)
-            frame = Frame(index, now, crowd, all_values(state), state.echo())
+            footfalls = feet.after(crowd)
+            landed_at = next((clock.deadline(index) for f in footfalls if f.character == 0 and index > 0), None)
+            frame = Frame(index, now, crowd, all_values(state), state.echo(), footfalls)
             prepared = [_attempt(console, summary, output, output.prepare, frame) for output in outputs]
             if index > 0:
                 work_times.append(time.monotonic() - work_started)

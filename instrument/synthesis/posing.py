@@ -3,7 +3,7 @@ feet planted; for one character (`PoseStream`) or a crowd in one compiled call (
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -57,6 +57,7 @@ class Frame:
     crowd: CrowdPose  # every character's pose (one character: a crowd of one)
     values: dict[str, float]  # every target's value (control/values.all_values; NaN: a part weight that follows its style)
     echo: dict[str, float]  # the values a control surface shows (ControlState.echo)
+    footfalls: list = field(default_factory=list)  # the feet that landed in this frame (footfalls.Footfall)
 
     def pose(self, character: int = 0) -> Pose:
         return self.crowd.character(character)

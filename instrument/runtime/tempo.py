@@ -1,0 +1,235 @@
+"""In time with the music: a tempo source's beats, and the walk's steps locked to them.
+
+`TempoFollower` turns MIDI clock (24 ticks per quarter note; start, stop, continue and song
+position) with the arrival time of each tick into a smoothed beat period and phase: a straight
+line fitted to the last beat of ticks (a real clock over JACK or USB jitters by a millisecond or
+more, the fit averages it out; one beat of ticks follows a tempo change within a beat).
+`LinkTempo` (runtime/link.py) answers the same questions from an Ableton Link session.
+
+`BeatLock` makes the walk step on those beats. It chooses a whole ratio of steps per beat (2, 1
+or 1/2) nearest the style's own cadence at the performer's speed, or the one the performer
+forces (`steps-per-beat`), and sets the speed of the walk (so the durations stage stretches
+the HSMM state durations as `speed` does, and a style keeps its rhythm within the step) once
+per footfall of character 0: the step period the ratio asks for, less the footfall's distance
+from the nearest beat of that grid, so the next footfall lands on it (the whole error corrected
+in one step, within MAX_CORRECTION of the period, so a lock never stumbles). The speed changes
+only at footfalls, so the engine retunes once a step, not every frame. When the clock stops, the
+last speed stays (no jump); when it starts, the next two footfalls bring the lock in.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, replace
+from typing import Callable, Protocol
+
+import numpy as np
+
+from ..synthesis.durations import state_durations
+from ..synthesis.engine import Engine
+from ..synthesis.parameters import MAX_SPEED, MIN_SPEED
+from ..synthesis.stream import Controls
+
+TICKS_PER_BEAT = 24  # MIDI clock
+TICKS_PER_SIXTEENTH = 6  # song position counts sixteenth notes
+FIT_TICKS = 24  # ticks in the line fit: one beat (follows a tempo change within a beat)
+MIN_TICKS = 6  # before this many ticks since a start there is no tempo yet (a quarter of a beat)
+RATIOS = (0.5, 1.0, 2.0)  # steps per beat the lock chooses from
+SWITCH_MARGIN = 1.15  # another ratio must fit the style's cadence this much better to be chosen instead
+MAX_CORRECTION = 0.3  # of the step period: the most one step is lengthened or shortened to reach the beat
+LOST_AFTER = 0.75  # ticks a tick may come later than the fitted line expects before ticks count as lost
+CLEAN_TICKS = 0.15  # RMS jitter (ticks) under which a late tick is told apart from a lost one
+MIN_BPM, MAX_BPM = 20.0, 400.0  # a fitted tempo outside these is a broken clock, not music
+
+
+class Tempo(Protocol):
+    """A tempo source as the beat lock reads it (times in `time.monotonic()` seconds)."""
+
+    def period(self) -> float | None:
+        """Seconds per beat, or None before the source has a tempo."""
+
+    def beat_at(self, moment: float) -> float | None:
+        """Beats (fractional) at `moment`; whole numbers are the beats. None before a tempo."""
+
+    @property
+    def running(self) -> bool:
+        """The music is playing (a stopped clock keeps its last tempo, but no phase to lock to)."""
+
+
+class TempoFollower:
+    """MIDI clock to beats. Feed it every clock message (`message`) with its arrival time."""
+
+    def __init__(self, fit_ticks: int = FIT_TICKS):
+        self.ticks: deque[tuple[int, float]] = deque(maxlen=fit_ticks)  # (tick number, arrival time)
+        self.position = 0  # the number the next tick gets (song position: ticks from the song's start)
+        # ticks before any start, stop or continue (a source already playing, or one that always
+        # sends its clock) count: the tempo is right at once, the beat from the first tick seen
+        self.running = True
+        self._fit: tuple[float, float] | None = None  # time = a + b * tick
+        self._jitter = np.inf  # RMS distance of the ticks from the fitted line, in ticks
+        self._stale = False  # ticks came since the line was fitted (fitted when next asked: once a footfall)
+        self.received = 0
+
+    def message(self, kind: str, moment: float, value: int = 0) -> None:
+        """One clock message: `kind` is mido's name (clock, start, stop, continue, songpos);
+        `value` the song position in sixteenth notes."""
+        self.received += 1
+        if kind == "clock":
+            if self.running:
+                self.position += self._lost(moment)
+                self.ticks.append((self.position, moment))
+                self.position += 1
+                self._stale = True
+        elif kind == "start":  # the next tick is the song's first
+            self.running, self.position = True, 0
+            self.ticks.clear()
+        elif kind == "continue":  # from the song position; the line is fitted anew (the time jumped)
+            self.running = True
+            self.ticks.clear()
+        elif kind == "stop":
+            self.running = False
+        elif kind == "songpos":
+            self.position = int(value) * TICKS_PER_SIXTEENTH
+            self.ticks.clear()
+
+    def _lost(self, moment: float) -> int:
+        """How many ticks went missing before one arriving at `moment`: a tick later than the
+        fitted line expects the next by more than LOST_AFTER ticks took the place of the ticks
+        skipped (over JACK a client that misses a cycle of a busy server loses that cycle's MIDI;
+        counted as if nothing was lost, the beat slipped by a tick each time). Only told apart
+        from jitter when the clock is steady (its ticks within CLEAN_TICKS of the line, RMS): over
+        a JACK server of long periods, whose cycles bunch the ticks, a late tick is just late."""
+        if len(self.ticks) < MIN_TICKS:
+            return 0
+        self._refit()
+        if self._fit is None or self._jitter > CLEAN_TICKS:
+            return 0
+        a, b = self._fit
+        ahead = (moment - a) / b - self.position
+        if abs(ahead) <= LOST_AFTER:
+            return 0
+        # a tick a cycle late, counted as a loss, is followed by one that seems early: taken back
+        return max(int(round(ahead)), self.ticks[-1][0] + 1 - self.position)
+
+    def _refit(self) -> None:
+        if not self._stale:
+            return
+        self._stale = False
+        if len(self.ticks) < MIN_TICKS and self._fit is None:
+            return
+        if len(self.ticks) < 2:
+            return
+        data = np.array(self.ticks, dtype=np.float64)
+        tick, moment = data[:, 0] - data[-1, 0], data[:, 1]  # about the newest tick: well conditioned
+        x, y = tick - tick.mean(), moment - moment.mean()
+        slope = float(x @ y / (x @ x)) if x @ x > 0 else 0.0
+        intercept = float(moment.mean() - slope * tick.mean())
+        if slope > 0:
+            self._jitter = float(np.sqrt(np.mean((moment - intercept - slope * tick) ** 2))) / slope
+        if len(self.ticks) < MIN_TICKS:  # a restart: keep the last tempo, move the phase to the newest tick
+            slope = self._fit[1]
+            intercept = moment[-1]
+        bpm = 60.0 / (slope * TICKS_PER_BEAT) if slope > 0 else 0.0
+        if MIN_BPM <= bpm <= MAX_BPM:
+            self._fit = (intercept - slope * data[-1, 0], slope)
+
+    def period(self) -> float | None:
+        self._refit()
+        return None if self._fit is None else self._fit[1] * TICKS_PER_BEAT
+
+    def beat_at(self, moment: float) -> float | None:
+        self._refit()
+        if self._fit is None:
+            return None
+        a, b = self._fit
+        return (moment - a) / b / TICKS_PER_BEAT
+
+
+def choose_ratio(natural_step: float, beat: float, current: float | None) -> float:
+    """Steps per beat (RATIOS) whose step period, beat / ratio, is nearest (by ratio) the walk's
+    own `natural_step` (seconds); the `current` one stays unless another fits SWITCH_MARGIN better."""
+    def misfit(ratio: float) -> float:
+        return abs(math.log(beat / ratio / natural_step))
+
+    best = min(RATIOS, key=misfit)
+    if current is not None and math.exp(misfit(current)) <= SWITCH_MARGIN * math.exp(misfit(best)):
+        return current
+    return best
+
+
+@dataclass
+class LockReport:
+    """What the lock is doing, for the status line and the benchmark."""
+
+    ratio: float | None = None  # steps per beat
+    speed: float | None = None  # the speed it sets
+    offset: float | None = None  # seconds from the last footfall to its nearest grid beat (+ late)
+
+
+class BeatLock:
+    """Sets the walk's speed so character 0's footfalls land on the beats of `tempo`."""
+
+    def __init__(self, tempo: Tempo):
+        self.tempo = tempo
+        self.report = LockReport()
+        self._speed: float | None = None  # the speed set at the last footfall (kept while the clock is stopped)
+
+    def controls(self, controls: Controls, step_seconds_at_1: Callable[[], float], landed_at: float | None,
+                 steps_per_beat: float = 0.0) -> Controls:
+        """The controls the engine walks with: the performer's, with the speed the lock sets.
+        `step_seconds_at_1()`: a step's length at speed 1 for the current style (asked only when
+        the speed is set); `landed_at`: when character 0's foot landed in the frame before
+        (`time.monotonic()`), or None; `steps_per_beat`: 0 for the lock's choice, else the ratio
+        forced (one of RATIOS)."""
+        beat = self.tempo.period()
+        if beat is None:  # no tempo yet: the performer's speed
+            return controls
+        if self._speed is None or landed_at is not None:
+            self._speed = self._next_speed(controls.speed, step_seconds_at_1(), beat, landed_at, steps_per_beat)
+        return replace(controls, speed=self._speed)
+
+    def describe(self) -> str:
+        """For the status line: the tempo, the steps per beat chosen and the last footfall's offset."""
+        beat, report = self.tempo.period(), self.report
+        if beat is None:
+            return "sync: no tempo yet"
+        text = f"sync {60.0 / beat:.1f} bpm" + ("" if self.tempo.running else " (stopped)")
+        if report.ratio is not None:
+            text += f", {report.ratio:g} steps/beat"
+        if report.offset is not None:
+            text += f", footfall {1000.0 * report.offset:+.0f} ms"
+        return text
+
+    def _next_speed(self, performed: float, step_at_1: float, beat: float, landed_at: float | None,
+                    forced: float) -> float:
+        ratio = forced if forced > 0 else choose_ratio(step_at_1 / performed, beat, self.report.ratio)
+        period = beat / ratio
+        target = period
+        self.report.ratio = ratio
+        if landed_at is not None and self.tempo.running:
+            position = self.tempo.beat_at(landed_at) * ratio  # in steps of the grid
+            offset = (position - round(position)) * period  # + late
+            self.report.offset = offset
+            target = period - max(-MAX_CORRECTION * period, min(MAX_CORRECTION * period, offset))
+        self.report.speed = float(np.clip(step_at_1 / target, MIN_SPEED, MAX_SPEED))
+        return self.report.speed
+
+
+def step_seconds(engine: Engine, controls: Controls) -> float:
+    """Seconds a step of character 0 takes at speed 1 with these controls' style and phase
+    stretch (its duration pdfs through the durations stage's formula), the mean of its labels.
+    The pdfs do not move with the speed: those of the last retune serve (the style of the frame
+    before), so the lock costs no retune of its own."""
+    interpolation = engine.features[0]
+    if interpolation.duration_means is None:  # before the first frame
+        engine.retune(controls)
+    frames = state_durations(interpolation.duration_means[0], interpolation.duration_variances[0], 1.0,
+                             controls.state_scale)
+    return float(frames.sum(axis=-1).mean()) / engine.model.fps
+
+
+def snap_ratio(value: float) -> float:
+    """The `steps-per-beat` control's value as the lock takes it: below 0.25, 0 (the lock
+    chooses); else the nearest of RATIOS."""
+    return 0.0 if value < 0.25 else min(RATIOS, key=lambda r: abs(r - value))

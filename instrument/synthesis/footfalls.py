@@ -1,0 +1,68 @@
+"""Footfalls: which feet landed in a frame, read from the foot lock (it already knows).
+
+The lock (footlock.py) starts blending a foot in at the frame the foot is planted after being
+free: its blend weight leaves 0. `Footfalls.after` compares every character's weights with the
+frame before's, so a footfall is reported in the frame the lock plants the foot, once, for every
+gait the lock handles. The foot's speed at impact is its pivot's (the front-most foot joint's)
+speed over the frame before, in metres per second: what a sampler turns into velocity.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from .posing import CrowdPose, CrowdPoses
+
+SIDES = ("left", "right")
+# "left" in any case, or a lone l/L between separators, or a capital L before a capital (LHipJoint)
+LEFT = re.compile(r"(?i:left)|(^|[_.])[Ll]($|[_.])|^L(?=[A-Z])")
+RIGHT = re.compile(r"(?i:right)|(^|[_.])[Rr]($|[_.])|^R(?=[A-Z])")
+
+
+def side_of(name: str, fallback: int) -> int:
+    """0 (left) or 1 (right) from a hip joint's name (UpperLeg_L, LeftUpLeg, LHipJoint), or the
+    leg's place in the lock (`fallback`) for a name that says neither."""
+    left, right = LEFT.search(name) is not None, RIGHT.search(name) is not None
+    return fallback if left == right else (0 if left else 1)
+
+
+@dataclass(frozen=True)
+class Footfall:
+    """One foot contact."""
+
+    character: int
+    side: int  # 0 left, 1 right (SIDES)
+    time: float  # seconds of performance time (the frame's)
+    speed: float  # metres per second of the foot just before it landed
+
+
+class Footfalls:
+    """Detects footfalls frame by frame from a crowd's lock state (nothing without a lock)."""
+
+    def __init__(self, poses: CrowdPoses):
+        self.poses = poses
+        lock = poses.lock
+        self.weights = None if lock is None else np.zeros((poses.count, 2))  # the lock's blends in the frame before
+        self.pivots: np.ndarray | None = None  # (N, 2, 3) the feet's pivots in the frame before
+        self.metres = 0.0 if lock is None else lock.cm / 100.0  # metres per model unit
+        names = [] if lock is None else lock.layout.skeleton.names
+        self.sides = [] if lock is None else [side_of(names[leg.hip], f) for f, leg in enumerate(lock.limbs.legs)]
+
+    def after(self, pose: CrowdPose) -> list[Footfall]:
+        """The footfalls of the frame just posed (`pose`, made by `poses.next`)."""
+        lock = self.poses.lock
+        if lock is None:
+            return []
+        weights = self.poses.lock_state.weights
+        pivots = pose.world_positions[:, lock.feet[:, -1]]  # (N, 2, 3)
+        landed = np.argwhere((self.weights == 0.0) & (weights > 0.0))
+        out = []
+        for n, side in landed:
+            moved = 0.0 if self.pivots is None else float(np.linalg.norm(pivots[n, side] - self.pivots[n, side]))
+            out.append(Footfall(int(n), self.sides[side], float(pose.time), moved * self.metres * self.poses.fps))
+        self.weights = weights.copy()
+        self.pivots = pivots.copy()
+        return out

@@ -1,0 +1,327 @@
+"""In time with the music (runtime/tempo.py, synthesis/footfalls.py): the MIDI clock follower, the
+beat lock on the real engine, footfalls out as OSC and MIDI, through real JACK MIDI and a real
+Ableton Link session."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from instrument.models.modelfile import load_model
+from instrument.runtime.tempo import TICKS_PER_BEAT, BeatLock, TempoFollower, choose_ratio, snap_ratio, step_seconds
+from instrument.shipped import default_model_path
+from instrument.synthesis.engine import Engine, default_controls
+from instrument.synthesis.footfalls import Footfalls, side_of
+
+REPO = Path(__file__).resolve().parents[1]
+MIN_TICKS_FOR_TEST = 30  # ticks before the first loss: the line must exist to see one
+sys.path.insert(0, str(REPO / "examples"))
+FPS = 30.0
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_model(default_model_path())
+
+
+def clock_ticks(follower: TempoFollower, bpm: float, first: float, count: int, rng, jitter: float = 0.0015,
+                first_tick: int = 0) -> float:
+    """`count` ticks at `bpm` from `first`, each late by up to 2 * jitter (a busy USB or JACK
+    clock); the time of the tick after them."""
+    tick = 60.0 / bpm / TICKS_PER_BEAT
+    for k in range(count):
+        follower.message("clock", first + (first_tick + k) * tick + abs(rng.normal(0, jitter)))
+    return first + (first_tick + count) * tick
+
+
+def test_the_follower_smooths_a_jittering_clock_and_follows_a_tempo_change_within_a_beat():
+    rng = np.random.default_rng(0)
+    follower = TempoFollower()
+    assert follower.period() is None
+    follower.message("start", 0.0)
+    clock_ticks(follower, 120, 1.0, 4 * TICKS_PER_BEAT, rng)
+    assert follower.period() == pytest.approx(0.5, rel=0.01)
+    assert follower.beat_at(1.0 + 4 * 0.5) == pytest.approx(4.0, abs=0.02)  # the first tick after start is beat 0
+    # 140 bpm from beat 4: after one beat of ticks the old tempo is gone
+    new_tick = 60.0 / 140 / TICKS_PER_BEAT
+    for k in range(TICKS_PER_BEAT):
+        follower.message("clock", 3.0 + k * new_tick + abs(rng.normal(0, 0.0015)))
+    assert follower.period() == pytest.approx(60.0 / 140, rel=0.01)
+    assert follower.beat_at(3.0 + TICKS_PER_BEAT * new_tick) == pytest.approx(5.0, abs=0.02)
+
+
+def test_lost_ticks_do_not_slip_the_beat():
+    """A client that misses a cycle of a busy JACK server loses its MIDI: 1 tick in 10 lost here,
+    the beats stay where the clock put them."""
+    rng = np.random.default_rng(4)
+    follower = TempoFollower()
+    follower.message("start", 0.0)
+    tick = 0.5 / TICKS_PER_BEAT
+    for k in range(16 * TICKS_PER_BEAT):
+        if k < MIN_TICKS_FOR_TEST or rng.random() > 0.1:
+            follower.message("clock", 1.0 + k * tick + abs(rng.normal(0, 0.0015)))
+    assert follower.period() == pytest.approx(0.5, rel=0.01)
+    assert follower.beat_at(1.0 + 16 * 0.5) == pytest.approx(16.0, abs=0.05)
+
+
+def test_a_tick_a_cycle_late_is_not_a_lost_one():
+    """Over JACK a tick can come a whole cycle late and the next on time: counted as a loss and
+    then taken back, the beat stays."""
+    follower = TempoFollower()
+    follower.message("start", 0.0)
+    tick = 0.5 / TICKS_PER_BEAT
+    for k in range(16 * TICKS_PER_BEAT):
+        late = tick * 1.1 if k > MIN_TICKS_FOR_TEST and k % 20 == 0 else 0.0
+        follower.message("clock", 1.0 + k * tick + late)
+    assert follower.beat_at(1.0 + 16 * 0.5) == pytest.approx(16.0, abs=0.05)
+
+
+def test_a_clock_joined_mid_song_gives_its_tempo_without_a_start():
+    """A source already playing (or one that always sends its clock) is followed from its ticks."""
+    follower = TempoFollower()
+    clock_ticks(follower, 130, 2.0, 30, np.random.default_rng(3))
+    assert follower.running and follower.period() == pytest.approx(60.0 / 130, rel=0.01)
+
+
+def test_a_stopped_clock_keeps_its_tempo_and_song_position_sets_the_beat():
+    rng = np.random.default_rng(1)
+    follower = TempoFollower()
+    follower.message("start", 0.0)
+    clock_ticks(follower, 100, 0.0, 48, rng)
+    follower.message("stop", 1.3)
+    assert not follower.running and follower.period() == pytest.approx(0.6, rel=0.01)
+    follower.message("clock", 1.4)  # ticks while stopped (some sources keep sending them) change nothing
+    assert follower.period() == pytest.approx(0.6, rel=0.01)
+    follower.message("songpos", 5.0, 16)  # sixteenth 16: beat 4
+    follower.message("continue", 5.0)
+    clock_ticks(follower, 100, 10.0, 12, rng, first_tick=0)
+    assert follower.running
+    assert follower.beat_at(10.0) == pytest.approx(4.0, abs=0.03)
+
+
+def test_the_ratio_is_the_one_nearest_the_style_and_sticks_near_the_middle():
+    assert choose_ratio(0.45, 0.5, None) == 1.0
+    assert choose_ratio(0.45, 0.75, None) == 2.0  # 80 bpm: 375 ms steps are nearer 450 than 750
+    assert choose_ratio(0.45, 60 / 174, None) == 1.0
+    assert choose_ratio(0.7, 60 / 174, None) == 0.5
+    # between two ratios the current one stays unless the other fits clearly better
+    middle = 0.45 * np.sqrt(2)  # a beat where 1 and 2 steps per beat misfit equally
+    assert choose_ratio(0.45, middle * 1.02, 1.0) == 1.0 and choose_ratio(0.45, middle * 0.98, 2.0) == 2.0
+    assert [snap_ratio(v) for v in (0.0, 0.2, 0.4, 0.9, 1.6, 2.0)] == [0.0, 0.0, 0.5, 1.0, 2.0, 2.0]
+
+
+def test_footfall_sides_come_from_the_hip_names():
+    assert [side_of(n, 9) for n in ("UpperLeg_L", "RightUpLeg", "LHipJoint", "rhip", "r_thigh", "Hip")] == [0, 1, 0, 9, 1, 9]
+
+
+def walk(model, bpm: float | None, seconds: float = 16.0, forced: float = 0.0, stop_at: float | None = None,
+         weights=None, clock_start: float = 1.0):
+    """The live loop's three pieces on the real engine (Engine, Footfalls, BeatLock), frame by frame at
+    FPS, performance time as the clock; a MIDI clock at `bpm` (jittering) from `clock_start`; None: no
+    lock. Returns the footfalls (time, side, speed) of character 0 and the lock."""
+    engine = Engine(model, fps=FPS)
+    feet = Footfalls(engine.poses)
+    follower = TempoFollower()
+    lock = BeatLock(follower) if bpm else None
+    controls = default_controls(model, weights or {"normal": 1.0})
+    rng = np.random.default_rng(2)
+    tick, k, landed, out = (60.0 / bpm / TICKS_PER_BEAT if bpm else None), 0, None, []
+    if bpm:
+        follower.message("start", clock_start - tick)
+    for index in range(int(seconds * FPS)):
+        now = index / FPS
+        while bpm and clock_start + k * tick <= now:
+            if stop_at is not None and clock_start + k * tick >= stop_at:
+                if follower.running:
+                    follower.message("stop", stop_at)
+                break
+            follower.message("clock", clock_start + k * tick + abs(rng.normal(0, 0.0015)))
+            k += 1
+        used = controls if lock is None else lock.controls(controls, lambda: step_seconds(engine, controls), landed, forced)
+        pose = engine.frame(now, used)
+        falls = feet.after(pose)
+        landed = next((now for f in falls if f.character == 0 and index > 0), None)
+        out += [(f.time, f.side, f.speed) for f in falls if f.character == 0]
+    return out, lock
+
+
+def offsets_ms(times: np.ndarray, start: float, period: float) -> np.ndarray:
+    grid = (times - start) / period
+    return np.abs(grid - np.round(grid)) * period * 1000.0
+
+
+@pytest.mark.parametrize("bpm", [80.0, 120.0, 174.0])
+def test_the_footfalls_lock_onto_the_beat(model, bpm):
+    falls, lock = walk(model, bpm)
+    times = np.array([t for t, _, _ in falls])
+    beat = 60.0 / bpm
+    period = beat / lock.report.ratio
+    assert lock.report.ratio in (0.5, 1.0, 2.0)
+    settled = times[times > 1.0 + 4.0]
+    assert abs(np.mean(np.diff(settled)) / period - 1) < 0.02  # the step period is the beat's ratio
+    assert np.percentile(offsets_ms(settled, 1.0, period), 95) <= 40.0
+    after_start = offsets_ms(times[times > 1.0], 1.0, period)
+    assert (after_start[2:] <= 40.0).all()  # locked within two steps of the clock's start, and stays
+    # the sides alternate and the feet land with a walking foot's speed
+    sides = [s for _, s, _ in falls]
+    assert all(a != b for a, b in zip(sides, sides[1:]))
+    assert 0.05 < np.median([v for _, _, v in falls[1:]]) < 3.0
+
+
+def test_without_the_lock_the_walk_keeps_its_own_time(model):
+    """The check above can fail: the unlocked walk's footfalls drift across the beats."""
+    falls, _ = walk(model, None)
+    times = np.array([t for t, _, _ in falls])
+    assert np.percentile(offsets_ms(times[times > 5.0], 1.0, 0.5), 95) > 40.0
+
+
+def test_steps_per_beat_forces_the_ratio(model):
+    falls, lock = walk(model, 120.0, seconds=10.0, forced=2.0)
+    times = np.array([t for t, _, _ in falls])
+    assert lock.report.ratio == 2.0
+    assert abs(np.mean(np.diff(times[times > 5.0])) / 0.25 - 1) < 0.03
+
+
+def test_a_stopped_clock_keeps_the_last_tempo_without_a_jump(model):
+    falls, lock = walk(model, 120.0, seconds=14.0, stop_at=7.0)
+    times = np.array([t for t, _, _ in falls])
+    before, after = np.diff(times[(times > 4.0) & (times < 7.0)]), np.diff(times[times > 7.5])
+    assert abs(np.mean(after) / np.mean(before) - 1) < 0.03
+    assert np.abs(np.diff(times[times > 4.0])).max() < 0.5 * 1.2  # no step stumbles at the stop
+
+
+# ---- through real JACK MIDI: the instrument as run, a real clock, OSC and MIDI out ----------------
+
+def test_a_midi_clock_through_jack_sets_the_step_period(jack):
+    """`instrument run --sync midi` with a real clock over JACK at 90 bpm: the steps take a beat
+    (667 ms; the walk's own are about 520 ms), footfalls timed as they arrive by OSC. How near the
+    beats they land depends on how busy the machine is (a client of a busy JACK server loses the
+    MIDI of the cycles it misses): examples/tempo_lock.py reports it; here only the period."""
+    from tempo_lock import run
+
+    result = run(90.0, seconds=10.0)
+    assert result.ratio == 1.0
+    assert abs(result.mean_interval / (60.0 / 90.0) - 1) < 0.05
+
+
+def test_footfalls_are_notes_on_the_midi_out_port(jack, tmp_path):
+    name = f"tempo-steps-{os.getpid()}"
+    process = subprocess.Popen([sys.executable, "-m", "instrument", "run", "--midi-out", name, "--midi-api", "jack",
+                                "--no-osc", "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    received = []
+    port = None
+    try:
+        deadline = time.monotonic() + 120
+        while port is None and time.monotonic() < deadline:
+            names = [n for n in jack.get_input_names() if name in n]
+            port = jack.open_input(names[0], callback=received.append) if names else None
+            time.sleep(0.1)
+        assert port is not None, "the --midi-out port never appeared"
+        while sum(m.type == "note_on" for m in received) < 6 and time.monotonic() < deadline:
+            time.sleep(0.1)
+    finally:
+        process.terminate()
+        process.communicate(timeout=60)
+        if port is not None:
+            port.close()
+    ons = [m for m in received if m.type == "note_on"]
+    assert len(ons) >= 6
+    assert {m.note for m in ons} == {36, 38} and all(m.channel == 9 and 1 <= m.velocity <= 127 for m in ons)
+    assert all(a.note != b.note for a, b in zip(ons, ons[1:]))  # left, right, left...
+    offs = [m for m in received if m.type == "note_off"]
+    assert offs  # a note is let go
+
+
+def test_sync_midi_without_a_midi_input_is_one_line():
+    result = subprocess.run([sys.executable, "-m", "instrument", "run", "--sync", "midi", "--no-osc", "--seconds", "1"],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode != 0
+    assert "--sync midi" in result.stderr and "Traceback" not in result.stderr
+
+
+# ---- Ableton Link: a second peer in this process ------------------------------------------------------
+
+def test_a_link_session_sets_the_tempo_and_beats():
+    link = pytest.importorskip("link")
+    from instrument.runtime.link import LinkTempo
+
+    ours = LinkTempo()
+    peer = link.Link(90.0)
+    peer.enabled = True
+    try:
+        deadline = time.monotonic() + 30
+        while ours.peers() == 0 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert ours.peers() >= 1
+        state = peer.captureAppSessionState()
+        state.setTempo(93.0, peer.clock().micros())
+        peer.commitAppSessionState(state)
+        while abs(ours.period() - 60.0 / 93.0) > 1e-3 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert ours.period() == pytest.approx(60.0 / 93.0, rel=1e-3)
+        now = time.monotonic()
+        theirs = peer.captureAppSessionState().beatAtTime(peer.clock().micros(), 4.0)
+        assert ours.beat_at(now) == pytest.approx(theirs, abs=0.02)  # the same beat on time.monotonic()
+    finally:
+        peer.enabled = False
+        ours.close()
+
+
+# ---- the live loop: the lock as `perform` runs it, and the `sync` control ------------------------------
+
+class SteadyTempo:
+    """A tempo source that cannot exist here otherwise without a second machine: a steady
+    beat on the monotonic clock from its making (what a perfect clock or Link would give)."""
+
+    running = True
+
+    def __init__(self, bpm: float):
+        self.beat, self.start = 60.0 / bpm, time.monotonic()
+
+    def period(self) -> float:
+        return self.beat
+
+    def beat_at(self, moment: float) -> float:
+        return (moment - self.start) / self.beat
+
+
+class FootfallSink:
+    name = "footfalls"
+
+    def __init__(self):
+        self.times: list[float] = []
+
+    def prepare(self, frame):
+        self.times += [f.time for f in frame.footfalls if f.character == 0]
+
+    def send(self, prepared) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+@pytest.mark.parametrize("sync", [1.0, 0.0])
+def test_perform_locks_the_steps_unless_the_sync_control_is_off(model, sync):
+    """At 90 bpm (steps of 667 ms: the average style's own are about 520 ms) the locked walk's
+    steps take a beat; with `sync` 0 the walk keeps its own time."""
+    from instrument.control.state import ControlState
+    from instrument.runtime.performance import Show, perform
+    from instrument.terminal import Console
+
+    state = ControlState(model.style_names, model.states)
+    state.set("sync", sync)
+    sink = FootfallSink()
+    lock = BeatLock(SteadyTempo(90.0))
+    perform(Show(model, [sink], FPS, seconds=8.0, state=state, beat_lock=lock), Console(quiet=True))
+    step = np.mean(np.diff([t for t in sink.times if t > 3.0]))
+    if sync:
+        assert lock.report.ratio == 1.0 and step == pytest.approx(60.0 / 90.0, rel=0.03)
+    else:
+        assert lock.report.ratio is None and step < 0.6
