@@ -155,7 +155,7 @@ def _check_metadata(path: Path, metadata: dict) -> None:
     try:
         skeleton = Skeleton.from_dict(metadata["skeleton"])
         layout = FeatureLayout.from_dict(skeleton, metadata["features"])
-    except (KeyError, TypeError, ValueError, IndexError, AttributeError) as e:
+    except (KeyError, TypeError, ValueError, IndexError, AttributeError, OverflowError) as e:
         raise UserError(f"{path}: metadata 'skeleton' or 'features' is broken ({type(e).__name__}: {e})") from None
     for k, joint in enumerate(skeleton.joints):
         if not (joint.parent == -1 if k == 0 else 0 <= joint.parent < k) or not set(joint.channels) <= CHANNELS:

@@ -237,7 +237,7 @@ def parse_bvh(text: str, path: str = "<text>") -> Motion:
     if not tokens or tokens[0].upper() != "MOTION":
         raise lines.error("MOTION section is missing", len(lines.lines))
     tokens = lines.next_tokens()
-    if tokens[0].lower() != "frames:" or len(tokens) != 2 or not tokens[1].isdigit():
+    if tokens[0].lower() != "frames:" or len(tokens) != 2 or not tokens[1].isdigit() or len(tokens[1]) > 12:
         raise lines.error("expected 'Frames: N'")
     frame_count = int(tokens[1])
     tokens = lines.next_tokens()
