@@ -82,7 +82,11 @@ def unknown(target: object, styles: Collection[str] | None = None) -> Refusal:
 
 
 def value_refusal(row: Row, target: str, value: object) -> Refusal | None:
-    """Why `value` is refused for `target` of `row` (a name already known), or None."""
+    """Why `value` is refused for `target` of `row` (a name already known), or None. A row with
+    named values (gait) takes a name for its number."""
+    value = row.number(value)
+    if not is_number(value) and row.choices:
+        return Refusal(NOT_A_NUMBER, f"{target}: {NOT_A_NUMBER} or one of {', '.join(row.choices)}, not {quoted(value)}")
     if not is_number(value):
         return Refusal(NOT_A_NUMBER, f"{target}: {NOT_A_NUMBER}, not {quoted(value)}")
     if not row.low <= value <= row.high:

@@ -20,7 +20,7 @@ import math
 import re
 from dataclasses import dataclass
 
-from ..synthesis.parameters import GROUPS, MAX_SPEED, MIN_SPEED
+from ..synthesis.parameters import GAITS, GROUPS, MAX_SPEED, MIN_SPEED
 
 MAX_TURN = 3.0  # rad/s
 WEIGHT_LIMIT = 10.0
@@ -44,13 +44,23 @@ class Row:
     section: str | None = None  # where the console shows its slider (an element of console/static/index.html)
     slider: tuple[float, float] | None = None  # the console slider's travel, when shorter than the range
     fader: tuple[float, float] | None = None  # the range `instrument learn` gives a learned control
+    choices: tuple[str, ...] = ()  # names of the whole values low, low + 1, ... (a name is taken for its number)
 
     @property
     def kind(self) -> str:
         return self.pattern.split("/")[0]
 
     def describe_range(self) -> str:
-        return "any number (above 0 acts)" if self.action else f"{self.low:g} to {self.high:g}"
+        if self.action:
+            return "any number (above 0 acts)"
+        named = f" ({', '.join(f'{k:g} {name}' for k, name in enumerate(self.choices))}, or the name)" if self.choices else ""
+        return f"{self.low:g} to {self.high:g}{named}"
+
+    def number(self, value: object) -> object:
+        """A choice's name as its number (gait "run" -> 2.0); anything else as it is, for the checks."""
+        if self.choices and isinstance(value, str) and value in self.choices:
+            return float(self.choices.index(value))
+        return value
 
 
 _ROWS = (
@@ -62,7 +72,11 @@ _ROWS = (
         stored=True, section="parts", slider=(-2.0, 4.0), fader=(-1.0, 2.0)),
     Row("speed", MIN_SPEED, MAX_SPEED, 1.0, "x", "step rate relative to the model's",
         stored=True, echoed=True, section="walk", fader=(0.5, 2.0)),
-    Row("turn", -MAX_TURN, MAX_TURN, 0.0, "rad/s", "steering (positive turns left)",
+    Row("gait", 0.0, float(len(GAITS) - 1), 1.0, "gait",
+        "stand (0), walk (1) or run (2), the nearest; changes at the next step the motion allows",
+        stored=True, echoed=True, section="walk", fader=(0.0, 2.0), choices=GAITS),
+    Row("turn", -MAX_TURN, MAX_TURN, 0.0, "rad/s",
+        "steering (positive turns left); a model with turning steps takes them in proportion to it",
         echoed=True, section="walk", fader=(-1.0, 1.0)),
     Row("liveliness", 0.0, 1.0, 0.0, "", "0: every step alike; 1: durations drawn from the model",
         stored=True, echoed=True, section="walk", fader=(0.0, 1.0)),

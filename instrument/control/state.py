@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..synthesis.parameters import GROUPS
-from ..synthesis.stream import Controls
+from ..synthesis.stream import Controls, gait_index
 from . import spec
 from .checks import Refusal, between, refusal, row_of
 
@@ -38,6 +38,7 @@ class ControlState:
         self.part_weights = np.full((len(self.style_names), len(GROUPS)), rows["part"].default)
         self.speed = rows["speed"].default
         self.turn = rows["turn"].default
+        self.gait = rows["gait"].default
         self.liveliness = rows["liveliness"].default
         self.spread = rows["spread"].default  # read by a crowd (synthesis/engine.py), not part of one walker's Controls
         self.state_scale = np.full(self.states, rows["phase"].default)
@@ -67,7 +68,7 @@ class ControlState:
             return False
         parts = target.split("/")
         kind = parts[0]
-        value = float(value)
+        value = float(spec.TABLE[kind].number(value))
         if kind in ("preset", "store"):
             return False
         if kind == "style":
@@ -83,7 +84,7 @@ class ControlState:
             self.cue_presses += value > 0
         elif kind == "morph":
             self.morph_time = value
-        else:  # speed, turn, liveliness, spread, sync, steps-per-beat
+        else:  # speed, gait, turn, liveliness, spread, sync, steps-per-beat
             setattr(self, kind.replace("-", "_"), value)
         return True
 
@@ -124,7 +125,8 @@ class ControlState:
 
     def snapshot(self) -> Controls:
         parts = None if np.isnan(self.part_weights).all() else self.part_weights.copy()
-        return Controls(self.weights.copy(), parts, self.speed, self.state_scale.copy(), self.liveliness, self.turn)
+        return Controls(self.weights.copy(), parts, self.speed, self.state_scale.copy(), self.liveliness, self.turn,
+                        gait_index(self.gait))
 
     def echo(self) -> dict[str, float]:
         """The values a control surface shows: the targets of the rows marked `echoed` (control/spec.py)."""

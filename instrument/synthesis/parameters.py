@@ -9,6 +9,10 @@ few milliseconds (`instrument COMMAND --help` imports no numpy, scipy or numba).
 # derives each group's feature dimensions from the skeleton)
 GROUPS = ("root", "legs", "upper")
 
+# the gaits a performer chooses between (the `gait` target's values 0, 1, 2), each played by the
+# model's unit of that name (a model without a unit plays its walk; synthesis/units.py)
+GAITS = ("stand", "walk", "run")
+
 # how far the step rate goes, relative to the model's (synthesis/durations.py)
 MIN_SPEED, MAX_SPEED = 0.25, 4.0
 

@@ -25,7 +25,7 @@ from .durations import MIN_FRAMES, state_durations, whole_frames
 from .interpolation import CrowdLambda, StyleSpace
 from .cores import over_cores, parts
 from .mlpg import _solve
-from .parameters import DEFAULT_LOOKAHEAD
+from .parameters import DEFAULT_LOOKAHEAD, GAITS
 
 
 class StreamTables(NamedTuple):
@@ -85,13 +85,19 @@ class Controls:
     speed: float = 1.0  # step rate relative to the model's, clamped to [0.25, 4]
     state_scale: np.ndarray | None = None  # (states,): stretch single phases of the step
     liveliness: float = 0.0  # 0: mean durations; 1: durations drawn from the pdfs
-    turn: float = 0.0  # added yaw rate, radians per second (steering)
+    turn: float = 0.0  # steering, radians per second: turning steps where the model has them, else added yaw
+    gait: int = 1  # index into parameters.GAITS: stand, walk, run (taken at the next step boundary)
 
     def key(self) -> tuple:
-        """What lambda* and the durations depend on (the turn does not)."""
+        """What lambda* and the durations depend on (the turn and the gait do not: they choose units)."""
         parts = None if self.part_weights is None else np.asarray(self.part_weights, dtype=np.float64).tobytes()
         scale = None if self.state_scale is None else np.asarray(self.state_scale, dtype=np.float64).tobytes()
         return (np.asarray(self.weights, dtype=np.float64).tobytes(), parts, float(self.speed), scale, float(self.liveliness))
+
+
+def gait_index(value: float) -> int:
+    """The gait a value chooses: the nearest whole value, within the gaits (a fader's zones)."""
+    return int(min(max(np.floor(float(value) + 0.5), 0), len(GAITS) - 1))
 
 
 class Crowd:
