@@ -1,4 +1,4 @@
-"""`instrument synth`: write a walk with given style weights as BVH."""
+"""`instrument synth`: write a walk (or a stand, a run, a turning walk) with given style weights as BVH."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from ..outputfile import check_output
 from ..shipped import default_model_path
 from ..synthesis.parameters import DEFAULT_LOOKAHEAD, GROUPS, MAX_SPEED, MIN_SPEED
 from ..control.options import value
+from ..control.spec import TABLE
 
 if TYPE_CHECKING:
     import numpy as np
@@ -23,6 +24,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="style weight, repeatable: 1 the style, 2 exaggerated, 0.5 inhibited, -1 inverted; "
                         f"NAME.PART=W sets it for one body part ({', '.join(GROUPS)}), e.g. elderly.legs=1")
     p.add_argument("--speed", default="1", help=f"step rate relative to the model's ({MIN_SPEED:g} to {MAX_SPEED:g})")
+    p.add_argument("--gait", default="walk", help="stand, walk or run (or 0, 1, 2; default walk); a sequence that "
+                                                  "stops, stands and runs is a score, played by `run --fast --bvh`")
+    p.add_argument("--turn", default="0", help="steering in rad/s, positive turns left (turning steps where the model "
+                                               "has them; default 0)")
     p.add_argument("--seconds", default="10", help="length of the walk (default 10)")
     p.add_argument("--out", required=True, metavar="FILE.bvh", help="the walk's file: .bvh, or .glb for binary glTF 2.0")
     p.add_argument("--force", action="store_true", help="overwrite the --out file if it exists (default: refuse)")
@@ -62,18 +67,22 @@ def run(args: argparse.Namespace) -> int:
     from ..models.modelfile import load_model
     from ..output.export import motion_format, write_motion
     from ..synthesis.engine import default_controls, render
+    from ..synthesis.stream import gait_index
 
     motion_format(args.out)  # an extension it cannot write is refused before any work
     check_output(args.out, args.force)
     model = load_model(args.model or default_model_path())
     weights, part_weights = parse_weights(args.style, model.style_names)
     speed = value("synth --speed", args.speed)
+    gait = gait_index(value("synth --gait", TABLE["gait"].number(args.gait)))
+    turn = value("synth --turn", args.turn)
     seconds = value("synth --seconds", args.seconds)
     lookahead = value("synth --lookahead", args.lookahead)
     liveliness = value("synth --liveliness", args.liveliness)
     seed = value("synth --seed", args.seed)
     frames = max(1, int(round(seconds * model.fps)))
-    controls = default_controls(model, weights, part_weights=part_weights, speed=speed, liveliness=liveliness)
+    controls = default_controls(model, weights, part_weights=part_weights, speed=speed, liveliness=liveliness, gait=gait,
+                                turn=turn)
     # the engine as `run` plays it, without a clock: the feet planted, from the origin, heading 0
     write_motion(args.out, render(model, controls, frames, args.method, lookahead, seed))
     print(f"wrote {frames} frames ({seconds:g} s) to {args.out}", file=sys.stderr)

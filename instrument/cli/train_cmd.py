@@ -23,7 +23,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--style-from", metavar="REGEX",
                    help="regular expression with one group that finds the style in a file name (without .bvh); "
                         "default: the last but one '_'-separated part, so dataset-2_walk_elderly_003.bvh is elderly")
-    p.add_argument("--manifest", metavar="FILE", help="CSV (file,style) or TOML ([[take]] file, style) naming takes and styles")
+    p.add_argument("--unit-from", metavar="REGEX",
+                   help="regular expression with one group that finds the motion unit in a file name (a word for walk, "
+                        "run, turn-left, turn-right or stand); default: the part before the style, so "
+                        "dataset-2_walk-turn-left_active_001.bvh is turn-left, and a name that says nothing is a walk")
+    p.add_argument("--manifest", metavar="FILE",
+                   help="CSV (file,style[,unit]) or TOML ([[take]] file, style[, unit]) naming takes, styles and units")
     p.add_argument("--fps", type=checked("train --fps"), default=30.0, help="frame rate the model works at (default 30)")
     p.add_argument("--states", type=checked("train --states"), default=5, help="states per step model (default 5)")
     p.add_argument("--licence", help="licence of the model (that of the training data; default: says it is unspecified)")
@@ -32,11 +37,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def _pairs(args: argparse.Namespace) -> list[tuple[Path, str]]:
+def _pairs(args: argparse.Namespace) -> list:
     from ..training.corpus import DEFAULT_STYLE_PATTERN, read_manifest, styled_takes
 
     style_from = args.style_from or DEFAULT_STYLE_PATTERN
-    pairs: list[tuple[Path, str]] = []
+    pairs: list = []
     if args.manifest:
         pairs += read_manifest(Path(args.manifest))
     if args.data:
@@ -46,7 +51,14 @@ def _pairs(args: argparse.Namespace) -> list[tuple[Path, str]]:
             raise UserError(f"--style-from: not a regular expression: {e}") from None
         if pattern.groups != 1:
             raise UserError(f"--style-from: the expression needs exactly one group, it has {pattern.groups}")
-        pairs += styled_takes(args.data, style_from)
+        if args.unit_from:
+            try:
+                groups = re.compile(args.unit_from).groups
+            except re.error as e:
+                raise UserError(f"--unit-from: not a regular expression: {e}") from None
+            if groups != 1:
+                raise UserError(f"--unit-from: the expression needs exactly one group, it has {groups}")
+        pairs += styled_takes(args.data, style_from, args.unit_from)
     if not pairs:
         raise UserError("no training data: give BVH files or folders, or --manifest")
     return pairs
@@ -60,8 +72,9 @@ def run(args: argparse.Namespace) -> int:
     check_output(args.out, args.force)
     pairs = _pairs(args)
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
-    styles = sorted({s for _, s in pairs})
-    say(f"training on {len(pairs)} takes, {len(styles)} styles: {', '.join(styles)}")
+    styles = sorted({p.style for p in pairs})
+    units = sorted({p.unit for p in pairs})
+    say(f"training on {len(pairs)} takes, {len(styles)} styles: {', '.join(styles)}; units: {', '.join(units)}")
     started = time.perf_counter()
     command = "instrument train " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if sys.argv[1:2] == ["train"] else ""
     model, report, takes = build_model(

@@ -83,6 +83,8 @@ OPTIONS: dict[str, Accepts] = {
     "train --states": Accepts(int, 1, 12),
     "synth --style": target("style"),  # the weight of NAME=W
     "synth --speed": target("speed"),
+    "synth --gait": target("gait"),  # or its name (stand, walk, run): Row.number
+    "synth --turn": target("turn"),
     "synth --seconds": Accepts(float, 0, 3600, above_low=True),
     "synth --lookahead": Accepts(int, 1, 1000),
     "synth --liveliness": target("liveliness"),

@@ -26,6 +26,7 @@ import numpy as np
 from ..errors import UserError
 from ..motion.bvh import Skeleton
 from ..motion.features import FeatureLayout
+from ..models.units import UNITS
 from ..shipped import default_model_path  # noqa: F401  (re-exported: where the default model is)
 from .hsmm import HSMM
 
@@ -54,6 +55,12 @@ class Model:
     @property
     def labels(self) -> list[str]:
         return list(self.metadata["labels"])
+
+    @property
+    def units(self) -> list[str]:
+        """The motion units, in label order (label = 2 * unit + foot); a model without the entry
+        was trained on walks alone."""
+        return list(self.metadata.get("units", ["walk"]))
 
     @property
     def states(self) -> int:
@@ -165,6 +172,13 @@ def _check_metadata(path: Path, metadata: dict) -> None:
     names = metadata["features"].get("names")
     if not isinstance(names, list) or len(names) != layout.dimension:
         raise UserError(f"{path}: metadata 'features': 'names' does not list the {layout.dimension} features of its joints")
+    if "units" in metadata:
+        units = metadata["units"]
+        if not isinstance(units, list) or not units or units[0] != "walk" or not set(units) <= set(UNITS) \
+                or len(set(units)) < len(units) or 2 * len(units) != len(metadata["labels"]):
+            raise broken("units", f"a list of different units, the walk first, of {', '.join(UNITS)}, two labels each")
+    elif len(metadata["labels"]) != 2:
+        raise broken("labels", "a right and a left step (a model of more labels names its units)")
     optional = {  # entries `info` and the synthesis read when they are there
         "data": (lambda v: isinstance(v, list) and all(isinstance(d, dict) and isinstance(d.get("frames"), int)
                                                          and isinstance(d.get("file", ""), str) and isinstance(d.get("style", ""), str)

@@ -21,7 +21,7 @@ from ..control.hub import ControlHub
 from ..control.state import ControlState
 from ..models.modelfile import Model
 from ..synthesis.engine import Engine
-from ..synthesis.parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING
+from ..synthesis.parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING, GAITS
 from ..control.values import all_values
 from ..synthesis.footfalls import Footfalls
 from ..synthesis.posing import Frame
@@ -193,6 +193,9 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
                 controls = beat_lock.controls(controls, lambda: step_seconds(engine, controls), landed_at,
                                               snap_ratio(state.steps_per_beat))
             crowd = engine.frame(now, controls, state.spread)
+            if GAITS[controls.gait] in engine.units.missing:  # said, not refused: the walk goes on
+                console.warn(f"gait {GAITS[controls.gait]}", f"gait {GAITS[controls.gait]}: this model has no "
+                             f"{GAITS[controls.gait]} unit (it has {', '.join(engine.model.units)}); it walks")
             footfalls = feet.after(crowd)
             landed_at = next((clock.deadline(index) for f in footfalls if f.character == 0 and index > 0), None)
             frame = Frame(index, now, crowd, all_values(state), state.echo(), footfalls)

@@ -29,7 +29,7 @@ import numpy as np
 from ..synthesis.durations import state_durations
 from ..synthesis.engine import Engine
 from ..synthesis.parameters import MAX_SPEED, MIN_SPEED
-from ..synthesis.stream import Controls
+from ..synthesis.stream import LABEL, Controls
 
 TICKS_PER_BEAT = 24  # MIDI clock
 TICKS_PER_SIXTEENTH = 6  # song position counts sixteenth notes
@@ -218,7 +218,8 @@ class BeatLock:
 
 def step_seconds(engine: Engine, controls: Controls) -> float:
     """Seconds a step of character 0 takes at speed 1 with these controls' style and phase
-    stretch (its duration pdfs through the durations stage's formula), the mean of its labels.
+    stretch (its duration pdfs through the durations stage's formula), the mean of its current
+    unit's two labels (a run's steps are shorter than a walk's).
     The pdfs do not move with the speed: those of the last retune serve (the style of the frame
     before), so the lock costs no retune of its own."""
     interpolation = engine.features[0]
@@ -226,7 +227,8 @@ def step_seconds(engine: Engine, controls: Controls) -> float:
         engine.retune(controls)
     frames = state_durations(interpolation.duration_means[0], interpolation.duration_variances[0], 1.0,
                              controls.state_scale)
-    return float(frames.sum(axis=-1).mean()) / engine.model.fps
+    unit = int(engine.stream.counters[0, LABEL]) // 2
+    return float(frames.sum(axis=-1)[2 * unit:2 * unit + 2].mean()) / engine.model.fps
 
 
 def snap_ratio(value: float) -> float:

@@ -33,7 +33,10 @@ frame at a time, on the pose the features give:
 - no foot joint goes below its clearance, planted or not, and a swinging foot keeps up to
   SWING_CM above it (all of it on a bent knee, none on a straight one reaching to land);
 - a released foot rises as generated (only the horizontal pull blends out);
-- a walk always has a foot on the floor: when no state plants either, the likelier one is;
+- a walk always has a foot on the floor: when no state plants either, the likelier one is; a run
+  has flight: a state where lambda 0 plants neither foot (`ContactSpace.flight`) plants a foot
+  only where its share reaches PLANTED, so the lock never pulls a foot down in mid-flight (doing
+  so made the knees jump twice as far in a frame as in the real runs);
 - where a planted leg cannot reach even so (an exaggerated style can lift the hips), it stretches
   up to STRETCH of its length, and the body comes down by the rest, eased over BLEND_FRAMES frames.
 Before the lock, outside the data, the body takes a share of a planted foot's generated slide
@@ -69,13 +72,17 @@ class ContactSpace:
     offsets: np.ndarray  # (styles, labels * states, 2)
     clearance: np.ndarray  # (2, foot joints)
     legs: int  # index of the legs' body group in per-part weights
+    flight: np.ndarray  # (labels * states,) bool: lambda 0 plants neither foot there (a run's flight)
 
     def shares(self, weights: np.ndarray, part_weights: np.ndarray | None = None) -> np.ndarray:
         """(N, labels * states, 2): how surely each foot is planted in each state for N
         characters at weights (N, styles) and part weights (N, styles, groups) (the legs' own
         weights when given per body part), 0 to 1."""
         legs = np.atleast_2d(self.leg_weights(weights, part_weights))
-        return np.clip(self.base + np.einsum("ns,sif->nif", legs, self.offsets), 0.0, 1.0)
+        shares = np.clip(self.base + np.einsum("ns,sif->nif", legs, self.offsets), 0.0, 1.0)
+        if self.flight.any():  # in flight a share below PLANTED is none: the lock leaves both feet in the air
+            shares[:, self.flight] = np.where(shares[:, self.flight] < PLANTED, 0.0, shares[:, self.flight])
+        return shares
 
     def leg_weights(self, weights: np.ndarray, part_weights: np.ndarray | None = None) -> np.ndarray:
         """The style weights the legs walk with, (..., styles): their own where given per body part."""
@@ -99,4 +106,5 @@ def contact_space(model) -> ContactSpace | None:
     if base.shape != (labels, states, 2) or styles.shape != (len(model.style_names), labels, states, 2):
         return None
     flat = base.reshape(-1, 2)
-    return ContactSpace(flat, styles.reshape(len(model.style_names), -1, 2) - flat, np.asarray(stored), GROUPS.index("legs"))
+    return ContactSpace(flat, styles.reshape(len(model.style_names), -1, 2) - flat, np.asarray(stored), GROUPS.index("legs"),
+                        flat.max(axis=1) < PLANTED)

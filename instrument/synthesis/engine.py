@@ -8,6 +8,8 @@ character is a crowd of one):
                                    times its own style offset (zero for character 0)
              -> interpolation ---- lambda* of every character (StyleInterpolation)
              -> durations -------- frames per state from speed, phase stretch, liveliness
+             -> units ------------ the unit of each character's coming steps: the gait's, or
+                                   turning steps in proportion to the steering (UnitChooser)
              -> plan + stream ---- the state plan and streaming MLPG (Crowd: one compiled call)
              -> range ------------ each feature's swing scaled to the data's (RangeFilter)
              -> drive ------------ root speeds scaled by the cadence, the steering added
@@ -42,6 +44,7 @@ from .mlpg import mlpg
 from .parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING
 from .posing import CrowdPose, CrowdPoses
 from .stream import Controls, Crowd
+from .units import UnitChooser
 from .widen import RangeFilter, RangeSpace, range_space, stride_means
 
 ROOT_RATES = slice(1, 4)  # root.vx, root.vz, root.yaw_rate in the static features
@@ -153,18 +156,33 @@ class Durations:
 
 
 class RangeTargets:
-    """Where the range filter scales each character's swing about: its stride mean and factors."""
+    """Where the range filter scales each character's swing about: the stride mean of each unit
+    (what a walk, a run or a stand averages over its two steps) and the factors. The factors were
+    measured on walks: turning steps take them, a run and a stand are left as made (factor 1)."""
 
     name = "range"
 
-    def __init__(self, space: RangeSpace):
+    def __init__(self, space: RangeSpace, units: list[str]):
         self.space = space
-        self.mean: np.ndarray | None = None  # (N, D)
-        self.factor: np.ndarray | None = None  # (N, D)
+        self.scaled = np.array([u == "walk" or u.startswith("turn") for u in units])  # (U,) units the factors fit
+        self.means: np.ndarray | None = None  # (N, U, D) each unit's stride mean
+        self.factors: np.ndarray | None = None  # (N, U, D)
 
     def retune(self, mix: Mix, stream: Crowd) -> None:
-        self.mean = stride_means(stream.base, stream.tables.mean_own, stream.tables.mean_shared)
-        self.factor = self.space.factors(mix.weights, mix.parts)
+        states = stream.space.states
+        own, shared = stream.tables.mean_own, stream.tables.mean_shared
+        self.means = np.stack([stride_means(stream.base[:, 2 * k:2 * k + 2], own[:, 2 * k * states:(2 * k + 2) * states],
+                                            shared[2 * k * states:(2 * k + 2) * states]) for k in range(len(self.scaled))],
+                              axis=1)
+        factor = self.space.factors(mix.weights, mix.parts)
+        self.factors = np.where(self.scaled[None, :, None], factor[:, None], 1.0)
+
+    def targets(self, units: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, D) stride means and factors of each character's frame, of unit `units` (N,)."""
+        if len(self.scaled) == 1:
+            return self.means[:, 0], self.factors[:, 0]
+        rows = np.arange(len(units))
+        return self.means[rows, units], self.factors[rows, units]
 
 
 class ContactTables:
@@ -183,9 +201,10 @@ class ContactTables:
         self.follow = follow_strength(self.space.leg_weights(mix.weights, mix.parts))
 
 
-def drive(static: np.ndarray, cadence: np.ndarray, turn: float) -> np.ndarray:
+def drive(static: np.ndarray, cadence: np.ndarray, turn: float | np.ndarray) -> np.ndarray:
     """Root speeds (N, D) scaled by each character's cadence (a step taken faster covers the same
-    ground sooner, so the feet do not slide) and the steering added to the yaw rate."""
+    ground sooner, so the feet do not slide) and the steering the units stage leaves to it added
+    to the yaw rate (rad/s; one number or one per character)."""
     out = np.array(static, dtype=np.float64)
     out[..., ROOT_RATES] *= np.asarray(cadence)[..., None]
     out[..., 3] += turn
@@ -215,10 +234,11 @@ class Engine:
         interpolation = Interpolation(self.space, self.cast.offsets)
         self.features: list[StyleFeature] = [interpolation, Durations(interpolation)]
         ranges, contact = range_space(model), contact_space(model)
-        self.range_targets = None if ranges is None else RangeTargets(ranges)
+        self.range_targets = None if ranges is None else RangeTargets(ranges, model.units)
         self.range_filter = None if ranges is None else RangeFilter()
         self.contact = None if contact is None else ContactTables(contact)
         self.features += [f for f in (self.range_targets, self.contact) if f is not None]
+        self.units = UnitChooser(model, characters)
         lock = None if contact is None else FootLock(model.layout, contact.clearance, self.fps)
         self.poses = CrowdPoses(model.layout, self.fps, characters, lock, positions=floor_positions(model, characters, spacing))
         self.frame_ids: np.ndarray | None = None  # (N,) the state (label * states + state) of each newest model frame
@@ -273,6 +293,8 @@ class Engine:
         contact shares and follow strengths are kept for posing it."""
         self.retune(controls, spread)
         self._mark()
+        self.units(controls.gait, controls.turn, self.stream)
+        self._timed("units")
         if self.method == "full":
             frames, ids = self._next_of_whole()
         else:
@@ -280,9 +302,9 @@ class Engine:
             ids = self.stream.history_ids[:, 1]
         self._timed("stream")
         if self.range_filter is not None:
-            frames = self.range_filter(frames, self.range_targets.mean, self.range_targets.factor)
+            frames = self.range_filter(frames, *self.range_targets.targets(ids // (2 * self.model.states)))
             self._timed("range")
-        frames = drive(frames, self.stream.cadence, controls.turn)
+        frames = drive(frames, self.stream.cadence, self.units.added_yaw)
         self._timed("drive")
         self.frame_ids = ids
         if self.contact is not None:

@@ -39,7 +39,7 @@ class StreamTables(NamedTuple):
     plain: np.ndarray  # (N,) bool: the character's lambda* is the shared one (own term 0, factor 1)
     base: np.ndarray  # (N, labels, states) frames per state before liveliness
     sigma: np.ndarray  # (N, labels, states) duration sd times liveliness
-    counters: np.ndarray  # (N, 7) int: where each plan is (LABEL ... FOLLOWER below)
+    counters: np.ndarray  # (N, 8) int: where each plan is (LABEL ... UNIT below)
     carry: np.ndarray  # (N, labels) the fraction of a frame each label's steps carry on
     pool: np.ndarray  # (N, draws) liveliness draws
     history: np.ndarray  # (N, 2, D) the last two frames sent
@@ -72,8 +72,10 @@ class WindowWork(NamedTuple):
 
 
 # rows of Crowd.counters
-# per character: where the plan is, its draws in the pool, and which label's steps follow the other's
-LABEL, STATE, ELAPSED, HEAD, TAIL, FILLED, FOLLOWER = range(7)
+# per character: where the plan is, its draws in the pool, which foot's steps follow the other's
+# (0 right, 1 left) and the unit its next steps are of (the engine's units stage sets it: a label
+# is 2 * unit + foot, and a step's next label is the other foot's in that unit)
+LABEL, STATE, ELAPSED, HEAD, TAIL, FILLED, FOLLOWER, UNIT = range(8)
 
 
 @dataclass
@@ -121,7 +123,7 @@ class Crowd:
         labels_states, width = space.base.shape[1], space.base.shape[2]
         dimension = width // 3
         self.sent = 0
-        self.counters = np.zeros((count, 7), dtype=np.int64)
+        self.counters = np.zeros((count, 8), dtype=np.int64)
         self.counters[:, FOLLOWER] = 1  # a walk begins on a right step (label 0), which the left one follows
         self.carry = np.zeros((count, space.labels))  # the fraction of a frame each label's steps carry on
         self.history = np.zeros((count, 2, dimension))
@@ -142,7 +144,8 @@ class Crowd:
     def start_at(self, phases: np.ndarray) -> None:
         """Each character begins at its own (label, state) of the step cycle, before its first
         frame. The label it begins on leads and the other follows: a following step takes the
-        frames and draws of the leading step before it, so the pair's turns cancel (`_plan`). One
+        frames and draws of the leading step before it, so the pair's turns cancel (`_plan`). The
+        phase's label is a foot (0 right, 1 left) of the walk; `begin_in` moves it to another unit. One
         that begins mid-step is given, at its first frame (when its durations are known), the
         fraction of a frame that step would have carried to there at mean durations, so the
         first following step matches it: begun with none, its labels' carries stayed apart and
@@ -150,6 +153,12 @@ class Crowd:
         phases = np.asarray(phases, dtype=np.int64)
         self.counters[:, LABEL], self.counters[:, STATE] = phases[:, 0], phases[:, 1]
         self.counters[:, FOLLOWER] = 1 - phases[:, 0]
+
+    def begin_in(self, units: np.ndarray) -> None:
+        """Before the first frame: each character's first step is of its unit (a show that starts
+        standing stands from its first frame), on the foot its phase gave."""
+        if self.sent == 0:
+            self.counters[:, LABEL] = 2 * np.asarray(units, dtype=np.int64) + self.counters[:, LABEL] % 2
 
     def _carry_to_phase(self) -> None:
         """Before the first frame: a character beginning at state s > 0 carries what states 0 to
@@ -289,7 +298,7 @@ def _plan(base, sigma, counter, carry, pool, ids, counts, carries):  # pragma: n
             if head + k >= tail:
                 tail = head + k + 1
             draw = pool[head + k]
-            if label == counter[FOLLOWER]:  # the leading step's draw; none before the first leading step
+            if label % 2 == counter[FOLLOWER]:  # the leading step's draw; none before the first leading step
                 draw = pool[head + k - states] if head + k >= states else 0.0
             duration = max(MIN_FRAMES, duration + spread * draw)
         count = max(1, int(np.floor(duration + remainders[label])))
@@ -301,8 +310,8 @@ def _plan(base, sigma, counter, carry, pool, ids, counts, carries):  # pragma: n
                 filled += 1
         elapsed, k = 0, k + 1
         state += 1
-        if state == states:
-            state, label = 0, 1 - label
+        if state == states:  # the other foot's step, of the unit the engine chose
+            state, label = 0, 2 * counter[UNIT] + 1 - label % 2
     return k, tail
 
 
@@ -314,7 +323,7 @@ def _finish(counter, carry, n, carry_out, states):  # pragma: no cover - compile
         counter[HEAD] += 1
     counter[STATE] += 1
     if counter[STATE] == states:
-        counter[STATE], counter[LABEL] = 0, 1 - counter[LABEL]
+        counter[STATE], counter[LABEL] = 0, 2 * counter[UNIT] + 1 - counter[LABEL] % 2
 
 
 @njit(cache=True, nogil=True)

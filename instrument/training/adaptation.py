@@ -290,12 +290,12 @@ def adapt_styles(average: HSMM, takes_per_style: dict[str, list[list[list[np.nda
     models, reports = [], {}
     for style, takes in takes_per_style.items():
         segments = _merge(takes)
-        fewest = min(len(label) for label in segments)
+        fewest = min(len(label) for label in segments[:2])  # the walk's steps (other units may be few: MAP holds them)
         settings, heldout, first = fixed or DEFAULT, None, None
         if fixed is None and fewest >= MIN_STEPS_TO_CHOOSE:
             settings, heldout, first = choose_settings(average, takes, floors)
         elif fixed is None:
-            message = (f"style {style!r} has only {fewest} steps of one label: too few to choose the adaptation "
+            message = (f"style {style!r} has only {fewest} walking steps of one foot: too few to choose the adaptation "
                        f"by held-out likelihood, one shared transform is used")
             warnings.append(message)
         trace: list[float] = []

@@ -11,20 +11,23 @@ import numpy as np
 
 from .. import __version__
 from ..models.modelfile import Model
-from ..motion.features import WINDOWS
+from ..motion.features import ROOT_FEATURES, WINDOWS
 from ..motion.steps import LABELS
+from ..synthesis.interpolation import body_groups
+from ..synthesis.parameters import GROUPS
 from .adaptation import Settings, adapt_styles
 from .average import TrainingReport, train_average, variance_floors
 from .contact import train_contact
 from .corpus import Take, load_corpus, segments_by_label
 from .symmetry import symmetric_models
+from .units import held_posture, mirrored_pairs, model_units
 from .widen import train_range
 
 UNSPECIFIED_LICENCE = "unspecified: the licence of the training data applies"
 
 
 def build_model(
-    pairs: list[tuple[Path, str]],
+    pairs: list[tuple],
     fps: float = 30.0,
     states: int = 5,
     command: str = "",
@@ -37,16 +40,28 @@ def build_model(
     """`adaptation` fixes the style adaptation's settings (for comparisons); None chooses them per
     style by held-out likelihood."""
     started = time.perf_counter()
-    layout, takes, warnings = load_corpus(pairs, fps, progress)
+    layout, takes, warnings = load_corpus(pairs, fps, progress, states)
     report = TrainingReport(warnings=list(warnings))
-    segments = segments_by_label(takes, states)
+    units = model_units({t.unit for t in takes})
+    segments = segments_by_label(takes, states, units)
+    report.warnings += [f"unit {unit!r}: no {foot} step long enough for {states} states; it keeps the average's"
+                        for k, unit in enumerate(units) for f, foot in enumerate(LABELS) if not segments[2 * k + f]]
     floors = variance_floors(segments)
     average = train_average(segments, states, floors, report=report, on_iteration=on_iteration)
     style_names = sorted({t.style for t in takes})
-    per_style = {s: [segments_by_label([t], states) for t in takes if t.style == s] for s in style_names}
+    per_style = {s: [segments_by_label([t], states, units) for t in takes if t.style == s] for s in style_names}
     styles, adapted = adapt_styles(average, per_style, floors, report.warnings, adaptation)
-    contact, contact_metadata = train_contact(layout, takes, average, styles, style_names, fps, states)
-    average, styles = symmetric_models(average, styles, layout.dimension)  # straight at turn = 0
+    contact, contact_metadata = train_contact(layout, takes, average, styles, style_names, fps, states, units)
+    pairs_mirrored = mirrored_pairs(units)  # straight at turn = 0 (the turns keep their turn)
+    average, styles = symmetric_models(average, styles, layout.dimension, pairs_mirrored)
+    if "stand" in units:  # the stand's arms held in the style's posture (training/units.py)
+        stand = 2 * units.index("stand")
+        arms = np.flatnonzero(body_groups(layout)[GROUPS.index("upper")])
+        travel = tuple(w * layout.dimension + ROOT_FEATURES.index(f) for w in range(3)
+                       for f in ("root.vx", "root.vz", "root.yaw_rate"))
+        average = held_posture(average, [stand, stand + 1], arms, layout.dimension, travel)
+        styles = held_posture(styles, [stand, stand + 1], arms, layout.dimension, travel)
+    walks = [t for t in takes if t.unit == "walk"]
     for k, style in enumerate(style_names):  # the shortest state as the shipped model has it (mirroring shares durations)
         adapted[style].min_duration = float(styles.duration_means[k].min())
     dimension = layout.dimension
@@ -55,7 +70,8 @@ def build_model(
     metadata = {
         "fps": fps,
         "states": states,
-        "labels": list(LABELS),
+        "labels": [f"{unit}/{foot}" for unit in units for foot in LABELS] if units != ["walk"] else list(LABELS),
+        "units": units,
         "styles": style_names,
         "skeleton": layout.skeleton.to_dict(),
         "features": layout.to_dict(),
@@ -77,14 +93,15 @@ def build_model(
             "numpy": np.__version__,
         },
         "data": [
-            {"file": t.path.name, "style": t.style, "frames": t.frames, "steps": len(t.steps), "sha256": t.sha256} for t in takes
+            {"file": t.path.name, "style": t.style, "unit": t.unit, "frames": t.frames, "steps": len(t.steps),
+             "sha256": t.sha256} for t in takes
         ],
-        "mean_step_frames": {
-            s: float(np.mean([st.frames for t in takes if t.style == s for st in t.steps])) for s in style_names
+        "mean_step_frames": {  # of the walk (the beat lock and the model card read it)
+            s: float(np.mean([st.frames for t in walks if t.style == s for st in t.steps] or [np.nan])) for s in style_names
         },
         "warnings": report.warnings,
     }
     if contact_metadata:
         metadata["contact"] = contact_metadata
     model = Model(metadata, average, styles, static_std, step_max, contact)
-    return Model(metadata, average, styles, static_std, step_max, contact | train_range(model, takes)), report, takes
+    return Model(metadata, average, styles, static_std, step_max, contact | train_range(model, walks)), report, takes

@@ -52,7 +52,7 @@ def _state_contact(model: HSMM, segments: list[list[np.ndarray]], flags: list[li
 
 
 def train_contact(layout: FeatureLayout, takes, average: HSMM, styles: HSMM, style_names: list[str], fps: float,
-                  states: int) -> tuple[dict[str, np.ndarray], dict]:
+                  states: int, units: list[str] | None = None) -> tuple[dict[str, np.ndarray], dict]:
     """Model-file arrays `contact_average` (labels, states, 2) and `contact_styles` (styles,
     labels, states, 2), and the metadata entry describing them; empty when the skeleton has no
     two legs."""
@@ -64,13 +64,15 @@ def train_contact(layout: FeatureLayout, takes, average: HSMM, styles: HSMM, sty
     ground = clearance(positions, limbs)
     labels = [contact_labels(p, limbs, ground, cm, fps) for p in positions]
 
+    units = units or ["walk"]
+
     def split(chosen):
-        segs = [[], []]
-        flags = [[], []]
+        segs = [[] for _ in range(2 * len(units))]
+        flags = [[] for _ in range(2 * len(units))]
         for k in chosen:
             for step in takes[k].steps:
-                if step.frames >= states:
-                    index = 0 if step.label == "right" else 1
+                if step.frames >= states and takes[k].unit in units:
+                    index = 2 * units.index(takes[k].unit) + (0 if step.label == "right" else 1)
                     segs[index].append(takes[k].observations[step.start : step.end])
                     flags[index].append(labels[k][step.start : step.end])
         return segs, flags

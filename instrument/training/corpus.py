@@ -7,6 +7,7 @@ import hashlib
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
@@ -14,13 +15,29 @@ from ..errors import UserError, located
 from ..motion.bvh import Motion, Skeleton, read_bvh
 from ..motion.features import FeatureLayout, choose_layout, extract, resample, with_deltas
 from ..motion.kinematics import local_transforms
+from ..motion.standing import standing_steps
 from ..motion.steps import LABELS, segment_steps
+from ..models.units import UNITS
 from ..textfile import read_text
 from ..tomlfile import read_toml
+from .units import checked_unit, unit_from_name
 
 # the last but one "_"-separated part, starting with a letter: dataset-2_walk_elderly_003 -> elderly,
 # walk_not-confident_001 -> not-confident, style2_take3 -> style2
 DEFAULT_STYLE_PATTERN = r"(?:^|_)([A-Za-z][A-Za-z0-9-]*)_[^_]*$"
+
+
+class TakeFile(NamedTuple):
+    """A take to read: its file, its style and the motion unit it holds (walk, run, turn-left, ...)."""
+
+    path: Path
+    style: str
+    unit: str = "walk"
+
+
+def take_files(pairs: Sequence[tuple]) -> list[TakeFile]:
+    """(file, style) or (file, style, unit) tuples as TakeFiles (a pair is a walk)."""
+    return [p if isinstance(p, TakeFile) else TakeFile(Path(p[0]), *p[1:]) for p in pairs]
 
 
 @dataclass
@@ -30,6 +47,7 @@ class Take:
     observations: np.ndarray  # (frames, 3 * D): [o, delta o, delta-delta o]
     steps: list  # Step objects, frame indices into `observations`
     sha256: str
+    unit: str = "walk"  # the motion unit its steps are of (for a stand: pieces of still standing)
 
     @property
     def frames(self) -> int:
@@ -64,15 +82,18 @@ def bvh_files(paths: list[str] | list[Path]) -> list[Path]:
     return files
 
 
-def styled_takes(paths: list[str] | list[Path], pattern: str = DEFAULT_STYLE_PATTERN) -> list[tuple[Path, str]]:
-    """(file, style) for every BVH file named or inside the folders named, the style read from its name."""
-    return [(f, style_from_name(f, pattern)) for f in bvh_files(paths)]
+def styled_takes(paths: list[str] | list[Path], pattern: str = DEFAULT_STYLE_PATTERN,
+                 unit_pattern: str | None = None) -> list[TakeFile]:
+    """Every BVH file named or inside the folders named, its style and unit read from its name
+    (training/units.py: a walk unless the name says otherwise)."""
+    return [TakeFile(f, style_from_name(f, pattern), unit_from_name(f, unit_pattern)) for f in bvh_files(paths)]
 
 
-def read_manifest(path: Path) -> list[tuple[Path, str]]:
-    """(file, style) pairs from a CSV (header `file,style`) or TOML ([[take]] file = ..., style = ...)."""
+def read_manifest(path: Path) -> list[TakeFile]:
+    """Takes from a CSV (header `file,style` and optionally `,unit`) or TOML ([[take]] file = ...,
+    style = ..., optionally unit = ...); a take without a unit is a walk."""
     base = path.parent
-    pairs: list[tuple[Path, str]] = []
+    pairs: list[TakeFile] = []
     if path.suffix.lower() == ".toml":
         _, data = read_toml(path)
         takes = data.get("take")
@@ -81,7 +102,10 @@ def read_manifest(path: Path) -> list[tuple[Path, str]]:
         for k, take in enumerate(takes, 1):
             if not isinstance(take, dict) or not isinstance(take.get("file"), str) or not isinstance(take.get("style"), str):
                 raise UserError(f"{path}: take {k}: needs string keys 'file' and 'style'")
-            pairs.append((base / take["file"], take["style"]))
+            unit = take.get("unit", "walk")
+            if not isinstance(unit, str):
+                raise UserError(f"{path}: take {k}: 'unit' is a string ({', '.join(UNITS)})")
+            pairs.append(TakeFile(base / take["file"], take["style"], checked_unit(f"{path}: take {k}", unit)))
         return pairs
     text = read_text(path)
     reader = csv.reader(text.splitlines())
@@ -90,13 +114,15 @@ def read_manifest(path: Path) -> list[tuple[Path, str]]:
     except csv.Error as e:  # a field longer than csv's limit (128 kB), a NUL byte
         raise located(path, f"not a CSV manifest: {e}", reader.line_num) from None
     if not rows or [c.strip().lower() for c in rows[0][:2]] != ["file", "style"]:
-        raise located(path, "a CSV manifest starts with the header 'file,style'", 1)
+        raise located(path, "a CSV manifest starts with the header 'file,style' (or 'file,style,unit')", 1)
+    with_units = len(rows[0]) > 2 and rows[0][2].strip().lower() == "unit"
     for number, row in enumerate(rows[1:], 2):
         if not row or not "".join(row).strip():
             continue
         if len(row) < 2 or not row[0].strip() or not row[1].strip():
             raise located(path, "expected 'file,style'", number)
-        pairs.append((base / row[0].strip(), row[1].strip()))
+        unit = row[2].strip() if with_units and len(row) > 2 and row[2].strip() else "walk"
+        pairs.append(TakeFile(base / row[0].strip(), row[1].strip(), checked_unit(f"{path}:{number}", unit)))
     return pairs
 
 
@@ -137,20 +163,21 @@ def _units_problem(size: float, reference: float) -> str | None:
     return None
 
 
-def read_motions(pairs: list[tuple[Path, str]], fps: float, progress=None) -> list[Motion]:
+def read_motions(pairs: Sequence[tuple], fps: float, progress=None) -> list[Motion]:
     """Read and resample every take; an error names the files whose skeleton differs from the
     first, or whose body is of another size than the others' (a take in other units)."""
+    pairs = take_files(pairs)
     if not pairs:
         raise UserError("no takes to read: no .bvh file was given")
     motions: list[Motion] = []
-    for k, (path, _) in enumerate(pairs):
+    for k, (path, *_) in enumerate(pairs):
         if not path.is_file():
             raise UserError(f"{path}: no such file")
         motions.append(resample(read_bvh(path), fps))
         if progress:
             progress(k + 1, len(pairs), "reading")
     first = motions[0].skeleton
-    different = [(p, m) for (p, _), m in zip(pairs, motions) if not m.skeleton.same_layout(first)]
+    different = [(p.path, m) for p, m in zip(pairs, motions) if not m.skeleton.same_layout(first)]
     if different:
         raise UserError(
             f"skeleton differs from the first file's ({pairs[0][0]}): {', '.join(str(p) for p, _ in different[:5])}"
@@ -159,18 +186,20 @@ def read_motions(pairs: list[tuple[Path, str]], fps: float, progress=None) -> li
         )
     sizes = [body_size(m.skeleton, m.channels[0]) for m in motions]
     typical = float(np.median(sizes))
-    odd = [(p, _units_problem(size, typical)) for (p, _), size in zip(pairs, sizes) if _units_problem(size, typical)]
+    odd = [(p.path, _units_problem(size, typical)) for p, size in zip(pairs, sizes) if _units_problem(size, typical)]
     if odd:
         raise UserError(f"{odd[0][0]}: {odd[0][1]} the other takes' (in other units? metres among centimetres): "
                         "convert it or leave it out" + (f" ({len(odd) - 1} more such takes)" if len(odd) > 1 else ""))
     return motions
 
 
-def make_takes(pairs: list[tuple[Path, str]], motions: list[Motion], layout: FeatureLayout, progress=None) -> tuple[list[Take], list[str]]:
-    """Observation vectors and steps of each motion; takes without steps are left out with a warning."""
+def make_takes(pairs: Sequence[tuple], motions: list[Motion], layout: FeatureLayout, progress=None,
+               states: int = 5) -> tuple[list[Take], list[str]]:
+    """Observation vectors and steps of each motion (for a stand, its still pieces: standing.py);
+    takes without steps are left out with a warning."""
     takes: list[Take] = []
     warnings: list[str] = []
-    for k, ((path, style), motion) in enumerate(zip(pairs, motions)):
+    for k, ((path, style, unit), motion) in enumerate(zip(take_files(pairs), motions)):
         if not motion.skeleton.same_layout(layout.skeleton):
             raise UserError(f"{path}: the model was trained on another skeleton: this file's "
                             f"{skeleton_difference(layout.skeleton, motion.skeleton)}")
@@ -180,30 +209,35 @@ def make_takes(pairs: list[tuple[Path, str]], motions: list[Motion], layout: Fea
             raise UserError(f"{path}: {problem} the skeleton it is measured against (the model's, or the first "
                             "take's; in other units? metres against centimetres)")
         static, _, _ = extract(motion, layout)
-        segmentation = segment_steps(motion, layout)
+        segmentation = standing_steps(motion, layout, states) if unit == "stand" else segment_steps(motion, layout)
         warnings += [f"{path}: {w}" for w in segmentation.warnings]
         if not segmentation.steps:
             warnings.append(f"{path}: no steps, left out")
             continue
-        takes.append(Take(path, style, with_deltas(static), segmentation.steps, _sha256(path)))
+        takes.append(Take(path, style, with_deltas(static), segmentation.steps, _sha256(path), unit))
         if progress:
             progress(k + 1, len(pairs), "features")
     return takes, warnings
 
 
-def load_corpus(pairs: list[tuple[Path, str]], fps: float, progress=None) -> tuple[FeatureLayout, list[Take], list[str]]:
-    """Read, resample, check skeletons, choose the feature layout, extract features and steps."""
+def load_corpus(pairs: Sequence[tuple], fps: float, progress=None, states: int = 5) -> tuple[FeatureLayout, list[Take], list[str]]:
+    """Read, resample, check skeletons, choose the feature layout (from the walks: the template
+    pose and the root's axes are a walker's), extract features and steps."""
+    pairs = take_files(pairs)
     motions = read_motions(pairs, fps, progress)
-    layout = choose_layout(motions)
-    takes, warnings = make_takes(pairs, motions, layout, progress)
+    walks = [m for p, m in zip(pairs, motions) if p.unit == "walk"]
+    layout = choose_layout(walks or motions)
+    takes, warnings = make_takes(pairs, motions, layout, progress, states)
     if not takes:
         raise UserError("no steps found in any file: nothing to train on")
     kept = {t.style for t in takes}
     warnings += [f"style {style!r}: none of its takes has steps, so the model has no such style"
-                 for style in sorted({style for _, style in pairs} - kept)]
+                 for style in sorted({p.style for p in pairs} - kept)]
     return layout, takes, warnings
 
 
-def segments_by_label(takes: list[Take], states: int) -> list[list[np.ndarray]]:
-    """For each label in LABELS, the observation segments of its steps (those long enough for every state)."""
-    return [[seg for take in takes for seg in take.segments(label) if len(seg) >= states] for label in LABELS]
+def segments_by_label(takes: list[Take], states: int, units: Sequence[str] = ("walk",)) -> list[list[np.ndarray]]:
+    """For each label (each unit's right and left step, label = 2 * unit + foot), the observation
+    segments of its steps (those long enough for every state)."""
+    return [[seg for take in takes if take.unit == unit for seg in take.segments(foot) if len(seg) >= states]
+            for unit in units for foot in LABELS]

@@ -32,25 +32,29 @@ def _forward_is_x(average: HSMM, dimension: int) -> bool:
     return abs(means[..., 1].mean()) > abs(means[..., 2].mean())
 
 
-def mirror_root(model: HSMM, dimension: int, forward_is_x: bool) -> HSMM:
-    """The two labels (axis -3 of the means: ..., labels, states, 3D) made mirror images."""
+def mirror_root(model: HSMM, dimension: int, forward_is_x: bool, pairs: list[tuple[int, int]] | None = None) -> HSMM:
+    """Each (right, left) pair of labels (axis -3 of the means: ..., labels, states, 3D; default the
+    first two) made mirror images."""
     even, odd = (ROOT_EVEN, ROOT_ODD) if not forward_is_x else ((0, 1), (2, 3))
     means, variances = model.means.copy(), model.variances.copy()
-    right, left = means[..., 0, :, :], means[..., 1, :, :]  # views: writing them writes `means`
-    right_var, left_var = variances[..., 0, :, :], variances[..., 1, :, :]
-    for columns, sign in ((_columns(even, dimension), 1.0), (_columns(odd, dimension), -1.0)):
-        shared = 0.5 * (right[..., columns] + sign * left[..., columns])
-        right[..., columns], left[..., columns] = shared, sign * shared
-        spread = np.sqrt(right_var[..., columns] * left_var[..., columns])  # the mean in log space
-        right_var[..., columns], left_var[..., columns] = spread, spread
-    durations = 0.5 * (model.duration_means[..., 0, :] + model.duration_means[..., 1, :])
-    duration_vars = np.sqrt(model.duration_variances[..., 0, :] * model.duration_variances[..., 1, :])
-    duration_means = np.stack([durations, durations], axis=-2)
-    duration_variances = np.stack([duration_vars, duration_vars], axis=-2)
+    duration_means, duration_variances = model.duration_means.copy(), model.duration_variances.copy()
+    for r, l in pairs if pairs is not None else [(0, 1)]:
+        right, left = means[..., r, :, :], means[..., l, :, :]  # views: writing them writes `means`
+        right_var, left_var = variances[..., r, :, :], variances[..., l, :, :]
+        for columns, sign in ((_columns(even, dimension), 1.0), (_columns(odd, dimension), -1.0)):
+            shared = 0.5 * (right[..., columns] + sign * left[..., columns])
+            right[..., columns], left[..., columns] = shared, sign * shared
+            spread = np.sqrt(right_var[..., columns] * left_var[..., columns])  # the mean in log space
+            right_var[..., columns], left_var[..., columns] = spread, spread
+        durations = 0.5 * (duration_means[..., r, :] + duration_means[..., l, :])
+        duration_vars = np.sqrt(duration_variances[..., r, :] * duration_variances[..., l, :])
+        duration_means[..., r, :], duration_means[..., l, :] = durations, durations
+        duration_variances[..., r, :], duration_variances[..., l, :] = duration_vars, duration_vars
     return HSMM(means, variances, duration_means, duration_variances)
 
 
-def symmetric_models(average: HSMM, styles: HSMM, dimension: int) -> tuple[HSMM, HSMM]:
+def symmetric_models(average: HSMM, styles: HSMM, dimension: int,
+                     pairs: list[tuple[int, int]] | None = None) -> tuple[HSMM, HSMM]:
     """lambda 0 and every style model with mirror-image steps (the same axes for all, from lambda 0)."""
     forward_is_x = _forward_is_x(average, dimension)
-    return mirror_root(average, dimension, forward_is_x), mirror_root(styles, dimension, forward_is_x)
+    return mirror_root(average, dimension, forward_is_x, pairs), mirror_root(styles, dimension, forward_is_x, pairs)

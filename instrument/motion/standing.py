@@ -1,0 +1,77 @@
+"""Still standing in a take: what a stand unit learns from, and what `evaluate` measures it against.
+
+No corpus holds long quiet standing (the Bandai standing takes are gestures that begin and end
+at rest), so rest is found frame by frame, from the joint tree alone (not from names): a frame
+stands when the root barely moves over the floor, the feet stay put and the arms hang (their end
+joints no higher than the hips plus a share of the leg): a raised or waving hand is a gesture,
+not a posture. (The hands are never quite at rest in those takes, cut tight around the gesture:
+the stand unit holds its arms at their mean over these frames, training/units.py.) Stretches of such frames are cut into pieces of about PIECE_SECONDS,
+labelled right and left in turn, so a stand unit has "steps" like the walk's and the planner
+treats it as one more pair of labels (ST-MLPG joins the pieces into one still stand).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .bvh import Motion
+from .features import FeatureLayout
+from .kinematics import forward_kinematics, local_transforms
+from .limbs import find_limbs
+from .steps import Segmentation, Step
+
+ROOT_SPEED = 0.07  # leg lengths per second: the root's horizontal speed at rest (about 6 cm/s for a 0.85 m leg)
+FOOT_SPEED = 0.06  # leg lengths per second: a planted foot
+HAND_HEIGHT = 0.25  # leg lengths above the hips: a hand higher than this is gesturing
+PIECE_SECONDS = 0.4  # a stand "step"
+MIN_FRAMES = 5  # the shortest still stretch kept (one frame per state of a 5-state model)
+
+
+def still_frames(motion: Motion, layout: FeatureLayout) -> np.ndarray:
+    """(frames,) bool: whether each frame stands still with the arms down (see the module's text)."""
+    limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
+    if limbs is None or motion.frames < 2:
+        return np.zeros(motion.frames, dtype=bool)
+    positions = forward_kinematics(motion.skeleton, *local_transforms(motion))[1]
+    leg = max(limbs.leg_length, 1e-9)
+
+    def speed(joints: list[int], axes=(0, 1, 2)) -> np.ndarray:
+        moved = np.linalg.norm(np.gradient(positions[:, joints][..., list(axes)], axis=0), axis=-1) * motion.fps
+        return moved.max(axis=1) / leg
+
+    hands = _hands(motion.skeleton.parents, limbs, positions[0])
+    feet = [j for foot in limbs.feet for j in foot]
+    still = speed([limbs.root], (0, 2)) < ROOT_SPEED
+    still &= speed(feet) < FOOT_SPEED * 10  # feet may shift their weight; a step moves them far faster
+    if hands:
+        height = positions[:, hands, 1].max(axis=1) - positions[:, limbs.root, 1]
+        still &= height < HAND_HEIGHT * leg
+    return still
+
+
+def _hands(parents: np.ndarray, limbs, pose: np.ndarray) -> list[int]:
+    """The upper body's end joints but the highest one (the head): hands, fingers, thumbs.
+    (Limbs.arms is not used: on the Bandai skeleton it takes the neck for one arm.)"""
+    legs = {j for foot in limbs.feet for j in foot} | {leg.hip for leg in limbs.legs} | {leg.knee for leg in limbs.legs}
+    leaves = [j for j in range(len(parents)) if j != limbs.root and not (parents == j).any() and j not in legs]
+    return sorted(leaves, key=lambda j: pose[j, 1])[:-1] if len(leaves) > 1 else []
+
+
+def stretches(mask: np.ndarray, shortest: int) -> list[tuple[int, int]]:
+    """(start, end) of every run of True at least `shortest` long."""
+    padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
+    edges = np.flatnonzero(np.diff(padded))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= shortest]
+
+
+def standing_steps(motion: Motion, layout: FeatureLayout, states: int = MIN_FRAMES) -> Segmentation:
+    """The still stretches of a take as alternating right and left pieces (see the module's text)."""
+    piece = max(states, int(round(PIECE_SECONDS * motion.fps)))
+    steps: list[Step] = []
+    for start, end in stretches(still_frames(motion, layout), max(states, MIN_FRAMES)):
+        count = max(1, (end - start) // piece)
+        bounds = np.linspace(start, end, count + 1).round().astype(int)
+        for a, b in zip(bounds[:-1], bounds[1:]):
+            steps.append(Step("right" if len(steps) % 2 == 0 else "left", int(a), int(b)))
+    warnings = [] if steps else ["no still standing with the arms down found"]
+    return Segmentation(steps, warnings, ("", ""))

@@ -1,0 +1,94 @@
+"""Which motion unit a take holds (walk, run, turn-left, turn-right, stand), and what training does
+per unit that it does not do for the walk.
+
+The unit is read from the file name, as the style is: by default the "_"-separated part before
+the style (`dataset-2_walk-turn-left_active_001` -> `walk-turn-left`), given a unit by words in
+it (`UNIT_WORDS`); a name with no such part, or no word known, is a walk, so a corpus of walks
+trains as it always did. `--unit-from` or a manifest's `unit` column says otherwise.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserError
+from ..models.hsmm import HSMM
+from ..models.units import UNITS
+
+# the part before the style, starting with a letter: dataset-2_run_elderly_003 -> run
+DEFAULT_UNIT_PATTERN = r"(?:^|_)([A-Za-z][A-Za-z0-9-]*)_[A-Za-z][A-Za-z0-9-]*_[^_]*$"
+# words in a file's content part and the unit they name, the first that matches wins
+UNIT_WORDS = (
+    (("turn-left", "turn_left", "left-turn", "turnleft"), "turn-left"),
+    (("turn-right", "turn_right", "right-turn", "turnright"), "turn-right"),
+    (("run", "jog", "sprint"), "run"),
+    (("stand", "idle", "wave", "raise", "gesture", "rest"), "stand"),
+    (("walk",), "walk"),
+)
+
+
+def unit_of_words(content: str) -> str | None:
+    """The unit a content name says (`walk-turn-left` -> turn-left), or None."""
+    if content in UNITS:
+        return content
+    lowered = content.lower()
+    for words, unit in UNIT_WORDS:
+        if any(word in lowered for word in words):
+            return unit
+    return None
+
+
+def unit_from_name(path: Path, pattern: str | None = None) -> str:
+    """The unit of a take from its file name: a walk unless the name says otherwise. With a
+    `pattern` (--unit-from) its group must name a unit, or the error names the file."""
+    match = re.search(pattern or DEFAULT_UNIT_PATTERN, path.stem)
+    content = match.group(1) if match and match.groups() and match.group(1) else ""
+    unit = unit_of_words(content) if content else None
+    if pattern is not None and unit is None:
+        raise UserError(f"{path}: --unit-from found {content!r}, not a unit ({', '.join(UNITS)}) or a word for one")
+    return unit or "walk"
+
+
+def checked_unit(where: str, unit: str) -> str:
+    """A manifest's unit, as a unit name, or an error naming where it is."""
+    found = unit_of_words(unit)
+    if found is None:
+        raise UserError(f"{where}: unit {unit!r} is not one of {', '.join(UNITS)}")
+    return found
+
+
+def model_units(present: set[str]) -> list[str]:
+    """The units a model holds, in UNITS' order; refused without walks (every gait falls back on the walk)."""
+    if "walk" not in present:
+        raise UserError(f"no walking takes among the units found ({', '.join(sorted(present))}): a model needs walks")
+    return [u for u in UNITS if u in present]
+
+
+def mirrored_pairs(units: list[str]) -> list[tuple[int, int]]:
+    """The (right, left) label pairs made mirror images (training/symmetry.py): every unit's but the
+    turns' (a turning step and the next turn the same way; mirroring them would cancel the turn)."""
+    return [(2 * k, 2 * k + 1) for k, unit in enumerate(units) if not unit.startswith("turn")]
+
+
+def held_posture(model: HSMM, labels: list[int], columns: np.ndarray, dimension: int,
+                 still: tuple[int, ...] = ()) -> HSMM:
+    """The model with `columns` (static features) of the given labels' states held at their
+    duration-weighted mean, and their deltas at 0: the stand's arms, which the standing takes
+    never hold still (standing.py), keep the style's posture instead of a half gesture. The
+    `still` columns (the root's speeds over the floor and its yaw rate) are set to 0 outright: the
+    takes creep a few cm/s, and a stand held for minutes must not walk off."""
+    means = model.means.copy()
+    rows = (slice(None),) * (means.ndim - 3) + (labels,)  # the labels' axis is the third from the end
+    weights = model.duration_means[rows][..., None]  # (..., labels, states, 1)
+    static = means[rows][..., columns]
+    held = (static * weights).sum(axis=(-3, -2), keepdims=True) / weights.sum(axis=(-3, -2), keepdims=True)
+    block = means[rows]
+    block[..., columns] = np.broadcast_to(held, static.shape)
+    for window in (1, 2):
+        block[..., window * dimension + columns] = 0.0
+    block[..., list(still)] = 0.0
+    means[rows] = block
+    return HSMM(means, model.variances, model.duration_means, model.duration_variances)

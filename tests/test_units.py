@@ -1,0 +1,221 @@
+"""Motion units: stand, walk, run and turns as labels the planner chooses (issue 25).
+
+Training reads which unit a take holds from its name or a manifest; the shipped model holds all
+five units; the gait and the steering choose them live, at the next step boundary, through the
+one engine (so `run`, `synth` and crowds get them alike); `synth --gait` writes them, read back
+with an independent BVH reader.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bvh_independent import world_positions
+from conftest import REPO, needs_walks
+
+from instrument.errors import UserError
+from instrument.motion.bvh import read_bvh
+from instrument.motion.standing import standing_steps, still_frames
+from instrument.synthesis.engine import Engine, default_controls
+from instrument.synthesis.stream import STATE, UNIT, Controls
+from instrument.training.corpus import read_manifest, styled_takes
+from instrument.training.units import unit_from_name
+
+MOTIONS = REPO.parent / "shared" / "data" / "bandai-motions"
+needs_motions = pytest.mark.skipif(not MOTIONS.is_dir(), reason=f"runs, turns and standing takes not found in {MOTIONS}")
+
+
+# ---- which unit a take holds -------------------------------------------------------------------
+
+@pytest.mark.parametrize("name, unit", [
+    ("dataset-2_walk_elderly_003", "walk"),
+    ("dataset-2_run_active_012", "run"),
+    ("dataset-2_walk-turn-left_normal_001", "turn-left"),
+    ("dataset-2_walk-turn-right_youthful_008", "turn-right"),
+    ("dataset-2_wave-both-hands_feminine_002", "stand"),
+    ("dataset-2_raise-up-both-hands_masculine_004", "stand"),
+    ("walk_not-confident_001", "walk"),
+    ("style2_take3", "walk"),  # a name that says nothing is a walk, as every corpus before units
+    ("01_01", "walk"),
+])
+def test_the_unit_is_read_from_the_file_name(name, unit):
+    assert unit_from_name(Path(name + ".bvh")) == unit
+
+
+def test_unit_from_a_pattern_that_finds_no_unit_names_the_file():
+    with pytest.raises(UserError, match=r"take_7\.bvh: --unit-from found 'take', not a unit"):
+        unit_from_name(Path("take_7.bvh"), r"^([a-z]+)_")
+
+
+def test_a_manifest_says_each_takes_unit_and_a_bad_one_names_its_line(tmp_path):
+    (tmp_path / "m.csv").write_text("file,style,unit\na.bvh,calm,run\nb.bvh,calm,\nc.bvh,calm,stand\n")
+    takes = read_manifest(tmp_path / "m.csv")
+    assert [t.unit for t in takes] == ["run", "walk", "stand"]
+    (tmp_path / "bad.csv").write_text("file,style,unit\na.bvh,calm,run\nb.bvh,calm,hop\n")
+    with pytest.raises(UserError, match=r"bad\.csv:3: unit 'hop' is not one of walk, run"):
+        read_manifest(tmp_path / "bad.csv")
+    (tmp_path / "m.toml").write_text('[[take]]\nfile = "a.bvh"\nstyle = "calm"\nunit = "turn-left"\n'
+                                     '[[take]]\nfile = "b.bvh"\nstyle = "calm"\n')
+    assert [t.unit for t in read_manifest(tmp_path / "m.toml")] == ["turn-left", "walk"]
+
+
+@needs_motions
+def test_styled_takes_of_the_motions_folder_hold_every_unit():
+    units = {t.unit for t in styled_takes([MOTIONS])}
+    assert units == {"run", "turn-left", "turn-right", "stand"}
+
+
+# ---- still standing ----------------------------------------------------------------------------
+
+@needs_motions
+@needs_walks
+def test_still_standing_is_found_in_the_standing_takes_and_never_in_walks_or_runs(model, real_walks):
+    layout = model.layout
+    take = read_bvh(MOTIONS / "dataset-2_raise-up-both-hands_elderly_003.bvh")
+    pieces = standing_steps(take, layout).steps
+    assert pieces, "the standing take's rest before and after the gesture"
+    assert [p.label for p in pieces[:2]] == ["right", "left"][: len(pieces[:2])]
+    names, positions, _ = world_positions(MOTIONS / "dataset-2_raise-up-both-hands_elderly_003.bvh")
+    hips = positions[:, names.index("Hips")]
+    for p in pieces:  # the hips barely move in every piece (an independent reader's positions, cm)
+        speed = np.linalg.norm(np.diff(hips[p.start:p.end][:, [0, 2]], axis=0), axis=1) * take.fps
+        assert speed.max() < 10.0
+    assert not still_frames(read_bvh(real_walks[0]), layout).any()
+    assert not still_frames(read_bvh(MOTIONS / "dataset-2_run_normal_001.bvh"), layout).any()
+
+
+# ---- the shipped model ---------------------------------------------------------------------------
+
+def test_the_shipped_model_holds_every_unit(model):
+    assert model.units == ["walk", "run", "turn-left", "turn-right", "stand"]
+    assert model.labels[:2] == ["walk/right", "walk/left"] and len(model.labels) == 10
+    walk_steps = [d for d in model.metadata["data"] if d["unit"] == "walk"]
+    assert len(walk_steps) == 175  # the walks it always had, and the new takes beside them
+
+
+def _engine_frames(model, plan: list[tuple[int, int]], characters: int = 1, turn: float = 0.0, weights=None):
+    """Frames of an engine playing (gait, frames) in turn; per frame and character the unit and
+    label of the frame made, the plan's coming unit, the plan's state and the root's horizontal
+    speed (model units/s)."""
+    engine = Engine(model, characters)
+    base = default_controls(model, weights or {"normal": 1.0})
+    units, coming, labels, states, speeds = [], [], [], [], []
+    made = 0
+    for gait, frames in plan:
+        controls = Controls(base.weights, gait=gait, turn=turn)
+        for _ in range(frames):
+            engine.frame(made / engine.fps, controls)
+            made += 1
+            units.append(engine.frame_ids // (2 * model.states))
+            coming.append(engine.stream.counters[:, UNIT].copy())
+            labels.append(engine.frame_ids // model.states)  # the label of the frame made
+            states.append(engine.stream.counters[:, STATE].copy())
+            speeds.append(np.hypot(engine.frames[-1][:, 1], engine.frames[-1][:, 2]))
+    return engine, np.array(units), np.array(coming), np.array(labels), np.array(states), np.array(speeds)
+
+
+STAND, WALK, RUN = 0, 1, 2
+
+
+def test_a_gait_change_is_in_the_next_frames_plan_and_takes_the_body_at_the_next_step(model):
+    stand = model.units.index("stand")
+    engine, units, coming, labels, states, _ = _engine_frames(model, [(WALK, 40), (STAND, 60)])
+    assert (units[:40] == 0).all()
+    assert coming[40, 0] == stand  # the frame after the change already plans the stand
+    first_stand = 40 + int(np.argmax(units[40:, 0] == stand))
+    # the step under way was finished: the walk's label did not change before its last state ended
+    assert first_stand > 40
+    walking_label = labels[40, 0]
+    assert (labels[40:first_stand, 0] == walking_label).all()
+    assert first_stand - 40 <= 2 * engine.stream.base[0, walking_label].sum() + 1  # within the step under way
+    assert (units[first_stand:, 0] == stand).all()
+
+
+def test_stand_is_still_run_is_faster_than_walk_and_walking_again_reaches_its_speed(model):
+    _, units, _, _, _, speed = _engine_frames(model, [(WALK, 90), (STAND, 90), (RUN, 90), (WALK, 90)])
+    cm = _cm(model)
+    walk, stand, run, again = (speed[k * 90 + 45:(k + 1) * 90, 0] * cm for k in range(4))
+    assert stand.mean() < 2.0  # cm/s: the stand unit holds the root's travel at zero
+    assert run.mean() > 1.3 * walk.mean()
+    assert abs(again.mean() - walk.mean()) < 0.1 * walk.mean()
+
+
+def _cm(model) -> float:
+    from instrument.synthesis.engine import metres_to_units
+    return 100.0 / metres_to_units(model.layout)
+
+
+def test_turning_steps_are_taken_in_proportion_to_the_turn(model):
+    left, right = model.units.index("turn-left"), model.units.index("turn-right")
+    rate = Engine(model).units.turn_rates[1]
+    shares = []
+    for fraction in (0.0, 0.5, 1.0):
+        _, units, _, _, _, _ = _engine_frames(model, [(WALK, 300)], turn=fraction * rate)
+        shares.append(np.mean(units[60:, 0] == left))
+        assert not (units[:, 0] == right).any()
+    assert shares[0] == 0.0
+    assert 0.3 < shares[1] < 0.7
+    assert shares[2] > 0.9
+    _, units, _, _, _, _ = _engine_frames(model, [(WALK, 200)], turn=-rate)
+    assert np.mean(units[60:, 0] == right) > 0.9
+
+
+def test_every_character_of_a_crowd_changes_gait_at_its_own_step(model):
+    stand = model.units.index("stand")
+    _, units, coming, _, _, _ = _engine_frames(model, [(WALK, 30), (STAND, 60)], characters=6)
+    assert (coming[30] == stand).all()
+    arrivals = [30 + int(np.argmax(units[30:, n] == stand)) for n in range(6)]
+    assert all((units[a:, n] == stand).all() for n, a in enumerate(arrivals))
+    assert len(set(arrivals)) > 1  # they started in different phases of the step: they arrive apart
+
+
+def test_a_walk_only_model_plays_every_gait_as_its_walk(model):
+    from dataclasses import replace
+
+    from instrument.models.hsmm import HSMM
+
+    walk_only = replace(model, metadata={k: v for k, v in model.metadata.items() if k != "units"} | {"labels": ["right", "left"]},
+                        average=HSMM(*(getattr(model.average, p)[:2] for p in HSMM.__dataclass_fields__)),
+                        styles=HSMM(*(getattr(model.styles, p)[:, :2] for p in HSMM.__dataclass_fields__)),
+                        extras={k: (v[..., :2, :, :] if k.startswith("contact") else v) for k, v in model.extras.items()})
+    engine = Engine(walk_only)
+    assert engine.units.missing == ["stand", "run"]
+    _, units, _, _, _, speed = _engine_frames(walk_only, [(STAND, 60), (RUN, 60)])
+    assert (units == 0).all() and speed[30:].min() > 0
+
+
+# ---- synth --gait, read back independently ----------------------------------------------------------
+
+def _synth(tmp_path, *args) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "instrument", "synth", *args], capture_output=True, text=True,
+                          cwd=tmp_path, timeout=900)
+
+
+def test_synth_gait_writes_a_stand_and_a_run(tmp_path):
+    done = _synth(tmp_path, "--gait", "stand", "--seconds", "4", "--out", "stand.bvh")
+    assert done.returncode == 0, done.stderr
+    done = _synth(tmp_path, "--gait", "2", "--seconds", "4", "--out", "run.bvh")
+    assert done.returncode == 0, done.stderr
+    done = _synth(tmp_path, "--seconds", "4", "--out", "walk.bvh")
+    assert done.returncode == 0, done.stderr
+    fps = 30.0
+
+    def hips_speed(name: str) -> np.ndarray:
+        names, positions, _ = world_positions(tmp_path / name)
+        hips = positions[30:, names.index("Hips")]
+        return np.linalg.norm(np.diff(hips[:, [0, 2]], axis=0), axis=1) * fps
+
+    assert hips_speed("stand.bvh").mean() < 6.0  # cm/s: the standing takes' quiet stretches measure 0.6 to 6
+    assert hips_speed("run.bvh").mean() > 1.3 * hips_speed("walk.bvh").mean()
+
+
+def test_synth_refuses_an_unknown_gait_in_one_line(tmp_path):
+    done = _synth(tmp_path, "--gait", "hop", "--out", "x.bvh")
+    assert done.returncode != 0
+    assert done.stderr.strip().count("\n") == 0 and "--gait" in done.stderr and "hop" in done.stderr
+    assert not (tmp_path / "x.bvh").exists()
