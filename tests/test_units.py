@@ -219,3 +219,24 @@ def test_synth_refuses_an_unknown_gait_in_one_line(tmp_path):
     assert done.returncode != 0
     assert done.stderr.strip().count("\n") == 0 and "--gait" in done.stderr and "hop" in done.stderr
     assert not (tmp_path / "x.bvh").exists()
+
+
+def test_a_score_that_stops_stands_and_runs_renders_with_run_fast_bvh(tmp_path):
+    """The offline way to a sequence: a score's cues set the gait, `run --fast --bvh` records it."""
+    (tmp_path / "piece.toml").write_text(
+        "[[cue]]\nat = 3\nramp = { gait = 0 }\n\n[[cue]]\nat = 7\nramp = { gait = 2 }\n")
+    done = subprocess.run([sys.executable, "-m", "instrument", "run", "--score", "piece.toml", "--fast", "--no-osc",
+                           "--quiet", "--seconds", "11", "--bvh", "piece.bvh"], capture_output=True, text=True,
+                          cwd=tmp_path, timeout=900)
+    assert done.returncode == 0, done.stderr
+    names, positions, fps = world_positions(tmp_path / "piece.bvh")
+    hips = positions[:, names.index("Hips")][:, [0, 2]]
+
+    def speed(start: float, stop: float) -> float:  # cm/s over the floor between two times
+        a, b = int(start * fps), int(stop * fps)
+        return float(np.linalg.norm(np.diff(hips[a:b], axis=0), axis=1).mean() * fps)
+
+    walking, standing, running = speed(1, 3), speed(4.5, 7), speed(9, 11)
+    assert walking > 60.0
+    assert standing < 6.0  # stopped within a second and a half of the cue, and still
+    assert running > 1.3 * walking

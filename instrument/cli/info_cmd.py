@@ -25,6 +25,7 @@ def summary(path: str) -> dict:
         "file": str(path),
         "styles": model.style_names,
         "labels": model.labels,
+        "units": model.units,
         "states": model.states,
         "fps": model.fps,
         "static_dimension": layout.dimension,
@@ -33,9 +34,9 @@ def summary(path: str) -> dict:
         "modelled_joints": len(layout.joints),
         "mean_step_frames": meta.get("mean_step_frames", {}),
         "model_step_frames": {
-            name: float(model.style(name).duration_means.sum(axis=1).mean()) for name in model.style_names
-        } | {"(average)": float(model.average.duration_means.sum(axis=1).mean())},
-        "shortest_state_frames": {name: float(model.style(name).duration_means.min()) for name in model.style_names},
+            name: float(model.style(name).duration_means[:2].sum(axis=1).mean()) for name in model.style_names
+        } | {"(average)": float(model.average.duration_means[:2].sum(axis=1).mean())},
+        "shortest_state_frames": {name: float(model.style(name).duration_means[:2].min()) for name in model.style_names},  # the walk's
         "takes": len(meta.get("data", [])),
         "frames": sum(d["frames"] for d in meta.get("data", [])),
         "licence": meta.get("licence", ""),
@@ -51,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(info["file"])
     print(f"  styles     {', '.join(info['styles'])}")
+    print(f"  units      {', '.join(info['units'])} (gaits without a unit of their own play the walk)")
     print(f"  labels     {', '.join(info['labels'])}; {info['states']} states each; {info['fps']:g} fps")
     print(f"  features   {info['static_dimension']} static ({info['modelled_joints']} of {info['joints']} joints), "
           f"{info['observation_dimension']} with deltas")

@@ -25,6 +25,7 @@ from ..synthesis.parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING, GAITS
 from ..control.values import all_values
 from ..synthesis.footfalls import Footfalls
 from ..synthesis.posing import Frame
+from ..synthesis.stream import gait_index
 from .clock import IDLE_UNTIL, FrameClock
 from ..terminal import Console
 from .stopping import StopFlag
@@ -277,5 +278,6 @@ def _count(console: Console, counts: dict[str, int], key: str, error: Exception)
 
 def _status(index: int, fps: float, clock: FrameClock, state: ControlState, sources: str) -> str:
     weights = " ".join(f"{n[:4]} {w:+.2f}" for n, w in zip(state.style_names, state.weights) if w != 0.0) or "average"
-    return (f"frame {index:7d}  {fps:g} fps  late {clock.late}  speed {state.speed:.2f}  turn {state.turn:+.2f}  "
+    return (f"frame {index:7d}  {fps:g} fps  late {clock.late}  {GAITS[gait_index(state.gait)]}  speed {state.speed:.2f}  "
+            f"turn {state.turn:+.2f}  "
             f"{weights}" + (f"  | {sources}" if sources else ""))

@@ -60,9 +60,14 @@ class UnitChooser:
         self.step_label = np.full(count, -1)  # the label of the step under way at the last frame
         self.states = states
         self.added_yaw = np.zeros(count)  # rad/s the drive adds to each character's frame
+        self._settled: tuple[int, float] | None = None  # (gait, turn) that left nothing to do frame by frame
 
     def __call__(self, gait: int, turn: float, stream: Crowd) -> None:
-        """Set every character's coming unit for this frame's controls (before the stream's step)."""
+        """Set every character's coming unit for this frame's controls (before the stream's step).
+        Once every character walks the gait's unit with no turning steps to choose, the same
+        controls leave everything as it is: the stage costs nothing frame by frame."""
+        if self._settled == (gait, turn):
+            return
         counters = stream.counters
         unit = self.gait_units[gait]
         started = (counters[:, LABEL] != self.step_label) & (counters[:, STATE] == 0)
@@ -89,3 +94,4 @@ class UnitChooser:
         current = counters[:, LABEL] // 2
         rest = turn - side * share * self.turn_rates.get(side, 0.0)  # what turning steps do not give
         self.added_yaw[:] = np.where(current == self.stand, 0.0, rest)
+        self._settled = (gait, turn) if share == 0.0 and stream.sent > 0 and (current == unit).all() else None
