@@ -100,6 +100,60 @@ def test_nanokontrol2_faders_over_jack_with_pickup_and_exact_replay(jack, tmp_pa
     assert filecmp.cmp(live_bvh, replay_bvh, shallow=False)
 
 
+def gait_sequence(receiver: Receiver) -> list[float]:
+    """The echoed /walk/gait values in the order they came, each change once."""
+    out: list[float] = []
+    for address, params in receiver.messages():
+        if address == "/walk/gait" and (not out or out[-1] != params[0]):
+            out.append(params[0])
+    return out
+
+
+# the shipped buttons that set the gait (mode "set"): the message a press sends, for stand, walk, run
+GAIT_BUTTONS = {
+    "korg-nanokontrol2": lambda number, on: mido.Message("control_change", control=number, value=127 if on else 0),
+    "akai-midimix": lambda number, on: mido.Message("note_on", note=number, velocity=127 if on else 0),
+}
+GAIT_NUMBERS = {"korg-nanokontrol2": (43, 41, 44), "akai-midimix": (3, 6, 9)}  # REW PLAY FF; REC ARM 1-3
+
+
+@pytest.mark.parametrize("name", sorted(GAIT_BUTTONS))
+def test_the_gait_buttons_of_a_shipped_mapping_over_jack_reach_the_echo_and_replay(jack, tmp_path, name):
+    """Pressing a shipped mapping's run, stand and walk buttons through real JACK MIDI sets the
+    gait the flat stream echoes (/walk/gait); the recorded raw events replay to the same gaits."""
+    receiver, replayed = Receiver(), Receiver()
+    log = tmp_path / "take.jsonl"
+    process = subprocess.Popen(RUN + ["--midi-virtual", "instr-gait", "--midi-api", "jack", "--mapping",
+                                      str(REPO / "mappings" / f"{name}.toml"), "--osc", f"127.0.0.1:{receiver.port}/flat",
+                                      "--seconds", "120", "--quiet", "--record", str(log), "--no-feedback"],
+                               stderr=subprocess.PIPE, text=True)
+    stand, walk, run = GAIT_NUMBERS[name]
+    try:
+        out = jack.open_output(wait_for_port(jack, "instr-gait"))
+        wait_until(lambda: last_frame(receiver) >= 15, "15 frames")
+        for number, gait in ((run, 2.0), (stand, 0.0), (walk, 1.0)):
+            out.send(GAIT_BUTTONS[name](number, True))
+            out.send(GAIT_BUTTONS[name](number, False))  # let go: the gait stays
+            wait_until(lambda: gait_sequence(receiver)[-1:] == [gait], f"/walk/gait {gait:g}")
+        now = last_frame(receiver)
+        wait_until(lambda: last_frame(receiver) >= now + 5, "5 more frames")
+        out.close()
+    finally:
+        process.terminate()  # a clean stop, like Ctrl-C: the log is closed whole
+        stderr = process.communicate(timeout=60)[1]
+        receiver.close()
+    assert process.returncode == 0, stderr
+    assert gait_sequence(receiver) == [1.0, 2.0, 0.0, 1.0]  # walking at the start, then run, stand, walk
+    try:
+        result = subprocess.run(RUN + ["--replay", str(log), "--osc", f"127.0.0.1:{replayed.port}/flat",  # in real time: no UDP lost
+                                       "--seconds", repr(last_frame(receiver) / 30), "--quiet"],
+                                capture_output=True, text=True, timeout=120)
+    finally:
+        replayed.close()
+    assert result.returncode == 0, result.stderr
+    assert gait_sequence(replayed) == [1.0, 2.0, 0.0, 1.0]
+
+
 def test_an_unplugged_midi_device_is_reported_and_reconnected(jack, tmp_path):
     device, receiver = jack.open_output("FakeKontrol", virtual=True), Receiver()
     process = subprocess.Popen(RUN + ["--midi", "FakeKontrol", "--midi-api", "jack", "--osc", f"127.0.0.1:{receiver.port}/flat",
