@@ -1,6 +1,7 @@
 """Controllers end to end: real MIDI through JACK, a simulated DualShock 4, OSC surfaces, show files."""
 
 import filecmp
+import json
 import subprocess
 import sys
 import time
@@ -253,6 +254,45 @@ def test_osc_surface_controls_and_presets(tmp_path):
     assert elderly[-1][1] == pytest.approx(1.5) and feminine[-1][1] == pytest.approx(2.0)
     speed = frames_and_echo(receiver, "/walk/speed")
     assert speed[-1][1] == pytest.approx(1.5)
+
+
+def test_an_osc_surface_sets_the_gait_by_number_or_by_name_and_a_bad_name_is_refused(tmp_path):
+    """`/walk/gait f 2` and `/walk/gait s "stand"` reach the echo; `s "sprint"` is refused by the one
+    check, warned about and counted, and the show goes on; the log holds the numbers and replays them."""
+    from pythonosc.udp_client import SimpleUDPClient
+
+    control_port, receiver, replayed = free_port(), Receiver(), Receiver()
+    log = tmp_path / "take.jsonl"
+    process = subprocess.Popen(RUN + ["--osc-in", str(control_port), "--osc", f"127.0.0.1:{receiver.port}/flat",
+                                      "--record", str(log)], stderr=subprocess.PIPE, text=True)
+    client = SimpleUDPClient("127.0.0.1", control_port)
+    try:
+        wait_until(lambda: last_frame(receiver) >= 20, "20 frames")
+        client.send_message("/walk/gait", 2.0)
+        wait_until(lambda: gait_sequence(receiver)[-1:] == [2.0], "run (2) echoed")
+        client.send_message("/walk/gait", "sprint")  # no such gait: refused, nothing changes
+        client.send_message("/walk/gait", "stand")
+        wait_until(lambda: gait_sequence(receiver)[-1:] == [0.0], "stand (0) echoed")
+        client.send_message("/walk/gait", "walk")
+        wait_until(lambda: gait_sequence(receiver)[-1:] == [1.0], "walk (1) echoed")
+    finally:
+        process.terminate()
+        stderr = process.communicate(timeout=60)[1]
+        receiver.close()
+    assert process.returncode == 0, stderr
+    assert gait_sequence(receiver) == [1.0, 2.0, 0.0, 1.0]
+    assert "gait: not a finite number or one of stand, walk, run, not 'sprint'" in stderr
+    assert "refused {'not a finite number': 1}" in stderr
+    recorded = [line for line in log.read_text().splitlines()[1:] if '"gait"' in line]
+    assert [json.loads(line)["value"] for line in recorded] == [2.0, 0.0, 1.0]  # names recorded as their numbers
+    try:
+        result = subprocess.run(RUN + ["--replay", str(log), "--osc", f"127.0.0.1:{replayed.port}/flat",
+                                       "--seconds", repr(last_frame(receiver) / 30), "--quiet"],
+                                capture_output=True, text=True, timeout=120)
+    finally:
+        replayed.close()
+    assert result.returncode == 0, result.stderr
+    assert gait_sequence(replayed) == [1.0, 2.0, 0.0, 1.0]
 
 
 def test_show_file_starts_the_whole_setup(tmp_path):
