@@ -71,6 +71,36 @@ function slider(parent, target, label, range, travel, marks) {
   controls.set(target, { row, input, box });
 }
 
+function choice(parent, target, label, names) {
+  // one button a named value (gait: stand, walk, run), pressed while the instrument's value is nearest it
+  const row = document.createElement("div");
+  row.className = "row choice";
+  row.dataset.target = target;
+  const name = document.createElement("label");
+  name.textContent = label;
+  name.title = target;
+  const buttons = document.createElement("div");
+  buttons.className = "choices";
+  buttons.setAttribute("role", "group");
+  buttons.setAttribute("aria-label", target);
+  names.forEach((text, k) => {
+    const button = document.createElement("button");
+    button.textContent = text;
+    button.dataset.value = k;
+    button.setAttribute("aria-pressed", "false");
+    button.addEventListener("click", () => setTarget(target, k));
+    buttons.append(button);
+  });
+  row.append(name, buttons);
+  parent.append(row);
+  const show = (value) => {
+    for (const button of buttons.children) {
+      button.setAttribute("aria-pressed", String(Math.floor(value + 0.5) === Number(button.dataset.value)));
+    }
+  };
+  controls.set(target, { row, show });
+}
+
 function zones(low, high) {
   // where inversion begins (below 0: absent), the style itself (1; inhibited between) and exaggeration
   const where = (v) => ((v - low) / (high - low)) * 100 + "%";
@@ -114,7 +144,8 @@ function build(message) {
         div.textContent = title;
         $(row.section).append(div);
       }
-      slider($(row.section), target, label, row.range, row.travel, row.kind === "style");
+      if (row.choices && row.choices.length) choice($(row.section), target, label, row.choices);
+      else slider($(row.section), target, label, row.range, row.travel, row.kind === "style");
       controls.get(target).row.title = row.help;
     }
   }
@@ -140,7 +171,7 @@ function showPresets(names) {
 
 function onFrame(message) {
   latest = message;
-  for (const [target, { row, input, box }] of controls) {
+  for (const [target, { row, input, box, show }] of controls) {
     let value = message.v[target];
     const follows = value === null;  // a part weight following its style
     if (follows) value = message.v["style/" + target.split("/")[1]];
@@ -151,6 +182,7 @@ function onFrame(message) {
       if (Math.abs(value - mine.value) > 1e-4 && performance.now() < mine.until) continue;
       sent.delete(target);
     }
+    if (show) { show(value); continue; }  // buttons of named values
     if (Number(input.value) !== value) input.value = value;
     if (document.activeElement !== box) box.value = fmt(value);
   }
