@@ -110,6 +110,18 @@ def gait_sequence(receiver: Receiver) -> list[float]:
     return out
 
 
+def replayed_gaits(log, seconds: float) -> list[float]:
+    """`gait_sequence` of a log replayed in real time (no UDP lost) to the flat profile."""
+    replayed = Receiver()
+    try:
+        result = subprocess.run(RUN + ["--replay", str(log), "--osc", f"127.0.0.1:{replayed.port}/flat",
+                                       "--seconds", repr(seconds), "--quiet"], capture_output=True, text=True, timeout=120)
+    finally:
+        replayed.close()
+    assert result.returncode == 0, result.stderr
+    return gait_sequence(replayed)
+
+
 # the shipped buttons that set the gait (mode "set"): the message a press sends, for stand, walk, run
 GAIT_BUTTONS = {
     "korg-nanokontrol2": lambda number, on: mido.Message("control_change", control=number, value=127 if on else 0),
@@ -122,7 +134,7 @@ GAIT_NUMBERS = {"korg-nanokontrol2": (43, 41, 44), "akai-midimix": (3, 6, 9)}  #
 def test_the_gait_buttons_of_a_shipped_mapping_over_jack_reach_the_echo_and_replay(jack, tmp_path, name):
     """Pressing a shipped mapping's run, stand and walk buttons through real JACK MIDI sets the
     gait the flat stream echoes (/walk/gait); the recorded raw events replay to the same gaits."""
-    receiver, replayed = Receiver(), Receiver()
+    receiver = Receiver()
     log = tmp_path / "take.jsonl"
     process = subprocess.Popen(RUN + ["--midi-virtual", "instr-gait", "--midi-api", "jack", "--mapping",
                                       str(REPO / "mappings" / f"{name}.toml"), "--osc", f"127.0.0.1:{receiver.port}/flat",
@@ -145,14 +157,7 @@ def test_the_gait_buttons_of_a_shipped_mapping_over_jack_reach_the_echo_and_repl
         receiver.close()
     assert process.returncode == 0, stderr
     assert gait_sequence(receiver) == [1.0, 2.0, 0.0, 1.0]  # walking at the start, then run, stand, walk
-    try:
-        result = subprocess.run(RUN + ["--replay", str(log), "--osc", f"127.0.0.1:{replayed.port}/flat",  # in real time: no UDP lost
-                                       "--seconds", repr(last_frame(receiver) / 30), "--quiet"],
-                                capture_output=True, text=True, timeout=120)
-    finally:
-        replayed.close()
-    assert result.returncode == 0, result.stderr
-    assert gait_sequence(replayed) == [1.0, 2.0, 0.0, 1.0]
+    assert replayed_gaits(log, last_frame(receiver) / 30) == [1.0, 2.0, 0.0, 1.0]
 
 
 def test_an_unplugged_midi_device_is_reported_and_reconnected(jack, tmp_path):
@@ -261,7 +266,7 @@ def test_an_osc_surface_sets_the_gait_by_number_or_by_name_and_a_bad_name_is_ref
     check, warned about and counted, and the show goes on; the log holds the numbers and replays them."""
     from pythonosc.udp_client import SimpleUDPClient
 
-    control_port, receiver, replayed = free_port(), Receiver(), Receiver()
+    control_port, receiver = free_port(), Receiver()
     log = tmp_path / "take.jsonl"
     process = subprocess.Popen(RUN + ["--osc-in", str(control_port), "--osc", f"127.0.0.1:{receiver.port}/flat",
                                       "--record", str(log)], stderr=subprocess.PIPE, text=True)
@@ -285,14 +290,7 @@ def test_an_osc_surface_sets_the_gait_by_number_or_by_name_and_a_bad_name_is_ref
     assert "refused {'not a finite number': 1}" in stderr
     recorded = [line for line in log.read_text().splitlines()[1:] if '"gait"' in line]
     assert [json.loads(line)["value"] for line in recorded] == [2.0, 0.0, 1.0]  # names recorded as their numbers
-    try:
-        result = subprocess.run(RUN + ["--replay", str(log), "--osc", f"127.0.0.1:{replayed.port}/flat",
-                                       "--seconds", repr(last_frame(receiver) / 30), "--quiet"],
-                                capture_output=True, text=True, timeout=120)
-    finally:
-        replayed.close()
-    assert result.returncode == 0, result.stderr
-    assert gait_sequence(replayed) == [1.0, 2.0, 0.0, 1.0]
+    assert replayed_gaits(log, last_frame(receiver) / 30) == [1.0, 2.0, 0.0, 1.0]
 
 
 def test_show_file_starts_the_whole_setup(tmp_path):

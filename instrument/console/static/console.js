@@ -45,14 +45,20 @@ const fmt = (value) => (value === null || value === undefined ? "–" : Number(v
 
 // ---- the mixer ---------------------------------------------------------------------------
 
-function slider(parent, target, label, range, travel, marks) {
-  const [low, high] = travel || range;
+function labelled(target, label, kind) {
+  // a mixer row for `target`, its label first: [row, label]
   const row = document.createElement("div");
-  row.className = "row";
+  row.className = kind ? "row " + kind : "row";
   row.dataset.target = target;
   const name = document.createElement("label");
   name.textContent = label;
   name.title = target;
+  return [row, name];
+}
+
+function slider(parent, target, label, range, travel, marks) {
+  const [low, high] = travel || range;
+  const [row, name] = labelled(target, label);
   const track = document.createElement("div");
   track.className = "track";
   const input = document.createElement("input");
@@ -73,12 +79,7 @@ function slider(parent, target, label, range, travel, marks) {
 
 function choice(parent, target, label, names) {
   // one button a named value (gait: stand, walk, run), pressed while the instrument's value is nearest it
-  const row = document.createElement("div");
-  row.className = "row choice";
-  row.dataset.target = target;
-  const name = document.createElement("label");
-  name.textContent = label;
-  name.title = target;
+  const [row, name] = labelled(target, label, "choice");
   const buttons = document.createElement("div");
   buttons.className = "choices";
   buttons.setAttribute("role", "group");
