@@ -585,10 +585,12 @@ def test_a_made_up_joystick_is_learnable(model, tmp_path, monkeypatch, capsys):
     moves = {  # what the performer does after each answer: nothing yet when asked (None), then the move
         "turn": [None, rest] + [joystick_report(slider=s) for s in (0, 40, 90, 127, 60, 0, -60, -127, -20, 0)],
         "style/elderly": [None, joystick_report(buttons=1 << 4), rest],
+        "gait=run": [None, joystick_report(hat=0), rest],  # the hat's up: a button that sets the gait
+        "gait=stand": [None, rest] + [joystick_report(slider=s) for s in (0, 90, 127, 0)],  # an axis: not a button, skipped
     }
 
     class Performer(io.StringIO):
-        answers: ClassVar[list[str]] = ["turn", "style/elderly", ""]
+        answers: ClassVar[list[str]] = ["turn", "style/elderly", "gait=run", "gait=stand", ""]
 
         def readline(self):
             answer = self.answers.pop(0)
@@ -601,6 +603,7 @@ def test_a_made_up_joystick_is_learnable(model, tmp_path, monkeypatch, capsys):
                                    hid="16C0:05DC", timeout=10.0)) == 0
     said = capsys.readouterr().out
     assert "learned HID Slider (axis) -> turn" in said and "learned HID Button 5 (button) -> style/elderly" in said
+    assert "learned HID Hat/up (button) -> gait=run" in said and "gait=stand is a button" in said
     state = state_of(model)
     mapping = load_mapping(out, state)  # a valid mapping file
     assert mapping.hid == ((0x16C0, 0x05DC),)
@@ -611,6 +614,11 @@ def test_a_made_up_joystick_is_learnable(model, tmp_path, monkeypatch, capsys):
     for event in device.poll(0.0):
         hub.apply(state, event)
     assert state.turn == pytest.approx(1.0) and state.get("style/elderly") == 1.0  # a button: 1 while held
+    assert len(mapping.controls) == 3 and state.gait == 1.0
+    stick.send(joystick_report(hat=0), rest)  # up pressed and let go: the gait learned for it stays
+    for event in device.poll(1.0):
+        hub.apply(state, event)
+    assert state.gait == 2.0
 
 
 def test_instrument_devices_lists_each_hid_devices_controls_by_usage(monkeypatch, capsys):
