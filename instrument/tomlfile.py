@@ -222,7 +222,7 @@ class Field:
     schema is a dict of key -> Field; `TomlFile.check` reads a table against it. (Control
     targets are checked by their rows instead: control/presetfile.py.)"""
 
-    kind: str  # "number" (real), "whole", "bool", "string", "choice", "list", "table"
+    kind: str  # "number" (real), "whole", "bool", "string", "choice", "list", "table", "value" (a number or a name)
     low: float | None = None
     high: float | None = None
     above_low: bool = False  # low itself refused (> low)
@@ -242,7 +242,8 @@ class Field:
             if low is not None:
                 return f"{text} above {low}" if self.above_low else f"{text}, {low} or more"
             return text
-        return {"bool": "true or false", "string": "a string", "list": "a list", "table": "a table"}.get(
+        return {"bool": "true or false", "string": "a string", "list": "a list", "table": "a table",
+                "value": "a number or a name"}.get(
             self.kind, f"one of {', '.join(self.choices)}")
 
     def problem(self, value: object) -> str | None:
@@ -251,6 +252,8 @@ class Field:
             return None if value in self.choices else f"{quoted(value)} is not one of {', '.join(self.choices)}"
         fits = {"bool": lambda: isinstance(value, bool), "string": lambda: isinstance(value, str),
                 "list": lambda: isinstance(value, list), "table": lambda: isinstance(value, dict),
+                "value": lambda: isinstance(value, str) or (isinstance(value, (int, float)) and not isinstance(value, bool)
+                                                            and math.isfinite(value)),  # the target's row checks it
                 "whole": lambda: isinstance(value, int) and not isinstance(value, bool) and self._inside(value),
                 "number": lambda: isinstance(value, (int, float)) and not isinstance(value, bool)
                 and math.isfinite(value) and self._inside(value)}[self.kind]

@@ -458,6 +458,31 @@ def test_part_weight_phase_stretch_and_liveliness_sliders_reach_the_walk(browser
     until(lambda: stream.last("/walk/liveliness") == pytest.approx(wanted, abs=1e-6), what="the liveliness in OSC")
 
 
+def pressed(driver, target: str) -> list[str]:
+    """The names of the buttons of a target with named values that the page shows pressed."""
+    return driver.execute_script(f"return [...document.querySelectorAll('[data-target=\"{target}\"] button')]"
+                                 ".filter((b) => b.getAttribute('aria-pressed') === 'true').map((b) => b.textContent)")
+
+
+@needs_browser
+def test_the_gait_buttons_set_the_gait_and_light_what_the_instrument_echoes(browser, mixer):
+    """stand / walk / run: a click reaches /walk/gait; the lit button is the instrument's value, so
+    another page's change (by name, over its own WebSocket) and a reset light theirs."""
+    show, stream = mixer
+    fresh_page(browser, show, stream)
+    gait = lambda: browser.find_elements("css selector", '[data-target="gait"] button')  # noqa: E731
+    assert [b.text for b in gait()] == ["stand", "walk", "run"]
+    until(lambda: stream.last("/walk/gait") == 1.0 and pressed(browser, "gait") == ["walk"], what="walk at the start")
+    gait()[2].click()
+    until(lambda: stream.last("/walk/gait") == 2.0, what="run in the OSC stream")
+    until(lambda: pressed(browser, "gait") == ["run"], what="run lit")
+    asyncio.run(talk(show.url, [json.dumps({"set": "gait", "value": "stand"})]))  # another page, by name
+    until(lambda: stream.last("/walk/gait") == 0.0, what="stand in the OSC stream")
+    until(lambda: pressed(browser, "gait") == ["stand"], what="stand lit by another page's change")
+    browser.find_element("id", "reset").click()
+    until(lambda: stream.last("/walk/gait") == 1.0 and pressed(browser, "gait") == ["walk"], what="walk after a reset")
+
+
 @needs_browser
 def test_the_arrow_keys_steer_while_held(browser, mixer):
     from selenium.webdriver.common.action_chains import ActionChains

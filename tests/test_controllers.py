@@ -1,6 +1,7 @@
 """Controllers end to end: real MIDI through JACK, a simulated DualShock 4, OSC surfaces, show files."""
 
 import filecmp
+import json
 import subprocess
 import sys
 import time
@@ -98,6 +99,65 @@ def test_nanokontrol2_faders_over_jack_with_pickup_and_exact_replay(jack, tmp_pa
                                    "--bvh", str(replay_bvh), "--quiet"], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert filecmp.cmp(live_bvh, replay_bvh, shallow=False)
+
+
+def gait_sequence(receiver: Receiver) -> list[float]:
+    """The echoed /walk/gait values in the order they came, each change once."""
+    out: list[float] = []
+    for address, params in receiver.messages():
+        if address == "/walk/gait" and (not out or out[-1] != params[0]):
+            out.append(params[0])
+    return out
+
+
+def replayed_gaits(log, seconds: float) -> list[float]:
+    """`gait_sequence` of a log replayed in real time (no UDP lost) to the flat profile."""
+    replayed = Receiver()
+    try:
+        result = subprocess.run(RUN + ["--replay", str(log), "--osc", f"127.0.0.1:{replayed.port}/flat",
+                                       "--seconds", repr(seconds), "--quiet"], capture_output=True, text=True, timeout=120)
+    finally:
+        replayed.close()
+    assert result.returncode == 0, result.stderr
+    return gait_sequence(replayed)
+
+
+# the shipped buttons that set the gait (mode "set"): the message a press sends, for stand, walk, run
+GAIT_BUTTONS = {
+    "korg-nanokontrol2": lambda number, on: mido.Message("control_change", control=number, value=127 if on else 0),
+    "akai-midimix": lambda number, on: mido.Message("note_on", note=number, velocity=127 if on else 0),
+}
+GAIT_NUMBERS = {"korg-nanokontrol2": (43, 41, 44), "akai-midimix": (3, 6, 9)}  # REW PLAY FF; REC ARM 1-3
+
+
+@pytest.mark.parametrize("name", sorted(GAIT_BUTTONS))
+def test_the_gait_buttons_of_a_shipped_mapping_over_jack_reach_the_echo_and_replay(jack, tmp_path, name):
+    """Pressing a shipped mapping's run, stand and walk buttons through real JACK MIDI sets the
+    gait the flat stream echoes (/walk/gait); the recorded raw events replay to the same gaits."""
+    receiver = Receiver()
+    log = tmp_path / "take.jsonl"
+    process = subprocess.Popen(RUN + ["--midi-virtual", "instr-gait", "--midi-api", "jack", "--mapping",
+                                      str(REPO / "mappings" / f"{name}.toml"), "--osc", f"127.0.0.1:{receiver.port}/flat",
+                                      "--seconds", "120", "--quiet", "--record", str(log), "--no-feedback"],
+                               stderr=subprocess.PIPE, text=True)
+    stand, walk, run = GAIT_NUMBERS[name]
+    try:
+        out = jack.open_output(wait_for_port(jack, "instr-gait"))
+        wait_until(lambda: last_frame(receiver) >= 15, "15 frames")
+        for number, gait in ((run, 2.0), (stand, 0.0), (walk, 1.0)):
+            out.send(GAIT_BUTTONS[name](number, True))
+            out.send(GAIT_BUTTONS[name](number, False))  # let go: the gait stays
+            wait_until(lambda: gait_sequence(receiver)[-1:] == [gait], f"/walk/gait {gait:g}")
+        now = last_frame(receiver)
+        wait_until(lambda: last_frame(receiver) >= now + 5, "5 more frames")
+        out.close()
+    finally:
+        process.terminate()  # a clean stop, like Ctrl-C: the log is closed whole
+        stderr = process.communicate(timeout=60)[1]
+        receiver.close()
+    assert process.returncode == 0, stderr
+    assert gait_sequence(receiver) == [1.0, 2.0, 0.0, 1.0]  # walking at the start, then run, stand, walk
+    assert replayed_gaits(log, last_frame(receiver) / 30) == [1.0, 2.0, 0.0, 1.0]
 
 
 def test_an_unplugged_midi_device_is_reported_and_reconnected(jack, tmp_path):
@@ -199,6 +259,38 @@ def test_osc_surface_controls_and_presets(tmp_path):
     assert elderly[-1][1] == pytest.approx(1.5) and feminine[-1][1] == pytest.approx(2.0)
     speed = frames_and_echo(receiver, "/walk/speed")
     assert speed[-1][1] == pytest.approx(1.5)
+
+
+def test_an_osc_surface_sets_the_gait_by_number_or_by_name_and_a_bad_name_is_refused(tmp_path):
+    """`/walk/gait f 2` and `/walk/gait s "stand"` reach the echo; `s "sprint"` is refused by the one
+    check, warned about and counted, and the show goes on; the log holds the numbers and replays them."""
+    from pythonosc.udp_client import SimpleUDPClient
+
+    control_port, receiver = free_port(), Receiver()
+    log = tmp_path / "take.jsonl"
+    process = subprocess.Popen(RUN + ["--osc-in", str(control_port), "--osc", f"127.0.0.1:{receiver.port}/flat",
+                                      "--record", str(log)], stderr=subprocess.PIPE, text=True)
+    client = SimpleUDPClient("127.0.0.1", control_port)
+    try:
+        wait_until(lambda: last_frame(receiver) >= 20, "20 frames")
+        client.send_message("/walk/gait", 2.0)
+        wait_until(lambda: gait_sequence(receiver)[-1:] == [2.0], "run (2) echoed")
+        client.send_message("/walk/gait", "sprint")  # no such gait: refused, nothing changes
+        client.send_message("/walk/gait", "stand")
+        wait_until(lambda: gait_sequence(receiver)[-1:] == [0.0], "stand (0) echoed")
+        client.send_message("/walk/gait", "walk")
+        wait_until(lambda: gait_sequence(receiver)[-1:] == [1.0], "walk (1) echoed")
+    finally:
+        process.terminate()
+        stderr = process.communicate(timeout=60)[1]
+        receiver.close()
+    assert process.returncode == 0, stderr
+    assert gait_sequence(receiver) == [1.0, 2.0, 0.0, 1.0]
+    assert "gait: not a finite number or one of stand, walk, run, not 'sprint'" in stderr
+    assert "refused {'not a finite number': 1}" in stderr
+    recorded = [line for line in log.read_text().splitlines()[1:] if '"gait"' in line]
+    assert [json.loads(line)["value"] for line in recorded] == [2.0, 0.0, 1.0]  # names recorded as their numbers
+    assert replayed_gaits(log, last_frame(receiver) / 30) == [1.0, 2.0, 0.0, 1.0]
 
 
 def test_show_file_starts_the_whole_setup(tmp_path):

@@ -293,6 +293,48 @@ def test_every_shipped_hid_mapping_drives_the_walk(model, name, descriptor, ids,
     assert watch.seen[20] == pytest.approx(value)
 
 
+class EchoWatch(Watch):
+    """Records what the frame echoes to control surfaces (/walk/<target> on the wire), not the state."""
+
+    def prepare(self, frame):
+        self.seen[frame.index] = frame.echo[self.target]
+        return frame.index
+
+    def send(self, index):
+        self.script.get(index, lambda: None)()
+
+
+# each pad's d-pad as its reports carry it: (up, right, down, released), from the published layouts
+DPADS = [
+    ("sony-dualshock4", DUALSHOCK4_USB, (0x054C, 0x05C4), lambda hat: ds4_report(hat=hat), (0, 2, 4, 8)),
+    ("sony-dualshock4", DUALSENSE_USB, (0x054C, 0x0CE6), lambda hat: dualsense_report(hat=hat), (0, 2, 4, 8)),
+    ("xbox-wireless-bluetooth", XBOX_WIRELESS_BT, (0x045E, 0x0B13), lambda hat: xbox_report(hat=hat), (1, 3, 5, 0)),
+    ("nintendo-switch-pro", SWITCH_PRO_BT, (0x057E, 0x2009), lambda hat: switch_pro_report(hat=hat), (0, 2, 4, 8)),
+    ("generic-gamepad", MADE_UP_JOYSTICK, (0x16C0, 0x05DC), lambda hat: joystick_report(hat=hat), (0, 1, 2, 4)),
+]
+
+
+@pytest.mark.parametrize("name,descriptor,ids,report,hats", DPADS, ids=[f"{d[0]}-{d[2][0]:04x}" for d in DPADS])
+def test_the_dpad_of_every_shipped_pad_sets_the_gait_and_a_release_keeps_it(model, name, descriptor, ids, report, hats):
+    """Up runs, down stands, right walks (mode "set"): the value stays when the pad is let go, and
+    the frame's echo (what /walk/gait carries) follows."""
+    up, right, down, released = hats
+    sim = SimulatedDevice(descriptor, *ids)
+    hid = SimulatedHid(sim)
+    state = state_of(model)
+    mapping, why = choose_mapping([load_mapping(p, state) for p in shipped_mappings()], *ids, hid=hid)
+    assert mapping.path.endswith(f"{name}.toml"), why
+    console = Console(stream=io.StringIO())
+    device = HidInput(console, *ids, hid=hid)
+    press = lambda hat: lambda: sim.send(report(hat), report(released))  # noqa: E731 (pressed and let go)
+    watch = EchoWatch(state, "gait", {5: press(up), 15: press(down), 25: press(right)})
+    hub = ControlHub([mapping], console=console)
+    perform(Show(model, [watch], fps=30, seconds=35 / 30, apply=hub.apply, state=state, sources=[device.poll]), console)
+    gait = watch.seen
+    assert gait[5] == 1.0  # walking, as every show starts
+    assert gait[12] == 2.0 and gait[22] == 0.0 and gait[32] == 1.0  # run, stand, walk: each kept after the release
+
+
 def test_spacemouse_push_and_tilt_move_the_style_blend_and_a_button_recalls_a_preset(model):
     sim = SimulatedDevice(SPACENAVIGATOR_USB, 0x046D, 0xC626, usage=(1, 8))
     state = state_of(model)
@@ -543,10 +585,12 @@ def test_a_made_up_joystick_is_learnable(model, tmp_path, monkeypatch, capsys):
     moves = {  # what the performer does after each answer: nothing yet when asked (None), then the move
         "turn": [None, rest] + [joystick_report(slider=s) for s in (0, 40, 90, 127, 60, 0, -60, -127, -20, 0)],
         "style/elderly": [None, joystick_report(buttons=1 << 4), rest],
+        "gait=run": [None, joystick_report(hat=0), rest],  # the hat's up: a button that sets the gait
+        "gait=stand": [None, rest] + [joystick_report(slider=s) for s in (0, 90, 127, 0)],  # an axis: not a button, skipped
     }
 
     class Performer(io.StringIO):
-        answers: ClassVar[list[str]] = ["turn", "style/elderly", ""]
+        answers: ClassVar[list[str]] = ["turn", "style/elderly", "gait=run", "gait=stand", ""]
 
         def readline(self):
             answer = self.answers.pop(0)
@@ -559,6 +603,7 @@ def test_a_made_up_joystick_is_learnable(model, tmp_path, monkeypatch, capsys):
                                    hid="16C0:05DC", timeout=10.0)) == 0
     said = capsys.readouterr().out
     assert "learned HID Slider (axis) -> turn" in said and "learned HID Button 5 (button) -> style/elderly" in said
+    assert "learned HID Hat/up (button) -> gait=run" in said and "gait=stand is a button" in said
     state = state_of(model)
     mapping = load_mapping(out, state)  # a valid mapping file
     assert mapping.hid == ((0x16C0, 0x05DC),)
@@ -569,6 +614,11 @@ def test_a_made_up_joystick_is_learnable(model, tmp_path, monkeypatch, capsys):
     for event in device.poll(0.0):
         hub.apply(state, event)
     assert state.turn == pytest.approx(1.0) and state.get("style/elderly") == 1.0  # a button: 1 while held
+    assert len(mapping.controls) == 3 and state.gait == 1.0
+    stick.send(joystick_report(hat=0), rest)  # up pressed and let go: the gait learned for it stays
+    for event in device.poll(1.0):
+        hub.apply(state, event)
+    assert state.gait == 2.0
 
 
 def test_instrument_devices_lists_each_hid_devices_controls_by_usage(monkeypatch, capsys):

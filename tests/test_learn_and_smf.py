@@ -70,6 +70,11 @@ def test_learn_over_jack_writes_a_working_mapping(jack, tmp_path):
     answer("turn")
     encoder = [mido.Message("control_change", channel=3, control=20, value=v) for v in (1, 1, 2, 1, 127, 127, 126, 127)]
     assert "relative-twos" in send(encoder)
+    answer("gait")  # a fader: the gait's zones, the row's range
+    assert "cc channel 1 number 5 (absolute)" in send([mido.Message("control_change", control=5, value=v) for v in range(0, 128, 8)])
+    answer("gait=run")  # a button that sets one gait
+    assert "note channel 1 number 44" in send([mido.Message("note_on", note=44, velocity=100),
+                                                mido.Message("note_on", note=44, velocity=0)])
     process.stdin.write("\n")
     process.stdin.flush()
     assert process.wait(30) == 0, process.stderr.read()
@@ -82,6 +87,14 @@ def test_learn_over_jack_writes_a_working_mapping(jack, tmp_path):
     for _ in range(3):
         mapper.apply(state, ControlEvent(2, "midi:x", "cc/4/20", 1))
     assert state.turn == pytest.approx(0.03)
+    mapper.apply(state, ControlEvent(3, "midi:x", "note/1/44", 100))  # gait=run: pressed...
+    mapper.apply(state, ControlEvent(3, "midi:x", "note/1/44", 0))  # ...and let go: it stays
+    assert state.gait == 2.0
+    mapper.apply(state, ControlEvent(4, "midi:x", "cc/1/5", 127))  # the gait fader: pick-up learns where it is
+    mapper.apply(state, ControlEvent(5, "midi:x", "cc/1/5", 126))  # near run (2): taken, its top third runs
+    assert state.gait == pytest.approx(126 / 127 * 2)
+    mapper.apply(state, ControlEvent(5.01, "midi:x", "cc/1/5", 10))  # a fast sweep down to its bottom third: stand
+    assert state.snapshot().gait == 0
 
 
 def test_midi_logs_round_trip_through_a_standard_midi_file(tmp_path):

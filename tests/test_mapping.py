@@ -104,6 +104,34 @@ def test_buttons_toggle_and_momentary_and_pitch_bend(tmp_path):
     assert s.speed == pytest.approx(2.0)
 
 
+def test_a_button_in_mode_set_sets_its_fixed_value_and_its_release_keeps_it(tmp_path):
+    """Three buttons for the gait (a name or a number), a cc button for the speed: a press sets,
+    a release (velocity 0) changes nothing."""
+    m = mapper(tmp_path, '[[control]]\nmessage = "note"\nnumber = 3\nmode = "set"\ntarget = "gait"\nvalue = "stand"\n'
+                         '[[control]]\nmessage = "note"\nnumber = 6\nmode = "set"\ntarget = "gait"\nvalue = 1\n'
+                         '[[control]]\nmessage = "note"\nnumber = 9\nmode = "set"\ntarget = "gait"\nvalue = "run"\n'
+                         '[[control]]\nmessage = "cc"\nnumber = 41\nmode = "set"\ntarget = "speed"\nvalue = 1.5\n')
+    s = state()
+    assert s.gait == 1.0
+    for note, gait in ((9, 2.0), (3, 0.0), (6, 1.0), (9, 2.0)):
+        send(m, s, f"note/1/{note}", 100)
+        assert s.gait == gait
+        send(m, s, f"note/1/{note}", 0)  # let go
+        assert s.gait == gait
+    send(m, s, "cc/1/41", 127)
+    send(m, s, "cc/1/41", 0)
+    assert s.speed == 1.5
+
+
+def test_midi_feedback_lights_the_set_button_of_the_nearest_gait(tmp_path):
+    from instrument.control.feedback import raw_values
+
+    m = mapper(tmp_path, "".join(f'[[control]]\nmessage = "note"\nnumber = {n}\nmode = "set"\ntarget = "gait"\nvalue = {v}\n'
+                                 for n, v in ((3, 0), (6, 1), (9, 2))))
+    lit = lambda gait: [raw_values(c, gait)[0][2] for c in m.mapping.controls]  # noqa: E731
+    assert lit(2.0) == [0, 0, 127] and lit(0.0) == [127, 0, 0] and lit(1.4) == [0, 127, 0]
+
+
 def test_pickup_follows_mixxx(tmp_path):
     m = mapper(tmp_path, '[[control]]\nmessage = "cc"\nnumber = 0\ntarget = "style/elderly"\nrange = [-1.0, 2.0]\ntakeover = "pickup"\n')
     s = state()  # elderly is 0, which is fader position 127/3 = 42.3
@@ -209,6 +237,16 @@ def test_a_style_the_model_lacks_is_reported_not_fatal(tmp_path):
     ('[device]\nmidi = "x"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\nmode = "relative-twos"\nstep = -1\n',
      8, "step"),
     ('[device]\nmidi = "x"\n[[control]]\nmessage = "note"\nnumber = 1\ntarget = "preset/no such"\n', 6, "target"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "note"\nnumber = 1\nmode = "set"\ntarget = "gait"\nvalue = "sprint"\n',
+     8, "value"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "note"\nnumber = 1\nmode = "set"\ntarget = "gait"\nvalue = 3\n', 8, "value"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "note"\nnumber = 1\nmode = "set"\ntarget = "gait"\n', 3, "value"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "note"\nnumber = 1\ntarget = "gait"\nvalue = 2\n', 7, "value"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "pitchbend"\nmode = "set"\ntarget = "gait"\nvalue = 2\n', 5, "mode"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "note"\nnumber = 1\nmode = "set"\ntarget = "reset"\nvalue = 1\n', 6, "mode"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "note"\nnumber = 1\nmode = "set"\ntarget = "gait"\nvalue = 2\n'
+     'range = [0, 2]\n', 9, "range"),
+    ('[device]\nmidi = "x"\n[[control]]\nmessage = "note"\nnumber = 1\nmode = "set"\ntarget = "gait"\nvalue = true\n', 8, "value"),
 ])
 def test_mapping_errors_name_file_line_and_key(tmp_path, body, line, key):
     path = tmp_path / "bad.toml"

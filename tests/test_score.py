@@ -169,6 +169,37 @@ over = 0.9
     assert read_bvh(by_score).frames == 120
 
 
+def test_a_score_sets_the_gait_by_name_and_its_recorded_log_replays_it(model, tmp_path):
+    """Cues that run, stand and walk (by name and by number): `run --fast --bvh --record` records
+    them as numbers at their cues' frames, and the log replays the same gait frame by frame."""
+    from instrument.control.events import LogReplay, read_log
+    from instrument.control.hub import ControlHub
+
+    score = write(tmp_path, '[[cue]]\nat = 0.5\nramp = { gait = "run" }\n\n[[cue]]\nafter = 1\nramp = { gait = "stand" }\n\n'
+                            '[[cue]]\nafter = 1\nramp = { gait = 1 }\n')
+    log, out = tmp_path / "take.jsonl", tmp_path / "walk.bvh"
+    result = subprocess.run(RUN + ["--score", str(score), "--fast", "--no-osc", "--quiet", "--seconds", "4", "--record", str(log),
+                                   "--bvh", str(out)], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert read_bvh(out).frames == 120
+    recorded = [json.loads(line) for line in log.read_text().splitlines()[1:]]
+    assert [(e["control"], e["value"]) for e in recorded] == [("gait", 2.0), ("gait", 0.0), ("gait", 1.0)]
+    assert [e["t"] for e in recorded] == pytest.approx([0.5, 1.5, 2.5])
+
+    def gaits(make) -> list[float]:  # the state's gait each frame, the source's events applied as the live loop does
+        state, hub, seen = state_of(model), ControlHub([]), []
+        source = make(state)
+        for k in range(120):
+            for event in source.due(k / 30):
+                assert hub.apply(state, event)
+            seen.append(state.gait)
+        return seen
+
+    by_score = gaits(lambda state: ScorePlayer(load_score(score, state), state))
+    assert gaits(lambda state: LogReplay(read_log(log))) == by_score
+    assert by_score[14] == 1.0 and by_score[15] == 2.0 and by_score[45] == 0.0 and by_score[75] == 1.0
+
+
 def test_a_score_played_once_ends_a_fast_render(tmp_path):
     score = write(tmp_path, '[[cue]]\nat = 1\nramp = { speed = 1.5 }\nover = 1\n')
     out = tmp_path / "walk.bvh"

@@ -47,6 +47,8 @@ BAD = [
     ("part/elderly/tail", 1.0, UNKNOWN),
     ("sped", 1.0, UNKNOWN),
     ("turn", "left", NOT_A_NUMBER),
+    ("gait", "sprint", NOT_A_NUMBER),  # a name the row lacks (stand, walk, run)
+    ("gait", 3, OUT_OF_RANGE),
     ("speed", True, NOT_A_NUMBER),
     ("speed", math.nan, NOT_A_NUMBER),
     ("liveliness", math.inf, NOT_A_NUMBER),
@@ -202,7 +204,9 @@ def test_osc_over_udp_refuses_alike(state_of, target, value, kind):
     assert state.spread == 0.5, "the good message after the bad one never arrived"
     refused = {**hub.refused, **osc.refused}
     # a non-number the OSC reader cannot read as one is refused there (type tag), the rest by the one check
-    assert refused == ({"argument": 1} if kind == NOT_A_NUMBER and isinstance(value, (str, bool)) else {kind: 1}), refused
+    # (a string for a target with named values is read: a name it lacks gets the one check's verdict)
+    by_tag = isinstance(value, bool) or (isinstance(value, str) and not TABLE[target].choices)
+    assert refused == ({"argument": 1} if kind == NOT_A_NUMBER and by_tag else {kind: 1}), refused
     assert _same(all_values(state), {**before, "spread": 0.5})  # nothing but the good message changed anything
 
 
@@ -236,6 +240,25 @@ def test_the_console_page_refuses_alike(state_of, target, value, kind):
     with pytest.raises(Refused) as refused:
         parse(json.dumps({"set": target, "value": value}), frozenset(state.targets()))
     assert str(refused.value) == expected.text
+
+
+@pytest.mark.parametrize("value", ["run", 2, 2.0])
+def test_a_named_value_is_taken_for_its_number_by_every_file_and_the_page(tmp_path, state_of, value):
+    """gait = "run" is gait = 2 in a presets file, a show's, a mapping's and a score's [presets],
+    a score's ramp and a page's message (OSC: test_controllers.py)."""
+    state = state_of()
+    path = tmp_path / "mine.toml"
+    path.write_text(f'[presets.calm]\n{entry("gait", value)}\n')
+    assert read_presets_file(path, model_of(state)) == {"calm": {"gait": 2.0}}
+    path = tmp_path / "s.toml"
+    path.write_text(f'[presets.calm]\n{entry("gait", value)}\n\n[[cue]]\npreset = "calm"\n\n[[cue]]\n'
+                    f'ramp = {{ {entry("gait", value)} }}\n')
+    assert [cue.ramp for cue in load_score(path, state).cues] == [{"gait": 2.0}, {"gait": 2.0}]
+    path = tmp_path / "m.toml"
+    path.write_text(f'[device]\nmidi = "x"\n\n[presets.calm]\n{entry("gait", value)}\n')
+    assert load_mapping(path, state, strict_styles=True).presets == {"calm": {"gait": 2.0}}
+    assert parse(json.dumps({"set": "gait", "value": value}), frozenset(state.targets())) == ("event", "gait", 2.0)
+    assert state.set("gait", value) and state.gait == 2.0 and state.snapshot().gait == 2
 
 
 def test_a_presets_file_holds_presets_and_nothing_else(tmp_path, state_of):

@@ -66,6 +66,8 @@ def run(args: argparse.Namespace) -> int:
     model = load_model(args.model or default_model_path())
     targets = ControlState(model.style_names, model.states).targets()
     targets = [t for t in targets if not t.startswith("part/")] + [f"preset/{n}" for n in ("1", "2", "3", "4")]
+    # a target with named values (gait) on a fader (its zones, the row's range) or as one button a name
+    targets += [f"{t}={name}" for t in targets if "/" not in t for name in TABLE[t].choices]
     device = HidInput(Console(), *hid_ids) if hid_ids else MidiInput(Console(), args.midi, args.midi_virtual, args.midi_api)
     port = args.midi_virtual or args.midi
     blocks: list[str] = []
@@ -90,7 +92,12 @@ def run(args: argparse.Namespace) -> int:
                 print(f"learned HID {learned.input} ({'button' if learned.button else 'axis'}) -> {target}", flush=True)
             else:
                 print(f"learned {learned.message} channel {learned.channel} number {learned.number} ({learned.mode}) -> {target}", flush=True)
-            blocks.append(learned.toml(target, TABLE[target.split("/")[0]].fader))  # a learned fader's range: the row's
+            target, _, name = target.partition("=")
+            if name and not learned.button:
+                print(f"{target}={name} is a button (a press sets {name}); that was not one: skipped", flush=True)
+                continue
+            # a learned fader's range: the row's (gait's 0 to 2, its zones); a named value: a button that sets it
+            blocks.append(learned.toml(target, TABLE[target.split("/")[0]].fader, name or None))
     finally:
         device.close()
     if not blocks:

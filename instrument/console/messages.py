@@ -3,6 +3,7 @@
 A page sends JSON objects, one a WebSocket message:
 
     {"set": "style/elderly", "value": 1.2}   a target of the control state, inside its range
+    {"set": "gait", "value": "run"}          a target with named values: the name or its number
     {"preset": "calm"}                       recall a preset (over the morph time: the target "morph")
     {"store": "calm"}                        store the current values as preset "calm"
     {"save": true}                           write the presets to the preset file
@@ -47,7 +48,7 @@ def parse(text: str, targets: frozenset[str]) -> tuple[str, str, float]:
         why = value_refusal(row, target, value)
         if why is not None:
             raise Refused(why.text)
-        return "event", target, float(value)
+        return "event", target, float(row.number(value))  # gait's "run" as its 2
     if len(item) == 1 and ("preset" in item or "store" in item):
         kind, name = next(iter(item.items()))
         if not isinstance(name, str) or not PRESET_NAME.fullmatch(name):

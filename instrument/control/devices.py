@@ -16,8 +16,10 @@ from typing import Iterator
 from ..errors import UserError
 from ..terminal import Console
 from . import oscparse
+from .checks import value_refusal
 from .events import RawEvent, Source
 from .jackwatch import Remaker
+from .spec import TABLE, Row
 
 RETRY_SECONDS = 1.0
 POLL_BUDGET = 0.0005  # seconds a device's poll may spend decoding; the rest stays queued for the next
@@ -252,7 +254,9 @@ class MidiInput:
 
 class OscInput:
     """Control surfaces (TouchOSC, Open Stage Control) sending the flat profile's control
-    addresses: /walk/style/<name>, /walk/speed, /walk/turn, /walk/liveliness, /walk/preset/<name>."""
+    addresses: /walk/style/<name>, /walk/speed, /walk/gait, /walk/turn, /walk/liveliness,
+    /walk/preset/<name>. A number is the value; a target with named values (gait) also takes
+    the name as a string (`/walk/gait s "run"`)."""
 
     source = Source.of("osc")
 
@@ -302,11 +306,28 @@ class OscInput:
             return
         if not address.startswith("/walk/"):
             self._refuse("address", f"ignored OSC address {address[:60]!r} on {self.address}: controls are /walk/...")
+        elif tag == "s" and (row := TABLE.get(address[len("/walk/"):])) is not None and row.choices:
+            self._take_name(message, row, now, events)
         elif value is None:
             self._refuse("argument", f"ignored {address[:60]} on {self.address}: "
                          + (f"its argument (type {tag!r}) is not a number" if tag else "it has no argument (a number is needed)"))
         else:
             events.append(RawEvent(now, self.source, address[len("/walk/"):], value))
+
+    def _take_name(self, message: bytes, row: Row, now: float, events: list[RawEvent]) -> None:
+        """A named value (`/walk/gait s "run"`) as its number, so the event, the log and the echo
+        hold the number; a name the row lacks is refused by the one check's verdict."""
+        try:
+            name = oscparse.first_string(message)
+        except oscparse.Malformed as error:
+            self._refuse("malformed", f"ignored a malformed OSC message on {self.address} ({error})")
+            return
+        value = row.number(name)
+        why = value_refusal(row, row.kind, value)
+        if why is not None:
+            self._refuse(why.kind, f"ignored /walk/{row.kind} on {self.address}: {why.text}")
+        else:
+            events.append(RawEvent(now, self.source, row.kind, float(value)))
 
     def _refuse(self, kind: str, message: str) -> None:
         self.refused[kind] = self.refused.get(kind, 0) + 1

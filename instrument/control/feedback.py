@@ -1,6 +1,6 @@
 """MIDI feedback: LEDs, knob rings and motor faders follow the control state.
 
-After every frame, each absolute control of the mapping whose target changed (a preset recall,
+After every frame, each absolute control (and toggle and set button) of the mapping whose target changed (a preset recall,
 a morph, another controller, a reset) is sent its value back in its own message, so the
 surface shows where every parameter is; a control awaiting pick-up is told its parameter's
 value each time it is moved, so a motor fader goes there and an LED ring shows where to go.
@@ -16,11 +16,17 @@ from ..terminal import Console
 from .devices import midi_backend
 from .jackwatch import Remaker
 from .mapping import ControlSpec, Mapper
+from .spec import TABLE
 from .state import ControlState
 
 
 def raw_values(spec: ControlSpec, value: float) -> list[tuple[str, int, int]]:
-    """The (message type, number, value) a control would send to stand at `value`."""
+    """The (message type, number, value) a control would send to stand at `value`; a button in
+    mode "set" is lit while its target is nearest its value (gait 1.6 lights "run")."""
+    if spec.mode == "set":
+        named = bool(TABLE[spec.target.split("/")[0]].choices)  # a named value stands for the nearest whole one
+        lit = 127 if (math.floor(value + 0.5) if named else value) == spec.value else 0
+        return [("control_change" if spec.message == "cc" else "note_on", spec.number, lit)]
     low, high = spec.range
     unit = min(max((value - low) / (high - low), 0.0), 1.0)
     if spec.curve == "exp":
@@ -48,7 +54,7 @@ class MidiFeedback:
         mapping = mapper.mapping
         self.name = f"midi feedback {virtual or pattern}"
         self.controls = [c for c in mapping.controls
-                         if c.message in ("cc", "cc14", "pitchbend", "note") and c.mode in ("absolute", "toggle")
+                         if c.message in ("cc", "cc14", "pitchbend", "note") and c.mode in ("absolute", "toggle", "set")
                          and state.knows(c.target)]
         self.backend, self.pattern, self.virtual = midi_backend(api), pattern, virtual
         self.port = self._open_port()

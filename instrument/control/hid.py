@@ -509,8 +509,11 @@ class LearnedHid:
     button: bool
     centred: bool
 
-    def toml(self, target: str, value_range: tuple[float, float] | None) -> str:
+    def toml(self, target: str, value_range: tuple[float, float] | None, value: str | None = None) -> str:
+        """The [[control]] table; with `value`, a button that sets the target to it (gait=run)."""
         lines = ["[[control]]", 'message = "hid"', f'input = "{self.input}"']
+        if value is not None:
+            return "\n".join(lines + ['mode = "set"', f'target = "{target}"', f'value = "{value}"']) + "\n"
         if self.button:
             lines.append('mode = "momentary"')
         lines.append(f'target = "{target}"')

@@ -12,12 +12,20 @@ class Learned:
     number: int
     mode: str
 
-    def toml(self, target: str, value_range: tuple[float, float] | None) -> str:
+    @property
+    def button(self) -> bool:
+        """Whether it can be a button that sets a value (mode "set": control/mapping.py)."""
+        return self.message in ("note", "cc") and not self.mode.startswith("relative")
+
+    def toml(self, target: str, value_range: tuple[float, float] | None, value: str | None = None) -> str:
+        """The [[control]] table; with `value`, a button that sets the target to it (gait=run)."""
         lines = ["[[control]]", f'message = "{self.message}"']
         if self.channel != 1:
             lines.append(f"channel = {self.channel}")
         if self.message != "pitchbend":
             lines.append(f"number = {self.number}")
+        if value is not None:
+            return "\n".join(lines + ['mode = "set"', f'target = "{target}"', f'value = "{value}"']) + "\n"
         if self.mode != "absolute":
             lines.append(f'mode = "{self.mode}"')
         lines.append(f'target = "{target}"')

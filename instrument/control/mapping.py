@@ -4,7 +4,8 @@ A mapping is TOML (format in the README). Loading checks every key, and a mistak
 naming the file, the line and the key. At run time a `Mapper` turns raw events of its device
 into target values: it decodes 14-bit pairs, NRPN and relative encoders (stateful, so replaying
 the same raw events gives the same values), applies range, curve and deadzone, and soft
-takeover (none, pick-up, value scaling).
+takeover (none, pick-up, value scaling). A button in mode "set" sets its target to one fixed
+`value` when pressed (three buttons for gait's stand, walk and run).
 """
 
 from __future__ import annotations
@@ -22,13 +23,14 @@ from .hid import DS4_NAMES, canonical_input, is_usage_name, legacy_event, unit_w
 from .hid_feedback import FeedbackSpec, parse_feedback
 from .checks import between, is_number, row_of, unknown, value_refusal
 from .presetfile import model_of, read_presets
-from .spec import TABLE
+from .spec import TABLE, Row
 
 if TYPE_CHECKING:  # (numpy and the synthesis behind it: not needed to read a mapping)
     from .state import ControlState
 
 MESSAGES = ("cc", "cc14", "nrpn", "note", "pitchbend", "hid")
-MODES = ("absolute", "toggle", "momentary", "relative-twos", "relative-signed", "relative-signed2", "relative-offset")
+MODES = ("absolute", "toggle", "momentary", "set", "relative-twos", "relative-signed", "relative-signed2", "relative-offset")
+BUTTONS = ("note", "cc", "hid")  # messages a button sends (what mode "set" takes)
 TAKEOVERS = ("none", "pickup", "scale")
 CURVES = ("linear", "exp")
 PICKUP_THRESHOLD = 3.0 / 128.0  # of the target's range (Mixxx)
@@ -45,6 +47,7 @@ CONTROL = {
     "mode": Field("choice", choices=MODES), "range": Field("list"), "curve": Field("choice", choices=CURVES),
     "takeover": Field("choice", choices=TAKEOVERS), "step": Field("number", 0, above_low=True),
     "deadzone": Field("number", 0, 1, below_high=True), "invert": Field("bool"),
+    "value": Field("value"),  # mode "set": the value a press sets (a number, or a name: gait's "run")
 }
 
 
@@ -62,6 +65,7 @@ class ControlSpec:
     step: float = 0.01  # relative encoders: target units per tick
     deadzone: float = 0.0  # hid axes: share of the half-range around the centre that reads as centre
     invert: bool = False
+    value: float | None = None  # mode "set": what a press sets the target to
 
     @property
     def key(self) -> str:
@@ -161,11 +165,33 @@ def _control(doc: TomlFile, item: dict, index: int, fail, model: tuple) -> Contr
     if row is None or row.kind == "store":
         raise fail(unknown(target, model[0]).text if row is None else f"{target}: a mapping recalls presets, "
                    "it does not store them", "target", index)
+    if values.get("mode") == "set" or "value" in values:
+        values["value"] = _set_value(item, row, target, fail, index)
+        return ControlSpec(**values)
     for end in item.get("range", (0.0, 1.0)):  # every value the control can send is inside the target's range
         why = value_refusal(row, target, end)
         if why is not None:
             raise fail(f"the control's range sends {end:g}: {why.text}", "range" if "range" in values else "target", index)
     return ControlSpec(**values)
+
+
+def _set_value(item: dict, row: Row, target: str, fail, index: int) -> float:
+    """The value a button in mode "set" sets (checked by the one check: a name is its number)."""
+    if item.get("mode") != "set":
+        raise fail('only for mode = "set" (a button that sets its target to this value)', "value", index)
+    if "value" not in item:
+        raise fail('missing: the value a press sets (mode = "set")', "value", index)
+    if item["message"] not in BUTTONS:
+        raise fail(f'mode = "set" is for a button ({", ".join(BUTTONS)}), not {item["message"]}', "mode", index)
+    if row.action:
+        raise fail(f'{target}: mode = "set" sets a value, and {target} is pressed (mode = "momentary")', "mode", index)
+    for key in ("range", "curve", "takeover", "step", "deadzone", "invert"):
+        if key in item:
+            raise fail('not for mode = "set" (a press sets `value`)', key, index)
+    why = value_refusal(row, target, item["value"])
+    if why is not None:
+        raise fail(why.text, "value", index)
+    return float(row.number(item["value"]))
 
 
 def preset_problems(mapping: Mapping, presets: dict[str, dict[str, float]]) -> list[str]:
@@ -271,6 +297,8 @@ class Mapper:
             return self._scale(spec, (memory.msb * 128 + memory.lsb) / 16383.0)
         if spec.mode.startswith("relative"):
             return self._relative(state, spec, _ticks(spec.mode, int(raw)))
+        if spec.mode == "set":
+            return spec.value if raw > 0 else None  # pressed; its release leaves the value
         if spec.mode in ("toggle", "momentary"):
             pressed = raw > 0
             if spec.mode == "momentary":

@@ -4,8 +4,9 @@ A packet is a message or a bundle of elements (messages or nested bundles). `mes
 packet lazily, so a 65 kB bundle of thousands of messages can be taken a few at a time between
 frames; `first_number` reads a message's address and its first argument. Anything malformed
 ends the walk of that packet with `Malformed`, which the input counts and warns about once.
-Only numbers are values: a string, blob, nil, boolean or missing argument is refused rather
-than read as 1.0.
+Values are numbers, or a string (`first_string`) a target with named values takes for its
+number (`/walk/gait s "run"`, control/spec.py `Row.number`); a blob, nil, boolean or missing
+argument is refused rather than read as 1.0.
 """
 
 from __future__ import annotations
@@ -57,19 +58,24 @@ def _string(data: bytes, at: int) -> tuple[str, int]:
     return text, (end + 4) & ~3
 
 
-def first_number(message: bytes) -> tuple[str, float | None, str]:
-    """(address, first argument if it is a number else None, its type tag or '' if none)."""
+def _head(message: bytes) -> tuple[str, str, int]:
+    """(address, first argument's type tag or '' if none, where the arguments start)."""
     if not message.startswith(b"/"):
         raise Malformed("address does not start with /")
     address, at = _string(message, 0)
     if at >= len(message):
-        return address, None, ""  # no type tags at all (old senders): no argument
+        return address, "", at  # no type tags at all (old senders): no argument
     tags, at = _string(message, at)
     if not tags.startswith(","):
         raise Malformed("type tags do not start with ,")
-    if len(tags) < 2:
+    return address, tags[1:2], at
+
+
+def first_number(message: bytes) -> tuple[str, float | None, str]:
+    """(address, first argument if it is a number else None, its type tag or '' if none)."""
+    address, tag, at = _head(message)
+    if not tag:
         return address, None, ""
-    tag = tags[1]
     spec = NUMBERS.get(ord(tag))
     if spec is None:
         return address, None, tag
@@ -77,3 +83,11 @@ def first_number(message: bytes) -> tuple[str, float | None, str]:
     if at + size > len(message):
         raise Malformed("argument cut off")
     return address, float(struct.unpack_from(fmt, message, at)[0]), tag
+
+
+def first_string(message: bytes) -> str:
+    """The first argument of a message whose type tag is 's' (`first_number` said so)."""
+    _, tag, at = _head(message)
+    if tag != "s":
+        raise Malformed("the first argument is not a string")
+    return _string(message, at)[0]

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Collection
 from ..errors import quoted
 from ..tomlfile import Field, Key, TomlFile
 from .checks import held_refusal
-from .spec import PRESET_NAME
+from .spec import PRESET_NAME, TABLE
 
 if TYPE_CHECKING:
     from .state import ControlState
@@ -52,7 +52,7 @@ def held_values(doc: TomlFile, path: Key, values: object, model: tuple[Collectio
         why = held_refusal(target, value, styles, states)
         if why is not None:
             raise doc.error(path + (target,), why.text, shown)
-        out[target] = float(value)
+        out[target] = float(TABLE[target.split("/")[0]].number(value))  # gait = "run" holds 2
     return out
 
 

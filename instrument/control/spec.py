@@ -118,10 +118,11 @@ def names(style_names: list[str], states: int) -> list[str]:
 
 
 def rows_for_page() -> list[dict]:
-    """The rows as the console's hello message carries them: the page builds its sliders from these."""
+    """The rows as the console's hello message carries them: the page builds its sliders from these
+    (a row with named values, gait, as one button a name)."""
     return [{"kind": row.kind, "pattern": row.pattern, "range": [row.low, row.high],
              "travel": list(row.slider or (row.low, row.high)), "section": row.section, "units": row.units,
-             "help": row.help} for row in _ROWS if row.section is not None]
+             "help": row.help, "choices": list(row.choices)} for row in _ROWS if row.section is not None]
 
 
 def markdown_table() -> str:

@@ -45,14 +45,20 @@ const fmt = (value) => (value === null || value === undefined ? "–" : Number(v
 
 // ---- the mixer ---------------------------------------------------------------------------
 
-function slider(parent, target, label, range, travel, marks) {
-  const [low, high] = travel || range;
+function labelled(target, label, kind) {
+  // a mixer row for `target`, its label first: [row, label]
   const row = document.createElement("div");
-  row.className = "row";
+  row.className = kind ? "row " + kind : "row";
   row.dataset.target = target;
   const name = document.createElement("label");
   name.textContent = label;
   name.title = target;
+  return [row, name];
+}
+
+function slider(parent, target, label, range, travel, marks) {
+  const [low, high] = travel || range;
+  const [row, name] = labelled(target, label);
   const track = document.createElement("div");
   track.className = "track";
   const input = document.createElement("input");
@@ -69,6 +75,31 @@ function slider(parent, target, label, range, travel, marks) {
   input.addEventListener("input", () => { box.value = fmt(input.value); setTarget(target, input.value); });
   box.addEventListener("change", () => { if (box.value !== "") setTarget(target, box.value); });
   controls.set(target, { row, input, box });
+}
+
+function choice(parent, target, label, names) {
+  // one button a named value (gait: stand, walk, run), pressed while the instrument's value is nearest it
+  const [row, name] = labelled(target, label, "choice");
+  const buttons = document.createElement("div");
+  buttons.className = "choices";
+  buttons.setAttribute("role", "group");
+  buttons.setAttribute("aria-label", target);
+  names.forEach((text, k) => {
+    const button = document.createElement("button");
+    button.textContent = text;
+    button.dataset.value = k;
+    button.setAttribute("aria-pressed", "false");
+    button.addEventListener("click", () => setTarget(target, k));
+    buttons.append(button);
+  });
+  row.append(name, buttons);
+  parent.append(row);
+  const show = (value) => {
+    for (const button of buttons.children) {
+      button.setAttribute("aria-pressed", String(Math.floor(value + 0.5) === Number(button.dataset.value)));
+    }
+  };
+  controls.set(target, { row, show });
 }
 
 function zones(low, high) {
@@ -114,7 +145,8 @@ function build(message) {
         div.textContent = title;
         $(row.section).append(div);
       }
-      slider($(row.section), target, label, row.range, row.travel, row.kind === "style");
+      if (row.choices && row.choices.length) choice($(row.section), target, label, row.choices);
+      else slider($(row.section), target, label, row.range, row.travel, row.kind === "style");
       controls.get(target).row.title = row.help;
     }
   }
@@ -140,7 +172,7 @@ function showPresets(names) {
 
 function onFrame(message) {
   latest = message;
-  for (const [target, { row, input, box }] of controls) {
+  for (const [target, { row, input, box, show }] of controls) {
     let value = message.v[target];
     const follows = value === null;  // a part weight following its style
     if (follows) value = message.v["style/" + target.split("/")[1]];
@@ -151,6 +183,7 @@ function onFrame(message) {
       if (Math.abs(value - mine.value) > 1e-4 && performance.now() < mine.until) continue;
       sent.delete(target);
     }
+    if (show) { show(value); continue; }  // buttons of named values
     if (Number(input.value) !== value) input.value = value;
     if (document.activeElement !== box) box.value = fmt(value);
   }
