@@ -92,4 +92,3 @@ def held_posture(model: HSMM, labels: list[int], columns: np.ndarray, dimension:
     block[..., list(still)] = 0.0
     means[rows] = block
     return HSMM(means, model.variances, model.duration_means, model.duration_variances)
-
