@@ -279,10 +279,17 @@ def test_a_rising_heel_keeps_pace_and_never_passes_the_vertical(model, space, st
 def test_the_shipped_model_holds_contact_statistics(model):
     contact = contact_space(model)
     assert contact is not None
-    shares = contact.shares(np.zeros(len(model.style_names))).reshape(2, model.states, 2)
-    # in a right step the left foot carries the body, in a left step the right one
-    assert shares[0, 1:, 0].min() > 0.5 and shares[1, 1:, 1].min() > 0.5
-    assert shares[0, 1:4, 1].max() < 0.5 and shares[1, 1:4, 0].max() < 0.5
+    shares = contact.shares(np.zeros(len(model.style_names))).reshape(len(model.labels), model.states, 2)
+    # in a right step the left foot carries the body, in a left step the right one (walk and turns)
+    for unit in ("walk", "turn-left", "turn-right"):
+        right = 2 * model.units.index(unit)
+        assert shares[right, 1:, 0].min() > 0.5 and shares[right + 1, 1:, 1].min() > 0.5
+        assert shares[right, 1:4, 1].max() < 0.5 and shares[right + 1, 1:4, 0].max() < 0.5
+    stand = 2 * model.units.index("stand")
+    assert shares[stand:stand + 2].min() > 0.5  # standing, both feet carry it
+    run = 2 * model.units.index("run")
+    assert (shares[run:run + 2].max(axis=2) < 0.5).any()  # a run has flight: a state that plants neither foot
+    assert contact.flight[run * model.states:(run + 2) * model.states].any() and not contact.flight[:2 * model.states].any()
 
 
 @pytest.mark.parametrize("style, weight", [("elderly", 1.0), ("masculine", 2.0), ("active", -1.0), ("feminine", 2.0)])
