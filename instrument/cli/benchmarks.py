@@ -272,13 +272,14 @@ def measure_pose(model, controls: Controls, blocks: int, window_solve_us: float)
     else:
         frame = engine.stream.step()
         targets = engine.range_targets
+        walking = np.zeros(1, dtype=np.int64)  # the unit of the frame: the walk
         live = [Controls(controls.weights.copy(), controls.part_weights) for _ in range(frames)]  # a new snapshot a frame, as live
 
         def widened():  # what the range stage costs a frame: the controls compared, the swing scaled
             scale = RangeFilter()
             for snapshot in live:
                 engine.retune(snapshot)
-                scale(frame, targets.mean, targets.factor)
+                scale(frame, *targets.targets(walking))
 
         figures["widen_us_per_frame"] = 1e6 / frames * median_seconds(widened, blocks)
     for name, ratio in (("pose_us_per_frame", "pose_to_window_solve"), ("pose_us_per_character_batch", "pose_batch_to_window_solve"),

@@ -174,7 +174,8 @@ def _check_metadata(path: Path, metadata: dict) -> None:
         raise UserError(f"{path}: metadata 'features': 'names' does not list the {layout.dimension} features of its joints")
     if "units" in metadata:
         units = metadata["units"]
-        if not isinstance(units, list) or not units or units[0] != "walk" or not set(units) <= set(UNITS) \
+        if not isinstance(units, list) or not units or not all(isinstance(u, str) for u in units) \
+                or units[0] != "walk" or not set(units) <= set(UNITS) \
                 or len(set(units)) < len(units) or 2 * len(units) != len(metadata["labels"]):
             raise broken("units", f"a list of different units, the walk first, of {', '.join(UNITS)}, two labels each")
     elif len(metadata["labels"]) != 2:
