@@ -84,10 +84,8 @@ def transition_figures(model: Model, gait: str, weights: dict[str, float], measu
                 "jump_s": (worst - start) / fps,
                 "air_frames": float(air[start:stop].sum()), "window_frames": float(stop - start), "finite": float(np.isfinite(sequence.motion.channels).all())}
 
-    # stop: the first frame after which no foot steps to the end of the stand
-    steps_after = np.flatnonzero(stepping[stop_at:start_at])
-    stopped = stop_at + (int(steps_after[-1]) + 1 if len(steps_after) else 0)
-    stopped = None if stopped >= start_at else stopped
+    still = settled(~stepping[stop_at:start_at])
+    stopped = None if still is None else stop_at + still
     stop = {"steady_cm_s": steady,
             "stop_s": float("nan") if stopped is None else (stopped - stop_at) / fps,
             "stop_steps": float("nan") if stopped is None else float(_steps(sequence.labels, moving, stop_at, stopped))}
@@ -99,6 +97,13 @@ def transition_figures(model: Model, gait: str, weights: dict[str, float], measu
              "speed_steps": float("nan") if reached is None else float(_steps(sequence.labels, moving, start_at, reached))}
     return {f"{gait}->stand": stop | window(stop_at, stopped, start_at),
             f"stand->{gait}": start | window(start_at, reached, len(positions))}
+
+
+def settled(still: np.ndarray) -> int | None:
+    """The first frame from which `still` holds to the end (None: not even the last frame)."""
+    moved = np.flatnonzero(~still)
+    first = int(moved[-1]) + 1 if len(moved) else 0
+    return None if first >= len(still) else first
 
 
 def _steps(labels: np.ndarray, moving: np.ndarray, first: int, last: int) -> int:

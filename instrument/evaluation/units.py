@@ -26,7 +26,7 @@ from ..motion.bvh import Motion
 from ..motion.features import extract, heading_angle
 from ..motion.kinematics import forward_kinematics, local_transforms, world_positions
 from ..motion.limbs import Limbs, clearance
-from ..motion.quality import AIR_CM, heading_rate, pooled, walk_figures
+from ..motion.quality import AIR_CM, pooled, stride_headings, walk_figures
 from ..motion.standing import pieces, still_frames
 from ..motion.steps import Step, segment_steps
 from ..synthesis.engine import Engine, default_controls, render
@@ -40,6 +40,7 @@ from .transitions import transition_figures
 UNIT_SECONDS = 8.0  # length of each generated run, turn and stand (after the settling half second)
 WEIGHTINGS = (("", 1.0), (" x2", 2.0), (" -1", -1.0))  # the variants of a style: name suffix, weight
 SIDES = ((1, "left"), (-1, "right"))  # turn's sign, and the turning unit's side
+SECTIONS = ("run", "turn", "stand", "transitions")
 
 
 @dataclass
@@ -89,9 +90,9 @@ def load_real_units(model: Model, folders: list[Path], cm: float) -> dict[str, R
 
 
 def assess_units(model: Model, real: list[Path] | None = None, styles: list[str] | None = None,
-                 seconds: float = UNIT_SECONDS, progress=None, transitions: bool = True) -> UnitAssessment:
+                 seconds: float = UNIT_SECONDS, progress=None, sections: tuple[str, ...] = SECTIONS) -> UnitAssessment:
     """The figures of every unit the model has beyond the walk, and of its transitions (see the
-    module's text); with `real`, the same of the real takes beside them."""
+    module's text), of the `sections` asked for; with `real`, the same of the real takes beside them."""
     styles = styles or model.style_names
     limbs, cm, template = _limbs(model)
     layout = model.layout
@@ -112,7 +113,7 @@ def assess_units(model: Model, real: list[Path] | None = None, styles: list[str]
         if progress:
             progress(name)
 
-    if "run" in model.units:
+    if "run" in model.units and "run" in sections:
         runs = reals.get("run")
         classifier = None
         real_runs = result.real.setdefault("run", {})
@@ -135,7 +136,7 @@ def assess_units(model: Model, real: list[Path] | None = None, styles: list[str]
                 note(f"run {name}")
 
     turning = [(sign, side) for sign, side in SIDES if f"turn-{side}" in model.units]
-    if turning:
+    if turning and "turn" in sections:
         rates = Engine(model).units.turn_rates
         section, real_turns = result.synth.setdefault("turn", {}), result.real.setdefault("turn", {})
         for sign, side in turning:
@@ -152,12 +153,12 @@ def assess_units(model: Model, real: list[Path] | None = None, styles: list[str]
                 section[name] = measure.turning(motion, world_positions(motion) * cm) | {"turn_asked_deg_s": float(np.degrees(sign * rates[sign]))}
                 note(f"turn {name}")
 
-    if "stand" in model.units:
+    if "stand" in model.units and "stand" in sections:
         stands = reals.get("stand")
         classifier = None
         real_stands = result.real.setdefault("stand", {})
         if stands:
-            classifier, recognised = _recogniser([t for t in stands.takes if t is not None], layout.dimension)
+            classifier, recognised = _recogniser([t for t in stands.takes if t is not None], layout.dimension, posture=True)
             for style in styles:
                 mine = [measure.standing(stands.motions[k], stands.positions[k], still_frames(stands.motions[k], layout))
                         for k in stands.of_style(style)]
@@ -174,20 +175,20 @@ def assess_units(model: Model, real: list[Path] | None = None, styles: list[str]
                 motion = _settled(render(model, default_controls(model, {style: weight}, gait=GAITS.index("stand")), frames), settle)
                 figures = measure.standing(motion, world_positions(motion) * cm, np.ones(motion.frames, dtype=bool))
                 if classifier is not None and weight > 0:
-                    figures["recognised"] = _recognised(classifier, motion, layout, _pieces(0, motion.frames, model.fps), style)
+                    figures["recognised"] = _recognised(classifier, motion, layout, _pieces(0, motion.frames, model.fps), style, posture=True)
                 section[name] = figures
                 note(f"stand {name}")
-        if transitions:
-            for gait in ("walk", "run"):
-                if gait not in model.units:
-                    continue
-                for style in styles:
-                    for suffix, weight in WEIGHTINGS:
-                        name = f"{style}{suffix}"
-                        result.weights[name] = {style: weight}
-                        for kind, figures in transition_figures(model, gait, {style: weight}, measure).items():
-                            result.transitions[f"{kind} {name}"] = figures
-                        note(f"{gait}->stand->{gait} {name}")
+    if "stand" in model.units and "transitions" in sections:
+        for gait in ("walk", "run"):
+            if gait not in model.units:
+                continue
+            for style in styles:
+                for suffix, weight in WEIGHTINGS:
+                    name = f"{style}{suffix}"
+                    result.weights[name] = {style: weight}
+                    for kind, figures in transition_figures(model, gait, {style: weight}, measure).items():
+                        result.transitions[f"{kind} {name}"] = figures
+                    note(f"{gait}->stand->{gait} {name}")
     return result
 
 
@@ -207,13 +208,25 @@ class _Measure:
             "jump_cm_f2": float(velocity_jumps(positions).max()), "finite": float(np.isfinite(motion.channels).all())}
 
     def turning(self, motion: Motion, positions: np.ndarray) -> dict[str, float]:
-        """The walk's figures, the turn rate (deg/s, + to the left) and the radius (cm)."""
+        """The walk's figures and the turn (stride_headings: each stride's mean heading):
+        `turn_deg_s` the mean rate, first stride to last (+ to the left), `turn_peak_deg_s` the rate
+        through the middle half of the heading's change (a take that walks in and out of its
+        turn turns faster in it than on average; a steady turn has both the same), and
+        `radius_cm`, the speed over the mean rate."""
         figures = self.moving(motion, positions)
         world_rot = forward_kinematics(motion.skeleton, *local_transforms(motion))[0]
         yaw = heading_angle(world_rot[:, self.layout.root])
-        rate = heading_rate(yaw, segment_steps(motion, self.layout).steps, motion.fps)
-        figures["turn_deg_s"] = abs(rate)
+        times, headings = stride_headings(yaw, segment_steps(motion, self.layout).steps, motion.fps)
+        rate = peak = float("nan")
+        if len(times) >= 2 and times[-1] > times[0]:
+            total = headings[-1] - headings[0]
+            rate = total / (times[-1] - times[0])
+            turned = (headings - headings[0]) * np.sign(total or 1.0)  # rising, give or take the sway
+            quarter, three = (np.interp(share * abs(total), np.maximum.accumulate(turned), times) for share in (0.25, 0.75))
+            peak = 0.5 * abs(total) / max(three - quarter, 1.0 / motion.fps)
         figures["turn_signed_deg_s"] = rate
+        figures["turn_deg_s"] = abs(rate)
+        figures["turn_peak_deg_s"] = peak
         figures["radius_cm"] = figures["speed_cm_s"] / max(np.radians(abs(rate)), 1e-9)
         return figures
 
@@ -266,19 +279,29 @@ def _pooled(figures: list[dict[str, float]]) -> dict[str, float]:
     return out
 
 
-def _recogniser(takes: list[Take], dimension: int) -> tuple[LinearDiscriminant, dict[str, float]]:
-    """A style classifier on the takes' steps (as the walk's), and the takes' own cross-validated recognition."""
-    features = [step_features(t.observations[:, :dimension], t.steps) for t in takes]
+def _recogniser(takes: list[Take], dimension: int, posture: bool = False) -> tuple[LinearDiscriminant, dict[str, float]]:
+    """A style classifier on the takes' steps (as the walk's), and the takes' own cross-validated
+    recognition. A `posture` classifier sees only each piece's mean features (the pose held),
+    not their spread over it: a stand's sway is measured apart (hips and feet speeds), and the
+    stand unit holds its arms still by design (training/units.py), which the spread would count
+    against it."""
+    features = [_described(t.observations[:, :dimension], t.steps, posture) for t in takes]
     classifier = LinearDiscriminant(np.vstack(features), [t.style for t, x in zip(takes, features) for _ in x])
     return classifier, _cross_validated(takes, features)
 
 
-def _recognised(classifier: LinearDiscriminant, motion: Motion, layout, steps: list[Step], style: str) -> float:
+def _described(static: np.ndarray, steps: list[Step], posture: bool) -> np.ndarray:
+    features = step_features(static, steps)
+    return features[:, :static.shape[1]] if posture else features
+
+
+def _recognised(classifier: LinearDiscriminant, motion: Motion, layout, steps: list[Step], style: str,
+                posture: bool = False) -> float:
     """The share of `steps` of `motion` the classifier labels `style`."""
     if not steps:
         return float("nan")
     static, _, _ = extract(motion, layout)
-    return float(np.mean([label == style for label in classifier.step_labels(step_features(static, steps))]))
+    return float(np.mean([label == style for label in classifier.step_labels(_described(static, steps, posture))]))
 
 
 def _pieces(start: int, end: int, fps: float) -> list[Step]:
