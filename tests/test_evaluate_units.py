@@ -50,15 +50,16 @@ def test_a_stand_stays_put_and_a_run_outpaces_the_walk_of_its_style(model):
 
 
 def test_a_walk_stops_within_two_steps_and_sets_off_again(model, measure):
-    """walk -> stand -> walk through the engine: still within two steps of the command, the feet
-    not sliding on the way, back at 90% of the walking speed within two steps."""
+    """walk -> stand -> walk through the engine: still within two steps of the command, back at
+    90% of the walking speed within two steps, no foot skating as the worst extrapolated walks
+    may (12 cm/s, docs/evaluate.md; the 1.2x-real target is the benchmark's), none in the air."""
     figures = transition_figures(model, "walk", {"normal": 1.0}, measure)
     stop, start = figures["walk->stand"], figures["stand->walk"]
     assert 1 <= stop["stop_steps"] <= 2 and 0.0 < stop["stop_s"] < 2.0
     assert 1 <= start["speed_steps"] <= 2 and 0.0 < start["speed_s"] < 2.0
     assert stop["steady_cm_s"] > 80.0  # it was walking before
-    assert stop["slide_cm_s"] < 5.0 and start["slide_cm_s"] < 5.0
-    assert stop["air_frames"] == 0
+    assert stop["slide_cm_s"] < 12.0 and start["slide_cm_s"] < 12.0
+    assert stop["air_frames"] == 0 and start["air_frames"] == 0
 
 
 def test_settled_is_where_stillness_lasts_to_the_end():
