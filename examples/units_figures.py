@@ -21,9 +21,9 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from instrument.evaluation.targets import check, summary, table  # noqa: E402
-from instrument.evaluation.units import assess_units  # noqa: E402
-from instrument.models.modelfile import default_model_path, load_model  # noqa: E402
+from instrument.evaluation.targets import check, summary, table
+from instrument.evaluation.units import assess_units
+from instrument.models.modelfile import default_model_path, load_model
 
 DATA = REPO.parent / "shared" / "data"
 FOLDERS = [DATA / "bandai-walk", DATA / "bandai-motions"]

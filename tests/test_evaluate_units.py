@@ -10,8 +10,8 @@ import sys
 
 import numpy as np
 import pytest
-
 from conftest import SHARED_WALKS
+
 from instrument.evaluation.assessment import _limbs
 from instrument.evaluation.sequence import velocity_jumps
 from instrument.evaluation.transitions import settled, transition_figures

@@ -93,103 +93,115 @@ def assess_units(model: Model, real: list[Path] | None = None, styles: list[str]
                  seconds: float = UNIT_SECONDS, progress=None, sections: tuple[str, ...] = SECTIONS) -> UnitAssessment:
     """The figures of every unit the model has beyond the walk, and of its transitions (see the
     module's text), of the `sections` asked for; with `real`, the same of the real takes beside them."""
-    styles = styles or model.style_names
     limbs, cm, template = _limbs(model)
-    layout = model.layout
-    result = UnitAssessment()
     reals = load_real_units(model, real, cm) if real else {}
     walks = reals.get("walk")
     ground = clearance([p / cm for p in walks.positions], limbs) if walks else _model_ground(model, limbs, template)
-    measure = _Measure(model, limbs, cm, ground)
+    work = _Assessor(model, _Measure(model, limbs, cm, ground), reals, styles or model.style_names, seconds, progress)
     for unit, takes in reals.items():
-        result.real_jumps[unit] = takes.largest_jumps()
+        work.result.real_jumps[unit] = takes.largest_jumps()
     if walks:  # what the transitions of a walk are held to (its skate, its flight)
-        result.real["walk"] = {style: _pooled([measure.moving(walks.motions[k], walks.positions[k]) for k in walks.of_style(style)])
-                               for style in styles if walks.of_style(style)}
-    settle = int(round(SETTLE_SECONDS * model.fps))
-    frames = settle + max(1, int(round(seconds * model.fps)))
-
-    def note(name: str) -> None:
-        if progress:
-            progress(name)
-
+        work.result.real["walk"] = work.real_figures(walks, work.measure.moving)
     if "run" in model.units and "run" in sections:
-        runs = reals.get("run")
-        classifier = None
-        real_runs = result.real.setdefault("run", {})
-        if runs:
-            classifier, recognised = _recogniser([t for t in runs.takes if t is not None], layout.dimension)
-            for style in styles:
-                mine = [measure.moving(runs.motions[k], runs.positions[k]) for k in runs.of_style(style)]
-                if mine:
-                    real_runs[style] = _pooled(mine) | {"recognised": recognised.get(style, float("nan"))}
-        section = result.synth.setdefault("run", {})
-        for style in styles:
-            for suffix, weight in WEIGHTINGS:
-                name = f"{style}{suffix}"
-                result.weights[name] = {style: weight}
-                motion = _settled(render(model, default_controls(model, {style: weight}, gait=GAITS.index("run")), frames), settle)
-                figures = measure.moving(motion, world_positions(motion) * cm)
-                if classifier is not None and weight > 0:
-                    figures["recognised"] = _recognised(classifier, motion, layout, segment_steps(motion, layout).steps, style)
-                section[name] = figures
-                note(f"run {name}")
-
-    turning = [(sign, side) for sign, side in SIDES if f"turn-{side}" in model.units]
-    if turning and "turn" in sections:
-        rates = Engine(model).units.turn_rates
-        section, real_turns = result.synth.setdefault("turn", {}), result.real.setdefault("turn", {})
-        for sign, side in turning:
-            takes = reals.get(f"turn-{side}")
-            for style in styles:
-                if takes:
-                    mine = [measure.turning(takes.motions[k], takes.positions[k]) for k in takes.of_style(style)]
-                    if mine:
-                        real_turns[f"{style} {side}"] = _pooled(mine)
-                name = f"{style} {side}"
-                result.weights[name] = {style: 1.0}
-                controls = default_controls(model, {style: 1.0}, turn=sign * rates[sign])
-                motion = _settled(render(model, controls, frames), settle)
-                section[name] = measure.turning(motion, world_positions(motion) * cm) | {"turn_asked_deg_s": float(np.degrees(sign * rates[sign]))}
-                note(f"turn {name}")
-
+        work.gait("run", work.measure.moving, lambda motion: segment_steps(motion, model.layout).steps)
+    if "turn" in sections:
+        work.turns()
     if "stand" in model.units and "stand" in sections:
-        stands = reals.get("stand")
-        classifier = None
-        real_stands = result.real.setdefault("stand", {})
-        if stands:
-            classifier, recognised = _recogniser([t for t in stands.takes if t is not None], layout.dimension, posture=True)
-            for style in styles:
-                mine = [measure.standing(stands.motions[k], stands.positions[k], still_frames(stands.motions[k], layout))
-                        for k in stands.of_style(style)]
-                mine = [m for m in mine if m["seconds"] > 0]
-                if mine:
+        def whole(motion: Motion, positions: np.ndarray) -> dict[str, float]:  # a generated stand stands throughout
+            return work.measure.standing(motion, positions, np.ones(motion.frames, dtype=bool))
+
+        work.gait("stand", whole, lambda motion: _pieces(0, motion.frames, model.fps), posture=True,
+                  real=lambda motion, positions: work.measure.standing(motion, positions, still_frames(motion, model.layout)))
+    if "stand" in model.units and "transitions" in sections:
+        work.transitions()
+    return work.result
+
+
+class _Assessor:
+    """One `assess_units` call's work: the model, how to measure, the real takes, the result."""
+
+    def __init__(self, model: Model, measure: _Measure, reals: dict[str, RealUnit], styles: list[str],
+                 seconds: float, progress):
+        self.model, self.measure, self.reals, self.styles, self.progress = model, measure, reals, styles, progress
+        self.settle = int(round(SETTLE_SECONDS * model.fps))
+        self.frames = self.settle + max(1, int(round(seconds * model.fps)))
+        self.result = UnitAssessment()
+
+    def made(self, name: str, weights: dict[str, float], **controls) -> tuple[Motion, np.ndarray]:
+        """A steady motion of these weights and controls (the settling left out) and its world positions (cm)."""
+        self.result.weights[name] = weights
+        motion = render(self.model, default_controls(self.model, weights, **controls), self.frames)
+        motion = Motion(motion.skeleton, motion.channels[self.settle:], motion.fps)
+        return motion, world_positions(motion) * self.measure.cm
+
+    def real_figures(self, takes: RealUnit, figures_of, key=lambda style: style) -> dict[str, dict[str, float]]:
+        """Each style's takes measured with `figures_of(motion, positions)` and pooled (takes
+        with nothing to measure, as a standing take without still frames, left out)."""
+        out = {}
+        for style in self.styles:
+            mine = [figures_of(takes.motions[k], takes.positions[k]) for k in takes.of_style(style)]
+            mine = [m for m in mine if m["seconds"] > 0]
+            if mine:
+                out[key(style)] = _pooled(mine)
+                if "hips_cm_s" in mine[0]:  # a stand: how much the quietest and the most restless take sway
                     hips = [m["hips_cm_s"] for m in mine]
-                    real_stands[style] = _pooled(mine) | {"recognised": recognised.get(style, float("nan")),
-                                                          "hips_min_cm_s": min(hips), "hips_max_cm_s": max(hips)}
-        section = result.synth.setdefault("stand", {})
-        for style in styles:
+                    out[key(style)] |= {"hips_min_cm_s": min(hips), "hips_max_cm_s": max(hips)}
+        return out
+
+    def gait(self, gait: str, figures_of, cut, posture: bool = False, real=None) -> None:
+        """A gait's section: its real takes (measured with `real`, else `figures_of`), and each
+        style at 1, x2 and -1, recognised (at a positive weight) on the pieces `cut(motion)` gives."""
+        takes = self.reals.get(gait)
+        classifier = None
+        if takes:
+            classifier, recognised = _recogniser([t for t in takes.takes if t is not None], self.model.layout.dimension, posture)
+            self.result.real[gait] = {style: figures | {"recognised": recognised.get(style, float("nan"))}
+                                      for style, figures in self.real_figures(takes, real or figures_of).items()}
+        section = self.result.synth.setdefault(gait, {})
+        for style in self.styles:
             for suffix, weight in WEIGHTINGS:
                 name = f"{style}{suffix}"
-                result.weights[name] = {style: weight}
-                motion = _settled(render(model, default_controls(model, {style: weight}, gait=GAITS.index("stand")), frames), settle)
-                figures = measure.standing(motion, world_positions(motion) * cm, np.ones(motion.frames, dtype=bool))
+                motion, positions = self.made(name, {style: weight}, gait=GAITS.index(gait))
+                figures = figures_of(motion, positions)
                 if classifier is not None and weight > 0:
-                    figures["recognised"] = _recognised(classifier, motion, layout, _pieces(0, motion.frames, model.fps), style, posture=True)
+                    figures["recognised"] = _recognised(classifier, motion, self.model.layout, cut(motion), style, posture)
                 section[name] = figures
-                note(f"stand {name}")
-    if "stand" in model.units and "transitions" in sections:
+                self.note(f"{gait} {name}")
+
+    def turns(self) -> None:
+        """Each side's full turn, each style at 1, against the style's takes turning that way."""
+        turning = [(sign, side) for sign, side in SIDES if f"turn-{side}" in self.model.units]
+        if not turning:
+            return
+        rates = Engine(self.model).units.turn_rates
+        section = self.result.synth.setdefault("turn", {})
+        for sign, side in turning:
+            takes = self.reals.get(f"turn-{side}")
+            if takes:
+                self.result.real.setdefault("turn", {}).update(
+                    self.real_figures(takes, self.measure.turning, key=lambda style: f"{style} {side}"))
+            for style in self.styles:
+                name = f"{style} {side}"
+                motion, positions = self.made(name, {style: 1.0}, turn=sign * rates[sign])
+                section[name] = self.measure.turning(motion, positions) | {"turn_asked_deg_s": float(np.degrees(sign * rates[sign]))}
+                self.note(f"turn {name}")
+
+    def transitions(self) -> None:
+        """walk -> stand -> walk and run -> stand -> run, each style at 1, x2 and -1."""
         for gait in ("walk", "run"):
-            if gait not in model.units:
+            if gait not in self.model.units:
                 continue
-            for style in styles:
+            for style in self.styles:
                 for suffix, weight in WEIGHTINGS:
                     name = f"{style}{suffix}"
-                    result.weights[name] = {style: weight}
-                    for kind, figures in transition_figures(model, gait, {style: weight}, measure).items():
-                        result.transitions[f"{kind} {name}"] = figures
-                    note(f"{gait}->stand->{gait} {name}")
-    return result
+                    self.result.weights[name] = {style: weight}
+                    for kind, figures in transition_figures(self.model, gait, {style: weight}, self.measure).items():
+                        self.result.transitions[f"{kind} {name}"] = figures
+                    self.note(f"{gait}->stand->{gait} {name}")
+
+    def note(self, name: str) -> None:
+        if self.progress:
+            self.progress(name)
 
 
 class _Measure:
@@ -208,21 +220,25 @@ class _Measure:
             "jump_cm_f2": float(velocity_jumps(positions).max()), "finite": float(np.isfinite(motion.channels).all())}
 
     def turning(self, motion: Motion, positions: np.ndarray) -> dict[str, float]:
-        """The walk's figures and the turn (stride_headings: each stride's mean heading):
-        `turn_deg_s` the mean rate, first stride to last (+ to the left), `turn_peak_deg_s` the rate
-        through the middle half of the heading's change (a take that walks in and out of its
-        turn turns faster in it than on average; a steady turn has both the same), and
-        `radius_cm`, the speed over the mean rate."""
+        """The walk's figures and the turn: `turn_deg_s` the mean rate over the steps (the heading
+        at the last step's end less that at the first's start, over the time between: the mean
+        of the yaw rate a turning unit learns from its takes; + to the left), `turn_peak_deg_s`
+        the rate through the middle half of the heading's change, from each stride's mean
+        heading (a take walks into and out of its turn and turns faster in it than on average;
+        a steady turn has both the same), and `radius_cm`, the speed over the mean rate."""
         figures = self.moving(motion, positions)
         world_rot = forward_kinematics(motion.skeleton, *local_transforms(motion))[0]
-        yaw = heading_angle(world_rot[:, self.layout.root])
-        times, headings = stride_headings(yaw, segment_steps(motion, self.layout).steps, motion.fps)
+        yaw = np.degrees(heading_angle(world_rot[:, self.layout.root]))
+        steps = segment_steps(motion, self.layout).steps
         rate = peak = float("nan")
-        if len(times) >= 2 and times[-1] > times[0]:
+        if steps and steps[-1].end - 1 > steps[0].start:
+            first, last = steps[0].start, steps[-1].end - 1
+            rate = (yaw[last] - yaw[first]) / ((last - first) / motion.fps)
+        times, headings = stride_headings(np.radians(yaw), steps, motion.fps)
+        if len(times) >= 2 and headings[-1] != headings[0]:
             total = headings[-1] - headings[0]
-            rate = total / (times[-1] - times[0])
-            turned = (headings - headings[0]) * np.sign(total or 1.0)  # rising, give or take the sway
-            quarter, three = (np.interp(share * abs(total), np.maximum.accumulate(turned), times) for share in (0.25, 0.75))
+            turned = np.maximum.accumulate((headings - headings[0]) * np.sign(total))  # rising, the sway aside
+            quarter, three = (np.interp(share * abs(total), turned, times) for share in (0.25, 0.75))
             peak = 0.5 * abs(total) / max(three - quarter, 1.0 / motion.fps)
         figures["turn_signed_deg_s"] = rate
         figures["turn_deg_s"] = abs(rate)
@@ -254,10 +270,6 @@ class _Measure:
         return {"hips_cm_s": float(root[still].mean()), "feet_cm_s": float(foot[still].mean()),
                 "jump_cm_f2": float(velocity_jumps(positions).max()), "finite": float(np.isfinite(motion.channels).all()),
                 "seconds": float(still.sum() / fps)}
-
-
-def _settled(motion: Motion, settle: int) -> Motion:
-    return Motion(motion.skeleton, motion.channels[settle:], motion.fps)
 
 
 def _pooled(figures: list[dict[str, float]]) -> dict[str, float]:
