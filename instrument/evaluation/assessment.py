@@ -22,7 +22,7 @@ from ..motion.limbs import Limbs, centimetres_per_unit, clearance, find_limbs
 from ..motion.quality import pooled, walk_figures
 from ..motion.steps import segment_steps
 from ..synthesis.engine import default_controls, render
-from ..training.corpus import make_takes, read_motions
+from ..training.corpus import TakeFile, make_takes, read_motions
 from .recognition import LinearDiscriminant, step_features
 
 VARIANT_KINDS = ("one", "x2", "inverted", "pairs")  # also in cli/evaluate_cmd.py
@@ -59,22 +59,28 @@ def _limbs(model: Model) -> tuple[Limbs, float, np.ndarray]:
     return limbs, centimetres_per_unit(layout, template), template
 
 
-def real_pairs(model: Model, folder: Path) -> list[tuple[Path, str]]:
-    """The takes the model's provenance names, found in `folder` (searched recursively)."""
-    if not folder.is_dir():
-        raise UserError(f"{folder}: no such folder")
-    on_disk = {p.name: p for p in sorted(folder.rglob("*.bvh"))}
-    listed = [(d["file"], d["style"]) for d in model.metadata.get("data", [])]
-    pairs = [(on_disk[name], style) for name, style in listed if name in on_disk]
+def real_pairs(model: Model, folders: Path | list[Path], units: tuple[str, ...] | None = ("walk",)) -> list[TakeFile]:
+    """The takes the model's provenance names (those of `units`; None: all), found in `folders`
+    (searched recursively; a take listed without a unit is a walk)."""
+    folders = [folders] if isinstance(folders, Path) else list(folders)
+    on_disk: dict[str, Path] = {}
+    for folder in folders:
+        if not folder.is_dir():
+            raise UserError(f"{folder}: no such folder")
+        on_disk |= {p.name: p for p in sorted(folder.rglob("*.bvh"))}
+    listed = [TakeFile(Path(d["file"]), d["style"], d.get("unit", "walk")) for d in model.metadata.get("data", [])]
+    listed = [t for t in listed if units is None or t.unit in units]
+    pairs = [TakeFile(on_disk[t.path.name], t.style, t.unit) for t in listed if t.path.name in on_disk]
     if not pairs:
-        raise UserError(f"{folder}: none of the {len(listed)} takes the model was trained on is there")
+        where = ", ".join(str(f) for f in folders)
+        raise UserError(f"{where}: none of the {len(listed)} takes the model was trained on is there")
     return pairs
 
 
 def assess(
     model: Model,
     seconds: float = 12.0,
-    real: Path | None = None,
+    real: Path | list[Path] | None = None,
     styles: list[str] | None = None,
     kinds: tuple[str, ...] = VARIANT_KINDS,
     progress=None,
@@ -94,7 +100,7 @@ def assess(
         classifier = LinearDiscriminant(np.vstack(features), [t.style for t, x in zip(takes, features) for _ in x])
         recognised = _cross_validated(takes, features)
         for style in styles:
-            mine = [walk_figures(m, layout, limbs, ground, cm) for m, (_, s) in zip(motions, pairs) if s == style]
+            mine = [walk_figures(m, layout, limbs, ground, cm) for m, p in zip(motions, pairs) if p.style == style]
             if mine:
                 result.real[style] = pooled(mine) | {"recognised": recognised.get(style, float("nan"))}
             if progress:

@@ -63,12 +63,16 @@ def heading_drift(yaw: np.ndarray, steps: list[Step], fps: float) -> float:
     a frame's error in the step ends nor rests on the first and last step alone (the heading at
     one step start against another's gave 0.00 to 0.16 deg/s for one 12 s walk measured from 30
     start frames in a row, this 0.00 to 0.01)."""
+    times, headings = stride_headings(yaw, steps, fps)
+    return float(abs(np.polyfit(times, headings, 1)[0])) if len(times) >= 2 else float("nan")
+
+
+def stride_headings(yaw: np.ndarray, steps: list[Step], fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """The middle time (s) and mean heading (degrees) of every stride (two steps in a row)."""
     strides = [(a.start, b.end) for a, b in zip(steps, steps[1:]) if b.start == a.end]
-    if len(strides) < 2:
-        return float("nan")
     times = np.array([(start + end - 1) / 2.0 for start, end in strides]) / fps
-    headings = np.array([yaw[start:end].mean() for start, end in strides])
-    return float(abs(np.degrees(np.polyfit(times, headings, 1)[0])))
+    headings = np.degrees([yaw[start:end].mean() for start, end in strides])
+    return times, headings
 
 
 def limb_ranges(pos: np.ndarray, yaw: np.ndarray, limbs: Limbs, root: int) -> dict[str, float]:

@@ -64,14 +64,18 @@ def stretches(mask: np.ndarray, shortest: int) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= shortest]
 
 
+def pieces(start: int, end: int, fps: float, states: int = MIN_FRAMES) -> list[tuple[int, int]]:
+    """A still stretch [start, end) cut into pieces of about PIECE_SECONDS (at least `states` frames)."""
+    piece = max(states, int(round(PIECE_SECONDS * fps)))
+    bounds = np.linspace(start, end, max(1, (end - start) // piece) + 1).round().astype(int)
+    return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
+
+
 def standing_steps(motion: Motion, layout: FeatureLayout, states: int = MIN_FRAMES) -> Segmentation:
     """The still stretches of a take as alternating right and left pieces (see the module's text)."""
-    piece = max(states, int(round(PIECE_SECONDS * motion.fps)))
     steps: list[Step] = []
     for start, end in stretches(still_frames(motion, layout), max(states, MIN_FRAMES)):
-        count = max(1, (end - start) // piece)
-        bounds = np.linspace(start, end, count + 1).round().astype(int)
-        for a, b in zip(bounds[:-1], bounds[1:]):
-            steps.append(Step("right" if len(steps) % 2 == 0 else "left", int(a), int(b)))
+        for a, b in pieces(start, end, motion.fps, states):
+            steps.append(Step("right" if len(steps) % 2 == 0 else "left", a, b))
     warnings = [] if steps else ["no still standing with the arms down found"]
     return Segmentation(steps, warnings, ("", ""))

@@ -1,0 +1,113 @@
+"""Stopping and starting: a walk or a run that stops, stands and sets off again, measured.
+
+One sequence per gait and weighting, through the engine frame by frame with the gait changed
+part-way (sequence.py): MOVE_SECONDS of the gait (after the settling half second), STAND_SECONDS
+of stand, MOVE_SECONDS of the gait again. From it, two transitions:
+
+    <gait>->stand  stop_s, stop_steps: from the command until every foot joint stays under
+                   FEET_STILL_CM_S for the rest of the stand (the last step has landed; a stand's
+                   feet move well under 3 cm/s, a stepping foot at a metre a second), and how
+                   many of the gait's steps the body was in on the way (the one under way counts)
+    stand-><gait>  speed_s, speed_steps: from the command until the hips' speed, over a window of
+                   one step, reaches SPEED_SHARE of the gait's steady speed (the sequence's first
+                   part), and the steps begun on the way
+
+and for each, over its window (the command to WINDOW_AFTER s after it is done, or to the next
+command if it is never done): `slide_cm_s` the mean speed of the lowest foot joint (the skate of
+quality.py) over the frames a foot is on the ground (a run's flight is no slide), `jump_cm_f2`
+the largest joint velocity jump (sequence.velocity_jumps), with the joint (`jump_joint`) and
+when after the command (`jump_s`), and `air_frames` the frames with both feet in the air.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..models.modelfile import Model
+from ..motion.kinematics import world_positions
+from ..synthesis.engine import default_controls
+from ..synthesis.parameters import GAITS
+from .assessment import SETTLE_SECONDS
+from .sequence import Sequence, horizontal_speed, render_sequence, velocity_jumps
+
+MOVE_SECONDS = 4.0
+STAND_SECONDS = 4.0
+FEET_STILL_CM_S = 10.0  # every foot joint slower than this: no foot is stepping
+SPEED_SHARE = 0.9  # "at speed": this share of the steady speed
+WINDOW_AFTER = 1.0  # s after a transition is done that its window still covers
+
+
+def transition_sequence(model: Model, gait: str, weights: dict[str, float]) -> Sequence:
+    """`gait`, stand, `gait` again, each for its seconds, from rest."""
+    fps = model.fps
+    moving = default_controls(model, weights, gait=GAITS.index(gait))
+    standing = default_controls(model, weights, gait=GAITS.index("stand"))
+    settle = int(round(SETTLE_SECONDS * fps))
+    return render_sequence(model, [(moving, settle + int(round(MOVE_SECONDS * fps))),
+                                   (standing, int(round(STAND_SECONDS * fps))),
+                                   (moving, int(round(MOVE_SECONDS * fps)))])
+
+
+def step_frames(model: Model, unit: str) -> float:
+    """The mean frames of a step of `unit` in the model's average voice."""
+    k = model.units.index(unit)
+    return float(model.average.duration_means[2 * k:2 * k + 2].sum(axis=-1).mean())
+
+
+def transition_figures(model: Model, gait: str, weights: dict[str, float], measure) -> dict[str, dict[str, float]]:
+    """{"<gait>->stand": figures, "stand-><gait>": figures} of one sequence (see the module's
+    text); `measure` is units._Measure (the limbs, scale and ground to measure with)."""
+    sequence = transition_sequence(model, gait, weights)
+    fps = model.fps
+    positions = world_positions(sequence.motion) * measure.cm
+    root = positions[:, model.layout.root]
+    stop_at, start_at = sequence.changes
+    settle = int(round(SETTLE_SECONDS * fps))
+    half_step = max(1, int(round(step_frames(model, gait) / 2)))
+    paced = horizontal_speed(root, fps, half_step)
+    steady = float(paced[settle + half_step:stop_at - half_step].mean())
+    feet = [j for foot in measure.limbs.feet for j in foot]
+    stepping = np.max([horizontal_speed(positions[:, j], fps) for j in feet], axis=0) >= FEET_STILL_CM_S
+    moving = (sequence.labels // 2) != model.units.index("stand")
+    joint_jumps, air = velocity_jumps(positions, per_joint=True), measure.air(positions)
+    jumps = joint_jumps.max(axis=1)
+    skate = measure.skate(positions, fps)
+    after = int(round(WINDOW_AFTER * fps))
+    names = sequence.motion.skeleton.names
+
+    def window(start: int, done: int | None, end: int) -> dict:
+        stop = end if done is None else min(end, done + after)
+        ground = ~air[start:stop]
+        worst = start + int(np.argmax(jumps[start:stop]))
+        return {"slide_cm_s": float(skate[start:stop][ground].mean()) if ground.any() else float("nan"),
+                "jump_cm_f2": float(jumps[worst]), "jump_joint": names[int(joint_jumps[worst].argmax())],
+                "jump_s": (worst - start) / fps,
+                "air_frames": float(air[start:stop].sum()), "window_frames": float(stop - start), "finite": float(np.isfinite(sequence.motion.channels).all())}
+
+    still = settled(~stepping[stop_at:start_at])
+    stopped = None if still is None else stop_at + still
+    stop = {"steady_cm_s": steady,
+            "stop_s": float("nan") if stopped is None else (stopped - stop_at) / fps,
+            "stop_steps": float("nan") if stopped is None else float(_steps(sequence.labels, moving, stop_at, stopped))}
+    # start: the first frame at SPEED_SHARE of the steady speed
+    fast = np.flatnonzero(paced[start_at:] >= SPEED_SHARE * steady)
+    reached = start_at + int(fast[0]) if len(fast) else None
+    start = {"steady_cm_s": steady,
+             "speed_s": float("nan") if reached is None else (reached - start_at) / fps,
+             "speed_steps": float("nan") if reached is None else float(_steps(sequence.labels, moving, start_at, reached))}
+    return {f"{gait}->stand": stop | window(stop_at, stopped, start_at),
+            f"stand->{gait}": start | window(start_at, reached, len(positions))}
+
+
+def settled(still: np.ndarray) -> int | None:
+    """The first frame from which `still` holds to the end (None: not even the last frame)."""
+    moved = np.flatnonzero(~still)
+    first = int(moved[-1]) + 1 if len(moved) else 0
+    return None if first >= len(still) else first
+
+
+def _steps(labels: np.ndarray, moving: np.ndarray, first: int, last: int) -> int:
+    """How many steps of a moving unit frames first..last (inclusive) are in (a run of one label is a step)."""
+    part, walking = labels[first:last + 1], moving[first:last + 1]
+    starts = np.concatenate([[True], part[1:] != part[:-1]])
+    return int((starts & walking).sum())
