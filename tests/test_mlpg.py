@@ -150,6 +150,33 @@ def test_bench_names_the_machine_its_figures_came_from():
     assert figures["load_1min"] >= 0
 
 
+def test_bench_sets_each_figure_against_the_yardstick_of_the_same_turn(monkeypatch):
+    """A shared machine's speed moves within seconds (a window solve 27 us, then 44, then 27 in one
+    process): each figure is divided by the yardstick timed in the same turn. Here the machine is a
+    clock whose speed changes from turn to turn (1x to 2x) and a work costs twice the yardstick
+    (another half of it): the ratios are exactly 2 and 0.5 whatever the speeds."""
+    from instrument.cli import benchmarks
+
+    now, speed = [0.0], [1.0]
+    speeds = iter(np.random.default_rng(3).uniform(1.0, 2.0, 100))
+    monkeypatch.setattr(benchmarks.time, "perf_counter", lambda: now[0])
+
+    def costing(units):
+        def work():
+            now[0] += units * speed[0]
+        return work
+
+    def yardstick():  # the last of a turn: the machine's speed changes after it
+        now[0] += speed[0]
+        speed[0] = next(speeds)
+
+    seconds, ratios, solve = benchmarks.against_yardstick({"double": costing(2.0), "half": costing(0.5)}, yardstick, 15)
+    assert ratios == pytest.approx({"double": 2.0, "half": 0.5}, rel=1e-12)
+    assert 1.0 < solve < 2.0 and seconds["double"] > seconds["half"]
+    _, speedups = benchmarks.turn_about([costing(8.0), yardstick], 15)  # MLPG's: how many times faster than the last
+    assert speedups == pytest.approx([0.125, 1.0], rel=1e-12)
+
+
 def test_mlpg_keeps_variances_whose_product_leaves_the_doubles():
     """The kernel takes a frame's three precisions from one division, 1 / (v0 v1 v2); where that
     product would overflow or underflow (variances beyond 1e100 or below 1e-100) it divides one by

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import socket
 import time
+from typing import Callable
 
 import numpy as np
 
@@ -79,23 +80,31 @@ def drain(sink: socket.socket) -> None:
         pass
 
 
-def measure_cost(model: Model, window_solve_us: float) -> dict:
+def measure_cost(model: Model, yardstick: Callable[[], object], solves: int) -> dict:
     """Microseconds per character per frame of the live crowd path and of each of its stages,
-    each also as a ratio to the bare solve of one window (`window_solve_us`, the same run's)."""
+    each also as a ratio to the bare solve of one window: `yardstick` runs `solves` of them and
+    is timed after every frame, so frames and solves see the same machine (`against_yardstick`)."""
     frame, seconds, close = live_path(model, COST_CROWD)
+    solving = 0.0
     try:
         frame(0)  # compiles and loads
         seconds.clear()
         for index in range(1, COST_FRAMES + 1):
             frame(index)
+            started = time.perf_counter()
+            yardstick()
+            solving += time.perf_counter() - started
     finally:
         close()
+    window_solve_us = solving * 1e6 / COST_FRAMES / solves
     per_character = {stage: seconds.get(stage, 0.0) * 1e6 / COST_FRAMES / COST_CROWD for stage in STAGES}
     total = sum(per_character.values())
     figures = {"crowd_size_for_cost": COST_CROWD, "stream_us_per_character": total,
                "crowd_engine_us_per_character": sum(per_character[s] for s in STAGES[:7]),
                "crowd_pose_us_per_character": per_character["posing"],
-               "crowd_flat_us_per_character": per_character["encoding"] + per_character["sending"]}
+               "crowd_flat_us_per_character": per_character["encoding"] + per_character["sending"],
+               "crowd_window_solve_us": window_solve_us,
+               "stream_per_character_to_window_solve": total / window_solve_us}
     for stage, cost in per_character.items():
         figures[f"crowd_{stage}_us_per_character"] = cost
         figures[f"crowd_{stage}_to_window_solve"] = cost / window_solve_us

@@ -412,14 +412,26 @@ def mlpg_threads(dim: int, frames: int) -> int:
 
 _helpers: list[ThreadPoolExecutor] = []  # made by the first solve that shares, kept for the process
 _helpers_made = threading.Lock()
+_helper_ids: list[int] = []  # the pool's threads, as the kernel knows them (`helper_thread_ids`)
 
 
 def _pool() -> ThreadPoolExecutor:
     """Threads for the parts after the first (the caller solves that one): one fewer than the cores."""
     with _helpers_made:
         if not _helpers:
-            _helpers.append(ThreadPoolExecutor(max(_cores() - 1, 1), thread_name_prefix="mlpg"))
+            _helpers.append(ThreadPoolExecutor(max(_cores() - 1, 1), thread_name_prefix="mlpg", initializer=_started))
         return _helpers[0]
+
+
+def _started() -> None:
+    _helper_ids.append(threading.get_native_id())
+
+
+def helper_thread_ids() -> list[int]:
+    """The native ids of the helper threads started so far (a thread is started when work first
+    waits for it). A thread made later takes its maker's scheduling; these may need it set
+    (`runtime.priority.realtime_scheduling`)."""
+    return list(_helper_ids)
 
 
 def _forget_pool() -> None:
@@ -427,6 +439,7 @@ def _forget_pool() -> None:
     them would keep every part handed to it (taken back, but never removed from its queue)."""
     global _helpers_made
     _helpers.clear()
+    _helper_ids.clear()
     _helpers_made = threading.Lock()
 
 
