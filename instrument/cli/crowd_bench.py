@@ -13,6 +13,7 @@ from ..models.modelfile import Model
 
 CROWD_FPS = 30.0
 TRIAL_SECONDS = 3.0  # of realtime live loop per crowd size tried
+TRIALS = 2  # a crowd size fails when this many trials in a row fail
 DEMO_FIRST_RAMP_S = 4.0  # where the demo score's first ramp starts (examples/demo/demo.toml)
 LATENESS_P99_MS = 1.0  # a crowd keeps time when no frame is dropped and the p99 lateness stays under this
 SEARCH_BUDGET = 50.0  # seconds the search may take; past it the largest crowd found so far is reported
@@ -155,8 +156,15 @@ def largest_crowd(model: Model, us_per_character: float, budget: float = SEARCH_
     tried: dict[int, tuple[float, int]] = {}  # crowd size: p99 lateness (ms), late frames
 
     def holds(count: int) -> bool:
-        ok, *tried[count] = keeps_time(model, count)
-        return ok
+        """One trial, and a second when the first fails: on a shared machine another program's
+        burst fails a 3 s trial now and then (a crowd of 44 once, of 272 in the run before:
+        docs/crowds.md). A size fails when two trials in a row do; the figures kept are the
+        last trial's."""
+        for _ in range(TRIALS):
+            ok, *tried[count] = keeps_time(model, count)
+            if ok:
+                return True
+        return False
 
     guess = max(1, 2 ** int(np.log2(max(1.0, 0.5e6 / CROWD_FPS / us_per_character))))
     low, high = 0, None  # the largest that held, the smallest that failed
