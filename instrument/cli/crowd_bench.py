@@ -153,15 +153,16 @@ def largest_crowd(model: Model, us_per_character: float, budget: float = SEARCH_
 
     refused = realtime_scheduling()  # as `instrument run` does
     started = time.monotonic()
-    tried: dict[int, tuple[float, int]] = {}  # crowd size: p99 lateness (ms), late frames
+    tried: dict[int, tuple[float, int, int]] = {}  # crowd size: p99 lateness (ms), late frames, trials taken
 
     def holds(count: int) -> bool:
         """One trial, and a second when the first fails: on a shared machine another program's
         burst fails a 3 s trial now and then (a crowd of 44 once, of 272 in the run before:
         docs/crowds.md). A size fails when two trials in a row do; the figures kept are the
         last trial's."""
-        for _ in range(TRIALS):
-            ok, *tried[count] = keeps_time(model, count)
+        for trial in range(1, TRIALS + 1):
+            ok, p99, late = keeps_time(model, count)
+            tried[count] = (p99, late, trial)
             if ok:
                 return True
         return False
@@ -187,6 +188,6 @@ def largest_crowd(model: Model, us_per_character: float, budget: float = SEARCH_
             high = middle
     return {"largest_crowd_30fps": low, "largest_crowd_first_failing": high,
             "largest_crowd_p99_ms": tried[low][0] if low else None, "largest_crowd_late_frames": tried[low][1] if low else None,
-            "largest_crowd_tried": {str(k): [round(v[0], 3), v[1]] for k, v in sorted(tried.items())},
+            "largest_crowd_tried": {str(k): [round(v[0], 3), v[1], v[2]] for k, v in sorted(tried.items())},
             "largest_crowd_search_s": time.monotonic() - started,
             "largest_crowd_scheduling": "realtime" if refused is None else f"normal ({refused})"}
