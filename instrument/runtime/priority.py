@@ -30,8 +30,12 @@ def realtime_scheduling() -> str | None:
     # process that never solves stay without numba)
     solver = sys.modules.get("instrument.synthesis.mlpg")
     try:
-        for thread in [0, *(solver.helper_thread_ids() if solver else [])]:
-            os.sched_setscheduler(thread, os.SCHED_FIFO, os.sched_param(PRIORITY))
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(PRIORITY))
+        for helper in solver.helper_thread_ids() if solver else []:
+            try:
+                os.sched_setscheduler(helper, os.SCHED_FIFO, os.sched_param(PRIORITY))
+            except ProcessLookupError:  # a helper that has ended (at exit): nothing to move
+                pass
     except PermissionError:
         return "not permitted for this user (on Linux, an rtprio limit such as JACK's audio group grants it)"
     except OSError as error:
