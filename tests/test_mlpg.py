@@ -209,6 +209,27 @@ def test_empty_inputs_give_empty_trajectories():
     assert mlpg(np.zeros((5, 0)), np.ones((5, 0))).shape == (5, 0)
 
 
+@pytest.mark.parametrize("loadavg, cores, free", [
+    ("0.31 0.52 0.70 1/140 9999\n", 2, 2),  # only the caller runs: both cores free
+    ("4.10 4.52 4.71 3/140 9999\n", 2, 1),  # two other threads want the cores: none to share with
+    ("1.90 1.20 0.90 2/140 9999\n", 4, 3),
+    ("garbled", 2, 2),  # unreadable: every core, as before
+])
+def test_a_long_solve_is_shared_only_with_cores_no_other_thread_wants(monkeypatch, loadavg, cores, free):
+    """On a shared machine a part handed to a busy core waits for another program's time slice,
+    and the caller for it: `mlpg` shares a long solve among the free cores only (the count of
+    runnable threads in /proc/loadavg, which the calling thread is one of)."""
+    import io
+
+    from instrument.synthesis import mlpg as module
+
+    monkeypatch.setattr(module, "_cores", lambda: cores)
+    monkeypatch.setattr(module, "open", lambda path, *a, **k: io.StringIO(loadavg), raising=False)
+    assert module._free_cores() == free
+    assert module.mlpg_threads(8 * cores, 100_000) == free
+    assert module.mlpg_threads(8 * cores, 10) == 1  # a short solve is never shared
+
+
 def test_parts_cover_every_dimension_once_on_line_bounds():
     from instrument.synthesis.mlpg import _parts
 
