@@ -32,7 +32,7 @@ from instrument.synthesis.footlock import FootLock
 from instrument.synthesis.interpolation import interpolate, style_space
 from instrument.synthesis.mlpg import mlpg_continued
 from instrument.synthesis.engine import walk_features
-from instrument.synthesis.widen import _without_range
+from instrument.synthesis.widen import without_range
 from instrument.synthesis.stream import DEFAULT_LOOKAHEAD, Controls
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
@@ -87,7 +87,7 @@ def main() -> None:
     model = load_model(default_model_path())
     space, contact, layout = style_space(model), contact_space(model), model.layout
     controls = Controls(np.full(len(model.style_names), 1.5 / len(model.style_names)))
-    static, ids = walk_features(_without_range(model), controls, args.frames)
+    static, ids = walk_features(without_range(model), controls, args.frames)
     shares = contact.shares(controls.weights)[0][ids]
     lam = interpolate(space, controls.weights)
     window = 2 + DEFAULT_LOOKAHEAD + 1

@@ -150,6 +150,33 @@ def test_bench_names_the_machine_its_figures_came_from():
     assert figures["load_1min"] >= 0
 
 
+def test_bench_sets_each_figure_against_the_yardstick_of_the_same_turn(monkeypatch):
+    """A shared machine's speed moves within seconds (a window solve 27 us, then 44, then 27 in one
+    process): each figure is divided by the yardstick timed in the same turn. Here the machine is a
+    clock whose speed changes from turn to turn (1x to 2x) and a work costs twice the yardstick
+    (another half of it): the ratios are exactly 2 and 0.5 whatever the speeds."""
+    from instrument.cli import benchmarks
+
+    now, speed = [0.0], [1.0]
+    speeds = iter(np.random.default_rng(3).uniform(1.0, 2.0, 100))
+    monkeypatch.setattr(benchmarks.time, "perf_counter", lambda: now[0])
+
+    def costing(units):
+        def work():
+            now[0] += units * speed[0]
+        return work
+
+    def yardstick():  # the last of a turn: the machine's speed changes after it
+        now[0] += speed[0]
+        speed[0] = next(speeds)
+
+    seconds, ratios, solve = benchmarks.against_yardstick({"double": costing(2.0), "half": costing(0.5)}, yardstick, 15)
+    assert ratios == pytest.approx({"double": 2.0, "half": 0.5}, rel=1e-12)
+    assert 1.0 < solve < 2.0 and seconds["double"] > seconds["half"]
+    _, speedups = benchmarks.turn_about([costing(8.0), yardstick], 15)  # MLPG's: how many times faster than the last
+    assert speedups == pytest.approx([0.125, 1.0], rel=1e-12)
+
+
 def test_mlpg_keeps_variances_whose_product_leaves_the_doubles():
     """The kernel takes a frame's three precisions from one division, 1 / (v0 v1 v2); where that
     product would overflow or underflow (variances beyond 1e100 or below 1e-100) it divides one by
@@ -180,6 +207,27 @@ def test_a_solve_shared_among_threads_equals_one_solved_alone(model_input):
 def test_empty_inputs_give_empty_trajectories():
     assert mlpg(np.zeros((0, 6)), np.ones((0, 6))).shape == (0, 2)
     assert mlpg(np.zeros((5, 0)), np.ones((5, 0))).shape == (5, 0)
+
+
+@pytest.mark.parametrize("loadavg, cores, free", [
+    ("0.31 0.52 0.70 1/140 9999\n", 2, 2),  # only the caller runs: both cores free
+    ("4.10 4.52 4.71 3/140 9999\n", 2, 1),  # two other threads want the cores: none to share with
+    ("1.90 1.20 0.90 2/140 9999\n", 4, 3),
+    ("garbled", 2, 2),  # unreadable: every core, as before
+])
+def test_a_long_solve_is_shared_only_with_cores_no_other_thread_wants(monkeypatch, loadavg, cores, free):
+    """On a shared machine a part handed to a busy core waits for another program's time slice,
+    and the caller for it: `mlpg` shares a long solve among the free cores only (the count of
+    runnable threads in /proc/loadavg, which the calling thread is one of)."""
+    import io
+
+    from instrument.synthesis import mlpg as module
+
+    monkeypatch.setattr(module, "_cores", lambda: cores)
+    monkeypatch.setattr(module, "open", lambda path, *a, **k: io.StringIO(loadavg), raising=False)
+    assert module._free_cores() == free
+    assert module.mlpg_threads(8 * cores, 100_000) == free
+    assert module.mlpg_threads(8 * cores, 10) == 1  # a short solve is never shared
 
 
 def test_parts_cover_every_dimension_once_on_line_bounds():

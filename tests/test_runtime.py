@@ -298,6 +298,24 @@ def test_realtime_scheduling_is_taken_or_refused_with_a_reason():
         assert "not permitted" in result.stdout and result.stdout.strip().endswith("False")
 
 
+def test_realtime_scheduling_takes_the_crowd_helpers_started_before_it_along():
+    """A crowd's frame waits for its helper threads (synthesis/cores.py): one started earlier (by a
+    long MLPG solve, as `instrument bench` does before its crowd trials) must not stay at normal
+    priority behind every ordinary program while the loop runs realtime."""
+    probe = ("import os; from instrument.synthesis.mlpg import _pool, helper_thread_ids\n"
+             "from instrument.runtime.priority import realtime_scheduling\n"
+             "_pool().submit(int).result()\n"
+             "refused = realtime_scheduling()\n"
+             "print(repr(refused), len(helper_thread_ids()), all(os.sched_getscheduler(t) == os.SCHED_FIFO "
+             "for t in helper_thread_ids()))")
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    refused, helpers, fifo = result.stdout.split()
+    if refused != "None":
+        pytest.skip(f"realtime scheduling refused here: {refused}")
+    assert int(helpers) >= 1 and fifo == "True"
+
+
 def test_log_replay_and_its_errors(tmp_path):
     log = tmp_path / "log.jsonl"
     log.write_text('{"t": 0.5, "source": "x", "control": "speed", "value": 1.2}\n{"t": 0.1, "source": "x", "control": "turn", "value": 1}\n')

@@ -69,10 +69,12 @@ def test_bench_json_has_the_promised_figures():
         assert key in figures
     assert figures["mlpg_frames_per_s"] > 0 and figures["stream_us_per_frame"] > 0
     assert figures["characters_at_30fps"] == int(1e6 / 30 / figures["stream_us_per_frame_batch"])
-    # the pose path (the feet planted) and the widen filter, each also against the window solve
-    for figure, ratio in (("pose_us_per_frame", "pose_to_window_solve"),
+    # the stream, the pose path (the feet planted) and the range stage, each also against the window
+    # solve timed turn about with it (the ratios are medians of per-turn ratios: test_mlpg.py)
+    for figure, ratio in (("stream_us_per_frame", "stream_to_window_solve"),
+                          ("stream_us_per_frame_batch", "stream_batch_to_window_solve"),
+                          ("pose_us_per_frame", "pose_to_window_solve"),
                           ("pose_us_per_character_batch", "pose_batch_to_window_solve"),
                           ("widen_us_per_frame", "widen_to_window_solve")):
-        assert figures[figure] > 0
-        assert figures[ratio] == pytest.approx(figures[figure] / figures["window_solve_us"])
+        assert figures[figure] > 0 and figures[ratio] > 0
     assert figures["contact_us_per_frame"] > 0  # the lock timed on its own

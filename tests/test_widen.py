@@ -1,14 +1,12 @@
 """Full range: the range-scaling post-filter, on the shipped model (which holds range statistics)."""
 
-import dataclasses
-
 import numpy as np
 import pytest
 
 from instrument.synthesis.posing import PoseStream
 from instrument.synthesis.engine import Engine, default_controls
 from instrument.synthesis.stream import Controls, Crowd
-from instrument.synthesis.widen import KEPT, range_space, stride_means
+from instrument.synthesis.widen import EASE_FRAMES, KEPT, RangeFilter, range_space, stride_means, without_range
 from instrument.training.widen import SETTLE, _generated_range, _spread
 from walks import features, step
 
@@ -58,8 +56,9 @@ def test_a_style_change_shows_in_the_next_frame_without_a_jump(model, space, sty
 
 
 def test_a_model_without_range_statistics_walks_as_before(model, space):
-    bare = dataclasses.replace(model, extras={k: v for k, v in model.extras.items() if not k.startswith("range")})
-    assert range_space(bare) is None
+    bare = without_range(model)
+    assert range_space(bare) is None and Engine(bare).range_filter is None
+    assert range_space(model) is not None  # the model handed in keeps its statistics
     controls = default_controls(model, {"normal": 1.0})
     plain, _ = features(bare, controls, 60)
     walker = Crowd(space)
@@ -86,3 +85,42 @@ def test_blends_are_widened_and_extrapolations_walk_as_made(model):
     legged = factors(one[0], parts)
     np.testing.assert_array_equal(legged[legs], 1.0)
     np.testing.assert_allclose(legged[~legs], factors(one[0])[~legs])
+
+
+def _range_filter_in_numpy(frames, means, factors):
+    """The range stage restated in numpy's elementwise form (what it was before it was compiled):
+    mean and factor eased a quarter of the way a frame, the swing about the mean scaled, the kept
+    features as made."""
+    mean, factor, out = None, None, []
+    for frame, target_mean, target_factor in zip(frames, means, factors):
+        if mean is None:
+            mean, factor = target_mean, target_factor
+        else:
+            mean = mean + (target_mean - mean) / EASE_FRAMES
+            factor = factor + (target_factor - factor) / EASE_FRAMES
+        made = mean + factor * (frame - mean)
+        made[:, list(KEPT)] = frame[:, list(KEPT)]
+        out.append(made)
+    return out
+
+
+@pytest.mark.parametrize("characters", [1, 5])
+def test_the_compiled_range_filter_makes_numpys_numbers_to_the_bit(characters):
+    rng = np.random.default_rng(characters)
+    dimension, frames = 66, 40
+    made = rng.normal(0.0, 3.0, (frames, characters, dimension))
+    # the targets stay a while, then jump (a style change), as the engine's do
+    means = np.repeat(rng.normal(0.0, 1.0, (4, characters, dimension)), frames // 4, axis=0)
+    factors = np.repeat(np.exp(rng.normal(0.0, 0.3, (4, characters, dimension))), frames // 4, axis=0)
+    scale = RangeFilter()
+    compiled = [scale(frame, mean, factor) for frame, mean, factor in zip(made, means, factors)]
+    for ours, theirs in zip(compiled, _range_filter_in_numpy(made, means, factors)):
+        np.testing.assert_array_equal(ours, theirs)
+    np.testing.assert_array_equal(means[-1], means[-2])  # the targets as they were handed over (not eased in place)
+
+
+def test_the_range_filter_refuses_frames_of_another_crowd():
+    scale = RangeFilter()
+    scale(np.zeros((2, 66)), np.zeros((2, 66)), np.ones((2, 66)))
+    with pytest.raises(ValueError, match="RangeFilter"):
+        scale(np.zeros((3, 66)), np.zeros((3, 66)), np.ones((3, 66)))

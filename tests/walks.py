@@ -13,17 +13,25 @@ from instrument.synthesis.durations import MIN_FRAMES, state_durations
 from instrument.synthesis.engine import walk_features
 from instrument.synthesis.interpolation import CrowdLambda, interpolate
 from instrument.synthesis.stream import Controls, Crowd
-from instrument.synthesis.widen import _without_range
+from instrument.synthesis.widen import without_range
 
 
 def features(model, controls: Controls, frames: int, method: str = "stream", lookahead: int = 32, seed: int = 0,
              widen: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """`walk_features`, with the range stage off unless `widen`."""
-    return walk_features(model if widen else _without_range(model), controls, frames, method, lookahead, seed)
+    return walk_features(model if widen else without_range(model), controls, frames, method, lookahead, seed)
 
 
 def tune(stream: Crowd, controls: list[Controls]) -> None:
-    """Each character n of the stream takes lambda* and durations of controls[n]."""
+    """Each character n of the stream takes lambda* and durations of controls[n].
+
+    A test-side restatement, like the oracles (reference_stream.py, reference_lock.py): these are
+    the per-character tables the old `Crowd.refresh` computed (each character's own lambda* made
+    whole, its durations, its cadence), which the engine no longer makes: its characters differ
+    only by the cast's style offsets (`StyleInterpolation`, `Crowd.tune`). Tests of the stream
+    stage alone use it (through `step`) to give every character controls of its own. For one
+    character it sets the numbers the engine's interpolation and durations stages set at the
+    same controls, to the bit (kept whole here, not as the engine's two factors)."""
     means, precisions = stream.means, stream.precisions  # put together: each character's own, whole
     for n, control in enumerate(controls):
         lam = interpolate(stream.space, control.weights, control.part_weights)

@@ -11,12 +11,12 @@ from instrument.synthesis.posing import PoseStream
 from instrument.synthesis.contact import contact_space
 from instrument.synthesis.footlock import FootLock
 from instrument.synthesis.engine import default_controls, walk_features
-from instrument.synthesis.widen import _without_range
+from instrument.synthesis.widen import without_range
 
 model = load_model(default_model_path())
 contact = contact_space(model)
 controls = default_controls(model, {"normal": 1.0})
-static, ids = walk_features(_without_range(model), controls, 300)
+static, ids = walk_features(without_range(model), controls, 300)
 shares = contact.shares(controls.weights)[0][ids]
 
 

@@ -69,7 +69,8 @@ def run(args: argparse.Namespace) -> int:
               "medians of per-turn ratios)")
     else:
         print("nnmnkwii MLPG:                          not installed (pip install nnmnkwii)")
-    print(f"one window's bare solve ({2 + f['lookahead'] + 1} frames):    {f['window_solve_us']:8.1f} us (the yardstick below)")
+    print(f"one window's bare solve ({2 + f['lookahead'] + 1} frames):    {f['window_solve_us']:8.1f} us (the yardstick below: "
+          f"each ratio the median of {f['yardstick_turns']} turns timing the figure and the solve)")
     print(f"streaming, one character:               {f['stream_us_per_frame']:8.1f} us/frame "
           f"(x{f['stream_to_window_solve']:.2f} the window solve; look-ahead {f['lookahead']})")
     if f["widen_us_per_frame"] is not None:

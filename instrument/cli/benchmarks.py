@@ -141,11 +141,11 @@ def machine() -> dict:
     return {"cores": os.cpu_count(), "cpu": cpu, "load_1min": os.getloadavg()[0] if hasattr(os, "getloadavg") else None}
 
 
-def turn_about(works, repeat: int) -> tuple[list[float], list[float]]:
-    """Median seconds of each work, timed turn about (a turn runs each once, in order), and the
-    median of each one's per-turn ratio to the last (last / this): on a shared machine the load
-    changes within seconds, and works measured back to back see the same load where separate
-    runs of medians do not."""
+def timed_turns(works, repeat: int) -> np.ndarray:
+    """Seconds of each work (repeat, works), timed turn about: a turn runs each once, in order.
+    On a shared machine the speed moves within seconds (here a window solve takes 27 us for a
+    few seconds, then 44 us, then 27 again, in one process: docs/figures.md), and works timed
+    back to back see the same machine where separate runs of medians do not."""
     for work in works:
         work()  # warm up (and compile)
     times = np.empty((repeat, len(works)))
@@ -154,8 +154,26 @@ def turn_about(works, repeat: int) -> tuple[list[float], list[float]]:
             start = time.perf_counter()
             work()
             times[k, j] = time.perf_counter() - start
+    return times
+
+
+def turn_about(works, repeat: int) -> tuple[list[float], list[float]]:
+    """Median seconds of each work, timed turn about (`timed_turns`), and the median of each
+    one's per-turn ratio to the last (last / this: how many times faster than the last it is)."""
+    times = timed_turns(works, repeat)
     ratios = times[:, -1:] / times
     return [float(v) for v in np.median(times, axis=0)], [float(v) for v in np.median(ratios, axis=0)]
+
+
+def against_yardstick(works: dict, yardstick, repeat: int) -> tuple[dict[str, float], dict[str, float], float]:
+    """Each named work timed turn about with the yardstick (one window's bare solve, `frames`
+    times): median seconds of each, the median of each one's per-turn ratio to the yardstick
+    (this / yardstick), and the yardstick's median seconds. A ratio is taken within a turn, so a
+    work and its yardstick always see the same machine."""
+    times = timed_turns([*works.values(), yardstick], repeat)
+    seconds = dict(zip(works, (float(v) for v in np.median(times[:, :-1], axis=0))))
+    ratios = dict(zip(works, (float(v) for v in np.median(times[:, :-1] / times[:, -1:], axis=0))))
+    return seconds, ratios, float(np.median(times[:, -1]))
 
 
 def measure(model_path: str | None, repeat: int) -> dict:
@@ -192,41 +210,51 @@ def measure(model_path: str | None, repeat: int) -> dict:
         figures["mlpg_speedup_over_nnmnkwii"] = figures["mlpg_one_thread_speedup_over_nnmnkwii"] = None
     figures["mlpg_frames_per_s"], figures["mlpg_one_thread_frames_per_s"] = (MLPG_FRAMES / v for v in seconds[:2])
 
-    # the yardstick of the streaming figures: the bare solve of one window of the same size
-    frames, blocks = 100, max(3, min(repeat, 9))  # the median of several blocks: one busy moment is not the figure
+    # the yardstick of the streaming figures: the bare solve of one window of the same size, `frames`
+    # times a block, timed turn about with each figure set against it (`against_yardstick`)
+    frames, turns = 100, max(7, repeat)
     window = 2 + DEFAULT_LOOKAHEAD + 1
     window_means, window_precisions = lam.means[ids[None, :window]], lam.precisions[ids[None, :window]]
     known = np.zeros((1, 2, dimension))
-    figures["window_solve_us"] = 1e6 / frames * median_seconds(
-        lambda: [mlpg_continued(window_means, window_precisions, known) for _ in range(frames)], blocks)
+
+    def solves():
+        for _ in range(frames):
+            mlpg_continued(window_means, window_precisions, known)
+
     # the engine's stream stage alone (plan, window solve, rate limit), its tables set by the other stages
     walker = Engine(model)
     walker.retune(all_styles)
-    figures["stream_us_per_frame"] = 1e6 / frames * median_seconds(lambda: [walker.stream.step() for _ in range(frames)], blocks)
     crowd = Engine(model, BATCH)
     crowd.retune(all_styles, spread=0.5)  # each character its own mix around the performed one
-    figures["stream_us_per_frame_batch"] = 1e6 / 10 / BATCH * median_seconds(
-        lambda: [crowd.stream.step() for _ in range(10)], blocks)
-    figures["stream_to_window_solve"] = figures["stream_us_per_frame"] / figures["window_solve_us"]
-    figures["stream_batch_to_window_solve"] = figures["stream_us_per_frame_batch"] / figures["window_solve_us"]
+    batch_frames = 10
+    seconds, ratios, solve_seconds = against_yardstick({
+        "one": lambda: [walker.stream.step() for _ in range(frames)],
+        "batch": lambda: [crowd.stream.step() for _ in range(batch_frames)]}, solves, turns)
+    figures["window_solve_us"] = 1e6 / frames * solve_seconds
+    figures["stream_us_per_frame"] = 1e6 / frames * seconds["one"]
+    figures["stream_us_per_frame_batch"] = 1e6 / batch_frames / BATCH * seconds["batch"]
+    figures["stream_to_window_solve"] = ratios["one"]
+    figures["stream_batch_to_window_solve"] = ratios["batch"] * frames / (batch_frames * BATCH)
+    figures["yardstick_turns"] = turns
     figures["lookahead"] = DEFAULT_LOOKAHEAD
-    figures |= measure_pose(model, all_styles, blocks, figures["window_solve_us"])
+    figures |= measure_pose(model, all_styles, turns, solves)
     per_character = figures["stream_us_per_frame_batch"]
     figures["characters_at_30fps"] = int(1e6 / 30 / per_character)
     figures["characters_at_60fps"] = int(1e6 / 60 / per_character)
-    figures |= measure_cost(model, figures["window_solve_us"])  # the whole live path of a crowd, per character and stage
-    figures["stream_per_character_to_window_solve"] = figures["stream_us_per_character"] / figures["window_solve_us"]
+    figures |= measure_cost(model, solves, frames)  # the whole live path of a crowd, per character and stage
     figures |= largest_crowd(model, figures["stream_us_per_character"])
     return figures
 
 
-def measure_pose(model, controls: Controls, blocks: int, window_solve_us: float) -> dict:
+def measure_pose(model, controls: Controls, turns: int, solves) -> dict:
     """The pose path per frame (features to world pose, the feet planted: one compiled call for
     all characters), for one character and per character in a crowd of BATCH, and the lock on its
-    own (what planting the feet adds); the range stage per frame; each also against the window solve.
+    own (what planting the feet adds); the range stage per frame; each timed turn about with
+    `solves` (100 bare window solves: `against_yardstick`) and also given as a ratio to one solve.
     The pose figures are None without contact statistics, the range ones without range ones."""
     frames = 100
     figures: dict = {}
+    works: dict = {}
     contact = contact_space(model)
     engine = Engine(model)
     static, shares = np.empty((frames, model.layout.dimension)), np.empty((frames, 2))
@@ -234,9 +262,7 @@ def measure_pose(model, controls: Controls, blocks: int, window_solve_us: float)
         static[k] = engine.next_features(controls)[0]
         if contact is not None:
             shares[k] = engine.contact_shares[0]
-    if contact is None:
-        figures |= {"pose_us_per_frame": None, "contact_us_per_frame": None, "pose_us_per_character_batch": None}
-    else:
+    if contact is not None:
         lock = FootLock(model.layout, contact.clearance, model.fps)
 
         def poses():
@@ -264,12 +290,8 @@ def measure_pose(model, controls: Controls, blocks: int, window_solve_us: float)
             for rows, frame_shares in zip(crowd_static, crowd_shares):
                 crowd.next(rows, frame_shares)
 
-        figures |= {"pose_us_per_frame": 1e6 / frames * median_seconds(poses, blocks),
-                    "contact_us_per_frame": 1e6 / frames * median_seconds(planting, blocks),
-                    "pose_us_per_character_batch": 1e6 / frames / BATCH * median_seconds(crowd_poses, blocks)}
-    if engine.range_targets is None:
-        figures["widen_us_per_frame"] = None
-    else:
+        works |= {"pose_us_per_frame": poses, "contact_us_per_frame": planting, "pose_us_per_character_batch": crowd_poses}
+    if engine.range_targets is not None:
         frame = engine.stream.step()
         targets = engine.range_targets
         walking = np.zeros(1, dtype=np.int64)  # the unit of the frame: the walk
@@ -281,9 +303,13 @@ def measure_pose(model, controls: Controls, blocks: int, window_solve_us: float)
                 engine.retune(snapshot)
                 scale(frame, *targets.targets(walking))
 
-        figures["widen_us_per_frame"] = 1e6 / frames * median_seconds(widened, blocks)
-    for name, ratio in (("pose_us_per_frame", "pose_to_window_solve"), ("pose_us_per_character_batch", "pose_batch_to_window_solve"),
+        works["widen_us_per_frame"] = widened
+    seconds, ratios, _ = against_yardstick(works, solves, turns)
+    for name, ratio in (("pose_us_per_frame", "pose_to_window_solve"), ("contact_us_per_frame", None),
+                        ("pose_us_per_character_batch", "pose_batch_to_window_solve"),
                         ("widen_us_per_frame", "widen_to_window_solve")):
-        figures[ratio] = None if figures[name] is None else figures[name] / window_solve_us
+        characters = BATCH if name.endswith("_batch") else 1
+        figures[name] = seconds[name] * 1e6 / frames / characters if name in works else None
+        if ratio:
+            figures[ratio] = ratios[name] / characters if name in works else None
     return figures
-

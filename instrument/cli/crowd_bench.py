@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import socket
 import time
+from typing import Callable
 
 import numpy as np
 
@@ -12,6 +13,7 @@ from ..models.modelfile import Model
 
 CROWD_FPS = 30.0
 TRIAL_SECONDS = 3.0  # of realtime live loop per crowd size tried
+TRIALS = 2  # a crowd size fails when this many trials in a row fail
 DEMO_FIRST_RAMP_S = 4.0  # where the demo score's first ramp starts (examples/demo/demo.toml)
 LATENESS_P99_MS = 1.0  # a crowd keeps time when no frame is dropped and the p99 lateness stays under this
 SEARCH_BUDGET = 50.0  # seconds the search may take; past it the largest crowd found so far is reported
@@ -79,23 +81,31 @@ def drain(sink: socket.socket) -> None:
         pass
 
 
-def measure_cost(model: Model, window_solve_us: float) -> dict:
+def measure_cost(model: Model, yardstick: Callable[[], object], solves: int) -> dict:
     """Microseconds per character per frame of the live crowd path and of each of its stages,
-    each also as a ratio to the bare solve of one window (`window_solve_us`, the same run's)."""
+    each also as a ratio to the bare solve of one window: `yardstick` runs `solves` of them and
+    is timed after every frame, so frames and solves see the same machine (`against_yardstick`)."""
     frame, seconds, close = live_path(model, COST_CROWD)
+    solving = 0.0
     try:
         frame(0)  # compiles and loads
         seconds.clear()
         for index in range(1, COST_FRAMES + 1):
             frame(index)
+            started = time.perf_counter()
+            yardstick()
+            solving += time.perf_counter() - started
     finally:
         close()
+    window_solve_us = solving * 1e6 / COST_FRAMES / solves
     per_character = {stage: seconds.get(stage, 0.0) * 1e6 / COST_FRAMES / COST_CROWD for stage in STAGES}
     total = sum(per_character.values())
     figures = {"crowd_size_for_cost": COST_CROWD, "stream_us_per_character": total,
                "crowd_engine_us_per_character": sum(per_character[s] for s in STAGES[:7]),
                "crowd_pose_us_per_character": per_character["posing"],
-               "crowd_flat_us_per_character": per_character["encoding"] + per_character["sending"]}
+               "crowd_flat_us_per_character": per_character["encoding"] + per_character["sending"],
+               "crowd_window_solve_us": window_solve_us,
+               "stream_per_character_to_window_solve": total / window_solve_us}
     for stage, cost in per_character.items():
         figures[f"crowd_{stage}_us_per_character"] = cost
         figures[f"crowd_{stage}_to_window_solve"] = cost / window_solve_us
@@ -143,11 +153,19 @@ def largest_crowd(model: Model, us_per_character: float, budget: float = SEARCH_
 
     refused = realtime_scheduling()  # as `instrument run` does
     started = time.monotonic()
-    tried: dict[int, tuple[float, int]] = {}  # crowd size: p99 lateness (ms), late frames
+    tried: dict[int, tuple[float, int, int]] = {}  # crowd size: p99 lateness (ms), late frames, trials taken
 
     def holds(count: int) -> bool:
-        ok, *tried[count] = keeps_time(model, count)
-        return ok
+        """One trial, and a second when the first fails: on a shared machine another program's
+        burst fails a 3 s trial now and then (a crowd of 44 once, of 272 in the run before:
+        docs/crowds.md). A size fails when two trials in a row do; the figures kept are the
+        last trial's."""
+        for trial in range(1, TRIALS + 1):
+            ok, p99, late = keeps_time(model, count)
+            tried[count] = (p99, late, trial)
+            if ok:
+                return True
+        return False
 
     guess = max(1, 2 ** int(np.log2(max(1.0, 0.5e6 / CROWD_FPS / us_per_character))))
     low, high = 0, None  # the largest that held, the smallest that failed
@@ -170,6 +188,6 @@ def largest_crowd(model: Model, us_per_character: float, budget: float = SEARCH_
             high = middle
     return {"largest_crowd_30fps": low, "largest_crowd_first_failing": high,
             "largest_crowd_p99_ms": tried[low][0] if low else None, "largest_crowd_late_frames": tried[low][1] if low else None,
-            "largest_crowd_tried": {str(k): [round(v[0], 3), v[1]] for k, v in sorted(tried.items())},
+            "largest_crowd_tried": {str(k): [round(v[0], 3), v[1], v[2]] for k, v in sorted(tried.items())},
             "largest_crowd_search_s": time.monotonic() - started,
             "largest_crowd_scheduling": "realtime" if refused is None else f"normal ({refused})"}

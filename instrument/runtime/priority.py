@@ -11,16 +11,31 @@ at normal priority and says so.
 from __future__ import annotations
 
 import os
+import sys
 
 PRIORITY = 5
 
 
 def realtime_scheduling() -> str | None:
-    """Switch the calling thread to SCHED_FIFO; None when done, else why not."""
+    """Switch the calling thread to SCHED_FIFO, and the helper threads a crowd's frame is shared
+    with (synthesis/cores.py) as well; None when done, else why not.
+
+    A helper started before this call (by an earlier long MLPG solve: `instrument bench` solves
+    one before its crowd trials) kept normal scheduling, and a frame waits for its helper, so the
+    realtime loop waited behind ordinary programs after all (docs/crowds.md). Threads started
+    later take the caller's scheduling by themselves."""
     if not hasattr(os, "sched_setscheduler"):
         return "not available on this system"
+    # helpers exist only once the solver is loaded (looked up, not imported: `run --help` and a
+    # process that never solves stay without numba)
+    solver = sys.modules.get("instrument.synthesis.mlpg")
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(PRIORITY))
+        for helper in solver.helper_thread_ids() if solver else []:
+            try:
+                os.sched_setscheduler(helper, os.SCHED_FIFO, os.sched_param(PRIORITY))
+            except ProcessLookupError:  # a helper that has ended (at exit): nothing to move
+                pass
     except PermissionError:
         return "not permitted for this user (on Linux, an rtprio limit such as JACK's audio group grants it)"
     except OSError as error:

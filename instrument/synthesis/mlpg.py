@@ -405,21 +405,49 @@ def _parts(dim: int, threads: int) -> list[tuple[int, int]]:
     return list(zip(bounds[:-1], bounds[1:]))
 
 
+def _free_cores() -> int:
+    """The cores this process may use that no other thread wants right now: on Linux, from the
+    count of runnable threads in /proc/loadavg (the calling thread, running, counts itself); all
+    of them where that cannot be read."""
+    cores = _cores()
+    try:
+        with open("/proc/loadavg", encoding="ascii") as loadavg:
+            runnable = int(loadavg.read().split()[3].split("/")[0])
+    except (OSError, ValueError, IndexError):
+        return cores
+    return max(1, min(cores, cores - runnable + 1))
+
+
 def mlpg_threads(dim: int, frames: int) -> int:
-    """How many threads `mlpg` shares a solve of `frames` x `dim` among by default."""
-    return len(_parts(dim, _cores() if frames * dim >= SHARE_FROM else 1))
+    """How many threads `mlpg` shares a solve of `frames` x `dim` among by default: the free
+    cores at the call. A part handed to a core another program holds waits for that program's
+    time slice, and the caller then waits for the part: on the shared 2-core machine a solve
+    shared while both cores were busy took twice as long as on one thread (docs/mlpg.md)."""
+    return len(_parts(dim, _free_cores() if frames * dim >= SHARE_FROM else 1))
 
 
 _helpers: list[ThreadPoolExecutor] = []  # made by the first solve that shares, kept for the process
 _helpers_made = threading.Lock()
+_helper_ids: list[int] = []  # the pool's threads, as the kernel knows them (`helper_thread_ids`)
 
 
 def _pool() -> ThreadPoolExecutor:
     """Threads for the parts after the first (the caller solves that one): one fewer than the cores."""
     with _helpers_made:
         if not _helpers:
-            _helpers.append(ThreadPoolExecutor(max(_cores() - 1, 1), thread_name_prefix="mlpg"))
+            _helpers.append(ThreadPoolExecutor(max(_cores() - 1, 1), thread_name_prefix="mlpg", initializer=_started))
         return _helpers[0]
+
+
+def _started() -> None:
+    _helper_ids.append(threading.get_native_id())
+
+
+def helper_thread_ids() -> list[int]:
+    """The native ids of the helper threads started so far (a thread is started when work first
+    waits for it). A thread made later takes its maker's scheduling; these may need it set
+    (`runtime.priority.realtime_scheduling`)."""
+    return list(_helper_ids)
 
 
 def _forget_pool() -> None:
@@ -427,6 +455,7 @@ def _forget_pool() -> None:
     them would keep every part handed to it (taken back, but never removed from its queue)."""
     global _helpers_made
     _helpers.clear()
+    _helper_ids.clear()
     _helpers_made = threading.Lock()
 
 

@@ -118,25 +118,56 @@ def _blend(base, inside, offsets, out):  # pragma: no cover - compiled
 class RangeFilter:
     """The engine's range stage for N characters, carried from frame to frame (see the module's
     docstring): each frame the stride mean and the factor move a quarter of the way to their
-    targets, and each feature's swing about the mean is scaled."""
+    targets, and each feature's swing about the mean is scaled.
+
+    One compiled pass does it all (`_range_step`): the numpy form of the same arithmetic took
+    nine array operations and a fancy-indexed copy a frame, some 15-20 us for one character,
+    where this takes a few (docs/figures.md); the numbers are the same to the bit
+    (tests/test_widen.py holds it to a numpy restatement)."""
 
     def __init__(self):
-        self.mean: np.ndarray | None = None
-        self.factor: np.ndarray | None = None
-        self.kept = list(KEPT)
+        self.mean: np.ndarray | None = None  # (N, D) where the swing is scaled about, eased
+        self.factor: np.ndarray | None = None  # (N, D) by how much, eased
 
     def __call__(self, frames: np.ndarray, mean: np.ndarray, factor: np.ndarray) -> np.ndarray:
         """Frames (N, D) as made, their swing scaled towards targets `mean` and `factor` (N, D)."""
-        if self.mean is None:
-            self.mean, self.factor = mean, factor
-        else:
-            self.mean = self.mean + (mean - self.mean) / EASE_FRAMES
-            self.factor = self.factor + (factor - self.factor) / EASE_FRAMES
-        out = self.mean + self.factor * (frames - self.mean)
-        out[:, self.kept] = frames[:, self.kept]
+        frames = np.ascontiguousarray(frames, dtype=np.float64)
+        first = self.mean is None
+        if np.shape(mean) != frames.shape or np.shape(factor) != frames.shape or not (first or self.mean.shape == frames.shape):
+            raise ValueError(f"RangeFilter: frames {frames.shape}, targets {np.shape(mean)} and {np.shape(factor)} "
+                             f"(the filter's characters: {None if first else self.mean.shape})")
+        if first:  # the filter's own arrays, eased in place from now on (the targets are the engine's)
+            self.mean, self.factor = np.empty(frames.shape), np.empty(frames.shape)
+        out = np.empty(frames.shape)
+        _range_step(frames, np.ascontiguousarray(mean, dtype=np.float64), np.ascontiguousarray(factor, dtype=np.float64),
+                    self.mean, self.factor, first, KEPT_FROM, KEPT_TO, out)
         return out
 
 
-def _without_range(model):
-    """The model with no range statistics: the walk as MLPG makes it, the filter off."""
+KEPT_FROM, KEPT_TO = min(KEPT), max(KEPT) + 1  # the kept features are one run of columns (root.vx, root.vz, root.yaw_rate)
+assert KEPT == tuple(range(KEPT_FROM, KEPT_TO))
+
+
+@njit(cache=True, nogil=True)
+def _range_step(frames, target_mean, target_factor, mean, factor, first, kept_from, kept_to, out):  # pragma: no cover
+    """One frame of `RangeFilter`: mean and factor (N, D) eased towards their targets in place
+    (set to them when `first`), out = mean + factor (frames - mean), columns kept_from to
+    kept_to copied as made. The same operations, in the same order, as numpy's elementwise form
+    (no fastmath: nothing is fused or reordered)."""
+    for n in range(frames.shape[0]):
+        for d in range(frames.shape[1]):
+            if first:
+                m, f = target_mean[n, d], target_factor[n, d]
+            else:
+                m = mean[n, d] + (target_mean[n, d] - mean[n, d]) / EASE_FRAMES
+                f = factor[n, d] + (target_factor[n, d] - factor[n, d]) / EASE_FRAMES
+            mean[n, d], factor[n, d] = m, f
+            out[n, d] = frames[n, d] if kept_from <= d < kept_to else m + f * (frames[n, d] - m)
+
+
+def without_range(model):
+    """The model with its range statistics left out, so the engine runs without the range stage:
+    the walk as streaming MLPG makes it. Training measures that walk to learn the factors
+    (`instrument/training/widen.py`), and the tests and `examples/pose_cost.py` use it where they
+    need the bare MLPG walk. The model itself is not changed (a copy with other extras)."""
     return replace(model, extras={k: v for k, v in (model.extras or {}).items() if not k.startswith("range_")})

@@ -21,7 +21,7 @@ from ..motion.limbs import find_limbs
 from ..motion.quality import limb_ranges
 from ..synthesis.engine import Engine, render
 from ..synthesis.stream import Controls
-from ..synthesis.widen import KEPT, LIMIT, _without_range, stride_means
+from ..synthesis.widen import KEPT, LIMIT, stride_means, without_range
 
 TRAINING_FRAMES = 600  # frames of each generated walk measured in training (the first SETTLE dropped)
 SETTLE = 60
@@ -41,7 +41,7 @@ def _spread(values: np.ndarray) -> np.ndarray:
 def _generated_range(model, weights: np.ndarray) -> np.ndarray:
     """Range of each feature of a walk the model makes at `weights` (the range filter off),
     about its stride mean."""
-    engine = Engine(_without_range(model))
+    engine = Engine(without_range(model))
     controls = Controls(weights)
     frames = np.array([engine.next_features(controls)[0] for _ in range(TRAINING_FRAMES)])[SETTLE:]
     return _spread(frames - stride_means(engine.stream.base, engine.stream.means)[0])
