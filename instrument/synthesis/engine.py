@@ -179,8 +179,9 @@ class RangeTargets:
 
     def targets(self, units: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(N, D) stride means and factors of each character's frame, of unit `units` (N,)."""
-        if len(self.scaled) == 1:
-            return self.means[:, 0], self.factors[:, 0]
+        if len(self.scaled) == 1 or len(units) == 1:  # views, no copy (the one character's unit)
+            k = 0 if len(self.scaled) == 1 else int(units[0])
+            return self.means[:, k], self.factors[:, k]
         rows = np.arange(len(units))
         return self.means[rows, units], self.factors[rows, units]
 

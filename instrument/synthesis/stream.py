@@ -139,6 +139,7 @@ class Crowd:
         self.rngs = [np.random.default_rng(seed) for seed in seeds]
         self.pool = np.zeros((count, 4 * (lookahead + 8)))
         self._buffers: dict[int, tuple] = {}
+        self._made: tuple | None = None  # (what it was made from, the StreamTables record): `_record`
         self._parts_work: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}  # (fixed, k): part k's solver work
 
     def start_at(self, phases: np.ndarray) -> None:
@@ -186,7 +187,10 @@ class Crowd:
         need = frames + 3
         states = self.space.states
         counters = self.counters
-        if (counters[:, FILLED] - counters[:, TAIL]).min() >= need:
+        if self.count == 1:  # plain numbers: the array form costs a one-character frame 2 us
+            if counters[0, FILLED] - counters[0, TAIL] >= need:
+                return
+        elif (counters[:, FILLED] - counters[:, TAIL]).min() >= need:
             return
         if self.pool.shape[1] < 2 * need + states:
             grown = np.zeros((self.count, 2 * need + states + self.pool.shape[1]))
@@ -227,6 +231,18 @@ class Crowd:
             )
         return self._buffers[fixed]
 
+    def _record(self) -> StreamTables:
+        """The record the compiled step reads, made again only when the interpolation stage has
+        handed over new lambda* tables or the draws' pool has grown (the other arrays are written
+        in place): a record a frame cost a one-character frame about 1 us."""
+        key = (self.tables, self.pool, self.max_step_ratio)
+        if self._made is None or any(a is not b for a, b in zip(key, self._made[0])):
+            lam = self.tables
+            self._made = key, StreamTables(lam.mean_own, lam.mean_shared, lam.precision_own, lam.precision_shared,
+                                           lam.plain, self.base, self.sigma, self.counters, self.carry, self.pool,
+                                           self.history, self.history_ids, self.max_step_ratio, self.space.max_step)
+        return self._made[1]
+
     def step(self) -> np.ndarray:
         """One frame for each character, (N, D), from the tables the engine's stages set."""
         if self.sent == 0:
@@ -234,12 +250,11 @@ class Crowd:
         self._draws_for(self.lookahead + 1)
         fixed = min(self.sent, 2)
         frames = np.empty((self.count, self.space.base.shape[2] // 3))
-        lam = self.tables
-        tables = StreamTables(lam.mean_own, lam.mean_shared, lam.precision_own, lam.precision_shared, lam.plain, self.base,
-                              self.sigma, self.counters, self.carry, self.pool, self.history, self.history_ids,
-                              self.max_step_ratio, self.space.max_step)
+        tables = self._record()
         buffers = self._window_buffers(fixed)
-        limited = bool((self.max_step_ratio > 0).any())  # the whole crowd's, so a part limits as the crowd does
+        ratios = self.max_step_ratio
+        # the whole crowd's, so a part limits as the crowd does (one character: a plain number)
+        limited = bool(ratios[0] > 0) if self.count == 1 else bool((ratios > 0).any())
         cut = parts(self.count)
         if len(cut) == 1:  # one core's worth (one character): no parts to cut
             _advance(tables, buffers, fixed, frames, limited)
