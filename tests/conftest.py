@@ -19,6 +19,18 @@ os.environ["PYTHONPATH"] = os.pathsep.join([str(REPO)] + [p for p in os.environ.
                                                           if p and Path(p).resolve() != REPO])
 
 
+def play_mapped(mapper, state, event) -> bool:
+    """A raw event through a mapping's `Mapper` and then the hub's one check-and-apply path, as a
+    device's decoder plays it (control/kinds.py MappedDecoder); False if the mapping does not use it."""
+    from instrument.control.hub import ControlHub
+
+    targets = mapper.decode(state, event)
+    hub = ControlHub([mapper.mapping], mapper.presets)
+    for target in targets or []:
+        hub.apply_target(state, target)
+    return targets is not None
+
+
 def walk_files() -> list[Path]:
     return sorted(SHARED_WALKS.glob("*.bvh")) if SHARED_WALKS.is_dir() else []
 

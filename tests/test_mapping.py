@@ -9,7 +9,7 @@ from instrument.control.hub import ControlHub
 from instrument.control.mapping import Mapper, load_mapping, preset_problems
 from instrument.control.state import ControlState
 from instrument.errors import UserError
-from conftest import REPO
+from conftest import REPO, play_mapped
 
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
 
@@ -25,7 +25,7 @@ def mapper(tmp_path, controls: str, extra: str = "") -> Mapper:
 
 
 def send(m: Mapper, s: ControlState, control: str, value: float, t: float = 0.0) -> bool:
-    return m.apply(s, ControlEvent(t, "midi:test", control, value))
+    return play_mapped(m, s, ControlEvent(t, "midi:test", control, value))
 
 
 def test_absolute_cc_with_range_and_clamping(tmp_path):
@@ -140,11 +140,11 @@ def test_hid_sticks_have_deadzones(tmp_path):
     path.write_text('[device]\nhid = "054c:09cc"\n[[control]]\nmessage = "hid"\ninput = "lx"\ntarget = "turn"\nrange = [-1.0, 1.0]\ndeadzone = 0.1\n')
     m, s = Mapper(load_mapping(path, state())), state()
     for raw in (128, 135, 121):  # within the deadzone around the centre
-        m.apply(s, ControlEvent(0, "hid:054c:09cc", "lx", raw))
+        play_mapped(m, s, ControlEvent(0, "hid:054c:09cc", "lx", raw))
         assert s.turn == 0.0
-    m.apply(s, ControlEvent(0, "hid:054c:09cc", "lx", 255))
+    play_mapped(m, s, ControlEvent(0, "hid:054c:09cc", "lx", 255))
     assert s.turn == pytest.approx(1.0)
-    m.apply(s, ControlEvent(0, "hid:054c:09cc", "lx", 0))
+    play_mapped(m, s, ControlEvent(0, "hid:054c:09cc", "lx", 0))
     assert s.turn == pytest.approx(-1.0)
 
 
@@ -223,7 +223,7 @@ def test_mapping_errors_name_file_line_and_key(tmp_path, body, line, key):
 def test_broken_toml_is_one_line(tmp_path):
     path = tmp_path / "bad.toml"
     path.write_text("[device\nmidi = 'x'\n")
-    with pytest.raises(UserError, match=f"^{path}: .*line 1"):
+    with pytest.raises(UserError, match=f"^{path}:1: .*line 1"):
         load_mapping(path, state())
 
 
