@@ -508,6 +508,15 @@ SYSTEMD_ANALYZE = shutil.which("systemd-analyze")
 needs_systemd_analyze = pytest.mark.skipif(SYSTEMD_ANALYZE is None, reason="systemd-analyze is not installed")
 
 
+def outside_the_venv() -> dict[str, str]:
+    """The environment for an interpreter symlinked outside the virtual environment (which then
+    finds none of its packages): this checkout and the environment's packages on PYTHONPATH, as
+    `service` checks the show with the model and its code."""
+    import site
+
+    return dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO), *site.getsitepackages()]))
+
+
 def write_unit(tmp_path, show, *options):
     unit = tmp_path / f"walk{len(list(tmp_path.glob('*.service')))}.service"
     result = subprocess.run([sys.executable, "-m", "instrument", "service", "--config", str(show), "--out", str(unit), *options],
@@ -550,7 +559,7 @@ def test_paths_with_spaces_percent_dollar_quotes_and_backslashes_reach_systemd_w
     python = folder / "python 3"  # (systemd refuses quotes and backslashes in an executable's path: tested below)
     python.symlink_to(sys.executable)
     result = subprocess.run([str(python), "-m", "instrument", "service", "--config", str(show), "--out", str(tmp_path / "walk.service")],
-                            capture_output=True, text=True, timeout=120, env=dict(os.environ, PYTHONPATH=os.environ.get("PYTHONPATH", str(REPO))))
+                            capture_output=True, text=True, timeout=120, env=outside_the_venv())
     assert result.returncode == 0, result.stderr
     verify = subprocess.run([SYSTEMD_ANALYZE, "verify", str(tmp_path / "walk.service")], capture_output=True, text=True, timeout=120)
     assert verify.returncode == 0 and verify.stderr == "", verify.stderr
@@ -564,7 +573,7 @@ def test_an_interpreter_systemd_cannot_start_is_named_in_one_line(tmp_path):
     show.write_text('osc = ["127.0.0.1:9000/flat"]\n')
     result = subprocess.run([str(folder / "python"), "-m", "instrument", "service", "--config", str(show), "--out",
                              str(tmp_path / "walk.service")], capture_output=True, text=True, timeout=120,
-                            env=dict(os.environ, PYTHONPATH=os.environ.get("PYTHONPATH", str(REPO))))
+                            env=outside_the_venv())
     assert result.returncode == 1 and len(result.stderr.strip().splitlines()) == 1, result.stderr
     assert "systemd refuses an executable" in result.stderr and not (tmp_path / "walk.service").exists()
 
@@ -600,7 +609,10 @@ BAD_SHOWS = [
     ('replay = "missing.jsonl"\n', 1, "replay: "),
     ('[presets.calm]\n"style/elderly" = 50\n', 2, "presets.calm: style/elderly: 50 is out of range"),  # a preset out of range
     ('characters = 2\nbvh-character = 5\n', 2, "bvh-character: expected a character of the crowd, 0 to 1, not 5"),
-    ('vmc-root = "knees"\n', 1, "vmc-root: --vmc-root must be hips or path"),
+    ('vmc-root = "knees"\n', 1, "vmc-root: expected one of hips, path, not 'knees'"),
+    ('midi-virtual = ["x"]\nmidi-api = "oss"\n', 2, "midi-api: expected one of alsa, jack, not 'oss'"),  # was a traceback
+    ('seconds = 1\nsync = "beat"\n', 2, "sync: expected one of midi, link, not 'beat'"),  # was ignored
+    ('check = true\n', 1, "check: unknown option"),  # the command line's only
     ('sync = "midi"\n', 1, "sync: --sync midi follows the clock of a MIDI input"),
     ('bvh = "no folder/take.bvh"\n', 1, "bvh: "),  # its folder does not exist
     ('bvh = "taken.bvh"\n', 1, "taken.bvh: already exists"),
@@ -609,6 +621,35 @@ BAD_SHOWS = [
      "attract: needs a controller"),
     ('osc-in = 9000\n[attract]\nafter = 5\nscore = "empty.toml"\n', 2, "attract: "),  # its score is no score
 ]
+
+
+def test_the_show_file_and_the_command_line_are_read_from_one_table():
+    """Each row of control/options.py RUN is an option of `run --help` and, unless it is for the
+    command line only, a key a show file takes, read as its kind says; the choices are what the
+    code behind them implements."""
+    import argparse
+
+    from instrument.cli.run_cmd import add_parser
+    from instrument.cli.showplan import file_value
+    from instrument.control.options import RUN, RUN_BY_KEY
+    from instrument.output.vmc import ROOT_CONVENTIONS
+
+    parser = argparse.ArgumentParser()
+    add_parser(parser.add_subparsers())
+    run = parser._subparsers._group_actions[0].choices["run"]
+    flags = {flag for action in run._actions for flag in action.option_strings} - {"-h", "--help"}
+    assert flags == {option.flag for option in RUN}
+    assert RUN_BY_KEY["vmc-root"].choices == ROOT_CONVENTIONS
+    samples = {"text": "x", "path": "x", "flag": True, "list": ["x"], "paths": ["x"]}
+    for option in RUN:
+        action = next(a for a in run._actions if option.flag in a.option_strings)
+        assert action.help == option.help or option.flag == "--osc", option.flag
+        assert (action.choices or ()) == option.choices and action.dest == option.dest
+        assert (action.nargs == 0) == (option.kind == "flag") and (type(action).__name__ == "_AppendAction") == (
+            option.kind in ("list", "paths"))
+        value = option.choices[0] if option.choices else str(option.accepts.high) if option.accepts else samples[option.kind]
+        if option.in_file:
+            assert file_value(option, value, "show.toml:1") in (value, str(value)), option.flag
 
 
 def beside_the_show(folder) -> None:

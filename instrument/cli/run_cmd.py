@@ -17,71 +17,18 @@ from ..runtime.notify import SystemdNotifier
 from ..runtime.priority import realtime_scheduling
 from ..runtime.stopping import StopFlag
 from ..shipped import default_model_path
-from ..synthesis.parameters import DEFAULT_SPACING, DEFAULT_VMC_CHARACTERS
-from .showplan import DEFAULT_TARGETS, plan_show
+from ..control.options import RUN
+from ..output.osc import FLAT_PORT, VMC_PORT
+from .showplan import plan_show
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="the live instrument: walk, listen to controls, send OSC (default: the demo performance)")
-    p.add_argument("--config", metavar="SHOW.toml", help="a show file holding any of these options (flags given here win)")
-    p.add_argument("--model", help="model file (default: the shipped default model)")
-    p.add_argument("--fps", help="output frame rate, 24 to 120 (default 30)")
-    p.add_argument("--seconds", help="stop after this many seconds of performance (default: until Ctrl-C)")
-    p.add_argument("--osc", action="append", metavar="HOST:PORT[/vmc|/flat]",
-                   help=f"OSC target, repeatable (default: {' and '.join(DEFAULT_TARGETS)}); "
-                        "/vmc-unbundled or /flat-unbundled: one message per datagram, for receivers that reject bundles; "
-                        "a broadcast (x.x.x.255) or multicast (224-239.x.x.x) address sends to many")
-    p.add_argument("--no-osc", action="store_true", default=None, help="send no OSC at all")
-    p.add_argument("--bvh", metavar="OUT.bvh", help="record the performance as BVH while it plays")
-    p.add_argument("--characters", metavar="N", help="a crowd of N walkers (default 1; docs/crowds.md)")
-    p.add_argument("--spacing", metavar="METRES",
-                   help=f"a crowd's distance between neighbours on the floor (default {DEFAULT_SPACING:g})")
-    p.add_argument("--bvh-character", metavar="K", help="of a crowd, the character --bvh records (default 0)")
-    p.add_argument("--vmc-characters", metavar="M", help=f"of a crowd, how many characters (0 to M-1) a VMC target sends, "
-                   f"character K on its port + K (default {DEFAULT_VMC_CHARACTERS}; the flat profile carries them all)")
-    p.add_argument("--midi", action="append", metavar="PATTERN",
-                   help="MIDI input: the first port whose name matches (regular expression); repeatable, one controller each")
-    p.add_argument("--midi-virtual", action="append", metavar="NAME",
-                   help="create a virtual MIDI input port NAME that other programs connect to; repeatable")
-    p.add_argument("--midi-api", choices=("alsa", "jack"), help="MIDI system (default: rtmidi's choice, ALSA on Linux)")
-    p.add_argument("--sync", choices=("midi", "link"),
-                   help="step on the beat: follow MIDI clock on the MIDI inputs, or join an Ableton Link session "
-                        "(docs/tempo.md)")
-    p.add_argument("--midi-out", metavar="NAME",
-                   help="a virtual MIDI output port NAME sending each footfall as a note (left 36, right 38, channel 10)")
-    p.add_argument("--no-feedback", action="store_true", default=None,
-                   help="send nothing back to the MIDI controller (default: LEDs and motor faders follow the state)")
-    p.add_argument("--hid", metavar="VVVV:PPPP", help="HID game controller by vendor and product id, e.g. 054c:09cc")
-    p.add_argument("--mapping", action="append", metavar="FILE.toml",
-                   help="mapping file, repeatable (default: the shipped mapping that matches the device)")
-    p.add_argument("--osc-in", metavar="[HOST:]PORT", help="accept control from OSC surfaces (bound to 127.0.0.1 unless HOST is given)")
-    p.add_argument("--console", metavar="[HOST:]PORT",
-                   help="serve the browser console (style mixer + live character) on PORT, bound to 127.0.0.1 unless "
-                        "HOST is given; with a HOST the printed URL carries a token the page needs (docs/console.md)")
-    p.add_argument("--console-token", metavar="TOKEN", help="the console's token (default: a new random one when HOST is given)")
-    p.add_argument("--presets", metavar="FILE.toml", help="[presets.NAME] tables of target = value, recalled by preset/NAME")
-    p.add_argument("--morph", help="seconds to morph into a recalled preset (default: the mapping's)")
-    p.add_argument("--record", metavar="LOG.jsonl", help="record every raw control event with its time")
-    p.add_argument("--replay", metavar="LOG.jsonl", help="play a controller log once (default with no controllers: the demo, looped)")
-    p.add_argument("--score", metavar="SCORE.toml", help="play a score of timed cues (docs/scores.md); live controls ride on top")
-    p.add_argument("--loop", action="store_true", default=None, help="play the --replay log or the --score over and over")
-    p.add_argument("--humanoid", metavar="BONES.toml", help="joint-to-humanoid-bone map for the VMC profile")
-    p.add_argument("--vmc-root", metavar="hips|path", help="VMC: the hips carry the walk under a fixed root (default, as "
-                   "VirtualMotionCapture sends), or /VMC/Ext/Root/Pos carries the path and heading")
-    p.add_argument("--no-relaxed-hands", action="store_true", default=None,
-                   help="VMC: send no finger bones (default: a relaxed hand pose)")
-    p.add_argument("--fast", action="store_true", default=None, help="no realtime pacing: as fast as the CPU allows (offline rendering)")
-    p.add_argument("--normal-priority", action="store_true", default=None,
-                   help="do not ask for realtime scheduling (default: asked for, so frames stay on time on a busy machine)")
-    p.add_argument("--quiet", action="store_true", default=None, help="no status line (the health line stays)")
-    p.add_argument("--force", action="store_true", default=None, help="let --bvh and --record replace existing files (default: refuse)")
-    p.add_argument("--check", action="store_true", default=None,
-                   help="check the show file and options as a start would (model, mappings, presets, files) "
-                        "and stop: nothing is opened or written")
-    p.add_argument("--health-every", metavar="SECONDS",
-                   help="a health line (frames, late, outputs, devices, memory) this often, 0 for none (default 60)")
-    p.add_argument("--status-port", metavar="[HOST:]PORT",
-                   help="answer /walk/status (OSC) and 'status' (JSON) requests on this UDP port (bound to 127.0.0.1 unless HOST is given)")
+    for option in RUN:  # the one table of run's options, which the show file reader reads too (control/options.py)
+        options = option.argparse_options()
+        if option.flag == "--osc":
+            options["help"] = options["help"].format(vmc=VMC_PORT, flat=FLAT_PORT)
+        p.add_argument(option.flag, **options)
     p.set_defaults(run=run)
 
 

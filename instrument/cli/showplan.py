@@ -25,10 +25,10 @@ from ..control.hid import choose_mapping as choose_hid_mapping
 from ..control.kinds import midi_fits
 from ..control.loghead import logged_crowd, logged_mappings, logged_per_device, unreadable_sources
 from ..control.mapping import load_mapping, parse_hid_id, preset_problems, style_problems, target_line
-from ..control.options import OPTIONS, host_port
+from ..control.options import RUN, RUN_BY_KEY, Option, host_port
 from ..control.options import value as option_value
 from ..control.presetfile import model_of, read_presets, read_presets_file
-from ..errors import UserError
+from ..errors import UserError, quoted
 from ..output.osc import FLAT_PORT, VMC_PORT, OscTarget, parse_target
 from ..outputfile import check_output
 from ..shipped import default_model_path, demo_score_path, shipped_mappings
@@ -45,14 +45,8 @@ if TYPE_CHECKING:
     from ..control.state import ControlState
 
 DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
-DEFAULTS = {"fps": "30", "no_osc": False, "no_feedback": False, "loop": False, "fast": False, "quiet": False,
-            "normal_priority": False, "force": False, "vmc_root": "hips", "no_relaxed_hands": False, "check": False}
-LISTS = ("osc", "mapping", "midi", "midi_virtual")
-SHOW_FILE_CHECKS = {"osc": parse_target, "hid": parse_hid_id}  # checked as the file is read, so errors name its line
-ADDRESSES = ("osc_in", "status_port", "console")  # [HOST:]PORT options (control/options.host_port)
-PATHS = ("model", "bvh", "replay", "score", "record", "humanoid", "presets", "mapping")  # relative to the show file
+SHOW_FILE_CHECKS = {"osc": parse_target, "hid": parse_hid_id}  # beyond the row's kind, checked as the file is read
 READS = ("model", "replay", "score", "humanoid", "mapping")  # files that must exist before the show starts
-NOT_IN_A_SHOW_FILE = ("config", "run", "command", "check")
 
 
 def apply_show_file(args: argparse.Namespace) -> TomlFile:
@@ -61,47 +55,53 @@ def apply_show_file(args: argparse.Namespace) -> TomlFile:
     read, for its [presets] (checked once the model is known: `read_presets`) and [attract]."""
     show = TomlFile(args.config)
     path = show.path
-    options = {a for a in vars(args) if a not in NOT_IN_A_SHOW_FILE}
     for key, value in show.data.items():
         if key in ("presets", "attract"):  # read once the model is known (control/presetfile.py, control/attract.py)
             if not isinstance(value, dict):  # its shape is known before the model is loaded
                 tables = "[presets.NAME] tables" if key == "presets" else "an [attract] table"
                 raise UserError(f"{path}:{show.line(key)}: {key}: expected {tables}")
             continue
-        dest = key.replace("-", "_")
+        option = RUN_BY_KEY.get(key)
         where = f"{path}:{show.line(key)}: {key}"
-        if dest not in options:
+        if option is None or not option.in_file:
             raise UserError(f"{where}: unknown option (the show file takes the flags of `instrument run`)")
-        if dest in LISTS:
-            value = value if isinstance(value, list) else [value]
-            if not all(isinstance(v, str) for v in value):
-                raise UserError(f"{where}: expected a string or a list of strings")
-        elif isinstance(DEFAULTS.get(dest), bool):
-            if not isinstance(value, bool):
-                raise UserError(f"{where}: expected true or false")
-        elif not isinstance(value, (str, int, float)) or isinstance(value, bool):
-            raise UserError(f"{where}: expected a string or a number")
-        else:
-            value = str(value)
-        option = f"run --{dest.replace('_', '-')}"
-        if dest in ADDRESSES:
-            host_port(option, value, where=where)
-        elif option in OPTIONS:  # the same table as the command line, the error naming file, line and key
-            option_value(option, value, where=where)
-        for k, text in enumerate(value if isinstance(value, list) else [value]) if dest in SHOW_FILE_CHECKS else ():
+        value = file_value(option, value, where)
+        for k, text in enumerate(value if isinstance(value, list) else [value]) if key in SHOW_FILE_CHECKS else ():
             try:
-                SHOW_FILE_CHECKS[dest](text)
+                SHOW_FILE_CHECKS[key](text)
             except UserError as e:
                 line = show.line(key, k) if isinstance(value, list) else show.line(key)
                 raise UserError(f"{path}:{line}: {key}: {str(e).removeprefix('--osc ')}") from None
-        if getattr(args, dest) is None:
-            setattr(args, dest, value)
-        if dest in PATHS:
-            base = Path(path).parent
-            current = getattr(args, dest)
-            if current is value:  # came from the file: paths are relative to it
-                setattr(args, dest, [str(base / v) for v in value] if isinstance(value, list) else str(base / value))
+        if getattr(args, option.dest) is None:  # the command line wins
+            if option.kind in ("path", "paths"):  # relative to the show file
+                base = Path(path).parent
+                value = [str(base / v) for v in value] if isinstance(value, list) else str(base / value)
+            setattr(args, option.dest, value)
     return show
+
+
+def file_value(option: Option, value: object, where: str) -> object:
+    """A show file's value for `option`, as the command line would give it (text, a list of
+    texts, or True/False for a flag), checked as its row says; a one-line error naming `where`."""
+    if option.kind == "flag":
+        if not isinstance(value, bool):
+            raise UserError(f"{where}: expected true or false")
+        return value
+    if option.kind in ("list", "paths"):
+        value = value if isinstance(value, list) else [value]
+        if not all(isinstance(v, str) for v in value):
+            raise UserError(f"{where}: expected a string or a list of strings")
+        return value
+    if not isinstance(value, (str, int, float)) or isinstance(value, bool):
+        raise UserError(f"{where}: expected a string or a number")
+    text = str(value)
+    if option.kind == "address":
+        host_port(f"run {option.flag}", text, where=where)
+    elif option.kind == "number":
+        option_value(f"run {option.flag}", text, where=where)
+    elif option.kind == "choice" and text not in option.choices:
+        raise UserError(f"{where}: expected one of {', '.join(option.choices)}, not {quoted(value)}")
+    return text
 
 
 @dataclass
@@ -171,18 +171,17 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
     from ..control.score import ScorePlayer, load_score
     from ..control.state import ControlState
     from ..models.modelfile import load_model
-    from ..output.vmc import ROOT_CONVENTIONS
 
     given = {dest for dest, value in vars(args).items() if value is not None}
     show = apply_show_file(args) if args.config else None
     origins = _Origins(show, given)
     check_needs("run", args, where=origins.prefix)
-    for key, value in DEFAULTS.items():
-        if getattr(args, key) is None:
-            setattr(args, key, value)
+    for option in RUN:
+        if getattr(args, option.dest) is None and option.default is not None:
+            setattr(args, option.dest, option.default)
     console = Console(quiet=args.quiet)
     for dest in READS:  # before the model is loaded: a missing file is named with the key that names it
-        for path in (getattr(args, dest) or []) if dest in LISTS else [getattr(args, dest)]:
+        for path in (getattr(args, dest) or []) if RUN_BY_KEY[dest].kind == "paths" else [getattr(args, dest)]:
             if path is not None and not Path(path).is_file():
                 why = "is a folder, not a file" if Path(path).is_dir() else "no such file"
                 raise UserError(f"{origins.prefix(dest)}{path}: {why}")
@@ -192,12 +191,9 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
     health_every = 60.0 if args.health_every is None else option_value("run --health-every", args.health_every)
     with origins.blame("bvh_character", "characters", "vmc_characters"):
         characters, spacing, bvh_character, vmc_characters = crowd_options(args)
-    for dest in ADDRESSES:
-        if getattr(args, dest):
-            host_port(f"run --{dest.replace('_', '-')}", getattr(args, dest))
-    if args.vmc_root not in ROOT_CONVENTIONS:
-        raise UserError(f"{origins.prefix('vmc_root')}--vmc-root must be {' or '.join(ROOT_CONVENTIONS)}, "
-                        f"not {args.vmc_root!r}")
+    for option in RUN:
+        if option.kind == "address" and getattr(args, option.dest):
+            host_port(f"run {option.flag}", getattr(args, option.dest))
     with origins.blame("model"):
         model = load_model(args.model or default_model_path())
     state = ControlState(model.style_names, model.states)
