@@ -198,13 +198,12 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
         model = load_model(args.model or default_model_path())
     state = ControlState(model.style_names, model.states)
     presets = read_presets(show, model_of(state)) if show else {}
-    with origins.blame("presets"):
-        if args.presets and args.console:  # the console saves to it: a file holding more than presets is refused
-            from ..console.presets import check_presets_file
+    if args.presets and args.console:  # the console saves to it: a file holding more than presets is refused
+        from ..console.presets import check_presets_file
 
-            check_presets_file(args.presets)
-        if args.presets and (Path(args.presets).exists() or not args.console):  # the console may save to a new file
-            presets.update(read_presets_file(args.presets, model_of(state)))
+        check_presets_file(args.presets)
+    if args.presets and (Path(args.presets).exists() or not args.console):  # the console may save to a new file
+        presets.update(read_presets_file(args.presets, model_of(state)))
     with origins.blame("bvh", "record"):
         check_recordings(args)
     with origins.blame("replay"):
@@ -231,9 +230,8 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
         if target.profile == "vmc" and target.port + vmc_characters - 1 > 65535:
             raise UserError(f"{origins.prefix('osc')}--osc {target}: {vmc_characters} characters need VMC ports "
                             f"{target.port} to {target.port + vmc_characters - 1}, past 65535")
-    with origins.blame("presets"):
-        hub = ControlHub(mappings, presets, None, morph, console,
-                         per_device=logged_per_device(args.replay) if args.replay else True)  # as the log was played
+    hub = ControlHub(mappings, presets, None, morph, console,
+                     per_device=logged_per_device(args.replay) if args.replay else True)  # as the log was played
     hub.start(state)
     for mapping in mappings:
         for target in preset_problems(mapping, hub.presets):
