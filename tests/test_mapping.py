@@ -247,3 +247,20 @@ def test_a_preset_button_with_no_such_preset_is_refused_at_start(tmp_path, capsy
     error = capsys.readouterr().err.strip()
     assert error.startswith(f"instrument run: error: {path}:7: target 'preset/nosuch': no such preset")
     assert "\n" not in error
+
+
+def test_a_mapper_returns_target_events_and_sets_nothing_itself(tmp_path):
+    """Typed edges: the Mapper turns a raw event into the TargetEvents it asks for; only the hub's
+    one check-and-apply path (ControlHub.apply_target, as for OSC and the console) changes the state."""
+    from instrument.control.events import TargetEvent
+
+    m = mapper(tmp_path, '[[control]]\nmessage = "cc"\nnumber = 7\ntarget = "speed"\nrange = [0.5, 2.0]\n'
+                         '[[control]]\nmessage = "note"\nnumber = 1\nmode = "momentary"\ntarget = "preset/calm"\n',
+               '[presets.calm]\nspeed = 0.8\n')
+    s = state()
+    assert m.decode(s, ControlEvent(1.0, "midi:test", "cc/1/7", 127)) == [TargetEvent(1.0, "speed", 2.0)]
+    assert s.speed == 1.0  # decoded, not applied
+    assert m.decode(s, ControlEvent(2.0, "midi:test", "note/1/1", 127)) == [TargetEvent(2.0, "preset/calm", 1.0)]
+    assert m.decode(s, ControlEvent(2.5, "midi:test", "note/1/1", 0)) == []  # let go: nothing asked
+    assert m.decode(s, ControlEvent(3.0, "midi:test", "cc/1/9", 64)) is None  # not the mapping's
+    assert play_mapped(m, s, ControlEvent(4.0, "midi:test", "cc/1/7", 127)) and s.speed == 2.0
