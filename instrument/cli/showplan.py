@@ -198,10 +198,7 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
         model = load_model(args.model or default_model_path())
     state = ControlState(model.style_names, model.states)
     presets = read_presets(show, model_of(state)) if show else {}
-    if args.presets and args.console:  # the console saves to it: a file holding more than presets is refused
-        from ..console.presets import check_presets_file
-
-        check_presets_file(args.presets)
+    # (a presets file holds [presets] only: the show file given as its own presets is refused here)
     if args.presets and (Path(args.presets).exists() or not args.console):  # the console may save to a new file
         presets.update(read_presets_file(args.presets, model_of(state)))
     with origins.blame("bvh", "record"):
