@@ -609,6 +609,7 @@ BAD_SHOWS = [
     ('replay = "missing.jsonl"\n', 1, "replay: "),
     ('[presets.calm]\n"style/elderly" = 50\n', 2, "presets.calm: style/elderly: 50 is out of range"),  # a preset out of range
     ('characters = 2\nbvh-character = 5\n', 2, "bvh-character: expected a character of the crowd, 0 to 1, not 5"),
+    ('humanoid = "bad-bones.toml"\n', 1, "bad-bones.toml: expected a [bones] table"),  # read only by an output before
     ('vmc-root = "knees"\n', 1, "vmc-root: expected one of hips, path, not 'knees'"),
     ('midi-virtual = ["x"]\nmidi-api = "oss"\n', 2, "midi-api: expected one of alsa, jack, not 'oss'"),  # was a traceback
     ('seconds = 1\nsync = "beat"\n', 2, "sync: expected one of midi, link, not 'beat'"),  # was ignored
@@ -659,6 +660,7 @@ def beside_the_show(folder) -> None:
     (folder / "broken.npz").write_bytes(b"not a zip archive")
     (folder / "taken.bvh").write_text("HIERARCHY\n")
     (folder / "empty.toml").write_text("")
+    (folder / "bad-bones.toml").write_text("Hips = 3\n")
 
 
 def one_verdict(command: list[str], show) -> subprocess.CompletedProcess:

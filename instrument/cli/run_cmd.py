@@ -41,7 +41,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     # the walk's code (numpy, scipy, numba): loaded here, under the stop flag, not for --help
     from ..control.attract import Attract
     from ..control.feedback import MidiFeedback
-    from ..output.outputs import OscOutput, RecorderOutput, make_profile
+    from ..output.outputs import OscOutput, RecorderOutput
     from ..output.footfall_midi import FootfallMidi
     from ..runtime.link import LinkTempo
     from ..runtime.performance import Show, close_all, perform
@@ -84,11 +84,9 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
             devices.append(link.input)
             for line in link.announcement():
                 console.say(line)
-        profiles = {kind: make_profile(kind, model, args.humanoid, args.vmc_root, not args.no_relaxed_hands, characters)
-                    for kind in {t.profile for t in targets}}
         for t in targets:  # a crowd's flat target carries every character; VMC: character k on port + k
             crowd = range(vmc_characters) if t.profile == "vmc" else [0]
-            outputs += [OscOutput(replace(t, port=t.port + k), profiles[t.profile], console, k) for k in crowd]
+            outputs += [OscOutput(replace(t, port=t.port + k), plan.profiles[t.profile], console, k) for k in crowd]
         if args.midi_out:
             outputs.append(FootfallMidi(args.midi_out, args.midi_api))
         if args.console:

@@ -125,6 +125,7 @@ class ShowPlan:
     replay: LogReplay | ScorePlayer | None
     score_path: str | None
     targets: list[OscTarget]
+    profiles: dict  # the OSC targets' profiles by kind ("vmc", "flat"), made
     attract: AttractSettings | None
     live: bool  # a controller (MIDI, HID, OSC in, the console) plays
     console: Console  # quiet as the options say
@@ -171,6 +172,7 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
     from ..control.score import ScorePlayer, load_score
     from ..control.state import ControlState
     from ..models.modelfile import load_model
+    from ..output.outputs import make_profile
 
     given = {dest for dest, value in vars(args).items() if value is not None}
     show = apply_show_file(args) if args.config else None
@@ -180,11 +182,13 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
         if getattr(args, option.dest) is None and option.default is not None:
             setattr(args, option.dest, option.default)
     console = Console(quiet=args.quiet)
-    for dest in READS:  # before the model is loaded: a missing file is named with the key that names it
+    for dest in READS:  # before any is read: a file that cannot be is named with the key that names it
         for path in (getattr(args, dest) or []) if RUN_BY_KEY[dest].kind == "paths" else [getattr(args, dest)]:
-            if path is not None and not Path(path).is_file():
-                why = "is a folder, not a file" if Path(path).is_dir() else "no such file"
-                raise UserError(f"{origins.prefix(dest)}{path}: {why}")
+            try:
+                if path is not None:
+                    open(path, "rb").close()
+            except OSError as e:
+                raise UserError(f"{origins.prefix(dest)}{path}: cannot read: {e.strerror or e}") from None
     fps = option_value("run --fps", args.fps)
     seconds = None if args.seconds is None else option_value("run --seconds", args.seconds)
     morph = 0.0 if args.morph is None else option_value("run --morph", args.morph)
@@ -227,6 +231,9 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
         if target.profile == "vmc" and target.port + vmc_characters - 1 > 65535:
             raise UserError(f"{origins.prefix('osc')}--osc {target}: {vmc_characters} characters need VMC ports "
                             f"{target.port} to {target.port + vmc_characters - 1}, past 65535")
+    with origins.blame("humanoid"):  # the OSC profiles' joints, humanoid bones and root (output/outputs.py)
+        profiles = {kind: make_profile(kind, model, args.humanoid, args.vmc_root, not args.no_relaxed_hands, characters)
+                    for kind in {t.profile for t in targets}}
     hub = ControlHub(mappings, presets, None, morph, console,
                      per_device=logged_per_device(args.replay) if args.replay else True)  # as the log was played
     hub.start(state)
@@ -253,7 +260,7 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
         raise UserError(f"{args.config}:{show.line('attract')}: attract: needs a controller (midi, hid or osc-in) "
                         "whose input it waits for")
     return ShowPlan(args, show, fps, seconds, health_every, characters, spacing, bvh_character, vmc_characters,
-                    model, state, mappings, hub, replay, score_path, targets, attract, live, console)
+                    model, state, mappings, hub, replay, score_path, targets, profiles, attract, live, console)
 
 
 def choose_mappings(args: argparse.Namespace, state: ControlState, console: Console) -> list:
