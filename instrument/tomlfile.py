@@ -35,8 +35,10 @@ def parse_toml(text: str, path: str | Path) -> dict:
     """TOML text read from `path` (named in the one-line error)."""
     try:
         return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise UserError(f"{path}: {e}") from None
+    except tomllib.TOMLDecodeError as e:  # "... (at line 3, column 7)", or "(at end of document)": its last line
+        found = re.search(r"\(at line (\d+), column \d+\)$", str(e))
+        line = int(found.group(1)) if found else max(1, len(text.rstrip().splitlines()))
+        raise UserError(f"{path}:{line}: {e}") from None
     except RecursionError:  # arrays or inline tables nested deeper than Python's stack
         raise UserError(f"{path}: arrays or tables nested too deeply") from None
     except ValueError:  # int() refused a number of more digits than Python converts

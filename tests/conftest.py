@@ -11,6 +11,24 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 SHARED_WALKS = Path(os.environ.get("INSTRUMENT_WALKS", REPO.parent / "shared" / "data" / "bandai-walk"))
 sys.path.insert(0, str(Path(__file__).parent))
+# `instrument` is this checkout's package, in the tests and in every command they start, whatever
+# the folder pytest was started from: from a clone's parent (a clone in a folder named `instrument`),
+# Python would otherwise take the clone's folder for a namespace package of that name and find no code
+sys.path.insert(0, str(REPO))
+os.environ["PYTHONPATH"] = os.pathsep.join([str(REPO)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep)
+                                                          if p and Path(p).resolve() != REPO])
+
+
+def play_mapped(mapper, state, event) -> bool:
+    """A raw event through a mapping's `Mapper` and then the hub's one check-and-apply path, as a
+    device's decoder plays it (control/kinds.py MappedDecoder); False if the mapping does not use it."""
+    from instrument.control.hub import ControlHub
+
+    targets = mapper.decode(state, event)
+    hub = ControlHub([mapper.mapping], mapper.presets)
+    for target in targets or []:
+        hub.apply_target(state, target)
+    return targets is not None
 
 
 def walk_files() -> list[Path]:

@@ -399,11 +399,14 @@ def test_midi_feedback_follows_a_preset_recall(jack, tmp_path):
 
 
 @pytest.mark.skipif(__import__("os").path.exists("/dev/snd/seq"), reason="this machine has ALSA MIDI: nothing fails")
-def test_midi_through_a_missing_alsa_suggests_jack():
-    """Where there is no ALSA sequencer (a container, a JACK-only machine) the error names ALSA's
-    failure and says how to use JACK instead."""
-    result = subprocess.run(RUN + ["--midi-virtual", "instr-nowhere", "--no-osc", "--seconds", "1"], capture_output=True,
-                            text=True, timeout=120)
+@pytest.mark.parametrize("port", [["--midi-virtual", "instr-nowhere"], ["--midi-out", "instr-nowhere"]])
+def test_midi_through_a_missing_alsa_is_one_line_suggesting_jack(port):
+    """Where there is no ALSA sequencer (a container, a JACK-only machine) the error is one line
+    (libasound's own line caught into it), naming ALSA's failure and how to use JACK instead."""
+    mapping = ["--mapping", str(REPO / "mappings" / "generic-8-faders.toml")]  # (no "MIDI mapping:" line)
+    result = subprocess.run(RUN + port + mapping + ["--no-osc", "--seconds", "1"], capture_output=True, text=True,
+                            timeout=120)
     assert result.returncode == 1
-    error = [line for line in result.stderr.splitlines() if line.startswith("instrument run: error:")]
-    assert error and "MIDI is not available" in error[0] and "give --midi-api jack" in error[0]
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("instrument run: error: MIDI is not available"), result.stderr
+    assert "give --midi-api jack" in lines[0] and "ALSA" in lines[0]

@@ -8,6 +8,7 @@ and the reverse, were run by hand in a throwaway virtual environment; docs/cli.m
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -55,3 +56,18 @@ def test_the_cache_folder_follows_the_user_systemd_and_an_explicit_choice(tmp_pa
     assert cache_dir(XDG_CACHE_HOME=str(tmp_path / "xdg")) == str(tmp_path / "xdg" / "instrument" / "numba")
     assert cache_dir(CACHE_DIRECTORY=str(tmp_path / "var")) == str(tmp_path / "var" / "numba")  # systemd's CacheDirectory=
     assert cache_dir(NUMBA_CACHE_DIR=str(tmp_path / "mine")) == str(tmp_path / "mine")
+
+
+def test_the_suite_runs_from_the_parent_of_a_clone_in_a_folder_named_instrument(tmp_path):
+    """A clone in a folder named `instrument`, its tests started from the folder above it: there
+    Python takes the clone's folder for a namespace package `instrument` holding no code (every
+    command failed with "cannot import name '__version__' from 'instrument' (unknown location)"),
+    unless the tests put their own checkout first, for themselves and the commands they start
+    (tests/conftest.py). A copy of this checkout, with no PYTHONPATH, shows it."""
+    clone = tmp_path / "instrument"
+    shutil.copytree(REPO, clone, ignore=shutil.ignore_patterns(".git", "__pycache__", ".pytest_cache", "*.nbi", "*.nbc"))
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    result = subprocess.run([sys.executable, "-m", "pytest", "instrument/tests/test_cli.py", "-q", "-p", "no:cacheprovider",
+                             "-k", "help_lists_the_subcommands or version_and_help_load_no_subcommand"],
+                            cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0 and "2 passed" in result.stdout, result.stdout[-3000:] + result.stderr[-2000:]

@@ -30,7 +30,7 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from conftest import REPO, walk_files
-from instrument.cli import run_cmd
+from instrument.cli import showplan
 from instrument.control.attract import load_attract
 from instrument.control.checks import held_refusal, raw_problem, refusal, row_of, value_refusal
 from instrument.control.events import ControlEvent, read_log
@@ -325,7 +325,7 @@ def test_a_show_file_is_valid_or_one_line(ops):
     path = written("show.toml", mutated(SHOW, ops))
     args = _run_args(path)
     try:
-        show = run_cmd.apply_show_file(args)
+        show = showplan.apply_show_file(args)
         presets = read_presets(show, model_of(state()))
         attract = load_attract(show, state(), presets)
     except UserError as error:

@@ -13,7 +13,7 @@ from argparse import Namespace
 from typing import ClassVar
 
 import pytest
-from conftest import REPO
+from conftest import REPO, play_mapped
 from hid_descriptors import (
     DUALSENSE_USB,
     DUALSHOCK4_BT,
@@ -422,8 +422,8 @@ def test_a_recorded_log_with_the_old_dualshock4_names_replays_the_same(model):
 
     state = state_of(model)
     mapper = Mapper(load_mapping(MAPPINGS / "sony-dualshock4.toml", state))
-    mapper.apply(state, ControlEvent(0.0, "hid:054c:09cc", "r2", 255.0))  # as logs recorded it: raw 0..255
-    mapper.apply(state, ControlEvent(0.0, "hid:054c:09cc", "lx", 0.0))
+    play_mapped(mapper, state, ControlEvent(0.0, "hid:054c:09cc", "r2", 255.0))  # as logs recorded it: raw 0..255
+    play_mapped(mapper, state, ControlEvent(0.0, "hid:054c:09cc", "lx", 0.0))
     assert state.get("style/active") == pytest.approx(2.0) and state.turn == pytest.approx(1.2)
 
 

@@ -12,6 +12,7 @@ from instrument.control.learn import detect
 from instrument.control.mapping import Mapper, load_mapping
 from instrument.control.smf import export_smf, import_smf
 from instrument.control.state import ControlState
+from conftest import play_mapped
 from test_controllers import wait_for_port
 
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
@@ -81,11 +82,11 @@ def test_learn_over_jack_writes_a_working_mapping(jack, tmp_path):
     port.close()
     state = ControlState(STYLES, 5)
     mapper = Mapper(load_mapping(out, state))
-    mapper.apply(state, ControlEvent(0, "midi:x", "cc/1/7", 127))  # first value: pick-up only learns the position
-    mapper.apply(state, ControlEvent(1, "midi:x", "cc/1/7", 42))
+    play_mapped(mapper, state, ControlEvent(0, "midi:x", "cc/1/7", 127))  # first value: pick-up only learns the position
+    play_mapped(mapper, state, ControlEvent(1, "midi:x", "cc/1/7", 42))
     assert state.get("style/elderly") == pytest.approx(42 / 127 * 3 - 1)
     for _ in range(3):
-        mapper.apply(state, ControlEvent(2, "midi:x", "cc/4/20", 1))
+        play_mapped(mapper, state, ControlEvent(2, "midi:x", "cc/4/20", 1))
     assert state.turn == pytest.approx(0.03)
     mapper.apply(state, ControlEvent(3, "midi:x", "note/1/44", 100))  # gait=run: pressed...
     mapper.apply(state, ControlEvent(3, "midi:x", "note/1/44", 0))  # ...and let go: it stays

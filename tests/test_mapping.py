@@ -9,7 +9,7 @@ from instrument.control.hub import ControlHub
 from instrument.control.mapping import Mapper, load_mapping, preset_problems
 from instrument.control.state import ControlState
 from instrument.errors import UserError
-from conftest import REPO
+from conftest import REPO, play_mapped
 
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]
 
@@ -25,7 +25,7 @@ def mapper(tmp_path, controls: str, extra: str = "") -> Mapper:
 
 
 def send(m: Mapper, s: ControlState, control: str, value: float, t: float = 0.0) -> bool:
-    return m.apply(s, ControlEvent(t, "midi:test", control, value))
+    return play_mapped(m, s, ControlEvent(t, "midi:test", control, value))
 
 
 def test_absolute_cc_with_range_and_clamping(tmp_path):
@@ -168,11 +168,11 @@ def test_hid_sticks_have_deadzones(tmp_path):
     path.write_text('[device]\nhid = "054c:09cc"\n[[control]]\nmessage = "hid"\ninput = "lx"\ntarget = "turn"\nrange = [-1.0, 1.0]\ndeadzone = 0.1\n')
     m, s = Mapper(load_mapping(path, state())), state()
     for raw in (128, 135, 121):  # within the deadzone around the centre
-        m.apply(s, ControlEvent(0, "hid:054c:09cc", "lx", raw))
+        play_mapped(m, s, ControlEvent(0, "hid:054c:09cc", "lx", raw))
         assert s.turn == 0.0
-    m.apply(s, ControlEvent(0, "hid:054c:09cc", "lx", 255))
+    play_mapped(m, s, ControlEvent(0, "hid:054c:09cc", "lx", 255))
     assert s.turn == pytest.approx(1.0)
-    m.apply(s, ControlEvent(0, "hid:054c:09cc", "lx", 0))
+    play_mapped(m, s, ControlEvent(0, "hid:054c:09cc", "lx", 0))
     assert s.turn == pytest.approx(-1.0)
 
 
@@ -261,7 +261,7 @@ def test_mapping_errors_name_file_line_and_key(tmp_path, body, line, key):
 def test_broken_toml_is_one_line(tmp_path):
     path = tmp_path / "bad.toml"
     path.write_text("[device\nmidi = 'x'\n")
-    with pytest.raises(UserError, match=f"^{path}: .*line 1"):
+    with pytest.raises(UserError, match=f"^{path}:1: .*line 1"):
         load_mapping(path, state())
 
 
@@ -285,3 +285,20 @@ def test_a_preset_button_with_no_such_preset_is_refused_at_start(tmp_path, capsy
     error = capsys.readouterr().err.strip()
     assert error.startswith(f"instrument run: error: {path}:7: target 'preset/nosuch': no such preset")
     assert "\n" not in error
+
+
+def test_a_mapper_returns_target_events_and_sets_nothing_itself(tmp_path):
+    """Typed edges: the Mapper turns a raw event into the TargetEvents it asks for; only the hub's
+    one check-and-apply path (ControlHub.apply_target, as for OSC and the console) changes the state."""
+    from instrument.control.events import TargetEvent
+
+    m = mapper(tmp_path, '[[control]]\nmessage = "cc"\nnumber = 7\ntarget = "speed"\nrange = [0.5, 2.0]\n'
+                         '[[control]]\nmessage = "note"\nnumber = 1\nmode = "momentary"\ntarget = "preset/calm"\n',
+               '[presets.calm]\nspeed = 0.8\n')
+    s = state()
+    assert m.decode(s, ControlEvent(1.0, "midi:test", "cc/1/7", 127)) == [TargetEvent(1.0, "speed", 2.0)]
+    assert s.speed == 1.0  # decoded, not applied
+    assert m.decode(s, ControlEvent(2.0, "midi:test", "note/1/1", 127)) == [TargetEvent(2.0, "preset/calm", 1.0)]
+    assert m.decode(s, ControlEvent(2.5, "midi:test", "note/1/1", 0)) == []  # let go: nothing asked
+    assert m.decode(s, ControlEvent(3.0, "midi:test", "cc/1/9", 64)) is None  # not the mapping's
+    assert play_mapped(m, s, ControlEvent(4.0, "midi:test", "cc/1/7", 127)) and s.speed == 2.0

@@ -508,6 +508,15 @@ SYSTEMD_ANALYZE = shutil.which("systemd-analyze")
 needs_systemd_analyze = pytest.mark.skipif(SYSTEMD_ANALYZE is None, reason="systemd-analyze is not installed")
 
 
+def outside_the_venv() -> dict[str, str]:
+    """The environment for an interpreter symlinked outside the virtual environment (which then
+    finds none of its packages): this checkout and the environment's packages on PYTHONPATH, as
+    `service` checks the show with the model and its code."""
+    import site
+
+    return dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO), *site.getsitepackages()]))
+
+
 def write_unit(tmp_path, show, *options):
     unit = tmp_path / f"walk{len(list(tmp_path.glob('*.service')))}.service"
     result = subprocess.run([sys.executable, "-m", "instrument", "service", "--config", str(show), "--out", str(unit), *options],
@@ -550,7 +559,7 @@ def test_paths_with_spaces_percent_dollar_quotes_and_backslashes_reach_systemd_w
     python = folder / "python 3"  # (systemd refuses quotes and backslashes in an executable's path: tested below)
     python.symlink_to(sys.executable)
     result = subprocess.run([str(python), "-m", "instrument", "service", "--config", str(show), "--out", str(tmp_path / "walk.service")],
-                            capture_output=True, text=True, timeout=120, env=dict(os.environ, PYTHONPATH=os.environ.get("PYTHONPATH", str(REPO))))
+                            capture_output=True, text=True, timeout=120, env=outside_the_venv())
     assert result.returncode == 0, result.stderr
     verify = subprocess.run([SYSTEMD_ANALYZE, "verify", str(tmp_path / "walk.service")], capture_output=True, text=True, timeout=120)
     assert verify.returncode == 0 and verify.stderr == "", verify.stderr
@@ -564,7 +573,7 @@ def test_an_interpreter_systemd_cannot_start_is_named_in_one_line(tmp_path):
     show.write_text('osc = ["127.0.0.1:9000/flat"]\n')
     result = subprocess.run([str(folder / "python"), "-m", "instrument", "service", "--config", str(show), "--out",
                              str(tmp_path / "walk.service")], capture_output=True, text=True, timeout=120,
-                            env=dict(os.environ, PYTHONPATH=os.environ.get("PYTHONPATH", str(REPO))))
+                            env=outside_the_venv())
     assert result.returncode == 1 and len(result.stderr.strip().splitlines()) == 1, result.stderr
     assert "systemd refuses an executable" in result.stderr and not (tmp_path / "walk.service").exists()
 
@@ -579,21 +588,122 @@ def test_a_newline_in_a_path_is_refused_not_written_as_a_second_line(tmp_path):
     assert "control character" in result.stderr and not unit.exists()
 
 
-@pytest.mark.parametrize("show_text", [
-    'fps = 500\n',
-    'osc = ["nowhere:port"]\n',
-    'colour = "red"\n',
-    'no-osc = "yes"\n',
-    'presets = 3\n',
-    'seconds = -4\n',
-    'fps = ',
-    'console-token = "abc"\n',
-])
-def test_a_show_run_refuses_gets_no_unit_and_the_same_one_line_error(tmp_path, show_text):
+# (a show file's text, the line the verdict names, what it says); files the shows name are written
+# beside them by `beside_the_show`
+BAD_SHOWS = [
+    ('fps = 500\n', 1, "fps: expected a number from 24 to 120"),  # out of range
+    ('seconds = 1\nfps = "fast"\n', 2, "fps: expected a number from 24 to 120, not 'fast'"),  # wrong type
+    ('no-osc = "yes"\n', 1, "no-osc: expected true or false"),
+    ('osc = ["127.0.0.1:9000/flat", "nowhere:port"]\n', 1, "osc: "),
+    ('colour = "red"\n', 1, "colour: unknown option"),  # unknown key
+    ('presets = 3\n', 1, "presets: expected [presets.NAME] tables"),
+    ('seconds = -4\n', 1, "seconds: expected a number above 0"),
+    ('fps = ', 1, "Invalid value"),  # not TOML
+    ('seconds = 1\nconsole-token = "abc"\n', 2, "console-token: --console-token means nothing without --console"),
+    ('osc = ["127.0.0.1:9000/flat"]\nno-osc = true\n', 2, "no-osc: --no-osc and --osc contradict each other"),
+    ('seconds = 1\nmapping = ["mine.toml", "missing.toml"]\n', 2, "mapping: "),  # a missing mapping
+    ('model = "missing.npz"\n', 1, "model: "),  # a missing model
+    ('model = "broken.npz"\n', 1, "broken.npz: not a model file"),  # a file that is not a model
+    ('mapping = "bad-mapping.toml"\n', 1, "bad-mapping.toml:3: morph"),  # a mapping with a bad value
+    ('score = "missing.toml"\n', 1, "score: "),
+    ('replay = "missing.jsonl"\n', 1, "replay: "),
+    ('[presets.calm]\n"style/elderly" = 50\n', 2, "presets.calm: style/elderly: 50 is out of range"),  # a preset out of range
+    ('characters = 2\nbvh-character = 5\n', 2, "bvh-character: expected a character of the crowd, 0 to 1, not 5"),
+    ('humanoid = "bad-bones.toml"\n', 1, "bad-bones.toml: expected a [bones] table"),  # read only by an output before
+    ('vmc-root = "knees"\n', 1, "vmc-root: expected one of hips, path, not 'knees'"),
+    ('midi-virtual = ["x"]\nmidi-api = "oss"\n', 2, "midi-api: expected one of alsa, jack, not 'oss'"),  # was a traceback
+    ('seconds = 1\nsync = "beat"\n', 2, "sync: expected one of midi, link, not 'beat'"),  # was ignored
+    ('check = true\n', 1, "check: unknown option"),  # the command line's only
+    ('sync = "midi"\n', 1, "sync: --sync midi follows the clock of a MIDI input"),
+    ('bvh = "no folder/take.bvh"\n', 1, "bvh: "),  # its folder does not exist
+    ('bvh = "taken.bvh"\n', 1, "taken.bvh: already exists"),
+    ('osc-in = 9000\n[attract]\nafter = -1\n', 3, "attract.after: expected a number of minutes above 0"),
+    ('seconds = 1\n[presets.calm]\nspeed = 0.8\n[attract]\nafter = 5\npresets = ["calm"]\n', 4,
+     "attract: needs a controller"),
+    ('osc-in = 9000\n[attract]\nafter = 5\nscore = "empty.toml"\n', 2, "attract: "),  # its score is no score
+]
+
+
+def test_the_show_file_and_the_command_line_are_read_from_one_table():
+    """Each row of control/options.py RUN is an option of `run --help` and, unless it is for the
+    command line only, a key a show file takes, read as its kind says; the choices are what the
+    code behind them implements."""
+    import argparse
+
+    from instrument.cli.run_cmd import add_parser
+    from instrument.cli.showplan import file_value
+    from instrument.control.options import RUN, RUN_BY_KEY
+    from instrument.output.vmc import ROOT_CONVENTIONS
+
+    parser = argparse.ArgumentParser()
+    add_parser(parser.add_subparsers())
+    run = parser._subparsers._group_actions[0].choices["run"]
+    flags = {flag for action in run._actions for flag in action.option_strings} - {"-h", "--help"}
+    assert flags == {option.flag for option in RUN}
+    assert RUN_BY_KEY["vmc-root"].choices == ROOT_CONVENTIONS
+    samples = {"text": "x", "path": "x", "flag": True, "list": ["x"], "paths": ["x"]}
+    for option in RUN:
+        action = next(a for a in run._actions if option.flag in a.option_strings)
+        assert action.help == option.help or option.flag == "--osc", option.flag
+        assert (action.choices or ()) == option.choices and action.dest == option.dest
+        assert (action.nargs == 0) == (option.kind == "flag") and (type(action).__name__ == "_AppendAction") == (
+            option.kind in ("list", "paths"))
+        value = option.choices[0] if option.choices else str(option.accepts.high) if option.accepts else samples[option.kind]
+        if option.in_file:
+            assert file_value(option, value, "show.toml:1") in (value, str(value)), option.flag
+
+
+def beside_the_show(folder) -> None:
+    """The files the bad shows name: a mapping that is fine, one that is not, a model that is not a model, a take."""
+    (folder / "mine.toml").write_text('name = "mine"\n[device]\nmidi = "."\n')
+    (folder / "bad-mapping.toml").write_text('name = "bad"\n\nmorph = -3\n[device]\nmidi = "."\n')
+    (folder / "broken.npz").write_bytes(b"not a zip archive")
+    (folder / "taken.bvh").write_text("HIERARCHY\n")
+    (folder / "empty.toml").write_text("")
+    (folder / "bad-bones.toml").write_text("Hips = 3\n")
+
+
+def one_verdict(command: list[str], show) -> subprocess.CompletedProcess:
+    result = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 1 and len(result.stderr.strip().splitlines()) == 1, (command, result.stderr)
+    return result
+
+
+@pytest.mark.parametrize("show_text,line,says", BAD_SHOWS)
+def test_a_show_run_refuses_gets_no_unit_and_the_same_one_line_error(tmp_path, show_text, line, says):
+    """`run --check`, a start of `run` and `service` give the one verdict of cli/showplan.py,
+    naming the show file's line, and no unit is written."""
+    beside_the_show(tmp_path)
     show = tmp_path / "show.toml"
     show.write_text(show_text)
-    refused = subprocess.run(RUN + ["--config", str(show), "--seconds", "1"], capture_output=True, text=True, timeout=300)
-    assert refused.returncode == 1, refused.stderr
+    checked = one_verdict(RUN + ["--config", str(show), "--check"], show)
+    assert checked.stderr.startswith(f"instrument run: error: {show}:{line}: ") and says in checked.stderr, checked.stderr
+    started = one_verdict(RUN + ["--config", str(show)], show)
+    assert started.stderr == checked.stderr
     result, unit = write_unit(tmp_path, show)
-    assert result.returncode == 1 and not unit.exists()
-    assert result.stderr.removeprefix("instrument service: ") == refused.stderr.removeprefix("instrument run: ")
+    assert result.returncode == 1 and not unit.exists(), result.stderr
+    assert result.stderr.removeprefix("instrument service: ") == checked.stderr.removeprefix("instrument run: ")
+
+
+@pytest.mark.parametrize("console", [[], ["--console", "0"]])
+def test_the_show_file_given_as_its_own_presets_is_refused_by_a_check(tmp_path, console):
+    """--presets naming the show itself (a save would replace the show with its presets): one line at
+    the check, before anything opens (with the console: before its server starts)."""
+    show = tmp_path / "show.toml"
+    show.write_text('seconds = 1\n\n[presets.calm]\nspeed = 0.8\n')
+    checked = one_verdict(RUN + ["--config", str(show), "--presets", str(show), "--check", *console], show)
+    assert f"{show}:1: seconds: unknown key" in checked.stderr  # a presets file holds [presets] only
+
+
+def test_a_good_show_is_checked_without_opening_anything_and_gets_a_unit(tmp_path):
+    beside_the_show(tmp_path)
+    (tmp_path / "takes").mkdir()
+    show = tmp_path / "show.toml"
+    show.write_text('seconds = 60\nosc = ["127.0.0.1:9000/flat"]\nmapping = "mine.toml"\nmidi = ["nanoKONTROL"]\n'
+                    'bvh = "takes/tonight.bvh"\nrecord = "takes/tonight.jsonl"\n\n[presets.calm]\nspeed = 0.8\n')
+    checked = subprocess.run(RUN + ["--config", str(show), "--check"], capture_output=True, text=True, timeout=300)
+    assert checked.returncode == 0 and "the show is fine" in checked.stdout, checked.stderr
+    assert not list((tmp_path / "takes").iterdir())  # nothing recorded, nothing left behind
+    result, unit = write_unit(tmp_path, show)
+    assert result.returncode == 0 and unit.exists(), result.stderr
+    assert f'ReadWritePaths="-{(tmp_path / "takes").resolve()}"' in unit.read_text()

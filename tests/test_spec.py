@@ -20,7 +20,7 @@ import pytest
 from pythonosc.osc_message_builder import OscMessageBuilder
 
 from conftest import REPO
-from instrument.cli import run_cmd
+from instrument.cli import showplan
 from instrument.console.messages import Refused, parse
 from instrument.control.checks import ACTION, NOT_A_NUMBER, OUT_OF_RANGE, UNKNOWN, refusal
 from instrument.control.devices import OscInput
@@ -91,7 +91,7 @@ def show_file(tmp_path: Path, state: ControlState, target: str, value: object) -
     path = tmp_path / "show.toml"
     path.write_text(comment(target) + 'seconds = 1\n\n[presets.calm]\nspread = 0.5\n' + entry(target, value) + "\n")
     args = argparse.Namespace(config=str(path), run=None, command=None, seconds=None)
-    read_presets(run_cmd.apply_show_file(args), model_of(state))
+    read_presets(showplan.apply_show_file(args), model_of(state))
 
 
 def mapping_presets(tmp_path: Path, state: ControlState, target: str, value: object) -> None:
@@ -294,7 +294,7 @@ def test_the_show_file_comment_case_names_line_4(tmp_path):
     path.write_text("# fps: 500 is too fast for this projector\nseconds = 1\n\nfps = 500\n")
     args = argparse.Namespace(config=str(path), run=None, command=None, seconds=None, fps=None)
     with pytest.raises(UserError, match=f"^{path}:4: fps: expected a number from 24 to 120"):
-        run_cmd.apply_show_file(args)
+        showplan.apply_show_file(args)
 
 
 # --- what is derived from the rows --------------------------------------------------------------

@@ -5,6 +5,7 @@ contradict (refused rather than ignored)."""
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 
 from ..control.options import OPTIONS
 from ..errors import UserError
@@ -28,17 +29,17 @@ def _given(args: argparse.Namespace, option: str) -> bool:
     return value is not None and value is not False  # a flag left off is False
 
 
-def check_needs(command: str, args: argparse.Namespace) -> None:
+def check_needs(command: str, args: argparse.Namespace, where: Callable[[str], str] = lambda option: "") -> None:
     """A one-line UserError for an option given without the option it belongs to (NEEDS), or with
-    one it contradicts (EXCLUDES)."""
+    one it contradicts (EXCLUDES); `where(option)` starts it (a show file's "show.toml:3: key: ")."""
     for key, partner in NEEDS.items():
         name, option = key.split(" ", 1)
         if name == command and _given(args, option) and not _given(args, partner):
-            raise UserError(f"{option} means nothing without {partner} (on the command line or in the show file)")
+            raise UserError(f"{where(option)}{option} means nothing without {partner} (on the command line or in the show file)")
     for key, other in EXCLUDES.items():
         name, option = key.split(" ", 1)
         if name == command and _given(args, option) and _given(args, other):
-            raise UserError(f"{option} and {other} contradict each other: give one (on the command line or in the show file)")
+            raise UserError(f"{where(option) or where(other)}{option} and {other} contradict each other: give one (on the command line or in the show file)")
 
 
 def checked(key: str):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..control.devices import midi_backend
+from ..control.devices import midi_backend, midi_system
 from ..control.hid import choose_mapping as choose_hid_mapping
 from ..control.hid import describe_controls, device_descriptor, hidapi
 from ..control.kinds import midi_fits
@@ -25,10 +25,11 @@ def run(args: argparse.Namespace) -> int:
     mappings = [load_mapping(p) for p in shipped_mappings()]
     print("MIDI inputs:")
     try:
-        names = midi_backend(args.midi_api).get_input_names()
-    except Exception as error:
+        with midi_system(args.midi_api):
+            names = midi_backend(args.midi_api).get_input_names()
+    except UserError as error:
         names = []
-        print(f"  (MIDI not available: {error})")
+        print(f"  ({error})")
     for name in names:
         fit = next((m for m in mappings if midi_fits(m, name) == 2), None)  # as `run` gives the port its mapping
         print(f"  {name}  ->  {fit.path if fit else 'no shipped mapping (generic: mappings/generic-8-faders.toml)'}")

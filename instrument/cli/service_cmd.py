@@ -8,9 +8,9 @@ A system unit runs as a user of its own (DynamicUser=, or --run-as an account), 
 that leaves the instrument what it needs and nothing more: the network (OSC in and out), the
 sound and MIDI devices and hidraw nodes, realtime scheduling, memory numba can compile into,
 read access to the show, and write access to the folders its recordings go to. docs/installations.md
-says which directive each of those needs keeps off. The show file is read before the unit is
-written by the same function `run` reads it with, so a unit is never written for a show that
-`run` would refuse; every path is quoted and escaped for systemd, and a path systemd cannot
+says which directive each of those needs keeps off. Before the unit is written the show file is
+checked whole by the function `run` checks it with (cli/showplan.py), so a unit is never written
+for a show that `run` would refuse; every path is quoted and escaped for systemd, and a path systemd cannot
 hold (a control character, such as a newline) is refused in one line.
 """
 
@@ -129,18 +129,14 @@ def unit_text(show: Path, watchdog: float, user_unit: bool, run_as: str | None, 
 
 
 def show_outputs(show: Path) -> tuple[Path, ...]:
-    """Read the show file exactly as `run` does (a show `run` refuses is refused here, in the same
-    line), and return the folders its recordings go to."""
-    from .arguments import check_needs
+    """Check the show file exactly as `run` does before it opens anything (cli/showplan.py: a show
+    `run` refuses is refused here, in the same line), and return the folders its recordings go to."""
     from .run_cmd import add_parser as add_run_parser
-    from .run_cmd import apply_show_file
+    from .showplan import plan_show
 
     parser = argparse.ArgumentParser(prog="instrument")
     add_run_parser(parser.add_subparsers(dest="command"))
-    args = parser.parse_args(["run", "--config", str(show)])
-    apply_show_file(args)
-    check_needs("run", args)  # what `run` checks next, before it loads the model
-    return tuple(Path(p).resolve().parent for p in (args.bvh, args.record) if p)
+    return plan_show(parser.parse_args(["run", "--config", str(show), "--quiet"])).writes()
 
 
 def run(args: argparse.Namespace) -> int:

@@ -7,11 +7,14 @@ console and reopened about once a second, while the walk goes on.
 
 from __future__ import annotations
 
+import ctypes
 import functools
+import os
 import re
 import socket
 import time
-from typing import Iterator
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 from ..errors import UserError
 from ..terminal import Console
@@ -72,6 +75,56 @@ def midi_hint(api: str | None) -> str:
     if api == "jack":
         return " (is the JACK server running? for ALSA MIDI give --midi-api alsa)"
     return " (for JACK MIDI give --midi-api jack)"
+
+
+# libasound's error handler: void (*)(const char *file, int line, const char *function, int err, const char *fmt, ...)
+_ALSA_HANDLER = ctypes.CFUNCTYPE(None, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p)
+
+
+def _libasound():
+    """libasound as rtmidi loaded it (None where there is none)."""
+    try:
+        return ctypes.CDLL("libasound.so.2")
+    except OSError:
+        return None
+
+
+@contextmanager
+def alsa_errors_caught(caught: list[str]) -> Iterator[None]:
+    """libasound prints its own line on stderr when it fails ("ALSA lib seq_hw.c:466:... open
+    /dev/snd/seq failed"), before rtmidi raises: inside this, those go to `caught` ("function:
+    reason") instead, for the one line that says what failed and what to do."""
+    library = _libasound()
+    if library is None:
+        yield
+        return
+
+    def handler(file, line, function, err, fmt):  # the format's arguments are not reachable from here
+        reason = os.strerror(abs(err)) if err else (fmt or b"").decode(errors="replace")
+        caught.append(f"{(function or b'?').decode(errors='replace')}: {reason}")
+
+    keep = _ALSA_HANDLER(handler)  # referenced until the default handler is back
+    library.snd_lib_error_set_handler(keep)
+    try:
+        yield
+    finally:
+        library.snd_lib_error_set_handler(None)  # libasound's default again
+
+
+@contextmanager
+def midi_system(api: str | None) -> Iterator[None]:
+    """Make MIDI ports inside: when the MIDI system itself fails (no ALSA sequencer, no JACK
+    server) the failure is one UserError saying why, ALSA's reason included, and what to give instead."""
+    caught: list[str] = []
+    with alsa_errors_caught(caught):
+        try:
+            yield
+        except UserError:
+            raise
+        except Exception as error:
+            alsa = f"; ALSA: {caught[0]}" if caught else ""
+            raise UserError(f"MIDI is not available ({api or 'default'} API): {str(error).rstrip('.')}{alsa}"
+                            f"{midi_hint(api)}") from None
 
 
 RTMIDI_APIS = {"jack": "API_UNIX_JACK", "alsa": "API_LINUX_ALSA", None: "API_UNSPECIFIED", "": "API_UNSPECIFIED"}
@@ -139,10 +192,8 @@ class MidiInput:
         # the same device, with the same decoder, after it is unplugged and plugged back in
         self.source = Source.of("midi", virtual or pattern)
         self.api, self.api_name = getattr(rtmidi, RTMIDI_APIS[api]), api
-        try:
+        with midi_system(api):  # no MIDI system at all (no ALSA, no JACK server): one line
             self.port = self._new_port()
-        except Exception as error:  # no MIDI system at all (no ALSA, no JACK server)
-            raise UserError(f"MIDI is not available ({api or 'default'} API): {error}{midi_hint(api)}") from None
         self.open = False
         self.port_name = ""
         self.next_attempt = 0.0

@@ -13,7 +13,7 @@ import math
 import re
 
 from ..terminal import Console
-from .devices import midi_backend
+from .devices import midi_backend, midi_system
 from .jackwatch import Remaker
 from .mapping import ControlSpec, Mapper
 from .spec import TABLE
@@ -57,7 +57,8 @@ class MidiFeedback:
                          if c.message in ("cc", "cc14", "pitchbend", "note") and c.mode in ("absolute", "toggle", "set")
                          and state.knows(c.target)]
         self.backend, self.pattern, self.virtual = midi_backend(api), pattern, virtual
-        self.port = self._open_port()
+        with midi_system(api):
+            self.port = self._open_port()
         if self.port is None:
             console.warn(self.name, f"no MIDI output matches {pattern!r}: no feedback to the controller")
         self.remaker = Remaker(self._open_port, lambda port: port.close()) if api == "jack" else None

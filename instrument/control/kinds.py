@@ -79,17 +79,27 @@ class DirectDecoder:
 
 class MappedDecoder:
     """A device read through its mapping: the raw event is checked (a MIDI id, a HID value in its
-    range), then the mapping's `Mapper` (14-bit pairs, NRPN, relative encoders, pick-up) sets
-    the targets. One per device: what a control remembers is its own."""
+    range), then the mapping's `Mapper` (14-bit pairs, NRPN, relative encoders, pick-up) turns it
+    into target events, which the hub checks and applies as it does a direct device's. One per
+    device: what a control remembers is its own."""
 
     def __init__(self, mapping: Mapping, hub: ControlHub):
         self.mapper = Mapper(mapping, hub.presets)
+        self.hub = hub
 
     def apply(self, state: ControlState, event: RawEvent) -> str | None:
+        """None once the mapping used the raw event (so it is recorded: what its controls remember
+        moved, and a replay needs it), whether or not the state took its targets (a target the
+        model lacks was warned about at the start)."""
         why = raw_problem(event.source, event.control, event.value)
         if why is not None:
             return why
-        return None if self.mapper.apply(state, event) else "not mapped"
+        targets = self.mapper.decode(state, event)
+        if targets is None:
+            return "not mapped"
+        for target in targets:
+            self.hub.apply_target(state, target)
+        return None
 
 
 REGISTRY: dict[str, DeviceKind] = {}

@@ -2,10 +2,12 @@
 
 A mapping is TOML (format in the README). Loading checks every key, and a mistake is one line
 naming the file, the line and the key. At run time a `Mapper` turns raw events of its device
-into target values: it decodes 14-bit pairs, NRPN and relative encoders (stateful, so replaying
-the same raw events gives the same values), applies range, curve and deadzone, and soft
-takeover (none, pick-up, value scaling). A button in mode "set" sets its target to one fixed
-`value` when pressed (three buttons for gait's stand, walk and run).
+into target events (`TargetEvent`): it decodes 14-bit pairs, NRPN and relative encoders
+(stateful, so replaying the same raw events gives the same values), applies range, curve and
+deadzone, and soft takeover (none, pick-up, value scaling). It reads the control state (where a
+relative encoder or a pick-up starts from) but never sets it: the hub checks and applies what it
+returns, on the one path every input's targets take (ControlHub.apply_target). A button in mode
+"set" asks for one fixed `value` when pressed (three buttons for gait's stand, walk and run).
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import UserError, quoted
 from ..tomlfile import Field, TomlFile, key_lines
-from .events import ControlEvent
+from .events import ControlEvent, TargetEvent
 from .hid import DS4_NAMES, canonical_input, is_usage_name, legacy_event, unit_with_deadzone
 from .hid_feedback import FeedbackSpec, parse_feedback
 from .checks import between, is_number, row_of, unknown, value_refusal
@@ -223,7 +225,7 @@ class _Memory:
 
 
 class Mapper:
-    """Raw events of one device -> target values in the control state."""
+    """Raw events of one device -> the target events they ask for."""
 
     def __init__(self, mapping: Mapping, presets: dict[str, dict[str, float]] | None = None):
         self.mapping = mapping
@@ -239,35 +241,37 @@ class Mapper:
         self.awaiting: set[ControlSpec] = set()  # controls whose hardware is away from their parameter
         self.nrpn: dict[int, list[int]] = {}  # channel -> [parameter MSB, parameter LSB, data MSB]
 
-    def apply(self, state: ControlState, event: ControlEvent) -> bool:
-        """Apply one raw event; False if no control of the mapping uses it."""
+    def decode(self, state: ControlState, event: ControlEvent) -> list[TargetEvent] | None:
+        """The target events one raw event asks for (none: half of a pair, a release, a fader
+        away from its value), in the mapping's order; None if no control of the mapping uses it.
+        What a control remembers (a pair's MSB, a toggle, where the hardware is) moves either way."""
         if event.control in DS4_NAMES:  # recorded before HID controls were named by usage
             event = ControlEvent(event.time, event.source, *legacy_event(event.control, event.value))
         parts = event.control.split("/")
         if parts[0] == "cc" and len(parts) == 3 and parts[2] in ("99", "98", "6", "38", "96", "97"):
-            if self._nrpn(state, int(parts[1]), int(parts[2]), int(event.value), event.time):
-                return True
+            targets = self._nrpn(state, int(parts[1]), int(parts[2]), int(event.value), event.time)
+            if targets is not None:
+                return targets
         specs = self.by_key.get(event.control)
         if not specs:
-            return False
+            return None
+        targets = []
         for spec in specs:
             value = self._decode(state, spec, event)
             if value is not None:
-                self._set(state, spec, value, event.time)
-        return True
+                targets += self._target(state, spec, value, event.time)
+        return targets
 
-    def _nrpn(self, state: ControlState, channel: int, cc: int, value: int, time: float) -> bool:
+    def _nrpn(self, state: ControlState, channel: int, cc: int, value: int, time: float) -> list[TargetEvent] | None:
         slot = self.nrpn.setdefault(channel, [0, 0, 0])
-        if cc == 99:
-            slot[0] = value
-            return True
-        if cc == 98:
-            slot[1] = value
-            return True
+        if cc in (99, 98):  # the parameter's number, in two halves
+            slot[0 if cc == 99 else 1] = value
+            return []
         parameter = slot[0] * 128 + slot[1]
         specs = self.by_key.get(f"nrpn/{channel}/{parameter}")
         if not specs:
-            return False
+            return None
+        targets = []
         for spec in specs:
             if cc == 6:
                 slot[2] = value
@@ -278,10 +282,10 @@ class Mapper:
                 raw = (slot[2] * 128 + value) / 16383.0
             else:  # 96 increment, 97 decrement
                 ticks = 1 if cc == 96 else -1
-                self._set(state, spec, self._relative(state, spec, ticks), time)
+                targets += self._target(state, spec, self._relative(state, spec, ticks), time)
                 continue
-            self._set(state, spec, self._scale(spec, raw), time)
-        return True
+            targets += self._target(state, spec, self._scale(spec, raw), time)
+        return targets
 
     def _decode(self, state: ControlState, spec: ControlSpec, event: ControlEvent) -> float | None:
         """The target value an event asks for, or None (half of a pair, a release, ...)."""
@@ -326,16 +330,17 @@ class Mapper:
         low, high = sorted(spec.range)
         return min(max(state.get(spec.target) + ticks * spec.step, low), high)
 
-    def _set(self, state: ControlState, spec: ControlSpec, value: float, time: float) -> None:
+    def _target(self, state: ControlState, spec: ControlSpec, value: float, time: float) -> list[TargetEvent]:
+        """The control's target event for `value` (none while a pick-up waits, or for a preset
+        button let go or naming no preset)."""
         if spec.target.startswith("preset/"):
-            if value > min(spec.range) and spec.target[7:] in self.presets:
-                state.recall(self.presets[spec.target[7:]], time)
-            return
-        if not spec.mode.startswith("relative") and spec.mode == "absolute" and spec.takeover != "none":
+            pressed = value > min(spec.range) and spec.target[7:] in self.presets
+            return [TargetEvent(time, spec.target, value)] if pressed else []
+        if spec.mode == "absolute" and spec.takeover != "none":
             value = self._takeover(state, spec, value, time)
             if value is None:
-                return
-        state.set(spec.target, value)
+                return []
+        return [TargetEvent(time, spec.target, value)]
 
     def _takeover(self, state: ControlState, spec: ControlSpec, position: float, time: float) -> float | None:
         """Soft takeover: the value to set, or None while the hardware is away from the parameter."""

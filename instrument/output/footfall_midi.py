@@ -8,7 +8,7 @@ the next frame. A port that cannot send is said on the console (the walk goes on
 
 from __future__ import annotations
 
-from ..control.devices import midi_backend
+from ..control.devices import midi_backend, midi_system
 from ..synthesis.posing import Frame
 
 LEFT_NOTE, RIGHT_NOTE = 36, 38
@@ -32,7 +32,8 @@ class FootfallMidi:
 
         self.mido = mido
         self.name = f"midi-out {name}"
-        self.port = midi_backend(api).open_output(name, virtual=True)
+        with midi_system(api):  # no MIDI system: one line naming the fix
+            self.port = midi_backend(api).open_output(name, virtual=True)
         self.sounding: list[int] = []  # notes on since the frame before
 
     def prepare(self, frame: Frame) -> list | None:
