@@ -42,6 +42,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--variants", type=variant_kinds, default=VARIANT_KINDS,
                    help=f"which weightings, comma-separated from {', '.join(VARIANT_KINDS)} (default: all)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--gestures", action="store_true",
+                   help="also each gesture over a walk in each style, against its takes (evaluation/gestures.py)")
     p.set_defaults(run=run)
 
 
@@ -68,11 +70,18 @@ def run(args: argparse.Namespace) -> int:
 
     progress = None if args.json else (lambda name: print(f"  measured {name}", file=sys.stderr))
     result = assess(model, seconds, Path(args.real) if args.real else None, styles, kinds, progress)
+    gestures = None
+    if args.gestures:
+        from ..evaluation.gestures import assess_gestures, gesture_table
+
+        gestures = assess_gestures(model, seconds, Path(args.real) if args.real else None, styles, progress)
     if args.json:
         print(json.dumps({"model": str(args.model or default_model_path()), "seconds": seconds, "weights": result.weights,
-                          "synth": _clean(result.synth), "real": _clean(result.real)}, indent=1))
+                          "synth": _clean(result.synth), "real": _clean(result.real)}
+                         | ({"gestures": {"synth": _clean(gestures.synth), "real": _clean(gestures.real)}} if gestures else {}),
+                         indent=1))
     else:
-        print(table(result))
+        print(table(result) + (f"\n\n{gesture_table(gestures)}" if gestures else ""))
     return 0
 
 

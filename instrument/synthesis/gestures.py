@@ -1,0 +1,143 @@
+"""The engine's gesture stage: a wave or a raise of the hands layered on the gait's upper body.
+
+A gesture is a second label stream for one body part, not a second pipeline: a second `Crowd`
+(stream.py) over the same lambda* tables as the gait (the gesture's labels are rows of the same
+model arrays, models/gestures.py, so the style weights, exaggeration, inversion and the crowd's
+spread shape a wave as they shape the walk), planned through the gesture's phases:
+
+    raise -> repeat-a -> repeat-b -> (repeat-a -> repeat-b ...) -> lower -> the stand's rest
+
+The planner moves from a label to the other foot's label of the unit in `counters[:, UNIT]`
+(label = 2 * unit + foot); a gesture's four labels are two such pairs (raise, repeat-a) and
+(repeat-b, lower), so choosing the unit from the label under way strings the phases: after
+repeat-b the first pair's unit loops back to repeat-a, the second's goes on to lower. The
+repeat loops while the gesture's target is held, and at least as many half cycles as its takes
+hold (so a tap plays it as the actors did); a release lowers it at the end of the half cycle.
+
+The gesture's stream starts from the two frames the character has just shown (its window's fixed
+frames), so the arms leave the walk's swing without a jump; its upper-body features (the `upper`
+group: spine, neck, head, arms) then replace the gait's with a weight that eases in over EASE_IN
+frames and out over EASE_OUT once the lower has ended, the legs and the root staying the gait's:
+the feet keep their plan and the foot lock, the walk its speed and heading. While no gesture
+plays the stage costs nothing.
+"""
+
+from __future__ import annotations
+
+from typing import Collection
+
+import numpy as np
+
+from ..models.gestures import gesture_labels, gesture_repeats
+from ..models.modelfile import Model
+from .interpolation import StyleSpace, body_groups
+from .parameters import GROUPS
+from .stream import FOLLOWER, LABEL, UNIT, Crowd
+
+EASE_IN = 6  # frames the gesture's upper body takes to come in (its stream starts where the gait is)
+EASE_OUT = 12  # frames it takes to hand the arms back to the gait after the lower
+
+
+def smoothstep(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+class GestureLayer:
+    """Per character: which gesture plays, where it is, and how much of the upper body it has."""
+
+    name = "gestures"
+
+    def __init__(self, model: Model, space: StyleSpace, count: int, lookahead: int, seeds: list[int]):
+        self.labels = gesture_labels(model.metadata)  # {name: [raise, repeat-a, repeat-b, lower]}
+        self.repeats = gesture_repeats(model.metadata)
+        units = model.units
+        self.rest_unit = units.index("stand") if "stand" in units else 0  # where a lowered gesture goes
+        self.count = count
+        self.crowd = Crowd(space, count, lookahead, seeds=seeds) if self.labels else None
+        self.upper = body_groups(model.layout)[GROUPS.index("upper")]  # (D,) the columns a gesture takes
+        self.playing: str | None = None
+        self.first = 0  # the playing gesture's first label
+        self.done = np.zeros(count, dtype=np.int64)  # repeat half cycles finished, per character
+        self.label = np.zeros(count, dtype=np.int64)  # the label under way at the last frame
+        self.ease = np.zeros(count)  # 0..1 along the ease in, then back down along the ease out
+        self.weights = np.zeros(count)  # the gesture's share of each character's upper body, this frame
+        self.held: set[str] = set()  # the gesture targets held at the last frame
+        self.shown: list[np.ndarray] = []  # the last two frames shown (N, D), where a gesture starts from
+        self.shown_ids: list[np.ndarray] = []  # and their states
+        self.started = 0  # gestures begun (the console's and tests' count)
+        self.ignored: list[str] = []  # gestures pressed that this model does not have, newest last
+
+    @property
+    def names(self) -> list[str]:
+        return list(self.labels)
+
+    def retune(self, duration_means: np.ndarray, duration_variances: np.ndarray, stream: Crowd) -> None:
+        """The gait's lambda* tables and the gesture's durations at the model's own pace (a walk
+        sped up does not hurry the wave)."""
+        if self.crowd is not None:
+            self.crowd.tables = stream.tables
+            self.crowd.tune(duration_means, duration_variances, 1.0, None, 0.0)
+
+    def __call__(self, held: Collection[str], frames: np.ndarray, ids: np.ndarray) -> np.ndarray:
+        """The frame (N, D) with the gesture's upper body layered on, for the gesture targets held."""
+        held = set(held)
+        pressed = held - self.held
+        self.held = held
+        if pressed and self.playing is None:
+            name = sorted(pressed)[0]
+            if name in self.labels:
+                self._start(name)
+            else:
+                self.ignored.append(name)
+        if self.playing is not None:
+            frames = self._layer(frames)
+        self.shown = (self.shown + [frames.copy()])[-2:]
+        self.shown_ids = (self.shown_ids + [np.asarray(ids).copy()])[-2:]
+        return frames
+
+    def _start(self, name: str) -> None:
+        crowd = self.crowd
+        first = self.labels[name][0]
+        self.playing, self.first, self.started = name, first, self.started + 1
+        if len(self.shown) == 2:  # the window's fixed past: what the characters have just shown
+            crowd.history[:] = np.stack(self.shown, axis=1)
+            crowd.history_ids[:] = np.stack(self.shown_ids, axis=1)
+            crowd.sent = 2
+        else:  # at the very first frame: from nothing, as the gait begins
+            crowd.sent = 0
+        crowd.counters[:] = 0
+        crowd.counters[:, LABEL] = first
+        crowd.counters[:, FOLLOWER] = 1 - first % 2
+        crowd.carry[:] = 0.0
+        self.done[:] = 0
+        self.label[:] = first
+        self.ease[:] = 0.0
+
+    def _units(self) -> np.ndarray:
+        """The unit each character's plan goes on in (module text): raise -> a, a -> b, b -> a
+        while it repeats, b -> lower, lower -> the rest."""
+        g, label = self.first, self.label
+        going_on = (self.playing in self.held) | (self.done < self.repeats[self.playing])
+        return np.select([label == g, label == g + 1, label == g + 2],
+                         [g // 2, g // 2 + 1, np.where(going_on, g // 2, g // 2 + 1)], self.rest_unit)
+
+    def _layer(self, frames: np.ndarray) -> np.ndarray:
+        crowd = self.crowd
+        crowd.counters[:, UNIT] = self._units()
+        gesture = crowd.step()
+        label = crowd.history_ids[:, 1] // crowd.space.states
+        g = self.first
+        moved = label != self.label
+        self.done += moved & ((label == g + 1) | (label == g + 2)) & (self.label != g)  # a repeat half finished
+        self.label = label
+        inside = (label >= g) & (label <= g + 3)
+        self.ease = np.where(inside, np.minimum(self.ease + 1.0 / EASE_IN, 1.0),
+                             np.maximum(self.ease - 1.0 / EASE_OUT, 0.0))
+        self.weights = smoothstep(self.ease)
+        if not inside.any() and not self.ease.any():
+            self.playing = None
+        w = self.weights[:, None]
+        out = np.array(frames, dtype=np.float64)
+        out[:, self.upper] = (1.0 - w) * out[:, self.upper] + w * gesture[:, self.upper]
+        return out
