@@ -13,8 +13,9 @@ it. Figures:
 - `recognised`: the share of the gesture's repeat half cycles a linear discriminant trained on the
   real takes' half cycles (upper body only: the takes stand, the walk walks) labels with the style,
   beside the share of the real takes' own half cycles it labels right when each take is left out;
-- `cost_ratio`: the frame's stream and gesture stages over its stream stage alone, while the
-  gesture plays (a gesture is one more window solve).
+- `cost_ratio`: a frame's time (the whole engine, posing included; the median over the gesture)
+  with the gesture over the same frame's without it; `solve_ratio` the gesture's stage over the
+  gait's stream stage (its window solve) while it plays.
 
 The takes' rows have the same figures where they mean something (over the head, reach, duration
 from raise to lower, recognised).
@@ -22,6 +23,7 @@ from raise to lower, recognised).
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -73,24 +75,27 @@ class Body:
 
 def play(model: Model, weights: dict[str, float], frames: int, gesture: str | None, seed: int = 0):
     """A walk with `gesture` tapped at START_SECONDS: (Motion, the gesture's share of the upper
-    body per frame, the gesture's label per frame (-1 none), stage seconds while it plays)."""
+    body per frame, the gesture's label per frame (-1 none), each frame's seconds (the whole
+    engine: stream, stages, posing), the stream's and the gesture's stage seconds while it plays)."""
     engine = Engine(model, seed=seed)
     controls = default_controls(model, weights)
     channels = ChannelStream(model.layout.skeleton)
     start = int(round(START_SECONDS * engine.fps))
-    rows, shares, labels = [], np.zeros(frames), np.full(frames, -1)
-    costs = {"stream": 0.0, "gestures": 0.0}
+    rows, shares, labels, seconds = [], np.zeros(frames), np.full(frames, -1), np.zeros(frames)
+    stages = {"stream": 0.0, "gestures": 0.0}
     for k in range(frames):
-        engine.stage_seconds = {} if k > start else None
+        engine.stage_seconds = {} if gesture and k > start else None
+        begun = time.perf_counter()
         pose = engine.frame(k / engine.fps, replace(controls, gestures=(gesture,) if gesture and k == start else ()))
+        seconds[k] = time.perf_counter() - begun
         rows.append(channels.next(pose.rotations[0], pose.translations[0]))
         layer = engine.gestures
         shares[k] = layer.weights[0] if layer.playing else 0.0
         if layer.playing:
             labels[k] = layer.crowd.history_ids[0, 1] // model.states
-            for stage in costs:
-                costs[stage] += (engine.stage_seconds or {}).get(stage, 0.0)
-    return Motion(model.layout.skeleton, np.array(rows), model.fps), shares, labels, costs
+            for stage in stages:
+                stages[stage] += (engine.stage_seconds or {}).get(stage, 0.0)
+    return Motion(model.layout.skeleton, np.array(rows), model.fps), shares, labels, seconds, stages
 
 
 def _runs(labels: np.ndarray, wanted: list[int]) -> list[Step]:
@@ -139,8 +144,8 @@ def assess_gestures(model: Model, seconds: float = 12.0, real: Path | None = Non
     for gesture, labels in gestures.items():
         for style in styles:
             weights = {style: 1.0}
-            motion, shares, played, costs = play(model, weights, frames, gesture)
-            plain = play(model, weights, frames, None)[0]
+            motion, shares, played, seconds_with, stages = play(model, weights, frames, gesture)
+            plain, _, _, seconds_without, _ = play(model, weights, frames, None)
             on = np.flatnonzero(shares > 0)
             if not len(on):
                 result.synth[f"{gesture} {style}"] = {"duration_s": 0.0}
@@ -155,7 +160,8 @@ def assess_gestures(model: Model, seconds: float = 12.0, real: Path | None = Non
             with_it, without = (walk_figures(cut(m), body.layout, body.limbs, ground, body.cm) for m in (motion, plain))
             row["speed_ratio"] = with_it["speed_cm_s"] / max(without["speed_cm_s"], 1e-9)
             row["skate_ratio"] = with_it["skate_cm_s"] / max(without["skate_cm_s"], 1e-9)
-            row["cost_ratio"] = (costs["stream"] + costs["gestures"]) / max(costs["stream"], 1e-12)
+            row["cost_ratio"] = float(np.median(seconds_with[a + 1:b]) / max(np.median(seconds_without[a + 1:b]), 1e-12))
+            row["solve_ratio"] = stages["gestures"] / max(stages["stream"], 1e-12)
             row["recognised"] = float("nan")
             if gesture in classifiers:
                 steps = _runs(played, labels[1:3])
@@ -185,7 +191,8 @@ def _left_out(kept) -> dict[str, float]:
 COLUMNS = (("over_head_cm", "hands over head cm", "{:.1f}"), ("reach_cm", "reach cm", "{:.1f}"),
            ("up_s", "highest at s", "{:.2f}"), ("duration_s", "duration s", "{:.2f}"),
            ("speed_ratio", "speed x", "{:.2f}"), ("skate_ratio", "skate x", "{:.2f}"),
-           ("recognised", "recognised", "{:.2f}"), ("cost_ratio", "frame cost x", "{:.2f}"))
+           ("recognised", "recognised", "{:.2f}"), ("cost_ratio", "frame cost x", "{:.2f}"),
+           ("solve_ratio", "gesture / solve", "{:.2f}"))
 
 
 def gesture_table(result: GestureAssessment) -> str:

@@ -65,10 +65,10 @@ def turning_points(signal: np.ndarray, delta: float) -> list[int]:
         if signal[k] < signal[low]:
             low = k
         if direction >= 0 and signal[high] - signal[k] > delta:
-            points.append(high)
+            points += [high] if high > 0 else []  # the signal's start is no turn
             direction, low = -1, k
         elif direction <= 0 and signal[k] - signal[low] > delta:
-            points.append(low)
+            points += [low] if low > 0 else []
             direction, high = 1, k
     return points
 

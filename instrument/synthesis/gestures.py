@@ -11,8 +11,9 @@ The planner moves from a label to the other foot's label of the unit in `counter
 (label = 2 * unit + foot); a gesture's four labels are two such pairs (raise, repeat-a) and
 (repeat-b, lower), so choosing the unit from the label under way strings the phases: after
 repeat-b the first pair's unit loops back to repeat-a, the second's goes on to lower. The
-repeat loops while the gesture's target is held, and at least as many half cycles as its takes
-hold (so a tap plays it as the actors did); a release lowers it at the end of the half cycle.
+repeat loops while the gesture's target is held; let go during the raise (a tap), it repeats as
+many half cycles as its takes hold (it plays as the actors did); let go later, it lowers at the
+end of the half cycle under way.
 
 The gesture's stream starts from the two frames the character has just shown (its window's fixed
 frames), so the arms leave the walk's swing without a jump; its upper-body features (the `upper`
@@ -38,11 +39,6 @@ EASE_IN = 6  # frames the gesture's upper body takes to come in (its stream star
 EASE_OUT = 12  # frames it takes to hand the arms back to the gait after the lower
 
 
-def smoothstep(x: np.ndarray) -> np.ndarray:
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
-
-
 class GestureLayer:
     """Per character: which gesture plays, where it is, and how much of the upper body it has."""
 
@@ -55,10 +51,12 @@ class GestureLayer:
         self.rest_unit = units.index("stand") if "stand" in units else 0  # where a lowered gesture goes
         self.count = count
         self.crowd = Crowd(space, count, lookahead, seeds=seeds) if self.labels else None
-        self.upper = body_groups(model.layout)[GROUPS.index("upper")]  # (D,) the columns a gesture takes
+        self.columns = np.flatnonzero(body_groups(model.layout)[GROUPS.index("upper")])  # the features a gesture takes
+        self._next_repeating = self._next_ending = np.zeros(6, dtype=np.int64)  # set by _start
         self.playing: str | None = None
         self.first = 0  # the playing gesture's first label
         self.done = np.zeros(count, dtype=np.int64)  # repeat half cycles finished, per character
+        self.tapped = np.ones(count, dtype=bool)  # let go during the raise (or not yet): repeats as the takes do
         self.label = np.zeros(count, dtype=np.int64)  # the label under way at the last frame
         self.ease = np.zeros(count)  # 0..1 along the ease in, then back down along the ease out
         self.weights = np.zeros(count)  # the gesture's share of each character's upper body, this frame
@@ -83,6 +81,8 @@ class GestureLayer:
         """The frame (N, D) with the gesture's upper body layered on, for the gesture targets held."""
         held = set(held)
         pressed = held - self.held
+        if self.playing in self.held - held:  # let go: during the raise it was a tap (the takes' repeats), later a hold
+            self.tapped = self.label == self.first
         self.held = held
         if pressed and self.playing is None:
             name = sorted(pressed)[0]
@@ -111,16 +111,20 @@ class GestureLayer:
         crowd.counters[:, FOLLOWER] = 1 - first % 2
         crowd.carry[:] = 0.0
         self.done[:] = 0
+        self.tapped[:] = True  # until let go after the raise
         self.label[:] = first
         self.ease[:] = 0.0
+        pair, rest = first // 2, self.rest_unit  # the unit after each phase, by phase (before, raise, a, b, lower, after)
+        self._next_repeating = np.array([rest, pair, pair + 1, pair, rest, rest])
+        self._next_ending = np.array([rest, pair, pair + 1, pair + 1, rest, rest])
 
     def _units(self) -> np.ndarray:
         """The unit each character's plan goes on in (module text): raise -> a, a -> b, b -> a
         while it repeats, b -> lower, lower -> the rest."""
-        g, label = self.first, self.label
-        going_on = (self.playing in self.held) | (self.done < self.repeats[self.playing])
-        return np.select([label == g, label == g + 1, label == g + 2],
-                         [g // 2, g // 2 + 1, np.where(going_on, g // 2, g // 2 + 1)], self.rest_unit)
+        g = self.first
+        going_on = (self.playing in self.held) | (self.tapped & (self.done < self.repeats[self.playing]))
+        phase = np.clip(self.label - g, -1, 4) + 1  # 0: before the gesture, 1..4 its phases, 5: after
+        return np.where(going_on, self._next_repeating[phase], self._next_ending[phase])
 
     def _layer(self, frames: np.ndarray) -> np.ndarray:
         crowd = self.crowd
@@ -132,12 +136,11 @@ class GestureLayer:
         self.done += moved & ((label == g + 1) | (label == g + 2)) & (self.label != g)  # a repeat half finished
         self.label = label
         inside = (label >= g) & (label <= g + 3)
-        self.ease = np.where(inside, np.minimum(self.ease + 1.0 / EASE_IN, 1.0),
-                             np.maximum(self.ease - 1.0 / EASE_OUT, 0.0))
-        self.weights = smoothstep(self.ease)
+        self.ease = np.clip(self.ease + np.where(inside, 1.0 / EASE_IN, -1.0 / EASE_OUT), 0.0, 1.0)
+        self.weights = self.ease * self.ease * (3.0 - 2.0 * self.ease)  # smoothstep: no kink at either end
         if not inside.any() and not self.ease.any():
             self.playing = None
         w = self.weights[:, None]
         out = np.array(frames, dtype=np.float64)
-        out[:, self.upper] = (1.0 - w) * out[:, self.upper] + w * gesture[:, self.upper]
+        out[:, self.columns] += w * (gesture[:, self.columns] - out[:, self.columns])
         return out
