@@ -283,3 +283,15 @@ def _pressed(log) -> bool:
         return any(json.loads(line).get("control") == "gesture/wave" for line in log.read_text().splitlines()[1:])
     except (OSError, ValueError):
         return False
+
+
+def test_evaluate_reports_each_gesture_and_the_walk_it_rides_on(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "instrument", "evaluate", "--styles", "youthful", "elderly", "--variants",
+                             "one", "--seconds", "10", "--gestures", "--json"], capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr
+    figures = json.loads(result.stdout)["gestures"]["synth"]
+    assert set(figures) == {f"{g} {s}" for g in ("wave", "raise") for s in ("elderly", "youthful")}
+    assert figures["wave youthful"]["over_head_cm"] > 10 > -10 > figures["wave elderly"]["over_head_cm"]
+    assert all(f["speed_ratio"] == 1.0 and f["skate_ratio"] == 1.0 for f in figures.values())  # the gait's legs, untouched
+    for style in ("elderly", "youthful"):  # as in the takes, a raise is over sooner than a wave
+        assert 1.0 < figures[f"raise {style}"]["duration_s"] < figures[f"wave {style}"]["duration_s"]
