@@ -164,7 +164,7 @@ def assess_gestures(model: Model, seconds: float = 12.0, real: Path | None = Non
             row["solve_ratio"] = stages["gestures"] / max(stages["stream"], 1e-12)
             row["recognised"] = float("nan")
             if gesture in classifiers:
-                steps = _runs(played, labels[1:3])
+                steps = _runs(played, labels[2:4])  # the repeat's halves
                 if steps:
                     static = extract(motion, body.layout)[0]
                     guesses = classifiers[gesture].step_labels(step_features(static[:, body.upper], steps))

@@ -2,8 +2,8 @@
 where a model keeps them.
 
 A gesture has four labels, stored after the units' (label = 2 * unit + foot) in the same arrays:
-its raise, the two halves of its repeat (a sway one way and back, or two pieces of a hold) and
-its lower (motion/gestures.py). The metadata entry "gestures" maps each gesture's name to its
+its lower and its raise, then the two halves of its repeat (a sway one way and back, or two
+pieces of a hold), as two of the planner's pairs (motion/gestures.py PHASES). The metadata entry "gestures" maps each gesture's name to its
 first label and the number of half cycles its takes repeat (a tap plays that many); a model
 without the entry has no gestures and works as before.
 """

@@ -28,7 +28,9 @@ from .limbs import find_limbs
 from .standing import hand_joints
 from .steps import Step
 
-PHASES = ("raise", "repeat-a", "repeat-b", "lower")  # a gesture's labels, in the model's order
+# a gesture's labels, in the model's order: two of the planner's pairs (label = 2 * unit + foot),
+# (lower, raise) and (repeat-a, repeat-b), so that one unit loops the repeat (synthesis/gestures.py)
+PHASES = ("lower", "raise", "repeat-a", "repeat-b")
 HIGH = 0.6  # share of the way from the lowest to the highest hand height: the hands are up
 LOW = 0.15  # share of the way: the hands are down (a raise starts here, a lower ends here)
 SWING = 0.08  # leg lengths: a repeat whose hands sway less than this across is a hold

@@ -8,9 +8,11 @@ spread shape a wave as they shape the walk), planned through the gesture's phase
     raise -> repeat-a -> repeat-b -> (repeat-a -> repeat-b ...) -> lower -> the stand's rest
 
 The planner moves from a label to the other foot's label of the unit in `counters[:, UNIT]`
-(label = 2 * unit + foot); a gesture's four labels are two such pairs (raise, repeat-a) and
-(repeat-b, lower), so choosing the unit from the label under way strings the phases: after
-repeat-b the first pair's unit loops back to repeat-a, the second's goes on to lower. The
+(label = 2 * unit + foot); a gesture's four labels are two such pairs, (lower, raise) and
+(repeat-a, repeat-b), so choosing the unit from the label under way strings the phases: with the
+repeat's unit, the raise goes on to repeat-a, and a and b follow each other for as long as the
+unit stays (the look-ahead the window solves sees the loop as it will be played); the other
+pair's unit takes repeat-b to the lower, and the stand's takes the lower to rest. The
 repeat loops while the gesture's target is held; let go during the raise (a tap), it repeats as
 many half cycles as its takes hold (it plays as the actors did); let go later, it lowers at the
 end of the half cycle under way.
@@ -45,11 +47,10 @@ class GestureLayer:
     name = "gestures"
 
     def __init__(self, model: Model, space: StyleSpace, count: int, lookahead: int, seeds: list[int]):
-        self.labels = gesture_labels(model.metadata)  # {name: [raise, repeat-a, repeat-b, lower]}
+        self.labels = gesture_labels(model.metadata)  # {name: [lower, raise, repeat-a, repeat-b]}
         self.repeats = gesture_repeats(model.metadata)
         units = model.units
         self.rest_unit = units.index("stand") if "stand" in units else 0  # where a lowered gesture goes
-        self.count = count
         self.crowd = Crowd(space, count, lookahead, seeds=seeds) if self.labels else None
         self.columns = np.flatnonzero(body_groups(model.layout)[GROUPS.index("upper")])  # the features a gesture takes
         self._next_repeating = self._next_ending = np.zeros(6, dtype=np.int64)  # set by _start
@@ -63,8 +64,7 @@ class GestureLayer:
         self.held: set[str] = set()  # the gesture targets held at the last frame
         self.shown: list[np.ndarray] = []  # the last two frames shown (N, D), where a gesture starts from
         self.shown_ids: list[np.ndarray] = []  # and their states
-        self.started = 0  # gestures begun (the console's and tests' count)
-        self.ignored: list[str] = []  # gestures pressed that this model does not have, newest last
+        self.started = 0  # gestures begun
 
     @property
     def names(self) -> list[str]:
@@ -82,14 +82,11 @@ class GestureLayer:
         held = set(held)
         pressed = held - self.held
         if self.playing in self.held - held:  # let go: during the raise it was a tap (the takes' repeats), later a hold
-            self.tapped = self.label == self.first
+            self.tapped = self.label == self.first + 1  # still raising
         self.held = held
-        if pressed and self.playing is None:
-            name = sorted(pressed)[0]
-            if name in self.labels:
-                self._start(name)
-            else:
-                self.ignored.append(name)
+        known = sorted(pressed & set(self.labels))  # one the model lacks: `run` says so, the walk goes on
+        if known and self.playing is None:
+            self._start(known[0])
         if self.playing is not None:
             frames = self._layer(frames)
         self.shown = (self.shown + [frames.copy()])[-2:]
@@ -107,23 +104,25 @@ class GestureLayer:
         else:  # at the very first frame: from nothing, as the gait begins
             crowd.sent = 0
         crowd.counters[:] = 0
-        crowd.counters[:, LABEL] = first
-        crowd.counters[:, FOLLOWER] = 1 - first % 2
+        crowd.counters[:, LABEL] = first + 1  # the raise
+        crowd.counters[:, FOLLOWER] = 1 - (first + 1) % 2
         crowd.carry[:] = 0.0
         self.done[:] = 0
         self.tapped[:] = True  # until let go after the raise
-        self.label[:] = first
+        self.label[:] = first + 1
         self.ease[:] = 0.0
-        pair, rest = first // 2, self.rest_unit  # the unit after each phase, by phase (before, raise, a, b, lower, after)
-        self._next_repeating = np.array([rest, pair, pair + 1, pair, rest, rest])
-        self._next_ending = np.array([rest, pair, pair + 1, pair + 1, rest, rest])
+        # the unit the plan goes on in, by phase: (before, lower, raise, a, b, after); (lower, raise) is
+        # the pair `first // 2`, (a, b) the next: its unit loops a and b, the first pair's ends b in the lower
+        ends, repeats, rest = first // 2, first // 2 + 1, self.rest_unit
+        self._next_repeating = np.array([rest, rest, repeats, repeats, repeats, rest])
+        self._next_ending = np.array([rest, rest, repeats, repeats, ends, rest])
 
     def _units(self) -> np.ndarray:
         """The unit each character's plan goes on in (module text): raise -> a, a -> b, b -> a
         while it repeats, b -> lower, lower -> the rest."""
         g = self.first
         going_on = (self.playing in self.held) | (self.tapped & (self.done < self.repeats[self.playing]))
-        phase = np.clip(self.label - g, -1, 4) + 1  # 0: before the gesture, 1..4 its phases, 5: after
+        phase = np.clip(self.label - g, -1, 4) + 1  # 0: before the gesture, 1..4 its labels, 5: after
         return np.where(going_on, self._next_repeating[phase], self._next_ending[phase])
 
     def _layer(self, frames: np.ndarray) -> np.ndarray:
@@ -133,7 +132,7 @@ class GestureLayer:
         label = crowd.history_ids[:, 1] // crowd.space.states
         g = self.first
         moved = label != self.label
-        self.done += moved & ((label == g + 1) | (label == g + 2)) & (self.label != g)  # a repeat half finished
+        self.done += moved & ((label == g + 2) | (label == g + 3)) & (self.label != g + 1)  # a repeat half finished
         self.label = label
         inside = (label >= g) & (label <= g + 3)
         self.ease = np.clip(self.ease + np.where(inside, 1.0 / EASE_IN, -1.0 / EASE_OUT), 0.0, 1.0)
