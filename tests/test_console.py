@@ -483,6 +483,31 @@ def test_the_gait_buttons_set_the_gait_and_light_what_the_instrument_echoes(brow
     until(lambda: stream.last("/walk/gait") == 1.0 and pressed(browser, "gait") == ["walk"], what="walk after a reset")
 
 
+def hands_over_head(frame: dict[str, list]) -> float:
+    """How far the higher hand is above the head, in the flat stream's bone positions."""
+    return max(frame[f"/walk/bone/Hand_{side}/pos"][1] for side in "RL") - frame["/walk/bone/Head/pos"][1]
+
+
+@needs_browser
+def test_a_gesture_button_held_raises_the_hands_until_let_go(browser, mixer):
+    """wave, held down with a real pointer: the hands go over the head in the OSC stream's bones
+    and the button is lit; let go, the hands come down (the gesture lowers on release)."""
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    show, stream = mixer
+    fresh_page(browser, show, stream)
+    buttons = browser.find_elements("css selector", '[data-target^="gesture/"] button')
+    assert [b.text for b in buttons] == ["wave", "raise"]
+    assert max(hands_over_head(f) for f in stream.after(30)) < 0  # walking: the hands below the head
+    browser.execute_script("arguments[0].scrollIntoView({block: 'center'})", buttons[0])
+    ActionChains(browser).click_and_hold(buttons[0]).perform()
+    until(lambda: buttons[0].get_attribute("aria-pressed") == "true", what="wave lit while held")
+    until(lambda: hands_over_head(stream.update()[-1]) > 0, what="the hands over the head")
+    ActionChains(browser).release().perform()
+    until(lambda: buttons[0].get_attribute("aria-pressed") == "false", what="wave unlit on release")
+    until(lambda: max(hands_over_head(f) for f in stream.update()[-30:]) < 0, 60, what="the hands down after the release")
+
+
 @needs_browser
 def test_the_arrow_keys_steer_while_held(browser, mixer):
     from selenium.webdriver.common.action_chains import ActionChains

@@ -93,7 +93,8 @@ def test_still_standing_is_found_in_the_standing_takes_and_never_in_walks_or_run
 
 def test_the_shipped_model_holds_every_unit(model):
     assert model.units == ["walk", "run", "turn-left", "turn-right", "stand"]
-    assert model.labels[:2] == ["walk/right", "walk/left"] and len(model.labels) == 10
+    assert model.labels[:2] == ["walk/right", "walk/left"] and model.labels[9] == "stand/left"
+    assert all(label.startswith("gesture/") for label in model.labels[10:])  # the gestures' after the units' (issue 26)
     walk_steps = [d for d in model.metadata["data"] if d["unit"] == "walk"]
     assert len(walk_steps) == 175  # the walks it always had, and the new takes beside them
 

@@ -47,6 +47,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="also measure the model's other units (run, turns, stand) against their real takes, the stops "
                         "and starts between them, and check issue 25's targets (PASS/FAIL)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--gestures", action="store_true",
+                   help="also each gesture over a walk in each style, against its takes (evaluation/gestures.py)")
     p.set_defaults(run=run)
 
 
@@ -81,6 +83,11 @@ def run(args: argparse.Namespace) -> int:
 
         units = assess_units(model, real, styles, seconds, progress)
         targets = check(units)
+    gestures = None
+    if args.gestures:
+        from ..evaluation.gestures import assess_gestures, gesture_table
+
+        gestures = assess_gestures(model, seconds, real, styles, progress)
     if args.json:
         report = {"model": str(args.model or default_model_path()), "seconds": seconds, "weights": result.weights,
                   "synth": _clean(result.synth), "real": _clean(result.real)}
@@ -89,6 +96,8 @@ def run(args: argparse.Namespace) -> int:
                                "real": {k: _clean(v) for k, v in units.real.items()},
                                "transitions": _clean(units.transitions), "real_jumps": units.real_jumps,
                                "targets": [vars(t) | {"measured": _number(t.measured)} for t in targets]}
+        if gestures is not None:
+            report["gestures"] = {"synth": _clean(gestures.synth), "real": _clean(gestures.real)}
         print(json.dumps(report, indent=1))
     else:
         print(table(result))
@@ -97,6 +106,8 @@ def run(args: argparse.Namespace) -> int:
 
             print(unit_tables(units) or "\nthe model has no units but the walk: no runs, turns, stands or stops to measure")
             print("\n" + target_table(targets))
+        if gestures is not None:
+            print(f"\n{gesture_table(gestures)}")
     return 0
 
 

@@ -26,6 +26,7 @@ def summary(path: str) -> dict:
         "styles": model.style_names,
         "labels": model.labels,
         "units": model.units,
+        "gestures": {name: g.get("repeats") for name, g in (meta.get("gestures") or {}).items()},  # and a tap's half cycles
         "states": model.states,
         "fps": model.fps,
         "static_dimension": layout.dimension,
@@ -53,6 +54,8 @@ def run(args: argparse.Namespace) -> int:
     print(info["file"])
     print(f"  styles     {', '.join(info['styles'])}")
     print(f"  units      {', '.join(info['units'])} (gaits without a unit of their own play the walk)")
+    if info["gestures"]:
+        print(f"  gestures   {', '.join(f'{g} ({n} half cycles a tap)' for g, n in info['gestures'].items())}")
     print(f"  labels     {', '.join(info['labels'])}; {info['states']} states each; {info['fps']:g} fps")
     print(f"  features   {info['static_dimension']} static ({info['modelled_joints']} of {info['joints']} joints), "
           f"{info['observation_dimension']} with deltas")

@@ -29,6 +29,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--turn", default="0", help="steering in rad/s, positive turns left (turning steps where the model "
                                                "has them; default 0)")
     p.add_argument("--seconds", default="10", help="length of the walk (default 10)")
+    p.add_argument("--gesture", action="append", default=[], metavar="NAME@SECONDS",
+                   help="a gesture (wave, raise) started at SECONDS, repeatable; it plays as its takes do")
     p.add_argument("--out", required=True, metavar="FILE.bvh", help="the walk's file: .bvh, or .glb for binary glTF 2.0")
     p.add_argument("--force", action="store_true", help="overwrite the --out file if it exists (default: refuse)")
     p.add_argument("--method", choices=("stream", "full"), default="stream",
@@ -62,6 +64,23 @@ def parse_weights(items: list[str], styles: list[str]) -> tuple[dict[str, float]
     return weights, (None if np.isnan(parts).all() else parts)
 
 
+def parse_gestures(items: list[str], model) -> list[tuple[str, float]]:
+    """--gesture NAME@SECONDS items as (name, seconds); an error names the item at fault."""
+    from ..models.gestures import gesture_labels
+
+    known = list(gesture_labels(model.metadata))
+    out = []
+    for item in items:
+        name, sep, text = item.partition("@")
+        if not sep:
+            raise UserError(f"--gesture {item!r}: expected NAME@SECONDS, e.g. wave@2")
+        if name not in known:
+            raise UserError(f"--gesture {item!r}: the model has no gesture {name!r} "
+                            f"({'it has ' + ', '.join(known) if known else 'it was trained without gesture takes'})")
+        out.append((name, value("synth --gesture", text, where=f"--gesture {item}")))
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
     # the synthesizer's code (numpy, scipy, numba): loaded when run, not for --help
     from ..models.modelfile import load_model
@@ -81,9 +100,10 @@ def run(args: argparse.Namespace) -> int:
     liveliness = value("synth --liveliness", args.liveliness)
     seed = value("synth --seed", args.seed)
     frames = max(1, int(round(seconds * model.fps)))
+    gestures = parse_gestures(args.gesture, model)
     controls = default_controls(model, weights, part_weights=part_weights, speed=speed, liveliness=liveliness, gait=gait,
                                 turn=turn)
     # the engine as `run` plays it, without a clock: the feet planted, from the origin, heading 0
-    write_motion(args.out, render(model, controls, frames, args.method, lookahead, seed))
+    write_motion(args.out, render(model, controls, frames, args.method, lookahead, seed, gestures))
     print(f"wrote {frames} frames ({seconds:g} s) to {args.out}", file=sys.stderr)
     return 0

@@ -23,6 +23,7 @@ from ..control.values import all_values
 from ..errors import UserError
 from ..terminal import Console
 from ..synthesis.posing import Frame
+from ..models.gestures import gesture_labels
 from ..synthesis.interpolation import GROUPS
 from .presets import check_presets_file
 from .server import JSON, MAX_PACKET, frame_packet
@@ -66,6 +67,7 @@ def hello(model, state: ControlState, save_path: str | None, fps: float) -> dict
     skeleton = model.layout.skeleton
     return {
         "type": "hello", "styles": state.style_names, "groups": list(GROUPS), "states": state.states,
+        "gestures": list(gesture_labels(model.metadata)),  # the gesture buttons: those the model holds
         "joints": list(skeleton.names), "parents": [j.parent for j in skeleton.joints], "root": model.layout.root,
         "fps": fps, "save": save_path, "order": list(all_values(state)),
         "rows": rows_for_page(),  # the sliders: control/spec.py's rows (console.js builds them from these)

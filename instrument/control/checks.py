@@ -17,7 +17,7 @@ from numbers import Real
 from typing import Collection
 
 from ..errors import printable, quoted
-from ..synthesis.parameters import GROUPS
+from ..synthesis.parameters import GESTURES, GROUPS
 from .spec import PRESET_NAME, TABLE, Row
 
 # raw controls of devices as they appear in events and logs: id pattern -> highest raw value
@@ -60,6 +60,8 @@ def row_of(target: object, styles: Collection[str], states: int) -> Row | None:
         return TABLE[head]
     if head == "phase" and len(parts) == 2 and re.fullmatch(r"[1-9][0-9]{0,3}", parts[1], re.ASCII) \
             and int(parts[1]) <= states:
+        return TABLE[head]
+    if head == "gesture" and len(parts) == 2 and parts[1] in GESTURES:
         return TABLE[head]
     if head in ("preset", "store") and len(parts) == 2 and PRESET_NAME.match(parts[1]):
         return TABLE[head]

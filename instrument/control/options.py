@@ -82,6 +82,7 @@ OPTIONS: dict[str, Accepts] = {
     "synth --lookahead": Accepts(int, 1, 1000),
     "synth --liveliness": target("liveliness"),
     "synth --seed": Accepts(int, 0, 2**32 - 1),
+    "synth --gesture": Accepts(float, 0, 3600),  # the seconds of NAME@SECONDS
     "bench --repeat": Accepts(int, 1, 1000),
     "bench --pacing": POSITIVE_SECONDS,
     "bench --fps": Accepts(float, 1, 1000),

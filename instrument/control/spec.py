@@ -9,7 +9,8 @@ console's sliders (the hello message carries `rows_for_page`), learn's default r
 (`Row.fader`), a stored preset's targets (`Row.stored`) and the table in docs/controls.md.
 
 A row's `pattern` is how its targets are written: `<style>`, `<group>` and `<k>` are filled
-from the model (its style names, the body-part groups, its states 1..N), `<name>` with a
+from the model (its style names, the body-part groups, its states 1..N), `<gesture>` with a
+gesture's name (synthesis/parameters.py: a model without that gesture ignores it), `<name>` with a
 preset name. Action rows (reset, cue, preset/<name>, store/<name>) are pressed, not held: a
 value above 0 acts, and no preset or score ramp holds them.
 """
@@ -20,7 +21,7 @@ import math
 import re
 from dataclasses import dataclass
 
-from ..synthesis.parameters import GAITS, GROUPS, MAX_SPEED, MIN_SPEED
+from ..synthesis.parameters import GAITS, GESTURES, GROUPS, MAX_SPEED, MIN_SPEED
 
 MAX_TURN = 3.0  # rad/s
 WEIGHT_LIMIT = 10.0
@@ -91,6 +92,9 @@ _ROWS = (
         section="morph", slider=(0.0, 10.0)),
     Row("phase/<k>", MIN_SPEED, MAX_SPEED, 1.0, "x", "stretch of state k (1-based) of every step",
         stored=True, section="phases", fader=(0.5, 2.0)),
+    Row("gesture/<gesture>", 0.0, 1.0, 0.0, "press",
+        f"held above 0: a gesture ({', '.join(GESTURES)}) over the gait's upper body; a tap plays it as the takes do, "
+        "a hold repeats it until released", section="gestures"),
     Row("reset", -math.inf, math.inf, 0.0, "press", "everything back to the start (the morph time stays)", action=True),
     Row("cue", -math.inf, math.inf, 0.0, "press", "a score waiting for the performer goes on", action=True),
     Row("preset/<name>", -math.inf, math.inf, 0.0, "press", "recall preset <name> (over the morph time)", action=True),
@@ -112,6 +116,8 @@ def names(style_names: list[str], states: int) -> list[str]:
             out += [f"part/{s}/{g}" for s in style_names for g in GROUPS]
         elif row.kind == "phase":
             out += [f"phase/{k + 1}" for k in range(states)]
+        elif row.kind == "gesture":
+            out += [f"gesture/{g}" for g in GESTURES]
         elif "<" not in row.pattern:
             out.append(row.pattern)
     return out

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..synthesis.parameters import GROUPS
+from ..synthesis.parameters import GESTURES, GROUPS
 from ..synthesis.stream import Controls, gait_index
 from . import spec
 from .checks import Refusal, between, refusal, row_of
@@ -44,6 +44,7 @@ class ControlState:
         self.state_scale = np.full(self.states, rows["phase"].default)
         self.sync = rows["sync"].default  # the beat lock on (1) or off (0) (runtime/tempo.py)
         self.steps_per_beat = rows["steps-per-beat"].default  # read by the beat lock
+        self.gestures = {g: rows["gesture"].default for g in GESTURES}  # above 0: held (synthesis/gestures.py)
 
     def targets(self) -> list[str]:
         """Every target of this model (spec.names: preset/<name> and store/<name> aside)."""
@@ -77,6 +78,8 @@ class ControlState:
             self.part_weights[self.style_index[parts[1]], GROUPS.index(parts[2])] = value
         elif kind == "phase":
             self.state_scale[int(parts[1]) - 1] = value
+        elif kind == "gesture":
+            self.gestures[parts[1]] = value
         elif kind == "reset":
             if value > 0:  # a button's press, not its release
                 self.reset()
@@ -96,6 +99,8 @@ class ControlState:
             return float(self.part_weights[self.style_index[parts[1]], GROUPS.index(parts[2])])
         if parts[0] == "phase":
             return float(self.state_scale[int(parts[1]) - 1])
+        if parts[0] == "gesture":
+            return float(self.gestures[parts[1]])
         if target == "cue":  # a button with no value to show
             return 0.0
         if target == "morph":
@@ -126,7 +131,7 @@ class ControlState:
     def snapshot(self) -> Controls:
         parts = None if np.isnan(self.part_weights).all() else self.part_weights.copy()
         return Controls(self.weights.copy(), parts, self.speed, self.state_scale.copy(), self.liveliness, self.turn,
-                        gait_index(self.gait))
+                        gait_index(self.gait), tuple(g for g, v in self.gestures.items() if v > 0))
 
     def echo(self) -> dict[str, float]:
         """The values a control surface shows: the targets of the rows marked `echoed` (control/spec.py)."""

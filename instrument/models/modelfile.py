@@ -27,6 +27,7 @@ from ..errors import UserError
 from ..motion.bvh import Skeleton
 from ..motion.features import FeatureLayout
 from ..models.units import UNITS
+from ..motion.gestures import PHASES
 from ..shipped import default_model_path  # noqa: F401  (re-exported: where the default model is)
 from .hsmm import HSMM
 
@@ -175,10 +176,11 @@ def _check_metadata(path: Path, metadata: dict) -> None:
     if "units" in metadata:
         units = metadata["units"]
         if not isinstance(units, list) or not units or not all(isinstance(u, str) for u in units) \
-                or units[0] != "walk" or not set(units) <= set(UNITS) \
-                or len(set(units)) < len(units) or 2 * len(units) != len(metadata["labels"]):
-            raise broken("units", f"a list of different units, the walk first, of {', '.join(UNITS)}, two labels each")
-    elif len(metadata["labels"]) != 2:
+                or units[0] != "walk" or not set(units) <= set(UNITS) or len(set(units)) < len(units) \
+                or 2 * len(units) + _gesture_label_count(path, metadata) != len(metadata["labels"]):
+            raise broken("units", f"a list of different units, the walk first, of {', '.join(UNITS)}, two labels each "
+                         "(and the gestures' after them)")
+    elif len(metadata["labels"]) != 2 + _gesture_label_count(path, metadata):
         raise broken("labels", "a right and a left step (a model of more labels names its units)")
     optional = {  # entries `info` and the synthesis read when they are there
         "data": (lambda v: isinstance(v, list) and all(isinstance(d, dict) and isinstance(d.get("frames"), int)
@@ -194,6 +196,21 @@ def _check_metadata(path: Path, metadata: dict) -> None:
     for key, (fits, expected) in optional.items():
         if key in metadata and not fits(metadata[key]):
             raise broken(key, expected)
+
+
+def _gesture_label_count(path: Path, metadata: dict) -> int:
+    """How many labels the "gestures" entry gives (models/gestures.py), each gesture's right after
+    the units' and the last gesture's; an entry that does not fit is one line naming it."""
+    entry = metadata.get("gestures")
+    if entry is None:
+        return 0
+    first = 2 * len(metadata.get("units", ["walk"]))
+    if not isinstance(entry, dict) or not all(
+            isinstance(g, dict) and g.get("first") == first + len(PHASES) * k and isinstance(g.get("repeats", 2), int)
+            and g.get("repeats", 2) >= 1 for k, g in enumerate(entry.values())):
+        raise UserError(f"{path}: metadata 'gestures': expected each gesture's first label, {len(PHASES)} labels apart "
+                        f"after the units' {first}, and its repeats")
+    return len(PHASES) * len(entry)
 
 
 def _numbers_2d(value) -> bool:

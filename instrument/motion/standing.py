@@ -39,7 +39,7 @@ def still_frames(motion: Motion, layout: FeatureLayout) -> np.ndarray:
         moved = np.linalg.norm(np.gradient(positions[:, joints][..., list(axes)], axis=0), axis=-1) * motion.fps
         return moved.max(axis=1) / leg
 
-    hands = _hands(motion.skeleton.parents, limbs, positions[0])
+    hands = hand_joints(motion.skeleton.parents, limbs, positions[0])
     feet = [j for foot in limbs.feet for j in foot]
     still = speed([limbs.root], (0, 2)) < ROOT_SPEED
     still &= speed(feet) < FOOT_SPEED * 10  # feet may shift their weight; a step moves them far faster
@@ -49,7 +49,7 @@ def still_frames(motion: Motion, layout: FeatureLayout) -> np.ndarray:
     return still
 
 
-def _hands(parents: np.ndarray, limbs, pose: np.ndarray) -> list[int]:
+def hand_joints(parents: np.ndarray, limbs, pose: np.ndarray) -> list[int]:
     """The upper body's end joints but the highest one (the head): hands, fingers, thumbs.
     (Limbs.arms is not used: on the Bandai skeleton it takes the neck for one arm.)"""
     legs = {j for foot in limbs.feet for j in foot} | {leg.hip for leg in limbs.legs} | {leg.knee for leg in limbs.legs}

@@ -197,6 +197,11 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             if GAITS[controls.gait] in engine.units.missing:  # said, not refused: the walk goes on
                 console.warn(f"gait {GAITS[controls.gait]}", f"gait {GAITS[controls.gait]}: this model has no "
                              f"{GAITS[controls.gait]} unit (it has {', '.join(engine.model.units)}); it walks")
+            for name in controls.gestures:  # said once, not refused: the walk goes on without it
+                if name not in engine.gestures.labels:
+                    console.warn(f"gesture {name}", f"gesture {name}: this model has no {name} gesture "
+                                 f"({'it has ' + ', '.join(engine.gestures.names) if engine.gestures.names else 'none'}); "
+                                 "the walk goes on")
             footfalls = feet.after(crowd)
             landed_at = next((clock.deadline(index) for f in footfalls if f.character == 0 and index > 0), None)
             frame = Frame(index, now, crowd, all_values(state), state.echo(), footfalls)

@@ -13,6 +13,8 @@ character is a crowd of one):
              -> plan + stream ---- the state plan and streaming MLPG (Crowd: one compiled call)
              -> range ------------ each feature's swing scaled to the data's (RangeFilter)
              -> drive ------------ root speeds scaled by the cadence, the steering added
+             -> gestures --------- while a gesture plays, its own label stream's upper body
+                                   eased in over the gait's (GestureLayer, synthesis/gestures.py)
              -> contact ---------- how surely each foot is planted in the frame's state
              -> posing + lock ---- features to a world pose, the feet planted (CrowdPoses)
 
@@ -26,8 +28,8 @@ calls, frame by frame, so `synth` and a recorded `run` make the same frames.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
-from typing import Protocol
+from dataclasses import dataclass, replace
+from typing import Protocol, Sequence
 
 import numpy as np
 
@@ -39,6 +41,7 @@ from ..motion.limbs import units_to_metres
 from .contact import ContactSpace, contact_space
 from .follow import strength as follow_strength
 from .footlock import FootLock
+from .gestures import GestureLayer
 from .interpolation import StyleInterpolation, StyleSpace, style_space
 from .mlpg import mlpg
 from .parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING
@@ -202,6 +205,18 @@ class ContactTables:
         self.follow = follow_strength(self.space.leg_weights(mix.weights, mix.parts))
 
 
+class GestureTables:
+    """The gesture stream's lambda* (the gait's own tables) and its durations at the model's pace."""
+
+    name = "gestures"
+
+    def __init__(self, layer: GestureLayer, interpolation: Interpolation):
+        self.layer, self.interpolation = layer, interpolation
+
+    def retune(self, mix: Mix, stream: Crowd) -> None:
+        self.layer.retune(self.interpolation.duration_means, self.interpolation.duration_variances, stream)
+
+
 def drive(static: np.ndarray, cadence: np.ndarray, turn: float | np.ndarray) -> np.ndarray:
     """Root speeds (N, D) scaled by each character's cadence (a step taken faster covers the same
     ground sooner, so the feet do not slide) and the steering the units stage leaves to it added
@@ -240,6 +255,9 @@ class Engine:
         self.contact = None if contact is None else ContactTables(contact)
         self.features += [f for f in (self.range_targets, self.contact) if f is not None]
         self.units = UnitChooser(model, characters)
+        self.gestures = GestureLayer(model, self.space, characters, lookahead, self.cast.seeds)
+        if self.gestures.names:
+            self.features.append(GestureTables(self.gestures, interpolation))
         lock = None if contact is None else FootLock(model.layout, contact.clearance, self.fps)
         self.poses = CrowdPoses(model.layout, self.fps, characters, lock, positions=floor_positions(model, characters, spacing))
         self.frame_ids: np.ndarray | None = None  # (N,) the state (label * states + state) of each newest model frame
@@ -307,6 +325,9 @@ class Engine:
             self._timed("range")
         frames = drive(frames, self.stream.cadence, self.units.added_yaw)
         self._timed("drive")
+        if self.gestures.crowd is not None:
+            frames = self.gestures(controls.gestures, frames, ids)
+            self._timed("gestures")
         self.frame_ids = ids
         if self.contact is not None:
             self.contact_shares = self.contact.shares[np.arange(self.count), ids]
@@ -371,13 +392,15 @@ def walk_features(model: Model, controls: Controls, frames: int, method: str = "
 
 
 def render(model: Model, controls: Controls, frames: int, method: str = "stream", lookahead: int = DEFAULT_LOOKAHEAD,
-           seed: int = 0) -> Motion:
+           seed: int = 0, gestures: Sequence[tuple[str, float]] = ()) -> Motion:
     """A walk with constant controls as a Motion on the model's skeleton, at the model's rate, from
-    the origin, heading 0: the engine without a clock (what `synth` writes and `evaluate` measures)."""
+    the origin, heading 0: the engine without a clock (what `synth` writes and `evaluate` measures).
+    `gestures`: (name, seconds) taps, each held for one frame (so it plays as its takes do)."""
     engine = Engine(model, lookahead=lookahead, seed=seed, method=method, frames=frames)
     channels = ChannelStream(model.layout.skeleton)  # as a recording writes them
     rows = []
     for k in range(frames):
-        pose = engine.frame(k / engine.fps, controls)
+        held = tuple(name for name, at in gestures if round(at * engine.fps) == k)
+        pose = engine.frame(k / engine.fps, replace(controls, gestures=held) if gestures else controls)
         rows.append(channels.next(pose.rotations[0], pose.translations[0]))
     return Motion(model.layout.skeleton, np.array(rows), model.fps)

@@ -13,6 +13,10 @@ GROUPS = ("root", "legs", "upper")
 # model's unit of that name (a model without a unit plays its walk; synthesis/units.py)
 GAITS = ("stand", "walk", "run")
 
+# the gestures a performer can start (the `gesture/<gesture>` targets), layered on the gait's upper
+# body when the model has them (models/gestures.py, synthesis/gestures.py)
+GESTURES = ("wave", "raise")
+
 # how far the step rate goes, relative to the model's (synthesis/durations.py)
 MIN_SPEED, MAX_SPEED = 0.25, 4.0
 

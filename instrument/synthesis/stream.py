@@ -89,9 +89,10 @@ class Controls:
     liveliness: float = 0.0  # 0: mean durations; 1: durations drawn from the pdfs
     turn: float = 0.0  # steering, radians per second: turning steps where the model has them, else added yaw
     gait: int = 1  # index into parameters.GAITS: stand, walk, run (taken at the next step boundary)
+    gestures: tuple[str, ...] = ()  # the gesture targets held (synthesis/gestures.py: a press starts one)
 
     def key(self) -> tuple:
-        """What lambda* and the durations depend on (the turn and the gait do not: they choose units)."""
+        """What lambda* and the durations depend on (the turn, the gait and the gestures do not: they choose labels)."""
         parts = None if self.part_weights is None else np.asarray(self.part_weights, dtype=np.float64).tobytes()
         scale = None if self.state_scale is None else np.asarray(self.state_scale, dtype=np.float64).tobytes()
         return (np.asarray(self.weights, dtype=np.float64).tobytes(), parts, float(self.speed), scale, float(self.liveliness))

@@ -12,6 +12,7 @@ import numpy as np
 from .. import __version__
 from ..models.modelfile import Model
 from ..motion.features import ROOT_FEATURES, WINDOWS
+from ..motion.gestures import PHASES
 from ..motion.steps import LABELS
 from ..synthesis.interpolation import body_groups
 from ..synthesis.parameters import GROUPS
@@ -19,6 +20,7 @@ from .adaptation import Settings, adapt_styles
 from .average import TrainingReport, train_average, variance_floors
 from .contact import train_contact
 from .corpus import Take, load_corpus, segments_by_label
+from .gestures import gesture_metadata, gesture_segments, model_gestures
 from .symmetry import symmetric_models
 from .units import held_posture, mirrored_pairs, model_units
 from .widen import train_range
@@ -43,13 +45,21 @@ def build_model(
     layout, takes, warnings = load_corpus(pairs, fps, progress, states)
     report = TrainingReport(warnings=list(warnings))
     units = model_units({t.unit for t in takes})
-    segments = segments_by_label(takes, states, units)
+    gestures = model_gestures(takes)  # their labels after the units' (models/gestures.py)
+
+    def labelled(chosen: list[Take]) -> list[list[np.ndarray]]:
+        return segments_by_label(chosen, states, units) + gesture_segments(chosen, states, gestures)
+
+    segments = labelled(takes)
     report.warnings += [f"unit {unit!r}: no {foot} step long enough for {states} states; it keeps the average's"
                         for k, unit in enumerate(units) for f, foot in enumerate(LABELS) if not segments[2 * k + f]]
     floors = variance_floors(segments)
     average = train_average(segments, states, floors, report=report, on_iteration=on_iteration)
     style_names = sorted({t.style for t in takes})
-    per_style = {s: [segments_by_label([t], states, units) for t in takes if t.style == s] for s in style_names}
+    report.warnings += [f"gesture {g!r}: no {phase} long enough for {states} states; it keeps the average's"
+                        for k, g in enumerate(gestures) for p, phase in enumerate(PHASES)
+                        if not segments[2 * len(units) + len(PHASES) * k + p]]
+    per_style = {s: [labelled([t]) for t in takes if t.style == s] for s in style_names}
     styles, adapted = adapt_styles(average, per_style, floors, report.warnings, adaptation)
     contact, contact_metadata = train_contact(layout, takes, average, styles, style_names, fps, states, units)
     pairs_mirrored = mirrored_pairs(units)  # straight at turn = 0 (the turns keep their turn)
@@ -70,7 +80,8 @@ def build_model(
     metadata = {
         "fps": fps,
         "states": states,
-        "labels": [f"{unit}/{foot}" for unit in units for foot in LABELS] if units != ["walk"] else list(LABELS),
+        "labels": ([f"{unit}/{foot}" for unit in units for foot in LABELS] if units != ["walk"] or gestures else list(LABELS))
+        + [f"gesture/{g}/{phase}" for g in gestures for phase in PHASES],
         "units": units,
         "styles": style_names,
         "skeleton": layout.skeleton.to_dict(),
@@ -103,5 +114,7 @@ def build_model(
     }
     if contact_metadata:
         metadata["contact"] = contact_metadata
+    if gestures:
+        metadata["gestures"] = gesture_metadata(takes, gestures, 2 * len(units))
     model = Model(metadata, average, styles, static_std, step_max, contact)
     return Model(metadata, average, styles, static_std, step_max, contact | train_range(model, walks)), report, takes

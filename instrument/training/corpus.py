@@ -5,7 +5,7 @@ from __future__ import annotations
 import csv
 import hashlib
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple, Sequence
 
@@ -15,12 +15,13 @@ from ..errors import UserError, located
 from ..motion.bvh import Motion, Skeleton, read_bvh
 from ..motion.features import FeatureLayout, choose_layout, extract, resample, with_deltas
 from ..motion.kinematics import local_transforms
+from ..motion.gestures import gesture_phases
 from ..motion.standing import standing_steps
 from ..motion.steps import LABELS, segment_steps
 from ..models.units import UNITS
 from ..textfile import read_text
 from ..tomlfile import read_toml
-from .units import checked_unit, unit_from_name
+from .units import checked_unit, gesture_from_name, unit_from_name
 
 # the last but one "_"-separated part, starting with a letter: dataset-2_walk_elderly_003 -> elderly,
 # walk_not-confident_001 -> not-confident, style2_take3 -> style2
@@ -48,6 +49,8 @@ class Take:
     steps: list  # Step objects, frame indices into `observations`
     sha256: str
     unit: str = "walk"  # the motion unit its steps are of (for a stand: pieces of still standing)
+    gesture: str = ""  # a standing take's gesture (models/gestures.py), "" for none
+    phases: list = field(default_factory=list)  # its gesture's phases (motion/gestures.py), as Steps
 
     @property
     def frames(self) -> int:
@@ -210,11 +213,14 @@ def make_takes(pairs: Sequence[tuple], motions: list[Motion], layout: FeatureLay
                             "take's; in other units? metres against centimetres)")
         static, _, _ = extract(motion, layout)
         segmentation = standing_steps(motion, layout, states) if unit == "stand" else segment_steps(motion, layout)
+        gesture = gesture_from_name(path) if unit == "stand" else None
+        phases = gesture_phases(motion, layout, states) if gesture else []
         warnings += [f"{path}: {w}" for w in segmentation.warnings]
-        if not segmentation.steps:
+        if not segmentation.steps and not phases:
             warnings.append(f"{path}: no steps, left out")
             continue
-        takes.append(Take(path, style, with_deltas(static), segmentation.steps, _sha256(path), unit))
+        takes.append(Take(path, style, with_deltas(static), segmentation.steps, _sha256(path), unit,
+                          gesture or "", phases))
         if progress:
             progress(k + 1, len(pairs), "features")
     return takes, warnings

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
+from ..models.gestures import gesture_of_words
 from ..models.hsmm import HSMM
 from ..models.units import UNITS
 
@@ -50,6 +51,13 @@ def unit_from_name(path: Path, pattern: str | None = None) -> str:
     if pattern is not None and unit is None:
         raise UserError(f"{path}: --unit-from found {content!r}, not a unit ({', '.join(UNITS)}) or a word for one")
     return unit or "walk"
+
+
+def gesture_from_name(path: Path) -> str | None:
+    """The gesture a standing take performs, from its name's content part (`dataset-2_wave-both-hands_active_001`
+    -> wave), or None (models/gestures.py)."""
+    match = re.search(DEFAULT_UNIT_PATTERN, path.stem)
+    return gesture_of_words(match.group(1)) if match and match.group(1) else None
 
 
 def checked_unit(where: str, unit: str) -> str:

@@ -102,6 +102,25 @@ function choice(parent, target, label, names) {
   controls.set(target, { row, show });
 }
 
+function press(parent, target, label) {
+  // a gesture's button: held down, the target is 1 (the gesture repeats), let go, 0 (it lowers)
+  const [row, name] = labelled(target, label, "choice");
+  const button = document.createElement("button");
+  button.textContent = label;
+  button.setAttribute("aria-label", target);
+  button.setAttribute("aria-pressed", "false");
+  let down = false;
+  const set = (on) => { if (on !== down) { down = on; setTarget(target, on ? 1 : 0); } };
+  button.addEventListener("pointerdown", (event) => { event.preventDefault(); set(true); });
+  for (const kind of ["pointerup", "pointerleave", "pointercancel"]) button.addEventListener(kind, () => set(false));
+  button.addEventListener("keydown", (event) => { if (event.key === " " || event.key === "Enter") set(true); });
+  button.addEventListener("keyup", () => set(false));
+  row.append(name, button);
+  parent.append(row);
+  const show = (value) => button.setAttribute("aria-pressed", String(value > 0));
+  controls.set(target, { row, show });
+}
+
 function zones(low, high) {
   // where inversion begins (below 0: absent), the style itself (1; inhibited between) and exaggeration
   const where = (v) => ((v - low) / (high - low)) * 100 + "%";
@@ -129,6 +148,7 @@ function expand(row) {
   // [target, label, group title or null] of each target a row stands for, for this model
   if (row.kind === "style") return hello.styles.map((s) => ["style/" + s, s, null]);
   if (row.kind === "part") return hello.styles.flatMap((s) => hello.groups.map((g, k) => [`part/${s}/${g}`, g, k === 0 ? s : null]));
+  if (row.kind === "gesture") return (hello.gestures || []).map((g) => ["gesture/" + g, g, null]);
   if (row.kind === "phase") return Array.from({ length: hello.states }, (_, k) => ["phase/" + (k + 1), "state " + (k + 1), null]);
   return [[row.pattern, row.units === "s" ? row.kind + " s" : row.kind, null]];
 }
@@ -136,7 +156,8 @@ function expand(row) {
 function build(message) {
   hello = message;
   controls.clear();
-  for (const id of ["styles", "walk", "parts", "phases", "morph", "pad-styles"]) $(id).replaceChildren();
+  for (const id of ["styles", "walk", "gestures", "parts", "phases", "morph", "pad-styles"]) $(id).replaceChildren();
+  $("gestures-title").hidden = !(hello.gestures || []).length;
   for (const row of hello.rows) {
     for (const [target, label, title] of expand(row)) {
       if (title) {
@@ -145,7 +166,8 @@ function build(message) {
         div.textContent = title;
         $(row.section).append(div);
       }
-      if (row.choices && row.choices.length) choice($(row.section), target, label, row.choices);
+      if (row.kind === "gesture") press($(row.section), target, label);
+      else if (row.choices && row.choices.length) choice($(row.section), target, label, row.choices);
       else slider($(row.section), target, label, row.range, row.travel, row.kind === "style");
       controls.get(target).row.title = row.help;
     }

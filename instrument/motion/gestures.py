@@ -1,0 +1,123 @@
+"""A gesture take's phases: the hands going up, their repeat (a wave's sway, a raise's hold) and
+their going down, found from the joint tree alone (as standing.py finds rest).
+
+The hands' height (the higher hand's, above the hips, in leg lengths) rises from rest to a high
+band, stays in it and comes down. Between the take's lowest and highest (its 90th percentile)
+heights, a frame is high above HIGH of the way, at rest below LOW of it: the raise runs from the
+last rest frame before the first high one to it, the lower from the last high frame to the first
+rest frame after it, the repeat is the stretch between.
+
+The repeat is cut into half cycles, so it can loop as long as a pad is held: a wave's hands sway
+across the body and back, and each sway one way is a "repeat-a", back a "repeat-b" (the turning
+points of the hands' horizontal position along its main direction, with hysteresis); hands held
+up without a sway (less than SWING leg lengths) are cut into pieces of about PIECE_SECONDS,
+labelled a and b in turn, as the stand's pieces are. The planner (synthesis/gestures.py) plays
+raise -> a -> b -> a ... -> b -> lower, the a/b pair looping while the gesture is held. Some
+takes begin with the hands already up (no raise) or end before they are down: the phase missing
+is simply not there, the others still count.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .bvh import Motion
+from .features import FeatureLayout
+from .kinematics import forward_kinematics, local_transforms
+from .limbs import find_limbs
+from .standing import hand_joints
+from .steps import Step
+
+# a gesture's labels, in the model's order: two of the planner's pairs (label = 2 * unit + foot),
+# (lower, raise) and (repeat-a, repeat-b), so that one unit loops the repeat (synthesis/gestures.py)
+PHASES = ("lower", "raise", "repeat-a", "repeat-b")
+HIGH = 0.6  # share of the way from the lowest to the highest hand height: the hands are up
+LOW = 0.15  # share of the way: the hands are down (a raise starts here, a lower ends here)
+SWING = 0.08  # leg lengths: a repeat whose hands sway less than this across is a hold
+TURN = 0.3  # share of the sway's range the hands must come back to make a turning point
+PIECE_SECONDS = 0.4  # a held repeat's piece
+
+
+def hand_tracks(motion: Motion, layout: FeatureLayout) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """(heights (frames,), hands' horizontal positions relative to the root (frames, 2), leg
+    length) of a take, heights and positions in leg lengths; None for a skeleton without hands."""
+    limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
+    if limbs is None or motion.frames < 2:
+        return None
+    positions = forward_kinematics(motion.skeleton, *local_transforms(motion))[1]
+    hands = hand_joints(motion.skeleton.parents, limbs, positions[0])
+    if not hands:
+        return None
+    leg = max(limbs.leg_length, 1e-9)
+    root = positions[:, limbs.root]
+    heights = (positions[:, hands, 1].max(axis=1) - root[:, 1]) / leg
+    across = (positions[:, hands][..., [0, 2]].mean(axis=1) - root[:, [0, 2]]) / leg
+    return heights, across, leg
+
+
+def turning_points(signal: np.ndarray, delta: float) -> list[int]:
+    """Indices of the signal's alternate highs and lows: a high is confirmed once the signal has
+    come down `delta` from it, a low once it has gone up `delta` (a zigzag filter)."""
+    points: list[int] = []
+    high = low = 0  # the highest and lowest since the last turning point
+    direction = 0  # +1 going up (looking for a high), -1 going down, 0 not yet known
+    for k in range(1, len(signal)):
+        if signal[k] > signal[high]:
+            high = k
+        if signal[k] < signal[low]:
+            low = k
+        if direction >= 0 and signal[high] - signal[k] > delta:
+            points += [high] if high > 0 else []  # the signal's start is no turn
+            direction, low = -1, k
+        elif direction <= 0 and signal[k] - signal[low] > delta:
+            points += [low] if low > 0 else []
+            direction, high = 1, k
+    return points
+
+
+def gesture_phases(motion: Motion, layout: FeatureLayout, states: int = 5) -> list[Step]:
+    """The take's phases as Steps labelled with PHASES (see the module's text); [] when the hands
+    never go up."""
+    tracks = hand_tracks(motion, layout)
+    if tracks is None:
+        return []
+    heights, across, _ = tracks
+    bottom, top = float(heights.min()), float(np.percentile(heights, 90))
+    if top - bottom < 0.2:  # the hands hardly move up: no gesture in this take
+        return []
+    high = np.flatnonzero(heights >= bottom + HIGH * (top - bottom))
+    rest = heights <= bottom + LOW * (top - bottom)
+    first, last = int(high[0]), int(high[-1])
+    before = np.flatnonzero(rest[:first])
+    after = np.flatnonzero(rest[last:])
+    start = int(before[-1]) if len(before) else 0
+    end = last + int(after[0]) + 1 if len(after) else motion.frames
+    steps: list[Step] = []
+    if first - start >= states:
+        steps.append(Step("raise", start, first))
+    steps += _repeats(across[first:last + 1], first, motion.fps, states)
+    if end - (last + 1) >= states:
+        steps.append(Step("lower", last + 1, end))
+    return steps
+
+
+def _repeats(across: np.ndarray, offset: int, fps: float, states: int) -> list[Step]:
+    """The repeat stretch's half cycles (a sway one way "repeat-a", back "repeat-b"), or a hold's
+    pieces; those shorter than `states` frames are left out."""
+    centred = across - across.mean(axis=0)
+    direction = np.linalg.svd(centred, full_matrices=False)[2][0] if len(across) > 2 else np.array([1.0, 0.0])
+    signal = np.convolve(centred @ direction, np.ones(3) / 3, mode="same")
+    spread = float(np.percentile(signal, 95) - np.percentile(signal, 5)) if len(signal) else 0.0
+    steps: list[Step] = []
+    if spread >= SWING:
+        bounds = [0] + turning_points(signal, TURN * spread) + [len(signal)]
+        for a, b in zip(bounds[:-1], bounds[1:]):
+            if b - a >= states:
+                rising = signal[min(b, len(signal) - 1)] > signal[a]
+                steps.append(Step("repeat-a" if rising else "repeat-b", offset + a, offset + b))
+        return steps
+    piece = max(states, int(round(PIECE_SECONDS * fps)))
+    count = max(1, len(across) // piece)
+    bounds = np.linspace(0, len(across), count + 1).round().astype(int)
+    return [Step(("repeat-a", "repeat-b")[k % 2], offset + int(a), offset + int(b))
+            for k, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])) if b - a >= states]

@@ -1,0 +1,297 @@
+"""Gestures over the walk (issue 26): a wave or a raise of both hands, learnt from the standing
+takes' phases, played by a second label stream over the gait's upper body, from every way a
+value reaches the instrument.
+
+The phases are found in the real takes; the shipped model holds both gestures; a wave started
+while walking raises the hands above the head and lowers them, leaving the legs and the root
+exactly as the walk without it; a hold repeats until released; `synth --gesture` writes one
+(read back with an independent BVH reader); a surface's OSC press reaches the engine through a
+real UDP socket, and the recorded log replays it.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from bvh_independent import world_positions
+from conftest import REPO
+from oscrecv import Receiver, frame_count, free_port
+from waiting import wait_until
+
+from instrument.control.state import ControlState
+from instrument.errors import UserError
+from instrument.models.gestures import gesture_labels
+from instrument.models.hsmm import HSMM
+from instrument.models.modelfile import load_model, save_model
+from instrument.motion.bvh import read_bvh
+from instrument.motion.features import resample
+from instrument.motion.gestures import PHASES, gesture_phases, hand_tracks, turning_points
+from instrument.synthesis.engine import Engine, default_controls
+from instrument.synthesis.interpolation import body_groups
+from instrument.synthesis.parameters import GROUPS
+
+MOTIONS = REPO.parent / "shared" / "data" / "bandai-motions"
+needs_motions = pytest.mark.skipif(not MOTIONS.is_dir(), reason=f"gesture takes not found in {MOTIONS}")
+RUN = [sys.executable, "-m", "instrument", "run"]
+
+
+# ---- the phases of a take ------------------------------------------------------------------------
+
+def test_turning_points_alternate_highs_and_lows_and_ignore_wobbles():
+    t = np.arange(120)
+    signal = np.sin(2 * np.pi * t / 24) + 0.05 * np.sin(2 * np.pi * t / 3)  # a sway with a small wobble on it
+    points = turning_points(signal, 0.5)
+    assert len(points) == 10  # a high at 6, then a turn every 12 frames: 6, 18, ..., 114
+    assert np.abs(np.array(points) - (6 + 12 * np.arange(10))).max() <= 1
+    assert all(np.sign(signal[a]) != np.sign(signal[b]) for a, b in zip(points, points[1:]))
+
+
+@needs_motions
+@pytest.mark.parametrize("name", ["dataset-2_wave-both-hands_youthful_001", "dataset-2_raise-up-both-hands_normal_002"])
+def test_a_takes_phases_raise_repeat_and_lower_in_order(model, name):
+    motion = resample(read_bvh(MOTIONS / f"{name}.bvh"), model.fps)
+    phases = gesture_phases(motion, model.layout, model.states)
+    labels = [s.label for s in phases]
+    assert labels[0] == "raise" and labels[-1] == "lower"
+    repeats = labels[1:-1]
+    assert repeats and all(label.startswith("repeat") for label in repeats)
+    assert all(a != b for a, b in zip(repeats, repeats[1:]))  # a and b in turn, as the planner plays them
+    assert all(a.end <= b.start for a, b in zip(phases, phases[1:]))
+    heights = hand_tracks(motion, model.layout)[0]
+    raise_, lower = phases[0], phases[-1]
+    assert heights[raise_.end - 1] - heights[raise_.start] > 0.3  # leg lengths: the hands go up ...
+    assert heights[lower.start] - heights[lower.end - 1] > 0.3  # ... and come down
+
+
+@needs_motions
+def test_a_wave_sways_in_half_cycles_a_raise_holds(model):
+    wave = gesture_phases(resample(read_bvh(MOTIONS / "dataset-2_wave-both-hands_feminine_001.bvh"), model.fps),
+                          model.layout, model.states)
+    halves = [s.frames for s in wave if s.label.startswith("repeat")]
+    assert len(halves) >= 8 and 8 <= np.median(halves) <= 20  # a sway each 0.3 to 0.7 s
+
+
+# ---- the shipped model ------------------------------------------------------------------------
+
+def test_the_shipped_model_holds_both_gestures_after_the_units(model):
+    labels = gesture_labels(model.metadata)
+    assert list(labels) == ["wave", "raise"]
+    assert labels["wave"][0] == 2 * len(model.units)
+    assert model.labels[labels["raise"][0]:] == [f"gesture/raise/{p}" for p in PHASES]
+    assert all(g["repeats"] >= 2 for g in model.metadata["gestures"].values())
+
+
+def test_a_model_without_gestures_loads_and_walks_as_before(model, tmp_path):
+    """The shipped model with its gestures' labels and entry taken away: a model as issue 25 made them."""
+    first = gesture_labels(model.metadata)["wave"][0]
+    metadata = {k: v for k, v in model.metadata.items() if k != "gestures"} | {"labels": model.labels[:first]}
+    def cut(h: HSMM) -> HSMM:  # the labels' axis: the third from the end of the means, the second of the durations
+        return HSMM(h.means[..., :first, :, :], h.variances[..., :first, :, :], h.duration_means[..., :first, :],
+                    h.duration_variances[..., :first, :])
+
+    extras = {k: v[..., :first, :, :] if k.startswith("contact") else v for k, v in model.extras.items()}
+    old = type(model)(metadata, cut(model.average), cut(model.styles), model.static_std, model.static_step_max, extras)
+    save_model(tmp_path / "old.npz", old)
+    loaded = load_model(tmp_path / "old.npz")
+    engine = Engine(loaded)
+    controls = default_controls(loaded, {"normal": 1.0}, gestures=("wave",))
+    frames = [engine.next_features(controls) for _ in range(40)]
+    assert engine.gestures.names == [] and np.isfinite(frames).all()
+
+
+def test_a_model_whose_gestures_entry_does_not_fit_its_labels_is_one_line(model, tmp_path):
+    broken = replace(model, metadata=model.metadata | {"gestures": {"wave": {"first": 3, "repeats": 2}}})
+    save_model(tmp_path / "broken.npz", broken)
+    with pytest.raises(UserError, match=r"broken\.npz: metadata 'gestures'"):
+        load_model(tmp_path / "broken.npz")
+
+
+# ---- the layer ------------------------------------------------------------------------------
+
+def walk(model, weights, seconds, presses, gait: int = 1):
+    """Static features of character 0, frame by frame, with each gesture held over its (from, to) seconds."""
+    engine = Engine(model)
+    controls = default_controls(model, weights, gait=gait)
+    frames, shares = [], []
+    for k in range(int(seconds * model.fps)):
+        held = tuple(name for name, (a, b) in presses.items() if a <= k / model.fps < b)
+        frames.append(engine.next_features(replace(controls, gestures=held))[0])
+        shares.append(engine.gestures.weights[0] if engine.gestures.playing else 0.0)
+    return np.array(frames), np.array(shares), engine
+
+
+def hands_over_head(model, static):
+    """The hands' height above the head's top joint (model units), frame by frame, through the
+    model's own posing (the same pose an output sends)."""
+    from instrument.evaluation.gestures import Body
+    from instrument.synthesis.posing import CrowdPoses
+
+    body = Body(model)
+    poses = CrowdPoses(model.layout, model.fps, 1, None)
+    heights = []
+    for frame in static:
+        positions = poses.next(frame[None], None, None).world_positions[0]
+        heights.append(positions[body.hands, 1].max() - positions[body.head, 1])
+    return np.array(heights)
+
+
+def test_a_wave_while_walking_raises_the_hands_over_the_head_and_leaves_the_legs_alone(model):
+    with_wave, shares, engine = walk(model, {"youthful": 1.0}, 12, {"wave": (2.0, 2.1)})
+    plain, _, _ = walk(model, {"youthful": 1.0}, 12, {})
+    upper = body_groups(model.layout)[GROUPS.index("upper")]
+    assert np.array_equal(with_wave[:, ~upper], plain[:, ~upper])  # legs and root: the walk's, to the bit
+    playing = np.flatnonzero(shares > 0)
+    assert playing[0] == 60 and shares[playing[-1]] < 1.0  # from the press, and eased out at the end
+    assert shares[60] < 0.2 and np.diff(shares[60:66]).min() > 0  # eased in, not switched
+    assert not np.allclose(with_wave[60:200][:, upper], plain[60:200][:, upper], atol=1e-3)
+    assert np.array_equal(with_wave[playing[-1] + 1:], plain[playing[-1] + 1:]) or playing[-1] == len(shares) - 1
+    assert engine.gestures.started == 1 and engine.gestures.playing is None  # over by itself
+    over = hands_over_head(model, with_wave)
+    assert over[:60].max() < 0  # walking: the hands below the head
+    assert over[60:180].max() > 0  # both hands above the head within 4 s of the press
+    assert over[playing[-1]:].max() < 0  # and lowered after
+
+
+def test_holding_a_gesture_repeats_it_until_released(model):
+    tap = walk(model, {"normal": 1.0}, 20, {"raise": (1.0, 1.05)})[1]
+    held = walk(model, {"normal": 1.0}, 20, {"raise": (1.0, 12.0)})[1]
+    tap_frames, held_frames = np.flatnonzero(tap > 0), np.flatnonzero(held > 0)
+    assert held_frames[-1] > 12.0 * model.fps  # lowered only after the release ...
+    assert held_frames[-1] < 16.0 * model.fps  # ... and soon after it
+    assert tap_frames[-1] < held_frames[-1] - 3 * model.fps
+    tap = walk(model, {"normal": 1.0}, 14, {"wave": (1.0, 1.05)})[1]
+    short = walk(model, {"normal": 1.0}, 14, {"wave": (1.0, 2.5)})[1]  # let go once the hands are up: it lowers
+    assert np.flatnonzero(short > 0)[-1] < 4.5 * model.fps < np.flatnonzero(tap > 0)[-1]
+
+
+def test_a_gesture_while_standing_and_running_keeps_the_feet_to_the_gait(model):
+    for gait in (0, 2):
+        with_wave, shares, _ = walk(model, {"masculine": 1.0}, 6, {"wave": (1.0, 1.1)}, gait=gait)
+        plain = walk(model, {"masculine": 1.0}, 6, {}, gait=gait)[0]
+        upper = body_groups(model.layout)[GROUPS.index("upper")]
+        assert shares.max() == 1.0 and np.array_equal(with_wave[:, ~upper], plain[:, ~upper])
+
+
+def test_a_crowd_gestures_at_once_each_character_in_its_own_style_mix(model):
+    upper = body_groups(model.layout)[GROUPS.index("upper")]
+    controls = default_controls(model, {"elderly": 1.0})
+    runs = []
+    for presses in ((), (30,)):
+        engine, frames, shares = Engine(model, characters=4), [], []
+        for k in range(240):
+            frames.append(engine.next_features(replace(controls, gestures=("raise",) if k in presses else ()), 1.0))
+            shares.append(engine.gestures.weights.copy() if engine.gestures.playing else np.zeros(4))
+        runs.append((np.array(frames), np.array(shares)))
+    (plain, _), (raised, shares) = runs
+    assert (shares.max(axis=0) == 1.0).all()  # every character raised its hands ...
+    assert len(set((shares > 0).sum(axis=0))) > 1  # ... for as long as its own style's durations say
+    assert np.array_equal(raised[..., ~upper], plain[..., ~upper])
+
+
+def test_a_gesture_the_model_lacks_or_a_second_press_while_one_plays_changes_nothing(model):
+    engine = Engine(model)
+    controls = default_controls(model, {"normal": 1.0})
+    for k in range(90):
+        held = ("wave",) if 10 <= k < 12 else ("raise", "wave") if 30 <= k < 32 else ()
+        engine.next_features(replace(controls, gestures=held))
+    assert engine.gestures.started == 1
+
+
+# ---- control --------------------------------------------------------------------------------
+
+def test_the_control_state_holds_a_gesture_while_pressed(model):
+    state = ControlState(model.style_names, model.states)
+    assert state.set("gesture/wave", 1.0) and state.snapshot().gestures == ("wave",)
+    assert state.set("gesture/wave", 0.0) and state.snapshot().gestures == ()
+    assert not state.set("gesture/dance", 1.0) and state.problem("gesture/dance", 1.0) == "unknown target"
+    assert state.problem("gesture/wave", 2.0) is not None
+
+
+def test_the_shipped_mappings_press_gestures():
+    from instrument.control.mapping import load_mapping
+
+    found = {}
+    for path in sorted((REPO / "mappings").glob("*.toml")):
+        mapping = load_mapping(path)
+        found[path.stem] = {c.target for c in mapping.controls if c.target.startswith("gesture/")}
+        assert all(c.mode == "momentary" for c in mapping.controls if c.target.startswith("gesture/"))
+    pads = [name for name, targets in found.items() if targets == {"gesture/wave", "gesture/raise"}]
+    assert {"akai-midimix", "korg-nanokontrol2", "sony-dualshock4", "xbox-wireless-bluetooth", "generic-gamepad"} <= set(pads)
+
+
+def test_synth_writes_a_wave_and_refuses_an_unknown_gesture_in_one_line(model, tmp_path):
+    out = tmp_path / "wave.bvh"
+    result = subprocess.run([sys.executable, "-m", "instrument", "synth", "--style", "active=1", "--gesture", "wave@1",
+                             "--seconds", "6", "--out", str(out)], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    names, positions, _ = world_positions(out)
+    hands = [names.index(n) for n in ("Hand_R", "Hand_L")]
+    head = names.index("Head")
+    over = positions[:, hands, 1].max(axis=1) - positions[:, head, 1]
+    assert over[:30].max() < 0 < over[30:150].max()  # below the head before the press, above it after
+    bad = subprocess.run([sys.executable, "-m", "instrument", "synth", "--gesture", "dance@1", "--out",
+                          str(tmp_path / "x.bvh")], capture_output=True, text=True, timeout=120)
+    assert bad.returncode != 0 and len(bad.stderr.strip().splitlines()) == 1 and "dance" in bad.stderr
+    assert not (tmp_path / "x.bvh").exists()
+
+
+def test_an_osc_press_reaches_the_engine_and_the_recorded_log_replays_it(tmp_path):
+    """Real UDP both ways: a surface holds /walk/gesture/wave; the flat stream's hands (in the
+    frames sent) go up, and the recorded take replays byte for byte."""
+    from pythonosc.udp_client import SimpleUDPClient
+
+    log, live, replayed = tmp_path / "take.jsonl", tmp_path / "live.bvh", tmp_path / "replayed.bvh"
+    control_port, receiver = free_port(), Receiver()
+    process = subprocess.Popen(RUN + ["--osc-in", str(control_port), "--osc", f"127.0.0.1:{receiver.port}/flat",
+                                      "--seconds", "10", "--quiet", "--record", str(log), "--bvh", str(live)],
+                               stderr=subprocess.PIPE, text=True)
+    surface = SimpleUDPClient("127.0.0.1", control_port)
+    try:
+        wait_until(lambda: frame_count(receiver) >= 15, "15 frames")
+        surface.send_message("/walk/gesture/wave", 1.0)
+        wait_until(lambda: any(a == "/walk/frame" for a, _ in receiver.messages()[-3:]) and _pressed(log), "the press recorded",
+                   timeout=60)
+        surface.send_message("/walk/gesture/wave", 0.0)
+        stderr = process.communicate(timeout=120)[1]
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+        receiver.close()
+    assert process.returncode == 0, stderr
+    events = [json.loads(line) for line in log.read_text().splitlines()[1:]]
+    assert [(e["control"], e["value"]) for e in events if e["control"].startswith("gesture")] == [("gesture/wave", 1.0),
+                                                                                             ("gesture/wave", 0.0)]
+    names, positions, _ = world_positions(live)
+    over = positions[:, [names.index("Hand_R"), names.index("Hand_L")], 1].max(axis=1) - positions[:, names.index("Head"), 1]
+    pressed_at = int(round(events[[e["control"] for e in events].index("gesture/wave")]["t"] * 30))
+    assert over[:pressed_at].max() < 0 < over[pressed_at:].max()
+    replay = subprocess.run(RUN + ["--replay", str(log), "--fast", "--no-osc", "--quiet", "--seconds", "10", "--bvh",
+                                   str(replayed)], capture_output=True, text=True, timeout=120)
+    assert replay.returncode == 0, replay.stderr
+    assert live.read_bytes() == replayed.read_bytes()
+
+
+def _pressed(log) -> bool:
+    try:
+        return any(json.loads(line).get("control") == "gesture/wave" for line in log.read_text().splitlines()[1:])
+    except (OSError, ValueError):
+        return False
+
+
+def test_evaluate_reports_each_gesture_and_the_walk_it_rides_on(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "instrument", "evaluate", "--styles", "youthful", "elderly", "--variants",
+                             "one", "--seconds", "10", "--gestures", "--json"], capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr
+    figures = json.loads(result.stdout)["gestures"]["synth"]
+    assert set(figures) == {f"{g} {s}" for g in ("wave", "raise") for s in ("elderly", "youthful")}
+    assert figures["wave youthful"]["over_head_cm"] > 10 > -10 > figures["wave elderly"]["over_head_cm"]
+    assert all(f["speed_ratio"] == 1.0 and f["skate_ratio"] == 1.0 for f in figures.values())  # the gait's legs, untouched
+    for style in ("elderly", "youthful"):  # as in the takes, a raise is over sooner than a wave
+        assert 1.0 < figures[f"raise {style}"]["duration_s"] < figures[f"wave {style}"]["duration_s"]
