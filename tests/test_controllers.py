@@ -157,7 +157,7 @@ def test_the_gait_buttons_of_a_shipped_mapping_over_jack_reach_the_echo_and_repl
         receiver.close()
     assert process.returncode == 0, stderr
     assert gait_sequence(receiver) == [1.0, 2.0, 0.0, 1.0]  # walking at the start, then run, stand, walk
-    assert replayed_gaits(log, last_frame(receiver) / 30) == [1.0, 2.0, 0.0, 1.0]
+    assert replayed_gaits(log, last_frame(receiver) / 30 + 1.0) == [1.0, 2.0, 0.0, 1.0]
 
 
 def test_an_unplugged_midi_device_is_reported_and_reconnected(jack, tmp_path):
@@ -290,7 +290,7 @@ def test_an_osc_surface_sets_the_gait_by_number_or_by_name_and_a_bad_name_is_ref
     assert "refused {'not a finite number': 1}" in stderr
     recorded = [line for line in log.read_text().splitlines()[1:] if '"gait"' in line]
     assert [json.loads(line)["value"] for line in recorded] == [2.0, 0.0, 1.0]  # names recorded as their numbers
-    assert replayed_gaits(log, last_frame(receiver) / 30) == [1.0, 2.0, 0.0, 1.0]
+    assert replayed_gaits(log, last_frame(receiver) / 30 + 1.0) == [1.0, 2.0, 0.0, 1.0]
 
 
 def test_show_file_starts_the_whole_setup(tmp_path):

@@ -439,7 +439,7 @@ def test_a_manifest_is_valid_or_one_line(kind, ops):
     except UserError as error:
         one_line(error, path)
         return
-    assert all(isinstance(f, Path) and isinstance(s, str) and s for f, s in pairs)
+    assert all(isinstance(t.path, Path) and isinstance(t.style, str) and t.style and t.unit for t in pairs)
 
 
 # --- the commands, as a user runs them ---------------------------------------------------------

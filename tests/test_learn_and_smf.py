@@ -88,13 +88,13 @@ def test_learn_over_jack_writes_a_working_mapping(jack, tmp_path):
     for _ in range(3):
         play_mapped(mapper, state, ControlEvent(2, "midi:x", "cc/4/20", 1))
     assert state.turn == pytest.approx(0.03)
-    mapper.apply(state, ControlEvent(3, "midi:x", "note/1/44", 100))  # gait=run: pressed...
-    mapper.apply(state, ControlEvent(3, "midi:x", "note/1/44", 0))  # ...and let go: it stays
+    play_mapped(mapper, state, ControlEvent(3, "midi:x", "note/1/44", 100))  # gait=run: pressed...
+    play_mapped(mapper, state, ControlEvent(3, "midi:x", "note/1/44", 0))  # ...and let go: it stays
     assert state.gait == 2.0
-    mapper.apply(state, ControlEvent(4, "midi:x", "cc/1/5", 127))  # the gait fader: pick-up learns where it is
-    mapper.apply(state, ControlEvent(5, "midi:x", "cc/1/5", 126))  # near run (2): taken, its top third runs
+    play_mapped(mapper, state, ControlEvent(4, "midi:x", "cc/1/5", 127))  # the gait fader: pick-up learns where it is
+    play_mapped(mapper, state, ControlEvent(5, "midi:x", "cc/1/5", 126))  # near run (2): taken, its top third runs
     assert state.gait == pytest.approx(126 / 127 * 2)
-    mapper.apply(state, ControlEvent(5.01, "midi:x", "cc/1/5", 10))  # a fast sweep down to its bottom third: stand
+    play_mapped(mapper, state, ControlEvent(5.01, "midi:x", "cc/1/5", 10))  # a fast sweep down to its bottom third: stand
     assert state.snapshot().gait == 0
 
 
