@@ -11,7 +11,8 @@ without the entry has no gestures and works as before.
 from __future__ import annotations
 
 from ..motion.gestures import PHASES
-from ..synthesis.parameters import GESTURES  # noqa: F401  (the names a control target may use: `gesture/<name>`)
+
+GESTURES = ("wave", "raise")  # the gestures a model may hold, in the order it stores them (`gesture/<name>` targets)
 GESTURE_WORDS = ((("wave",), "wave"), (("raise", "hands-up", "hands_up"), "raise"))
 
 
