@@ -11,8 +11,8 @@ without the entry has no gestures and works as before.
 from __future__ import annotations
 
 from ..motion.gestures import PHASES
+from .units import GESTURES  # noqa: F401  (the gestures' names, with the units')
 
-GESTURES = ("wave", "raise")  # the gestures a model may hold, in the order it stores them (`gesture/<name>` targets)
 GESTURE_WORDS = ((("wave",), "wave"), (("raise", "hands-up", "hands_up"), "raise"))
 
 

@@ -6,3 +6,8 @@ pieces of still standing, motion/standing.py). A model trained on walks alone ho
 """
 
 UNITS = ("walk", "run", "turn-left", "turn-right", "stand")
+
+# the gestures a model may hold, in the order it stores them after the units' labels
+# (models/gestures.py: where; the `gesture/<name>` targets). Here, in a module that imports
+# nothing, so the control table can name them without loading the numerical code.
+GESTURES = ("wave", "raise")

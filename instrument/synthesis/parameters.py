@@ -15,7 +15,7 @@ GAITS = ("stand", "walk", "run")
 
 # the gestures a performer can start (the `gesture/<gesture>` targets), layered on the gait's upper
 # body when the model has them (defined with the model's format: models/gestures.py; synthesis/gestures.py)
-from ..models.gestures import GESTURES  # noqa: E402,F401
+from ..models.units import GESTURES  # noqa: E402,F401
 
 # how far the step rate goes, relative to the model's (synthesis/durations.py)
 MIN_SPEED, MAX_SPEED = 0.25, 4.0
