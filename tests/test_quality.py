@@ -12,7 +12,7 @@ from conftest import SHARED_WALKS, needs_walks
 from instrument.motion.bvh import Motion, Skeleton, parse_bvh, read_bvh
 from instrument.motion.features import choose_layout
 from instrument.motion.kinematics import world_positions
-from instrument.motion.limbs import centimetres_per_unit, clearance, find_limbs
+from instrument.motion.limbs import centimetres_per_unit, clearance, find_limbs, sole_clearance
 from instrument.motion.quality import walk_figures
 from samples import cmu_style_walk
 
@@ -59,6 +59,14 @@ def test_legs_of_the_shared_skeleton_and_figures_of_a_real_take():
     assert real["under_frac"] < 0.02 and real["skate_cm_s"] < 15.0
     assert 30 < real["knee_deg"] < 90 and 0.3 < real["step_s"] < 0.8
     assert real["speed_cm_s"] == pytest.approx(real["stride_cm"] / (2 * real["step_s"]), rel=0.1)
+
+    sole = sole_clearance([positions], limbs)  # the foot's lowest point: no higher than its lowest joint's clearance
+    assert sole <= ground.min()
+    strict = walk_figures(motion, layout, limbs, ground, cm, sole)
+    assert strict["float_frac"] < 0.02 and strict["float_frac"] >= strict["air_frac"]
+    lifted = motion.channels.copy()  # the whole body 4 cm higher: both feet off the floor in every frame
+    lifted[:, _y_channel(motion, layout.root)] += 4.0
+    assert walk_figures(Motion(motion.skeleton, lifted, motion.fps), layout, limbs, ground, cm, sole)["float_frac"] > 0.95
 
     sunk = motion.channels.copy()  # the whole body 3 cm lower: every frame under the floor
     sunk[:, _y_channel(motion, layout.root)] -= 3.0

@@ -176,3 +176,13 @@ def clearance(positions: list[np.ndarray], limbs: Limbs) -> np.ndarray:
     heights = np.vstack([p[:, list(foot), 1] for p in positions for foot in limbs.feet])
     per_joint = np.percentile(heights, 1.0, axis=0)
     return np.broadcast_to(per_joint, (2, len(per_joint))).copy()
+
+
+def sole_clearance(positions: list[np.ndarray], limbs: Limbs) -> float:
+    """The height of a foot's lowest point when it stands on the floor: the 1st percentile, over
+    the takes and both feet, of the lowest foot joint's height in each frame (ankle or toes,
+    whichever is lower then). Stricter than `clearance` for floating: a flat foot whose ankle is
+    2.3 cm above the ankle's clearance and toes 3.8 cm above theirs is 2.3 cm up by `clearance`
+    but its toes' 3.8 cm (or more) above the sole's floor by this."""
+    lowest = np.concatenate([p[:, list(foot), 1].min(axis=1) for p in positions for foot in limbs.feet])
+    return float(np.percentile(lowest, 1.0))
