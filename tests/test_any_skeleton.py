@@ -4,12 +4,13 @@ model that says so when it meets a skeleton it was not trained on."""
 import subprocess
 import sys
 import time
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
 import pytest
-from oscrecv import Receiver
 from conftest import SHARED_WALKS, needs_walks
+from oscrecv import Receiver
 from samples import cmu_named_walk
 from test_vmc_pose import assert_close, compare
 
@@ -338,7 +339,7 @@ def _humanoid(across: bool, spine: list[str], neck: list[str], legs: dict[float,
     """A full humanoid: spine[0] is the hips (the root); the neck chain and both arms hang from
     the spine's top; each leg (hip, knee, ankle, toes) from the hips, through a hip joint where
     given (CMU's LHipJoint)."""
-    rows = [(spine[0], None, (0.0, 95.0, 0.0))] + [(j, p, (0.0, 45.0 / (len(spine) - 1), 0.0)) for p, j in zip(spine, spine[1:])]
+    rows = [(spine[0], None, (0.0, 95.0, 0.0))] + [(j, p, (0.0, 45.0 / (len(spine) - 1), 0.0)) for p, j in pairwise(spine)]
     rows += [(j, p, (0.0, 12.0, 0.0)) for p, j in zip(spine[-1:] + neck, neck)]
     for side in (1.0, -1.0):
         parent = spine[0]
@@ -378,6 +379,7 @@ RIGS = {  # each rig, with the left hand hanging or swung across (see _arm_chain
                                _sided([f"Left{j}" for j in ("Hip", "Knee", "Ankle", "Toe")], [f"Right{j}" for j in ("Hip", "Knee", "Ankle", "Toe")]),
                                _sided([f"Left{j}" for j in ("Collar", "Shoulder", "Elbow", "Wrist")], [f"Right{j}" for j in ("Collar", "Shoulder", "Elbow", "Wrist")])),
 }
+JOINT_COUNTS = {"CMU 31 joints": 31, "23-joint suit": 23}
 ARMS = {"Bandai": [("UpperArm_L", "LowerArm_L"), ("UpperArm_R", "LowerArm_R")],
         "CMU 31 joints": [("LeftArm", "LeftForeArm"), ("RightArm", "RightForeArm")],
         "Mixamo": [("mixamorig:LeftArm", "mixamorig:LeftForeArm"), ("mixamorig:RightArm", "mixamorig:RightForeArm")],
@@ -395,7 +397,8 @@ def _limb_names(skeleton: Skeleton, template: np.ndarray) -> tuple[list, list]:
 @pytest.mark.parametrize("rig", RIGS)
 def test_both_arms_are_found_on_rigs_of_every_convention(rig, across):
     skeleton = RIGS[rig](across)
-    assert len(skeleton.joints) == {"CMU 31 joints": 31, "23-joint suit": 23}.get(rig, len(skeleton.joints))
+    if rig in JOINT_COUNTS:
+        assert len(skeleton.joints) == JOINT_COUNTS[rig]
     template = np.zeros(sum(len(j.channels) for j in skeleton.joints))
     template[1] = 95.0
     arms, legs = _limb_names(skeleton, template)
