@@ -112,6 +112,7 @@ def test_evaluate_json_against_the_real_takes(tmp_path):
     real, synth = report["real"]["elderly"], report["synth"]["elderly"]
     assert real["recognised"] > 0.8
     assert synth["finite"] == 1.0 and synth["under_frac"] == 0.0
+    assert 0.0 <= synth["float_frac"] <= 0.02 and real["float_frac"] <= 0.02  # the elderly never float
     assert synth["step_s"] == pytest.approx(real["step_s"], rel=0.1)
     assert report["weights"]["elderly x2"] == {"elderly": 2.0}
 
@@ -121,6 +122,7 @@ def test_evaluate_table_without_real_takes():
     assert result.returncode == 0, result.stderr
     rows = [l for l in result.stdout.splitlines() if l.startswith("| ")]
     assert rows[0].startswith("| walk | step s") and rows[1].startswith("| feminine+normal |")
+    assert "| air % | float % |" in rows[0]
 
 
 @pytest.mark.parametrize("args, message", [
