@@ -4,10 +4,12 @@ model that says so when it meets a skeleton it was not trained on."""
 import subprocess
 import sys
 import time
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import SHARED_WALKS, needs_walks
 from oscrecv import Receiver
 from samples import cmu_named_walk
 from test_vmc_pose import assert_close, compare
@@ -23,6 +25,7 @@ from instrument.training.corpus import (
 )
 from instrument.models.modelfile import default_model_path, load_model
 from instrument.motion.bvh import Joint, Skeleton, read_bvh
+from instrument.motion.limbs import find_limbs
 from instrument.output.humanoid import guess_humanoid, read_humanoid
 from instrument.output.outputs import make_profile
 
@@ -309,3 +312,109 @@ def test_a_style_whose_takes_have_no_steps_is_said_to_be_left_out(real_walks, tm
     model, report, _ = build_model(pairs + [(still, "still")])
     assert model.style_names == ["normal"]
     assert any("'still'" in w and "no such style" in w for w in report.warnings)
+
+
+# The arms and legs found from the joint tree on rigs of other conventions (motion/limbs.py).
+# Offsets in cm, Y up, facing +Z, the left side at +X. `across` bends the left elbow so the hand
+# swings in front of the body past its middle, as a walk's arm swing can in a template pose: the
+# head is then further out on the left than any left-hand joint.
+def _arm_chain(side: float, names: list[str], fingers: list[str], thumb: str | None, across: bool):
+    collar, shoulder, elbow, wrist = names
+    forearm = (-15.0, 0.0, 15.0) if across else (0.0, -25.0, 0.0)
+    out = [(collar, None, (side * 3.0, 0.0, 0.0)), (shoulder, collar, (side * 15.0, 0.0, 0.0)),
+           (elbow, shoulder, (side * -10.0, -25.0, 10.0) if across else (0.0, -28.0, 0.0)),
+           (wrist, elbow, forearm)]
+    parent = wrist
+    for finger in fingers:
+        out.append((finger, parent, (0.0, -4.0, 0.0)))
+        parent = finger
+    if thumb:
+        out.append((thumb, wrist, (side * 2.0, -3.0, 2.0)))
+    return out
+
+
+def _humanoid(across: bool, spine: list[str], neck: list[str], legs: dict[float, list[str]], arms: dict[float, list[str]],
+              fingers: dict[float, list[str]] | None = None, thumbs: dict[float, str] | None = None,
+              hip_joints: dict[float, str] | None = None) -> Skeleton:
+    """A full humanoid: spine[0] is the hips (the root); the neck chain and both arms hang from
+    the spine's top; each leg (hip, knee, ankle, toes) from the hips, through a hip joint where
+    given (CMU's LHipJoint)."""
+    rows = [(spine[0], None, (0.0, 95.0, 0.0))] + [(j, p, (0.0, 45.0 / (len(spine) - 1), 0.0)) for p, j in pairwise(spine)]
+    rows += [(j, p, (0.0, 12.0, 0.0)) for p, j in zip(spine[-1:] + neck, neck)]
+    for side in (1.0, -1.0):
+        parent = spine[0]
+        if hip_joints:
+            rows.append((hip_joints[side], parent, (0.0, 0.0, 0.0)))
+            parent = hip_joints[side]
+        hip, knee, ankle, toes = legs[side]
+        rows += [(hip, parent, (side * 9.0, -5.0, 0.0)), (knee, hip, (0.0, -42.0, 0.0)), (ankle, knee, (0.0, -40.0, 0.0)),
+                 (toes, ankle, (0.0, -6.0, 12.0))]
+        arm = _arm_chain(side, arms[side], (fingers or {}).get(side, []), (thumbs or {}).get(side), across and side > 0)
+        rows += [(j, p or spine[-1], o) for j, p, o in arm]
+    names = [n for n, _, _ in rows]
+    rotation = ("Zrotation", "Xrotation", "Yrotation")
+    return Skeleton(tuple(Joint(n, names.index(p) if p else -1, o, (("Xposition", "Yposition", "Zposition") if p is None else ())
+                                + rotation) for n, p, o in rows))
+
+
+def _sided(left: list[str], right: list[str]) -> dict[float, list[str]]:
+    return {1.0: left, -1.0: right}
+
+
+RIGS = {  # each rig, with the left hand hanging or swung across (see _arm_chain)
+    "Bandai": lambda across: _humanoid(across, ["Hips", "Spine", "Chest"], ["Neck", "Head"],
+                        _sided(["UpperLeg_L", "LowerLeg_L", "Foot_L", "Toes_L"], ["UpperLeg_R", "LowerLeg_R", "Foot_R", "Toes_R"]),
+                        _sided(["Shoulder_L", "UpperArm_L", "LowerArm_L", "Hand_L"], ["Shoulder_R", "UpperArm_R", "LowerArm_R", "Hand_R"])),
+    "CMU 31 joints": lambda across: _humanoid(across, ["Hips", "LowerBack", "Spine", "Spine1"], ["Neck", "Neck1", "Head"],
+                               _sided(["LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase"], ["RightUpLeg", "RightLeg", "RightFoot", "RightToeBase"]),
+                               _sided(["LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand"], ["RightShoulder", "RightArm", "RightForeArm", "RightHand"]),
+                               _sided(["LeftFingerBase", "LeftHandIndex1"], ["RightFingerBase", "RightHandIndex1"]),
+                               {1.0: "LThumb", -1.0: "RThumb"}, {1.0: "LHipJoint", -1.0: "RHipJoint"}),
+    "Mixamo": lambda across: _humanoid(across, ["mixamorig:Hips", "mixamorig:Spine", "mixamorig:Spine1", "mixamorig:Spine2"], ["mixamorig:Neck", "mixamorig:Head", "mixamorig:HeadTop_End"],
+                        _sided([f"mixamorig:Left{j}" for j in ("UpLeg", "Leg", "Foot", "ToeBase")], [f"mixamorig:Right{j}" for j in ("UpLeg", "Leg", "Foot", "ToeBase")]),
+                        _sided([f"mixamorig:Left{j}" for j in ("Shoulder", "Arm", "ForeArm", "Hand")], [f"mixamorig:Right{j}" for j in ("Shoulder", "Arm", "ForeArm", "Hand")]),
+                        _sided(["mixamorig:LeftHandIndex1", "mixamorig:LeftHandIndex2"], ["mixamorig:RightHandIndex1", "mixamorig:RightHandIndex2"]),
+                        {1.0: "mixamorig:LeftHandThumb1", -1.0: "mixamorig:RightHandThumb1"}),
+    "23-joint suit": lambda across: _humanoid(across, ["Hips", "Chest", "Chest2", "Chest3", "Chest4"], ["Neck", "Head"],
+                               _sided([f"Left{j}" for j in ("Hip", "Knee", "Ankle", "Toe")], [f"Right{j}" for j in ("Hip", "Knee", "Ankle", "Toe")]),
+                               _sided([f"Left{j}" for j in ("Collar", "Shoulder", "Elbow", "Wrist")], [f"Right{j}" for j in ("Collar", "Shoulder", "Elbow", "Wrist")])),
+}
+JOINT_COUNTS = {"CMU 31 joints": 31, "23-joint suit": 23}
+ARMS = {"Bandai": [("UpperArm_L", "LowerArm_L"), ("UpperArm_R", "LowerArm_R")],
+        "CMU 31 joints": [("LeftArm", "LeftForeArm"), ("RightArm", "RightForeArm")],
+        "Mixamo": [("mixamorig:LeftArm", "mixamorig:LeftForeArm"), ("mixamorig:RightArm", "mixamorig:RightForeArm")],
+        "23-joint suit": [("LeftShoulder", "LeftElbow"), ("RightShoulder", "RightElbow")]}
+
+
+def _limb_names(skeleton: Skeleton, template: np.ndarray) -> tuple[list, list]:
+    limbs = find_limbs(skeleton, 0, template)
+    names = skeleton.names
+    return (sorted((names[s], names[e]) for s, e in limbs.arms),
+            sorted((names[leg.hip], names[leg.knee], names[leg.ankle]) for leg in limbs.legs))
+
+
+@pytest.mark.parametrize("across", [False, True], ids=["hanging", "hand across"])
+@pytest.mark.parametrize("rig", RIGS)
+def test_both_arms_are_found_on_rigs_of_every_convention(rig, across):
+    skeleton = RIGS[rig](across)
+    if rig in JOINT_COUNTS:
+        assert len(skeleton.joints) == JOINT_COUNTS[rig]
+    template = np.zeros(sum(len(j.channels) for j in skeleton.joints))
+    template[1] = 95.0
+    arms, legs = _limb_names(skeleton, template)
+    assert arms == ARMS[rig]
+    assert len(legs) == 2 and all(skeleton.names.index(hip) < skeleton.names.index(knee) for hip, knee, _ in legs)
+
+
+@needs_walks
+def test_both_arms_of_the_shared_skeleton_in_every_pose_of_the_takes():
+    """Every 10th frame of a real take of each style as the template pose: the hands swing
+    across the body's middle in some of them (the neck was then taken for an arm in 1 frame in 11)."""
+    found = set()
+    for take in sorted(SHARED_WALKS.glob("*_001.bvh")):
+        motion = read_bvh(take)
+        names = motion.skeleton.names
+        root = names.index("Hips")
+        found |= {tuple(sorted((names[s], names[e]) for s, e in find_limbs(motion.skeleton, root, frame).arms))
+                  for frame in motion.channels[::10]}
+    assert found == {(("UpperArm_L", "LowerArm_L"), ("UpperArm_R", "LowerArm_R"))}

@@ -12,7 +12,7 @@ from conftest import SHARED_WALKS, needs_walks
 from instrument.motion.bvh import Motion, Skeleton, parse_bvh, read_bvh
 from instrument.motion.features import choose_layout
 from instrument.motion.kinematics import world_positions
-from instrument.motion.limbs import centimetres_per_unit, clearance, find_limbs
+from instrument.motion.limbs import centimetres_per_unit, clearance, find_limbs, sole_clearance
 from instrument.motion.quality import walk_figures
 from samples import cmu_style_walk
 
@@ -60,6 +60,14 @@ def test_legs_of_the_shared_skeleton_and_figures_of_a_real_take():
     assert 30 < real["knee_deg"] < 90 and 0.3 < real["step_s"] < 0.8
     assert real["speed_cm_s"] == pytest.approx(real["stride_cm"] / (2 * real["step_s"]), rel=0.1)
 
+    sole = sole_clearance([positions], limbs)  # the foot's lowest point: no higher than its lowest joint's clearance
+    assert sole <= ground.min()
+    strict = walk_figures(motion, layout, limbs, ground, cm, sole)
+    assert strict["float_frac"] < 0.02 and strict["float_frac"] >= strict["air_frac"]
+    lifted = motion.channels.copy()  # the whole body 4 cm higher: both feet off the floor in every frame
+    lifted[:, _y_channel(motion, layout.root)] += 4.0
+    assert walk_figures(Motion(motion.skeleton, lifted, motion.fps), layout, limbs, ground, cm, sole)["float_frac"] > 0.95
+
     sunk = motion.channels.copy()  # the whole body 3 cm lower: every frame under the floor
     sunk[:, _y_channel(motion, layout.root)] -= 3.0
     assert walk_figures(Motion(motion.skeleton, sunk, motion.fps), layout, limbs, ground, cm)["under_frac"] > 0.95
@@ -104,6 +112,7 @@ def test_evaluate_json_against_the_real_takes(tmp_path):
     real, synth = report["real"]["elderly"], report["synth"]["elderly"]
     assert real["recognised"] > 0.8
     assert synth["finite"] == 1.0 and synth["under_frac"] == 0.0
+    assert 0.0 <= synth["float_frac"] <= 0.02 and real["float_frac"] <= 0.02  # the elderly never float
     assert synth["step_s"] == pytest.approx(real["step_s"], rel=0.1)
     assert report["weights"]["elderly x2"] == {"elderly": 2.0}
 
@@ -113,6 +122,7 @@ def test_evaluate_table_without_real_takes():
     assert result.returncode == 0, result.stderr
     rows = [l for l in result.stdout.splitlines() if l.startswith("| ")]
     assert rows[0].startswith("| walk | step s") and rows[1].startswith("| feminine+normal |")
+    assert "| air % | float % |" in rows[0]
 
 
 @pytest.mark.parametrize("args, message", [

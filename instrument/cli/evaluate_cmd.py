@@ -23,6 +23,7 @@ COLUMNS = (  # (figure, heading, scale, format)
     ("under_frac", "under %", 100.0, "{:.1f}"),
     ("under_depth_cm", "depth cm", 1.0, "{:.1f}"),
     ("air_frac", "air %", 100.0, "{:.1f}"),
+    ("float_frac", "float %", 100.0, "{:.1f}"),
     ("knee_deg", "knee", 1.0, "{:.0f}"),
     ("hip_deg", "hip", 1.0, "{:.0f}"),
     ("shoulder_deg", "shoulder", 1.0, "{:.0f}"),

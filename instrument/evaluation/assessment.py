@@ -18,7 +18,7 @@ from ..models.modelfile import Model
 from ..motion.bvh import Motion
 from ..motion.features import extract
 from ..motion.kinematics import world_positions
-from ..motion.limbs import Limbs, centimetres_per_unit, clearance, find_limbs
+from ..motion.limbs import Limbs, centimetres_per_unit, clearance, find_limbs, sole_clearance
 from ..motion.quality import pooled, walk_figures
 from ..motion.steps import segment_steps
 from ..synthesis.engine import default_controls, render
@@ -95,24 +95,24 @@ def assess(
         motions = read_motions(pairs, model.fps)
         takes, _ = make_takes(pairs, motions, layout)  # first: it names a take of another skeleton or units
         positions = [world_positions(m) for m in motions]
-        ground = clearance(positions, limbs)
+        ground, sole = clearance(positions, limbs), sole_clearance(positions, limbs)
         features = [step_features(t.observations[:, : layout.dimension], t.steps) for t in takes]
         classifier = LinearDiscriminant(np.vstack(features), [t.style for t, x in zip(takes, features) for _ in x])
         recognised = _cross_validated(takes, features)
         for style in styles:
-            mine = [walk_figures(m, layout, limbs, ground, cm) for m, p in zip(motions, pairs) if p.style == style]
+            mine = [walk_figures(m, layout, limbs, ground, cm, sole) for m, p in zip(motions, pairs) if p.style == style]
             if mine:
                 result.real[style] = pooled(mine) | {"recognised": recognised.get(style, float("nan"))}
             if progress:
                 progress(f"{style} (real)")
     else:
-        ground = _model_ground(model, limbs, template)
+        ground, sole = _model_ground(model, limbs, template), None
     settle = int(round(SETTLE_SECONDS * model.fps))
     frames = settle + max(1, int(round(seconds * model.fps)))
     for name, weights in result.weights.items():
         motion = render(model, default_controls(model, weights), frames)
         motion = Motion(motion.skeleton, motion.channels[settle:], motion.fps)
-        figures = walk_figures(motion, layout, limbs, ground, cm)
+        figures = walk_figures(motion, layout, limbs, ground, cm, sole)
         figures["recognised"] = float("nan")
         target = [s for s, w in weights.items() if w > 0]
         if classifier is not None and len(target) == 1:

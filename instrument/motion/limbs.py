@@ -7,8 +7,10 @@ foot's pivot, the joint that is locked where it lands and that a heel rises abou
 front-most joint (its toes; a toe-tip joint such as Mixamo's Toe_End where there is one): not
 the last joint listed, which may be a heel marker behind the ankle. The ball of the foot (Mixamo's
 ToeBase) was tried: the toe tip then slid 1.5-8 times as much (`instrument evaluate`). The
-arms are the chains to the joints furthest out on either side (across the line between the two
-hips); the upper arm is the longest bone past the point where the two arms part.
+arms are the two longest branches of the upper body that do not hold one another (the neck
+branches off with them but reaches a third as far); the upper arm and forearm are the two
+longest consecutive bones on an arm's longest way down, so the shoulder joint is where the
+upper arm starts and the elbow where it ends.
 """
 
 from __future__ import annotations
@@ -82,6 +84,45 @@ def _front(positions: np.ndarray, ankle: int, foot: list[int]) -> int:
     return foot[int(np.argmax(forward))] if forward.max() > 1e-9 else ankle
 
 
+def _reach(parents: np.ndarray, lengths: np.ndarray, joint: int) -> tuple[float, list[int]]:
+    """The longest way down from `joint` by bone length: (its length, its joints from `joint` on)."""
+    children = [c for c in range(joint + 1, len(parents)) if parents[c] == joint]
+    if not children:
+        return 0.0, [joint]
+    length, path = max(((lengths[c] + _reach(parents, lengths, c)[0], c) for c in children), key=lambda lc: lc[0])
+    return float(length), [joint] + _reach(parents, lengths, path)[1]
+
+
+def _arm_branches(parents: np.ndarray, lengths: np.ndarray, root: int, in_legs: set[int]) -> list[int]:
+    """The first joints of the two arms, in joint order: of the upper body's branches (a joint
+    whose parent has another child there), the two longest (by the longest way down from the
+    branch's parent) that do not hold one another. The neck and head branch off where the arms
+    do but reach a third as far; fingers and thumbs branch off within an arm. Found by the tree,
+    not by where the hands are in the template pose: a hand swung across the body put the head
+    further out on its side than the hand, and the neck was taken for that arm."""
+    upper = [j for j in range(len(parents)) if j != root and j not in in_legs and root in _chain(parents, j, -1)[:-1]]
+    branches = [j for j in upper if sum(1 for k in upper if parents[k] == parents[j]) >= 2]
+    reach = {j: lengths[j] + _reach(parents, lengths, j)[0] for j in branches}
+    chosen: list[int] = []
+    for j in sorted(branches, key=lambda b: -reach[b]):
+        if all(j not in _descendants(parents, c) and c not in _descendants(parents, j) for c in chosen):
+            chosen.append(j)
+        if len(chosen) == 2:
+            break
+    return sorted(chosen) if len(chosen) == 2 else []
+
+
+def _arm(parents: np.ndarray, lengths: np.ndarray, branch: int) -> tuple[int, int] | None:
+    """(shoulder, elbow) of the arm that starts at `branch`: where the two longest consecutive
+    bones on its longest way down (from the joint it hangs from) start and meet; None for an
+    arm of fewer than two bones."""
+    try:
+        shoulder, elbow, _ = _two_longest([int(parents[branch])] + _reach(parents, lengths, branch)[1], lengths)
+    except ValueError:
+        return None
+    return shoulder, elbow
+
+
 def find_limbs(skeleton: Skeleton, root: int, template: np.ndarray) -> Limbs | None:
     """Legs and arms from one frame of channel values (the template pose); None when the
     skeleton has no two legs below the root (then nothing about feet can be measured or fixed)."""
@@ -110,27 +151,8 @@ def _find_limbs(skeleton: Skeleton, root: int, template: tuple[float, ...]) -> L
                         float(lengths[ankle])))
     if len(legs) != 2:
         return None
-    across = positions[legs[0].hip] - positions[legs[1].hip]
-    across[1] = 0.0
-    across /= max(np.linalg.norm(across), 1e-9)
     in_legs = {j for leg in legs for j in _descendants(parents, _chain(parents, leg.hip, root)[0])}
-    upper = [j for j in range(len(parents)) if j != root and j not in in_legs and root in _chain(parents, j, -1)[:-1]]
-    arms = []
-    leaves = [j for j in upper if not (parents == j).any()]
-    if leaves:
-        side = (positions[leaves] - positions[root]) @ across
-        ends = [leaves[int(np.argmax(side))], leaves[int(np.argmin(side))]]
-        chains = [_chain(parents, e, root) for e in ends]
-        shared = 0
-        while shared < min(map(len, chains)) and chains[0][shared] == chains[1][shared]:
-            shared += 1
-        for chain in chains:
-            own = chain[max(shared - 1, 0):]
-            try:
-                shoulder, elbow, _ = _two_longest(own, lengths)
-                arms.append((shoulder, elbow))
-            except ValueError:
-                pass
+    arms = [arm for branch in _arm_branches(parents, lengths, root, in_legs) if (arm := _arm(parents, lengths, branch))]
     leg_length = float(np.mean([leg.thigh + leg.shin for leg in legs]))
     return Limbs(root, tuple(legs), tuple(arms), leg_length)
 
@@ -154,3 +176,13 @@ def clearance(positions: list[np.ndarray], limbs: Limbs) -> np.ndarray:
     heights = np.vstack([p[:, list(foot), 1] for p in positions for foot in limbs.feet])
     per_joint = np.percentile(heights, 1.0, axis=0)
     return np.broadcast_to(per_joint, (2, len(per_joint))).copy()
+
+
+def sole_clearance(positions: list[np.ndarray], limbs: Limbs) -> float:
+    """The height of a foot's lowest point when it stands on the floor: the 1st percentile, over
+    the takes and both feet, of the lowest foot joint's height in each frame (ankle or toes,
+    whichever is lower then). Stricter than `clearance` for floating: a flat foot whose ankle is
+    2.3 cm above the ankle's clearance and toes 3.8 cm above theirs is 2.3 cm up by `clearance`
+    but its toes' 3.8 cm (or more) above the sole's floor by this."""
+    lowest = np.concatenate([p[:, list(foot), 1].min(axis=1) for p in positions for foot in limbs.feet])
+    return float(np.percentile(lowest, 1.0))

@@ -11,6 +11,10 @@ the same for a toe joint 4 cm above the sole and an ankle 12 cm above it.
               clearance (also counts a shuffling swing foot, so it is only reported in --json)
     under     frames where some foot joint is more than 1 cm below its clearance (fraction)
     air       frames where both feet are more than 3 cm above their clearance (fraction)
+    float     frames where both feet are off the floor, the stricter way: each foot's lowest point
+              (its lowest joint in that frame, ankle or toes) more than 3 cm above the height the
+              lowest point has when a foot stands on the floor in the real takes (its 1st
+              percentile, limbs.sole_clearance) (fraction)
     ranges    1st to 99th percentile of the knee's flexion, and of the thigh's and upper arm's
               swing in the plane of travel (degrees)
     jitter    mean magnitude of the third difference of the joint positions (m/s^3)
@@ -35,7 +39,7 @@ RANGE_PERCENTILES = (1.0, 99.0)
 
 FIGURES = (
     "step_s", "step_sd_s", "stride_cm", "speed_cm_s", "skate_cm_s", "under_frac", "under_depth_cm",
-    "air_frac", "contact_skate_cm_s", "knee_deg", "hip_deg", "shoulder_deg", "jitter_m_s3", "drift_deg_s",
+    "air_frac", "float_frac", "contact_skate_cm_s", "knee_deg", "hip_deg", "shoulder_deg", "jitter_m_s3", "drift_deg_s",
 )
 
 
@@ -94,8 +98,12 @@ def limb_ranges(pos: np.ndarray, yaw: np.ndarray, limbs: Limbs, root: int) -> di
             "shoulder_deg": float(np.mean(shoulders)) if shoulders else float("nan")}
 
 
-def walk_figures(motion: Motion, layout: FeatureLayout, limbs: Limbs, ground: np.ndarray, cm: float) -> dict[str, float]:
-    """The figures of one walk (see the module's docstring); NaN where a walk has too few steps."""
+def walk_figures(motion: Motion, layout: FeatureLayout, limbs: Limbs, ground: np.ndarray, cm: float,
+                 sole: float | None = None) -> dict[str, float]:
+    """The figures of one walk (see the module's docstring); NaN where a walk has too few steps.
+    `ground` is each foot joint's clearance (limbs.clearance) and `sole` the foot's lowest point's
+    (limbs.sole_clearance), both in the skeleton's units; without `sole`, the lowest of the
+    joints' clearances stands for it (never below the real one, so `float` counts no more)."""
     world_rot, world_pos = forward_kinematics(motion.skeleton, *local_transforms(motion))
     pos = world_pos * cm
     fps = motion.fps
@@ -129,6 +137,9 @@ def walk_figures(motion: Motion, layout: FeatureLayout, limbs: Limbs, ground: np
     out["under_frac"] = float((lift < -UNDER_CM).any(axis=0).mean())
     out["under_depth_cm"] = float(max(0.0, -lift.min()))
     out["air_frac"] = float((lift > AIR_CM).all(axis=0).mean())
+    floor = (float(np.min(ground)) if sole is None else sole) * cm
+    soles = np.array([pos[:, list(foot), 1].min(axis=1) for foot in limbs.feet]) - floor
+    out["float_frac"] = float((soles > AIR_CM).all(axis=0).mean())
     out |= limb_ranges(pos, yaw, limbs, layout.root)
     body = pos[:, [j for j in range(pos.shape[1]) if j == layout.root or is_below(motion, j, layout.root)]]
     if motion.frames > 3:

@@ -51,7 +51,7 @@ def still_frames(motion: Motion, layout: FeatureLayout) -> np.ndarray:
 
 def hand_joints(parents: np.ndarray, limbs, pose: np.ndarray) -> list[int]:
     """The upper body's end joints but the highest one (the head): hands, fingers, thumbs.
-    (Limbs.arms is not used: on the Bandai skeleton it takes the neck for one arm.)"""
+    (Limbs.arms names an arm's shoulder and elbow, not its end joints.)"""
     legs = {j for foot in limbs.feet for j in foot} | {leg.hip for leg in limbs.legs} | {leg.knee for leg in limbs.legs}
     leaves = [j for j in range(len(parents)) if j != limbs.root and not (parents == j).any() and j not in legs]
     return sorted(leaves, key=lambda j: pose[j, 1])[:-1] if len(leaves) > 1 else []
