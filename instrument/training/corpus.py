@@ -103,8 +103,9 @@ def read_manifest(path: Path) -> list[TakeFile]:
         if not isinstance(takes, list) or not takes:
             raise UserError(f"{path}: expected [[take]] tables with keys 'file' and 'style'")
         for k, take in enumerate(takes, 1):
-            if not isinstance(take, dict) or not isinstance(take.get("file"), str) or not isinstance(take.get("style"), str):
-                raise UserError(f"{path}: take {k}: needs string keys 'file' and 'style'")
+            if not isinstance(take, dict) or not isinstance(take.get("file"), str) or not isinstance(take.get("style"), str) \
+                    or not take["file"].strip() or not take["style"].strip():
+                raise UserError(f"{path}: take {k}: needs string keys 'file' and 'style', neither empty")
             unit = take.get("unit", "walk")
             if not isinstance(unit, str):
                 raise UserError(f"{path}: take {k}: 'unit' is a string ({', '.join(UNITS)})")
