@@ -11,18 +11,14 @@ without the entry has no gestures and works as before.
 from __future__ import annotations
 
 from ..motion.gestures import PHASES
-from .units import GESTURES  # noqa: F401  (the gestures' names, with the units')
+from .units import GESTURES, named_by_words  # noqa: F401  (GESTURES: the gestures' names, with the units')
 
 GESTURE_WORDS = ((("wave",), "wave"), (("raise", "hands-up", "hands_up"), "raise"))
 
 
 def gesture_of_words(content: str) -> str | None:
     """The gesture a take's content name says (`wave-both-hands` -> wave), or None."""
-    lowered = content.lower()
-    for words, gesture in GESTURE_WORDS:
-        if any(word in lowered for word in words):
-            return gesture
-    return None
+    return named_by_words(content, GESTURE_WORDS)
 
 
 def gesture_labels(metadata: dict) -> dict[str, list[int]]:

@@ -399,8 +399,10 @@ def render(model: Model, controls: Controls, frames: int, method: str = "stream"
     engine = Engine(model, lookahead=lookahead, seed=seed, method=method, frames=frames)
     channels = ChannelStream(model.layout.skeleton)  # as a recording writes them
     rows = []
+    taps: dict[int, tuple[str, ...]] = {}  # frame -> the gestures tapped in it (the other frames keep `controls` itself)
+    for name, at in gestures:
+        taps[round(at * engine.fps)] = taps.get(round(at * engine.fps), ()) + (name,)
     for k in range(frames):
-        held = tuple(name for name, at in gestures if round(at * engine.fps) == k)
-        pose = engine.frame(k / engine.fps, replace(controls, gestures=held) if gestures else controls)
+        pose = engine.frame(k / engine.fps, replace(controls, gestures=taps[k]) if k in taps else controls)
         rows.append(channels.next(pose.rotations[0], pose.translations[0]))
     return Motion(model.layout.skeleton, np.array(rows), model.fps)

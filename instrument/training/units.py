@@ -17,7 +17,7 @@ import numpy as np
 from ..errors import UserError
 from ..models.gestures import gesture_of_words
 from ..models.hsmm import HSMM
-from ..models.units import UNITS
+from ..models.units import UNITS, named_by_words
 
 # the part before the style, starting with a letter: dataset-2_run_elderly_003 -> run
 DEFAULT_UNIT_PATTERN = r"(?:^|_)([A-Za-z][A-Za-z0-9-]*)_[A-Za-z][A-Za-z0-9-]*_[^_]*$"
@@ -33,13 +33,7 @@ UNIT_WORDS = (
 
 def unit_of_words(content: str) -> str | None:
     """The unit a content name says (`walk-turn-left` -> turn-left), or None."""
-    if content in UNITS:
-        return content
-    lowered = content.lower()
-    for words, unit in UNIT_WORDS:
-        if any(word in lowered for word in words):
-            return unit
-    return None
+    return content if content in UNITS else named_by_words(content, UNIT_WORDS)
 
 
 def unit_from_name(path: Path, pattern: str | None = None) -> str:
