@@ -23,7 +23,7 @@ from instrument.motion.bvh import read_bvh
 from instrument.motion.standing import standing_steps, still_frames
 from instrument.synthesis.engine import Engine, default_controls
 from instrument.synthesis.stream import STATE, UNIT, Controls
-from instrument.training.corpus import read_manifest, styled_takes
+from instrument.training.corpus import TakeFile, load_corpus, read_manifest, styled_takes
 from instrument.training.units import unit_from_name
 
 MOTIONS = REPO.parent / "shared" / "data" / "bandai-motions"
@@ -68,6 +68,28 @@ def test_a_manifest_says_each_takes_unit_and_a_bad_one_names_its_line(tmp_path):
 def test_styled_takes_of_the_motions_folder_hold_every_unit():
     units = {t.unit for t in styled_takes([MOTIONS])}
     assert units == {"run", "turn-left", "turn-right", "stand"}
+
+
+@needs_motions
+@needs_walks
+def test_a_turning_take_is_trained_as_the_way_it_turns(tmp_path, real_walks):
+    """One of the Bandai set's masculine takes named turn-left turns right (checked with the
+    independent reader: its hips' heading); a straight walk named as a turn is left out."""
+    mislabelled = MOTIONS / "dataset-2_walk-turn-left_masculine_006.bvh"
+    names, positions, _ = world_positions(mislabelled)
+    hips = positions[:, names.index("Hips")]
+    travel = np.diff(hips[:: 10][:, [0, 2]], axis=0)
+    heading = np.unwrap(np.arctan2(travel[:, 0], travel[:, 1]))
+    assert np.degrees(heading[-1] - heading[0]) < -45  # to the right, seen from above (+x to the left of +z)
+    straight = tmp_path / "dataset-2_walk-turn-left_normal_009.bvh"
+    straight.write_bytes(real_walks[0].read_bytes())
+    pairs = [TakeFile(mislabelled, "masculine", "turn-left"), TakeFile(straight, "normal", "turn-left"),
+             TakeFile(MOTIONS / "dataset-2_walk-turn-left_masculine_001.bvh", "masculine", "turn-left")]
+    _, takes, warnings = load_corpus(pairs, 30.0)
+    assert [(t.path.name, t.unit) for t in takes] == [(mislabelled.name, "turn-right"),
+                                                      ("dataset-2_walk-turn-left_masculine_001.bvh", "turn-left")]
+    assert any(w.startswith(f"{mislabelled}: named turn-left but turns") and "used as turn-right" in w for w in warnings)
+    assert any(w.startswith(f"{straight}: named turn-left but turns") and "left out" in w for w in warnings)
 
 
 # ---- still standing ----------------------------------------------------------------------------

@@ -75,12 +75,16 @@ class UnitAssessment:
 
 
 def load_real_units(model: Model, folders: list[Path], cm: float) -> dict[str, RealUnit]:
-    """Every take the model lists that is in `folders`, by unit (walks, runs, turns, stands)."""
+    """Every take the model lists that is in `folders`, by unit (walks, runs, turns, stands), as
+    training took it: a turning take by the way it turns, one that does not turn left out."""
     files = real_pairs(model, folders, units=None)
     motions = read_motions(files, model.fps)
     out: dict[str, RealUnit] = {}
     for file, motion in zip(files, motions):
         takes, _ = make_takes([file], [motion], model.layout, states=model.states)
+        if file.unit.startswith("turn-") and not takes:
+            continue
+        file = file._replace(unit=takes[0].unit) if takes else file
         unit = out.setdefault(file.unit, RealUnit())
         unit.files.append(file)
         unit.motions.append(motion)

@@ -21,7 +21,7 @@ from ..motion.steps import LABELS, segment_steps
 from ..models.units import UNITS
 from ..textfile import read_text
 from ..tomlfile import read_toml
-from .units import checked_unit, gesture_from_name, unit_from_name
+from .units import checked_unit, gesture_from_name, turn_as_taken, unit_from_name
 
 # the last but one "_"-separated part, starting with a letter: dataset-2_walk_elderly_003 -> elderly,
 # walk_not-confident_001 -> not-confident, style2_take3 -> style2
@@ -220,11 +220,22 @@ def make_takes(pairs: Sequence[tuple], motions: list[Motion], layout: FeatureLay
         if not segmentation.steps and not phases:
             warnings.append(f"{path}: no steps, left out")
             continue
+        unit, turned = turn_as_taken(unit, _step_frames(static, segmentation.steps)[:, layout.names.index("root.yaw_rate")],
+                                     motion.fps)
+        if turned:
+            warnings.append(f"{path}: {turned}")
+        if unit is None:
+            continue
         takes.append(Take(path, style, with_deltas(static), segmentation.steps, _sha256(path), unit,
                           gesture or "", phases))
         if progress:
             progress(k + 1, len(pairs), "features")
     return takes, warnings
+
+
+def _step_frames(static: np.ndarray, steps: list) -> np.ndarray:
+    """The frames of `static` inside the steps (not the stretches segmentation dropped)."""
+    return static[np.concatenate([np.arange(s.start, s.end) for s in steps])] if steps else static[:0]
 
 
 def load_corpus(pairs: Sequence[tuple], fps: float, progress=None, states: int = 5) -> tuple[FeatureLayout, list[Take], list[str]]:

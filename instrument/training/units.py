@@ -54,6 +54,28 @@ def gesture_from_name(path: Path) -> str | None:
     return gesture_of_words(match.group(1)) if match and match.group(1) else None
 
 
+# a turning take is taken as a turn the way its root turns over its steps; below this it does not turn
+LEAST_TURN_DEG = 30.0
+
+
+def turn_as_taken(unit: str, yaw_rates: np.ndarray, fps: float) -> tuple[str | None, str | None]:
+    """The unit a turning take's steps are trained as, and a warning when that is not the one named:
+    a take named turn-left whose root turns right (a mislabelled file, or an actor who turned the
+    other way: 3 of the 16 masculine turning takes in the Bandai set) is used as a right turn, and
+    a take that turns less than LEAST_TURN_DEG either way is left out (None): its steps would
+    teach a turning unit to walk straight. `yaw_rates` (rad/s, + to the left) are the frames of
+    its steps. Other units are returned as they are."""
+    if not unit.startswith("turn-"):
+        return unit, None
+    turned = float(np.degrees(yaw_rates.sum() / fps))
+    if abs(turned) < LEAST_TURN_DEG:
+        return None, f"named {unit} but turns {turned:+.0f} degrees over its steps: left out"
+    found = "turn-left" if turned > 0 else "turn-right"
+    if found != unit:
+        return found, f"named {unit} but turns {abs(turned):.0f} degrees to the {found[5:]}: used as {found}"
+    return unit, None
+
+
 def checked_unit(where: str, unit: str) -> str:
     """A manifest's unit, as a unit name, or an error naming where it is."""
     found = unit_of_words(unit)
