@@ -159,6 +159,63 @@ def test_a_gait_change_is_in_the_next_frames_plan_and_takes_the_body_at_the_next
     assert (units[first_stand:, 0] == stand).all()
 
 
+def test_a_stop_told_too_late_in_a_step_waits_a_step_and_does_not_jolt(model):
+    """A run told to stand a frame before its step ends: the plan shows the stand at once, a step
+    further on (NEXT), the run takes one more step, and no joint's velocity jumps more than in the
+    run itself (told that late and taken at once, a toe jumped 2.5 times the run's largest)."""
+    from instrument.evaluation.sequence import velocity_jumps
+    from instrument.motion.kinematics import ChannelStream, world_positions
+    from instrument.motion.bvh import Motion
+    from instrument.synthesis.stream import NEXT
+
+    engine = Engine(model)
+    base = default_controls(model, {"normal": 1.0})
+    run, stand = Controls(base.weights, gait=RUN), Controls(base.weights, gait=STAND)
+    channels = ChannelStream(model.layout.skeleton)
+    rows, labels, told = [], [], None
+    for k in range(150):
+        late = engine.units._frames_left(engine.stream)[0] < 2
+        if told is None and k > 60 and late:
+            told = k
+        pose = engine.frame(k / engine.fps, run if told is None else stand)
+        rows.append(channels.next(pose.rotations[0], pose.translations[0]))
+        labels.append(int(engine.frame_ids[0]) // model.states)
+        if k == told:
+            run_unit = model.units.index("run")
+            assert engine.stream.counters[0, NEXT] == run_unit + 1 and engine.stream.counters[0, UNIT] == model.units.index("stand")
+    assert told is not None
+    units = np.array(labels) // 2
+    first_stand = told + int(np.argmax(units[told:] == model.units.index("stand")))
+    run_steps = len(set(np.flatnonzero(np.diff(labels[told:first_stand]))))  # label changes on the way
+    assert run_steps == 1, "one more run step, then the stand"
+    jumps = velocity_jumps(world_positions(Motion(model.layout.skeleton, np.array(rows), model.fps)))
+    assert jumps[told:told + 45].max() < 1.2 * jumps[15:told].max()
+
+
+@pytest.mark.parametrize("stand_frames", [60, 66])  # the walk sets off on one foot and on the other
+def test_a_body_setting_off_from_a_stand_accelerates(model, stand_frames):
+    """The root's speed (posed, world) rises from the stand to the walk's with no change from one
+    frame to the next larger than the steady walk's own (set off at full speed, it went from 0
+    to 77 cm/s in a frame), and the first step covers less ground than a steady one."""
+    engine = Engine(model)
+    base = default_controls(model, {"active": 1.0})
+    roots, units = [], []
+    for k in range(stand_frames + 150):
+        gait = STAND if k < stand_frames else WALK
+        pose = engine.frame(k / engine.fps, Controls(base.weights, gait=gait))
+        roots.append(pose.world_positions[0, model.layout.root, [0, 2]])
+        units.append(int(engine.frame_ids[0]) // (2 * model.states))
+    speed = np.linalg.norm(np.diff(np.array(roots), axis=0), axis=1) * engine.fps * _cm(model)
+    walking = np.array(units[1:]) != model.units.index("stand")
+    first = int(np.argmax(walking))  # the first frame of the walk
+    change = np.abs(np.diff(speed))
+    steady = change[first + 60:].max()
+    assert speed[first - 5:first].max() < 2.0  # stood still until then
+    assert change[first - 1:first + 30].max() <= 1.1 * steady
+    step = int(round(engine.stream.base[0, 0].sum()))  # frames of a step
+    assert speed[first:first + step].sum() < 0.8 * speed[first + 60:first + 60 + step].sum()
+
+
 def test_stand_is_still_run_is_faster_than_walk_and_walking_again_reaches_its_speed(model):
     _, units, _, _, _, speed = _engine_frames(model, [(WALK, 90), (STAND, 90), (RUN, 90), (WALK, 90)])
     cm = _cm(model)

@@ -323,7 +323,7 @@ class Engine:
         if self.range_filter is not None:
             frames = self.range_filter(frames, *self.range_targets.targets(ids // (2 * self.model.states)))
             self._timed("range")
-        frames = drive(frames, self.stream.cadence, self.units.added_yaw)
+        frames = drive(frames, self.stream.cadence * self.units.travel, self.units.added_yaw)
         self._timed("drive")
         if self.gestures.crowd is not None:
             frames = self.gestures(controls.gestures, frames, ids)

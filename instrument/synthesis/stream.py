@@ -39,7 +39,7 @@ class StreamTables(NamedTuple):
     plain: np.ndarray  # (N,) bool: the character's lambda* is the shared one (own term 0, factor 1)
     base: np.ndarray  # (N, labels, states) frames per state before liveliness
     sigma: np.ndarray  # (N, labels, states) duration sd times liveliness
-    counters: np.ndarray  # (N, 8) int: where each plan is (LABEL ... UNIT below)
+    counters: np.ndarray  # (N, 9) int: where each plan is (LABEL ... NEXT below)
     carry: np.ndarray  # (N, labels) the fraction of a frame each label's steps carry on
     pool: np.ndarray  # (N, draws) liveliness draws
     history: np.ndarray  # (N, 2, D) the last two frames sent
@@ -74,8 +74,10 @@ class WindowWork(NamedTuple):
 # rows of Crowd.counters
 # per character: where the plan is, its draws in the pool, which foot's steps follow the other's
 # (0 right, 1 left) and the unit its next steps are of (the engine's units stage sets it: a label
-# is 2 * unit + foot, and a step's next label is the other foot's in that unit)
-LABEL, STATE, ELAPSED, HEAD, TAIL, FILLED, FOLLOWER, UNIT = range(8)
+# is 2 * unit + foot, and a step's next label is the other foot's in that unit); NEXT, when not
+# 0, is 1 + the unit of the one step right after the current, UNIT's steps coming after it (a
+# change the body was told too late to bend into, synthesis/units.py, waits a step)
+LABEL, STATE, ELAPSED, HEAD, TAIL, FILLED, FOLLOWER, UNIT, NEXT = range(9)
 
 
 @dataclass
@@ -124,7 +126,7 @@ class Crowd:
         labels_states, width = space.base.shape[1], space.base.shape[2]
         dimension = width // 3
         self.sent = 0
-        self.counters = np.zeros((count, 8), dtype=np.int64)
+        self.counters = np.zeros((count, 9), dtype=np.int64)
         self.counters[:, FOLLOWER] = 1  # a walk begins on a right step (label 0), which the left one follows
         self.carry = np.zeros((count, space.labels))  # the fraction of a frame each label's steps carry on
         self.history = np.zeros((count, 2, dimension))
@@ -306,6 +308,7 @@ def _plan(base, sigma, counter, carry, pool, ids, counts, carries):  # pragma: n
     head, tail = counter[HEAD], counter[TAIL]
     frames = ids.shape[0]
     filled, k = 0, 0
+    first_boundary = True
     remainders = carry.copy()  # (labels,), as the plan moves on
     while filled < frames:
         duration = base[label, state]
@@ -327,8 +330,15 @@ def _plan(base, sigma, counter, carry, pool, ids, counts, carries):  # pragma: n
         elapsed, k = 0, k + 1
         state += 1
         if state == states:  # the other foot's step, of the unit the engine chose
-            state, label = 0, 2 * counter[UNIT] + 1 - label % 2
+            state, label = 0, 2 * (_next_unit(counter) if first_boundary else counter[UNIT]) + 1 - label % 2
+            first_boundary = False
     return k, tail
+
+
+@njit(cache=True, nogil=True)
+def _next_unit(counter):  # pragma: no cover - compiled
+    """The unit of the step after the current one: NEXT's when one waits, else UNIT's."""
+    return counter[NEXT] - 1 if counter[NEXT] > 0 else counter[UNIT]
 
 
 @njit(cache=True, nogil=True)
@@ -339,7 +349,8 @@ def _finish(counter, carry, n, carry_out, states):  # pragma: no cover - compile
         counter[HEAD] += 1
     counter[STATE] += 1
     if counter[STATE] == states:
-        counter[STATE], counter[LABEL] = 0, 2 * counter[UNIT] + 1 - counter[LABEL] % 2
+        counter[STATE], counter[LABEL] = 0, 2 * _next_unit(counter) + 1 - counter[LABEL] % 2
+        counter[NEXT] = 0
 
 
 @njit(cache=True, nogil=True)
