@@ -24,6 +24,7 @@ from numba import njit
 from .durations import MIN_FRAMES, state_durations, whole_frames
 from .interpolation import CrowdLambda, StyleSpace
 from .cores import over_cores, parts
+from .direct import DirectCall
 from .mlpg import _solve
 from .parameters import DEFAULT_LOOKAHEAD, GAITS
 
@@ -143,6 +144,7 @@ class Crowd:
         self.pool = np.zeros((count, 4 * (lookahead + 8)))
         self._buffers: dict[int, tuple] = {}
         self._made: tuple | None = None  # (what it was made from, the StreamTables record): `_record`
+        self._advance = DirectCall(_advance)  # one core's frame: no dispatch a call (direct.py)
         self._parts_work: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}  # (fixed, k): part k's solver work
 
     def start_at(self, phases: np.ndarray) -> None:
@@ -260,7 +262,7 @@ class Crowd:
         limited = bool(ratios[0] > 0) if self.count == 1 else bool((ratios > 0).any())
         cut = parts(self.count)
         if len(cut) == 1:  # one core's worth (one character): no parts to cut
-            _advance(tables, buffers, fixed, frames, limited)
+            self._advance((tables, buffers), tables, buffers, fixed, frames, limited)
             self.sent += 1
             return frames
         for k in range(1, len(cut)):  # each part's own solver work (the first's is the buffers')
