@@ -38,8 +38,8 @@ MIN_TICKS = 6  # before this many ticks since a start there is no tempo yet (a q
 RATIOS = (0.5, 1.0, 2.0)  # steps per beat the lock chooses from
 SWITCH_MARGIN = 1.15  # another ratio must fit the style's cadence this much better to be chosen instead
 MAX_CORRECTION = 0.3  # of the step period: the most one step is lengthened or shortened to reach the beat
-LOST_AFTER = 0.75  # ticks a tick may come later than the fitted line expects before ticks count as lost
-CLEAN_TICKS = 0.15  # RMS jitter (ticks) under which a late tick is told apart from a lost one
+SKIPS_IN_A_ROW = 3  # ticks in a row each numbered past the count: a slower tempo, not lost ticks
+AHEAD = 0.3  # ticks: a tick this near the place after the count's, or past it, is numbered by its place
 MIN_BPM, MAX_BPM = 20.0, 400.0  # a fitted tempo outside these is a broken clock, not music
 
 
@@ -67,7 +67,7 @@ class TempoFollower:
         # sends its clock) count: the tempo is right at once, the beat from the first tick seen
         self.running = True
         self._fit: tuple[float, float] | None = None  # time = a + b * tick
-        self._jitter = np.inf  # RMS distance of the ticks from the fitted line, in ticks
+        self._skipped = 0  # ticks in a row numbered past the count (ticks were lost)
         self._stale = False  # ticks came since the line was fitted (fitted when next asked: once a footfall)
         self.received = 0
 
@@ -77,40 +77,60 @@ class TempoFollower:
         self.received += 1
         if kind == "clock":
             if self.running:
-                self.position += self._lost(moment)
-                self.ticks.append((self.position, moment))
-                self.position += 1
+                number = self._number(moment)
+                self.ticks.append((number, moment))
+                self.position = number + 1
                 self._stale = True
         elif kind == "start":  # the next tick is the song's first
             self.running, self.position = True, 0
             self.ticks.clear()
+            self._skipped = 0
         elif kind == "continue":  # from the song position; the line is fitted anew (the time jumped)
             self.running = True
             self.ticks.clear()
+            self._skipped = 0
         elif kind == "stop":
             self.running = False
         elif kind == "songpos":
             self.position = int(value) * TICKS_PER_SIXTEENTH
             self.ticks.clear()
+            self._skipped = 0
 
-    def _lost(self, moment: float) -> int:
-        """How many ticks went missing before one arriving at `moment`: a tick later than the
-        fitted line expects the next by more than LOST_AFTER ticks took the place of the ticks
-        skipped (over JACK a client that misses a cycle of a busy server loses that cycle's MIDI;
-        counted as if nothing was lost, the beat slipped by a tick each time). Only told apart
-        from jitter when the clock is steady (its ticks within CLEAN_TICKS of the line, RMS): over
-        a JACK server of long periods, whose cycles bunch the ticks, a late tick is just late."""
+    def _number(self, moment: float) -> int:
+        """The number of a tick arriving at `moment`: its nearest place on the fitted line, so a
+        tick lost on the way (over JACK a client that misses a cycle of a busy server loses that
+        cycle's MIDI) does not slip the beat; counted on (the last tick's number plus one) where
+        the place is no further ahead than a tick's jitter.
+
+        A place at least 1 - AHEAD past the count skips the ticks lost. Right after a skip, a
+        tick nearer the skipped-to place than the next takes the skip back: the skipped one was
+        late (the two share a place, the line fit averages them). SKIPS_IN_A_ROW skips are no
+        losses but a slower tempo: the line starts anew from the count (a faster tempo never
+        skips, its ticks come early, and is simply counted)."""
+        counted = self.position
         if len(self.ticks) < MIN_TICKS:
-            return 0
+            return counted
         self._refit()
-        if self._fit is None or self._jitter > CLEAN_TICKS:
-            return 0
+        if self._fit is None:
+            return counted
         a, b = self._fit
-        ahead = (moment - a) / b - self.position
-        if abs(ahead) <= LOST_AFTER:
-            return 0
-        # a tick a cycle late, counted as a loss, is followed by one that seems early: taken back
-        return max(int(round(ahead)), self.ticks[-1][0] + 1 - self.position)
+        place = (moment - a) / b
+        skipped, self._skipped = self._skipped, 0
+        if skipped and place < counted - 0.5:
+            return counted - 1
+        if place < counted + 1 - AHEAD:
+            return counted
+        if skipped + 1 >= SKIPS_IN_A_ROW:  # the tempo slowed down: fit it from the count
+            self._restart(keep=2)
+            return counted
+        self._skipped = skipped + 1
+        return max(int(round(place)), counted + 1)
+
+    def _restart(self, keep: int) -> None:
+        """Forget all but the newest `keep` ticks (their tempo kept until MIN_TICKS come)."""
+        while len(self.ticks) > keep:
+            self.ticks.popleft()
+        self._stale = True
 
     def _refit(self) -> None:
         if not self._stale:
@@ -125,8 +145,6 @@ class TempoFollower:
         x, y = tick - tick.mean(), moment - moment.mean()
         slope = float(x @ y / (x @ x)) if x @ x > 0 else 0.0
         intercept = float(moment.mean() - slope * tick.mean())
-        if slope > 0:
-            self._jitter = float(np.sqrt(np.mean((moment - intercept - slope * tick) ** 2))) / slope
         if len(self.ticks) < MIN_TICKS:  # a restart: keep the last tempo, move the phase to the newest tick
             slope = self._fit[1]
             intercept = moment[-1]
