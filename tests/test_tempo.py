@@ -8,13 +8,15 @@ import os
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from instrument.models.modelfile import load_model
-from instrument.runtime.tempo import TICKS_PER_BEAT, BeatLock, TempoFollower, choose_ratio, snap_ratio, step_seconds
+from instrument.runtime.tempo import (TICKS_PER_BEAT, BeatLock, TempoFollower, choose_ratio, locked_speed, snap_ratio,
+                                      step_seconds)
 from instrument.shipped import default_model_path
 from instrument.synthesis.engine import Engine, default_controls
 from instrument.synthesis.footfalls import Footfalls, side_of
@@ -184,7 +186,7 @@ def walk(model, bpm: float | None, seconds: float = 16.0, forced: float = 0.0, s
     lock = BeatLock(follower) if bpm else None
     controls = default_controls(model, weights or {"normal": 1.0})
     rng = np.random.default_rng(2)
-    tick, k, landed, out = (60.0 / bpm / TICKS_PER_BEAT if bpm else None), 0, None, []
+    tick, k, landed, speeds, out = (60.0 / bpm / TICKS_PER_BEAT if bpm else None), 0, {}, {}, []
     if bpm:
         follower.message("start", clock_start - tick)
     for index in range(int(seconds * FPS)):
@@ -196,10 +198,14 @@ def walk(model, bpm: float | None, seconds: float = 16.0, forced: float = 0.0, s
                 break
             follower.message("clock", clock_start + k * tick + abs(rng.normal(0, 0.0015)))
             k += 1
-        used = controls if lock is None else lock.controls(controls, lambda: step_seconds(engine, controls), landed, forced)
+        if lock is not None:
+            for event in lock.decide(now, controls.speed, lambda k: step_seconds(engine, controls, k), landed, speeds,
+                                     steps_per_beat=forced):
+                speeds[int(event.control.split("/")[1])] = event.value
+        used = replace(controls, speed=locked_speed(speeds, controls.speed, 1)) if speeds else controls
         pose = engine.frame(now, used)
         falls = feet.after(pose)
-        landed = next((now for f in falls if f.character == 0 and index > 0), None)
+        landed = {f.character: now for f in falls if index > 0}
         out += [(f.time, f.side, f.speed) for f in falls if f.character == 0]
     return out, lock
 

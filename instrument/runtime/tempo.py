@@ -8,24 +8,26 @@ more, the fit averages it out; one beat of ticks follows a tempo change within a
 
 `BeatLock` makes the walk step on those beats. It chooses a whole ratio of steps per beat (2, 1
 or 1/2) nearest the style's own cadence at the performer's speed, or the one the performer
-forces (`steps-per-beat`), and sets the speed of the walk (so the durations stage stretches
+forces (`steps-per-beat`), and sets each character's speed (so the durations stage stretches
 the HSMM state durations as `speed` does, and a style keeps its rhythm within the step) once
-per footfall of character 0: the step period the ratio asks for, less the footfall's distance
-from the nearest beat of that grid, so the next footfall lands on it (the whole error corrected
-in one step, within MAX_CORRECTION of the period, so a lock never stumbles). The speed changes
-only at footfalls, so the engine retunes once a step, not every frame. When the clock stops, the
-last speed stays (no jump); when it starts, the next two footfalls bring the lock in.
+per footfall of that character: the step period the ratio asks for, less the footfall's
+distance from the nearest beat of that grid, so the next footfall lands on it (the whole error
+corrected in one step, within MAX_CORRECTION of the period, so a lock never stumbles). The
+speed changes only at footfalls, so the engine retunes once a step, not every frame. When the
+clock stops, the last speed stays (no jump); when it starts, the next two footfalls bring the
+lock in. The lock's decisions are control events (`TEMPO`), so a recorded show replays exactly.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Callable, Protocol
 
 import numpy as np
 
+from ..control.events import RawEvent, Source
 from ..synthesis.durations import state_durations
 from ..synthesis.engine import Engine
 from ..synthesis.parameters import MAX_SPEED, MIN_SPEED
@@ -185,27 +187,52 @@ class LockReport:
     offset: float | None = None  # seconds from the last footfall to its nearest grid beat (+ late)
 
 
+TEMPO = Source.of("tempo")  # the source of the lock's events (control/kinds.py reads them back)
+
+
 class BeatLock:
-    """Sets the walk's speed so character 0's footfalls land on the beats of `tempo`."""
+    """Sets each character's speed so its footfalls land on the beats of `tempo`.
+
+    Its decisions are events (`tempo` `speed/K`), applied through the hub like a device's: a
+    `--record` log keeps them, and a replay of the log plays them back without a tempo source,
+    so the synced performance is replayed exactly (control/kinds.py `TempoDecoder`)."""
 
     def __init__(self, tempo: Tempo):
         self.tempo = tempo
         self.report = LockReport()
-        self._speed: float | None = None  # the speed set at the last footfall (kept while the clock is stopped)
 
-    def controls(self, controls: Controls, step_seconds_at_1: Callable[[], float], landed_at: float | None,
-                 steps_per_beat: float = 0.0) -> Controls:
-        """The controls the engine walks with: the performer's, with the speed the lock sets.
-        `step_seconds_at_1()`: a step's length at speed 1 for the current style (asked only when
-        the speed is set); `landed_at`: when character 0's foot landed in the frame before
-        (`time.monotonic()`), or None; `steps_per_beat`: 0 for the lock's choice, else the ratio
-        forced (one of RATIOS)."""
+    def decide(self, now: float, performed: float, step_at_1: Callable[[int], float], landed: dict[int, float],
+               speeds: dict[int, float], characters: int = 1, steps_per_beat: float = 0.0) -> list[RawEvent]:
+        """This frame's `speed/K` events (performance time `now`): for each character K whose foot
+        landed in the frame before (at `landed[K]`, `time.monotonic()`), and each that has no
+        speed yet (`speeds`, the state's lock_speeds). `performed`: the performer's speed;
+        `step_at_1(K)`: a step's length at speed 1 of character K (asked only for those);
+        `steps_per_beat`: 0 for the lock's choice, else the ratio forced (one of RATIOS).
+
+        The ratio is chosen for character 0 (the performance) and the crowd walks it: every
+        character's footfalls on the same grid of beats, each with its own foot and its own
+        style's rhythm within the step (docs/tempo.md)."""
         beat = self.tempo.period()
-        if beat is None:  # no tempo yet: the performer's speed
-            return controls
-        if self._speed is None or landed_at is not None:
-            self._speed = self._next_speed(controls.speed, step_seconds_at_1(), beat, landed_at, steps_per_beat)
-        return replace(controls, speed=self._speed)
+        due = [k for k in range(characters) if k in landed or k not in speeds]
+        if beat is None or not due:  # no tempo yet: the performer's speed
+            return []
+        ratio = steps_per_beat if steps_per_beat > 0 else choose_ratio(step_at_1(0) / performed, beat, self.report.ratio)
+        self.report.ratio = ratio
+        period = beat / ratio
+        events = []
+        for k in due:
+            target = period
+            if k in landed and self.tempo.running:
+                position = self.tempo.beat_at(landed[k]) * ratio  # in steps of the grid
+                offset = (position - round(position)) * period  # + late
+                target = period - max(-MAX_CORRECTION * period, min(MAX_CORRECTION * period, offset))
+                if k == 0:
+                    self.report.offset = offset
+            speed = float(np.clip(step_at_1(k) / target, MIN_SPEED, MAX_SPEED))
+            if k == 0:
+                self.report.speed = speed
+            events.append(RawEvent(now, TEMPO, f"speed/{k}", speed))
+        return events
 
     def describe(self) -> str:
         """For the status line: the tempo, the steps per beat chosen and the last footfall's offset."""
@@ -219,23 +246,17 @@ class BeatLock:
             text += f", footfall {1000.0 * report.offset:+.0f} ms"
         return text
 
-    def _next_speed(self, performed: float, step_at_1: float, beat: float, landed_at: float | None,
-                    forced: float) -> float:
-        ratio = forced if forced > 0 else choose_ratio(step_at_1 / performed, beat, self.report.ratio)
-        period = beat / ratio
-        target = period
-        self.report.ratio = ratio
-        if landed_at is not None and self.tempo.running:
-            position = self.tempo.beat_at(landed_at) * ratio  # in steps of the grid
-            offset = (position - round(position)) * period  # + late
-            self.report.offset = offset
-            target = period - max(-MAX_CORRECTION * period, min(MAX_CORRECTION * period, offset))
-        self.report.speed = float(np.clip(step_at_1 / target, MIN_SPEED, MAX_SPEED))
-        return self.report.speed
+
+def locked_speed(speeds: dict[int, float], performed: float, characters: int) -> float | np.ndarray:
+    """The speed the engine walks with under the lock: character 0's for one character, else
+    one a character (the performer's for a character the lock has not set yet)."""
+    if characters == 1:
+        return speeds.get(0, performed)
+    return np.array([speeds.get(k, performed) for k in range(characters)])
 
 
-def step_seconds(engine: Engine, controls: Controls) -> float:
-    """Seconds a step of character 0 takes at speed 1 with these controls' style and phase
+def step_seconds(engine: Engine, controls: Controls, character: int = 0) -> float:
+    """Seconds a step of `character` takes at speed 1 with these controls' style and phase
     stretch (its duration pdfs through the durations stage's formula), the mean of its current
     unit's two labels (a run's steps are shorter than a walk's).
     The pdfs do not move with the speed: those of the last retune serve (the style of the frame
@@ -243,9 +264,9 @@ def step_seconds(engine: Engine, controls: Controls) -> float:
     interpolation = engine.features[0]
     if interpolation.duration_means is None:  # before the first frame
         engine.retune(controls)
-    frames = state_durations(interpolation.duration_means[0], interpolation.duration_variances[0], 1.0,
+    frames = state_durations(interpolation.duration_means[character], interpolation.duration_variances[character], 1.0,
                              controls.state_scale)
-    unit = int(engine.stream.counters[0, LABEL]) // 2
+    unit = int(engine.stream.counters[character, LABEL]) // 2
     return float(frames.sum(axis=-1)[2 * unit:2 * unit + 2].mean()) / engine.model.fps
 
 
