@@ -463,3 +463,100 @@ def test_a_synced_show_replays_exactly_from_its_log(model, tmp_path):
     unlocked = CrowdSink()  # the check can fail: the same show without the log's tempo events walks otherwise
     synced_show(model, unlocked, None, 8.0, characters=2, spread=0.8)
     assert not all(np.array_equal(a, b) for a, b in zip(live.poses, unlocked.poses))
+
+
+class SentFootfalls:
+    """Character 0's footfalls, stamped with `time.monotonic()` when the frame is sent (at its
+    deadline: where a tempo source's beats are) and the source's beat then (a later tempo
+    change moves the beats of the past on a Link timeline)."""
+
+    name = "sent footfalls"
+
+    def __init__(self, tempo):
+        self.tempo = tempo
+        self.times: list[float] = []
+        self.beats: list[float] = []
+
+    def prepare(self, frame):
+        return [f for f in frame.footfalls if f.character == 0] or None
+
+    def send(self, prepared) -> None:
+        now = time.monotonic()
+        self.times += [now] * len(prepared)
+        self.beats += [self.tempo.beat_at(now)] * len(prepared)
+
+    def close(self) -> None:
+        pass
+
+
+def test_link_start_stop_keeps_the_tempo_when_stopped_and_locks_when_started(model):
+    """A second Link peer in this process plays at 100 bpm, stops, changes to 125 bpm while
+    stopped and plays again: while stopped the walk keeps its last step period (no jump); from
+    the third footfall after each start every footfall is on a beat of the session."""
+    import threading
+
+    link = pytest.importorskip("link")
+    from instrument.control.state import ControlState
+    from instrument.runtime.link import LinkTempo
+    from instrument.runtime.performance import Show, perform
+    from instrument.terminal import Console
+
+    ours = LinkTempo()
+    peer = link.Link(100.0)
+    peer.startStopSyncEnabled = True
+    peer.enabled = True
+    marks: dict[str, float] = {}
+
+    def transport():
+        def commit(change):
+            state = peer.captureAppSessionState()
+            change(state, peer.clock().micros())
+            peer.commitAppSessionState(state)
+
+        deadline = time.monotonic() + 30
+        while ours.peers() == 0 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        commit(lambda s, now: s.setTempo(100.0, now))
+        time.sleep(1.0)
+        marks["start"] = time.monotonic()
+        commit(lambda s, now: s.setIsPlaying(True, now))
+        time.sleep(7.0)
+        marks["stop"] = time.monotonic()
+        commit(lambda s, now: s.setIsPlaying(False, now))
+        time.sleep(1.0)
+        commit(lambda s, now: s.setTempo(125.0, now))
+        time.sleep(4.0)
+        marks["again"] = time.monotonic()
+        commit(lambda s, now: s.setIsPlaying(True, now))
+
+    sink = SentFootfalls(ours)
+    lock = BeatLock(ours)
+    controller = threading.Thread(target=transport, daemon=True)
+    try:
+        controller.start()
+        state = ControlState(model.style_names, model.states)
+        perform(Show(model, [sink], FPS, seconds=22.0, state=state, beat_lock=lock), Console(quiet=True))
+        controller.join(30)
+    finally:
+        peer.enabled = False
+        ours.close()
+    assert set(marks) == {"start", "stop", "again"}, "the peer never joined the session"
+    times, beats = np.array(sink.times), np.array(sink.beats)
+
+    def beat_offsets_ms(chosen: np.ndarray, bpm: float) -> np.ndarray:
+        grid = beats[chosen] * lock.report.ratio
+        return np.abs(grid - np.round(grid)) * 60.0 / bpm / lock.report.ratio * 1000.0
+
+    first = np.flatnonzero((times > marks["start"]) & (times < marks["stop"]))
+    playing = times[first]
+    assert (beat_offsets_ms(first[2:], 100.0) <= 40.0).all()
+    # stopped: the step period of the last steps played, no jump (the tempo change waits for the start)
+    stopped = np.diff(times[(times > marks["stop"]) & (times < marks["again"])])
+    beat = 60.0 / 100.0 / lock.report.ratio
+    assert abs(np.mean(stopped) / beat - 1) < 0.02  # (a step is a whole number of frames: their mean)
+    assert np.abs(np.diff(playing[-3:]) / beat - 1).max() < 0.1 and np.abs(stopped / beat - 1).max() < 0.1
+    second = np.flatnonzero(times > marks["again"])
+    again = times[second]
+    assert len(again) >= 8
+    assert (beat_offsets_ms(second[2:], 125.0) <= 40.0).all()
+    assert np.mean(np.diff(again[2:])) == pytest.approx(60.0 / 125.0 / lock.report.ratio, rel=0.03)  # (a median is 14 or 15 frames)

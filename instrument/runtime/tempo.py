@@ -200,6 +200,7 @@ class BeatLock:
     def __init__(self, tempo: Tempo):
         self.tempo = tempo
         self.report = LockReport()
+        self._held: float | None = None  # the step period set last while the music played (kept while it is stopped)
 
     def decide(self, now: float, performed: float, step_at_1: Callable[[int], float], landed: dict[int, float],
                speeds: dict[int, float], characters: int = 1, steps_per_beat: float = 0.0) -> list[RawEvent]:
@@ -216,13 +217,17 @@ class BeatLock:
         due = [k for k in range(characters) if k in landed or k not in speeds]
         if beat is None or not due:  # no tempo yet: the performer's speed
             return []
-        ratio = steps_per_beat if steps_per_beat > 0 else choose_ratio(step_at_1(0) / performed, beat, self.report.ratio)
-        self.report.ratio = ratio
-        period = beat / ratio
+        running = self.tempo.running
+        if running or self._held is None:
+            ratio = steps_per_beat if steps_per_beat > 0 else choose_ratio(step_at_1(0) / performed, beat, self.report.ratio)
+            self.report.ratio = ratio
+            self._held = period = beat / ratio
+        else:  # stopped: the step period played last, without a correction (a Link tempo changed meanwhile waits)
+            period = self._held
         events = []
         for k in due:
             target = period
-            if k in landed and self.tempo.running:
+            if k in landed and running:
                 position = self.tempo.beat_at(landed[k]) * ratio  # in steps of the grid
                 offset = (position - round(position)) * period  # + late
                 target = period - max(-MAX_CORRECTION * period, min(MAX_CORRECTION * period, offset))
