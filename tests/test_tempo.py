@@ -20,6 +20,7 @@ from instrument.runtime.tempo import (TICKS_PER_BEAT, BeatLock, TempoFollower, c
 from instrument.shipped import default_model_path
 from instrument.synthesis.engine import Engine, default_controls
 from instrument.synthesis.footfalls import Footfalls, side_of
+from instrument.synthesis.parameters import GAITS
 
 REPO = Path(__file__).resolve().parents[1]
 MIN_TICKS_FOR_TEST = 30  # ticks before the first loss: the line must exist to see one
@@ -176,10 +177,11 @@ def test_footfall_sides_come_from_the_hip_names():
 
 
 def walk(model, bpm: float | None, seconds: float = 16.0, forced: float = 0.0, stop_at: float | None = None,
-         weights=None, clock_start: float = 1.0):
+         weights=None, clock_start: float = 1.0, gaits: tuple[tuple[float, str], ...] = ()):
     """The live loop's three pieces on the real engine (Engine, Footfalls, BeatLock), frame by frame at
     FPS, performance time as the clock; a MIDI clock at `bpm` (jittering) from `clock_start`; None: no
-    lock. Returns the footfalls (time, side, speed) of character 0 and the lock."""
+    lock; `gaits`: (from when, gait) the performer chooses. Returns the footfalls (time, side, speed)
+    of character 0 and the lock."""
     engine = Engine(model, fps=FPS)
     feet = Footfalls(engine.poses)
     follower = TempoFollower()
@@ -198,6 +200,9 @@ def walk(model, bpm: float | None, seconds: float = 16.0, forced: float = 0.0, s
                 break
             follower.message("clock", clock_start + k * tick + abs(rng.normal(0, 0.0015)))
             k += 1
+        for moment, gait in gaits:
+            if abs(now - moment) < 0.5 / FPS:
+                controls = replace(controls, gait=GAITS.index(gait))
         if lock is not None:
             for event in lock.decide(now, controls.speed, lambda k: step_seconds(engine, controls, k), landed, speeds,
                                      steps_per_beat=forced):
@@ -253,6 +258,25 @@ def test_a_stopped_clock_keeps_the_last_tempo_without_a_jump(model):
     before, after = np.diff(times[(times > 4.0) & (times < 7.0)]), np.diff(times[times > 7.5])
     assert abs(np.mean(after) / np.mean(before) - 1) < 0.03
     assert np.abs(np.diff(times[times > 4.0])).max() < 0.5 * 1.2  # no step stumbles at the stop
+
+
+def test_every_gait_locks_a_run_to_its_own_ratio_and_a_stand_keeps_the_lock(model):
+    """At 174 bpm (a beat of 345 ms) the walk (its own steps about 550 ms) takes a step every two
+    beats, a run (about 380 ms) one a beat; a stand has no footfalls and leaves the lock and the
+    clock as they were; the walk started from the stand is on the beat from its third footfall."""
+    bpm, beat = 174.0, 60.0 / 174.0
+    plan = ((0.0, "walk"), (7.0, "run"), (15.0, "stand"), (20.0, "walk"))
+    falls, lock = walk(model, bpm, seconds=30.0, gaits=plan)
+    times = np.array([t for t, _, _ in falls])
+    walked = times[(times > 4.0) & (times < 7.0)]
+    assert np.percentile(offsets_ms(walked, 1.0, 2 * beat), 95) <= 40.0  # half a step a beat
+    ran = times[(times > 10.0) & (times < 15.0)]
+    assert abs(np.mean(np.diff(ran)) / beat - 1) < 0.03  # a step a beat: the run's own ratio
+    assert np.percentile(offsets_ms(ran, 1.0, beat), 95) <= 40.0
+    assert not ((times > 17.0) & (times < 20.0)).any()  # standing: no footfall
+    again = times[times > 20.0]
+    assert len(again) >= 8 and lock.report.ratio == 0.5
+    assert (offsets_ms(again[2:], 1.0, 2 * beat) <= 40.0).all()
 
 
 # ---- through real JACK MIDI: the instrument as run, a real clock, OSC and MIDI out ----------------
