@@ -584,3 +584,38 @@ def test_link_start_stop_keeps_the_tempo_when_stopped_and_locks_when_started(mod
     assert len(again) >= 8
     assert (beat_offsets_ms(second[2:], 125.0) <= 40.0).all()
     assert np.mean(np.diff(again[2:])) == pytest.approx(60.0 / 125.0 / lock.report.ratio, rel=0.03)  # (a median is 14 or 15 frames)
+
+
+# ---- selecting the sync: show files, the console ---------------------------------------------------------
+
+def test_a_show_file_selects_the_sync_and_a_bad_one_is_one_line(tmp_path):
+    good = tmp_path / "synced.toml"
+    good.write_text('sync = "midi"\nmidi-virtual = ["clock"]\nmidi-api = "jack"\n')
+    result = subprocess.run([sys.executable, "-m", "instrument", "run", "--config", str(good), "--check"],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0 and "the show is fine" in result.stdout, result.stderr
+    bad = tmp_path / "bad.toml"
+    bad.write_text('sync = "clock"\n')
+    result = subprocess.run([sys.executable, "-m", "instrument", "run", "--config", str(bad), "--check"],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode != 0 and "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "bad.toml" in result.stderr and "sync" in result.stderr
+    alone = tmp_path / "alone.toml"  # midi clock needs a MIDI input: said naming the file's key
+    alone.write_text('sync = "midi"\n')
+    result = subprocess.run([sys.executable, "-m", "instrument", "run", "--config", str(alone), "--check"],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode != 0 and "alone.toml" in result.stderr and "--midi" in result.stderr
+
+
+def test_the_console_turns_the_lock_on_and_off_and_chooses_steps_per_beat():
+    """The console builds its page from the spec table: `sync` as two buttons (off, on), the
+    steps per beat as a slider, both in the walk section; a page's "off" turns the lock off."""
+    from instrument.control.spec import rows_for_page
+    from instrument.control.state import ControlState
+
+    rows = {row["pattern"]: row for row in rows_for_page()}
+    assert rows["sync"]["choices"] == ["off", "on"] and rows["sync"]["section"] == "walk"
+    assert rows["steps-per-beat"]["section"] == "walk" and rows["steps-per-beat"]["range"] == [0.0, 2.0]
+    state = ControlState(["a"], 5)
+    assert state.set("sync", "off") and state.sync == 0.0
+    assert state.set("sync", "on") and state.sync == 1.0

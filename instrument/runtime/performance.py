@@ -190,11 +190,12 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             take_live(now)  # what came since the last look, while the loop waited
             state.advance(now)
             controls = state.snapshot()
-            if beat_lock is not None and state.sync > 0:  # its decisions are events: recorded, replayed
+            synced = state.sync >= 0.5  # the `sync` control's on (its nearest choice)
+            if beat_lock is not None and synced:  # its decisions are events: recorded, replayed
                 for event in beat_lock.decide(now, controls.speed, lambda k: step_seconds(engine, controls, k), landed,
                                               state.lock_speeds, show.characters, snap_ratio(state.steps_per_beat)):
                     guarded_apply(event)
-            if state.sync <= 0:
+            if not synced:
                 state.lock_speeds.clear()  # turned on again, the lock starts afresh
             elif state.lock_speeds:  # the lock's (live, or a replayed log's)
                 controls = replace(controls, speed=locked_speed(state.lock_speeds, controls.speed, show.characters))
