@@ -122,8 +122,9 @@ def wait_for_port(midi_out, part: str, deadline: float) -> int:
     raise RuntimeError(f"the instrument's MIDI port {part} never appeared")
 
 
-def run(bpm: float, seconds: float = 16.0, fps: float = 30.0, extra: list[str] | None = None) -> Result:
-    """One tempo: a fresh instrument, the clock for `seconds`, the footfalls measured."""
+def run(bpm: float, seconds: float = 16.0, fps: float = 30.0, extra: list[str] | None = None, sync: bool = True) -> Result:
+    """One tempo: a fresh instrument, the clock for `seconds`, the footfalls measured (`sync`
+    False: the same instrument not following the clock, for its late frames)."""
     import rtmidi
 
     os.environ["JACK_NO_START_SERVER"] = "1"
@@ -132,7 +133,7 @@ def run(bpm: float, seconds: float = 16.0, fps: float = 30.0, extra: list[str] |
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
     name = f"tempo-clock-{os.getpid()}-{int(bpm)}"
     process = subprocess.Popen([sys.executable, "-m", "instrument", "run", "--midi-virtual", name, "--midi-api", "jack",
-                                "--sync", "midi", "--no-feedback", "--fps", f"{fps:g}",
+                                *(["--sync", "midi"] if sync else []), "--no-feedback", "--fps", f"{fps:g}",
                                 "--osc", f"127.0.0.1:{sock.getsockname()[1]}/flat"] + (extra or []),
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     midi_out = rtmidi.MidiOut(rtmidi.API_UNIX_JACK, name="tempo-sender")
@@ -211,6 +212,8 @@ def main() -> None:
     parser.add_argument("--fps", type=float, default=30.0)
     parser.add_argument("--period", type=int, default=128, help="JACK frames a cycle at 48 kHz (128: 2.7 ms)")
     parser.add_argument("--no-realtime", action="store_true", help="the JACK server without realtime scheduling")
+    parser.add_argument("--baseline", action="store_true",
+                        help="also run each tempo without --sync: the late frames of the same show not following the clock")
     args = parser.parse_args()
     os.environ["JACK_NO_START_SERVER"] = "1"
     server = start_server(args.period, not args.no_realtime)
@@ -219,6 +222,9 @@ def main() -> None:
     try:
         for bpm in args.bpm:
             print(run(bpm, args.seconds, args.fps).line(), flush=True)
+            if args.baseline:
+                print(f"{bpm:5.0f} bpm without --sync: late frames {run(bpm, args.seconds, args.fps, sync=False).late}",
+                      flush=True)
     finally:
         server.terminate()
         server.wait(10)
