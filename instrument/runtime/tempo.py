@@ -3,7 +3,9 @@
 `TempoFollower` turns MIDI clock (24 ticks per quarter note; start, stop, continue and song
 position) with the arrival time of each tick into a smoothed beat period and phase: a straight
 line fitted to the last beat of ticks (a real clock over JACK or USB jitters by a millisecond or
-more, the fit averages it out; one beat of ticks follows a tempo change within a beat).
+more, the fit averages it out; one beat of ticks follows a tempo change within a beat). Each
+tick is numbered by its nearest place on that line, not counted, so a tick lost on the way does
+not slip the beat.
 `LinkTempo` (runtime/link.py) answers the same questions from an Ableton Link session.
 
 `BeatLock` makes the walk step on those beats. It chooses a whole ratio of steps per beat (2, 1
