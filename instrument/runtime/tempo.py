@@ -15,7 +15,7 @@ the HSMM state durations as `speed` does, and a style keeps its rhythm within th
 per footfall of that character: the step period the ratio asks for, less the footfall's
 distance from the nearest beat of that grid, so the next footfall lands on it (the whole error
 corrected in one step, within MAX_CORRECTION of the period, so a lock never stumbles). The
-speed changes only at footfalls, so the engine retunes once a step, not every frame. When the
+speed changes only at footfalls, so the engine retunes once a step of each character. When the
 clock stops, the last speed stays (no jump); when it starts, the next two footfalls bring the
 lock in. The lock's decisions are control events (`TEMPO`), so a recorded show replays exactly.
 """
