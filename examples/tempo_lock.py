@@ -3,8 +3,9 @@ and the footfalls it sends (/walk/footfall, flat OSC profile) are timed against 
 
     python examples/tempo_lock.py [--bpm 80 120 174] [--seconds 16] [--fps 30]
 
-Needs a running JACK server (`jackd --no-realtime -d dummy -r 48000 -p 256 &`; started here, and
-stopped at the end, if none runs). For each tempo a fresh instrument listens on a virtual JACK
+Starts its own JACK server (dummy driver, named SERVER so that it never disturbs another; 128
+frames a cycle at 48 kHz, realtime where the system allows: `--period`, `--no-realtime`) and
+stops it at the end. For each tempo a fresh instrument listens on a virtual JACK
 MIDI port; a sender (this process) sends MIDI start and then 24 clock ticks a beat, each at its
 time on the monotonic clock (a sleep to a millisecond before, then a spin). Beat k is the
 scheduled time of tick 24 k. Every /walk/footfall of character 0 is stamped when its datagram
@@ -43,6 +44,10 @@ def send_clock(port, bpm: float, start: float, seconds: float, stop: threading.E
     """MIDI start just before `start`, then ticks at start + k * tick until `seconds` have gone;
     `lateness` gets how late each tick left (the sender's own jitter on a busy machine)."""
     tick = 60.0 / bpm / 24
+    try:  # the sender keeps its time on a busy machine, as a sequencer's clock thread does
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
+    except (OSError, AttributeError):
+        pass
     while time.monotonic() < start - tick:  # start one tick before the first, as a sequencer does
         time.sleep(0.001)
     port.send_message([0xFA])
@@ -117,8 +122,9 @@ def wait_for_port(midi_out, part: str, deadline: float) -> int:
     raise RuntimeError(f"the instrument's MIDI port {part} never appeared")
 
 
-def run(bpm: float, seconds: float = 16.0, fps: float = 30.0, extra: list[str] | None = None) -> Result:
-    """One tempo: a fresh instrument, the clock for `seconds`, the footfalls measured."""
+def run(bpm: float, seconds: float = 16.0, fps: float = 30.0, extra: list[str] | None = None, sync: bool = True) -> Result:
+    """One tempo: a fresh instrument, the clock for `seconds`, the footfalls measured (`sync`
+    False: the same instrument not following the clock, for its late frames)."""
     import rtmidi
 
     os.environ["JACK_NO_START_SERVER"] = "1"
@@ -127,7 +133,7 @@ def run(bpm: float, seconds: float = 16.0, fps: float = 30.0, extra: list[str] |
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
     name = f"tempo-clock-{os.getpid()}-{int(bpm)}"
     process = subprocess.Popen([sys.executable, "-m", "instrument", "run", "--midi-virtual", name, "--midi-api", "jack",
-                                "--sync", "midi", "--no-feedback", "--fps", f"{fps:g}",
+                                *(["--sync", "midi"] if sync else []), "--no-feedback", "--fps", f"{fps:g}",
                                 "--osc", f"127.0.0.1:{sock.getsockname()[1]}/flat"] + (extra or []),
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     midi_out = rtmidi.MidiOut(rtmidi.API_UNIX_JACK, name="tempo-sender")
@@ -176,30 +182,52 @@ def measure(bpm: float, start: float, times: list[float], late: int | None, send
                   float(np.percentile(settled, 95)), lock, len(times), late, sender_p95_ms)
 
 
+SERVER = "tempo-lock"  # the benchmark's own JACK server: it never disturbs another's
+
+
+def start_server(period: int, realtime: bool) -> subprocess.Popen:
+    """A private JACK server (dummy driver, 48 kHz, `period` frames a cycle, realtime if asked
+    and allowed), named SERVER; this process and the instruments it starts use it."""
+    import rtmidi
+    from private_jack import free_dead_slots, server_up
+
+    os.environ["JACK_DEFAULT_SERVER"] = SERVER
+    free_dead_slots(Path(os.devnull))
+    command = ["jackd", "-R" if realtime else "--no-realtime", "-n", SERVER, "-d", "dummy", "-r", "48000",
+               "-p", str(period)]
+    server = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    until = time.monotonic() + 30
+    while not server_up(rtmidi):
+        if server.poll() is not None or time.monotonic() > until:
+            server.kill()
+            raise SystemExit(f"the JACK server did not start: {' '.join(command)}")
+        time.sleep(0.2)
+    return server
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bpm", type=float, nargs="+", default=[80.0, 120.0, 174.0])
     parser.add_argument("--seconds", type=float, default=16.0)
     parser.add_argument("--fps", type=float, default=30.0)
+    parser.add_argument("--period", type=int, default=128, help="JACK frames a cycle at 48 kHz (128: 2.7 ms)")
+    parser.add_argument("--no-realtime", action="store_true", help="the JACK server without realtime scheduling")
+    parser.add_argument("--baseline", action="store_true",
+                        help="also run each tempo without --sync: the late frames of the same show not following the clock")
     args = parser.parse_args()
     os.environ["JACK_NO_START_SERVER"] = "1"
-    import rtmidi
-    from private_jack import server_up
-
-    server = None
-    if not server_up(rtmidi):
-        server = subprocess.Popen(["jackd", "--no-realtime", "-d", "dummy", "-r", "48000", "-p", "256"],
-                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        until = time.monotonic() + 30
-        while not server_up(rtmidi) and time.monotonic() < until:
-            time.sleep(0.2)
+    server = start_server(args.period, not args.no_realtime)
+    print(f"JACK: {args.period} frames at 48 kHz ({1000 * args.period / 48000:.1f} ms), "
+          f"{'no ' if args.no_realtime else ''}realtime", flush=True)
     try:
         for bpm in args.bpm:
             print(run(bpm, args.seconds, args.fps).line(), flush=True)
+            if args.baseline:
+                print(f"{bpm:5.0f} bpm without --sync: late frames {run(bpm, args.seconds, args.fps, sync=False).late}",
+                      flush=True)
     finally:
-        if server is not None:
-            server.terminate()
-            server.wait(10)
+        server.terminate()
+        server.wait(10)
 
 
 if __name__ == "__main__":

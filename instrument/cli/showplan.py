@@ -219,7 +219,9 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
     if args.replay and args.score:
         raise UserError(f"{origins.prefix('replay') or origins.prefix('score')}give --replay or --score, not both")
     with origins.blame("replay"):
-        replay = (LogReplay(read_log(args.replay, warn=lambda m: console.warn("log cut", m)), loop=args.loop)
+        # a log's beat lock (its `tempo` events) plays back, unless a live tempo source locks the steps anew
+        replay = (LogReplay([e for e in read_log(args.replay, warn=lambda m: console.warn("log cut", m))
+                             if not (args.sync and e.source.kind == "tempo")], loop=args.loop)
                   if args.replay else None)
         missing = unreadable_sources(replay.events, mappings) if replay else []
         if missing:

@@ -20,7 +20,10 @@ from typing import TYPE_CHECKING, Callable, Protocol
 
 from .events import RawEvent, Source, TargetEvent
 from .mapping import Mapper, Mapping
+from .spec import TABLE
 from .targets import raw_problem
+
+SPEED_RANGE = (TABLE["speed"].low, TABLE["speed"].high)  # what the lock may set, as the performer
 
 if TYPE_CHECKING:  # (the hub and the state pull in numpy and the synthesis: not needed to read a mapping)
     from .hub import ControlHub
@@ -102,6 +105,25 @@ class MappedDecoder:
         return None
 
 
+class TempoDecoder:
+    """The beat lock's decisions (runtime/tempo.py), events of source `tempo`: `speed/K` is the
+    speed the lock set for character K at one of its footfalls. They are events like a device's
+    so a `--record` log keeps them and `run --replay` plays the synced performance exactly."""
+
+    def __init__(self, mapping: None, hub: ControlHub):
+        pass
+
+    def apply(self, state: ControlState, event: RawEvent) -> str | None:
+        kind, _, character = event.control.partition("/")
+        if kind != "speed" or not character.isdigit():
+            return "unknown target"
+        low, high = SPEED_RANGE
+        if not low <= event.value <= high:
+            return "out of range"
+        state.lock_speeds[int(character)] = float(event.value)
+        return None
+
+
 REGISTRY: dict[str, DeviceKind] = {}
 DIRECT = DeviceKind("direct", "direct", DirectDecoder)  # any kind not registered
 
@@ -144,5 +166,6 @@ def _hid_fits(mapping: Mapping, name: str) -> int:
 
 register(DeviceKind("midi", "MIDI", MappedDecoder, lambda m: m.midi is not None, midi_fits))
 register(DeviceKind("hid", "HID", MappedDecoder, lambda m: m.hid is not None or bool(m.hid_usages), _hid_fits))
+register(DeviceKind("tempo", "tempo", TempoDecoder))
 for _direct in ("osc", "console", "score"):  # named, so that docs and messages can list them
     register(DeviceKind(_direct, _direct, DirectDecoder))

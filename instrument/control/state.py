@@ -29,6 +29,9 @@ class ControlState:
         names = spec.names(self.style_names, states)
         self.value_targets = [t for t in names if not spec.TABLE[t.split("/")[0]].action]  # in the rows' order
         self.echoed_targets = [t for t in names if spec.TABLE[t.split("/")[0]].echoed]
+        # the speed the beat lock set for each character (runtime/tempo.py), as its `tempo` events
+        # said (control/kinds.py): not the performer's, so a reset keeps it
+        self.lock_speeds: dict[int, float] = {}
         self.reset()
 
     def reset(self) -> None:

@@ -24,9 +24,12 @@ START_BPM = 120.0  # the tempo a session begun by the instrument starts at
 
 
 class LinkTempo:
-    """The Link session's tempo and beats, read from an app session state capture each time."""
+    """The Link session's tempo and beats, read from an app session state capture each time.
 
-    running = True  # a Link timeline never stops: start/stop is a peer's transport, not the beat
+    Start/stop sync is on: the session's transport (any peer's play and stop) is `running`, so
+    a stopped session keeps the walk at its last speed and a start locks it again. A session
+    whose transport has never played (peers that do not share start/stop) is followed by its
+    timeline, which never stops."""
 
     def __init__(self, bpm: float = START_BPM):
         try:
@@ -35,7 +38,16 @@ class LinkTempo:
             raise UserError("--sync link needs Ableton Link: pip install 'instrument[link]' "
                             "(LinkPython-extern, GPL: see docs/tempo.md)") from None
         self.link = link.Link(bpm)
+        self.link.startStopSyncEnabled = True
         self.link.enabled = True
+        self.played = False  # the session's transport has played since we joined
+
+    @property
+    def running(self) -> bool:
+        """The session plays (or its transport never has: its timeline is followed)."""
+        playing = self.link.captureAppSessionState().isPlaying()
+        self.played = self.played or playing
+        return playing or not self.played
 
     def period(self) -> float:
         return 60.0 / self.link.captureAppSessionState().tempo()

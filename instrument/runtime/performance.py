@@ -11,7 +11,7 @@ from __future__ import annotations
 import gc
 import time
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Protocol
 
 import numpy as np
@@ -29,7 +29,7 @@ from ..synthesis.stream import gait_index
 from .clock import IDLE_UNTIL, FrameClock
 from ..terminal import Console
 from .stopping import StopFlag
-from .tempo import BeatLock, snap_ratio, step_seconds
+from .tempo import BeatLock, locked_speed, snap_ratio, step_seconds
 
 STATUS_EVERY = 0.5  # seconds of wall time
 LEAD_MARGIN = 0.0005  # seconds added to the expected work of a frame when waking before its deadline
@@ -138,7 +138,7 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
     clock = FrameClock(fps, realtime=not show.fast)
     feet = Footfalls(engine.poses)
     beat_lock = show.beat_lock
-    landed_at: float | None = None  # when character 0's foot landed in the frame before (the beat lock's cue)
+    landed: dict[int, float] = {}  # when each character's foot landed in the frame before (the beat lock's cue)
     for output in outputs:
         if hasattr(output, "watch"):  # an output that shows late frames (the console)
             output.watch(clock)
@@ -190,9 +190,15 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             take_live(now)  # what came since the last look, while the loop waited
             state.advance(now)
             controls = state.snapshot()
-            if beat_lock is not None and state.sync > 0:
-                controls = beat_lock.controls(controls, lambda: step_seconds(engine, controls), landed_at,
-                                              snap_ratio(state.steps_per_beat))
+            synced = state.sync >= 0.5  # the `sync` control's on (its nearest choice)
+            if beat_lock is not None and synced:  # its decisions are events: recorded, replayed
+                for event in beat_lock.decide(now, controls.speed, lambda k: step_seconds(engine, controls, k), landed,
+                                              state.lock_speeds, show.characters, snap_ratio(state.steps_per_beat)):
+                    guarded_apply(event)
+            if not synced:
+                state.lock_speeds.clear()  # turned on again, the lock starts afresh
+            elif state.lock_speeds:  # the lock's (live, or a replayed log's)
+                controls = replace(controls, speed=locked_speed(state.lock_speeds, controls.speed, show.characters))
             crowd = engine.frame(now, controls, state.spread)
             if GAITS[controls.gait] in engine.units.missing:  # said, not refused: the walk goes on
                 console.warn(f"gait {GAITS[controls.gait]}", f"gait {GAITS[controls.gait]}: this model has no "
@@ -203,7 +209,7 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
                                  f"({'it has ' + ', '.join(engine.gestures.names) if engine.gestures.names else 'none'}); "
                                  "the walk goes on")
             footfalls = feet.after(crowd)
-            landed_at = next((clock.deadline(index) for f in footfalls if f.character == 0 and index > 0), None)
+            landed = {f.character: clock.deadline(index) for f in footfalls if index > 0}
             frame = Frame(index, now, crowd, all_values(state), state.echo(), footfalls)
             prepared = [_attempt(console, summary, output, output.prepare, frame) for output in outputs]
             if index > 0:

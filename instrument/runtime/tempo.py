@@ -3,29 +3,33 @@
 `TempoFollower` turns MIDI clock (24 ticks per quarter note; start, stop, continue and song
 position) with the arrival time of each tick into a smoothed beat period and phase: a straight
 line fitted to the last beat of ticks (a real clock over JACK or USB jitters by a millisecond or
-more, the fit averages it out; one beat of ticks follows a tempo change within a beat).
+more, the fit averages it out; one beat of ticks follows a tempo change within a beat). Each
+tick is numbered by its nearest place on that line, not counted, so a tick lost on the way does
+not slip the beat.
 `LinkTempo` (runtime/link.py) answers the same questions from an Ableton Link session.
 
 `BeatLock` makes the walk step on those beats. It chooses a whole ratio of steps per beat (2, 1
 or 1/2) nearest the style's own cadence at the performer's speed, or the one the performer
-forces (`steps-per-beat`), and sets the speed of the walk (so the durations stage stretches
+forces (`steps-per-beat`), and sets each character's speed (so the durations stage stretches
 the HSMM state durations as `speed` does, and a style keeps its rhythm within the step) once
-per footfall of character 0: the step period the ratio asks for, less the footfall's distance
-from the nearest beat of that grid, so the next footfall lands on it (the whole error corrected
-in one step, within MAX_CORRECTION of the period, so a lock never stumbles). The speed changes
-only at footfalls, so the engine retunes once a step, not every frame. When the clock stops, the
-last speed stays (no jump); when it starts, the next two footfalls bring the lock in.
+per footfall of that character: the step period the ratio asks for, less the footfall's
+distance from the nearest beat of that grid, so the next footfall lands on it (the whole error
+corrected in one step, within MAX_CORRECTION of the period, so a lock never stumbles). The
+speed changes only at footfalls, so the engine retunes once a step of each character. When the
+clock stops, the last speed stays (no jump); when it starts, the next two footfalls bring the
+lock in. The lock's decisions are control events (`TEMPO`), so a recorded show replays exactly.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Callable, Protocol
 
 import numpy as np
 
+from ..control.events import RawEvent, Source
 from ..synthesis.durations import state_durations
 from ..synthesis.engine import Engine
 from ..synthesis.parameters import MAX_SPEED, MIN_SPEED
@@ -38,8 +42,8 @@ MIN_TICKS = 6  # before this many ticks since a start there is no tempo yet (a q
 RATIOS = (0.5, 1.0, 2.0)  # steps per beat the lock chooses from
 SWITCH_MARGIN = 1.15  # another ratio must fit the style's cadence this much better to be chosen instead
 MAX_CORRECTION = 0.3  # of the step period: the most one step is lengthened or shortened to reach the beat
-LOST_AFTER = 0.75  # ticks a tick may come later than the fitted line expects before ticks count as lost
-CLEAN_TICKS = 0.15  # RMS jitter (ticks) under which a late tick is told apart from a lost one
+SKIPS_IN_A_ROW = 3  # ticks in a row each numbered past the count: a slower tempo, not lost ticks
+AHEAD = 0.3  # ticks: a tick this near the place after the count's, or past it, is numbered by its place
 MIN_BPM, MAX_BPM = 20.0, 400.0  # a fitted tempo outside these is a broken clock, not music
 
 
@@ -67,7 +71,7 @@ class TempoFollower:
         # sends its clock) count: the tempo is right at once, the beat from the first tick seen
         self.running = True
         self._fit: tuple[float, float] | None = None  # time = a + b * tick
-        self._jitter = np.inf  # RMS distance of the ticks from the fitted line, in ticks
+        self._skipped = 0  # ticks in a row numbered past the count (ticks were lost)
         self._stale = False  # ticks came since the line was fitted (fitted when next asked: once a footfall)
         self.received = 0
 
@@ -77,40 +81,60 @@ class TempoFollower:
         self.received += 1
         if kind == "clock":
             if self.running:
-                self.position += self._lost(moment)
-                self.ticks.append((self.position, moment))
-                self.position += 1
+                number = self._number(moment)
+                self.ticks.append((number, moment))
+                self.position = number + 1
                 self._stale = True
         elif kind == "start":  # the next tick is the song's first
             self.running, self.position = True, 0
             self.ticks.clear()
+            self._skipped = 0
         elif kind == "continue":  # from the song position; the line is fitted anew (the time jumped)
             self.running = True
             self.ticks.clear()
+            self._skipped = 0
         elif kind == "stop":
             self.running = False
         elif kind == "songpos":
             self.position = int(value) * TICKS_PER_SIXTEENTH
             self.ticks.clear()
+            self._skipped = 0
 
-    def _lost(self, moment: float) -> int:
-        """How many ticks went missing before one arriving at `moment`: a tick later than the
-        fitted line expects the next by more than LOST_AFTER ticks took the place of the ticks
-        skipped (over JACK a client that misses a cycle of a busy server loses that cycle's MIDI;
-        counted as if nothing was lost, the beat slipped by a tick each time). Only told apart
-        from jitter when the clock is steady (its ticks within CLEAN_TICKS of the line, RMS): over
-        a JACK server of long periods, whose cycles bunch the ticks, a late tick is just late."""
+    def _number(self, moment: float) -> int:
+        """The number of a tick arriving at `moment`: its nearest place on the fitted line, so a
+        tick lost on the way (over JACK a client that misses a cycle of a busy server loses that
+        cycle's MIDI) does not slip the beat; counted on (the last tick's number plus one) where
+        the place is no further ahead than a tick's jitter.
+
+        A place at least 1 - AHEAD past the count skips the ticks lost. Right after a skip, a
+        tick nearer the skipped-to place than the next takes the skip back: the skipped one was
+        late (the two share a place, the line fit averages them). SKIPS_IN_A_ROW skips are no
+        losses but a slower tempo: the line starts anew from the count (a faster tempo never
+        skips, its ticks come early, and is simply counted)."""
+        counted = self.position
         if len(self.ticks) < MIN_TICKS:
-            return 0
+            return counted
         self._refit()
-        if self._fit is None or self._jitter > CLEAN_TICKS:
-            return 0
+        if self._fit is None:
+            return counted
         a, b = self._fit
-        ahead = (moment - a) / b - self.position
-        if abs(ahead) <= LOST_AFTER:
-            return 0
-        # a tick a cycle late, counted as a loss, is followed by one that seems early: taken back
-        return max(int(round(ahead)), self.ticks[-1][0] + 1 - self.position)
+        place = (moment - a) / b
+        skipped, self._skipped = self._skipped, 0
+        if skipped and place < counted - 0.5:
+            return counted - 1
+        if place < counted + 1 - AHEAD:
+            return counted
+        if skipped + 1 >= SKIPS_IN_A_ROW:  # the tempo slowed down: fit it from the count
+            self._restart(keep=2)
+            return counted
+        self._skipped = skipped + 1
+        return max(int(round(place)), counted + 1)
+
+    def _restart(self, keep: int) -> None:
+        """Forget all but the newest `keep` ticks (their tempo kept until MIN_TICKS come)."""
+        while len(self.ticks) > keep:
+            self.ticks.popleft()
+        self._stale = True
 
     def _refit(self) -> None:
         if not self._stale:
@@ -125,8 +149,6 @@ class TempoFollower:
         x, y = tick - tick.mean(), moment - moment.mean()
         slope = float(x @ y / (x @ x)) if x @ x > 0 else 0.0
         intercept = float(moment.mean() - slope * tick.mean())
-        if slope > 0:
-            self._jitter = float(np.sqrt(np.mean((moment - intercept - slope * tick) ** 2))) / slope
         if len(self.ticks) < MIN_TICKS:  # a restart: keep the last tempo, move the phase to the newest tick
             slope = self._fit[1]
             intercept = moment[-1]
@@ -167,27 +189,57 @@ class LockReport:
     offset: float | None = None  # seconds from the last footfall to its nearest grid beat (+ late)
 
 
+TEMPO = Source.of("tempo")  # the source of the lock's events (control/kinds.py reads them back)
+
+
 class BeatLock:
-    """Sets the walk's speed so character 0's footfalls land on the beats of `tempo`."""
+    """Sets each character's speed so its footfalls land on the beats of `tempo`.
+
+    Its decisions are events (`tempo` `speed/K`), applied through the hub like a device's: a
+    `--record` log keeps them, and a replay of the log plays them back without a tempo source,
+    so the synced performance is replayed exactly (control/kinds.py `TempoDecoder`)."""
 
     def __init__(self, tempo: Tempo):
         self.tempo = tempo
         self.report = LockReport()
-        self._speed: float | None = None  # the speed set at the last footfall (kept while the clock is stopped)
+        self._held: float | None = None  # the step period set last while the music played (kept while it is stopped)
 
-    def controls(self, controls: Controls, step_seconds_at_1: Callable[[], float], landed_at: float | None,
-                 steps_per_beat: float = 0.0) -> Controls:
-        """The controls the engine walks with: the performer's, with the speed the lock sets.
-        `step_seconds_at_1()`: a step's length at speed 1 for the current style (asked only when
-        the speed is set); `landed_at`: when character 0's foot landed in the frame before
-        (`time.monotonic()`), or None; `steps_per_beat`: 0 for the lock's choice, else the ratio
-        forced (one of RATIOS)."""
+    def decide(self, now: float, performed: float, step_at_1: Callable[[int], float], landed: dict[int, float],
+               speeds: dict[int, float], characters: int = 1, steps_per_beat: float = 0.0) -> list[RawEvent]:
+        """This frame's `speed/K` events (performance time `now`): for each character K whose foot
+        landed in the frame before (at `landed[K]`, `time.monotonic()`), and each that has no
+        speed yet (`speeds`, the state's lock_speeds). `performed`: the performer's speed;
+        `step_at_1(K)`: a step's length at speed 1 of character K (asked only for those);
+        `steps_per_beat`: 0 for the lock's choice, else the ratio forced (one of RATIOS).
+
+        The ratio is chosen for character 0 (the performance) and the crowd walks it: every
+        character's footfalls on the same grid of beats, each with its own foot and its own
+        style's rhythm within the step (docs/tempo.md)."""
         beat = self.tempo.period()
-        if beat is None:  # no tempo yet: the performer's speed
-            return controls
-        if self._speed is None or landed_at is not None:
-            self._speed = self._next_speed(controls.speed, step_seconds_at_1(), beat, landed_at, steps_per_beat)
-        return replace(controls, speed=self._speed)
+        due = [k for k in range(characters) if k in landed or k not in speeds]
+        if beat is None or not due:  # no tempo yet: the performer's speed
+            return []
+        running = self.tempo.running
+        if running or self._held is None:
+            ratio = steps_per_beat if steps_per_beat > 0 else choose_ratio(step_at_1(0) / performed, beat, self.report.ratio)
+            self.report.ratio = ratio
+            self._held = period = beat / ratio
+        else:  # stopped: the step period played last, without a correction (a Link tempo changed meanwhile waits)
+            period = self._held
+        events = []
+        for k in due:
+            target = period
+            if k in landed and running:
+                position = self.tempo.beat_at(landed[k]) * ratio  # in steps of the grid
+                offset = (position - round(position)) * period  # + late
+                target = period - max(-MAX_CORRECTION * period, min(MAX_CORRECTION * period, offset))
+                if k == 0:
+                    self.report.offset = offset
+            speed = float(np.clip(step_at_1(k) / target, MIN_SPEED, MAX_SPEED))
+            if k == 0:
+                self.report.speed = speed
+            events.append(RawEvent(now, TEMPO, f"speed/{k}", speed))
+        return events
 
     def describe(self) -> str:
         """For the status line: the tempo, the steps per beat chosen and the last footfall's offset."""
@@ -201,23 +253,17 @@ class BeatLock:
             text += f", footfall {1000.0 * report.offset:+.0f} ms"
         return text
 
-    def _next_speed(self, performed: float, step_at_1: float, beat: float, landed_at: float | None,
-                    forced: float) -> float:
-        ratio = forced if forced > 0 else choose_ratio(step_at_1 / performed, beat, self.report.ratio)
-        period = beat / ratio
-        target = period
-        self.report.ratio = ratio
-        if landed_at is not None and self.tempo.running:
-            position = self.tempo.beat_at(landed_at) * ratio  # in steps of the grid
-            offset = (position - round(position)) * period  # + late
-            self.report.offset = offset
-            target = period - max(-MAX_CORRECTION * period, min(MAX_CORRECTION * period, offset))
-        self.report.speed = float(np.clip(step_at_1 / target, MIN_SPEED, MAX_SPEED))
-        return self.report.speed
+
+def locked_speed(speeds: dict[int, float], performed: float, characters: int) -> float | np.ndarray:
+    """The speed the engine walks with under the lock: character 0's for one character, else
+    one a character (the performer's for a character the lock has not set yet)."""
+    if characters == 1:
+        return speeds.get(0, performed)
+    return np.array([speeds.get(k, performed) for k in range(characters)])
 
 
-def step_seconds(engine: Engine, controls: Controls) -> float:
-    """Seconds a step of character 0 takes at speed 1 with these controls' style and phase
+def step_seconds(engine: Engine, controls: Controls, character: int = 0) -> float:
+    """Seconds a step of `character` takes at speed 1 with these controls' style and phase
     stretch (its duration pdfs through the durations stage's formula), the mean of its current
     unit's two labels (a run's steps are shorter than a walk's).
     The pdfs do not move with the speed: those of the last retune serve (the style of the frame
@@ -225,9 +271,9 @@ def step_seconds(engine: Engine, controls: Controls) -> float:
     interpolation = engine.features[0]
     if interpolation.duration_means is None:  # before the first frame
         engine.retune(controls)
-    frames = state_durations(interpolation.duration_means[0], interpolation.duration_variances[0], 1.0,
+    frames = state_durations(interpolation.duration_means[character], interpolation.duration_variances[character], 1.0,
                              controls.state_scale)
-    unit = int(engine.stream.counters[0, LABEL]) // 2
+    unit = int(engine.stream.counters[character, LABEL]) // 2
     return float(frames.sum(axis=-1)[2 * unit:2 * unit + 2].mean()) / engine.model.fps
 
 

@@ -15,7 +15,7 @@ MIN_FRAMES = 1.0
 def state_durations(
     means: np.ndarray,
     variances: np.ndarray,
-    speed: float = 1.0,
+    speed: float | np.ndarray = 1.0,
     state_scale: np.ndarray | None = None,
     deviation: np.ndarray | None = None,
 ) -> np.ndarray:
@@ -31,7 +31,7 @@ def state_durations(
     if deviation is not None:
         means = means + deviation * np.sqrt(variances)
     means = np.maximum(means, MIN_FRAMES)
-    speed = float(np.clip(speed, MIN_SPEED, MAX_SPEED))
+    speed = np.clip(speed, MIN_SPEED, MAX_SPEED)  # a number, or an array that broadcasts (a speed a character)
     total = means.sum(axis=-1, keepdims=True)
     rho = (total / speed - total) / variances.sum(axis=-1, keepdims=True)
     durations = means + rho * variances

@@ -87,7 +87,7 @@ class Controls:
 
     weights: np.ndarray  # (styles,): 0 absent, 1 the style, >1 exaggerated, <0 inverted
     part_weights: np.ndarray | None = None  # (styles, groups); NaN follows `weights`
-    speed: float = 1.0  # step rate relative to the model's, clamped to [0.25, 4]
+    speed: float | np.ndarray = 1.0  # step rate relative to the model's, clamped to [0.25, 4]; (N,): each character's (the beat lock's)
     state_scale: np.ndarray | None = None  # (states,): stretch single phases of the step
     liveliness: float = 0.0  # 0: mean durations; 1: durations drawn from the pdfs
     turn: float = 0.0  # steering, radians per second: turning steps where the model has them, else added yaw
@@ -98,7 +98,8 @@ class Controls:
         """What lambda* and the durations depend on (the turn, the gait and the gestures do not: they choose labels)."""
         parts = None if self.part_weights is None else np.asarray(self.part_weights, dtype=np.float64).tobytes()
         scale = None if self.state_scale is None else np.asarray(self.state_scale, dtype=np.float64).tobytes()
-        return (np.asarray(self.weights, dtype=np.float64).tobytes(), parts, float(self.speed), scale, float(self.liveliness))
+        return (np.asarray(self.weights, dtype=np.float64).tobytes(), parts, np.asarray(self.speed, dtype=np.float64).tobytes(), scale,
+                float(self.liveliness))
 
 
 def gait_index(value: float) -> int:
@@ -175,13 +176,15 @@ class Crowd:
                 carry = whole_frames(self.base[n, label, state], carry)[1]
             self.carry[n, label] = carry
 
-    def tune(self, duration_means: np.ndarray, duration_variances: np.ndarray, speed: float,
+    def tune(self, duration_means: np.ndarray, duration_variances: np.ndarray, speed: float | np.ndarray,
              state_scale: np.ndarray | None, liveliness: float) -> None:
         """The engine's durations stage: every character's frames per state (N, labels, states)
         from its duration pdfs and the performed speed, phase stretch and liveliness, and the
         cadence that scales its root speeds. (Its lambda* tables, `tables`, are set by the
         interpolation stage.)"""
         scale = np.ones(self.space.states) if state_scale is None else np.asarray(state_scale, dtype=np.float64)
+        if np.ndim(speed):  # one speed a character (the beat lock's: runtime/tempo.py)
+            speed = np.asarray(speed, dtype=np.float64)[:, None, None]
         self.base[:] = state_durations(duration_means, duration_variances, speed, scale)
         self.sigma[:] = liveliness * np.sqrt(duration_variances) * scale
         self.cadence[:] = np.maximum(duration_means, MIN_FRAMES).sum(axis=(1, 2)) / self.base.sum(axis=(1, 2))
