@@ -32,7 +32,10 @@ frame at a time, on the pose the features give:
   left the hip's range up to 19% wider than the takes';
 - no foot joint goes below its clearance, planted or not, and a swinging foot keeps up to
   SWING_CM above it (all of it on a bent knee, none on a straight one reaching to land);
-- a released foot rises as generated (only the horizontal pull blends out);
+- a released foot rises as generated (only the horizontal pull blends out), but for a
+  hand-over: while the other foot is planted with its lowest point not yet down (a heel
+  landing, its toes up), the released foot's lowest joint leaves the floor only as its lock
+  blends out, so one foot or the other is always on it;
 - a walk always has a foot on the floor: when no state plants either, the likelier one is; a run
   has flight: a state where lambda 0 plants neither foot (`ContactSpace.flight`) plants a foot
   only where its share reaches PLANTED, so the lock never pulls a foot down in mid-flight (doing
