@@ -216,7 +216,8 @@ class FootLock:
                     world_pos[j] = ankle + yaw @ (world_pos[j] - ankle)
                 rotations[leg.ankle] = world_rot[leg.knee].T @ world_rot[leg.ankle]
         for f, leg in enumerate(self.limbs.legs):  # alone on the floor, a planted foot is pitched flat about its ankle
-            share = EASE(self.weight[f]) * (1.0 - EASE(self.weight[1 - f]))
+            # (a released other foot, its lock still blending out, does not keep it from standing flat)
+            share = EASE(self.weight[f]) * (1.0 - (EASE(self.weight[1 - f]) if planted[1 - f] else 0.0))
             toes = world_pos[leg.pivot] - world_pos[leg.ankle]
             ground = self.ground[f]
             up = toes[1] - (ground[list(leg.foot).index(leg.pivot)] - ground[list(leg.foot).index(leg.ankle)])

@@ -2,7 +2,8 @@
 read back by an independent BVH reader: a foot is off the floor when its lowest point (ankle or
 toe joint, whichever is lower in that frame) is more than 3 cm above the height that point has
 when a foot stands in the takes. Before the lock kept the trailing foot's toes down while the
-landing foot's were still up (footlock.lock_target's hand-over), youthful x2 had both feet up
+landing foot's were still up (footlock.lock_target's hand-over) and laid the landing foot flat
+as its own lock came in (not only as the trailing foot's blended out), youthful x2 had both feet up
 in 7.2% of its frames, feminine x2 5.8%, masculine x2 2.2%, feminine+youthful 2.8%, youthful
 and feminine at weight 1 3.1% (their takes: 0.3% and 0.5%).
 

@@ -415,8 +415,10 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         weights[f] = min(1.0, weights[f] + step) if planted[f] else max(0.0, weights[f] - step)
         if weights[f] > 0.0:
             hold_heading(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], headings[f], ease(weights[f]))
-    for f in range(2):  # alone on the floor, a planted foot stands flat
-        share = ease(weights[f]) * (1.0 - ease(weights[1 - f]))
+    for f in range(2):  # alone on the floor, a planted foot stands flat; a released other foot whose lock is
+        # still blending out does not keep it from doing so (it would hold the landing foot's toes up
+        # while the trailing foot's come off the floor: docs/evaluate.md, "Floating the stricter way")
+        share = ease(weights[f]) * (1.0 - (ease(weights[1 - f]) if planted[1 - f] else 0.0))
         if share > 0.0:
             lay_flat(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], ground[f, 0], ground[f, -1], share)
     extension = np.empty(2)  # each leg's generated hip-to-ankle distance, which the lock keeps where it can
