@@ -216,7 +216,8 @@ class FootLock:
                     world_pos[j] = ankle + yaw @ (world_pos[j] - ankle)
                 rotations[leg.ankle] = world_rot[leg.knee].T @ world_rot[leg.ankle]
         for f, leg in enumerate(self.limbs.legs):  # alone on the floor, a planted foot is pitched flat about its ankle
-            share = EASE(self.weight[f]) * (1.0 - EASE(self.weight[1 - f]))
+            # (a released other foot, its lock still blending out, does not keep it from standing flat)
+            share = EASE(self.weight[f]) * (1.0 - (EASE(self.weight[1 - f]) if planted[1 - f] else 0.0))
             toes = world_pos[leg.pivot] - world_pos[leg.ankle]
             ground = self.ground[f]
             up = toes[1] - (ground[list(leg.foot).index(leg.pivot)] - ground[list(leg.foot).index(leg.ankle)])
@@ -272,13 +273,15 @@ class FootLock:
             planted[int(np.argmax(shares))] = True
         return planted
 
-    def _target(self, f: int, leg, world_pos: np.ndarray, planted: bool) -> np.ndarray:
+    def _target(self, f: int, leg, world_pos: np.ndarray, planted: bool, handing_over: bool) -> np.ndarray:
         """Where the ankle should be: the lock blended in horizontally, the lowest foot joint on
-        the floor while planted, never below it, and a little above it while swinging."""
+        the floor while planted, never below it, and a little above it while swinging; a
+        released foot rises as generated, but while it hands over to the other (planted, its
+        lowest point not yet down) its lowest joint comes off the floor only as its lock blends out."""
         lift = np.min(world_pos[list(leg.foot), 1] - self.ground[f])
         target = world_pos[leg.ankle].copy()
         w = EASE(self.weight[f])
-        down = w * lift if planted else 0.0  # a released foot rises as generated
+        down = w * lift if planted or handing_over else 0.0
         if w > 0:
             pull = self.lock[f] - world_pos[self.pivot[f]]
             target[[0, 2]] += w * pull[[0, 2]]
@@ -294,7 +297,9 @@ class FootLock:
         heel still up from it."""
         targets, turns, self.next_rise = [], [], np.zeros(2)
         for f, leg in enumerate(self.limbs.legs):
-            target = self._target(f, leg, world_pos, planted[f])
+            other = self.limbs.legs[1 - f].foot
+            sole = np.min(world_pos[list(other), 1]) - np.min(self.ground[1 - f])  # the other foot's lowest point
+            target = self._target(f, leg, world_pos, planted[f], planted[1 - f] and sole >= CONTACT_CM / self.cm)
             turn = np.eye(3)
             if self.weight[f] > 0 or self.rise[f] > 0:  # after its lock, a heel comes down at the same pace
                 low = max(self.rise[f] - self.rise_step, 0.0)

@@ -17,8 +17,10 @@ frame at a time, on the pose the features give:
   that yaws in the generated walk swung its heel and toe tip about the lock);
 - while the other foot swings, a planted foot stands flat: one whose toes are up (an
   extrapolated style can stand on its heels through the whole stance) is pitched down about
-  its ankle, blended in as the other foot's lock blends out, so a heel strike keeps its
-  rolling landing and the swinging foot never passes below the planted one's toes;
+  its ankle, blended in with its own lock once the other foot is released (while both are
+  planted, not at all), so a heel strike keeps a rolling landing over BLEND_FRAMES frames and
+  the swinging foot never passes below the planted one's toes (blended in only as the other
+  foot's lock blended out, the landing toes stayed up while the trailing ones left the floor);
 - each leg is solved by analytic two-bone IK (law of cosines for the knee, bent about its own
   hinge; then the hip swings the leg), the foot keeping its generated world orientation, towards: the lock
   horizontally, its lowest joint on the floor vertically; the lock blends in and out over
@@ -32,7 +34,10 @@ frame at a time, on the pose the features give:
   left the hip's range up to 19% wider than the takes';
 - no foot joint goes below its clearance, planted or not, and a swinging foot keeps up to
   SWING_CM above it (all of it on a bent knee, none on a straight one reaching to land);
-- a released foot rises as generated (only the horizontal pull blends out);
+- a released foot rises as generated (only the horizontal pull blends out), but for a
+  hand-over: while the other foot is planted with its lowest point not yet down (a heel
+  landing, its toes up), the released foot's lowest joint leaves the floor only as its lock
+  blends out, so one foot or the other is always on it;
 - a walk always has a foot on the floor: when no state plants either, the likelier one is; a run
   has flight: a state where lambda 0 plants neither foot (`ContactSpace.flight`) plants a foot
   only where its share reaches PLANTED, so the lock never pulls a foot down in mid-flight (doing

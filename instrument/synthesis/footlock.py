@@ -137,6 +137,17 @@ def planted_feet(shares, world_pos, previous, feet, ground, fps, cm):  # pragma:
 
 
 @njit(cache=True, error_model="numpy")
+def _sole_lift(world_pos, foot, ground_f):  # pragma: no cover - compiled
+    """Height of the foot's lowest point above the lowest clearance of its joints (where its
+    sole stands): a heel down with the toes up is off the floor by this, not by `_lowest_lift`."""
+    low, floor = np.inf, np.inf
+    for k in range(foot.shape[0]):
+        low = min(low, world_pos[foot[k], 1])
+        floor = min(floor, ground_f[k])
+    return low - floor
+
+
+@njit(cache=True, error_model="numpy")
 def swing_share(world_pos, leg):  # pragma: no cover - compiled
     """How much of the swing lift a swinging foot keeps: all of it on a knee bent SWING_BENT or
     more (mid-swing, where an exaggerated style would drag it along the floor), none on a
@@ -149,15 +160,21 @@ def swing_share(world_pos, leg):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def lock_target(world_pos, leg, foot, ground_f, weight, point, planted, swing_lift):  # pragma: no cover - compiled
+def lock_target(world_pos, leg, foot, ground_f, weight, point, planted, handing_over,
+                swing_lift):  # pragma: no cover - compiled
     """Where the ankle (leg: hip, knee, ankle) should be: the lock blended in horizontally, the
-    lowest foot joint on the floor while planted (a released foot rises as generated: held
-    down, the knee would straighten at toe-off), never below it, and a little above it while
-    swinging on a bent knee."""
+    lowest foot joint on the floor while planted, never below it, and a little above it while
+    swinging on a bent knee. A released foot rises as generated (held down, the knee would
+    straighten at toe-off), but for a hand-over: while the other foot is planted with its
+    lowest point not yet down (a heel landing, its toes up), the released foot's lowest joint
+    comes off the floor only as its lock blends out, so one foot or the other is always on the
+    floor. Rising as generated there, the trailing foot's toes left the floor before the
+    landing foot's were down: both feet off the floor in up to 7% of the frames
+    (docs/evaluate.md, "Floating the stricter way")."""
     lift = _lowest_lift(world_pos, foot, ground_f)
     target = world_pos[leg[2]].copy()
     w = ease(weight)
-    down = w * lift if planted else 0.0
+    down = w * lift if planted or handing_over else 0.0
     if w > 0:
         pivot = world_pos[foot[-1]]
         target[0] += w * (point[0] - pivot[0])
@@ -398,8 +415,10 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         weights[f] = min(1.0, weights[f] + step) if planted[f] else max(0.0, weights[f] - step)
         if weights[f] > 0.0:
             hold_heading(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], headings[f], ease(weights[f]))
-    for f in range(2):  # alone on the floor, a planted foot stands flat
-        share = ease(weights[f]) * (1.0 - ease(weights[1 - f]))
+    for f in range(2):  # alone on the floor, a planted foot stands flat; a released other foot whose lock is
+        # still blending out does not keep it from doing so (it would hold the landing foot's toes up
+        # while the trailing foot's come off the floor: docs/evaluate.md, "Floating the stricter way")
+        share = ease(weights[f]) * (1.0 - (ease(weights[1 - f]) if planted[1 - f] else 0.0))
         if share > 0.0:
             lay_flat(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], ground[f, 0], ground[f, -1], share)
     extension = np.empty(2)  # each leg's generated hip-to-ankle distance, which the lock keeps where it can
@@ -516,7 +535,10 @@ def _targets(world_pos, joints, feet, ground, weights, points, planted, swing_li
     turns = np.empty((2, 3, 3))
     angles = np.zeros(2)
     for f in range(2):
-        targets[f] = lock_target(world_pos, joints[f], feet[f], ground[f], weights[f], points[f], planted[f], swing_lift)
+        # the other foot planted but its lowest point not yet down: this one hands over to it
+        handing_over = planted[1 - f] and _sole_lift(world_pos, feet[1 - f], ground[1 - f]) >= on_floor
+        targets[f] = lock_target(world_pos, joints[f], feet[f], ground[f], weights[f], points[f], planted[f],
+                                 handing_over, swing_lift)
         turns[f] = np.eye(3)
         if weights[f] > 0.0 or rises[f] > 0.0:
             clearance = np.array([ground[f, 0], ground[f, -1]])
