@@ -56,10 +56,9 @@ class FeatureLayout:
     root: int
     joints: tuple[int, ...]
     template: tuple[float, ...]  # one frame of channel values for everything not modelled
-    # the root's heading and tilt are read relative to `heading_reference`, turned by this much
-    # (radians) about the vertical so that the takes travel along +Z; None: models from before
-    # issue 30, which read them from the root's own axes
-    travel_yaw: float | None = None
+    # rotation vector of `heading_reference`; None: models from before issue 30, which read the
+    # root's heading and tilt from its own axes
+    root_reference: tuple[float, float, float] | None = None
 
     @cached_property
     def template_pose(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -84,9 +83,9 @@ class FeatureLayout:
 
     @cached_property
     def heading_reference(self) -> np.ndarray:
-        """(3, 3) the root's world rotation in the template frame with its heading taken out and
-        `travel_yaw` put in (identity for a layout without `travel_yaw`: older models read the
-        root's own axes).
+        """(3, 3) the root's mean world rotation over the takes with their heading taken out,
+        turned so that the takes travel along +Z (`root_reference`; identity without it: older
+        models read the root's own axes).
 
         The root's heading and tilt are read from its rotation relative to this, so they do not
         depend on how the rig orients the root's axes at rest, and the heading frame's +Z is
@@ -94,17 +93,12 @@ class FeatureLayout:
         rest put the direction of travel between the heading frame's axes, where the mirror
         symmetry of the step models (training/symmetry.py) took part of the forward speed for
         sideways and averaged it away: the same walks with the hips' rest turned by a fixed 40
-        degrees swung their hips 27% less and slid 4x as much (examples/other_rigs.py, set
-        rest-posed)."""
-        if self.travel_yaw is None:
+        degrees swung their hips 18-26% less and slid 1.8-3.8x as much (examples/other_rigs.py,
+        set rest-posed). A mean over the takes, not one frame's: the template frame's own lean
+        moved the steps' boundaries with the frame the take starts at."""
+        if self.root_reference is None:
             return np.eye(3)
-        return axis_angle_matrix("y", np.array([-self.travel_yaw]))[0] @ self._untwisted_root()
-
-    def _untwisted_root(self) -> np.ndarray:
-        """The root's world rotation in the template frame without its twist about the vertical."""
-        rotations, _, parent_rot, _ = self.template_pose
-        world = parent_rot @ rotations[self.root]
-        return axis_angle_matrix("y", heading_angle(world[None]))[0].T @ world
+        return expmap_to_matrix(np.asarray(self.root_reference, dtype=np.float64))
 
     @property
     def dimension(self) -> int:
@@ -125,14 +119,14 @@ class FeatureLayout:
             "template": list(self.template),
             "names": self.names,
             "up_axis": "Y",
-            "travel_yaw": self.travel_yaw,
+            "root_reference": None if self.root_reference is None else list(self.root_reference),
         }
 
     @classmethod
     def from_dict(cls, skeleton: Skeleton, data: dict) -> "FeatureLayout":
         index = {n: i for i, n in enumerate(skeleton.names)}
         return cls(skeleton, index[data["root"]], tuple(index[n] for n in data["joints"]), tuple(data["template"]),
-                   data.get("travel_yaw"))
+                   None if data.get("root_reference") is None else tuple(float(v) for v in data["root_reference"]))
 
 
 def choose_layout(motions: list[Motion]) -> FeatureLayout:
@@ -158,19 +152,30 @@ def choose_layout(motions: list[Motion]) -> FeatureLayout:
                         f"{skeleton.names[joints[0]]!r} below it does: the walk's heading is read from the joint "
                         "that moves, so export the takes with one joint carrying both (the hips as the root)")
     layout = FeatureLayout(skeleton, root, joints, tuple(float(v) for v in motions[0].channels[0]))
-    return replace(layout, travel_yaw=_travel_yaw(motions, layout))
+    return replace(layout, root_reference=_root_reference(motions, root))
 
 
-def _travel_yaw(motions: list[Motion], layout: FeatureLayout) -> float:
-    """Where the takes travel in the frame of the root's untwisted template rotation: the angle
-    from +Z towards +X of the root's mean horizontal velocity there (0 for takes that stay put)."""
-    untwisted = layout._untwisted_root()
-    total = np.zeros(3)
+def _root_reference(motions: list[Motion], root: int) -> tuple[float, float, float]:
+    """`FeatureLayout.heading_reference` of takes, as a rotation vector: the mean of the root's
+    world rotation in its heading frame (the heading read relative to the previous guess, from
+    the first frame's rotation without its twist on), turned about the vertical so that the
+    mean velocity in the heading frame points along +Z (not turned for takes that stay put)."""
+    turns, steps = [], []
     for motion in motions:
         world_rot, world_pos = forward_kinematics(motion.skeleton, *local_transforms(motion))
-        heading = axis_angle_matrix("y", heading_angle(world_rot[:, layout.root], untwisted))
-        total += np.einsum("tji,tj->i", heading[:-1], np.diff(world_pos[:, layout.root], axis=0))
-    return float(np.arctan2(total[0], total[2])) if np.hypot(total[0], total[2]) > 1e-9 else 0.0
+        turns.append(world_rot[:, root])
+        steps.append(np.diff(world_pos[:, root], axis=0))
+    first = turns[0][0]
+    reference = axis_angle_matrix("y", heading_angle(first[None]))[0].T @ first
+    for _ in range(2):
+        headings = [axis_angle_matrix("y", heading_angle(r, reference)) for r in turns]
+        u, _, vt = np.linalg.svd(sum(np.einsum("tji,tjk->ik", h, r) for h, r in zip(headings, turns)))
+        reference = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt  # the nearest rotation to the mean
+    headings = [axis_angle_matrix("y", heading_angle(r, reference)) for r in turns]
+    travel = sum(np.einsum("tji,tj->i", h[:-1], d) for h, d in zip(headings, steps))
+    if np.hypot(travel[0], travel[2]) > 1e-9:
+        reference = axis_angle_matrix("y", np.array([-np.arctan2(travel[0], travel[2])]))[0] @ reference
+    return tuple(float(v) for v in matrix_to_expmap(reference))
 
 
 def _descendants(skeleton: Skeleton, joint: int) -> list[int]:
