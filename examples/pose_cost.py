@@ -50,7 +50,7 @@ def restore_numpy(static: np.ndarray, layout: FeatureLayout, fps: float, positio
     template_rot, template_trans, parent_rot, parent_pos = layout.template_pose
     rotations = np.broadcast_to(template_rot, (count,) + template_rot.shape).copy()
     translations = np.broadcast_to(template_trans, (count,) + template_trans.shape).copy()
-    rotations[:, layout.root] = parent_rot.T @ (heading @ matrices[:, 0])
+    rotations[:, layout.root] = parent_rot.T @ (heading @ matrices[:, 0] @ layout.heading_reference)
     root_pos = positions.copy()
     root_pos[:, 1] = static[:, 0]
     translations[:, layout.root] = (root_pos - parent_pos) @ parent_rot

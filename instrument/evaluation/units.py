@@ -232,7 +232,7 @@ class _Measure:
         a steady turn has both the same), and `radius_cm`, the speed over the mean rate."""
         figures = self.moving(motion, positions)
         world_rot = forward_kinematics(motion.skeleton, *local_transforms(motion))[0]
-        yaw = np.degrees(heading_angle(world_rot[:, self.layout.root]))
+        yaw = np.degrees(heading_angle(world_rot[:, self.layout.root], self.layout.heading_reference))
         steps = segment_steps(motion, self.layout).steps
         rate = peak = float("nan")
         if steps and steps[-1].end - 1 > steps[0].start:

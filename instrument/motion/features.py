@@ -17,7 +17,7 @@ they and everything else not modelled hold come from a template frame.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -56,6 +56,9 @@ class FeatureLayout:
     root: int
     joints: tuple[int, ...]
     template: tuple[float, ...]  # one frame of channel values for everything not modelled
+    # rotation vector of `heading_reference`; None: models from before issue 30, which read the
+    # root's heading and tilt from its own axes
+    root_reference: tuple[float, float, float] | None = None
 
     @cached_property
     def template_pose(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -78,6 +81,25 @@ class FeatureLayout:
         """
         return self.template_pose[0][list(self.joints)]
 
+    @cached_property
+    def heading_reference(self) -> np.ndarray:
+        """(3, 3) the root's mean world rotation over the takes with their heading taken out,
+        turned so that the takes travel along +Z (`root_reference`; identity without it: older
+        models read the root's own axes).
+
+        The root's heading and tilt are read from its rotation relative to this, so they do not
+        depend on how the rig orients the root's axes at rest, and the heading frame's +Z is
+        where the takes travel. Read from the root's own axes, a rig whose hips are turned at
+        rest put the direction of travel between the heading frame's axes, where the mirror
+        symmetry of the step models (training/symmetry.py) took part of the forward speed for
+        sideways and averaged it away: the same walks with the hips' rest turned by a fixed 40
+        degrees swung their hips 18-26% less and slid 1.8-3.8x as much (examples/other_rigs.py,
+        set rest-posed). A mean over the takes, not one frame's: the template frame's own lean
+        moved the steps' boundaries with the frame the take starts at."""
+        if self.root_reference is None:
+            return np.eye(3)
+        return expmap_to_matrix(np.asarray(self.root_reference, dtype=np.float64))
+
     @property
     def dimension(self) -> int:
         return len(ROOT_FEATURES) + 3 * len(self.joints)
@@ -97,12 +119,14 @@ class FeatureLayout:
             "template": list(self.template),
             "names": self.names,
             "up_axis": "Y",
+            "root_reference": None if self.root_reference is None else list(self.root_reference),
         }
 
     @classmethod
     def from_dict(cls, skeleton: Skeleton, data: dict) -> "FeatureLayout":
         index = {n: i for i, n in enumerate(skeleton.names)}
-        return cls(skeleton, index[data["root"]], tuple(index[n] for n in data["joints"]), tuple(data["template"]))
+        return cls(skeleton, index[data["root"]], tuple(index[n] for n in data["joints"]), tuple(data["template"]),
+                   None if data.get("root_reference") is None else tuple(float(v) for v in data["root_reference"]))
 
 
 def choose_layout(motions: list[Motion]) -> FeatureLayout:
@@ -127,7 +151,31 @@ def choose_layout(motions: list[Motion]) -> FeatureLayout:
         raise UserError(f"joint {skeleton.names[root]!r} carries the body's position but never turns, while "
                         f"{skeleton.names[joints[0]]!r} below it does: the walk's heading is read from the joint "
                         "that moves, so export the takes with one joint carrying both (the hips as the root)")
-    return FeatureLayout(skeleton, root, joints, tuple(float(v) for v in motions[0].channels[0]))
+    layout = FeatureLayout(skeleton, root, joints, tuple(float(v) for v in motions[0].channels[0]))
+    return replace(layout, root_reference=_root_reference(motions, root))
+
+
+def _root_reference(motions: list[Motion], root: int) -> tuple[float, float, float]:
+    """`FeatureLayout.heading_reference` of takes, as a rotation vector: the mean of the root's
+    world rotation in its heading frame (the heading read relative to the previous guess, from
+    the first frame's rotation without its twist on), turned about the vertical so that the
+    mean velocity in the heading frame points along +Z (not turned for takes that stay put)."""
+    turns, steps = [], []
+    for motion in motions:
+        world_rot, world_pos = forward_kinematics(motion.skeleton, *local_transforms(motion))
+        turns.append(world_rot[:, root])
+        steps.append(np.diff(world_pos[:, root], axis=0))
+    first = turns[0][0]
+    reference = axis_angle_matrix("y", heading_angle(first[None]))[0].T @ first
+    for _ in range(2):
+        headings = [axis_angle_matrix("y", heading_angle(r, reference)) for r in turns]
+        u, _, vt = np.linalg.svd(sum(np.einsum("tji,tjk->ik", h, r) for h, r in zip(headings, turns)))
+        reference = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt  # the nearest rotation to the mean
+    headings = [axis_angle_matrix("y", heading_angle(r, reference)) for r in turns]
+    travel = sum(np.einsum("tji,tj->i", h[:-1], d) for h, d in zip(headings, steps))
+    if np.hypot(travel[0], travel[2]) > 1e-9:
+        reference = axis_angle_matrix("y", np.array([-np.arctan2(travel[0], travel[2])]))[0] @ reference
+    return tuple(float(v) for v in matrix_to_expmap(reference))
 
 
 def _descendants(skeleton: Skeleton, joint: int) -> list[int]:
@@ -141,8 +189,11 @@ def _descendants(skeleton: Skeleton, joint: int) -> list[int]:
     return out
 
 
-def heading_angle(world_rotation: np.ndarray) -> np.ndarray:
-    """Unwrapped yaw (radians) of rotations (T, 3, 3): the twist about Y in a swing-twist split."""
+def heading_angle(world_rotation: np.ndarray, reference: np.ndarray | None = None) -> np.ndarray:
+    """Unwrapped yaw (radians) of rotations (T, 3, 3): the twist about Y in a swing-twist split,
+    of the rotation relative to `reference` (a root's: FeatureLayout.heading_reference) when given."""
+    if reference is not None:
+        world_rotation = world_rotation @ reference.T
     quat = continuous_quaternions(matrix_to_quat(world_rotation))
     return np.unwrap(2.0 * np.arctan2(quat[:, 1], quat[:, 3]))
 
@@ -153,7 +204,7 @@ def extract(motion: Motion, layout: FeatureLayout) -> tuple[np.ndarray, np.ndarr
     world_rot, world_pos = forward_kinematics(motion.skeleton, rotations, translations)
     root_rot, root_pos = world_rot[:, layout.root], world_pos[:, layout.root]
     fps = motion.fps
-    yaw = heading_angle(root_rot)
+    yaw = heading_angle(root_rot, layout.heading_reference)
     heading = axis_angle_matrix("y", yaw)
     step = np.diff(root_pos, axis=0)
     local_step = np.einsum("tji,tj->ti", heading[:-1], step) * fps  # heading^T @ step
@@ -163,7 +214,7 @@ def extract(motion: Motion, layout: FeatureLayout) -> tuple[np.ndarray, np.ndarr
     else:
         local_step = np.vstack([local_step, local_step[-1:]])
         yaw_rate = np.append(yaw_rate, yaw_rate[-1])
-    tilt = continuous_expmap(matrix_to_expmap(np.einsum("tji,tjk->tik", heading, root_rot)))
+    tilt = continuous_expmap(matrix_to_expmap(np.einsum("tji,tjk->tik", heading, root_rot @ layout.heading_reference.T)))
     relative = np.einsum("jki,tjkl->tjil", layout.reference, rotations[:, list(layout.joints)])  # ref^T @ R
     joints = continuous_expmap(matrix_to_expmap(relative))
     features = np.hstack(
@@ -197,7 +248,7 @@ def restore_local(
     expmaps[:, 0, 0], expmaps[:, 0, 2] = features[:, 4], features[:, 5]
     expmaps[:, 1:] = features[:, len(ROOT_FEATURES) :].reshape(frames, len(layout.joints), 3)
     matrices = expmap_to_matrix(expmaps)
-    root_rot = heading[:-1] @ matrices[:, 0]
+    root_rot = heading[:-1] @ matrices[:, 0] @ layout.heading_reference
 
     template_rot, template_trans, parent_rot, parent_pos = layout.template_pose
     rotations = np.broadcast_to(template_rot, (frames,) + template_rot.shape).copy()

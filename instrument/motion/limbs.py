@@ -8,9 +8,10 @@ front-most joint (its toes; a toe-tip joint such as Mixamo's Toe_End where there
 the last joint listed, which may be a heel marker behind the ankle. The ball of the foot (Mixamo's
 ToeBase) was tried: the toe tip then slid 1.5-8 times as much (`instrument evaluate`). The
 arms are the two longest branches of the upper body that do not hold one another (the neck
-branches off with them but reaches a third as far); the upper arm and forearm are the two
-longest consecutive bones on an arm's longest way down, so the shoulder joint is where the
-upper arm starts and the elbow where it ends.
+branches off with them but reaches a third as far); the upper arm and forearm are the last two
+consecutive long bones on an arm's longest way down (a collar bone may be longer than the
+forearm, a hand's bones are short), so the shoulder joint is where the upper arm starts and the
+elbow where it ends.
 """
 
 from __future__ import annotations
@@ -112,15 +113,26 @@ def _arm_branches(parents: np.ndarray, lengths: np.ndarray, root: int, in_legs: 
     return sorted(chosen) if len(chosen) == 2 else []
 
 
+LONG_BONE = 0.6  # an arm's upper arm and forearm are each at least this share of its longest bone
+
+
 def _arm(parents: np.ndarray, lengths: np.ndarray, branch: int) -> tuple[int, int] | None:
-    """(shoulder, elbow) of the arm that starts at `branch`: where the two longest consecutive
-    bones on its longest way down (from the joint it hangs from) start and meet; None for an
-    arm of fewer than two bones."""
-    try:
-        shoulder, elbow, _ = _two_longest([int(parents[branch])] + _reach(parents, lengths, branch)[1], lengths)
-    except ValueError:
+    """(shoulder, elbow) of the arm that starts at `branch`: where the last two consecutive long
+    bones (each at least LONG_BONE of the longest) on its longest way down (from the joint it
+    hangs from) start and meet; None for an arm of fewer than two bones. Not the two longest:
+    a CMU rig's collar bone (3.39 units) is longer than its forearm (3.28), so the collar and
+    upper arm were taken for one side's arm and its shoulder swing measured on the collar bone."""
+    chain = [int(parents[branch])] + _reach(parents, lengths, branch)[1]
+    bones = [(chain[k - 1], chain[k]) for k in range(1, len(chain)) if lengths[chain[k]] > 1e-6]
+    if len(bones) < 2:
         return None
-    return shoulder, elbow
+    longest = max(lengths[end] for _, end in bones)
+    pairs = [k for k in range(len(bones) - 1)
+             if min(lengths[bones[k][1]], lengths[bones[k + 1][1]]) >= LONG_BONE * longest]
+    if not pairs:  # no two long bones in a row: the two longest consecutive ones
+        shoulder, elbow, _ = _two_longest(chain, lengths)
+        return shoulder, elbow
+    return bones[pairs[-1]][0], bones[pairs[-1]][1]
 
 
 def find_limbs(skeleton: Skeleton, root: int, template: np.ndarray) -> Limbs | None:

@@ -108,7 +108,7 @@ def walk_figures(motion: Motion, layout: FeatureLayout, limbs: Limbs, ground: np
     pos = world_pos * cm
     fps = motion.fps
     seconds = motion.frames / fps
-    yaw = heading_angle(world_rot[:, layout.root])
+    yaw = heading_angle(world_rot[:, layout.root], layout.heading_reference)
     root = pos[:, layout.root]
     steps = segment_steps(motion, layout).steps
     out = dict.fromkeys(FIGURES, float("nan"))

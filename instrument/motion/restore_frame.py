@@ -26,6 +26,7 @@ class FrameRestorer:
         self.root = int(layout.root)
         self.joints = np.asarray(layout.joints, dtype=np.int64)
         self.reference = np.ascontiguousarray(layout.reference)
+        self.root_reference = np.ascontiguousarray(layout.heading_reference)
         self.fps = float(fps)
 
     def next(self, static: np.ndarray, positions: np.ndarray, headings: np.ndarray,
@@ -34,7 +35,7 @@ class FrameRestorer:
         each character's root `positions` (N, 3) and `headings` (N,) move on one frame."""
         restore_next(np.ascontiguousarray(static, dtype=np.float64), positions, headings, self.template_rot,
                      self.template_trans, self.parent_rot, self.parent_pos, self.root, self.joints, self.reference,
-                     self.fps, rotations, translations)
+                     self.root_reference, self.fps, rotations, translations)
 
 
 @njit(cache=True, error_model="numpy")
@@ -64,12 +65,13 @@ def _multiply(a, b, out) -> None:  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def restore_next(static, positions, headings, template_rot, template_trans, parent_rot, parent_pos, root, joints,
-                 reference, fps, rotations, translations):  # pragma: no cover - compiled
+                 reference, root_reference, fps, rotations, translations):  # pragma: no cover - compiled
     """See `FrameRestorer.next`; the arithmetic of `features.restore_local` for one frame."""
     first = len(ROOT_FEATURES)
     tilt = np.empty((3, 3))
     heading = np.zeros((3, 3))
     root_rot = np.empty((3, 3))
+    swing = np.empty((3, 3))
     local = np.empty((3, 3))
     for n in range(static.shape[0]):
         row = static[n]
@@ -78,7 +80,8 @@ def restore_next(static, positions, headings, template_rot, template_trans, pare
         rotations[n] = template_rot
         translations[n] = template_trans
         expmap_matrix(row[4], 0.0, row[5], tilt)
-        _multiply(heading, tilt, root_rot)
+        _multiply(heading, tilt, swing)
+        _multiply(swing, root_reference, root_rot)  # the root's rest as the layout reads it (features.FeatureLayout.heading_reference)
         for a in range(3):
             for b in range(3):
                 rotations[n, root, a, b] = (parent_rot[0, a] * root_rot[0, b] + parent_rot[1, a] * root_rot[1, b]

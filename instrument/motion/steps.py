@@ -49,7 +49,7 @@ def foot_signal(motion: Motion, layout: FeatureLayout | None = None) -> tuple[np
     rotations, translations = local_transforms(motion)
     world_rot, world_pos = forward_kinematics(motion.skeleton, rotations, translations)
     root_pos = world_pos[:, layout.root]
-    heading = axis_angle_matrix("y", heading_angle(world_rot[:, layout.root]))
+    heading = axis_angle_matrix("y", heading_angle(world_rot[:, layout.root], layout.heading_reference))
     # direction of travel in the heading frame: the median of the root's horizontal velocity there
     velocity = np.gradient(root_pos, axis=0) * motion.fps
     local_velocity = np.einsum("tji,tj->ti", heading, velocity)

@@ -1,0 +1,254 @@
+"""Test sets of other skeletons, names, rates, units and rest poses, built from walks you have,
+and the figures a model trained on each gets (issue 30).
+
+    python examples/other_rigs.py ../shared/data/bandai-walk [--out /tmp/rigs] [--sets mixamo-60,cmu31-120]
+                                  [--styles elderly,active,feminine] [--takes 6] [--seconds 12]
+                                  [--public tests/data/cmu-131]
+
+Every set is the same takes re-rigged (`rerig`): joints renamed to another convention (Mixamo's
+"mixamorig:Hips"..., CMU's 31 joints with its zero-length hip, lower-back and finger joints),
+re-rooted at the hips, rotation channels in another Euler order, resampled to another rate
+(slerp), scaled to other units and, for `rest-posed`, every joint's rest orientation turned by a
+fixed rotation of its own (the bones' offsets point elsewhere and every local rotation differs;
+the body moves exactly as before). For each set it trains a model (`instrument train`), measures
+it (`instrument evaluate --real SET --variants one --json`) and prints, per style, the issue's
+targets: synthesized walks recognised at >= 0.9x the rate of the real takes (cross-validated over
+whole takes), knee, hip and shoulder ranges within 10% of the takes', skate at weight 1 no more
+than 1.2x the takes'. `--public DIR` adds a set of public captures as they are (no re-rig).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from instrument.errors import UserError, run_script
+from instrument.motion.bvh import Joint, Motion, Skeleton, read_bvh, write_bvh
+from instrument.motion.features import resample
+from instrument.motion.kinematics import channels_from_local, forward_kinematics, local_transforms
+from instrument.motion.rotations import expmap_to_matrix
+from instrument.training.corpus import styled_takes
+
+SIDES = {"_L": "Left", "_R": "Right"}
+BANDAI_BODY = ("Hips", "Spine", "Chest", "Neck", "Head")
+
+
+def mixamo_name(name: str) -> str:
+    """The Bandai walks' joint as Mixamo names it: Hips -> mixamorig:Hips, UpperLeg_L -> mixamorig:LeftUpLeg."""
+    parts = {"Spine": "Spine", "Chest": "Spine1", "UpperLeg": "UpLeg", "LowerLeg": "Leg", "Foot": "Foot", "Toes": "ToeBase",
+             "Shoulder": "Shoulder", "UpperArm": "Arm", "LowerArm": "ForeArm", "Hand": "Hand"}
+    if name[-2:] in SIDES:
+        return f"mixamorig:{SIDES[name[-2:]]}{parts[name[:-2]]}"
+    return f"mixamorig:{parts.get(name, name)}"
+
+
+def cmu_name(name: str) -> str:
+    """The Bandai walks' joint as the CMU conversions name it (Chest -> Spine1, UpperLeg_L -> LeftUpLeg)."""
+    parts = {"UpperLeg": "UpLeg", "LowerLeg": "Leg", "Foot": "Foot", "Toes": "ToeBase", "Shoulder": "Shoulder",
+             "UpperArm": "Arm", "LowerArm": "ForeArm", "Hand": "Hand"}
+    if name[-2:] in SIDES:
+        return SIDES[name[-2:]] + parts[name[:-2]]
+    return {"Chest": "Spine1", "Neck": "Neck1"}.get(name, name)
+
+
+# CMU's joints the walks lack: (name, the renamed joint it is inserted above, at zero offset, unrotated)
+CMU_ABOVE = (("LHipJoint", "LeftUpLeg"), ("RHipJoint", "RightUpLeg"), ("LowerBack", "Spine"), ("Neck", "Neck1"))
+# and below each hand: (name, parent, offset as a share of a quarter of the forearm, along it)
+CMU_BELOW = (("LeftFingerBase", "LeftHand", 0.0), ("LeftHandIndex1", "LeftFingerBase", 1.0), ("LThumb", "LeftHand", 0.5),
+             ("RightFingerBase", "RightHand", 0.0), ("RightHandIndex1", "RightFingerBase", 1.0), ("RThumb", "RightHand", 0.5))
+
+
+@dataclass(frozen=True)
+class Rig:
+    """How a set differs from the takes it is made of."""
+
+    fps: float
+    scale: float = 1.0  # units: 0.01 turns centimetres into metres
+    order: str = "ZXY"  # Euler order of every rotation channel
+    rename: str = ""  # "", "mixamo" or "cmu" (CMU's 31 joints)
+    rest_turn_deg: float = 0.0  # each joint's rest orientation turned by up to this much (a fixed seed)
+    keep_root: bool = True  # keep a static floor joint above the hips (else re-root at the hips)
+
+
+SETS = {
+    "mixamo-60": Rig(60.0, 1.0, "ZXY", "mixamo", keep_root=False),
+    "cmu31-120": Rig(120.0, 0.01, "ZYX", "cmu", keep_root=False),
+    "bandai-24-m": Rig(24.0, 0.01, "ZXY"),
+    "rest-posed-30-in": Rig(30.0, 1 / 2.54, "XYZ", rest_turn_deg=40.0, keep_root=False),
+}
+
+
+def rerig(motion: Motion, rig: Rig) -> Motion:
+    """The same body motion on another rig (see the module's text): world positions of every
+    kept joint are those of the take, times `rig.scale`."""
+    source = motion.skeleton
+    rotations, translations = local_transforms(motion)
+    world_rot, world_pos = forward_kinematics(source, rotations, translations)
+    names = [j.name for j in source.joints]
+    rename = {"mixamo": mixamo_name, "cmu": cmu_name}.get(rig.rename, lambda n: n)
+    first = 0 if rig.keep_root else names.index("Hips")
+    # the new tree: (name, source joint or -1, parent name or None, offset share of the hand's end site)
+    rows: list[tuple[str, int, str | None, float]] = []
+    for j, joint in enumerate(source.joints):
+        if j < first:
+            continue
+        parent = None if j == first else rename(names[joint.parent])
+        rows.append((rename(joint.name), j, parent, 0.0))
+    if rig.rename == "cmu":
+        for name, below in CMU_ABOVE:
+            k = next(i for i, r in enumerate(rows) if r[0] == below)
+            rows.insert(k, (name, -1, rows[k][2], 0.0))
+            rows[k + 1] = (below, rows[k + 1][1], name, 0.0)
+        for name, parent, share in CMU_BELOW:
+            k = max(i for i, r in enumerate(rows) if r[0] == parent or r[2] == parent)
+            rows.insert(k + 1, (name, -1, parent, share))
+    new_names = [r[0] for r in rows]
+    frames, count = motion.frames, len(rows)
+    turns = np.random.default_rng(30).normal(size=(count, 3))
+    turns *= math.radians(rig.rest_turn_deg) / np.maximum(np.linalg.norm(turns, axis=1, keepdims=True), 1e-9)
+    turn = expmap_to_matrix(turns) if rig.rest_turn_deg else np.broadcast_to(np.eye(3), (count, 3, 3))
+    w_rot = np.empty((frames, count, 3, 3))
+    w_pos = np.empty((frames, count, 3))
+    end_sites: list[tuple | None] = []
+    for k, (name, j, parent, share) in enumerate(rows):
+        if j >= 0:
+            w_rot[:, k] = world_rot[:, j] @ turn[k]
+            w_pos[:, k] = world_pos[:, j] * rig.scale
+            end = source.joints[j].end_site
+            has_children = any(r[2] == name for r in rows)
+            end_sites.append(None if end is None or has_children else tuple(turn[k].T @ np.asarray(end) * rig.scale))
+        else:  # an inserted joint sits on its parent (a finger: further along the forearm's line) unrotated
+            p = new_names.index(parent)
+            hand = rows[p][1] if rows[p][1] >= 0 else rows[new_names.index(rows[p][2])][1]
+            tip = 0.25 * np.asarray(source.joints[hand].offset) * rig.scale  # a quarter of the forearm, on along it
+            along = world_rot[:, hand] @ tip
+            w_rot[:, k] = w_rot[:, p]
+            w_pos[:, k] = w_pos[:, p] + share * along
+            leaf = not any(r[2] == name for r in rows)
+            end_sites.append(tuple(turn[k].T @ tip * 0.3) if leaf else None)
+    parents = [new_names.index(r[2]) if r[2] else -1 for r in rows]
+    local_rot = np.empty_like(w_rot)
+    local_pos = np.empty_like(w_pos)
+    for k, p in enumerate(parents):
+        if p < 0:
+            local_rot[:, k], local_pos[:, k] = w_rot[:, k], w_pos[:, k]
+        else:
+            local_rot[:, k] = np.swapaxes(w_rot[:, p], -1, -2) @ w_rot[:, k]
+            local_pos[:, k] = np.einsum("tji,tj->ti", w_rot[:, p], w_pos[:, k] - w_pos[:, p])
+    rotation = tuple(f"{axis}rotation" for axis in rig.order)
+    offsets = np.median(local_pos, axis=0)
+    moves = np.abs(local_pos - offsets).max(axis=0).max(axis=1) > 1e-6 * np.abs(offsets).max()  # the root, or hips under a floor joint
+    joints = tuple(Joint(name, p, tuple(float(v) for v in offsets[k]) if p >= 0 else (0.0, 0.0, 0.0),
+                         (("Xposition", "Yposition", "Zposition") if p < 0 or moves[k] else ()) + rotation, end)
+                   for k, (name, p, end) in enumerate(zip(new_names, parents, end_sites)))
+    skeleton = Skeleton(joints)
+    return resample(Motion(skeleton, channels_from_local(skeleton, local_rot, local_pos), motion.fps), rig.fps)
+
+
+def build_set(takes: list[Path], rig: Rig, folder: Path) -> list[Path]:
+    """Write every take re-rigged into `folder` (same file names); returns the files."""
+    folder.mkdir(parents=True, exist_ok=True)
+    out = []
+    for path in takes:
+        target = folder / path.name
+        write_bvh(target, rerig(read_bvh(path), rig))
+        out.append(target)
+    return out
+
+
+def chosen_takes(data: Path, styles: list[str], count: int) -> list[Path]:
+    """The first `count` walks of each style, in name order."""
+    pairs = [p for p in styled_takes([data]) if p.unit == "walk"]
+    chosen = []
+    for style in styles:
+        mine = [p.path for p in pairs if p.style == style][:count]
+        if not mine:
+            raise UserError(f"{data}: no walks of style {style!r}")
+        chosen += mine
+    return chosen
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    result = subprocess.run([sys.executable, "-m", "instrument", *args], capture_output=True, text=True)
+    if result.returncode != 0:
+        raise UserError(f"instrument {args[0]}: {result.stderr.strip().splitlines()[-1] if result.stderr.strip() else 'failed'}")
+    return result
+
+
+def targets(figures: dict) -> dict[str, dict]:
+    """Per style at weight 1: the issue's figures, the takes' and the walk's, and whether each holds."""
+    out = {}
+    for style, real in figures["real"].items():
+        made = figures["synth"][style]
+        row = {}
+        for key, name in (("knee_deg", "knee"), ("hip_deg", "hip"), ("shoulder_deg", "shoulder")):
+            row[name] = (real[key], made[key], abs(made[key] / real[key] - 1.0) <= 0.10)
+        row["skate"] = (real["skate_cm_s"], made["skate_cm_s"], made["skate_cm_s"] <= 1.2 * real["skate_cm_s"])
+        r, m = real.get("recognised"), made.get("recognised")
+        row["recognised"] = (r, m, r is None or m is None or math.isnan(r) or m >= 0.9 * r)
+        out[style] = row
+    return out
+
+
+def measure(folder: Path, model: Path, seconds: float) -> dict:
+    cli("train", str(folder), "--out", str(model), "--force", "--quiet")
+    return json.loads(cli("evaluate", str(model), "--real", str(folder), "--variants", "one", "--seconds", str(seconds),
+                          "--json").stdout)
+
+
+def _cell(real, made, ok: bool, ratio: bool) -> str:
+    if real is None or made is None or (isinstance(real, float) and math.isnan(real)):
+        return "-"
+    change = f"{made / real:.2f}x" if ratio else f"{100 * (made / real - 1):+.0f}%"
+    return f"{real:.2f} / {made:.2f} ({change})" + ("" if ok else " **FAIL**")
+
+
+def table(name: str, rows: dict[str, dict]) -> str:
+    lines = [f"| {name} | recognised real / made | knee deg | hip deg | shoulder deg | skate cm/s |", "|---" * 6 + "|"]
+    for style, row in rows.items():
+        cells = [_cell(*row["recognised"], ratio=True)] + [_cell(*row[k], ratio=False) for k in ("knee", "hip", "shoulder")]
+        cells.append(_cell(*row["skate"], ratio=True))
+        lines.append(f"| {style} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("data", help="folder of walks to re-rig (named like dataset-2_walk_<style>_NNN.bvh)")
+    parser.add_argument("--out", default="/tmp/other-rigs", help="folder for the sets and models (default /tmp/other-rigs)")
+    parser.add_argument("--sets", default=",".join(SETS), help=f"comma-separated, of {', '.join(SETS)} (default: all)")
+    parser.add_argument("--styles", default="elderly,active,feminine", help="styles to take (default elderly,active,feminine)")
+    parser.add_argument("--takes", type=int, default=6, help="walks per style (default 6)")
+    parser.add_argument("--seconds", type=float, default=12.0, help="length of each synthesized walk (default 12)")
+    parser.add_argument("--public", action="append", default=[], metavar="DIR",
+                        help="also a folder of public captures, trained and measured as they are")
+    args = parser.parse_args()
+    sets = [s.strip() for s in args.sets.split(",") if s.strip()]
+    unknown = [s for s in sets if s not in SETS]
+    if unknown or not sets:
+        raise UserError(f"--sets: no set {unknown[0] if unknown else ''!r} (there are {', '.join(SETS)})")
+    if args.takes < 2 or not 2 <= args.seconds <= 600:
+        raise UserError(f"--takes must be at least 2 and --seconds 2 to 600 (got {args.takes}, {args.seconds})")
+    out = Path(args.out)
+    takes = chosen_takes(Path(args.data), [s.strip() for s in args.styles.split(",") if s.strip()], args.takes)
+    folders = {name: out / name for name in sets} | {Path(p).name: Path(p) for p in args.public}
+    report = {}
+    for name, folder in folders.items():
+        if name in SETS:
+            build_set(takes, SETS[name], folder)
+        print(f"{name}: training and measuring", file=sys.stderr)
+        report[name] = targets(measure(folder, out / f"{name}.npz", args.seconds))
+        print(table(name, report[name]) + "\n", flush=True)
+    failed = [f"{n} {s} {k}" for n, rows in report.items() for s, row in rows.items() for k, v in row.items() if not v[2]]
+    print(f"{len(failed)} target(s) missed" + (": " + ", ".join(failed) if failed else ""))
+
+
+if __name__ == "__main__":
+    run_script(main, "other_rigs.py")

@@ -1,0 +1,123 @@
+"""Other skeletons, names, rates, units and rest poses (issue 30): what is learnt from a walk does
+not depend on how its rig is built, and models trained on re-rigged walks keep the issue's figures.
+
+The sets are built by examples/other_rigs.py (`rerig`) from the public CMU takes in
+tests/data/cmu-131 and, where they are here, the shared Bandai walks."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from instrument.motion.bvh import read_bvh
+from instrument.motion.features import ROOT_FEATURES, choose_layout, extract, resample
+from instrument.motion.limbs import find_limbs
+from instrument.motion.steps import segment_steps
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
+from other_rigs import SETS, Rig, build_set, chosen_takes, rerig  # noqa: E402
+
+CMU = Path(__file__).parent / "data" / "cmu-131"
+
+
+@pytest.fixture(scope="module")
+def cmu_take():
+    return read_bvh(CMU / "cmu131_jackson_01.bvh")
+
+
+def test_the_public_takes_are_what_their_source_says(cmu_take):
+    """120 fps, 31 joints, CMU's units (hips about 17 units up, a unit about 5.7 cm)."""
+    assert cmu_take.fps == 120.0 and len(cmu_take.skeleton.joints) == 31 and cmu_take.frames == 530
+    assert sum(p.stat().st_size for p in CMU.glob("*.bvh")) < 2_000_000
+
+
+def test_both_arms_of_a_cmu_skeleton_are_upper_arm_and_forearm(cmu_take):
+    """CMU's left collar bone (3.39 units) is longer than its forearm (3.28): the two longest
+    consecutive bones were the collar and the upper arm on that side, the right side's were
+    right, so one shoulder swing was measured on the collar bone."""
+    names = cmu_take.skeleton.names
+    limbs = find_limbs(cmu_take.skeleton, 0, cmu_take.channels[0])
+    assert [(names[s], names[e]) for s, e in limbs.arms] == [("LeftShoulder", "LeftElbow"), ("RightShoulder", "RightElbow")]
+    assert [(names[leg.hip], names[leg.knee], names[leg.ankle]) for leg in limbs.legs] == [
+        ("LeftHip", "LeftKnee", "LeftAnkle"), ("RightHip", "RightKnee", "RightAnkle")]
+
+
+def _features(motion):
+    layout = choose_layout([motion])
+    return extract(motion, layout)[0], segment_steps(motion, layout).steps, layout
+
+
+ORDERS = ["XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"]
+_BASE: dict[float, tuple] = {}
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(turn=st.floats(0.0, 90.0), scale=st.sampled_from([1.0, 0.01 * 5.65, 1 / 2.54, 10.0]),
+       order=st.sampled_from(ORDERS), fps=st.sampled_from([24.0, 30.0, 60.0]))
+def test_what_is_learnt_does_not_depend_on_the_rig(cmu_take, turn, scale, order, fps):
+    """The same capture with every joint's rest orientation turned (by up to 90 degrees, a
+    rotation of its own), in other units and Euler orders: the steps are cut at the same frames,
+    the root's height and speeds are the same (in the new units), its turning and tilt the same,
+    and every joint turns by the same angle. With the heading read from the root's own axes, a
+    turned root changed the heading, the tilt and the steps."""
+    if fps not in _BASE:
+        _BASE[fps] = _features(resample(cmu_take, fps))
+    base, base_steps, base_layout = _BASE[fps]
+    motion = rerig(cmu_take, Rig(fps, scale, order, rest_turn_deg=turn, keep_root=False))
+    features, steps, layout = _features(motion)
+    assert layout.joints == base_layout.joints and layout.root == base_layout.root
+    assert [(s.label, s.start, s.end) for s in steps] == [(s.label, s.start, s.end) for s in base_steps]
+    np.testing.assert_allclose(features[:, :3] / scale, base[:, :3], atol=1e-5 * np.abs(base[:, :3]).max())
+    np.testing.assert_allclose(features[:, 3:len(ROOT_FEATURES)], base[:, 3:len(ROOT_FEATURES)], atol=1e-6)
+    joints = features[:, len(ROOT_FEATURES):].reshape(motion.frames, -1, 3)
+    base_joints = base[:, len(ROOT_FEATURES):].reshape(motion.frames, -1, 3)
+    np.testing.assert_allclose(np.linalg.norm(joints, axis=2), np.linalg.norm(base_joints, axis=2), atol=1e-6)
+
+
+def test_the_steps_are_the_same_at_every_rate(cmu_take):
+    """Steps cut from the take at 24, 30, 60 and 120 fps start and end at the same moments (within
+    a frame at 24 fps) and are the same steps."""
+    cut = {}
+    for fps in (24.0, 30.0, 60.0, 120.0):
+        steps = segment_steps(resample(cmu_take, fps)).steps
+        cut[fps] = [(s.label, s.start / fps, s.end / fps) for s in steps]
+    for fps, steps in cut.items():
+        assert [s[0] for s in steps] == [s[0] for s in cut[120.0]], fps
+        assert np.abs(np.array([s[1:] for s in steps]) - np.array([s[1:] for s in cut[120.0]])).max() <= 1 / 24 + 1e-9
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "instrument", *args], capture_output=True, text=True, timeout=900)
+
+
+@pytest.mark.parametrize("name", ["rest-posed-30-in", "cmu31-120"])
+def test_a_model_of_a_re_rigged_set_keeps_the_issues_figures(real_walks, tmp_path, name):
+    """Two styles of the shared walks, three takes each, re-rigged (`SETS`: joints turned at rest
+    and inches; CMU's 31 joints and names, 120 fps and metres), trained and measured by
+    `instrument evaluate --real`. At weight 1, each style's walk is recognised at least 0.9x as
+    often as its real takes (cross-validated), its knee, hip and shoulder ranges are within 10%
+    of the takes' and it skates no more than 1.2x as much (issue 30's targets). On the turned
+    rest before the root's heading was read from its untwisted rest: hips 27% short of the
+    takes', skate 2.7-3.8x."""
+    shared = real_walks[0].parent
+    folder = tmp_path / name
+    rig = SETS[name]
+    files = build_set(chosen_takes(shared, ["active", "feminine"], 3), rig, folder)
+    assert read_bvh(files[0]).fps == rig.fps
+    model = tmp_path / "model.npz"
+    trained = cli("train", str(folder), "--out", str(model), "--quiet")
+    assert trained.returncode == 0, trained.stderr
+    result = cli("evaluate", str(model), "--real", str(folder), "--variants", "one", "--seconds", "8", "--json")
+    assert result.returncode == 0, result.stderr
+    figures = json.loads(result.stdout)
+    for style in ("active", "feminine"):
+        real, made = figures["real"][style], figures["synth"][style]
+        assert made["recognised"] >= 0.9 * real["recognised"], (style, made["recognised"], real["recognised"])
+        for key in ("knee_deg", "hip_deg", "shoulder_deg"):
+            assert abs(made[key] / real[key] - 1.0) <= 0.10, (style, key, made[key], real[key])
+        assert made["skate_cm_s"] <= 1.2 * real["skate_cm_s"], (style, made["skate_cm_s"], real["skate_cm_s"])
