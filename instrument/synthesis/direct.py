@@ -6,7 +6,8 @@ argument to choose the compiled version. For a record (a NamedTuple of arrays, a
 one-character frame's stream call against 3 us for unboxing alone (a kernel that does nothing,
 two records and three plain arguments, measured 2026-11-26). A frame's record is made again only
 when its tables change (stream.py keeps it), so its type is worked out once per record here and
-the compiled entry point for it is kept and called directly.
+the compiled entry point for it is kept and called directly. For plain arrays the dispatcher is
+fast already: the posing kernels called this way were no faster (32.7 against 30.5 us a frame).
 
 What is kept is keyed on the identity of the `held` objects the caller names (the records); every
 other argument must keep its type from call to call (the caller's promise: a Python int, a bool,
