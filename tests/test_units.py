@@ -92,6 +92,20 @@ def test_a_turning_take_is_trained_as_the_way_it_turns(tmp_path, real_walks):
     assert any(w.startswith(f"{straight}: named turn-left but turns") and "left out" in w for w in warnings)
 
 
+@needs_motions
+def test_a_left_turn_whose_left_toes_point_inwards_keeps_one_foot_a_side(model):
+    """The feet are found by their leg's side, not each joint's: this take's left toes point
+    inwards through its turn, and were taken for the right foot (no steps: left out)."""
+    from instrument.motion.features import resample
+    from instrument.motion.steps import segment_steps
+
+    take = resample(read_bvh(MOTIONS / "dataset-2_walk-turn-left_feminine_001.bvh"), model.fps)
+    segmentation = segment_steps(take, model.layout)
+    assert len(segmentation.steps) >= 5
+    left, right = segmentation.feet
+    assert left.endswith("_L") and right.endswith("_R")
+
+
 # ---- still standing ----------------------------------------------------------------------------
 
 @needs_motions

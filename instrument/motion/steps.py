@@ -59,7 +59,7 @@ def foot_signal(motion: Motion, layout: FeatureLayout | None = None) -> tuple[np
     forward = heading @ direction
     left = np.cross(np.array([0.0, 1.0, 0.0]), forward)
     relative = world_pos - root_pos[:, None]
-    side = np.einsum("tjk,tk->j", relative, left) / motion.frames
+    side = _branch_sides(motion, layout.root, np.einsum("tjk,tk->j", relative, left) / motion.frames)
     height = relative[..., 1].mean(axis=0)
     below_root = np.array([j != layout.root and is_below(motion, j, layout.root) for j in range(len(side))])
     left_foot = _lowest(height, below_root & (side > 0))
@@ -70,6 +70,21 @@ def foot_signal(motion: Motion, layout: FeatureLayout | None = None) -> tuple[np
     ahead = np.einsum("tk,tk->t", world_pos[:, left_foot] - world_pos[:, right_foot], forward)
     travel = np.einsum("tk,tk->t", velocity, forward) / motion.fps
     return ahead, (left_foot, right_foot), leg, np.cumsum(travel)
+
+
+def _branch_sides(motion: Motion, root: int, side: np.ndarray) -> np.ndarray:
+    """Each joint's side (+ left) as the mean side of its whole branch from the root (a leg: hip,
+    knee, ankle, toes). A joint's own mean side is near 0 for a toe that points inwards as the
+    body turns: in a take turning left, the left toes came out on the right and both "feet" were
+    taken from the left leg (Bandai's dataset-2_walk-turn-left_feminine_001, after the root's
+    heading was read against its mean rotation)."""
+    parents = motion.skeleton.parents
+    branch = np.arange(len(side))
+    for j in range(len(side)):
+        while parents[branch[j]] >= 0 and parents[branch[j]] != root:
+            branch[j] = parents[branch[j]]
+    means = {b: side[branch == b].mean() for b in set(branch.tolist())}
+    return np.array([means[b] for b in branch])
 
 
 def is_below(motion: Motion, joint: int, ancestor: int) -> bool:
