@@ -225,6 +225,27 @@ def test_the_shipped_mappings_press_gestures():
     assert {"akai-midimix", "korg-nanokontrol2", "sony-dualshock4", "xbox-wireless-bluetooth", "generic-gamepad"} <= set(pads)
 
 
+@pytest.mark.parametrize("name,channel,notes", [
+    # what the surfaces send for the buttons the files name, from the makers' MIDI tables: the X-Touch
+    # Mini's layer A top row (notes 8-15 on its global channel, 11), the Launch Control XL's track focus
+    # buttons 1-2 (notes 41, 42 on factory template 1's channel, 9)
+    ("behringer-x-touch-mini", 11, (8, 9)),
+    ("novation-launch-control-xl", 9, (41, 42)),
+])
+def test_a_surfaces_own_pad_message_presses_its_gesture(model, name, channel, notes):
+    from conftest import play_mapped
+    from instrument.control.events import ControlEvent
+    from instrument.control.mapping import Mapper, load_mapping
+
+    state = ControlState(model.style_names, model.states)
+    mapper = Mapper(load_mapping(REPO / "mappings" / f"{name}.toml", state))
+    for gesture, note in zip(("wave", "raise"), notes):
+        assert play_mapped(mapper, state, ControlEvent(0.0, f"midi:{name}", f"note/{channel}/{note}", 127))
+        assert state.snapshot().gestures == (gesture,)
+        assert play_mapped(mapper, state, ControlEvent(0.1, f"midi:{name}", f"note/{channel}/{note}", 0))
+        assert state.snapshot().gestures == ()
+
+
 def test_synth_writes_a_wave_and_refuses_an_unknown_gesture_in_one_line(model, tmp_path):
     out = tmp_path / "wave.bvh"
     result = subprocess.run([sys.executable, "-m", "instrument", "synth", "--style", "active=1", "--gesture", "wave@1",
