@@ -141,6 +141,25 @@ def hands_over_head(model, static):
     return np.array(heights)
 
 
+@pytest.mark.parametrize("spread", [0.0, 0.6])  # the shared tables as they are, and each character's own put together
+def test_a_stream_of_some_dimensions_makes_them_as_the_whole_stream_does(model, spread):
+    """The gesture's stream solves only the upper body's range of dimensions, from the full tables."""
+    from instrument.synthesis.stream import Crowd
+
+    engine = Engine(model, 3)
+    engine.retune(default_controls(model, {"elderly": 1.0, "youthful": 0.5}, liveliness=0.5), spread)
+    columns = engine.gestures.solved
+    assert 0 < columns.start and columns.stop < model.layout.dimension  # a range inside: an offset to get right
+    whole, part = (Crowd(engine.space, 3, seeds=[4, 5, 6], columns=c) for c in (None, columns))
+    for crowd in (whole, part):
+        crowd.tables = engine.stream.tables
+        crowd.tune(engine.features[0].duration_means, engine.features[0].duration_variances, 1.0, None, 0.5)
+    for _ in range(60):
+        a, b = whole.step(), part.step()
+        assert b.shape == (3, columns.stop - columns.start)
+        np.testing.assert_allclose(b, a[:, columns], rtol=0, atol=1e-12)
+
+
 def test_a_wave_while_walking_raises_the_hands_over_the_head_and_leaves_the_legs_alone(model):
     with_wave, shares, engine = walk(model, {"youthful": 1.0}, 12, {"wave": (2.0, 2.1)})
     plain, _, _ = walk(model, {"youthful": 1.0}, 12, {})
