@@ -69,6 +69,21 @@ def test_a_takes_phases_raise_repeat_and_lower_in_order(model, name):
     assert heights[lower.start] - heights[lower.end - 1] > 0.3  # ... and come down
 
 
+def test_a_tap_plays_as_many_repeat_halves_as_the_takes_hold(model):
+    """The half under way counts: a raise whose takes hold two halves plays a and b, then lowers."""
+    for name, labels in gesture_labels(model.metadata).items():
+        engine = Engine(model)
+        controls = default_controls(model, {"normal": 1.0})
+        played = []
+        for k in range(int(20 * model.fps)):
+            engine.next_features(replace(controls, gestures=(name,) if k == 30 else ()))
+            played.append(engine.gestures.label[0] if engine.gestures.playing else -1)
+        runs = [label for k, label in enumerate(played) if label in labels[2:] and (k == 0 or played[k - 1] != label)]
+        repeats = model.metadata["gestures"][name]["repeats"]
+        assert len(runs) == repeats + repeats % 2, (name, runs)  # a whole cycle: only a b goes on to the lower
+        assert engine.gestures.started == 1 and played[-1] == -1  # over by itself
+
+
 @needs_motions
 def test_a_wave_sways_in_half_cycles_a_raise_holds(model):
     wave = gesture_phases(resample(read_bvh(MOTIONS / "dataset-2_wave-both-hands_feminine_001.bvh"), model.fps),

@@ -144,9 +144,13 @@ class GestureLayer:
 @njit(cache=True, nogil=True)
 def _choose_units(counters, label, done, tapped, held, repeats, first, next_repeating, next_ending):  # pragma: no cover - compiled
     """The unit each character's plan goes on in (module text): raise -> a, a -> b, b -> a while
-    it repeats (held, or tapped and fewer than `repeats` half cycles done), b -> lower, lower -> the rest."""
+    it repeats, b -> lower, lower -> the rest. It repeats while held, or after a tap until the half
+    cycles played, the one under way (a b: only a b goes on to the lower) and the `done` before it,
+    make `repeats` (rounded up to a whole cycle). Counting only those done, a tap played two half
+    cycles more than its takes hold: an active raise, whose takes hold one or two, swayed twice
+    more than it should and its last sway no longer looked active (docs/evaluate.md)."""
     for n in range(label.shape[0]):
-        going_on = held or (tapped[n] and done[n] < repeats)
+        going_on = held or (tapped[n] and done[n] + 1 < repeats)
         phase = min(max(label[n] - first, -1), 4) + 1  # 0: before the gesture, 1..4 its labels, 5: after
         counters[n, UNIT] = next_repeating[phase] if going_on else next_ending[phase]
 
