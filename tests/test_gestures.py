@@ -259,6 +259,19 @@ def test_the_shipped_mappings_press_gestures():
     assert {"akai-midimix", "korg-nanokontrol2", "sony-dualshock4", "xbox-wireless-bluetooth", "generic-gamepad"} <= set(pads)
 
 
+def test_bench_times_a_frame_while_a_gesture_plays(model):
+    """`instrument bench`'s gesture figures: each work timed against the yardstick, the gesture held
+    all along (measure_gesture checks it never lowered)."""
+    from instrument.cli.benchmarks import measure_gesture
+    from instrument.synthesis.stream import Controls
+
+    solved = []
+    figures = measure_gesture(model, Controls(np.full(len(model.style_names), 0.2)), 2, lambda: solved.append(1))
+    assert figures["gesture_name"] == "wave" and len(solved) == 2 + 1  # two turns and the warm-up
+    for work in ("gesture_stream", "gesture_stage", "gesture_engine", "engine"):
+        assert figures[f"{work}_us_per_frame"] > 0 and figures[f"{work}_to_window_solve"] > 0
+
+
 @pytest.mark.parametrize("name,channel,notes", [
     # what the surfaces send for the buttons the files name, from the makers' MIDI tables: the X-Touch
     # Mini's layer A top row (notes 8-15 on its global channel, 11), the Launch Control XL's track focus
