@@ -53,14 +53,17 @@ def test_turning_points_alternate_highs_and_lows_and_ignore_wobbles():
 
 
 @needs_motions
-@pytest.mark.parametrize("name", ["dataset-2_wave-both-hands_youthful_001", "dataset-2_raise-up-both-hands_normal_002"])
+@pytest.mark.parametrize("name", ["dataset-2_wave-both-hands_youthful_001", "dataset-2_raise-up-both-hands_normal_002",
+                                  # its hands reach the high band in 4 frames, then settle for 6 more: the
+                                  # raise goes on while they rise (it was too short to keep, the settling a half)
+                                  "dataset-2_raise-up-both-hands_active_001"])
 def test_a_takes_phases_raise_repeat_and_lower_in_order(model, name):
     motion = resample(read_bvh(MOTIONS / f"{name}.bvh"), model.fps)
     phases = gesture_phases(motion, model.layout, model.states)
     labels = [s.label for s in phases]
     assert labels[0] == "raise" and labels[-1] == "lower"
     repeats = labels[1:-1]
-    assert repeats and all(label.startswith("repeat") for label in repeats)
+    assert len(repeats) >= 2 and all(label.startswith("repeat") for label in repeats)  # an a and a b at least
     assert all(a != b for a, b in zip(repeats, repeats[1:]))  # a and b in turn, as the planner plays them
     assert all(a.end <= b.start for a, b in zip(phases, phases[1:]))
     heights = hand_tracks(motion, model.layout)[0]
