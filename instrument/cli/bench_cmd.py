@@ -81,6 +81,13 @@ def run(args: argparse.Namespace) -> int:
               f"(x{f['pose_to_window_solve']:.2f} the window solve; planting the feet {f['contact_us_per_frame']:.1f} us of it)")
         print(f"pose, per character in a crowd of {BATCH}:  {f['pose_us_per_character_batch']:8.1f} us/frame "
               f"(x{f['pose_batch_to_window_solve']:.2f} the window solve)")
+    if f["gesture_stream_us_per_frame"] is not None:
+        print(f"streaming, one character, a {f['gesture_name']} playing: {f['gesture_stream_us_per_frame']:6.1f} us/frame "
+              f"(x{f['gesture_stream_to_window_solve']:.2f} the window solve; the gesture stage alone "
+              f"x{f['gesture_stage_to_window_solve']:.2f})")
+        print(f"engine frame before posing, one character: {f['engine_us_per_frame']:5.1f} us "
+              f"(x{f['engine_to_window_solve']:.2f} the window solve), a {f['gesture_name']} playing "
+              f"{f['gesture_engine_us_per_frame']:.1f} us (x{f['gesture_engine_to_window_solve']:.2f})")
     print(f"streaming, per character in a crowd of {BATCH}: {f['stream_us_per_frame_batch']:6.1f} us/frame "
           f"(x{f['stream_batch_to_window_solve']:.2f} the window solve)")
     print(f"characters in realtime on one core:     {f['characters_at_30fps']} at 30 fps, {f['characters_at_60fps']} at 60 fps")

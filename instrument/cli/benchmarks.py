@@ -238,6 +238,7 @@ def measure(model_path: str | None, repeat: int) -> dict:
     figures["yardstick_turns"] = turns
     figures["lookahead"] = DEFAULT_LOOKAHEAD
     figures |= measure_pose(model, all_styles, turns, solves)
+    figures |= measure_gesture(model, all_styles, turns, solves)
     per_character = figures["stream_us_per_frame_batch"]
     figures["characters_at_30fps"] = int(1e6 / 30 / per_character)
     figures["characters_at_60fps"] = int(1e6 / 60 / per_character)
@@ -312,4 +313,47 @@ def measure_pose(model, controls: Controls, turns: int, solves) -> dict:
         figures[name] = seconds[name] * 1e6 / frames / characters if name in works else None
         if ratio:
             figures[ratio] = ratios[name] / characters if name in works else None
+    return figures
+
+
+def measure_gesture(model, controls: Controls, turns: int, solves) -> dict:
+    """One character's frame while a gesture plays (the wave held, so its repeat loops), each work
+    timed turn about with `solves` (100 bare window solves): the stream stage and the gesture stage
+    together (`gesture_stream`: the frame's solving, against the gait's stream alone in
+    `stream_to_window_solve`), the gesture stage alone, and the engine's whole frame before posing
+    with and without the gesture. None for a model without gestures."""
+    from dataclasses import replace
+
+    names = ("gesture_stream", "gesture_stage", "gesture_engine", "engine")
+    figures: dict = {f"{name}_{kind}": None for name in names for kind in ("us_per_frame", "to_window_solve")}
+    walking = Engine(model)
+    if not walking.gestures.names:
+        return figures
+    frames = 100
+    name = walking.gestures.names[0]
+    held = replace(controls, gestures=(name,))
+    waving, streaming = Engine(model), Engine(model)
+    for engine in (walking, waving, streaming):
+        for _ in range(30):  # past the ease in: the gesture has the whole upper body
+            engine.next_features(held if engine is not walking else controls)
+    layer = streaming.gestures
+    frame = streaming.next_features(held)
+
+    def gesture_stream():  # the stream stage and the gesture stage of a frame, nothing else
+        for _ in range(frames):
+            layer(held.gestures, streaming.stream.step(), streaming.stream.history_ids[:, 1])
+
+    def gesture_stage():
+        for _ in range(frames):
+            layer(held.gestures, frame, streaming.stream.history_ids[:, 1])
+
+    works = {"gesture_stream": gesture_stream, "gesture_stage": gesture_stage,
+             "gesture_engine": lambda: [waving.next_features(held) for _ in range(frames)],
+             "engine": lambda: [walking.next_features(controls) for _ in range(frames)]}
+    seconds, ratios, _ = against_yardstick(works, solves, turns)
+    assert layer.playing and waving.gestures.playing  # held all along: it never lowered
+    for work in works:
+        figures[f"{work}_us_per_frame"] = seconds[work] * 1e6 / frames
+        figures[f"{work}_to_window_solve"] = ratios[work]
+    figures["gesture_name"] = name
     return figures

@@ -4,14 +4,18 @@ their going down, found from the joint tree alone (as standing.py finds rest).
 The hands' height (the higher hand's, above the hips, in leg lengths) rises from rest to a high
 band, stays in it and comes down. Between the take's lowest and highest (its 90th percentile)
 heights, a frame is high above HIGH of the way, at rest below LOW of it: the raise runs from the
-last rest frame before the first high one to it, the lower from the last high frame to the first
-rest frame after it, the repeat is the stretch between.
+last rest frame before the first high one to where the hands stop rising (by under MOVING of the
+way a frame), the lower from where they start falling, before the last high frame, to the first
+rest frame after it, the repeat is the stretch between. (Ended at the first high frame, an active
+raise, whose hands reach the band in 4 frames and settle for 6 more, was too short for its
+states and left out, and its settling became a half of the repeat, played after its hold.)
 
 The repeat is cut into half cycles, so it can loop as long as a pad is held: a wave's hands sway
 across the body and back, and each sway one way is a "repeat-a", back a "repeat-b" (the turning
 points of the hands' horizontal position along its main direction, with hysteresis); hands held
 up without a sway (less than SWING leg lengths) are cut into pieces of about PIECE_SECONDS,
-labelled a and b in turn, as the stand's pieces are. The planner (synthesis/gestures.py) plays
+labelled a and b in turn, as the stand's pieces are, and into two at least when they last two
+pieces' worth of states (so a short hold trains its style's b too). The planner (synthesis/gestures.py) plays
 raise -> a -> b -> a ... -> b -> lower, the a/b pair looping while the gesture is held. Some
 takes begin with the hands already up (no raise) or end before they are down: the phase missing
 is simply not there, the others still count.
@@ -36,6 +40,7 @@ LOW = 0.15  # share of the way: the hands are down (a raise starts here, a lower
 SWING = 0.08  # leg lengths: a repeat whose hands sway less than this across is a hold
 TURN = 0.3  # share of the sway's range the hands must come back to make a turning point
 PIECE_SECONDS = 0.4  # a held repeat's piece
+MOVING = 0.02  # share of the way a frame (at 30 fps): the hands still rising into the repeat, or already falling
 
 
 def hand_tracks(motion: Motion, layout: FeatureLayout) -> tuple[np.ndarray, np.ndarray, float] | None:
@@ -88,6 +93,14 @@ def gesture_phases(motion: Motion, layout: FeatureLayout, states: int = 5) -> li
     high = np.flatnonzero(heights >= bottom + HIGH * (top - bottom))
     rest = heights <= bottom + LOW * (top - bottom)
     first, last = int(high[0]), int(high[-1])
+    # the raise goes on while the hands still rise, the lower begins where they start falling: an
+    # active raise's hands reach the high band in 4 frames and settle for 6 more, which, cut as the
+    # repeat's first half, was played after its hold
+    moving = MOVING * (top - bottom) * 30.0 / motion.fps
+    while first < last and heights[first + 1] - heights[first] > moving:
+        first += 1
+    while last > first and heights[last - 1] - heights[last] > moving:
+        last -= 1
     before = np.flatnonzero(rest[:first])
     after = np.flatnonzero(rest[last:])
     start = int(before[-1]) if len(before) else 0
@@ -117,7 +130,9 @@ def _repeats(across: np.ndarray, offset: int, fps: float, states: int) -> list[S
                 steps.append(Step("repeat-a" if rising else "repeat-b", offset + a, offset + b))
         return steps
     piece = max(states, int(round(PIECE_SECONDS * fps)))
-    count = max(1, len(across) // piece)
+    # at least two pieces when it holds them (an a and a b: only a b goes on to the lower, so a hold
+    # cut into one piece leaves its style's b to the other styles' takes)
+    count = max(1, min(2, len(across) // states), len(across) // piece)
     bounds = np.linspace(0, len(across), count + 1).round().astype(int)
     return [Step(("repeat-a", "repeat-b")[k % 2], offset + int(a), offset + int(b))
             for k, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])) if b - a >= states]

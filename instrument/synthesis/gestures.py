@@ -21,8 +21,13 @@ The gesture's stream starts from the two frames the character has just shown (it
 frames), so the arms leave the walk's swing without a jump; its upper-body features (the `upper`
 group: spine, neck, head, arms) then replace the gait's with a weight that eases in over EASE_IN
 frames and out over EASE_OUT once the lower has ended, the legs and the root staying the gait's:
-the feet keep their plan and the foot lock, the walk its speed and heading. While no gesture
-plays the stage costs nothing.
+the feet keep their plan and the foot lock, the walk its speed and heading. The gesture's stream
+solves only those dimensions (the range of static dimensions holding the `upper` group, read in
+place from the gait's tables: each dimension's solve is independent of the others, so the upper
+body comes out as a full solve would make it), and the layer's bookkeeping (the phases, the
+ease, the blend) is one compiled call before and one after the stream's: a one-character frame
+with a gesture then costs under twice its window solve (docs/mlpg.md, "A gesture's frame"). While
+no gesture plays the stage only keeps the last two frames' upper body.
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ from __future__ import annotations
 from typing import Collection
 
 import numpy as np
+from numba import njit
 
 from ..models.gestures import gesture_labels, gesture_repeats
 from ..models.modelfile import Model
@@ -51,8 +57,11 @@ class GestureLayer:
         self.repeats = gesture_repeats(model.metadata)
         units = model.units
         self.rest_unit = units.index("stand") if "stand" in units else 0  # where a lowered gesture goes
-        self.crowd = Crowd(space, count, lookahead, seeds=seeds) if self.labels else None
         self.columns = np.flatnonzero(body_groups(model.layout)[GROUPS.index("upper")])  # the features a gesture takes
+        # the range of static dimensions its stream solves: the upper body's (one range in a skeleton
+        # whose upper joints follow one another, as they do in a depth-first joint order)
+        self.solved = slice(int(self.columns.min()), int(self.columns.max()) + 1)
+        self.crowd = Crowd(space, count, lookahead, seeds=seeds, columns=self.solved) if self.labels else None
         self._next_repeating = self._next_ending = np.zeros(6, dtype=np.int64)  # set by _start
         self.playing: str | None = None
         self.first = 0  # the playing gesture's first label
@@ -62,8 +71,10 @@ class GestureLayer:
         self.ease = np.zeros(count)  # 0..1 along the ease in, then back down along the ease out
         self.weights = np.zeros(count)  # the gesture's share of each character's upper body, this frame
         self.held: set[str] = set()  # the gesture targets held at the last frame
-        self.shown: list[np.ndarray] = []  # the last two frames shown (N, D), where a gesture starts from
-        self.shown_ids: list[np.ndarray] = []  # and their states
+        width = self.solved.stop - self.solved.start
+        self.shown = np.zeros((count, 2, width))  # the last two frames shown, the solved range: where a gesture starts from
+        self.shown_ids = np.zeros((count, 2), dtype=np.int64)  # and their states
+        self.seen = 0  # frames shown so far (up to 2)
         self.started = 0  # gestures begun
 
     @property
@@ -79,29 +90,30 @@ class GestureLayer:
 
     def __call__(self, held: Collection[str], frames: np.ndarray, ids: np.ndarray) -> np.ndarray:
         """The frame (N, D) with the gesture's upper body layered on, for the gesture targets held."""
-        held = set(held)
-        pressed = held - self.held
-        if self.playing in self.held - held:  # let go: during the raise it was a tap (the takes' repeats), later a hold
-            self.tapped = self.label == self.first + 1  # still raising
-        self.held = held
-        known = sorted(pressed & set(self.labels))  # one the model lacks: `run` says so, the walk goes on
-        if known and self.playing is None:
-            self._start(known[0])
+        if held or self.held:  # a press or a release: sets compared only then
+            held = set(held)
+            pressed = held - self.held
+            if self.playing in self.held - held:  # let go: during the raise it was a tap (the takes' repeats), later a hold
+                self.tapped = self.label == self.first + 1  # still raising
+            self.held = held
+            known = sorted(pressed & set(self.labels))  # one the model lacks: `run` says so, the walk goes on
+            if known and self.playing is None:
+                self._start(known[0])
         if self.playing is not None:
             frames = self._layer(frames)
-        self.shown = (self.shown + [frames.copy()])[-2:]
-        self.shown_ids = (self.shown_ids + [np.asarray(ids).copy()])[-2:]
+        _remember(self.shown, self.shown_ids, frames, ids, self.solved.start)
+        self.seen = min(self.seen + 1, 2)
         return frames
 
     def _start(self, name: str) -> None:
         crowd = self.crowd
         first = self.labels[name][0]
         self.playing, self.first, self.started = name, first, self.started + 1
-        if len(self.shown) == 2:  # the window's fixed past: what the characters have just shown
-            crowd.history[:] = np.stack(self.shown, axis=1)
-            crowd.history_ids[:] = np.stack(self.shown_ids, axis=1)
+        if self.seen == 2:  # the window's fixed past: what the characters have just shown
+            crowd.history[:] = self.shown
+            crowd.history_ids[:] = self.shown_ids
             crowd.sent = 2
-        else:  # at the very first frame: from nothing, as the gait begins
+        else:  # at the very first frames: from nothing, as the gait begins
             crowd.sent = 0
         crowd.counters[:] = 0
         crowd.counters[:, LABEL] = first + 1  # the raise
@@ -117,29 +129,62 @@ class GestureLayer:
         self._next_repeating = np.array([rest, rest, repeats, repeats, repeats, rest])
         self._next_ending = np.array([rest, rest, repeats, repeats, ends, rest])
 
-    def _units(self) -> np.ndarray:
-        """The unit each character's plan goes on in (module text): raise -> a, a -> b, b -> a
-        while it repeats, b -> lower, lower -> the rest."""
-        g = self.first
-        going_on = (self.playing in self.held) | (self.tapped & (self.done < self.repeats[self.playing]))
-        phase = np.clip(self.label - g, -1, 4) + 1  # 0: before the gesture, 1..4 its labels, 5: after
-        return np.where(going_on, self._next_repeating[phase], self._next_ending[phase])
-
     def _layer(self, frames: np.ndarray) -> np.ndarray:
         crowd = self.crowd
-        crowd.counters[:, UNIT] = self._units()
+        _choose_units(crowd.counters, self.label, self.done, self.tapped, self.playing in self.held,
+                      self.repeats[self.playing], self.first, self._next_repeating, self._next_ending)
         gesture = crowd.step()
-        label = crowd.history_ids[:, 1] // crowd.space.states
-        g = self.first
-        moved = label != self.label
-        self.done += moved & ((label == g + 2) | (label == g + 3)) & (self.label != g + 1)  # a repeat half finished
-        self.label = label
-        inside = (label >= g) & (label <= g + 3)
-        self.ease = np.clip(self.ease + np.where(inside, 1.0 / EASE_IN, -1.0 / EASE_OUT), 0.0, 1.0)
-        self.weights = self.ease * self.ease * (3.0 - 2.0 * self.ease)  # smoothstep: no kink at either end
-        if not inside.any() and not self.ease.any():
+        out = np.empty_like(frames, dtype=np.float64)
+        if not _blend(crowd.history_ids, crowd.space.states, self.first, self.label, self.done, self.ease, self.weights,
+                      np.asarray(frames, dtype=np.float64), gesture, self.columns, self.solved.start, out):
             self.playing = None
-        w = self.weights[:, None]
-        out = np.array(frames, dtype=np.float64)
-        out[:, self.columns] += w * (gesture[:, self.columns] - out[:, self.columns])
         return out
+
+
+@njit(cache=True, nogil=True)
+def _choose_units(counters, label, done, tapped, held, repeats, first, next_repeating, next_ending):  # pragma: no cover - compiled
+    """The unit each character's plan goes on in (module text): raise -> a, a -> b, b -> a while
+    it repeats, b -> lower, lower -> the rest. It repeats while held, or after a tap until the half
+    cycles played, the one under way (a b: only a b goes on to the lower) and the `done` before it,
+    make `repeats` (rounded up to a whole cycle). Counting only those done, a tap played two half
+    cycles more than its takes hold: an active raise, whose takes hold one or two, swayed twice
+    more than it should and its last sway no longer looked active (docs/evaluate.md)."""
+    for n in range(label.shape[0]):
+        going_on = held or (tapped[n] and done[n] + 1 < repeats)
+        phase = min(max(label[n] - first, -1), 4) + 1  # 0: before the gesture, 1..4 its labels, 5: after
+        counters[n, UNIT] = next_repeating[phase] if going_on else next_ending[phase]
+
+
+@njit(cache=True, nogil=True)
+def _blend(history_ids, states, first, label, done, ease, weights, frames, gesture, columns, lo, out):  # pragma: no cover - compiled
+    """After the gesture's stream has made its frame: each character's label under way, the repeat
+    half cycles it has finished, its ease and weight (smoothstep: no kink at either end), and `out`
+    = `frames` with the upper body `columns` moved that far towards the gesture's (whose column
+    0 is the frame's `lo`). Returns whether the gesture still has any character."""
+    playing = False
+    for n in range(label.shape[0]):
+        now = history_ids[n, 1] // states
+        if now != label[n] and (now == first + 2 or now == first + 3) and label[n] != first + 1:
+            done[n] += 1  # a repeat half finished
+        label[n] = now
+        inside = first <= now <= first + 3
+        e = min(max(ease[n] + (1.0 / EASE_IN if inside else -1.0 / EASE_OUT), 0.0), 1.0)
+        ease[n] = e
+        w = e * e * (3.0 - 2.0 * e)
+        weights[n] = w
+        playing = playing or inside or e > 0.0
+        for d in range(frames.shape[1]):
+            out[n, d] = frames[n, d]
+        for c in columns:
+            out[n, c] = frames[n, c] + w * (gesture[n, c - lo] - frames[n, c])
+    return playing
+
+
+@njit(cache=True, nogil=True)
+def _remember(shown, shown_ids, frames, ids, lo):  # pragma: no cover - compiled
+    """The frame just shown (its solved range) and its states, after the one before."""
+    for n in range(shown.shape[0]):
+        shown_ids[n, 0], shown_ids[n, 1] = shown_ids[n, 1], ids[n]
+        for d in range(shown.shape[2]):
+            shown[n, 0, d] = shown[n, 1, d]
+            shown[n, 1, d] = frames[n, lo + d]

@@ -51,17 +51,23 @@ assert tuple(WINDOWS[0]) == (0.0, 1.0, 0.0) and tuple(WINDOWS[1]) == (-0.5, 0.0,
 
 
 @njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
-def _precision_row(second, k, as_variance, row):  # pragma: no cover - compiled
-    for j in range(row.shape[0]):
-        row[j] = 1.0 / second[k, j] if as_variance else second[k, j]
+def _precision_row(second, k, as_variance, rows, r, lo, solved):  # pragma: no cover - compiled
+    """Table row k's precisions of the dimensions lo to lo + solved into row r of `rows`, each
+    window's side by side (views of the rows: `_solve`'s means say why)."""
+    dim = second.shape[1] // 3
+    for w in range(3):
+        source, target = _part(second, k, w * dim + lo, solved), _part(rows, r, w * solved, solved)
+        for j in range(solved):
+            target[j] = 1.0 / source[j] if as_variance else source[j]
 
 
 @njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
-def _solve(means, second, rows, as_variance, fixed, count, out, l1, l2):  # pragma: no cover - compiled
+def _solve(means, second, rows, as_variance, fixed, count, out, l1, l2, lo=0):  # pragma: no cover - compiled
     """means and `second` (precisions, or variances when as_variance): (N, R, 3D) tables whose
     rows[n, t] is frame t of window n (rows: (N, M), so a stream reads its model's few state rows
     in place instead of copying a window); fixed: (N, max(F, 1), D) holding F = count known
-    frames; out: (N, M - F, D); l1, l2: (M, D) work.
+    frames; out: (N, M - F, D); l1, l2: (M, D) work. lo: the first of the D static dimensions solved
+    (the tables may hold more: a gesture's stream solves only the upper body's, synthesis/gestures.py).
 
     One forward sweep forms row t of W'PW (from the windows centred on t-1, t and t+1) and
     eliminates it at once (LDL'); one backward sweep substitutes. Precisions and pivots live in
@@ -70,21 +76,22 @@ def _solve(means, second, rows, as_variance, fixed, count, out, l1, l2):  # prag
     """
     n_seq, frames = rows.shape
     width = means.shape[2]
-    dim = width // 3
-    prec_rows = np.empty((3, width))
-    pivots = np.ones((3, dim))
-    inverses = np.ones((3, dim))
+    dim = width // 3  # the tables'
+    solved = out.shape[2]  # the dimensions solved: lo to lo + solved
+    prec_rows = np.empty((3, 3 * solved))
+    pivots = np.ones((3, solved))
+    inverses = np.ones((3, solved))
     last_fixed = max(count - 1, 0)
     for n in range(n_seq):
         z = out[n]  # the forward sweep's values, overwritten by the solution
         mu = means[n]
         row = rows[n]
-        _precision_row(second[n], row[max(count - 1, 0)], as_variance, prec_rows[max(count - 1, 0) % 3])
-        _precision_row(second[n], row[count], as_variance, prec_rows[count % 3])
+        _precision_row(second[n], row[max(count - 1, 0)], as_variance, prec_rows, max(count - 1, 0) % 3, lo, solved)
+        _precision_row(second[n], row[count], as_variance, prec_rows, count % 3, lo, solved)
         for t in range(count, frames):
             tp, tn, tpp = max(t - 1, 0), min(t + 1, frames - 1), max(t - 2, 0)
             if t + 1 < frames:
-                _precision_row(second[n], row[t + 1], as_variance, prec_rows[(t + 1) % 3])
+                _precision_row(second[n], row[t + 1], as_variance, prec_rows, (t + 1) % 3, lo, solved)
             # dynamic windows centred on the first or last frame have zero precision
             w_here = 1.0 if 0 < t < frames - 1 else 0.0
             w_prev = 1.0 if 0 < t - 1 else 0.0
@@ -99,18 +106,23 @@ def _solve(means, second, rows, as_variance, fixed, count, out, l1, l2):  # prag
             qt, qp, qpp = t % 3, tp % 3, tpp % 3  # rows of the rolling pivot buffers
             zt, zp, zpp = t - count, max(tp - count, 0), max(tpp - count, 0)
             mt, mp, mn = row[t], row[tp], row[tn]  # the table rows of frames t, t - 1, t + 1
-            for d in range(dim):
+            # their means of the dimensions solved, as views (an offset index `lo + d` of unknown sign
+            # kept the loop below from being vectorised: a gesture's solve of 36 of 66 dimensions cost a full one)
+            mu0_t, mu2_t = _part(mu, mt, lo, solved), _part(mu, mt, 2 * dim + lo, solved)
+            mu1_n, mu2_n = _part(mu, mn, dim + lo, solved), _part(mu, mn, 2 * dim + lo, solved)
+            mu1_p, mu2_p = _part(mu, mp, dim + lo, solved), _part(mu, mp, 2 * dim + lo, solved)
+            for d in range(solved):
                 p0 = prec_rows[rt, d]
-                p2_here = prec_rows[rt, 2 * dim + d] * w_here
-                p1_prev = prec_rows[rp, dim + d] * w_prev
-                p2_prev = prec_rows[rp, 2 * dim + d] * w_prev
-                p1_next = prec_rows[rn, dim + d] * w_next
-                p2_next = prec_rows[rn, 2 * dim + d] * w_next
+                p2_here = prec_rows[rt, 2 * solved + d] * w_here
+                p1_prev = prec_rows[rp, solved + d] * w_prev
+                p2_prev = prec_rows[rp, 2 * solved + d] * w_prev
+                p1_next = prec_rows[rn, solved + d] * w_next
+                p2_next = prec_rows[rn, 2 * solved + d] * w_next
                 diag = (p0 + D_PREV * D_PREV * p1_next + D_NEXT * D_NEXT * p1_prev
                         + A_PREV * A_PREV * p2_next + A_MID * A_MID * p2_here + A_NEXT * A_NEXT * p2_prev)
-                rhs = (p0 * mu[mt, d] + A_MID * p2_here * mu[mt, 2 * dim + d]
-                       + D_PREV * p1_next * mu[mn, dim + d] + A_PREV * p2_next * mu[mn, 2 * dim + d]
-                       + D_NEXT * p1_prev * mu[mp, dim + d] + A_NEXT * p2_prev * mu[mp, 2 * dim + d])
+                rhs = (p0 * mu0_t[d] + A_MID * p2_here * mu2_t[d]
+                       + D_PREV * p1_next * mu1_n[d] + A_PREV * p2_next * mu2_n[d]
+                       + D_NEXT * p1_prev * mu1_p[d] + A_NEXT * p2_prev * mu2_p[d])
                 a1 = A_PREV * A_MID * p2_here + A_MID * A_NEXT * p2_prev  # A[t-1, t]
                 a2 = D_PREV * D_NEXT * p1_prev + A_PREV * A_NEXT * p2_prev  # A[t-2, t]
                 rhs -= known1 * a1 * fixed[n, fp, d] + known2 * a2 * fixed[n, fpp, d]
@@ -132,7 +144,7 @@ def _solve(means, second, rows, as_variance, fixed, count, out, l1, l2):  # prag
             has2 = 1.0 if t + 2 < frames else 0.0
             z1, z2 = min(t + 1, frames - 1) - count, min(t + 2, frames - 1) - count
             r1, r2 = min(t + 1, frames - 1), min(t + 2, frames - 1)
-            for d in range(dim):
+            for d in range(solved):
                 z[t - count, d] = z[t - count, d] - has1 * l1[r1, d] * z[z1, d] - has2 * l2[r2, d] * z[z2, d]
 
 

@@ -47,10 +47,11 @@ class StreamTables(NamedTuple):
     history_ids: np.ndarray  # (N, 2) int: their states
     ratios: np.ndarray  # (N,) rate limit, times the data's largest change (0: none)
     max_step: np.ndarray  # (D,) the data's largest frame-to-frame change
+    lo: int  # the first of the tables' static dimensions the stream makes (D of them from there)
 
     def part(self, start: int, stop: int) -> StreamTables:
         """Characters start to stop (views), for a part of the crowd on a core of its own."""
-        shared = {"mean_shared", "precision_shared", "max_step"}
+        shared = {"mean_shared", "precision_shared", "max_step", "lo"}
         return StreamTables(*(t if name in shared else t[start:stop] for name, t in zip(self._fields, self)))
 
 
@@ -118,7 +119,7 @@ class Crowd:
     """
 
     def __init__(self, space: StyleSpace, count: int = 1, lookahead: int = DEFAULT_LOOKAHEAD,
-                 seeds: list[int] | None = None, max_step_ratio: float | np.ndarray = 1.0):
+                 seeds: list[int] | None = None, max_step_ratio: float | np.ndarray = 1.0, columns: slice | None = None):
         seeds = list(range(count)) if seeds is None else list(seeds)
         if len(seeds) != count:
             raise ValueError("one seed per character")
@@ -126,7 +127,11 @@ class Crowd:
         self.count = count
         self.lookahead = lookahead
         labels_states, width = space.base.shape[1], space.base.shape[2]
-        dimension = width // 3
+        # the static dimensions it makes: all, or a range of them (a gesture's stream: the upper body's),
+        # read from the full lambda* tables in place (each dimension's solve is independent of the others)
+        self.columns = slice(*(columns or slice(None)).indices(width // 3)[:2])
+        dimension = self.columns.stop - self.columns.start
+        self.max_step = np.ascontiguousarray(space.max_step[self.columns])
         self.sent = 0
         self.counters = np.zeros((count, 9), dtype=np.int64)
         self.counters[:, FOLLOWER] = 1  # a walk begins on a right step (label 0), which the left one follows
@@ -228,11 +233,11 @@ class Crowd:
     def _window_buffers(self, fixed: int) -> WindowWork:
         if fixed not in self._buffers:
             window = fixed + self.lookahead + 1
-            width = self.tables.mean_shared.shape[1]
+            dimension = self.history.shape[2]
             self._buffers[fixed] = WindowWork(
                 np.zeros((self.count, window), dtype=np.int64),  # each window's rows of the lambda* tables
-                np.zeros((self.count, window - fixed, width // 3)),  # solved frames
-                np.zeros((window, width // 3)), np.zeros((window, width // 3)),  # solver work
+                np.zeros((self.count, window - fixed, dimension)),  # solved frames
+                np.zeros((window, dimension)), np.zeros((window, dimension)),  # solver work
                 np.zeros((self.count, self.lookahead + 1), dtype=np.int64),  # planned ids
                 np.zeros((self.count, self.lookahead + 3), dtype=np.int64),  # state instances: frames
                 np.zeros((self.count, self.lookahead + 3)),  # and carries
@@ -248,7 +253,8 @@ class Crowd:
             lam = self.tables
             self._made = key, StreamTables(lam.mean_own, lam.mean_shared, lam.precision_own, lam.precision_shared,
                                            lam.plain, self.base, self.sigma, self.counters, self.carry, self.pool,
-                                           self.history, self.history_ids, self.max_step_ratio, self.space.max_step)
+                                           self.history, self.history_ids, self.max_step_ratio, self.max_step,
+                                           self.columns.start)
         return self._made[1]
 
     def step(self) -> np.ndarray:
@@ -257,7 +263,7 @@ class Crowd:
             self._carry_to_phase()
         self._draws_for(self.lookahead + 1)
         fixed = min(self.sent, 2)
-        frames = np.empty((self.count, self.space.base.shape[2] // 3))
+        frames = np.empty((self.count, self.history.shape[2]))
         tables = self._record()
         buffers = self._window_buffers(fixed)
         ratios = self.max_step_ratio
@@ -367,7 +373,7 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
     mean_own, mean_shared, precision_own, precision_shared = (tables.mean_own, tables.mean_shared, tables.precision_own,
                                                               tables.precision_shared)
     base, sigma, counters, carry, pool = tables.base, tables.sigma, tables.counters, tables.carry, tables.pool
-    history, history_ids, ratios, max_step = tables.history, tables.history_ids, tables.ratios, tables.max_step
+    history, history_ids, ratios, max_step, lo = tables.history, tables.history_ids, tables.ratios, tables.max_step, tables.lo
     rows, solved, work1, work2, ids, counts, carries = (work.rows, work.solved, work.work1, work.work2, work.ids,
                                                         work.counts, work.carries)
     count, states = mean_own.shape[0], base.shape[2]
@@ -390,13 +396,13 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
             rows[n, fixed + m] = ids[n, m]
         if plain[n]:  # 0 + x and 1 x are x: the shared tables are the character's, to the bit
             _solve(shared_means, shared_precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved[n : n + 1],
-                   work1, work2)
+                   work1, work2, lo)
             continue
         for r in range(mean_shared.shape[0]):
             for c in range(mean_shared.shape[1]):
                 means[0, r, c] = mean_own[n, r, c] + mean_shared[r, c]
                 precisions[0, r, c] = precision_own[n, r, c] * precision_shared[r, c]
-        _solve(means, precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved[n : n + 1], work1, work2)
+        _solve(means, precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved[n : n + 1], work1, work2, lo)
     for n in range(count):
         for d in range(dimension):
             value = solved[n, 0, d]
