@@ -399,7 +399,10 @@ class Phases:
         self.in_frame = False  # sent: the next frame's work begins at its wake-up
 
     def started(self, phase, info):
-        if phase == "start" and self.frame >= 1:
+        # while the show runs (the loop keeps the collector off after its first frame; that it does
+        # is asserted through `enabled_during`): after its last frame the loop wakes for one that
+        # never comes, and a collection once it has switched the collector back on is not in a frame
+        if phase == "start" and self.frame >= 1 and not gc.isenabled():
             self.collections.append((self.frame, self.in_frame))
 
     def close(self):

@@ -121,7 +121,7 @@ class UnitChooser:
         rest = turn - side * share * self.turn_rates.get(side, 0.0)  # what turning steps do not give
         self.added_yaw[:] = np.where(current == self.stand, 0.0, rest)
         self._settled = ((gait, turn) if share == 0.0 and stream.sent > 0 and (current == unit).all()
-                         and np.isinf(self.moving_for).all() else None)
+                         and np.isinf(self.moving_for[current != self.stand]).all() else None)  # no start easing in
 
     def _ease_starts(self, standing: np.ndarray) -> None:
         """Count each body's frames since it last stood, and ease its travel in over the first
