@@ -523,6 +523,7 @@ def test_link_start_stop_keeps_the_tempo_when_stopped_and_locks_when_started(mod
     from instrument.control.state import ControlState
     from instrument.runtime.link import LinkTempo
     from instrument.runtime.performance import Show, perform
+    from instrument.runtime.stopping import StopFlag
     from instrument.terminal import Console
 
     ours = LinkTempo()
@@ -531,35 +532,57 @@ def test_link_start_stop_keeps_the_tempo_when_stopped_and_locks_when_started(mod
     peer.enabled = True
     marks: dict[str, float] = {}
 
+    sink = SentFootfalls(ours)
+    lock = BeatLock(ours)
+    stop = StopFlag()
+
     def transport():
+        """Each phase ends on what the show did (footfalls sent, the tempo seen), each wait with
+        a generous deadline, so a slow machine only makes the show longer."""
         def commit(change):
             state = peer.captureAppSessionState()
             change(state, peer.clock().micros())
             peer.commitAppSessionState(state)
 
-        deadline = time.monotonic() + 30
-        while ours.peers() == 0 and time.monotonic() < deadline:
-            time.sleep(0.05)
-        commit(lambda s, now: s.setTempo(100.0, now))
-        time.sleep(1.0)
-        marks["start"] = time.monotonic()
-        commit(lambda s, now: s.setIsPlaying(True, now))
-        time.sleep(7.0)
-        marks["stop"] = time.monotonic()
-        commit(lambda s, now: s.setIsPlaying(False, now))
-        time.sleep(1.0)
-        commit(lambda s, now: s.setTempo(125.0, now))
-        time.sleep(4.0)
-        marks["again"] = time.monotonic()
-        commit(lambda s, now: s.setIsPlaying(True, now))
+        def wait(condition) -> bool:
+            deadline = time.monotonic() + 60
+            while not condition():
+                if time.monotonic() > deadline or stop:
+                    return False
+                time.sleep(0.02)
+            return True
 
-    sink = SentFootfalls(ours)
-    lock = BeatLock(ours)
+        def footfalls_since(mark: str) -> int:
+            return sum(t > marks[mark] for t in list(sink.times))
+
+        try:
+            if not wait(lambda: ours.peers() > 0):
+                return
+            commit(lambda s, now: s.setTempo(100.0, now))
+            if not wait(lambda: abs(ours.period() - 0.6) < 1e-6):
+                return
+            marks["start"] = time.monotonic()
+            commit(lambda s, now: s.setIsPlaying(True, now))
+            if not wait(lambda: footfalls_since("start") >= 10):
+                return
+            marks["stop"] = time.monotonic()
+            commit(lambda s, now: s.setIsPlaying(False, now))
+            if not wait(lambda: footfalls_since("stop") >= 2):
+                return
+            commit(lambda s, now: s.setTempo(125.0, now))  # while stopped: waits for the start
+            if not wait(lambda: abs(ours.period() - 0.48) < 1e-6) or not wait(lambda: footfalls_since("stop") >= 6):
+                return
+            marks["again"] = time.monotonic()
+            commit(lambda s, now: s.setIsPlaying(True, now))
+            wait(lambda: footfalls_since("again") >= 10)
+        finally:
+            stop.request()
+
     controller = threading.Thread(target=transport, daemon=True)
     try:
         controller.start()
         state = ControlState(model.style_names, model.states)
-        perform(Show(model, [sink], FPS, seconds=22.0, state=state, beat_lock=lock), Console(quiet=True))
+        perform(Show(model, [sink], FPS, seconds=300.0, state=state, beat_lock=lock), Console(quiet=True), stop=stop)
         controller.join(30)
     finally:
         peer.enabled = False
