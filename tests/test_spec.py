@@ -389,3 +389,25 @@ def test_a_score_recalls_a_shipped_mappings_preset_without_the_styles_the_model_
     player = ScorePlayer(load_score(score, state, presets), state)
     events = player.due(0.0) + player.due(2.0)
     assert {e.control for e in events} == {"style/elderly"} and events[-1].value == 0.5
+
+
+def test_the_states_values_and_echo_are_made_again_exactly_when_a_value_changes():
+    """The live loop hands every frame the state's values and echo; they are kept between changes
+    (a frame with no change makes neither again) and always say what the state holds."""
+    from instrument.control.state import ControlState
+    from instrument.control.values import all_values
+
+    state = ControlState(["elderly", "youthful"], 5)
+    values, echo = all_values(state), state.echo()
+    assert all_values(state) is values and state.echo() is echo  # nothing changed: kept
+    assert not state.set("style/elderly", 50.0)  # refused: nothing changes
+    assert all_values(state) is values
+    assert state.set("style/elderly", 0.7)
+    assert all_values(state)["style/elderly"] == 0.7 and state.echo()["style/elderly"] == 0.7
+    assert values["style/elderly"] == 0.0  # the dict a frame before holds that frame's values
+    state.set("speed", 1.5)
+    state.set("reset", 1.0)
+    assert all_values(state)["style/elderly"] == 0.0 and all_values(state)["speed"] == 1.0
+    made = all_values(state)
+    assert list(made) == state.value_targets
+    assert all(made[t] == state.get(t) or (math.isnan(made[t]) and math.isnan(state.get(t))) for t in made)

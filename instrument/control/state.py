@@ -32,9 +32,14 @@ class ControlState:
         # the speed the beat lock set for each character (runtime/tempo.py), as its `tempo` events
         # said (control/kinds.py): not the performer's, so a reset keeps it
         self.lock_speeds: dict[int, float] = {}
+        # every accepted set or reset counts one: what `values` and `echo` made is kept until the
+        # next, so a frame with no change costs no pass over the targets (about 70 string splits)
+        self.revision = 0
+        self._made: dict[str, tuple[int, dict[str, float]]] = {}
         self.reset()
 
     def reset(self) -> None:
+        self.revision = getattr(self, "revision", 0) + 1
         self.morph: tuple[float, float, dict[str, tuple[float, float]]] | None = None  # start, seconds, target: (from, to)
         rows = spec.TABLE
         self.weights = np.full(len(self.style_names), rows["style"].default)
@@ -92,6 +97,7 @@ class ControlState:
             self.morph_time = value
         else:  # speed, gait, turn, liveliness, spread, sync, steps-per-beat
             setattr(self, kind.replace("-", "_"), value)
+        self.revision += 1
         return True
 
     def get(self, target: str) -> float:
@@ -136,6 +142,18 @@ class ControlState:
         return Controls(self.weights.copy(), parts, self.speed, self.state_scale.copy(), self.liveliness, self.turn,
                         gait_index(self.gait), tuple(g for g, v in self.gestures.items() if v > 0))
 
+    def values(self) -> dict[str, float]:
+        """Every target that holds a value, in the rows' order (NaN: a part weight that follows its
+        style). The same dict until a value changes: read it, never write it."""
+        return self._kept("values", self.value_targets)
+
     def echo(self) -> dict[str, float]:
-        """The values a control surface shows: the targets of the rows marked `echoed` (control/spec.py)."""
-        return {t: self.get(t) for t in self.echoed_targets}
+        """The values a control surface shows: the targets of the rows marked `echoed`
+        (control/spec.py). The same dict until a value changes: read it, never write it."""
+        return self._kept("echo", self.echoed_targets)
+
+    def _kept(self, name: str, targets: list[str]) -> dict[str, float]:
+        made = self._made.get(name)
+        if made is None or made[0] != self.revision:
+            made = self._made[name] = (self.revision, {t: self.get(t) for t in targets})
+        return made[1]

@@ -10,8 +10,9 @@ from .state import ControlState
 
 
 def all_values(state: ControlState) -> dict[str, float]:
-    """Every target that holds a value, in the rows' order; NaN for a part weight that follows its style."""
-    return {t: state.get(t) for t in state.value_targets}
+    """Every target that holds a value, in the rows' order; NaN for a part weight that follows its
+    style (kept by the state until a value changes: read it, never write it)."""
+    return state.values()
 
 
 def preset_values(state: ControlState) -> dict[str, float]:

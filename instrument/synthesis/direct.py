@@ -2,12 +2,13 @@
 
 Every call of a numba kernel goes through its dispatcher, which first works out the type of each
 argument to choose the compiled version. For a record (a NamedTuple of arrays, as the stream's
-`StreamTables` and `WindowWork`) that means typing every array in it, each call: 12 us of a
-one-character frame's stream call against 3 us for unboxing alone (a kernel that does nothing,
-two records and three plain arguments, measured 2026-11-26). A frame's record is made again only
-when its tables change (stream.py keeps it), so its type is worked out once per record here and
-the compiled entry point for it is kept and called directly. For plain arrays the dispatcher is
-fast already: the posing kernels called this way were no faster (32.7 against 30.5 us a frame).
+`StreamTables` and `WindowWork`) that means typing every array in it, each call. A frame's record
+is made again only when its tables change (stream.py keeps it), so the compiled entry point is
+chosen once per record here and called directly. When a record is made again (a fader moved the
+style), its arrays are new but of the same kinds, so the entry point is looked up by a cheap
+description of the arguments (each array's dtype, rank, layout and writability) rather than by
+numba's `typeof`, which cost a style change's frame more than the rest of its work
+(docs/mlpg.md, "A style change's frame").
 
 What is kept is keyed on the identity of the `held` objects the caller names (the records); every
 other argument must keep its type from call to call (the caller's promise: a Python int, a bool,
@@ -19,22 +20,40 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 from numba import typeof
 
 
+def _kind(value: Any) -> Any:
+    """What decides `value`'s numba type, cheaply: for an array its dtype, rank, layout, whether
+    it can be written and whether it is aligned; for a tuple (a record) its class and its items'
+    kinds; for anything else its Python type."""
+    if isinstance(value, np.ndarray):
+        flags = value.flags
+        return value.dtype, value.ndim, flags.c_contiguous, flags.f_contiguous, flags.writeable, flags.aligned
+    if isinstance(value, tuple):
+        return type(value), tuple(_kind(item) for item in value)
+    return type(value)
+
+
 class DirectCall:
-    """`kernel(*arguments)` through the compiled entry point for the arguments' types, worked out
+    """`kernel(*arguments)` through the compiled entry point for the arguments' types, looked up
     again only when one of the `held` objects is another than at the last call."""
 
     def __init__(self, kernel: Any):
         self.kernel = kernel
         self._held: tuple = ()  # the objects the entry point was chosen for (kept, so their ids stay theirs)
         self._entry: Any = None
+        self._entries: dict[Any, Any] = {}  # the arguments' kinds -> the entry point for their types
 
     def __call__(self, held: tuple, *arguments: Any) -> Any:
         if self._entry is None or len(held) != len(self._held) or any(a is not b for a, b in zip(held, self._held)):
-            types = tuple(typeof(a) for a in arguments)
-            if types not in self.kernel.overloads:
-                self.kernel.compile(types)
-            self._entry, self._held = self.kernel.overloads[types].entry_point, held
+            kinds = tuple(_kind(a) for a in arguments)
+            entry = self._entries.get(kinds)
+            if entry is None:
+                types = tuple(typeof(a) for a in arguments)
+                if types not in self.kernel.overloads:
+                    self.kernel.compile(types)
+                entry = self._entries[kinds] = self.kernel.overloads[types].entry_point
+            self._entry, self._held = entry, held
         return self._entry(*arguments)
