@@ -1,0 +1,48 @@
+"""The stop-and-start figures (`instrument evaluate --units`, examples/units_figures.py) measure
+what a user gets: the sequence the evaluation renders through the engine is, frame for frame, the
+BVH that `instrument run --fast --bvh` records from a score playing the same cues, read back by an
+independent reader (tests/bvh_independent.py: the `bvh` package and scipy's rotations)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+
+from bvh_independent import world_positions
+from conftest import REPO
+from instrument.evaluation.sequence import velocity_jumps
+from instrument.evaluation.transitions import transition_sequence
+from instrument.models.modelfile import load_model
+from instrument.motion.kinematics import world_positions as own_world_positions
+
+
+def test_the_evaluations_stop_and_start_is_the_bvh_a_score_records(tmp_path):
+    model = load_model(REPO / "models" / "default.npz")
+    sequence = transition_sequence(model, "walk", {"youthful": 1.0})
+    stop_at, start_at = sequence.changes
+    fps = model.fps
+    frames = len(sequence.labels)
+    # the same cues as a score: the style and the walk from the start, a stand, the walk again
+    (tmp_path / "stop.toml").write_text(
+        f'[[cue]]\nat = 0\nramp = {{ "style/youthful" = 1.0, gait = "walk" }}\n\n'
+        f'[[cue]]\nat = {stop_at / fps!r}\nramp = {{ gait = "stand" }}\n\n'
+        f'[[cue]]\nat = {start_at / fps!r}\nramp = {{ gait = "walk" }}\n')
+    done = subprocess.run([sys.executable, "-m", "instrument", "run", "--score", "stop.toml", "--fast", "--no-osc",
+                           "--quiet", "--fps", repr(fps), "--seconds", repr(frames / fps), "--bvh", "stop.bvh"],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=900)
+    assert done.returncode == 0, done.stderr
+    names, recorded, recorded_fps = world_positions(tmp_path / "stop.bvh")
+    assert abs(recorded_fps - fps) < 1e-3 and len(recorded) == frames  # Frame Time is written to 6 places
+    own = own_world_positions(sequence.motion)
+    order = [sequence.motion.skeleton.names.index(n) for n in names]
+    assert np.abs(recorded - own[:, order]).max() < 1e-3  # model units (cm): the BVH's written precision
+    # so every figure of the evaluation holds for the file: the velocity jumps it judges transitions by
+    assert np.allclose(velocity_jumps(recorded), velocity_jumps(own[:, order]), atol=1e-2)
+    # and what the file shows: it walks, stands still, walks again
+    hips = recorded[:, names.index(sequence.motion.skeleton.names[model.layout.root])][:, [0, 2]]
+    speed = np.linalg.norm(np.diff(hips, axis=0), axis=1) * fps
+    walking, standing = speed[stop_at - 60:stop_at].mean(), speed[stop_at + 60:start_at].mean()
+    assert walking > 60.0 and standing < 2.0
+    assert speed[-60:].mean() > 0.8 * walking
