@@ -25,6 +25,7 @@ import os
 import random
 import select
 import socket
+import struct
 import subprocess
 import sys
 import tempfile
@@ -57,7 +58,8 @@ def main() -> None:
     mapping.write(MAPPING)
     mapping.close()
     latency(mapping.name, args.fps, args.changes)
-    flood(mapping.name, args.fps, args.flood_seconds)
+    if args.flood_seconds > 0:
+        flood(mapping.name, args.fps, args.flood_seconds)
 
 
 def start(mapping: str, fps: float, seconds: float, osc_port: int, phase: str,
@@ -84,24 +86,51 @@ def finish(run: subprocess.Popen, out: rtmidi.MidiOut) -> str:
     return next((l for l in reversed(lines) if l.startswith("stopped")), "\n".join(lines[-5:]))
 
 
+SO_TIMESTAMPNS = 35  # Linux's (asm-generic/socket.h); Python's socket module does not name it
+
+
+def _kernel_stamps(sock: socket.socket) -> bool:
+    """Ask the kernel to stamp each datagram with its arrival; False where it cannot."""
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
+    except OSError:
+        print("  (no kernel receive stamps here: arrivals are stamped when this script reads them)")
+        return False
+    return True
+
+
+def _arrival(ancillary: list) -> float:
+    """The kernel's receive stamp (CLOCK_REALTIME) of a datagram, on the monotonic clock."""
+    for level, kind, data in ancillary:
+        if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS:
+            seconds, nanoseconds = struct.unpack("qq", data[:16])
+            return seconds + nanoseconds * 1e-9 - (time.time() - time.monotonic())
+    return time.monotonic()
+
+
 def latency(mapping: str, fps: float, count: int) -> None:
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sock.bind(("127.0.0.1", 0))
     arrivals: list[tuple[float, float]] = []  # (arrival time, echoed elderly weight)
     stop = threading.Event()
 
+    stamped = _kernel_stamps(sock)
+
     def listen() -> None:
-        """Stamp every datagram as it comes and parse only when none is waiting: parsing one
-        bundle with python-osc takes longer than the instrument takes to send the next."""
+        """Take every datagram with the time the kernel received it (SO_TIMESTAMPNS, so this
+        process's own wait for the CPU on a busy machine is not counted as the instrument's), and
+        parse only when none is waiting: parsing one bundle with python-osc takes longer than the
+        instrument takes to send the next."""
         sock.setblocking(False)
         while not stop.is_set():
             select.select([sock], [], [], 0.1)
             received = []
             while True:
                 try:
-                    received.append((sock.recv(65536), time.monotonic()))
+                    data, ancillary, _, _ = sock.recvmsg(65536, 64)
                 except BlockingIOError:
                     break
+                received.append((data, _arrival(ancillary) if stamped else time.monotonic()))
             for data, now in received:
                 for m in OscBundle(data):
                     if m.address == "/walk/style/elderly":
@@ -114,25 +143,28 @@ def latency(mapping: str, fps: float, count: int) -> None:
     probed: list[tuple[float, float, int]] = []  # (callback time, JACK time since the previous message, value)
     probe.set_callback(lambda message, _: probed.append((time.monotonic(), message[1], message[0][2])))
     time.sleep(2.0)
-    changes = []  # (sent, value, first OSC arrival showing the value)
+    changes = []  # (sent, value)
     value = 0
     for _ in range(count):
         value = (value + random.randint(5, 60)) % 128
-        sent = time.monotonic()
+        changes.append((time.monotonic(), value))
         out.send_message([0xB0, 1, value])
         time.sleep(random.uniform(0.15, 0.25))
-        seen = [t for t, v in list(arrivals) if t >= sent and abs(v - value / 100.0) < 1e-4]
-        changes.append((sent, value, seen[0] if seen else np.nan))
     probe.close_port()
     probe.delete()
     closing = finish(run, out)
+    time.sleep(0.5)  # the listener has read what the kernel holds
     stop.set()
+    # the first OSC frame showing each value, within the 0.15 s before the next change was sent
+    shown = [min((t for t, v in arrivals if s <= t < s + 0.15 and abs(v - x / 100.0) < 1e-4), default=np.nan)
+             for s, x in changes]
 
     callback_times, gaps, values = np.array(probed).T
     since_first = np.cumsum(gaps)
     delays = callback_times - since_first
     probe_arrivals = delays.min() + since_first  # each message's arrival at a JACK input, monotonic clock
-    sent, value, shown = np.array(changes).T
+    sent, value = np.array(changes).T
+    shown = np.array(shown)
     arrived = np.full(len(sent), np.nan)
     for k in range(len(sent)):  # the probe's message of that value just after it was sent
         match = np.flatnonzero((values == value[k]) & (callback_times >= sent[k]) & (callback_times < sent[k] + 0.15))
