@@ -10,6 +10,7 @@ from typing import Callable
 import numpy as np
 
 from .. import __version__
+from ..models.hsmm import HSMM
 from ..models.modelfile import Model
 from ..motion.features import ROOT_FEATURES, WINDOWS
 from ..motion.gestures import PHASES
@@ -21,6 +22,7 @@ from .average import TrainingReport, train_average, variance_floors
 from .contact import train_contact
 from .corpus import Take, load_corpus, segments_by_label
 from .gestures import gesture_metadata, gesture_segments, model_gestures
+from .little import LITTLE_TAU, data_weight, own_durations
 from .symmetry import symmetric_models
 from .units import held_posture, mirrored_pairs, model_units
 from .widen import train_range
@@ -38,9 +40,12 @@ def build_model(
     progress: Callable[[int, int, str], None] | None = None,
     on_iteration: Callable[[int, float], None] | None = None,
     adaptation: Settings | None = None,
+    little_tau: float | None = LITTLE_TAU,
 ) -> tuple[Model, TrainingReport, list[Take]]:
     """`adaptation` fixes the style adaptation's settings (for comparisons); None chooses them per
-    style by held-out likelihood."""
+    style by held-out likelihood. `little_tau` (steps) is the prior of a style's own step
+    durations and swing (training/little.py); None leaves them as the adaptation and the range
+    filter make them alone."""
     started = time.perf_counter()
     layout, takes, warnings = load_corpus(pairs, fps, progress, states)
     report = TrainingReport(warnings=list(warnings))
@@ -61,6 +66,20 @@ def build_model(
                         if not segments[2 * len(units) + len(PHASES) * k + p]]
     per_style = {s: [labelled([t]) for t in takes if t.style == s] for s in style_names}
     styles, adapted = adapt_styles(average, per_style, floors, report.warnings, adaptation)
+    data_weights = {}
+    if little_tau is not None:  # each unit's step durations toward the style's own (training/little.py)
+        kept = []
+        for s, style in enumerate(style_names):
+            model = HSMM(*(getattr(styles, p)[s] for p in ("means", "variances", "duration_means", "duration_variances")))
+            mine = labelled([t for t in takes if t.style == style])
+            for k, unit in enumerate(units):
+                weight = data_weight(len(mine[2 * k]) + len(mine[2 * k + 1]), little_tau)
+                model = own_durations(model, mine, weight, [2 * k, 2 * k + 1])
+                if unit == "walk":
+                    data_weights[style] = weight
+            kept.append(model)
+        styles = HSMM(*(np.stack([getattr(m, p) for m in kept]) for p in ("means", "variances", "duration_means",
+                                                                            "duration_variances")))
     contact, contact_metadata = train_contact(layout, takes, average, styles, style_names, fps, states, units)
     pairs_mirrored = mirrored_pairs(units)  # straight at turn = 0 (the turns keep their turn)
     average, styles = symmetric_models(average, styles, layout.dimension, pairs_mirrored)
@@ -98,6 +117,7 @@ def build_model(
             "variance_floor_ratio": 0.01,
             "adaptation": {style: r.to_dict() for style, r in adapted.items()},
             "mirror_image_steps": True,
+            "little_data": {"tau_steps": little_tau, "walk_weights": data_weights},
             "seconds": round(time.perf_counter() - started, 1),
             "instrument_version": __version__,
             "python": platform.python_version(),
@@ -117,4 +137,4 @@ def build_model(
     if gestures:
         metadata["gestures"] = gesture_metadata(takes, gestures, 2 * len(units))
     model = Model(metadata, average, styles, static_std, step_max, contact)
-    return Model(metadata, average, styles, static_std, step_max, contact | train_range(model, walks)), report, takes
+    return Model(metadata, average, styles, static_std, step_max, contact | train_range(model, walks, little_tau)), report, takes
