@@ -36,8 +36,7 @@ from instrument.evaluation.recognition import LinearDiscriminant, step_features
 from instrument.motion.bvh import Motion
 from instrument.motion.features import extract
 from instrument.motion.kinematics import world_positions
-from instrument.motion.limbs import clearance, sole_clearance
-from instrument.motion.quality import pooled, walk_figures
+from instrument.motion.quality import pooled, take_floors, walk_figures
 from instrument.motion.steps import segment_steps
 from instrument.synthesis.engine import default_controls, render
 from instrument.training.build import build_model
@@ -93,11 +92,13 @@ class HeldOut:
         motions = read_motions(held, model.fps)
         takes, _ = make_takes(held, motions, layout)
         positions = [world_positions(m) for m in motions]
-        self.ground, self.sole = clearance(positions, self.limbs), sole_clearance(positions, self.limbs)
+        floors = take_floors(positions, self.limbs)  # each take on its own floor, a made walk on their mean
+        self.ground, self.sole = floors.mean_ground, floors.mean_sole
         features = [step_features(t.observations[:, :dimension], t.steps) for t in takes]
         self.classifier = LinearDiscriminant(np.vstack(features), [t.style for t, x in zip(takes, features) for _ in x])
-        self.real = {style: pooled([walk_figures(m, layout, self.limbs, self.ground, self.cm, self.sole)
-                                    for m, p in zip(motions, held) if p.style == style]) for style in {p.style for p in held}}
+        self.real = {style: pooled([walk_figures(m, layout, self.limbs, g, self.cm, f)
+                                    for m, p, g, f in zip(motions, held, floors.ground, floors.sole) if p.style == style])
+                     for style in {p.style for p in held}}
         own, _ = make_takes(train, read_motions(train, model.fps), layout)
         self.own = {t.style: step_features(t.observations[:, :dimension], t.steps) for t in own}
 
