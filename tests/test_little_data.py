@@ -98,3 +98,16 @@ def test_bad_settings_are_one_line_errors(arguments, message):
 def test_a_missing_folder_is_a_one_line_error(tmp_path):
     done = subprocess.run([sys.executable, str(SCRIPT), str(tmp_path / "nowhere")], capture_output=True, text=True, timeout=300)
     assert done.returncode == 1 and done.stderr.strip() == f"little_data.py: error: {tmp_path / 'nowhere'}: no such file or folder"
+
+
+def test_a_shorter_step_keeps_every_state_above_the_floor(average):
+    take = slow_take(6, 7)
+    adapted = adapt(average, take, FLOORS, DEFAULT)
+    short = [[s[: len(s) // 2 + 2] for s in label] for label in take]  # own steps far shorter than the model's
+    floor = np.full_like(adapted.duration_means, 2.0)
+    scaled = own_durations(adapted, short, 1.0, [0, 1])
+    assert scaled.duration_means.min() < 2.0  # scaling alone takes a state under the floor
+    kept = own_durations(adapted, short, 1.0, [0, 1], floor)
+    assert kept.duration_means.min() >= 2.0 - 1e-12
+    own = np.array([np.mean([len(s) for s in label]) for label in short])
+    np.testing.assert_allclose(kept.duration_means.sum(axis=1), own)  # the frames come from the other states

@@ -10,19 +10,18 @@ from typing import Callable
 import numpy as np
 
 from .. import __version__
-from ..models.hsmm import HSMM
 from ..models.modelfile import Model
 from ..motion.features import ROOT_FEATURES, WINDOWS
 from ..motion.gestures import PHASES
 from ..motion.steps import LABELS
 from ..synthesis.interpolation import body_groups
 from ..synthesis.parameters import GROUPS
-from .adaptation import Settings, adapt_styles
+from .adaptation import DEFAULT, Settings, adapt_styles
 from .average import TrainingReport, train_average, variance_floors
 from .contact import train_contact
 from .corpus import Take, load_corpus, segments_by_label
 from .gestures import gesture_metadata, gesture_segments, model_gestures
-from .little import LITTLE_TAU, data_weight, own_durations
+from .little import LITTLE_TAU, keep_own_steps
 from .symmetry import symmetric_models
 from .units import held_posture, mirrored_pairs, model_units
 from .widen import train_range
@@ -68,18 +67,9 @@ def build_model(
     styles, adapted = adapt_styles(average, per_style, floors, report.warnings, adaptation)
     data_weights = {}
     if little_tau is not None:  # each unit's step durations toward the style's own (training/little.py)
-        kept = []
-        for s, style in enumerate(style_names):
-            model = HSMM(*(getattr(styles, p)[s] for p in ("means", "variances", "duration_means", "duration_variances")))
-            mine = labelled([t for t in takes if t.style == style])
-            for k, unit in enumerate(units):
-                weight = data_weight(len(mine[2 * k]) + len(mine[2 * k + 1]), little_tau)
-                model = own_durations(model, mine, weight, [2 * k, 2 * k + 1])
-                if unit == "walk":
-                    data_weights[style] = weight
-            kept.append(model)
-        styles = HSMM(*(np.stack([getattr(m, p) for m in kept]) for p in ("means", "variances", "duration_means",
-                                                                            "duration_variances")))
+        mine = [labelled([t for t in takes if t.style == style]) for style in style_names]
+        styles, by_index = keep_own_steps(average, styles, mine, units, little_tau, (adaptation or DEFAULT).floor_share)
+        data_weights = {style_names[s]: w for s, w in by_index.items()}
     contact, contact_metadata = train_contact(layout, takes, average, styles, style_names, fps, states, units)
     pairs_mirrored = mirrored_pairs(units)  # straight at turn = 0 (the turns keep their turn)
     average, styles = symmetric_models(average, styles, layout.dimension, pairs_mirrored)

@@ -29,6 +29,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..models.hsmm import HSMM
+from .adaptation import duration_floor, floored_keeping_length
+
+FIELDS = ("means", "variances", "duration_means", "duration_variances")
 
 LITTLE_TAU: float | None = 4.0  # steps; chosen by examples/little_data.py (docs/evaluate.md)
 
@@ -40,10 +43,12 @@ def data_weight(steps: int, tau: float) -> float:
     return steps / (steps + tau)
 
 
-def own_durations(model: HSMM, segments: list[list[np.ndarray]], weight: float, labels: list[int]) -> HSMM:
+def own_durations(model: HSMM, segments: list[list[np.ndarray]], weight: float, labels: list[int],
+                  floor: np.ndarray | None = None) -> HSMM:
     """`model` (one style: labels, states) with each of `labels`' mean step moved to `weight`
     times the mean length of that label's `segments` plus 1 - weight times the model's own (the
-    sum of its state durations), states in proportion."""
+    sum of its state durations), states in proportion, none below `floor` (labels, states; the
+    adaptation's duration floor, the frames it adds taken from the other states)."""
     means, variances = model.duration_means.copy(), model.duration_variances.copy()
     for k in labels:
         if not segments[k] or weight <= 0:
@@ -52,8 +57,28 @@ def own_durations(model: HSMM, segments: list[list[np.ndarray]], weight: float, 
         own = float(np.mean([len(s) for s in segments[k]]))
         scale = (weight * own + (1 - weight) * made) / made
         means[k] *= scale
+        if floor is not None:
+            means[k] = floored_keeping_length(means[k][None], floor[k][None])[0]
         variances[k] *= scale**2
     return HSMM(model.means, model.variances, means, variances)
+
+
+def keep_own_steps(average: HSMM, styles: HSMM, segments: list[list[list[np.ndarray]]], units: list[str],
+                   tau: float, floor_share: float) -> tuple[HSMM, dict[int, float]]:
+    """The style models (stacked) with every unit's mean step moved toward each style's own by
+    `data_weight` of its steps of that unit (`segments`: per style, per label, the steps), and
+    the walk's weight per style (by index)."""
+    kept, weights = [], {}
+    for s, mine in enumerate(segments):
+        model = HSMM(*(getattr(styles, f)[s] for f in FIELDS))
+        floor = duration_floor(average, mine, floor_share)
+        for k, unit in enumerate(units):
+            weight = data_weight(len(mine[2 * k]) + len(mine[2 * k + 1]), tau)
+            model = own_durations(model, mine, weight, [2 * k, 2 * k + 1], floor)
+            if unit == "walk":
+                weights[s] = weight
+        kept.append(model)
+    return HSMM(*(np.stack([getattr(m, f) for m in kept]) for f in FIELDS)), weights
 
 
 def pulled_factors(own: np.ndarray, average: np.ndarray, weight: float) -> np.ndarray:
