@@ -18,8 +18,8 @@ from ..models.modelfile import Model
 from ..motion.bvh import Motion
 from ..motion.features import extract
 from ..motion.kinematics import world_positions
-from ..motion.limbs import Limbs, centimetres_per_unit, clearance, find_limbs, sole_clearance
-from ..motion.quality import pooled, walk_figures
+from ..motion.limbs import Limbs, centimetres_per_unit, clearance, find_limbs
+from ..motion.quality import pooled, take_floors, walk_figures
 from ..motion.steps import segment_steps
 from ..synthesis.engine import default_controls, render
 from ..training.corpus import TakeFile, make_takes, read_motions
@@ -95,12 +95,14 @@ def assess(
         motions = read_motions(pairs, model.fps)
         takes, _ = make_takes(pairs, motions, layout)  # first: it names a take of another skeleton or units
         positions = [world_positions(m) for m in motions]
-        ground, sole = clearance(positions, limbs), sole_clearance(positions, limbs)
+        floors = take_floors(positions, limbs)  # each take on its own floor, a made walk on their mean
+        ground, sole = floors.mean_ground, floors.mean_sole
         features = [step_features(t.observations[:, : layout.dimension], t.steps) for t in takes]
         classifier = LinearDiscriminant(np.vstack(features), [t.style for t, x in zip(takes, features) for _ in x])
         recognised = _cross_validated(takes, features)
         for style in styles:
-            mine = [walk_figures(m, layout, limbs, ground, cm, sole) for m, p in zip(motions, pairs) if p.style == style]
+            mine = [walk_figures(m, layout, limbs, g, cm, f) for m, p, g, f in zip(motions, pairs, floors.ground, floors.sole)
+                    if p.style == style]
             if mine:
                 result.real[style] = pooled(mine) | {"recognised": recognised.get(style, float("nan"))}
             if progress:

@@ -16,11 +16,12 @@ from ..motion.gestures import PHASES
 from ..motion.steps import LABELS
 from ..synthesis.interpolation import body_groups
 from ..synthesis.parameters import GROUPS
-from .adaptation import Settings, adapt_styles
+from .adaptation import DEFAULT, Settings, adapt_styles
 from .average import TrainingReport, train_average, variance_floors
 from .contact import train_contact
 from .corpus import Take, load_corpus, segments_by_label
 from .gestures import gesture_metadata, gesture_segments, model_gestures
+from .little import LITTLE_TAU, keep_own_steps
 from .symmetry import symmetric_models
 from .units import held_posture, mirrored_pairs, model_units
 from .widen import train_range
@@ -38,9 +39,12 @@ def build_model(
     progress: Callable[[int, int, str], None] | None = None,
     on_iteration: Callable[[int, float], None] | None = None,
     adaptation: Settings | None = None,
+    little_tau: float | None = LITTLE_TAU,
 ) -> tuple[Model, TrainingReport, list[Take]]:
     """`adaptation` fixes the style adaptation's settings (for comparisons); None chooses them per
-    style by held-out likelihood."""
+    style by held-out likelihood. `little_tau` (steps) is the prior of a style's own step
+    durations and swing (training/little.py); None leaves them as the adaptation and the range
+    filter make them alone."""
     started = time.perf_counter()
     layout, takes, warnings = load_corpus(pairs, fps, progress, states)
     report = TrainingReport(warnings=list(warnings))
@@ -61,6 +65,11 @@ def build_model(
                         if not segments[2 * len(units) + len(PHASES) * k + p]]
     per_style = {s: [labelled([t]) for t in takes if t.style == s] for s in style_names}
     styles, adapted = adapt_styles(average, per_style, floors, report.warnings, adaptation)
+    data_weights = {}
+    if little_tau is not None:  # each unit's step durations toward the style's own (training/little.py)
+        mine = [labelled([t for t in takes if t.style == style]) for style in style_names]
+        styles, by_index = keep_own_steps(average, styles, mine, units, little_tau, (adaptation or DEFAULT).floor_share)
+        data_weights = {style_names[s]: w for s, w in by_index.items()}
     contact, contact_metadata = train_contact(layout, takes, average, styles, style_names, fps, states, units)
     pairs_mirrored = mirrored_pairs(units)  # straight at turn = 0 (the turns keep their turn)
     average, styles = symmetric_models(average, styles, layout.dimension, pairs_mirrored)
@@ -98,6 +107,7 @@ def build_model(
             "variance_floor_ratio": 0.01,
             "adaptation": {style: r.to_dict() for style, r in adapted.items()},
             "mirror_image_steps": True,
+            "little_data": {"tau_steps": little_tau, "walk_weights": data_weights},
             "seconds": round(time.perf_counter() - started, 1),
             "instrument_version": __version__,
             "python": platform.python_version(),
@@ -117,4 +127,4 @@ def build_model(
     if gestures:
         metadata["gestures"] = gesture_metadata(takes, gestures, 2 * len(units))
     model = Model(metadata, average, styles, static_std, step_max, contact)
-    return Model(metadata, average, styles, static_std, step_max, contact | train_range(model, walks)), report, takes
+    return Model(metadata, average, styles, static_std, step_max, contact | train_range(model, walks, little_tau)), report, takes

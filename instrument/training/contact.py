@@ -14,7 +14,8 @@ import numpy as np
 from ..models.hsmm import HSMM, forward_backward, pad_segments
 from ..motion.features import FeatureLayout, restore_local
 from ..motion.kinematics import forward_kinematics
-from ..motion.limbs import Limbs, centimetres_per_unit, clearance, find_limbs
+from ..motion.limbs import Limbs, centimetres_per_unit, find_limbs
+from ..motion.quality import take_floors
 from ..synthesis.contact import CONTACT_CM, CONTACT_SPEED_CM_S
 
 
@@ -61,8 +62,9 @@ def train_contact(layout: FeatureLayout, takes, average: HSMM, styles: HSMM, sty
         return {}, {}
     positions = [_take_positions(t.observations[:, : layout.dimension], layout, fps) for t in takes]
     cm = centimetres_per_unit(layout, positions[0][0])
-    ground = clearance(positions, limbs)
-    labels = [contact_labels(p, limbs, ground, cm, fps) for p in positions]
+    floors = take_floors(positions, limbs)  # each take on its own floor (a capture's is not always level)
+    labels = [contact_labels(p, limbs, g, cm, fps) for p, g in zip(positions, floors.ground)]
+    ground = floors.mean_ground  # the lock's: the floor of the walk the model learnt from them all
 
     units = units or ["walk"]
 

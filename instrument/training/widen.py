@@ -21,6 +21,7 @@ from ..motion.limbs import find_limbs
 from ..motion.quality import limb_ranges
 from ..synthesis.engine import Engine, render
 from ..synthesis.stream import Controls
+from .little import data_weight, pulled_factors
 from ..synthesis.widen import KEPT, LIMIT, stride_means, without_range
 
 TRAINING_FRAMES = 600  # frames of each generated walk measured in training (the first SETTLE dropped)
@@ -108,10 +109,12 @@ def _calibrate_knees(model, takes, log_factors: np.ndarray, weights: np.ndarray,
         np.clip(log_factors, -LIMIT, LIMIT, out=log_factors)
 
 
-def train_range(model, takes) -> dict[str, np.ndarray]:
+def train_range(model, takes, little_tau: float | None = None) -> dict[str, np.ndarray]:
     """Model-file arrays `range_average` (D,) and `range_styles` (styles, D): the log ratio of
     each feature's range in the data to its range in a walk the model makes, the knees' then
-    calibrated on the walk as it is played (`_calibrate_knees`)."""
+    calibrated on the walk as it is played (`_calibrate_knees`). With `little_tau` (steps) each
+    style's factors are then pulled toward the average's by the amount of its data
+    (training/little.py)."""
     dimension = model.layout.dimension
     names = model.style_names
 
@@ -132,4 +135,8 @@ def train_range(model, takes) -> dict[str, np.ndarray]:
     _calibrate_knees(model, takes, average, np.zeros(len(names)), extras_with)
     for s, name in enumerate(names):
         _calibrate_knees(model, [t for t in takes if t.style == name], styles[s], np.eye(len(names))[s], extras_with)
+    if little_tau is not None:
+        for s, name in enumerate(names):
+            steps = sum(len(t.steps) for t in takes if t.style == name)
+            styles[s] = pulled_factors(styles[s], average, data_weight(steps, little_tau))
     return {"range_average": average, "range_styles": styles}
