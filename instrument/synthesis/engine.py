@@ -48,7 +48,7 @@ from .parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING
 from .posing import CrowdPose, CrowdPoses
 from .stream import Controls, Crowd
 from .units import UnitChooser
-from .widen import RangeFilter, RangeSpace, range_space, stride_means
+from .widen import RangeFilter, RangeSpace, range_space, unit_targets
 
 ROOT_RATES = slice(1, 4)  # root.vx, root.vz, root.yaw_rate in the static features
 MIX_CONCENTRATION = 0.5  # of a crowd character's Dirichlet style draw: below 1 its mix leans on one or two styles
@@ -119,12 +119,16 @@ class Mix:
 
 class StyleFeature(Protocol):
     """A stage whose tables move with the style weights. `retune` recomputes them for every
-    character when the performed controls or the spread change; the stages before it in
+    character when the style weights or the spread change, `repace` when only the pace does (the
+    speed, the phase stretch or the liveliness: the beat lock sets a character's speed at each of
+    its footfalls, and a style's tables need not be made again for that); the stages before it in
     `Engine.features` have already been retuned."""
 
     name: str
 
     def retune(self, mix: Mix, stream: Crowd) -> None: ...
+
+    def repace(self, mix: Mix, stream: Crowd) -> None: ...
 
 
 class Interpolation:
@@ -142,6 +146,9 @@ class Interpolation:
         stream.tables, self.duration_means, self.duration_variances = self.stage(controls.weights, controls.part_weights,
                                                                                  mix.spread)
 
+    def repace(self, mix: Mix, stream: Crowd) -> None:
+        """lambda* and the duration pdfs do not move with the pace."""
+
 
 class Durations:
     """Frames per state of every character: speed and phase stretch through the HSMM duration
@@ -157,64 +164,90 @@ class Durations:
         stream.tune(self.interpolation.duration_means, self.interpolation.duration_variances, controls.speed,
                     controls.state_scale, controls.liveliness)
 
+    repace = retune
+
 
 class RangeTargets:
-    """Where the range filter scales each character's swing about: the stride mean of each unit
+    """Where the range filter scales each character's swing about: the stride mean of its unit
     (what a walk, a run or a stand averages over its two steps) and the factors. The factors were
-    measured on walks: turning steps take them, a run and a stand are left as made (factor 1)."""
+    measured on walks: turning steps take them, a run and a stand are left as made (factor 1).
+
+    A retune makes the factors (N, D); a character's stride mean is made at its next frame, for
+    the unit it walks in, and kept while the tables and the unit stay (`widen.unit_targets`)."""
 
     name = "range"
 
-    def __init__(self, space: RangeSpace, units: list[str]):
+    def __init__(self, space: RangeSpace, units: list[str], count: int, dimension: int):
         self.space = space
         self.scaled = np.array([u == "walk" or u.startswith("turn") for u in units])  # (U,) units the factors fit
-        self.means: np.ndarray | None = None  # (N, U, D) each unit's stride mean
-        self.factors: np.ndarray | None = None  # (N, U, D)
+        self.stream: Crowd | None = None  # whose lambda* and durations the stride means are of
+        self.factor: np.ndarray | None = None  # (N, D) the factors, where the unit is scaled
+        self.held = np.full(count, -1, dtype=np.int64)  # the unit each row of `means` is the stride mean of (-1: none)
+        self.means = np.empty((count, dimension))  # (N, D) the frame's targets, kept from frame to frame
+        self.factors = np.empty((count, dimension))
 
     def retune(self, mix: Mix, stream: Crowd) -> None:
-        states = stream.space.states
-        own, shared = stream.tables.mean_own, stream.tables.mean_shared
-        self.means = np.stack([stride_means(stream.base[:, 2 * k:2 * k + 2], own[:, 2 * k * states:(2 * k + 2) * states],
-                                            shared[2 * k * states:(2 * k + 2) * states]) for k in range(len(self.scaled))],
-                              axis=1)
-        factor = self.space.factors(mix.weights, mix.parts)
-        self.factors = np.where(self.scaled[None, :, None], factor[:, None], 1.0)
+        self.factor = self.space.factors(mix.weights, mix.parts)
+        self.repace(mix, stream)
+
+    def repace(self, mix: Mix, stream: Crowd) -> None:
+        """The stride means move with the planned durations: each is made again at its next frame."""
+        self.stream = stream
+        self.held[:] = -1
 
     def targets(self, units: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(N, D) stride means and factors of each character's frame, of unit `units` (N,)."""
-        if len(self.scaled) == 1 or len(units) == 1:  # views, no copy (the one character's unit)
-            k = 0 if len(self.scaled) == 1 else int(units[0])
-            return self.means[:, k], self.factors[:, k]
-        rows = np.arange(len(units))
-        return self.means[rows, units], self.factors[rows, units]
+        stream = self.stream
+        unit_targets(np.asarray(units, dtype=np.int64), self.held, self.scaled, stream.base, stream.tables.mean_own,
+                     stream.tables.mean_shared, self.factor, self.means, self.factors)
+        return self.means, self.factors
 
 
 class ContactTables:
-    """How surely each character's feet are planted in each state, and how much of a planted
-    foot's slide its body takes (follow.py)."""
+    """How surely each character's feet are planted in its frame's state, and how much of a
+    planted foot's slide its body takes (follow.py). A retune keeps the legs' weights; the
+    shares of the frame's states are made frame by frame (`at`), not a table of every state."""
 
     name = "contact"
 
     def __init__(self, space: ContactSpace):
         self.space = space
-        self.shares: np.ndarray | None = None  # (N, labels * states, 2)
+        self.legs: np.ndarray | None = None  # (N, styles) the style weights each character's legs walk with
         self.follow: np.ndarray | None = None  # (N,)
 
     def retune(self, mix: Mix, stream: Crowd) -> None:
-        self.shares = self.space.shares(mix.weights, mix.parts)
-        self.follow = follow_strength(self.space.leg_weights(mix.weights, mix.parts))
+        self.legs = np.ascontiguousarray(np.atleast_2d(self.space.leg_weights(mix.weights, mix.parts)))
+        self.follow = follow_strength(self.legs)
+
+    def repace(self, mix: Mix, stream: Crowd) -> None:
+        """Contact does not move with the pace."""
+
+    def at(self, ids: np.ndarray) -> np.ndarray:
+        """(N, 2) how surely each character's feet are planted in its state `ids` (N,)."""
+        return self.space.shares_in(self.legs, np.asarray(ids, dtype=np.int64).reshape(-1, 1))[:, 0]
 
 
 class GestureTables:
-    """The gesture stream's lambda* (the gait's own tables) and its durations at the model's pace."""
+    """The gesture stream's lambda* (the gait's own tables) and its durations at the model's pace,
+    handed over when a gesture may play (`ready`): a crowd walking without one pays nothing."""
 
     name = "gestures"
 
     def __init__(self, layer: GestureLayer, interpolation: Interpolation):
         self.layer, self.interpolation = layer, interpolation
+        self.stream: Crowd | None = None  # retuned since they were last handed over (None: not)
 
     def retune(self, mix: Mix, stream: Crowd) -> None:
-        self.layer.retune(self.interpolation.duration_means, self.interpolation.duration_variances, stream)
+        self.stream = stream
+
+    def repace(self, mix: Mix, stream: Crowd) -> None:
+        """A gesture keeps the model's pace."""
+
+    def ready(self) -> None:
+        """The gesture stream's tables as of the last retune, before it plays a frame."""
+        if self.stream is not None:
+            self.layer.retune(self.interpolation.duration_means, self.interpolation.duration_variances, self.stream)
+            self.stream = None
 
 
 def drive(static: np.ndarray, cadence: np.ndarray, turn: float | np.ndarray) -> np.ndarray:
@@ -250,14 +283,15 @@ class Engine:
         interpolation = Interpolation(self.space, self.cast.offsets)
         self.features: list[StyleFeature] = [interpolation, Durations(interpolation)]
         ranges, contact = range_space(model), contact_space(model)
-        self.range_targets = None if ranges is None else RangeTargets(ranges, model.units)
+        self.range_targets = None if ranges is None else RangeTargets(ranges, model.units, characters, model.layout.dimension)
         self.range_filter = None if ranges is None else RangeFilter()
         self.contact = None if contact is None else ContactTables(contact)
         self.features += [f for f in (self.range_targets, self.contact) if f is not None]
         self.units = UnitChooser(model, characters)
         self.gestures = GestureLayer(model, self.space, characters, lookahead, self.cast.seeds)
-        if self.gestures.names:
-            self.features.append(GestureTables(self.gestures, interpolation))
+        self.gesture_tables = GestureTables(self.gestures, interpolation) if self.gestures.names else None
+        if self.gesture_tables is not None:
+            self.features.append(self.gesture_tables)
         lock = None if contact is None else FootLock(model.layout, contact.clearance, self.fps)
         self.poses = CrowdPoses(model.layout, self.fps, characters, lock, positions=floor_positions(model, characters, spacing))
         self.frame_ids: np.ndarray | None = None  # (N,) the state (label * states + state) of each newest model frame
@@ -268,7 +302,8 @@ class Engine:
         self._controls: Controls | None = None  # the last controls and spread retuned for
         self._spread: float | None = None
         self.mix: Mix | None = None  # every character's weights, as last retuned
-        self._key: tuple | None = None
+        self._style: tuple | None = None  # what the style features' tables were made for (weights, parts, spread)
+        self._pace: tuple | None = None  # and the durations (speed, phase stretch, liveliness)
         self.frames: list[np.ndarray] = []  # the last two model frames (N, D), driven
         self.made = 0  # model frames made
         # when a dict: seconds spent in each stage, added up frame after frame (`instrument bench`'s stage costs)
@@ -288,23 +323,31 @@ class Engine:
 
     def retune(self, controls: Controls, spread: float = 0.0) -> None:
         """Every style feature's tables for these controls, if they changed since the last call
-        (a Controls object seen before is not even compared)."""
+        (a Controls object seen before is not even compared); when only the pace changed, only
+        what moves with it (`StyleFeature.repace`)."""
         spread = float(spread)
         if controls is self._controls and spread == self._spread:
             return
         self._controls, self._spread = controls, spread
-        key = (controls.key(), spread)
-        if key == self._key:
+        key = controls.key()
+        style, pace = (key[0], key[1], spread), key[2:]
+        if style == self._style and pace == self._pace:
             return
-        self._key = key
         self._mark()
-        offsets = self.cast.offsets
-        weights = controls.weights[None] + spread * offsets
-        parts = None if controls.part_weights is None else controls.part_weights[None] + spread * offsets[:, :, None]
-        self.mix = Mix(controls, spread, weights, parts)  # NaN parts (following the weights) stay NaN
+        if style != self._style:
+            offsets = self.cast.offsets
+            weights = controls.weights[None] + spread * offsets
+            parts = None if controls.part_weights is None else controls.part_weights[None] + spread * offsets[:, :, None]
+            self.mix = Mix(controls, spread, weights, parts)  # NaN parts (following the weights) stay NaN
+        else:
+            self.mix = replace(self.mix, performed=controls)
         self._timed("cast")
+        restyled, self._style, self._pace = style != self._style, style, pace
         for feature in self.features:
-            feature.retune(self.mix, self.stream)
+            if restyled:
+                feature.retune(self.mix, self.stream)
+            else:
+                feature.repace(self.mix, self.stream)
             self._timed(feature.name)
 
     def next_features(self, controls: Controls, spread: float = 0.0) -> np.ndarray:
@@ -326,11 +369,13 @@ class Engine:
         frames = drive(frames, self.stream.cadence * self.units.travel, self.units.added_yaw)
         self._timed("drive")
         if self.gestures.crowd is not None:
+            if controls.gestures or self.gestures.playing is not None:  # one may play: its tables as retuned
+                self.gesture_tables.ready()
             frames = self.gestures(controls.gestures, frames, ids)
             self._timed("gestures")
         self.frame_ids = ids
         if self.contact is not None:
-            self.contact_shares = self.contact.shares[np.arange(self.count), ids]
+            self.contact_shares = self.contact.at(ids)
             self.follow_strengths = self.contact.follow
             self._timed("contact")
         self.made += 1

@@ -21,12 +21,12 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from .durations import MIN_FRAMES, state_durations, whole_frames
+from .durations import MIN_FRAMES, whole_frames
 from .interpolation import CrowdLambda, StyleSpace
 from .cores import over_cores, parts
 from .direct import DirectCall
 from .mlpg import _solve
-from .parameters import DEFAULT_LOOKAHEAD, GAITS
+from .parameters import DEFAULT_LOOKAHEAD, GAITS, MAX_SPEED, MIN_SPEED
 
 
 class StreamTables(NamedTuple):
@@ -188,11 +188,9 @@ class Crowd:
         cadence that scales its root speeds. (Its lambda* tables, `tables`, are set by the
         interpolation stage.)"""
         scale = np.ones(self.space.states) if state_scale is None else np.asarray(state_scale, dtype=np.float64)
-        if np.ndim(speed):  # one speed a character (the beat lock's: runtime/tempo.py)
-            speed = np.asarray(speed, dtype=np.float64)[:, None, None]
-        self.base[:] = state_durations(duration_means, duration_variances, speed, scale)
-        self.sigma[:] = liveliness * np.sqrt(duration_variances) * scale
-        self.cadence[:] = np.maximum(duration_means, MIN_FRAMES).sum(axis=(1, 2)) / self.base.sum(axis=(1, 2))
+        speeds = np.broadcast_to(np.asarray(speed, dtype=np.float64), (self.count,))  # one a character: the beat lock's
+        _tune(np.ascontiguousarray(duration_means, dtype=np.float64), np.ascontiguousarray(duration_variances, dtype=np.float64),
+              np.ascontiguousarray(speeds), scale, float(liveliness), self.base, self.sigma, self.cadence)
 
     def _draws_for(self, frames: int) -> None:
         """Make sure every character has draws for a plan over `frames` frames (at most one state
@@ -347,6 +345,64 @@ def _plan(base, sigma, counter, carry, pool, ids, counts, carries):  # pragma: n
 
 
 @njit(cache=True, nogil=True)
+def numpy_sum(values):  # pragma: no cover - compiled
+    """The sum of a 1-D array as numpy adds it (its pairwise summation: eight running sums from
+    eight values up, one block of 128 at most here), so a compiled stage gives numpy's numbers to
+    the bit."""
+    count = values.shape[0]
+    if count < 8:
+        total = 0.0
+        for k in range(count):
+            total += values[k]
+        return total
+    assert count <= 128  # numpy splits longer arrays in halves first
+    r0, r1, r2, r3, r4, r5, r6, r7 = values[0], values[1], values[2], values[3], values[4], values[5], values[6], values[7]
+    k = 8
+    while k < count - count % 8:
+        r0 += values[k]
+        r1 += values[k + 1]
+        r2 += values[k + 2]
+        r3 += values[k + 3]
+        r4 += values[k + 4]
+        r5 += values[k + 5]
+        r6 += values[k + 6]
+        r7 += values[k + 7]
+        k += 8
+    total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while k < count:
+        total += values[k]
+        k += 1
+    return total
+
+
+@njit(cache=True, nogil=True)
+def _tune(means, variances, speeds, scale, liveliness, base, sigma, cadence):  # pragma: no cover - compiled
+    """`Crowd.tune` for every character in one pass: base = durations.state_durations(means,
+    variances, speed, scale), sigma = liveliness sqrt(variances) scale, cadence = the sum of
+    max(means, MIN_FRAMES) over the sum of base; the same operations in the same order as those
+    numpy forms (tests/walks.py and the reference stream use them), so the same numbers to the bit
+    (numpy took a dozen passes over the crowd's tables: 3 us a character a retune)."""
+    labels, states = means.shape[1], means.shape[2]
+    floored = np.empty(labels * states)
+    made = np.empty(labels * states)
+    for n in range(means.shape[0]):
+        speed = min(max(speeds[n], MIN_SPEED), MAX_SPEED)
+        for label in range(labels):
+            total, spread = 0.0, 0.0
+            for state in range(states):
+                floored[label * states + state] = max(means[n, label, state], MIN_FRAMES)
+                total += floored[label * states + state]
+                spread += variances[n, label, state]
+            rho = (total / speed - total) / spread
+            for state in range(states):
+                made[label * states + state] = max((floored[label * states + state] + rho * variances[n, label, state])
+                                                   * scale[state], MIN_FRAMES)
+                base[n, label, state] = made[label * states + state]
+                sigma[n, label, state] = liveliness * np.sqrt(variances[n, label, state]) * scale[state]
+        cadence[n] = numpy_sum(floored) / numpy_sum(made)
+
+
+@njit(cache=True, nogil=True)
 def _next_unit(counter):  # pragma: no cover - compiled
     """The unit of the step after the current one: NEXT's when one waits, else UNIT's."""
     return counter[NEXT] - 1 if counter[NEXT] > 0 else counter[UNIT]
@@ -382,9 +438,13 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
     work1[:] = 0.0
     work2[:] = 0.0
     solved[:] = 0.0
-    # the character's lambda* put together here, in the cache, as the solver reads it (or the shared one as it is)
-    means = np.empty((1,) + mean_shared.shape)
-    precisions = np.empty((1,) + mean_shared.shape)
+    # the rows of the character's lambda* its window reads, put together here, in the cache, as the
+    # solver reads them (or the shared tables as they are): a window passes through some ten state
+    # instances, and putting together all 90 rows of both tables cost the crowd's stream two thirds of its time
+    window, width = rows.shape[1], mean_shared.shape[1]
+    means = np.empty((1, window, width))
+    precisions = np.empty((1, window, width))
+    local = np.empty((1, window), dtype=np.int64)  # each window frame's row of `means` and `precisions`
     shared_means = mean_shared.reshape((1,) + mean_shared.shape)
     shared_precisions = precision_shared.reshape((1,) + precision_shared.shape)
     plain = tables.plain
@@ -398,11 +458,18 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
             _solve(shared_means, shared_precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved[n : n + 1],
                    work1, work2, lo)
             continue
-        for r in range(mean_shared.shape[0]):
-            for c in range(mean_shared.shape[1]):
-                means[0, r, c] = mean_own[n, r, c] + mean_shared[r, c]
-                precisions[0, r, c] = precision_own[n, r, c] * precision_shared[r, c]
-        _solve(means, precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved[n : n + 1], work1, work2, lo)
+        used = 0
+        for m in range(window):
+            r = rows[n, m]
+            if m > 0 and r == rows[n, m - 1]:  # a state lasts some frames: its row is made once
+                local[0, m] = local[0, m - 1]
+                continue
+            for c in range(width):
+                means[0, used, c] = mean_own[n, r, c] + mean_shared[r, c]
+                precisions[0, used, c] = precision_own[n, r, c] * precision_shared[r, c]
+            local[0, m] = used
+            used += 1
+        _solve(means, precisions, local, False, known[n : n + 1], fixed, solved[n : n + 1], work1, work2, lo)
     for n in range(count):
         for d in range(dimension):
             value = solved[n, 0, d]

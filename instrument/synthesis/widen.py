@@ -30,6 +30,7 @@ from numba import njit
 
 from ..motion.features import ROOT_FEATURES
 from .interpolation import body_groups, part_weights_per_group
+from .stream import numpy_sum
 
 STRENGTH = 1.0  # share of the learnt log factor applied (chosen by `instrument evaluate`, docs/evaluate.md)
 LIMIT = np.log(2.0)  # no feature's swing is scaled by more than 2x or less than 1/2
@@ -99,6 +100,33 @@ def _stride_means(frames, totals, own, shared, out):  # pragma: no cover - compi
             for k in range(1, frames.shape[1]):
                 total += frames[n, k] * (own[n, k, d] + shared[k, d])
             out[n, d] = total / totals[n]
+
+
+@njit(cache=True, nogil=True)
+def unit_targets(units, held, scaled, base, own, shared, factor, means, factors):  # pragma: no cover - compiled
+    """The range targets of each character's frame, of unit units[n]: its stride mean into
+    means[n] (`stride_means` over that unit's two steps, the same numbers to the bit), made only
+    where held[n], the unit `means[n]` was made for, is another (-1: made for none since the
+    tables changed), and the factors into factors[n]: factor[n] where the unit is `scaled`, else 1.
+    A crowd's retune then makes no stride means: a character's are made at its next frame, for
+    the one unit it walks (a stride mean of every unit of every character cost 17 us a character)."""
+    states = base.shape[2]
+    frames = np.empty(2 * states)
+    for n in range(units.shape[0]):
+        unit = units[n]
+        if held[n] != unit:
+            for k in range(2 * states):
+                frames[k] = base[n, 2 * unit + k // states, k % states]
+            total = numpy_sum(frames)
+            first = 2 * unit * states
+            for d in range(means.shape[1]):
+                value = frames[0] * (own[n, first, d] + shared[first, d])
+                for k in range(1, 2 * states):
+                    value += frames[k] * (own[n, first + k, d] + shared[first + k, d])
+                means[n, d] = value / total
+            held[n] = unit
+        for d in range(factors.shape[1]):
+            factors[n, d] = factor[n, d] if scaled[unit] else 1.0
 
 
 @njit(cache=True, nogil=True)
