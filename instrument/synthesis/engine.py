@@ -115,6 +115,7 @@ class Mix:
     spread: float
     weights: np.ndarray  # (N, styles)
     parts: np.ndarray | None  # (N, styles, groups), NaN following `weights`; None: no part weights
+    paced: np.ndarray | None = None  # at a change of the pace alone, the characters whose pace changed (None: all)
 
 
 class StyleFeature(Protocol):
@@ -162,7 +163,7 @@ class Durations:
     def retune(self, mix: Mix, stream: Crowd) -> None:
         controls = mix.performed
         stream.tune(self.interpolation.duration_means, self.interpolation.duration_variances, controls.speed,
-                    controls.state_scale, controls.liveliness)
+                    controls.state_scale, controls.liveliness, mix.paced)
 
     repace = retune
 
@@ -193,7 +194,7 @@ class RangeTargets:
     def repace(self, mix: Mix, stream: Crowd) -> None:
         """The stride means move with the planned durations: each is made again at its next frame."""
         self.stream = stream
-        self.held[:] = -1
+        self.held[slice(None) if mix.paced is None else mix.paced] = -1
 
     def targets(self, units: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(N, D) stride means and factors of each character's frame, of unit `units` (N,)."""
@@ -339,8 +340,8 @@ class Engine:
             weights = controls.weights[None] + spread * offsets
             parts = None if controls.part_weights is None else controls.part_weights[None] + spread * offsets[:, :, None]
             self.mix = Mix(controls, spread, weights, parts)  # NaN parts (following the weights) stay NaN
-        else:
-            self.mix = replace(self.mix, performed=controls)
+        else:  # the pace alone: when only speeds changed (the beat lock's, at footfalls), only those characters'
+            self.mix = replace(self.mix, performed=controls, paced=_changed_speeds(self._pace, pace, self.count))
         self._timed("cast")
         restyled, self._style, self._pace = style != self._style, style, pace
         for feature in self.features:
@@ -413,6 +414,15 @@ class Engine:
         pose = self.poses.next(static, self.contact_shares, self.follow_strengths)
         self._timed("posing")
         return pose
+
+
+def _changed_speeds(before: tuple, now: tuple, count: int) -> np.ndarray | None:
+    """The characters whose speed differs between two pace keys (speed, phase stretch, liveliness:
+    `Controls.key()[2:]`), or None when more than the speeds changed (all characters then)."""
+    if before is None or before[1:] != now[1:]:
+        return None
+    old, new = (np.broadcast_to(np.frombuffer(key[0], dtype=np.float64), (count,)) for key in (before, now))
+    return np.flatnonzero(old != new)
 
 
 def default_controls(model: Model, weights: dict[str, float] | None = None, **kwargs) -> Controls:
