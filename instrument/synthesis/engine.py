@@ -122,8 +122,9 @@ class StyleFeature(Protocol):
     """A stage whose tables move with the style weights. `retune` recomputes them for every
     character when the style weights or the spread change, `repace` when only the pace does (the
     speed, the phase stretch or the liveliness: the beat lock sets a character's speed at each of
-    its footfalls, and a style's tables need not be made again for that); the stages before it in
-    `Engine.features` have already been retuned."""
+    its footfalls, and a style's tables need not be made again for that; a feature without
+    `repace` does not move with the pace); the stages before it in `Engine.features` have
+    already been retuned."""
 
     name: str
 
@@ -347,7 +348,7 @@ class Engine:
         for feature in self.features:
             if restyled:
                 feature.retune(self.mix, self.stream)
-            else:
+            elif hasattr(feature, "repace"):  # a feature without it does not move with the pace
                 feature.repace(self.mix, self.stream)
             self._timed(feature.name)
 
