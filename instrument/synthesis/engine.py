@@ -39,6 +39,7 @@ from ..motion.features import FeatureLayout, forward_direction
 from ..motion.kinematics import ChannelStream, forward_kinematics, local_transforms
 from ..motion.limbs import units_to_metres
 from .contact import ContactSpace, contact_space
+from .direct import DirectCall
 from .follow import strength as follow_strength
 from .footlock import FootLock
 from .gestures import GestureLayer
@@ -175,9 +176,12 @@ class RangeTargets:
     measured on walks: turning steps take them, a run and a stand are left as made (factor 1).
 
     A retune makes the factors (N, D); a character's stride mean is made at its next frame, for
-    the unit it walks in, and kept while the tables and the unit stay (`widen.unit_targets`)."""
+    the unit it walks in, and kept while the tables and the unit stay (`widen.unit_targets`). For
+    a few characters the targets of every unit are made at once, at the first frame after a
+    retune, and a frame takes views of them (cheaper than a call a frame)."""
 
     name = "range"
+    TABLE_UP_TO = 8  # characters whose targets of every unit are made at once
 
     def __init__(self, space: RangeSpace, units: list[str], count: int, dimension: int):
         self.space = space
@@ -187,6 +191,8 @@ class RangeTargets:
         self.held = np.full(count, -1, dtype=np.int64)  # the unit each row of `means` is the stride mean of (-1: none)
         self.means = np.empty((count, dimension))  # (N, D) the frame's targets, kept from frame to frame
         self.factors = np.empty((count, dimension))
+        self._targets = DirectCall(unit_targets)  # every argument's type is fixed: typed once per retune, not a frame
+        self.table: tuple[np.ndarray, np.ndarray] | None = None  # a few characters' (N, U, D) means and factors
 
     def retune(self, mix: Mix, stream: Crowd) -> None:
         self.factor = self.space.factors(mix.weights, mix.parts)
@@ -196,36 +202,60 @@ class RangeTargets:
         """The stride means move with the planned durations: each is made again at its next frame."""
         self.stream = stream
         self.held[slice(None) if mix.paced is None else mix.paced] = -1
+        self.table = None
 
     def targets(self, units: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(N, D) stride means and factors of each character's frame, of unit `units` (N,)."""
+        count = len(self.held)
+        if count > self.TABLE_UP_TO:
+            self._made(np.ascontiguousarray(units, dtype=np.int64))
+            return self.means, self.factors
+        if self.table is None:
+            table = np.empty((count, len(self.scaled), self.means.shape[1])), np.empty((count, len(self.scaled), self.means.shape[1]))
+            for unit in range(len(self.scaled)):
+                self._made(np.full(count, unit, dtype=np.int64))
+                table[0][:, unit], table[1][:, unit] = self.means, self.factors
+            self.table = table
+        if count == 1:  # views, no copy
+            return self.table[0][:, units[0]], self.table[1][:, units[0]]
+        rows = np.arange(count)
+        return self.table[0][rows, units], self.table[1][rows, units]
+
+    def _made(self, units: np.ndarray) -> None:
+        """`means` and `factors` for units `units` (N,), each stride mean made if not held."""
         stream = self.stream
-        unit_targets(np.asarray(units, dtype=np.int64), self.held, self.scaled, stream.base, stream.tables.mean_own,
-                     stream.tables.mean_shared, self.factor, self.means, self.factors)
-        return self.means, self.factors
+        self._targets((stream.tables, self.factor), units, self.held, self.scaled, stream.base, stream.tables.mean_own,
+                      stream.tables.mean_shared, self.factor, self.means, self.factors)
 
 
 class ContactTables:
     """How surely each character's feet are planted in its frame's state, and how much of a
-    planted foot's slide its body takes (follow.py). A retune keeps the legs' weights; the
-    shares of the frame's states are made frame by frame (`at`), not a table of every state."""
+    planted foot's slide its body takes (follow.py). A retune keeps the legs' weights; for a
+    crowd the shares of the frame's states are made frame by frame (`at`), not a table of every
+    state; for a few characters a table is made at the retune (cheaper than a call a frame)."""
 
     name = "contact"
+    TABLE_UP_TO = 8  # characters whose shares of every state are made at a retune
 
     def __init__(self, space: ContactSpace):
         self.space = space
         self.legs: np.ndarray | None = None  # (N, styles) the style weights each character's legs walk with
         self.follow: np.ndarray | None = None  # (N,)
+        self.table: np.ndarray | None = None  # (N, labels * states, 2) for a few characters
 
     def retune(self, mix: Mix, stream: Crowd) -> None:
         self.legs = np.ascontiguousarray(np.atleast_2d(self.space.leg_weights(mix.weights, mix.parts)))
         self.follow = follow_strength(self.legs)
+        if len(self.legs) <= self.TABLE_UP_TO:  # the same numbers as `at` makes (one kernel)
+            self.table = self.space.shares_in(self.legs, np.tile(np.arange(len(self.space.base)), (len(self.legs), 1)))
 
     def repace(self, mix: Mix, stream: Crowd) -> None:
         """Contact does not move with the pace."""
 
     def at(self, ids: np.ndarray) -> np.ndarray:
         """(N, 2) how surely each character's feet are planted in its state `ids` (N,)."""
+        if self.table is not None:
+            return self.table[np.arange(len(self.table)), ids]
         return self.space.shares_in(self.legs, np.asarray(ids, dtype=np.int64).reshape(-1, 1))[:, 0]
 
 
