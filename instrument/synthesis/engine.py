@@ -211,7 +211,8 @@ class RangeTargets:
             self._made(np.ascontiguousarray(units, dtype=np.int64))
             return self.means, self.factors
         if self.table is None:
-            table = np.empty((count, len(self.scaled), self.means.shape[1])), np.empty((count, len(self.scaled), self.means.shape[1]))
+            shape = (count, len(self.scaled), self.means.shape[1])
+            table = np.empty(shape), np.empty(shape)
             for unit in range(len(self.scaled)):
                 self._made(np.full(count, unit, dtype=np.int64))
                 table[0][:, unit], table[1][:, unit] = self.means, self.factors
