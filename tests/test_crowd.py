@@ -292,3 +292,48 @@ def test_the_largest_crowd_search_tries_a_failed_size_again(monkeypatch):
     assert all(trials[count] == 2 for count in trials)  # each size failed once, then decided by its second trial
     low = str(found["largest_crowd_30fps"])
     assert found["largest_crowd_tried"][low] == [0.01, 0, 2]
+
+
+def test_a_change_of_some_characters_speeds_retunes_only_them_to_the_same_frames(model, monkeypatch):
+    """The beat lock sets a character's speed at its footfalls: the engine then makes only those
+    characters' durations and stride means again (engine._changed_speeds), and the crowd walks
+    exactly as when every character's are made again."""
+    import instrument.synthesis.engine as engine_module
+    from instrument.synthesis.stream import Controls
+
+    def walk(partial: bool) -> list[np.ndarray]:
+        if not partial:
+            monkeypatch.setattr(engine_module, "_changed_speeds", lambda before, now, count: None)
+        crowd, rng = Engine(model, characters=40), np.random.default_rng(3)
+        weights = np.zeros(len(model.style_names))
+        weights[1] = 0.8
+        speeds, frames = np.ones(40), []
+        for i in range(60):
+            speeds = speeds.copy()
+            speeds[rng.integers(0, 40, 3)] = rng.uniform(0.6, 1.6, 3)  # three footfalls a frame
+            pose = crowd.frame(i / model.fps, Controls(weights, speed=speeds, liveliness=0.3), 0.7)
+            frames.append(pose.world_positions.copy())
+        monkeypatch.undo()
+        return frames
+
+    partial, whole = walk(True), walk(False)
+    assert all(np.array_equal(a, b) for a, b in zip(partial, whole))
+    assert not np.array_equal(partial[-1][0], partial[-1][1])  # they walk (and otherwise)
+
+
+def test_the_locked_speeds_array_follows_the_states_speeds_as_they_are_set_and_cleared():
+    from instrument.control.state import LockSpeeds
+    from instrument.runtime.tempo import locked_speed
+
+    kept, plain = LockSpeeds(), {}
+    rng = np.random.default_rng(0)
+    for frame in range(50):
+        if frame == 30:
+            kept.clear()
+            plain.clear()
+        for k in rng.integers(0, 12, 2):
+            speed = float(rng.uniform(0.5, 2.0))
+            kept[int(k)], plain[int(k)] = speed, speed
+        performed = float(rng.uniform(0.5, 2.0))
+        assert np.array_equal(locked_speed(kept, performed, 12), locked_speed(plain, performed, 12)), frame
+    assert not kept.changed  # read: nothing waits to be brought up to date

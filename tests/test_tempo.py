@@ -670,3 +670,14 @@ def test_run_replay_of_a_synced_log_writes_the_same_bvh(model, tmp_path):
     subprocess.run([sys.executable, "-m", "instrument", "run", "--replay", str(tmp_path / "untimed.jsonl"), "--fast",
                     "--seconds", "8", "--no-osc", "--quiet", "--bvh", str(free)], check=True, timeout=600)
     assert motion(free) != motion(live)
+
+
+def test_the_step_lengths_of_many_characters_are_each_ones_own(model):
+    """The lock asks for the steps of every character whose foot landed in one call (a crowd's
+    frame has tens of footfalls): the same numbers as asking one by one."""
+    engine = Engine(model, 6)
+    controls = default_controls(model, {"elderly": 0.7})
+    engine.frame(0.0, controls, 1.0)  # each character its own style (spread 1) and step
+    each = [step_seconds(engine, controls, k) for k in range(6)]
+    assert np.array_equal(step_seconds(engine, controls, np.arange(6)), each)
+    assert len(set(each)) > 1

@@ -21,7 +21,9 @@ COST_CROWD = 100  # characters in the crowd whose per-character cost is measured
 COST_FRAMES = 30
 
 
-STAGES = ("cast", "interpolation", "durations", "stream", "range", "drive", "contact", "posing", "encoding", "sending")
+# the engine's stages in the order it runs them (`Engine.stage_seconds`), then the pose and the output's
+ENGINE_STAGES = ("cast", "interpolation", "durations", "units", "stream", "range", "drive", "gestures", "contact")
+STAGES = ENGINE_STAGES + ("posing", "encoding", "sending")
 
 
 def live_path(model: Model, count: int, spread: float = 0.5):
@@ -101,7 +103,7 @@ def measure_cost(model: Model, yardstick: Callable[[], object], solves: int) -> 
     per_character = {stage: seconds.get(stage, 0.0) * 1e6 / COST_FRAMES / COST_CROWD for stage in STAGES}
     total = sum(per_character.values())
     figures = {"crowd_size_for_cost": COST_CROWD, "stream_us_per_character": total,
-               "crowd_engine_us_per_character": sum(per_character[s] for s in STAGES[:7]),
+               "crowd_engine_us_per_character": sum(per_character[s] for s in ENGINE_STAGES),
                "crowd_pose_us_per_character": per_character["posing"],
                "crowd_flat_us_per_character": per_character["encoding"] + per_character["sending"],
                "crowd_window_solve_us": window_solve_us,

@@ -19,6 +19,27 @@ from . import spec
 from .checks import Refusal, between, refusal, row_of
 
 
+class LockSpeeds(dict):
+    """The beat lock's speed of each character (K -> speed, runtime/tempo.py), which also keeps
+    them as an array (`array`, `known`) brought up to date by the characters set since it was last
+    read (`runtime.tempo.locked_speed`), so a crowd's frame does not build one character by character."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.changed: list[int] = []  # characters set since the array was last brought up to date
+        self.array: np.ndarray | None = None  # (N,) each character's speed, where `known`
+        self.known: np.ndarray | None = None  # (N,) bool
+
+    def __setitem__(self, character: int, speed: float) -> None:
+        super().__setitem__(character, speed)
+        self.changed.append(character)
+
+    def clear(self) -> None:
+        super().clear()
+        self.changed.clear()
+        self.array = self.known = None
+
+
 class ControlState:
     def __init__(self, style_names: list[str], states: int):
         self.style_names = list(style_names)
@@ -31,7 +52,7 @@ class ControlState:
         self.echoed_targets = [t for t in names if spec.TABLE[t.split("/")[0]].echoed]
         # the speed the beat lock set for each character (runtime/tempo.py), as its `tempo` events
         # said (control/kinds.py): not the performer's, so a reset keeps it
-        self.lock_speeds: dict[int, float] = {}
+        self.lock_speeds = LockSpeeds()
         # every accepted set or reset counts one: what `values` and `echo` made is kept until the
         # next, so a frame with no change costs no pass over the targets (about 70 string splits)
         self.revision = 0

@@ -30,6 +30,7 @@ from typing import Callable, Protocol
 import numpy as np
 
 from ..control.events import RawEvent, Source
+from ..control.state import LockSpeeds
 from ..synthesis.durations import state_durations
 from ..synthesis.engine import Engine
 from ..synthesis.parameters import MAX_SPEED, MIN_SPEED
@@ -216,8 +217,12 @@ class BeatLock:
         character's footfalls on the same grid of beats, each with its own foot and its own
         style's rhythm within the step (docs/tempo.md)."""
         beat = self.tempo.period()
-        due = [k for k in range(characters) if k in landed or k not in speeds]
-        if beat is None or not due:  # no tempo yet: the performer's speed
+        if beat is None:  # no tempo yet: the performer's speed
+            return []
+        # those that landed and those without a speed yet (all of them at the start, none once the lock has run)
+        unset = [k for k in range(characters) if k not in speeds] if len(speeds) < characters else []
+        due = sorted(set(landed).union(unset)) if unset else sorted(landed)
+        if not due:
             return []
         running = self.tempo.running
         if running or self._held is None:
@@ -226,8 +231,9 @@ class BeatLock:
             self._held = period = beat / ratio
         else:  # stopped: the step period played last, without a correction (a Link tempo changed meanwhile waits)
             period = self._held
+        steps = np.atleast_1d(step_at_1(np.array(due)))  # every due character's step at once
         events = []
-        for k in due:
+        for k, step in zip(due, steps):
             target = period
             if k in landed and running:
                 position = self.tempo.beat_at(landed[k]) * ratio  # in steps of the grid
@@ -235,7 +241,7 @@ class BeatLock:
                 target = period - max(-MAX_CORRECTION * period, min(MAX_CORRECTION * period, offset))
                 if k == 0:
                     self.report.offset = offset
-            speed = float(np.clip(step_at_1(k) / target, MIN_SPEED, MAX_SPEED))
+            speed = min(max(float(step) / target, MIN_SPEED), MAX_SPEED)
             if k == 0:
                 self.report.speed = speed
             events.append(RawEvent(now, TEMPO, f"speed/{k}", speed))
@@ -256,25 +262,40 @@ class BeatLock:
 
 def locked_speed(speeds: dict[int, float], performed: float, characters: int) -> float | np.ndarray:
     """The speed the engine walks with under the lock: character 0's for one character, else
-    one a character (the performer's for a character the lock has not set yet)."""
+    one a character (the performer's for a character the lock has not set yet). From the state's
+    `LockSpeeds`, only the characters set since the last frame are read."""
     if characters == 1:
         return speeds.get(0, performed)
-    return np.array([speeds.get(k, performed) for k in range(characters)])
+    if not isinstance(speeds, LockSpeeds):
+        return np.array([speeds.get(k, performed) for k in range(characters)])
+    if speeds.array is None or len(speeds.array) != characters:
+        speeds.array, speeds.known = np.zeros(characters), np.zeros(characters, dtype=bool)
+        speeds.changed[:] = list(speeds)
+    for k in speeds.changed:
+        if k < characters:
+            speeds.array[k], speeds.known[k] = speeds[k], True
+    speeds.changed.clear()
+    return np.where(speeds.known, speeds.array, performed)
 
 
-def step_seconds(engine: Engine, controls: Controls, character: int = 0) -> float:
+def step_seconds(engine: Engine, controls: Controls, character: int | np.ndarray = 0) -> float | np.ndarray:
     """Seconds a step of `character` takes at speed 1 with these controls' style and phase
     stretch (its duration pdfs through the durations stage's formula), the mean of its current
-    unit's two labels (a run's steps are shorter than a walk's).
+    unit's two labels (a run's steps are shorter than a walk's); for an array of characters, an
+    array (one numpy pass for all the characters whose feet landed in a frame).
     The pdfs do not move with the speed: those of the last retune serve (the style of the frame
     before), so the lock costs no retune of its own."""
     interpolation = engine.features[0]
     if interpolation.duration_means is None:  # before the first frame
         engine.retune(controls)
     frames = state_durations(interpolation.duration_means[character], interpolation.duration_variances[character], 1.0,
-                             controls.state_scale)
-    unit = int(engine.stream.counters[character, LABEL]) // 2
-    return float(frames.sum(axis=-1)[2 * unit:2 * unit + 2].mean()) / engine.model.fps
+                             controls.state_scale)  # (..., labels, states)
+    unit = engine.stream.counters[character, LABEL] // 2
+    steps = frames.sum(axis=-1)  # (..., labels)
+    if np.ndim(character) == 0:
+        return float(steps[2 * int(unit):2 * int(unit) + 2].mean()) / engine.model.fps
+    rows = np.arange(len(steps))
+    return (steps[rows, 2 * unit] + steps[rows, 2 * unit + 1]) / 2.0 / engine.model.fps
 
 
 def snap_ratio(value: float) -> float:

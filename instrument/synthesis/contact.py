@@ -54,6 +54,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ..motion.limbs import find_limbs
 from .interpolation import part_weights_per_group
@@ -83,11 +84,16 @@ class ContactSpace:
         """(N, labels * states, 2): how surely each foot is planted in each state for N
         characters at weights (N, styles) and part weights (N, styles, groups) (the legs' own
         weights when given per body part), 0 to 1."""
-        legs = np.atleast_2d(self.leg_weights(weights, part_weights))
-        shares = np.clip(self.base + np.einsum("ns,sif->nif", legs, self.offsets), 0.0, 1.0)
-        if self.flight.any():  # in flight a share below PLANTED is none: the lock leaves both feet in the air
-            shares[:, self.flight] = np.where(shares[:, self.flight] < PLANTED, 0.0, shares[:, self.flight])
-        return shares
+        legs = np.ascontiguousarray(np.atleast_2d(self.leg_weights(weights, part_weights)))
+        states = np.ascontiguousarray(np.broadcast_to(np.arange(len(self.base)), (len(legs), len(self.base))))
+        return self.shares_in(legs, states)
+
+    def shares_in(self, legs: np.ndarray, states: np.ndarray) -> np.ndarray:
+        """(N, M, 2) `shares` of the states `states` (N, M) only (the engine's: each character's
+        frame's state, so a retune makes no table), for leg weights `legs` (N, styles)."""
+        out = np.empty(states.shape + (2,))
+        _shares(legs, self.base, self.offsets, self.flight, states, out)
+        return out
 
     def leg_weights(self, weights: np.ndarray, part_weights: np.ndarray | None = None) -> np.ndarray:
         """The style weights the legs walk with, (..., styles): their own where given per body part."""
@@ -113,3 +119,19 @@ def contact_space(model) -> ContactSpace | None:
     flat = base.reshape(-1, 2)
     return ContactSpace(flat, styles.reshape(len(model.style_names), -1, 2) - flat, np.asarray(stored), GROUPS.index("legs"),
                         flat.max(axis=1) < PLANTED)
+
+
+@njit(cache=True, nogil=True)
+def _shares(legs, base, offsets, flight, states, out):  # pragma: no cover - compiled
+    """out[n, m] = lambda 0's contact shares of state states[n, m] plus leg weights legs[n] times
+    the style offsets, clipped to 0..1, and in flight (`ContactSpace.flight`) a share below
+    PLANTED made none (the lock leaves both feet in the air), for each character n."""
+    for n in range(states.shape[0]):
+        for m in range(states.shape[1]):
+            state = states[n, m]
+            for foot in range(2):
+                change = 0.0
+                for style in range(legs.shape[1]):
+                    change += legs[n, style] * offsets[style, state, foot]
+                share = min(max(base[state, foot] + change, 0.0), 1.0)
+                out[n, m, foot] = 0.0 if flight[state] and share < PLANTED else share

@@ -39,6 +39,7 @@ from ..motion.features import FeatureLayout, forward_direction
 from ..motion.kinematics import ChannelStream, forward_kinematics, local_transforms
 from ..motion.limbs import units_to_metres
 from .contact import ContactSpace, contact_space
+from .direct import DirectCall
 from .follow import strength as follow_strength
 from .footlock import FootLock
 from .gestures import GestureLayer
@@ -48,7 +49,7 @@ from .parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING
 from .posing import CrowdPose, CrowdPoses
 from .stream import Controls, Crowd
 from .units import UnitChooser
-from .widen import RangeFilter, RangeSpace, range_space, stride_means
+from .widen import RangeFilter, RangeSpace, range_space, unit_targets
 
 ROOT_RATES = slice(1, 4)  # root.vx, root.vz, root.yaw_rate in the static features
 MIX_CONCENTRATION = 0.5  # of a crowd character's Dirichlet style draw: below 1 its mix leans on one or two styles
@@ -115,16 +116,22 @@ class Mix:
     spread: float
     weights: np.ndarray  # (N, styles)
     parts: np.ndarray | None  # (N, styles, groups), NaN following `weights`; None: no part weights
+    paced: np.ndarray | None = None  # at a change of the pace alone, the characters whose pace changed (None: all)
 
 
 class StyleFeature(Protocol):
     """A stage whose tables move with the style weights. `retune` recomputes them for every
-    character when the performed controls or the spread change; the stages before it in
-    `Engine.features` have already been retuned."""
+    character when the style weights or the spread change, `repace` when only the pace does (the
+    speed, the phase stretch or the liveliness: the beat lock sets a character's speed at each of
+    its footfalls, and a style's tables need not be made again for that; a feature without
+    `repace` does not move with the pace); the stages before it in `Engine.features` have
+    already been retuned."""
 
     name: str
 
     def retune(self, mix: Mix, stream: Crowd) -> None: ...
+
+    def repace(self, mix: Mix, stream: Crowd) -> None: ...
 
 
 class Interpolation:
@@ -142,6 +149,9 @@ class Interpolation:
         stream.tables, self.duration_means, self.duration_variances = self.stage(controls.weights, controls.part_weights,
                                                                                  mix.spread)
 
+    def repace(self, mix: Mix, stream: Crowd) -> None:
+        """lambda* and the duration pdfs do not move with the pace."""
+
 
 class Durations:
     """Frames per state of every character: speed and phase stretch through the HSMM duration
@@ -155,66 +165,122 @@ class Durations:
     def retune(self, mix: Mix, stream: Crowd) -> None:
         controls = mix.performed
         stream.tune(self.interpolation.duration_means, self.interpolation.duration_variances, controls.speed,
-                    controls.state_scale, controls.liveliness)
+                    controls.state_scale, controls.liveliness, mix.paced)
+
+    repace = retune
 
 
 class RangeTargets:
-    """Where the range filter scales each character's swing about: the stride mean of each unit
+    """Where the range filter scales each character's swing about: the stride mean of its unit
     (what a walk, a run or a stand averages over its two steps) and the factors. The factors were
-    measured on walks: turning steps take them, a run and a stand are left as made (factor 1)."""
+    measured on walks: turning steps take them, a run and a stand are left as made (factor 1).
+
+    A retune makes the factors (N, D); a character's stride mean is made at its next frame, for
+    the unit it walks in, and kept while the tables and the unit stay (`widen.unit_targets`). For
+    a few characters the targets of every unit are made at once, at the first frame after a
+    retune, and a frame takes views of them (cheaper than a call a frame)."""
 
     name = "range"
+    TABLE_UP_TO = 8  # characters whose targets of every unit are made at once
 
-    def __init__(self, space: RangeSpace, units: list[str]):
+    def __init__(self, space: RangeSpace, units: list[str], count: int, dimension: int):
         self.space = space
         self.scaled = np.array([u == "walk" or u.startswith("turn") for u in units])  # (U,) units the factors fit
-        self.means: np.ndarray | None = None  # (N, U, D) each unit's stride mean
-        self.factors: np.ndarray | None = None  # (N, U, D)
+        self.stream: Crowd | None = None  # whose lambda* and durations the stride means are of
+        self.factor: np.ndarray | None = None  # (N, D) the factors, where the unit is scaled
+        self.held = np.full(count, -1, dtype=np.int64)  # the unit each row of `means` is the stride mean of (-1: none)
+        self.means = np.empty((count, dimension))  # (N, D) the frame's targets, kept from frame to frame
+        self.factors = np.empty((count, dimension))
+        self._targets = DirectCall(unit_targets)  # every argument's type is fixed: typed once per retune, not a frame
+        self.table: tuple[np.ndarray, np.ndarray] | None = None  # a few characters' (N, U, D) means and factors
 
     def retune(self, mix: Mix, stream: Crowd) -> None:
-        states = stream.space.states
-        own, shared = stream.tables.mean_own, stream.tables.mean_shared
-        self.means = np.stack([stride_means(stream.base[:, 2 * k:2 * k + 2], own[:, 2 * k * states:(2 * k + 2) * states],
-                                            shared[2 * k * states:(2 * k + 2) * states]) for k in range(len(self.scaled))],
-                              axis=1)
-        factor = self.space.factors(mix.weights, mix.parts)
-        self.factors = np.where(self.scaled[None, :, None], factor[:, None], 1.0)
+        self.factor = self.space.factors(mix.weights, mix.parts)
+        self.repace(mix, stream)
+
+    def repace(self, mix: Mix, stream: Crowd) -> None:
+        """The stride means move with the planned durations: each is made again at its next frame."""
+        self.stream = stream
+        self.held[slice(None) if mix.paced is None else mix.paced] = -1
+        self.table = None
 
     def targets(self, units: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(N, D) stride means and factors of each character's frame, of unit `units` (N,)."""
-        if len(self.scaled) == 1 or len(units) == 1:  # views, no copy (the one character's unit)
-            k = 0 if len(self.scaled) == 1 else int(units[0])
-            return self.means[:, k], self.factors[:, k]
-        rows = np.arange(len(units))
-        return self.means[rows, units], self.factors[rows, units]
+        count = len(self.held)
+        if count > self.TABLE_UP_TO:
+            self._made(np.ascontiguousarray(units, dtype=np.int64))
+            return self.means, self.factors
+        if self.table is None:
+            shape = (count, len(self.scaled), self.means.shape[1])
+            table = np.empty(shape), np.empty(shape)
+            for unit in range(len(self.scaled)):
+                self._made(np.full(count, unit, dtype=np.int64))
+                table[0][:, unit], table[1][:, unit] = self.means, self.factors
+            self.table = table
+        if count == 1:  # views, no copy
+            return self.table[0][:, units[0]], self.table[1][:, units[0]]
+        rows = np.arange(count)
+        return self.table[0][rows, units], self.table[1][rows, units]
+
+    def _made(self, units: np.ndarray) -> None:
+        """`means` and `factors` for units `units` (N,), each stride mean made if not held."""
+        stream = self.stream
+        self._targets((stream.tables, self.factor), units, self.held, self.scaled, stream.base, stream.tables.mean_own,
+                      stream.tables.mean_shared, self.factor, self.means, self.factors)
 
 
 class ContactTables:
-    """How surely each character's feet are planted in each state, and how much of a planted
-    foot's slide its body takes (follow.py)."""
+    """How surely each character's feet are planted in its frame's state, and how much of a
+    planted foot's slide its body takes (follow.py). A retune keeps the legs' weights; for a
+    crowd the shares of the frame's states are made frame by frame (`at`), not a table of every
+    state; for a few characters a table is made at the retune (cheaper than a call a frame)."""
 
     name = "contact"
+    TABLE_UP_TO = 8  # characters whose shares of every state are made at a retune
 
     def __init__(self, space: ContactSpace):
         self.space = space
-        self.shares: np.ndarray | None = None  # (N, labels * states, 2)
+        self.legs: np.ndarray | None = None  # (N, styles) the style weights each character's legs walk with
         self.follow: np.ndarray | None = None  # (N,)
+        self.table: np.ndarray | None = None  # (N, labels * states, 2) for a few characters
 
     def retune(self, mix: Mix, stream: Crowd) -> None:
-        self.shares = self.space.shares(mix.weights, mix.parts)
-        self.follow = follow_strength(self.space.leg_weights(mix.weights, mix.parts))
+        self.legs = np.ascontiguousarray(np.atleast_2d(self.space.leg_weights(mix.weights, mix.parts)))
+        self.follow = follow_strength(self.legs)
+        if len(self.legs) <= self.TABLE_UP_TO:  # the same numbers as `at` makes (one kernel)
+            self.table = self.space.shares_in(self.legs, np.tile(np.arange(len(self.space.base)), (len(self.legs), 1)))
+
+    def repace(self, mix: Mix, stream: Crowd) -> None:
+        """Contact does not move with the pace."""
+
+    def at(self, ids: np.ndarray) -> np.ndarray:
+        """(N, 2) how surely each character's feet are planted in its state `ids` (N,)."""
+        if self.table is not None:
+            return self.table[np.arange(len(self.table)), ids]
+        return self.space.shares_in(self.legs, np.asarray(ids, dtype=np.int64).reshape(-1, 1))[:, 0]
 
 
 class GestureTables:
-    """The gesture stream's lambda* (the gait's own tables) and its durations at the model's pace."""
+    """The gesture stream's lambda* (the gait's own tables) and its durations at the model's pace,
+    handed over when a gesture may play (`ready`): a crowd walking without one pays nothing."""
 
     name = "gestures"
 
     def __init__(self, layer: GestureLayer, interpolation: Interpolation):
         self.layer, self.interpolation = layer, interpolation
+        self.stream: Crowd | None = None  # retuned since they were last handed over (None: not)
 
     def retune(self, mix: Mix, stream: Crowd) -> None:
-        self.layer.retune(self.interpolation.duration_means, self.interpolation.duration_variances, stream)
+        self.stream = stream
+
+    def repace(self, mix: Mix, stream: Crowd) -> None:
+        """A gesture keeps the model's pace."""
+
+    def ready(self) -> None:
+        """The gesture stream's tables as of the last retune, before it plays a frame."""
+        if self.stream is not None:
+            self.layer.retune(self.interpolation.duration_means, self.interpolation.duration_variances, self.stream)
+            self.stream = None
 
 
 def drive(static: np.ndarray, cadence: np.ndarray, turn: float | np.ndarray) -> np.ndarray:
@@ -250,14 +316,15 @@ class Engine:
         interpolation = Interpolation(self.space, self.cast.offsets)
         self.features: list[StyleFeature] = [interpolation, Durations(interpolation)]
         ranges, contact = range_space(model), contact_space(model)
-        self.range_targets = None if ranges is None else RangeTargets(ranges, model.units)
+        self.range_targets = None if ranges is None else RangeTargets(ranges, model.units, characters, model.layout.dimension)
         self.range_filter = None if ranges is None else RangeFilter()
         self.contact = None if contact is None else ContactTables(contact)
         self.features += [f for f in (self.range_targets, self.contact) if f is not None]
         self.units = UnitChooser(model, characters)
         self.gestures = GestureLayer(model, self.space, characters, lookahead, self.cast.seeds)
-        if self.gestures.names:
-            self.features.append(GestureTables(self.gestures, interpolation))
+        self.gesture_tables = GestureTables(self.gestures, interpolation) if self.gestures.names else None
+        if self.gesture_tables is not None:
+            self.features.append(self.gesture_tables)
         lock = None if contact is None else FootLock(model.layout, contact.clearance, self.fps)
         self.poses = CrowdPoses(model.layout, self.fps, characters, lock, positions=floor_positions(model, characters, spacing))
         self.frame_ids: np.ndarray | None = None  # (N,) the state (label * states + state) of each newest model frame
@@ -268,7 +335,8 @@ class Engine:
         self._controls: Controls | None = None  # the last controls and spread retuned for
         self._spread: float | None = None
         self.mix: Mix | None = None  # every character's weights, as last retuned
-        self._key: tuple | None = None
+        self._style: tuple | None = None  # what the style features' tables were made for (weights, parts, spread)
+        self._pace: tuple | None = None  # and the durations (speed, phase stretch, liveliness)
         self.frames: list[np.ndarray] = []  # the last two model frames (N, D), driven
         self.made = 0  # model frames made
         # when a dict: seconds spent in each stage, added up frame after frame (`instrument bench`'s stage costs)
@@ -288,23 +356,31 @@ class Engine:
 
     def retune(self, controls: Controls, spread: float = 0.0) -> None:
         """Every style feature's tables for these controls, if they changed since the last call
-        (a Controls object seen before is not even compared)."""
+        (a Controls object seen before is not even compared); when only the pace changed, only
+        what moves with it (`StyleFeature.repace`)."""
         spread = float(spread)
         if controls is self._controls and spread == self._spread:
             return
         self._controls, self._spread = controls, spread
-        key = (controls.key(), spread)
-        if key == self._key:
+        key = controls.key()
+        style, pace = (key[0], key[1], spread), key[2:]
+        if style == self._style and pace == self._pace:
             return
-        self._key = key
         self._mark()
-        offsets = self.cast.offsets
-        weights = controls.weights[None] + spread * offsets
-        parts = None if controls.part_weights is None else controls.part_weights[None] + spread * offsets[:, :, None]
-        self.mix = Mix(controls, spread, weights, parts)  # NaN parts (following the weights) stay NaN
+        if style != self._style:
+            offsets = self.cast.offsets
+            weights = controls.weights[None] + spread * offsets
+            parts = None if controls.part_weights is None else controls.part_weights[None] + spread * offsets[:, :, None]
+            self.mix = Mix(controls, spread, weights, parts)  # NaN parts (following the weights) stay NaN
+        else:  # the pace alone: when only speeds changed (the beat lock's, at footfalls), only those characters'
+            self.mix = replace(self.mix, performed=controls, paced=_changed_speeds(self._pace, pace, self.count))
         self._timed("cast")
+        restyled, self._style, self._pace = style != self._style, style, pace
         for feature in self.features:
-            feature.retune(self.mix, self.stream)
+            if restyled:
+                feature.retune(self.mix, self.stream)
+            elif hasattr(feature, "repace"):  # a feature without it does not move with the pace
+                feature.repace(self.mix, self.stream)
             self._timed(feature.name)
 
     def next_features(self, controls: Controls, spread: float = 0.0) -> np.ndarray:
@@ -326,11 +402,13 @@ class Engine:
         frames = drive(frames, self.stream.cadence * self.units.travel, self.units.added_yaw)
         self._timed("drive")
         if self.gestures.crowd is not None:
+            if controls.gestures or self.gestures.playing is not None:  # one may play: its tables as retuned
+                self.gesture_tables.ready()
             frames = self.gestures(controls.gestures, frames, ids)
             self._timed("gestures")
         self.frame_ids = ids
         if self.contact is not None:
-            self.contact_shares = self.contact.shares[np.arange(self.count), ids]
+            self.contact_shares = self.contact.at(ids)
             self.follow_strengths = self.contact.follow
             self._timed("contact")
         self.made += 1
@@ -368,6 +446,15 @@ class Engine:
         pose = self.poses.next(static, self.contact_shares, self.follow_strengths)
         self._timed("posing")
         return pose
+
+
+def _changed_speeds(before: tuple, now: tuple, count: int) -> np.ndarray | None:
+    """The characters whose speed differs between two pace keys (speed, phase stretch, liveliness:
+    `Controls.key()[2:]`), or None when more than the speeds changed (all characters then)."""
+    if before is None or before[1:] != now[1:]:
+        return None
+    old, new = (np.broadcast_to(np.frombuffer(key[0], dtype=np.float64), (count,)) for key in (before, now))
+    return np.flatnonzero(old != new)
 
 
 def default_controls(model: Model, weights: dict[str, float] | None = None, **kwargs) -> Controls:

@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ..models.modelfile import Model
 from ..motion.bvh import Motion
@@ -175,10 +176,24 @@ class StyleInterpolation:
             np.exp(precisions, out=precisions)
             tables = CrowdLambda(means, np.zeros(means.shape[1:]), precisions, np.ones(means.shape[1:]),
                                  np.zeros(len(means), dtype=bool))
-        duration_change = duration_change + spread * self.offset_duration_change
         shape = (len(self.offsets), space.labels, space.states)
-        return (tables, (space.duration_base[0] + duration_change[:, 0]).reshape(shape),
-                np.exp(space.duration_base[1] + np.clip(duration_change[:, 1], -limit, limit)).reshape(shape))
+        means, variances = np.empty(shape), np.empty(shape)
+        _duration_tables(space.duration_base, duration_change, self.offset_duration_change, spread, limit,
+                         means.reshape(len(means), -1), variances.reshape(len(means), -1))
+        return tables, means, np.exp(variances, out=variances)  # numpy's exp, as the shared tables' (one character's bits)
+
+
+@njit(cache=True, nogil=True)
+def _duration_tables(base, shared, own, spread, limit, means, log_variances):  # pragma: no cover - compiled
+    """Every character's duration means and log variances (N, labels * states): lambda 0's plus
+    the performed change plus `spread` times the character's own, the log variances' change
+    clipped to +-limit; the same operations in the same order as numpy's elementwise form (one
+    pass, where that form took six over the crowd: a millisecond a retune for 1,000 characters)."""
+    for n in range(means.shape[0]):
+        for k in range(means.shape[1]):
+            means[n, k] = base[0, k] + (shared[0, k] + spread * own[n, 0, k])
+            change = shared[1, k] + spread * own[n, 1, k]
+            log_variances[n, k] = base[1, k] + min(max(change, -limit), limit)
 
 
 @dataclass(frozen=True)

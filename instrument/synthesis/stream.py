@@ -21,12 +21,12 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from .durations import MIN_FRAMES, state_durations, whole_frames
+from .durations import MIN_FRAMES, whole_frames
 from .interpolation import CrowdLambda, StyleSpace
 from .cores import over_cores, parts
 from .direct import DirectCall
-from .mlpg import _solve
-from .parameters import DEFAULT_LOOKAHEAD, GAITS
+from .mlpg import _prefetch_row, _solve
+from .parameters import DEFAULT_LOOKAHEAD, GAITS, MAX_SPEED, MIN_SPEED
 
 
 class StreamTables(NamedTuple):
@@ -59,7 +59,6 @@ class WindowWork(NamedTuple):
     """The frame step's scratch arrays for one window length, kept between frames."""
 
     rows: np.ndarray  # (N, window) int: each window's rows of the lambda* tables
-    solved: np.ndarray  # (N, window - fixed, D)
     work1: np.ndarray  # (window, D) solver work
     work2: np.ndarray  # (window, D)
     ids: np.ndarray  # (N, lookahead + 1) int: planned states
@@ -69,7 +68,7 @@ class WindowWork(NamedTuple):
     def part(self, start: int, stop: int, work: tuple[np.ndarray, np.ndarray] | None = None) -> WindowWork:
         """Characters start to stop (views), with solver work of their own (`work`) when given."""
         work1, work2 = (self.work1, self.work2) if work is None else work
-        return WindowWork(self.rows[start:stop], self.solved[start:stop], work1, work2, self.ids[start:stop],
+        return WindowWork(self.rows[start:stop], work1, work2, self.ids[start:stop],
                           self.counts[start:stop], self.carries[start:stop])
 
 
@@ -182,17 +181,16 @@ class Crowd:
             self.carry[n, label] = carry
 
     def tune(self, duration_means: np.ndarray, duration_variances: np.ndarray, speed: float | np.ndarray,
-             state_scale: np.ndarray | None, liveliness: float) -> None:
+             state_scale: np.ndarray | None, liveliness: float, rows: np.ndarray | None = None) -> None:
         """The engine's durations stage: every character's frames per state (N, labels, states)
         from its duration pdfs and the performed speed, phase stretch and liveliness, and the
         cadence that scales its root speeds. (Its lambda* tables, `tables`, are set by the
-        interpolation stage.)"""
+        interpolation stage.) `rows`: only these characters' (the others' pace has not changed)."""
         scale = np.ones(self.space.states) if state_scale is None else np.asarray(state_scale, dtype=np.float64)
-        if np.ndim(speed):  # one speed a character (the beat lock's: runtime/tempo.py)
-            speed = np.asarray(speed, dtype=np.float64)[:, None, None]
-        self.base[:] = state_durations(duration_means, duration_variances, speed, scale)
-        self.sigma[:] = liveliness * np.sqrt(duration_variances) * scale
-        self.cadence[:] = np.maximum(duration_means, MIN_FRAMES).sum(axis=(1, 2)) / self.base.sum(axis=(1, 2))
+        speeds = np.broadcast_to(np.asarray(speed, dtype=np.float64), (self.count,))  # one a character: the beat lock's
+        rows = np.arange(self.count) if rows is None else np.asarray(rows, dtype=np.int64)
+        _tune(np.ascontiguousarray(duration_means, dtype=np.float64), np.ascontiguousarray(duration_variances, dtype=np.float64),
+              np.ascontiguousarray(speeds), scale, float(liveliness), rows, self.base, self.sigma, self.cadence)
 
     def _draws_for(self, frames: int) -> None:
         """Make sure every character has draws for a plan over `frames` frames (at most one state
@@ -236,7 +234,6 @@ class Crowd:
             dimension = self.history.shape[2]
             self._buffers[fixed] = WindowWork(
                 np.zeros((self.count, window), dtype=np.int64),  # each window's rows of the lambda* tables
-                np.zeros((self.count, window - fixed, dimension)),  # solved frames
                 np.zeros((window, dimension)), np.zeros((window, dimension)),  # solver work
                 np.zeros((self.count, self.lookahead + 1), dtype=np.int64),  # planned ids
                 np.zeros((self.count, self.lookahead + 3), dtype=np.int64),  # state instances: frames
@@ -347,6 +344,65 @@ def _plan(base, sigma, counter, carry, pool, ids, counts, carries):  # pragma: n
 
 
 @njit(cache=True, nogil=True)
+def numpy_sum(values):  # pragma: no cover - compiled
+    """The sum of a 1-D array as numpy adds it (its pairwise summation: eight running sums from
+    eight values up, one block of 128 at most here), so a compiled stage gives numpy's numbers to
+    the bit."""
+    count = values.shape[0]
+    if count < 8:
+        total = 0.0
+        for k in range(count):
+            total += values[k]
+        return total
+    assert count <= 128  # numpy splits longer arrays in halves first
+    r0, r1, r2, r3, r4, r5, r6, r7 = values[0], values[1], values[2], values[3], values[4], values[5], values[6], values[7]
+    k = 8
+    while k < count - count % 8:
+        r0 += values[k]
+        r1 += values[k + 1]
+        r2 += values[k + 2]
+        r3 += values[k + 3]
+        r4 += values[k + 4]
+        r5 += values[k + 5]
+        r6 += values[k + 6]
+        r7 += values[k + 7]
+        k += 8
+    total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while k < count:
+        total += values[k]
+        k += 1
+    return total
+
+
+@njit(cache=True, nogil=True)
+def _tune(means, variances, speeds, scale, liveliness, rows, base, sigma, cadence):  # pragma: no cover - compiled
+    """`Crowd.tune` for every character in one pass: base = durations.state_durations(means,
+    variances, speed, scale), sigma = liveliness sqrt(variances) scale, cadence = the sum of
+    max(means, MIN_FRAMES) over the sum of base; the same operations in the same order as those
+    numpy forms (tests/walks.py and the reference stream use them), so the same numbers to the bit
+    (numpy took a dozen passes over the crowd's tables: 3 us a character a retune); for the
+    characters `rows` only."""
+    labels, states = means.shape[1], means.shape[2]
+    floored = np.empty(labels * states)
+    made = np.empty(labels * states)
+    for n in rows:
+        speed = min(max(speeds[n], MIN_SPEED), MAX_SPEED)
+        for label in range(labels):
+            total, spread = 0.0, 0.0
+            for state in range(states):
+                floored[label * states + state] = max(means[n, label, state], MIN_FRAMES)
+                total += floored[label * states + state]
+                spread += variances[n, label, state]
+            rho = (total / speed - total) / spread
+            for state in range(states):
+                made[label * states + state] = max((floored[label * states + state] + rho * variances[n, label, state])
+                                                   * scale[state], MIN_FRAMES)
+                base[n, label, state] = made[label * states + state]
+                sigma[n, label, state] = liveliness * np.sqrt(variances[n, label, state]) * scale[state]
+        cadence[n] = numpy_sum(floored) / numpy_sum(made)
+
+
+@njit(cache=True, nogil=True)
 def _next_unit(counter):  # pragma: no cover - compiled
     """The unit of the step after the current one: NEXT's when one waits, else UNIT's."""
     return counter[NEXT] - 1 if counter[NEXT] > 0 else counter[UNIT]
@@ -374,38 +430,57 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
                                                               tables.precision_shared)
     base, sigma, counters, carry, pool = tables.base, tables.sigma, tables.counters, tables.carry, tables.pool
     history, history_ids, ratios, max_step, lo = tables.history, tables.history_ids, tables.ratios, tables.max_step, tables.lo
-    rows, solved, work1, work2, ids, counts, carries = (work.rows, work.solved, work.work1, work.work2, work.ids,
-                                                        work.counts, work.carries)
+    rows, work1, work2, ids, counts, carries = work.rows, work.work1, work.work2, work.ids, work.counts, work.carries
     count, states = mean_own.shape[0], base.shape[2]
     dimension = history.shape[2]
     known = np.ascontiguousarray(history[:, 2 - fixed:]) if fixed else np.zeros((count, 1, dimension))
     work1[:] = 0.0
     work2[:] = 0.0
-    solved[:] = 0.0
-    # the character's lambda* put together here, in the cache, as the solver reads it (or the shared one as it is)
-    means = np.empty((1,) + mean_shared.shape)
-    precisions = np.empty((1,) + mean_shared.shape)
+    # one window's solution at a time, kept in the cache (the frame sent is its first row, copied to
+    # `frames`): a crowd's windows side by side were 17 MB zeroed and written a frame for 1,000 characters
+    solved = np.zeros((1, rows.shape[1] - fixed, dimension))
+    # the rows of the character's lambda* its window reads, put together here, in the cache, as the
+    # solver reads them (or the shared tables as they are): a window passes through some ten state
+    # instances, and putting together all 90 rows of both tables cost the crowd's stream two thirds of its time
+    window, width = rows.shape[1], mean_shared.shape[1]
+    means = np.empty((1, window, width))
+    precisions = np.empty((1, window, width))
+    local = np.empty((1, window), dtype=np.int64)  # each window frame's row of `means` and `precisions`
     shared_means = mean_shared.reshape((1,) + mean_shared.shape)
     shared_precisions = precision_shared.reshape((1,) + precision_shared.shape)
     plain = tables.plain
-    for n in range(count):
+    for n in range(count):  # every plan first, so the rows a character's window reads are known before it is solved
         counters[n, TAIL] = _plan(base[n], sigma[n], counters[n], carry[n], pool[n], ids[n], counts[n], carries[n])[1]
         for m in range(fixed):
             rows[n, m] = history_ids[n, 2 - fixed + m]
         for m in range(ids.shape[1]):
             rows[n, fixed + m] = ids[n, m]
+    for n in range(count):
+        if n + 1 < count and not plain[n + 1]:  # the next character's rows asked for while this one is solved
+            for m in range(window):
+                if m == 0 or rows[n + 1, m] != rows[n + 1, m - 1]:
+                    _prefetch_row(mean_own[n + 1], rows[n + 1, m], 0, width)
+                    _prefetch_row(precision_own[n + 1], rows[n + 1, m], 0, width)
         if plain[n]:  # 0 + x and 1 x are x: the shared tables are the character's, to the bit
-            _solve(shared_means, shared_precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved[n : n + 1],
-                   work1, work2, lo)
+            _solve(shared_means, shared_precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved, work1, work2, lo)
+            frames[n] = solved[0, 0]
             continue
-        for r in range(mean_shared.shape[0]):
-            for c in range(mean_shared.shape[1]):
-                means[0, r, c] = mean_own[n, r, c] + mean_shared[r, c]
-                precisions[0, r, c] = precision_own[n, r, c] * precision_shared[r, c]
-        _solve(means, precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved[n : n + 1], work1, work2, lo)
+        used = 0
+        for m in range(window):
+            r = rows[n, m]
+            if m > 0 and r == rows[n, m - 1]:  # a state lasts some frames: its row is made once
+                local[0, m] = local[0, m - 1]
+                continue
+            for c in range(width):
+                means[0, used, c] = mean_own[n, r, c] + mean_shared[r, c]
+                precisions[0, used, c] = precision_own[n, r, c] * precision_shared[r, c]
+            local[0, m] = used
+            used += 1
+        _solve(means, precisions, local, False, known[n : n + 1], fixed, solved, work1, work2, lo)
+        frames[n] = solved[0, 0]
     for n in range(count):
         for d in range(dimension):
-            value = solved[n, 0, d]
+            value = frames[n, d]
             if fixed and limit_any:  # no feature moves further in a frame than the data ever did
                 previous = history[n, 1, d]
                 bound = ratios[n] * max_step[d] if ratios[n] > 0 else np.inf

@@ -30,6 +30,8 @@ from numba import njit
 
 from ..motion.features import ROOT_FEATURES
 from .interpolation import body_groups, part_weights_per_group
+from .mlpg import _prefetch_row
+from .stream import numpy_sum
 
 STRENGTH = 1.0  # share of the learnt log factor applied (chosen by `instrument evaluate`, docs/evaluate.md)
 LIMIT = np.log(2.0)  # no feature's swing is scaled by more than 2x or less than 1/2
@@ -60,13 +62,9 @@ class RangeSpace:
             per_dim = weights[:, :, None]
         else:
             per_dim = part_weights_per_group(weights, part_weights) @ self.group_masks  # (N, styles, D)
-        positive = np.maximum(per_dim, 0.0)
-        total = positive.sum(axis=1)
-        outside = np.maximum(-per_dim, 0.0).sum(axis=1) + np.maximum(total - 1.0, 0.0)
-        inside = positive / np.maximum(total, 1.0)[:, None]
-        blended = np.empty((len(inside), len(self.base)))
-        _blend(self.base, inside, self.offsets, blended)
-        return np.exp(STRENGTH * np.clip(1.0 - outside, 0.0, 1.0) * np.clip(blended, -LIMIT, LIMIT))
+        logs = np.empty((len(per_dim), len(self.base)))
+        _log_factors(np.ascontiguousarray(per_dim), self.base, self.offsets, logs)
+        return np.exp(logs, out=logs)
 
 
 def range_space(model) -> RangeSpace | None:
@@ -102,17 +100,65 @@ def _stride_means(frames, totals, own, shared, out):  # pragma: no cover - compi
 
 
 @njit(cache=True, nogil=True)
-def _blend(base, inside, offsets, out):  # pragma: no cover - compiled
-    """out[n, d] = base[d] + sum_s inside[n, s, d] offsets[s, d] (`inside`'s last axis 1 or D),
-    added in the styles' order (as numpy's sum over that axis adds them)."""
-    per_feature = inside.shape[2] > 1
+def unit_targets(units, held, scaled, base, own, shared, factor, means, factors):  # pragma: no cover - compiled
+    """The range targets of each character's frame, of unit units[n]: its stride mean into
+    means[n] (`stride_means` over that unit's two steps, the same numbers to the bit), made only
+    where held[n], the unit `means[n]` was made for, is another (-1: made for none since the
+    tables changed), and the factors into factors[n]: factor[n] where the unit is `scaled`, else 1.
+    A crowd's retune then makes no stride means: a character's are made at its next frame, for
+    the one unit it walks (a stride mean of every unit of every character cost 17 us a character)."""
+    states = base.shape[2]
+    frames = np.empty(2 * states)
+    for n in range(units.shape[0]):
+        unit = units[n]
+        if n + 1 < units.shape[0] and held[n + 1] != units[n + 1]:  # the next character's rows asked for meanwhile
+            for k in range(2 * states):
+                _prefetch_row(own[n + 1], 2 * units[n + 1] * states + k, 0, means.shape[1])
+        if held[n] != unit:
+            for k in range(2 * states):
+                frames[k] = base[n, 2 * unit + k // states, k % states]
+            total = numpy_sum(frames)
+            first = 2 * unit * states
+            for d in range(means.shape[1]):  # the sums run row by row (each in k's order), as the rows lie
+                means[n, d] = frames[0] * (own[n, first, d] + shared[first, d])
+            for k in range(1, 2 * states):
+                for d in range(means.shape[1]):
+                    means[n, d] += frames[k] * (own[n, first + k, d] + shared[first + k, d])
+            for d in range(means.shape[1]):
+                means[n, d] /= total
+            held[n] = unit
+        for d in range(factors.shape[1]):
+            factors[n, d] = factor[n, d] if scaled[unit] else 1.0
+
+
+@njit(cache=True, nogil=True)
+def _log_factors(per_dim, base, offsets, out):  # pragma: no cover - compiled
+    """The log of `RangeSpace.factors` (N, D) for the style weights of each feature `per_dim`
+    (N, styles, 1 or D): inside the blends the offsets blended by the positive weights (scaled to
+    add up to at most 1), faded to 0 by the distance outside them, within +-LIMIT. The numpy form
+    of the same arithmetic, in the same order (each sum over the styles in their order), took ten
+    passes over the crowd a retune."""
+    styles, per_feature = per_dim.shape[1], per_dim.shape[2] > 1
+    inside = np.empty(styles)
     for n in range(out.shape[0]):
-        for d in range(out.shape[1]):
-            e = d if per_feature else 0
-            total = inside[n, 0, e] * offsets[0, d]
-            for s in range(1, offsets.shape[0]):
-                total += inside[n, s, e] * offsets[s, d]
-            out[n, d] = base[d] + total
+        for e in range(per_dim.shape[2]):
+            total, negative = 0.0, 0.0
+            for s in range(styles):
+                total += max(per_dim[n, s, e], 0.0)
+                negative += max(-per_dim[n, s, e], 0.0)
+            outside = negative + max(total - 1.0, 0.0)
+            fade = STRENGTH * min(max(1.0 - outside, 0.0), 1.0)
+            for s in range(styles):
+                inside[s] = max(per_dim[n, s, e], 0.0) / max(total, 1.0)
+            first, last = (e, e + 1) if per_feature else (0, out.shape[1])  # the features these weights are of
+            row = out[n, first:last]  # the blend summed in it style by style (each feature's sum in the styles' order)
+            for d in range(first, last):
+                row[d - first] = inside[0] * offsets[0, d]
+            for s in range(1, styles):
+                for d in range(first, last):
+                    row[d - first] += inside[s] * offsets[s, d]
+            for d in range(first, last):
+                row[d - first] = fade * min(max(base[d] + row[d - first], -LIMIT), LIMIT)
 
 
 class RangeFilter:
