@@ -52,10 +52,33 @@ def test_the_cache_folder_follows_the_user_systemd_and_an_explicit_choice(tmp_pa
         return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True,
                               env=clean_env(**extra)).stdout.strip()
 
-    assert cache_dir(HOME=str(tmp_path)) == str(tmp_path / ".cache" / "instrument" / "numba")
-    assert cache_dir(XDG_CACHE_HOME=str(tmp_path / "xdg")) == str(tmp_path / "xdg" / "instrument" / "numba")
-    assert cache_dir(CACHE_DIRECTORY=str(tmp_path / "var")) == str(tmp_path / "var" / "numba")  # systemd's CacheDirectory=
+    from instrument import _kernels_fingerprint
+
+    version = _kernels_fingerprint()  # one folder per version of the kernels' sources
+    assert cache_dir(HOME=str(tmp_path)) == str(tmp_path / ".cache" / "instrument" / "numba" / version)
+    assert cache_dir(XDG_CACHE_HOME=str(tmp_path / "xdg")) == str(tmp_path / "xdg" / "instrument" / "numba" / version)
+    assert cache_dir(CACHE_DIRECTORY=str(tmp_path / "var")) == str(tmp_path / "var" / "numba" / version)  # systemd's
     assert cache_dir(NUMBA_CACHE_DIR=str(tmp_path / "mine")) == str(tmp_path / "mine")
+
+
+def test_a_changed_kernel_source_compiles_into_a_new_cache_folder(tmp_path):
+    """numba checks a cached kernel against its own file only: the stream's step, cached against
+    the solver it calls in another file, crashed the process once the solver had changed. The
+    cache folder is named by every kernel module's text, so a change to any of them (here a copy
+    of the package with one comment added to the solver) compiles afresh."""
+    copy = tmp_path / "instrument"
+    shutil.copytree(REPO / "instrument", copy, ignore=shutil.ignore_patterns("__pycache__"))
+    code = "import instrument, os; print(os.environ['NUMBA_CACHE_DIR'])"
+
+    def folder() -> str:
+        return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True,
+                              cwd=tmp_path, env={**clean_env(HOME=str(tmp_path)), "PYTHONPATH": str(tmp_path)}).stdout.strip()
+
+    before = folder()
+    with open(copy / "synthesis" / "mlpg.py", "a") as solver:
+        solver.write("# changed\n")
+    after = folder()
+    assert before.startswith(str(tmp_path / ".cache" / "instrument" / "numba")) and before != after
 
 
 def test_the_suite_runs_from_the_parent_of_a_clone_in_a_folder_named_instrument(tmp_path):
