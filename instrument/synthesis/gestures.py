@@ -71,6 +71,7 @@ class GestureLayer:
         self.ease = np.zeros(count)  # 0..1 along the ease in, then back down along the ease out
         self.weights = np.zeros(count)  # the gesture's share of each character's upper body, this frame
         self.held: set[str] = set()  # the gesture targets held at the last frame
+        self._as_given: Collection[str] = ()  # and as the controls gave them (a held pad: the same each frame)
         width = self.solved.stop - self.solved.start
         self.shown = np.zeros((count, 2, width))  # the last two frames shown, the solved range: where a gesture starts from
         self.shown_ids = np.zeros((count, 2), dtype=np.int64)  # and their states
@@ -90,7 +91,8 @@ class GestureLayer:
 
     def __call__(self, held: Collection[str], frames: np.ndarray, ids: np.ndarray) -> np.ndarray:
         """The frame (N, D) with the gesture's upper body layered on, for the gesture targets held."""
-        if held or self.held:  # a press or a release: sets compared only then
+        if held != self._as_given:  # a press or a release: sets compared only then
+            self._as_given = held
             held = set(held)
             pressed = held - self.held
             if self.playing in self.held - held:  # let go: during the raise it was a tap (the takes' repeats), later a hold
@@ -100,8 +102,9 @@ class GestureLayer:
             if known and self.playing is None:
                 self._start(known[0])
         if self.playing is not None:
-            frames = self._layer(frames)
-        _remember(self.shown, self.shown_ids, frames, ids, self.solved.start)
+            frames = self._layer(frames, ids)
+        else:
+            _remember(self.shown, self.shown_ids, frames, ids, self.solved.start)
         self.seen = min(self.seen + 1, 2)
         return frames
 
@@ -129,14 +132,15 @@ class GestureLayer:
         self._next_repeating = np.array([rest, rest, repeats, repeats, repeats, rest])
         self._next_ending = np.array([rest, rest, repeats, repeats, ends, rest])
 
-    def _layer(self, frames: np.ndarray) -> np.ndarray:
+    def _layer(self, frames: np.ndarray, ids: np.ndarray) -> np.ndarray:
         crowd = self.crowd
         _choose_units(crowd.counters, self.label, self.done, self.tapped, self.playing in self.held,
                       self.repeats[self.playing], self.first, self._next_repeating, self._next_ending)
         gesture = crowd.step()
         out = np.empty_like(frames, dtype=np.float64)
         if not _blend(crowd.history_ids, crowd.space.states, self.first, self.label, self.done, self.ease, self.weights,
-                      np.asarray(frames, dtype=np.float64), gesture, self.columns, self.solved.start, out):
+                      np.asarray(frames, dtype=np.float64), gesture, self.columns, self.solved.start, out,
+                      self.shown, self.shown_ids, ids):
             self.playing = None
         return out
 
@@ -156,11 +160,13 @@ def _choose_units(counters, label, done, tapped, held, repeats, first, next_repe
 
 
 @njit(cache=True, nogil=True)
-def _blend(history_ids, states, first, label, done, ease, weights, frames, gesture, columns, lo, out):  # pragma: no cover - compiled
+def _blend(history_ids, states, first, label, done, ease, weights, frames, gesture, columns, lo, out, shown, shown_ids,
+           ids):  # pragma: no cover - compiled
     """After the gesture's stream has made its frame: each character's label under way, the repeat
     half cycles it has finished, its ease and weight (smoothstep: no kink at either end), and `out`
     = `frames` with the upper body `columns` moved that far towards the gesture's (whose column
-    0 is the frame's `lo`). Returns whether the gesture still has any character."""
+    0 is the frame's `lo`), remembered as shown (`_remember`: in the same call, one dispatch less a
+    frame). Returns whether the gesture still has any character."""
     playing = False
     for n in range(label.shape[0]):
         now = history_ids[n, 1] // states
@@ -177,6 +183,7 @@ def _blend(history_ids, states, first, label, done, ease, weights, frames, gestu
             out[n, d] = frames[n, d]
         for c in columns:
             out[n, c] = frames[n, c] + w * (gesture[n, c - lo] - frames[n, c])
+    _remember(shown, shown_ids, out, ids, lo)
     return playing
 
 
