@@ -340,12 +340,15 @@ def measure_gesture(model, controls: Controls, turns: int, solves) -> dict:
     frame = streaming.next_features(held)
 
     def gesture_stream():  # the stream stage and the gesture stage of a frame, nothing else
+        gait = streaming.stream
         for _ in range(frames):
-            layer(held.gestures, streaming.stream.step(), streaming.stream.history_ids[:, 1])
+            layer.begin(held.gestures, gait)
+            layer.after(gait.step(), gait.history_ids[:, 1])
 
-    def gesture_stage():
+    def gesture_stage():  # with its own stream (no gait's solve to make its frame)
         for _ in range(frames):
-            layer(held.gestures, frame, streaming.stream.history_ids[:, 1])
+            layer.begin(held.gestures, None)
+            layer.after(frame, streaming.stream.history_ids[:, 1])
 
     works = {"gesture_stream": gesture_stream, "gesture_stage": gesture_stage,
              "gesture_engine": lambda: [waving.next_features(held) for _ in range(frames)],

@@ -314,6 +314,10 @@ class Engine:
         self._mark()
         self.units(controls.gait, controls.turn, self.stream)
         self._timed("units")
+        gait = self.stream if self.method == "stream" else None  # the stream whose solve can make a gesture's frame
+        if self.gestures.crowd is not None:
+            self.gestures.begin(controls.gestures, gait)
+            self._timed("gestures")
         if self.method == "full":
             frames, ids = self._next_of_whole()
         else:
@@ -326,7 +330,7 @@ class Engine:
         frames = drive(frames, self.stream.cadence * self.units.travel, self.units.added_yaw)
         self._timed("drive")
         if self.gestures.crowd is not None:
-            frames = self.gestures(controls.gestures, frames, ids)
+            frames = self.gestures.after(frames, ids)
             self._timed("gestures")
         self.frame_ids = ids
         if self.contact is not None:
