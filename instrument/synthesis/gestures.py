@@ -212,7 +212,9 @@ def _choose_units(counters, label, done, tapped, held, repeats, first, next_repe
 def _progress(now, states, first, label, done, ease, weights):  # pragma: no cover - compiled
     """Each character's label under way at the frame of states `now`, the repeat half cycles it
     has finished, its ease and weight (smoothstep: no kink at either end). Returns whether the
-    gesture still has any character, and whether it has every one's whole upper body (weight 1)."""
+    gesture still has any character, and whether the gait's solve may make the gesture's frame:
+    every character's weight 1 and none lowering (from the lower on, the gait's own upper body is
+    solved again, unseen until the ease out, so its arms are back in the walk's swing by then)."""
     playing, whole = False, True
     for n in range(label.shape[0]):
         here = now[n] // states
@@ -225,7 +227,7 @@ def _progress(now, states, first, label, done, ease, weights):  # pragma: no cov
         w = e * e * (3.0 - 2.0 * e)
         weights[n] = w
         playing = playing or inside or e > 0.0
-        whole = whole and w == 1.0
+        whole = whole and w == 1.0 and here != first
     return playing, whole
 
 
