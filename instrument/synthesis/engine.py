@@ -14,7 +14,9 @@ character is a crowd of one):
              -> range ------------ each feature's swing scaled to the data's (RangeFilter)
              -> drive ------------ root speeds scaled by the cadence, the steering added
              -> gestures --------- while a gesture plays, its own label stream's upper body
-                                   eased in over the gait's (GestureLayer, synthesis/gestures.py)
+                                   eased in over the gait's (GestureLayer, synthesis/gestures.py;
+                                   its plan comes before the stream's, whose solve makes its
+                                   frame while it has the whole upper body)
              -> contact ---------- how surely each foot is planted in the frame's state
              -> posing + lock ---- features to a world pose, the feet planted (CrowdPoses)
 

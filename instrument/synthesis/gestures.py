@@ -24,10 +24,14 @@ frames and out over EASE_OUT once the lower has ended, the legs and the root sta
 the feet keep their plan and the foot lock, the walk its speed and heading. The gesture's stream
 solves only those dimensions (the range of static dimensions holding the `upper` group, read in
 place from the gait's tables: each dimension's solve is independent of the others, so the upper
-body comes out as a full solve would make it), and the layer's bookkeeping (the phases, the
-ease, the blend) is one compiled call before and one after the stream's: a one-character frame
-with a gesture then costs under twice its window solve (docs/mlpg.md, "A gesture's frame"). While
-no gesture plays the stage only keeps the last two frames' upper body.
+body comes out as a full solve would make it). While the gesture has every character's whole
+upper body (weight 1, before the lower), the frame shows nothing of the gait's upper body, so the
+gait's own solve makes the gesture's instead (`begin` plans the gesture's window and hands its
+rows to the gait's stream, `Crowd.guest`; `after` moves the gesture's stream on by the frame the
+gait made): one solve a frame, not two. At the lower the gait's upper body is solved again, from
+the gesture's frames (its fixed past), unseen until the ease out, so the arms are back in the
+walk's swing when they are handed back (docs/mlpg.md, "A gesture's frame"). While no gesture
+plays the stage only keeps the last two frames' upper body.
 """
 
 from __future__ import annotations
