@@ -121,7 +121,7 @@ class GestureLayer:
             crowd = self.crowd
             _choose_units(crowd.counters, self.label, self.done, self.tapped, self.playing in self.held,
                           self.repeats[self.playing], self.first, self._next_repeating, self._next_ending)
-            # the whole upper body this frame too, if it had it at the last (the ease at 1) and the label stays the gesture's
+            # the gait's solve may make this frame if it made the last or could have (`_progress`: every weight 1, none lowering)
             if self.whole and gait is not None and self.whole_range and gait.sent >= 2 and crowd.sent >= 2:
                 crowd._draws_for(crowd.lookahead + 1)
                 work = crowd._window_buffers(2)

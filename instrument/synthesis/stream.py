@@ -398,17 +398,16 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
     for n in range(count):
         _plan_window(base[n], sigma[n], counters[n], carry[n], pool[n], history_ids[n], fixed, ids[n], counts[n],
                      carries[n], rows[n])
-        second = tables.guest_rows[n : n + 1] if a < b else rows[n : n + 1]
         if plain[n]:  # 0 + x and 1 x are x: the shared tables are the character's, to the bit
-            _solve(shared_means, shared_precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved[n : n + 1],
-                   work1, work2, lo, second, a, b)
+            _solve_window(shared_means, shared_precisions, rows[n : n + 1], known[n : n + 1], fixed, solved[n : n + 1],
+                          work1, work2, lo, tables.guest_rows[n : n + 1], a, b)
             continue
         for r in range(mean_shared.shape[0]):
             for c in range(mean_shared.shape[1]):
                 means[0, r, c] = mean_own[n, r, c] + mean_shared[r, c]
                 precisions[0, r, c] = precision_own[n, r, c] * precision_shared[r, c]
-        _solve(means, precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved[n : n + 1], work1, work2, lo,
-               second, a, b)
+        _solve_window(means, precisions, rows[n : n + 1], known[n : n + 1], fixed, solved[n : n + 1], work1, work2, lo,
+                      tables.guest_rows[n : n + 1], a, b)
     for n in range(count):
         for d in range(dimension):
             value = solved[n, 0, d]
@@ -422,6 +421,16 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
         history_ids[n, 0] = history_ids[n, 1]
         history_ids[n, 1] = ids[n, 0]
         _move_on(counters[n], carry, n, counts[n], carries[n], states)
+
+
+@njit(cache=True, nogil=True)
+def _solve_window(means, precisions, rows, known, fixed, solved, work1, work2, lo, guest_rows, a, b):  # pragma: no cover - compiled
+    """One window's solve, its dimensions a to b on `guest_rows` when a < b (`Crowd.guest`); the
+    one-source solve otherwise, compiled apart (mlpg.py `_solve`)."""
+    if a < b:
+        _solve(means, precisions, rows, False, known, fixed, solved, work1, work2, lo, guest_rows, a, b)
+    else:
+        _solve(means, precisions, rows, False, known, fixed, solved, work1, work2, lo, None, 0, 0)
 
 
 @njit(cache=True, nogil=True)
