@@ -178,6 +178,26 @@ def test_a_stream_of_some_dimensions_makes_them_as_the_whole_stream_does(model, 
         np.testing.assert_allclose(b, a[:, columns], rtol=0, atol=1e-12)
 
 
+@pytest.mark.parametrize("spread", [0.0, 0.6])
+def test_the_gaits_solve_makes_the_gestures_frame_as_the_gestures_own_stream_does(model, spread):
+    """While a gesture has every character's whole upper body the gait's solve makes its frame
+    (one solve a frame): the same frames as the gesture's own stream, to rounding."""
+    engines = [Engine(model, 3) for _ in range(2)]
+    engines[1].gestures.whole_range = False  # never hosted: its own stream all along
+    controls = default_controls(model, {"youthful": 1.0, "elderly": 0.5}, liveliness=0.5)
+    hosted, frames = 0, [[], []]
+    for k in range(200):
+        held = ("wave",) if 30 <= k < 120 else ()
+        for engine, made in zip(engines, frames):
+            made.append(engine.next_features(replace(controls, gestures=held), spread))
+        hosted += engines[0].gestures.host is not None
+        assert engines[1].gestures.host is None
+        if hosted and engines[0].gestures.weights.min() < 1.0:
+            break  # from the ease out on, the gait's arms differ (they went on from the gesture's frames)
+    assert hosted > 50
+    np.testing.assert_allclose(np.array(frames[0][:-1]), np.array(frames[1][:-1]), rtol=0, atol=1e-12)
+
+
 def test_a_wave_while_walking_raises_the_hands_over_the_head_and_leaves_the_legs_alone(model):
     with_wave, shares, engine = walk(model, {"youthful": 1.0}, 12, {"wave": (2.0, 2.1)})
     plain, _, _ = walk(model, {"youthful": 1.0}, 12, {})
@@ -187,7 +207,14 @@ def test_a_wave_while_walking_raises_the_hands_over_the_head_and_leaves_the_legs
     assert playing[0] == 60 and shares[playing[-1]] < 1.0  # from the press, and eased out at the end
     assert shares[60] < 0.2 and np.diff(shares[60:66]).min() > 0  # eased in, not switched
     assert not np.allclose(with_wave[60:200][:, upper], plain[60:200][:, upper], atol=1e-3)
-    assert np.array_equal(with_wave[playing[-1] + 1:], plain[playing[-1] + 1:]) or playing[-1] == len(shares) - 1
+    # after the ease out the arms go on from where they were seen (the gait's upper body, left to the
+    # gesture's stream while it had all of it, restarts at the lower from the gesture's frames): no
+    # jump, and back in the walk's swing within 2 s
+    end = playing[-1] + 1
+    assert end + 60 < len(shares)
+    steps = np.abs(np.diff(with_wave[end - 13:, upper], axis=0)).max(axis=0)
+    assert (steps <= 1.25 * np.abs(np.diff(plain[:, upper], axis=0)).max(axis=0)).all()
+    assert np.abs(with_wave[end + 60:, upper] - plain[end + 60:, upper]).max() < 0.02
     assert engine.gestures.started == 1 and engine.gestures.playing is None  # over by itself
     over = hands_over_head(model, with_wave)
     assert over[:60].max() < 0  # walking: the hands below the head

@@ -319,8 +319,9 @@ def measure_pose(model, controls: Controls, turns: int, solves) -> dict:
 def measure_gesture(model, controls: Controls, turns: int, solves) -> dict:
     """One character's frame while a gesture plays (the wave held, so its repeat loops), each work
     timed turn about with `solves` (100 bare window solves): the stream stage and the gesture stage
-    together (`gesture_stream`: the frame's solving, against the gait's stream alone in
-    `stream_to_window_solve`), the gesture stage alone, and the engine's whole frame before posing
+    together (`gesture_stream`: the frame's solving, the gait's solve making the gesture's frame,
+    against the gait's stream alone in `stream_to_window_solve`), the gesture stage alone (with
+    its own stream's solve: no gait's to make its frame), and the engine's whole frame before posing
     with and without the gesture. None for a model without gestures."""
     from dataclasses import replace
 
@@ -340,12 +341,15 @@ def measure_gesture(model, controls: Controls, turns: int, solves) -> dict:
     frame = streaming.next_features(held)
 
     def gesture_stream():  # the stream stage and the gesture stage of a frame, nothing else
+        gait = streaming.stream
         for _ in range(frames):
-            layer(held.gestures, streaming.stream.step(), streaming.stream.history_ids[:, 1])
+            layer.begin(held.gestures, gait)
+            layer.after(gait.step(), gait.history_ids[:, 1])
 
-    def gesture_stage():
+    def gesture_stage():  # with its own stream (no gait's solve to make its frame)
         for _ in range(frames):
-            layer(held.gestures, frame, streaming.stream.history_ids[:, 1])
+            layer.begin(held.gestures, None)
+            layer.after(frame, streaming.stream.history_ids[:, 1])
 
     works = {"gesture_stream": gesture_stream, "gesture_stage": gesture_stage,
              "gesture_engine": lambda: [waving.next_features(held) for _ in range(frames)],

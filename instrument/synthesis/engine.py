@@ -14,7 +14,9 @@ character is a crowd of one):
              -> range ------------ each feature's swing scaled to the data's (RangeFilter)
              -> drive ------------ root speeds scaled by the cadence, the steering added
              -> gestures --------- while a gesture plays, its own label stream's upper body
-                                   eased in over the gait's (GestureLayer, synthesis/gestures.py)
+                                   eased in over the gait's (GestureLayer, synthesis/gestures.py;
+                                   its plan comes before the stream's, whose solve makes its
+                                   frame while it has the whole upper body)
              -> contact ---------- how surely each foot is planted in the frame's state
              -> posing + lock ---- features to a world pose, the feet planted (CrowdPoses)
 
@@ -390,6 +392,12 @@ class Engine:
         self._mark()
         self.units(controls.gait, controls.turn, self.stream)
         self._timed("units")
+        gait = self.stream if self.method == "stream" else None  # the stream whose solve can make a gesture's frame
+        if self.gestures.crowd is not None:
+            if controls.gestures or self.gestures.playing is not None:  # one may play: its tables as retuned
+                self.gesture_tables.ready()
+            self.gestures.begin(controls.gestures, gait)
+            self._timed("gestures")
         if self.method == "full":
             frames, ids = self._next_of_whole()
         else:
@@ -402,9 +410,7 @@ class Engine:
         frames = drive(frames, self.stream.cadence * self.units.travel, self.units.added_yaw)
         self._timed("drive")
         if self.gestures.crowd is not None:
-            if controls.gestures or self.gestures.playing is not None:  # one may play: its tables as retuned
-                self.gesture_tables.ready()
-            frames = self.gestures(controls.gestures, frames, ids)
+            frames = self.gestures.after(frames, ids)
             self._timed("gestures")
         self.frame_ids = ids
         if self.contact is not None:

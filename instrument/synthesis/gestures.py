@@ -24,10 +24,14 @@ frames and out over EASE_OUT once the lower has ended, the legs and the root sta
 the feet keep their plan and the foot lock, the walk its speed and heading. The gesture's stream
 solves only those dimensions (the range of static dimensions holding the `upper` group, read in
 place from the gait's tables: each dimension's solve is independent of the others, so the upper
-body comes out as a full solve would make it), and the layer's bookkeeping (the phases, the
-ease, the blend) is one compiled call before and one after the stream's: a one-character frame
-with a gesture then costs under twice its window solve (docs/mlpg.md, "A gesture's frame"). While
-no gesture plays the stage only keeps the last two frames' upper body.
+body comes out as a full solve would make it). While the gesture has every character's whole
+upper body (weight 1, before the lower), the frame shows nothing of the gait's upper body, so the
+gait's own solve makes the gesture's instead (`begin` plans the gesture's window and hands its
+rows to the gait's stream, `Crowd.guest`; `after` moves the gesture's stream on by the frame the
+gait made): one solve a frame, not two. At the lower the gait's upper body is solved again, from
+the gesture's frames (its fixed past), unseen until the ease out, so the arms are back in the
+walk's swing when they are handed back (docs/mlpg.md, "A gesture's frame"). While no gesture
+plays the stage only keeps the last two frames' upper body.
 """
 
 from __future__ import annotations
@@ -41,7 +45,7 @@ from ..models.gestures import gesture_labels, gesture_repeats
 from ..models.modelfile import Model
 from .interpolation import StyleSpace, body_groups
 from .parameters import GROUPS
-from .stream import FOLLOWER, LABEL, UNIT, Crowd
+from .stream import FOLLOWER, LABEL, UNIT, Crowd, _move_on, _plan_window
 
 EASE_IN = 6  # frames the gesture's upper body takes to come in (its stream starts where the gait is)
 EASE_OUT = 12  # frames it takes to hand the arms back to the gait after the lower
@@ -71,10 +75,17 @@ class GestureLayer:
         self.ease = np.zeros(count)  # 0..1 along the ease in, then back down along the ease out
         self.weights = np.zeros(count)  # the gesture's share of each character's upper body, this frame
         self.held: set[str] = set()  # the gesture targets held at the last frame
+        self._as_given: Collection[str] = ()  # and as the controls gave them (a held pad: the same each frame)
         width = self.solved.stop - self.solved.start
         self.shown = np.zeros((count, 2, width))  # the last two frames shown, the solved range: where a gesture starts from
         self.shown_ids = np.zeros((count, 2), dtype=np.int64)  # and their states
         self.seen = 0  # frames shown so far (up to 2)
+        self.blending = False  # whether this frame has the gesture's upper body in it (`begin`)
+        self.gesture = np.zeros((count, width))  # the gesture stream's frame, the solved range
+        # its upper body is one range, all the gesture's at weight 1: the gait's solve may make it meanwhile
+        self.whole_range = len(self.columns) == width
+        self.whole = False  # whether every character's weight was 1 at the last frame (then its ease is 1)
+        self.host: Crowd | None = None  # the gait's stream, while its solve makes the gesture's frame (`begin`)
         self.started = 0  # gestures begun
 
     @property
@@ -88,9 +99,14 @@ class GestureLayer:
             self.crowd.tables = stream.tables
             self.crowd.tune(duration_means, duration_variances, 1.0, None, 0.0)
 
-    def __call__(self, held: Collection[str], frames: np.ndarray, ids: np.ndarray) -> np.ndarray:
-        """The frame (N, D) with the gesture's upper body layered on, for the gesture targets held."""
-        if held or self.held:  # a press or a release: sets compared only then
+    def begin(self, held: Collection[str], gait: Crowd | None) -> None:
+        """Before the gait's stream makes the frame: a press or a release of the gesture targets
+        `held`, and the gesture's frame. While it has every character's whole upper body (weight
+        1) and `gait` is given (the gait's stream; None for a walk solved whole), the gait's own
+        solve makes the gesture's upper body (its window's rows for those dimensions are the
+        gesture's: `guest`), so the frame pays one solve, not two; `after` takes it from there."""
+        if held != self._as_given:  # a press or a release: sets compared only then
+            self._as_given = held
             held = set(held)
             pressed = held - self.held
             if self.playing in self.held - held:  # let go: during the raise it was a tap (the takes' repeats), later a hold
@@ -99,9 +115,61 @@ class GestureLayer:
             known = sorted(pressed & set(self.labels))  # one the model lacks: `run` says so, the walk goes on
             if known and self.playing is None:
                 self._start(known[0])
-        if self.playing is not None:
-            frames = self._layer(frames)
-        _remember(self.shown, self.shown_ids, frames, ids, self.solved.start)
+        self.blending = self.playing is not None
+        guest = False
+        if self.blending:
+            crowd = self.crowd
+            _choose_units(crowd.counters, self.label, self.done, self.tapped, self.playing in self.held,
+                          self.repeats[self.playing], self.first, self._next_repeating, self._next_ending)
+            # the gait's solve may make this frame if it made the last or could have (`_progress`: every weight 1, none lowering)
+            if self.whole and gait is not None and self.whole_range and gait.sent >= 2 and crowd.sent >= 2:
+                crowd._draws_for(crowd.lookahead + 1)
+                work = crowd._window_buffers(2)
+                _plan_guest(crowd.base, crowd.sigma, crowd.counters, crowd.carry, crowd.pool, crowd.history_ids, work.ids,
+                            work.counts, work.carries, gait.guest_rows)
+                guest = self._progress(work.ids[:, 0])
+                if not guest:  # its own stream again (the same plan)
+                    self.gesture = crowd.step()
+            else:
+                self.gesture = crowd.step()
+                self._progress(crowd.history_ids[:, 1])
+        self._host(guest, gait)
+
+    def _progress(self, now: np.ndarray) -> bool:
+        """The weights for the frame of states `now`; whether every character's is 1."""
+        playing, self.whole = _progress(now, self.crowd.space.states, self.first, self.label, self.done, self.ease,
+                                        self.weights)
+        if not playing:
+            self.playing = None
+        return self.whole
+
+    def _host(self, guest: bool, gait: Crowd | None) -> None:
+        """The gait's solve takes the gesture's upper body (its fixed frames the gesture's), or gives it back."""
+        if guest and self.host is None:
+            gait.history[:, :, self.solved] = self.crowd.history
+            gait.guest[:] = self.solved.start, self.solved.stop
+        elif self.host is not None and not guest:
+            self.host.guest[:] = 0
+        self.host = gait if guest else None
+
+    def after(self, frames: np.ndarray, ids: np.ndarray) -> np.ndarray:
+        """The frame (N, D) with the gesture's upper body layered on at this frame's weights
+        (`begin`), and remembered with its states `ids` (where a gesture starts from). When the
+        gait's solve made the gesture's frame (the host's last), the gesture's stream moves on by it."""
+        if not self.blending:
+            _remember(self.shown, self.shown_ids, frames, ids, self.solved.start)
+        else:
+            crowd = self.crowd
+            if self.host is not None:
+                work = crowd._window_buffers(2)
+                _move_guest(self.host.history, self.solved.start, crowd.history, crowd.history_ids, crowd.counters, crowd.carry,
+                            work.ids, work.counts, work.carries, crowd.space.states)
+                crowd.sent += 1
+                self.gesture = crowd.history[:, 1]
+            out = np.empty_like(frames, dtype=np.float64)
+            _blend(self.weights, np.asarray(frames, dtype=np.float64), self.gesture, self.columns, self.solved.start, out,
+                   self.shown, self.shown_ids, ids)
+            frames = out
         self.seen = min(self.seen + 1, 2)
         return frames
 
@@ -123,23 +191,12 @@ class GestureLayer:
         self.tapped[:] = True  # until let go after the raise
         self.label[:] = first + 1
         self.ease[:] = 0.0
+        self.whole = False
         # the unit the plan goes on in, by phase: (before, lower, raise, a, b, after); (lower, raise) is
         # the pair `first // 2`, (a, b) the next: its unit loops a and b, the first pair's ends b in the lower
         ends, repeats, rest = first // 2, first // 2 + 1, self.rest_unit
         self._next_repeating = np.array([rest, rest, repeats, repeats, repeats, rest])
         self._next_ending = np.array([rest, rest, repeats, repeats, ends, rest])
-
-    def _layer(self, frames: np.ndarray) -> np.ndarray:
-        crowd = self.crowd
-        _choose_units(crowd.counters, self.label, self.done, self.tapped, self.playing in self.held,
-                      self.repeats[self.playing], self.first, self._next_repeating, self._next_ending)
-        gesture = crowd.step()
-        out = np.empty_like(frames, dtype=np.float64)
-        if not _blend(crowd.history_ids, crowd.space.states, self.first, self.label, self.done, self.ease, self.weights,
-                      np.asarray(frames, dtype=np.float64), gesture, self.columns, self.solved.start, out):
-            self.playing = None
-        return out
-
 
 @njit(cache=True, nogil=True)
 def _choose_units(counters, label, done, tapped, held, repeats, first, next_repeating, next_ending):  # pragma: no cover - compiled
@@ -156,28 +213,61 @@ def _choose_units(counters, label, done, tapped, held, repeats, first, next_repe
 
 
 @njit(cache=True, nogil=True)
-def _blend(history_ids, states, first, label, done, ease, weights, frames, gesture, columns, lo, out):  # pragma: no cover - compiled
-    """After the gesture's stream has made its frame: each character's label under way, the repeat
-    half cycles it has finished, its ease and weight (smoothstep: no kink at either end), and `out`
-    = `frames` with the upper body `columns` moved that far towards the gesture's (whose column
-    0 is the frame's `lo`). Returns whether the gesture still has any character."""
-    playing = False
+def _progress(now, states, first, label, done, ease, weights):  # pragma: no cover - compiled
+    """Each character's label under way at the frame of states `now`, the repeat half cycles it
+    has finished, its ease and weight (smoothstep: no kink at either end). Returns whether the
+    gesture still has any character, and whether the gait's solve may make the gesture's frame:
+    every character's weight 1 and none lowering (from the lower on, the gait's own upper body is
+    solved again, unseen until the ease out, so its arms are back in the walk's swing by then)."""
+    playing, whole = False, True
     for n in range(label.shape[0]):
-        now = history_ids[n, 1] // states
-        if now != label[n] and (now == first + 2 or now == first + 3) and label[n] != first + 1:
+        here = now[n] // states
+        if here != label[n] and (here == first + 2 or here == first + 3) and label[n] != first + 1:
             done[n] += 1  # a repeat half finished
-        label[n] = now
-        inside = first <= now <= first + 3
+        label[n] = here
+        inside = first <= here <= first + 3
         e = min(max(ease[n] + (1.0 / EASE_IN if inside else -1.0 / EASE_OUT), 0.0), 1.0)
         ease[n] = e
         w = e * e * (3.0 - 2.0 * e)
         weights[n] = w
         playing = playing or inside or e > 0.0
+        whole = whole and w == 1.0 and here != first
+    return playing, whole
+
+
+@njit(cache=True, nogil=True)
+def _blend(weights, frames, gesture, columns, lo, out, shown, shown_ids, ids):  # pragma: no cover - compiled
+    """`out` = `frames` with the upper body `columns` moved each character's weight towards the
+    gesture's (whose column 0 is the frame's `lo`), remembered as shown (`_remember`: in the same
+    call, one dispatch less a frame)."""
+    for n in range(frames.shape[0]):
+        w = weights[n]
         for d in range(frames.shape[1]):
             out[n, d] = frames[n, d]
         for c in columns:
             out[n, c] = frames[n, c] + w * (gesture[n, c - lo] - frames[n, c])
-    return playing
+    _remember(shown, shown_ids, out, ids, lo)
+
+
+@njit(cache=True, nogil=True)
+def _plan_guest(base, sigma, counters, carry, pool, history_ids, ids, counts, carries, rows):  # pragma: no cover - compiled
+    """Each character's gesture plan, its window's rows into `rows` (the gait's `guest_rows`)."""
+    for n in range(counters.shape[0]):
+        _plan_window(base[n], sigma[n], counters[n], carry[n], pool[n], history_ids[n], 2, ids[n], counts[n], carries[n],
+                     rows[n])
+
+
+@njit(cache=True, nogil=True)
+def _move_guest(gait_history, lo, history, history_ids, counters, carry, ids, counts, carries, states):  # pragma: no cover - compiled
+    """The gesture's stream moved on by the frame the gait's solve made for it (the gait's last
+    frame, from column `lo`), as its own step would have (stream.py `_advance`)."""
+    for n in range(history.shape[0]):
+        for d in range(history.shape[2]):
+            history[n, 0, d] = history[n, 1, d]
+            history[n, 1, d] = gait_history[n, 1, lo + d]
+        history_ids[n, 0] = history_ids[n, 1]
+        history_ids[n, 1] = ids[n, 0]
+        _move_on(counters[n], carry, n, counts[n], carries[n], states)
 
 
 @njit(cache=True, nogil=True)

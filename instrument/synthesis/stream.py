@@ -48,10 +48,12 @@ class StreamTables(NamedTuple):
     ratios: np.ndarray  # (N,) rate limit, times the data's largest change (0: none)
     max_step: np.ndarray  # (D,) the data's largest frame-to-frame change
     lo: int  # the first of the tables' static dimensions the stream makes (D of them from there)
+    guest: np.ndarray  # (2,) int: [a, b) of its D dimensions solved on `guest_rows` (a = b: none)
+    guest_rows: np.ndarray  # (N, window) int: another stream's window rows (a gesture's, synthesis/gestures.py)
 
     def part(self, start: int, stop: int) -> StreamTables:
         """Characters start to stop (views), for a part of the crowd on a core of its own."""
-        shared = {"mean_shared", "precision_shared", "max_step", "lo"}
+        shared = {"mean_shared", "precision_shared", "max_step", "lo", "guest"}
         return StreamTables(*(t if name in shared else t[start:stop] for name, t in zip(self._fields, self)))
 
 
@@ -147,6 +149,10 @@ class Crowd:
         self.cadence = np.ones(count)  # model step length / planned step length (scales root speeds)
         self.rngs = [np.random.default_rng(seed) for seed in seeds]
         self.pool = np.zeros((count, 4 * (lookahead + 8)))
+        # dimensions [a, b) solved on another stream's window rows, `guest_rows` (a = b: none): the upper
+        # body of a gesture that has all of it, in the gait's solve (synthesis/gestures.py sets both)
+        self.guest = np.zeros(2, dtype=np.int64)
+        self.guest_rows = np.zeros((count, lookahead + 3), dtype=np.int64)
         self._buffers: dict[int, tuple] = {}
         self._made: tuple | None = None  # (what it was made from, the StreamTables record): `_record`
         self._advance = DirectCall(_advance)  # one core's frame: no dispatch a call (direct.py)
@@ -251,7 +257,7 @@ class Crowd:
             self._made = key, StreamTables(lam.mean_own, lam.mean_shared, lam.precision_own, lam.precision_shared,
                                            lam.plain, self.base, self.sigma, self.counters, self.carry, self.pool,
                                            self.history, self.history_ids, self.max_step_ratio, self.max_step,
-                                           self.columns.start)
+                                           self.columns.start, self.guest, self.guest_rows)
         return self._made[1]
 
     def step(self) -> np.ndarray:
@@ -430,6 +436,7 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
                                                               tables.precision_shared)
     base, sigma, counters, carry, pool = tables.base, tables.sigma, tables.counters, tables.carry, tables.pool
     history, history_ids, ratios, max_step, lo = tables.history, tables.history_ids, tables.ratios, tables.max_step, tables.lo
+    a, b = tables.guest[0], tables.guest[1]  # (only with the window's two fixed frames: the guest's are two)
     rows, work1, work2, ids, counts, carries = work.rows, work.work1, work.work2, work.ids, work.counts, work.carries
     count, states = mean_own.shape[0], base.shape[2]
     dimension = history.shape[2]
@@ -443,18 +450,17 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
     # solver reads them (or the shared tables as they are): a window passes through some ten state
     # instances, and putting together all 90 rows of both tables cost the crowd's stream two thirds of its time
     window, width = rows.shape[1], mean_shared.shape[1]
-    means = np.empty((1, window, width))
-    precisions = np.empty((1, window, width))
+    means = np.empty((1, window + tables.guest_rows.shape[1], width))  # room for a guest's window rows too
+    precisions = np.empty((1, window + tables.guest_rows.shape[1], width))
     local = np.empty((1, window), dtype=np.int64)  # each window frame's row of `means` and `precisions`
     shared_means = mean_shared.reshape((1,) + mean_shared.shape)
     shared_precisions = precision_shared.reshape((1,) + precision_shared.shape)
     plain = tables.plain
+    guest_rows = tables.guest_rows
+    local_guest = np.empty((1, guest_rows.shape[1]), dtype=np.int64)  # the guest's window frames' rows, likewise
     for n in range(count):  # every plan first, so the rows a character's window reads are known before it is solved
-        counters[n, TAIL] = _plan(base[n], sigma[n], counters[n], carry[n], pool[n], ids[n], counts[n], carries[n])[1]
-        for m in range(fixed):
-            rows[n, m] = history_ids[n, 2 - fixed + m]
-        for m in range(ids.shape[1]):
-            rows[n, fixed + m] = ids[n, m]
+        _plan_window(base[n], sigma[n], counters[n], carry[n], pool[n], history_ids[n], fixed, ids[n], counts[n],
+                     carries[n], rows[n])
     for n in range(count):
         if n + 1 < count and not plain[n + 1]:  # the next character's rows asked for while this one is solved
             for m in range(window):
@@ -462,21 +468,16 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
                     _prefetch_row(mean_own[n + 1], rows[n + 1, m], 0, width)
                     _prefetch_row(precision_own[n + 1], rows[n + 1, m], 0, width)
         if plain[n]:  # 0 + x and 1 x are x: the shared tables are the character's, to the bit
-            _solve(shared_means, shared_precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved, work1, work2, lo)
+            _solve_window(shared_means, shared_precisions, rows[n : n + 1], known[n : n + 1], fixed, solved, work1, work2,
+                          lo, guest_rows[n : n + 1], a, b)
             frames[n] = solved[0, 0]
             continue
-        used = 0
-        for m in range(window):
-            r = rows[n, m]
-            if m > 0 and r == rows[n, m - 1]:  # a state lasts some frames: its row is made once
-                local[0, m] = local[0, m - 1]
-                continue
-            for c in range(width):
-                means[0, used, c] = mean_own[n, r, c] + mean_shared[r, c]
-                precisions[0, used, c] = precision_own[n, r, c] * precision_shared[r, c]
-            local[0, m] = used
-            used += 1
-        _solve(means, precisions, local, False, known[n : n + 1], fixed, solved, work1, work2, lo)
+        used = _gather(mean_own[n], mean_shared, precision_own[n], precision_shared, rows[n], local[0], means[0],
+                       precisions[0], 0)
+        if a < b:  # the guest's rows too, after the character's own
+            _gather(mean_own[n], mean_shared, precision_own[n], precision_shared, guest_rows[n], local_guest[0], means[0],
+                    precisions[0], used)
+        _solve_window(means, precisions, local, known[n : n + 1], fixed, solved, work1, work2, lo, local_guest, a, b)
         frames[n] = solved[0, 0]
     for n in range(count):
         for d in range(dimension):
@@ -490,12 +491,56 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
         history[n, 1] = frames[n]
         history_ids[n, 0] = history_ids[n, 1]
         history_ids[n, 1] = ids[n, 0]
-        # advance by the frame just sent; the current state may have been shortened below what it had
-        counter = counters[n]
-        k = 0
-        if counter[ELAPSED] >= counts[n, 0]:
-            _finish(counter, carry, n, carries[n, 0], states)
-            k = 1
-        counter[ELAPSED] += 1
-        if counter[ELAPSED] >= counts[n, k]:
-            _finish(counter, carry, n, carries[n, k], states)
+        _move_on(counters[n], carry, n, counts[n], carries[n], states)
+
+
+@njit(cache=True, nogil=True)
+def _gather(mean_own, mean_shared, precision_own, precision_shared, rows, local, means, precisions, used):  # pragma: no cover - compiled
+    """A window's rows of one character's lambda* (its own term and the shared one put together),
+    written to `means` and `precisions` from row `used` on, each state's row once (a state lasts
+    some frames); local[m] is window frame m's row there. Returns the rows used."""
+    for m in range(rows.shape[0]):
+        r = rows[m]
+        if m > 0 and r == rows[m - 1]:
+            local[m] = local[m - 1]
+            continue
+        for c in range(means.shape[1]):
+            means[used, c] = mean_own[r, c] + mean_shared[r, c]
+            precisions[used, c] = precision_own[r, c] * precision_shared[r, c]
+        local[m] = used
+        used += 1
+    return used
+
+
+@njit(cache=True, nogil=True)
+def _solve_window(means, precisions, rows, known, fixed, solved, work1, work2, lo, guest_rows, a, b):  # pragma: no cover - compiled
+    """One window's solve, its dimensions a to b on `guest_rows` when a < b (`Crowd.guest`); the
+    one-source solve otherwise, compiled apart (mlpg.py `_solve`)."""
+    if a < b:
+        _solve(means, precisions, rows, False, known, fixed, solved, work1, work2, lo, guest_rows, a, b)
+    else:
+        _solve(means, precisions, rows, False, known, fixed, solved, work1, work2, lo, None, 0, 0)
+
+
+@njit(cache=True, nogil=True)
+def _plan_window(base, sigma, counter, carry, pool, history_ids, fixed, ids, counts, carries, rows):  # pragma: no cover - compiled
+    """One character's plan (`_plan`: ids, its state instances, the draws used) and its window's
+    rows of the lambda* tables: the `fixed` frames' states, then the plan's."""
+    counter[TAIL] = _plan(base, sigma, counter, carry, pool, ids, counts, carries)[1]
+    for m in range(fixed):
+        rows[m] = history_ids[2 - fixed + m]
+    for m in range(ids.shape[0]):
+        rows[fixed + m] = ids[m]
+
+
+@njit(cache=True, nogil=True)
+def _move_on(counter, carry, n, counts, carries, states):  # pragma: no cover - compiled
+    """Character n's plan advanced by the frame just sent; the current state may have been
+    shortened below what it had."""
+    k = 0
+    if counter[ELAPSED] >= counts[0]:
+        _finish(counter, carry, n, carries[0], states)
+        k = 1
+    counter[ELAPSED] += 1
+    if counter[ELAPSED] >= counts[k]:
+        _finish(counter, carry, n, carries[k], states)
