@@ -230,6 +230,29 @@ def test_a_body_setting_off_from_a_stand_accelerates(model, stand_frames):
     assert speed[first:first + step].sum() < 0.8 * speed[first + 60:first + 60 + step].sum()
 
 
+@pytest.mark.parametrize("run_frames", [60, 66])  # the stop told early and late in a step
+def test_a_running_body_brakes_into_a_stand(model, run_frames):
+    """The root's speed (posed, world) falls from the run's to none as the stand begins with no
+    change from one frame to the next larger than the steady run's own: its travel is eased out
+    over the steps it still takes. Cut at the stand's first frame, the hips went from 3.3 m/s to
+    none in a frame (every joint's velocity jumped 11 cm/frame^2)."""
+    engine = Engine(model)
+    base = default_controls(model, {"active": 2.0})
+    roots, units = [], []
+    for k in range(run_frames + 60):
+        gait = RUN if k < run_frames else STAND
+        pose = engine.frame(k / engine.fps, Controls(base.weights, gait=gait))
+        roots.append(pose.world_positions[0, model.layout.root, [0, 2]])
+        units.append(int(engine.frame_ids[0]) // (2 * model.states))
+    speed = np.linalg.norm(np.diff(np.array(roots), axis=0), axis=1) * engine.fps * _cm(model)
+    standing = np.array(units[1:]) == model.units.index("stand")
+    first = int(np.argmax(standing))  # the stand's first frame
+    change = np.abs(np.diff(speed))
+    steady = change[20:run_frames - 2].max()
+    assert speed[run_frames - 10:run_frames].mean() > 200.0  # cm/s: running when told
+    assert change[first - 3:first + 6].max() <= 1.1 * steady
+
+
 def test_stand_is_still_run_is_faster_than_walk_and_walking_again_reaches_its_speed(model):
     _, units, _, _, _, speed = _engine_frames(model, [(WALK, 90), (STAND, 90), (RUN, 90), (WALK, 90)])
     cm = _cm(model)
