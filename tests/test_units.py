@@ -65,29 +65,6 @@ def test_a_manifest_says_each_takes_unit_and_a_bad_one_names_its_line(tmp_path):
 
 
 @needs_motions
-def test_a_stands_first_state_leaves_the_legs_free_to_settle_and_nothing_else():
-    """loosened_entry: the stand's first state (of each of its labels) lets the named columns'
-    deltas and accelerations vary `factor` times more; its other states, the static features, the
-    other columns and the other labels keep theirs (a start leaves the stand from its last state,
-    still as trained)."""
-    from instrument.models.hsmm import HSMM
-    from instrument.training.units import loosened_entry
-
-    rng = np.random.default_rng(0)
-    labels, states, dimension = 4, 5, 3
-    means = rng.normal(size=(2, labels, states, 3 * dimension))  # a style axis in front, as the styles' model has
-    variances = rng.uniform(0.5, 1.5, size=means.shape)
-    durations = rng.uniform(2, 4, size=(2, labels, states))
-    model = HSMM(means, variances, durations, durations / 4)
-    out = loosened_entry(model, [2, 3], np.array([1]), dimension, factor=10.0)
-    changed = np.zeros(means.shape, dtype=bool)
-    changed[:, 2:4, 0, [1 + dimension, 1 + 2 * dimension]] = True
-    np.testing.assert_allclose(out.variances[changed], 10.0 * variances[changed])
-    np.testing.assert_array_equal(out.variances[~changed], variances[~changed])
-    np.testing.assert_array_equal(out.means, means)
-    np.testing.assert_array_equal(model.variances, variances)  # the model given is left as it was
-
-
 def test_styled_takes_of_the_motions_folder_hold_every_unit():
     units = {t.unit for t in styled_takes([MOTIONS])}
     assert units == {"run", "turn-left", "turn-right", "stand"}

@@ -22,7 +22,7 @@ from .contact import train_contact
 from .corpus import Take, load_corpus, segments_by_label
 from .gestures import gesture_metadata, gesture_segments, model_gestures
 from .symmetry import symmetric_models
-from .units import held_posture, loosened_entry, mirrored_pairs, model_units
+from .units import held_posture, mirrored_pairs, model_units
 from .widen import train_range
 
 UNSPECIFIED_LICENCE = "unspecified: the licence of the training data applies"
@@ -71,9 +71,6 @@ def build_model(
                        for f in ("root.vx", "root.vz", "root.yaw_rate"))
         average = held_posture(average, [stand, stand + 1], arms, layout.dimension, travel)
         styles = held_posture(styles, [stand, stand + 1], arms, layout.dimension, travel)
-        legs = np.flatnonzero(body_groups(layout)[GROUPS.index("legs")])  # a stop's legs settle into the stand
-        average = loosened_entry(average, [stand, stand + 1], legs, layout.dimension)
-        styles = loosened_entry(styles, [stand, stand + 1], legs, layout.dimension)
     walks = [t for t in takes if t.unit == "walk"]
     for k, style in enumerate(style_names):  # the shortest state as the shipped model has it (mirroring shares durations)
         adapted[style].min_duration = float(styles.duration_means[k].min())

@@ -116,29 +116,3 @@ def held_posture(model: HSMM, labels: list[int], columns: np.ndarray, dimension:
     block[..., list(still)] = 0.0
     means[rows] = block
     return HSMM(means, model.variances, model.duration_means, model.duration_variances)
-
-
-# how much freer a stand's first state leaves the legs' motion (its deltas' and accelerations'
-# variances times this): the stand's takes hold the legs so still that its delta variances are
-# a tenth of the walk's, and the window MLPG solves put the whole of a stop's change of posture
-# in the last frames of the step before it (a swinging foot flung back and stopped dead: a toe
-# jumped 12 cm/frame^2 at a feminine walk's stop, against 5 in her real walks); loosened, the
-# stand's first frames take their share (7.4-8 at 30)
-ENTRY_LOOSENESS = 30.0
-
-
-def loosened_entry(model: HSMM, labels: list[int], columns: np.ndarray, dimension: int,
-                   factor: float = ENTRY_LOOSENESS) -> HSMM:
-    """The model with the first state of the given labels (the stand's) leaving `columns` (static
-    features, the legs') freer to move: their delta and acceleration variances there times
-    `factor`. Only the first state: a stop enters the stand there, while a start leaves it from
-    its last state, whose stillness the foot lock relies on (loosened too, the legs began the
-    walk's first step while their feet were still locked, and the lock's release snapped them
-    after it)."""
-    variances = model.variances.copy()
-    rows = (slice(None),) * (variances.ndim - 3) + (labels, 0)
-    dynamic = np.concatenate([columns + dimension, columns + 2 * dimension])
-    block = variances[rows]
-    block[..., dynamic] *= factor
-    variances[rows] = block
-    return HSMM(model.means, variances, model.duration_means, model.duration_variances)
