@@ -15,7 +15,7 @@ from instrument.synthesis.posing import Pose
 from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, POSSIBLE,
                                           PLANTED, SWING_BENT, SWING_CM)
 from instrument.synthesis.follow import STRENGTH
-from instrument.synthesis.footlock import HEEL_RISE_ACCEL, HEEL_RISE_SPEED, MAX_HEEL_RISE, STRETCH
+from instrument.synthesis.footlock import HEEL_RISE_SPEED, MAX_HEEL_RISE, STRETCH
 
 
 def EASE(x: float) -> float:
@@ -186,8 +186,6 @@ class FootLock:
         self.drop = 0.0  # how far the body is lowered for a planted leg to reach its target
         self.rise = np.zeros(2)  # each foot's heel rise in the frame before
         self.rise_step = HEEL_RISE_SPEED / fps  # how far a rise may change in a frame
-        self.pace = np.zeros(2)  # how far each foot's heel rise changed in the frame before
-        self.rise_accel = HEEL_RISE_ACCEL / fps**2  # how far that change may differ from the frame before's
         self.parent_rot = layout.template_pose[2]  # the root's parent's world rotation
         self.pivot = [leg.pivot for leg in self.limbs.legs]  # the joint whose landing point is locked (the toes)
         template = forward_kinematics(layout.skeleton, layout.template_pose[0][None], layout.template_pose[1][None])[1][0]
@@ -248,7 +246,6 @@ class FootLock:
             translations[self.layout.root] -= np.array([0.0, self.drop, 0.0]) @ self.parent_rot
             world_pos = world_pos - np.array([0.0, self.drop, 0.0])
             targets, turns = self._targets(world_pos, planted, extension)
-        self.pace = self.next_rise - self.rise
         self.rise = self.next_rise  # the rises of the targets taken
         for f, leg in enumerate(self.limbs.legs):
             if leg.pivot != leg.ankle and not np.array_equal(turns[f], np.eye(3)):  # the toes keep their world rotation
@@ -302,18 +299,14 @@ class FootLock:
         for f, leg in enumerate(self.limbs.legs):
             other = self.limbs.legs[1 - f].foot
             sole = np.min(world_pos[list(other), 1]) - np.min(self.ground[1 - f])  # the other foot's lowest point
-            handing_over = planted[1 - f] and sole >= CONTACT_CM / self.cm
-            target = self._target(f, leg, world_pos, planted[f], handing_over)
+            target = self._target(f, leg, world_pos, planted[f], planted[1 - f] and sole >= CONTACT_CM / self.cm)
             turn = np.eye(3)
-            if self.weight[f] > 0 or self.rise[f] > 0:  # after its lock, a heel comes down, slowing in and out
-                # its pace within rise_accel of the frame before's and within rise_step; falling no
-                # faster than it can stop at flat
-                rise, pace, accel = self.rise[f], self.pace[f], self.rise_accel
-                low = min(max(rise + max(pace - accel, -self.rise_step, -accel * (np.sqrt(0.25 + 2 * rise / accel) - 0.5)), 0.0), MAX_HEEL_RISE)
-                high = max(low, min(rise + min(pace + accel, self.rise_step), MAX_HEEL_RISE)) if self.weight[f] > 0 else low
+            if self.weight[f] > 0 or self.rise[f] > 0:  # after its lock, a heel comes down at the same pace
+                low = max(self.rise[f] - self.rise_step, 0.0)
+                high = min(self.rise[f] + self.rise_step, MAX_HEEL_RISE) if self.weight[f] > 0 else low
                 turn, target, self.next_rise[f] = _heel_rise(world_pos, leg, self.ground[f], CONTACT_CM / self.cm, target,
                                                              extension[f], low, high)
-            if not planted[f] and not handing_over and self.weight[f] > 0:  # released: the leg no longer than made
+            if not planted[f] and not planted[1 - f] and self.weight[f] > 0:  # released in flight: the leg no longer than made
                 gap = target - world_pos[leg.hip]
                 if np.linalg.norm(gap) > extension[f] > 0.0:
                     target = world_pos[leg.hip] + gap * (extension[f] / np.linalg.norm(gap))

@@ -27,17 +27,16 @@ frame at a time, on the pose the features give:
   BLEND_FRAMES frames, so nothing pops;
 - where that would stretch a planted leg past its generated length (hip to ankle), the heel
   rises instead: the foot pitches up about its front-most joint, up to MAX_HEEL_RISE from
-  standing flat (a cap that wins) and otherwise changing no faster than HEEL_RISE_SPEED, its
-  pace changing by no more than HEEL_RISE_ACCEL (so a rise that ends with the lock slows
-  before it turns back, and comes down to flat slowing in and out), that joint keeping its
-  generated world rotation, as a real foot rolls onto its toes at the end of stance. Stretching the leg
+  standing flat (a cap that wins) and otherwise changing no faster than HEEL_RISE_SPEED,
+  that joint keeping its generated world rotation, as a real foot rolls onto its toes at the
+  end of stance. Stretching the leg
   straightened the knee (25 to 8 degrees for a 1.7 cm reach) and swung the thigh back, which
   left the hip's range up to 19% wider than the takes';
 - no foot joint goes below its clearance, planted or not, and a swinging foot keeps up to
   SWING_CM above it (all of it on a bent knee, none on a straight one reaching to land);
-- a released foot rises as generated (only the horizontal pull blends out), its leg no longer
-  than made (a run's lock, letting go as the generated foot went on, stretched the leg straight
-  for a frame at toe-off: the knee from 31 degrees of bend to 2 and back), but for a
+- a released foot rises as generated (only the horizontal pull blends out; in a run's flight,
+  its leg no longer than made: the lock, letting go as the generated foot went on, stretched the
+  leg straight for a frame at toe-off, the knee from 31 degrees of bend to 2 and back), but for a
   hand-over: while the other foot is planted with its lowest point not yet down (a heel
   landing, its toes up), the released foot's lowest joint leaves the floor only as its lock
   blends out, so one foot or the other is always on it;

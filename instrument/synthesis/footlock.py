@@ -13,8 +13,8 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 - `heel_rise`: the foot pitched up about its front-most joint (the toes) where the lock would stretch a
   planted leg past its generated length (the toes beyond it keep their generated world rotation,
   as a real foot bends there, instead of dipping into the floor), at most MAX_HEEL_RISE from
-  flat, within HEEL_RISE_SPEED of the frame before's rise and its pace within HEEL_RISE_ACCEL of
-  the frame before's (`rise_bounds`);
+  flat and within HEEL_RISE_SPEED of the frame before's rise;
+- `within_reach`: a foot released in a run's flight brought back within its leg's generated length;
 - `body_drop`: how far the body must come down for a planted leg to reach its target;
 - `leg_swings`: two-bone IK, the thigh's and the shin's turns that take an ankle to a target;
 - `solve_leg`: those turns applied in place to the local rotations;
@@ -23,7 +23,7 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 
 `FootLock` holds what does not change (the legs' joints, the floor, the units); each
 character's state (how far each foot's lock is blended in, the locked points and headings, the
-body's drop, the feet's previous positions, the heels' rises and their paces) lives in `LockState` arrays, one
+body's drop, the feet's previous positions, the heels' rises) lives in `LockState` arrays, one
 row per character.
 """
 
@@ -44,11 +44,6 @@ MAX_HEEL_RISE = np.radians(50.0)  # the most a planted foot pitches up about its
 # how fast a heel rise may change (real ankles turn at up to 300-400 deg/s at push-off): near a
 # leg's full reach the rise that just reaches can swing by 35 deg from one frame to the next
 HEEL_RISE_SPEED = np.radians(400.0)  # radians per second
-# how fast a heel rise's pace may change: bounded in speed alone, a rise that ended with the lock
-# went up at full speed and came down at full speed a frame later (a run's heel up 14 degrees a
-# frame, then down 16 as the lock let go): the knee above it jumped 19 cm/frame^2 in the steady
-# run, against 12 in the real runs
-HEEL_RISE_ACCEL = np.radians(3000.0)  # radians per second^2
 STRETCH = 0.98  # of a leg's full length: how far the lock stretches a leg before the body comes down
 
 
@@ -63,7 +58,6 @@ class LockState:
     previous: np.ndarray  # (N, 2, 3) each pivot's position in the frame before, the body's follow offset
     # included (NaN at first): what the lock's 'nearly still' test measures; not RootFollow.previous
     rises: np.ndarray  # (N, 2) each foot's heel rise in the frame before (radians)
-    paces: np.ndarray  # (N, 2) how much each heel rise changed in the frame before (radians a frame)
 
     def part(self, start: int, stop: int) -> LockState:
         """Characters start to stop: views of the same arrays, for a part of the crowd on a core."""
@@ -72,7 +66,7 @@ class LockState:
     def release(self, n: int) -> None:
         """Character n's feet unlocked, as before its first frame (it was put somewhere else)."""
         self.weights[n], self.points[n], self.headings[n], self.drop[n], self.previous[n] = 0.0, np.nan, 0.0, 0.0, np.nan
-        self.rises[n], self.paces[n] = 0.0, 0.0
+        self.rises[n] = 0.0
 
 
 class FootLock:
@@ -99,7 +93,7 @@ class FootLock:
     def start(self, count: int) -> LockState:
         """The state of `count` characters before their first frame: nothing locked yet."""
         return LockState(np.zeros((count, 2)), np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros(count),
-                         np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros((count, 2)))
+                         np.full((count, 2, 3), np.nan), np.zeros((count, 2)))
 
     def apply(self, state: LockState, rotations: np.ndarray, translations: np.ndarray, shares: np.ndarray,
               world_rot: np.ndarray, world_pos: np.ndarray) -> None:
@@ -108,8 +102,7 @@ class FootLock:
         `world_pos` hold the unadjusted pose's on entry. `shares` (N, 2): how surely each foot is
         planted in each character's state."""
         lock_crowd(rotations, translations, np.ascontiguousarray(shares, dtype=np.float64), world_rot, world_pos,
-                   state.weights, state.points, state.headings, state.drop, state.previous, state.rises, state.paces,
-                   self.parents,
+                   state.weights, state.points, state.headings, state.drop, state.previous, state.rises, self.parents,
                    self.joints, self.feet, self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm,
                    self.swing_lift)
 
@@ -410,7 +403,7 @@ def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, t
 
 
 @njit(cache=True, error_model="numpy")
-def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises, paces,
+def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
                parents, joints, feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
     """One character's frame (arrays of that character; `drop` a 1-element view). Returns nothing:
     rotations, translations, the world transforms and the state are updated in place."""
@@ -434,16 +427,15 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         gap = world_pos[joints[f, 2]] - world_pos[joints[f, 0]]
         extension[f] = np.sqrt(_dot(gap, gap))
     on_floor = CONTACT_CM / cm
-    rise_step, rise_accel = HEEL_RISE_SPEED / fps, HEEL_RISE_ACCEL / fps**2
+    rise_step = HEEL_RISE_SPEED / fps
     targets, turns, angles = _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor,
-                                      extension, rises, paces, rise_step, rise_accel)
+                                      extension, rises, rise_step)
     drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) / BLEND_FRAMES
     if drop[0] > 1e-9:
         translations[root] -= drop[0] * parent_rot[1]  # [0, drop, 0] @ parent_rot
         world_pos[:, 1] -= drop[0]
         targets, turns, angles = _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor,
-                                          extension, rises, paces, rise_step, rise_accel)
-    paces[:] = angles - rises
+                                          extension, rises, rise_step)
     rises[:] = angles
     turned = np.empty((3, 3))
     for f in range(2):
@@ -535,7 +527,7 @@ def _turned(kx, ky, kz, c, s, x, y, z):  # pragma: no cover - compiled
 
 @njit(cache=True, error_model="numpy")
 def _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension, rises,
-             paces, rise_step, rise_accel):  # pragma: no cover - compiled
+             rise_step):  # pragma: no cover - compiled
     """Each ankle's target, each foot's heel-rise turn (2, 3, 3) and angle (2,): a foot whose lock
     is blended in rises on its toes where its leg would otherwise stretch past its generated
     extension, its rise within `rise_step` of the frame before's (`rises`), coming down at that
@@ -551,10 +543,11 @@ def _targets(world_pos, joints, feet, ground, weights, points, planted, swing_li
         turns[f] = np.eye(3)
         if weights[f] > 0.0 or rises[f] > 0.0:
             clearance = np.array([ground[f, 0], ground[f, -1]])
-            low, high = rise_bounds(rises[f], paces[f], weights[f] > 0.0, rise_step, rise_accel)
+            low = max(rises[f] - rise_step, 0.0)
+            high = min(rises[f] + rise_step, MAX_HEEL_RISE) if weights[f] > 0.0 else low
             turns[f], angles[f] = heel_rise(world_pos, joints[f], feet[f, -1], clearance, on_floor, targets[f],
                                             extension[f], low, high)
-        if not planted[f] and not handing_over and weights[f] > 0.0:  # (handing over, its toes stay down)
+        if not planted[f] and not planted[1 - f] and weights[f] > 0.0:  # (a walk's other foot is down)
             within_reach(targets[f], world_pos[joints[f, 0]], extension[f])
     return targets, turns, angles
 
@@ -562,11 +555,13 @@ def _targets(world_pos, joints, feet, ground, weights, points, planted, swing_li
 @njit(cache=True, error_model="numpy")
 def within_reach(target, hip, extension):  # pragma: no cover - compiled
     """A released foot's ankle `target` brought in towards the `hip`, in place, to no further than
-    the leg's generated `extension` (but while it hands over to the other foot): its lock, blending out, pulled it back towards the point it
-    held while the generated foot went on, and past a run's toe-off (the foot made pointing
-    straight down, no heel rise left to take it) the leg was stretched straight for a frame,
-    the knee from 31 degrees of bend to 2 and back to 20 (19 cm/frame^2, against 12 in the real
-    runs)."""
+    the leg's generated `extension`, where the other foot is not planted either (a run's flight;
+    in a walk the other foot is down, and brought in, a trailing foot's toes left the floor
+    before the landing one's were down): its lock, blending out, pulled it back towards the
+    point it held while the generated foot went on, and past a run's toe-off (the foot made
+    pointing straight down, no heel rise left to take it) the leg was stretched straight for a
+    frame, the knee from 31 degrees of bend to 2 and back to 20 (19 cm/frame^2, against 12 in
+    the real runs)."""
     gap = target - hip
     distance = np.sqrt(_dot(gap, gap))
     if distance > extension > 0.0:
@@ -574,26 +569,12 @@ def within_reach(target, hip, extension):  # pragma: no cover - compiled
             target[i] = hip[i] + gap[i] * (extension / distance)
 
 
-@njit(cache=True, error_model="numpy")
-def rise_bounds(rise, pace, locked, step, accel):  # pragma: no cover - compiled
-    """[low, high]: where a heel rise (radians) may go this frame from `rise`, having changed by
-    `pace` in the frame before: its pace within `accel` of that and within `step` either way,
-    falling no faster than it can slow to a stop at flat (v, v - accel, ... adding up to at most
-    the rise), never below flat nor above MAX_HEEL_RISE. A foot whose lock has gone (not
-    `locked`) takes the lowest: its heel comes down, slowing in and out of it."""
-    fall = max(pace - accel, -step, -accel * (np.sqrt(0.25 + 2.0 * rise / accel) - 0.5))
-    low = min(max(rise + fall, 0.0), MAX_HEEL_RISE)
-    if not locked:
-        return low, low
-    return low, max(low, min(rise + min(pace + accel, step), MAX_HEEL_RISE))
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
-def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises, paces,
+def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
                parents, joints, feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
     """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
     for n in range(rotations.shape[0]):
         lock_frame(rotations[n], translations[n], shares[n], world_rot[n], world_pos[n], weights[n], points[n], headings[n],
-                   drop[n : n + 1], previous[n], rises[n], paces[n], parents, joints, feet, ground, reach, parent_rot, root, fps, cm,
+                   drop[n : n + 1], previous[n], rises[n], parents, joints, feet, ground, reach, parent_rot, root, fps, cm,
                    swing_lift)
     _compose(parents, rotations, translations, world_rot, world_pos)
