@@ -37,8 +37,8 @@ frames left at the plan's durations, one more step's when the change waits for i
 STOP_SECONDS when fewer frames are left, the last of them in the stand's first frames. The stand
 holds the root's travel at 0; cut there at once, a run stopped dead (the hips from 11 cm a frame
 to none: every joint's velocity jumped by that much) while the window's root speeds were still
-easing down from the run's, and the travel's share was not lost on a stop that changed its mind
-(the stop's easing level is where a start eases in from).
+easing down from the run's. A stop called off before the stand eases back in from wherever its
+braking had got to.
 """
 
 from __future__ import annotations
@@ -53,8 +53,9 @@ from .stream import ELAPSED, LABEL, NEXT, STATE, UNIT, Crowd
 YAW = ROOT_FEATURES.index("root.yaw_rate")
 NOTICE_SECONDS = 0.2  # the least notice a unit change takes at the coming step boundary
 START_SECONDS = 0.5  # a body setting off from a stand reaches its gait's travel over this
-# the shortest a body brakes over: a run at 4.2 m/s (active x2) braked over the 6 frames its step
-# had left changed its speed by 107 cm/s in a frame, against 62 in its steady run
+# the shortest a body brakes over: braked over the 6 frames a step may have left when the stop
+# comes, a run at 4.2 m/s (active x2) would change its speed by up to 105 cm/s in a frame (the
+# smoothstep's steepest is 1.5 times its mean), against 62 in its steady run
 STOP_SECONDS = 0.4
 
 
