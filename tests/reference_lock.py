@@ -306,6 +306,10 @@ class FootLock:
                 high = min(self.rise[f] + self.rise_step, MAX_HEEL_RISE) if self.weight[f] > 0 else low
                 turn, target, self.next_rise[f] = _heel_rise(world_pos, leg, self.ground[f], CONTACT_CM / self.cm, target,
                                                              extension[f], low, high)
+            if not planted[f] and not planted[1 - f] and self.weight[f] > 0:  # released in flight: the leg no longer than made
+                gap = target - world_pos[leg.hip]
+                if np.linalg.norm(gap) > extension[f] > 0.0:
+                    target = world_pos[leg.hip] + gap * (extension[f] / np.linalg.norm(gap))
             targets.append(target)
             turns.append(turn)
         return targets, turns

@@ -211,16 +211,8 @@ def test_a_body_setting_off_from_a_stand_accelerates(model, stand_frames):
     """The root's speed (posed, world) rises from the stand to the walk's with no change from one
     frame to the next larger than the steady walk's own (set off at full speed, it went from 0
     to 77 cm/s in a frame), and the first step covers less ground than a steady one."""
-    engine = Engine(model)
-    base = default_controls(model, {"active": 1.0})
-    roots, units = [], []
-    for k in range(stand_frames + 150):
-        gait = STAND if k < stand_frames else WALK
-        pose = engine.frame(k / engine.fps, Controls(base.weights, gait=gait))
-        roots.append(pose.world_positions[0, model.layout.root, [0, 2]])
-        units.append(int(engine.frame_ids[0]) // (2 * model.states))
-    speed = np.linalg.norm(np.diff(np.array(roots), axis=0), axis=1) * engine.fps * _cm(model)
-    walking = np.array(units[1:]) != model.units.index("stand")
+    engine, speed, units = _root_speeds(model, {"active": 1.0}, [(STAND, stand_frames), (WALK, 150)])
+    walking = units != model.units.index("stand")
     first = int(np.argmax(walking))  # the first frame of the walk
     change = np.abs(np.diff(speed))
     steady = change[first + 60:].max()
@@ -230,6 +222,21 @@ def test_a_body_setting_off_from_a_stand_accelerates(model, stand_frames):
     assert speed[first:first + step].sum() < 0.8 * speed[first + 60:first + 60 + step].sum()
 
 
+@pytest.mark.parametrize("run_frames", [60, 66])  # the stop told early and late in a step
+def test_a_running_body_brakes_into_a_stand(model, run_frames):
+    """The root's speed (posed, world) falls from the run's to none as the stand begins with no
+    change from one frame to the next larger than the steady run's own: its travel is eased out
+    over the steps it still takes. Cut at the stand's first frame, the hips went from 3.3 m/s to
+    none in a frame (every joint's velocity jumped 11 cm/frame^2)."""
+    _, speed, units = _root_speeds(model, {"active": 2.0}, [(RUN, run_frames), (STAND, 60)])
+    standing = units == model.units.index("stand")
+    first = int(np.argmax(standing))  # the stand's first frame
+    change = np.abs(np.diff(speed))
+    steady = change[20:run_frames - 2].max()
+    assert speed[run_frames - 10:run_frames].mean() > 200.0  # cm/s: running when told
+    assert change[first - 3:first + 6].max() <= 1.1 * steady
+
+
 def test_stand_is_still_run_is_faster_than_walk_and_walking_again_reaches_its_speed(model):
     _, units, _, _, _, speed = _engine_frames(model, [(WALK, 90), (STAND, 90), (RUN, 90), (WALK, 90)])
     cm = _cm(model)
@@ -237,6 +244,21 @@ def test_stand_is_still_run_is_faster_than_walk_and_walking_again_reaches_its_sp
     assert stand.mean() < 2.0  # cm/s: the stand unit holds the root's travel at zero
     assert run.mean() > 1.3 * walk.mean()
     assert abs(again.mean() - walk.mean()) < 0.1 * walk.mean()
+
+
+def _root_speeds(model, weights: dict[str, float], gaits: list[tuple[int, int]]):
+    """The engine after `gaits` ((gait, frames) one after another), the root's speed (posed, world,
+    cm/s) from each frame to the next, and the unit each of those next frames was made of."""
+    engine = Engine(model)
+    base = default_controls(model, weights)
+    roots, units = [], []
+    for gait, frames in gaits:
+        for _ in range(frames):
+            pose = engine.frame(len(roots) / engine.fps, Controls(base.weights, gait=gait))
+            roots.append(pose.world_positions[0, model.layout.root, [0, 2]])
+            units.append(int(engine.frame_ids[0]) // (2 * model.states))
+    speed = np.linalg.norm(np.diff(np.array(roots), axis=0), axis=1) * engine.fps * _cm(model)
+    return engine, speed, np.array(units[1:])
 
 
 def _cm(model) -> float:

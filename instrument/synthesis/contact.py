@@ -34,7 +34,9 @@ frame at a time, on the pose the features give:
   left the hip's range up to 19% wider than the takes';
 - no foot joint goes below its clearance, planted or not, and a swinging foot keeps up to
   SWING_CM above it (all of it on a bent knee, none on a straight one reaching to land);
-- a released foot rises as generated (only the horizontal pull blends out), but for a
+- a released foot rises as generated (only the horizontal pull blends out; in a run's flight,
+  its leg no longer than made: the lock, letting go as the generated foot went on, stretched the
+  leg straight for a frame at toe-off, the knee from 31 degrees of bend to 2 and back), but for a
   hand-over: while the other foot is planted with its lowest point not yet down (a heel
   landing, its toes up), the released foot's lowest joint leaves the floor only as its lock
   blends out, so one foot or the other is always on it;

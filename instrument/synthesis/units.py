@@ -30,6 +30,15 @@ from 0 over START_SECONDS, about its first step, as a person's first step covers
 stride. Taken at full speed from the first frame (no take starts walking, so the model has no
 start), the body shot forward (0 to 77 cm/s in a frame) and, half the times, left its planted
 foot behind until the lock let go: a stance foot skated 4.9 m/s for a few frames.
+
+A body stopping brakes the same way, over the steps it still takes: from the frame its coming
+unit becomes the stand, its travel is eased out so that it reaches 0 as the last step ends (the
+frames left at the plan's durations, one more step's when the change waits for it), or over
+STOP_SECONDS when fewer frames are left, the last of them in the stand's first frames. The stand
+holds the root's travel at 0; cut there at once, a run stopped dead (the hips from 11 cm a frame
+to none: every joint's velocity jumped by that much) while the window's root speeds were still
+easing down from the run's. A stop called off before the stand eases back in from wherever its
+braking had got to.
 """
 
 from __future__ import annotations
@@ -44,6 +53,10 @@ from .stream import ELAPSED, LABEL, NEXT, STATE, UNIT, Crowd
 YAW = ROOT_FEATURES.index("root.yaw_rate")
 NOTICE_SECONDS = 0.2  # the least notice a unit change takes at the coming step boundary
 START_SECONDS = 0.5  # a body setting off from a stand reaches its gait's travel over this
+# the shortest a body brakes over: braked over the 6 frames a step may have left when the stop
+# comes, a run at 4.2 m/s (active x2) would change its speed by up to 105 cm/s in a frame (the
+# smoothstep's steepest is 1.5 times its mean), against 62 in its steady run
+STOP_SECONDS = 0.4
 
 
 class UnitChooser:
@@ -79,7 +92,9 @@ class UnitChooser:
         self.coming = np.full(count, -1)  # the unit each character's coming steps were of at the last frame
         self.notice = NOTICE_SECONDS * model.fps  # frames
         self.start_frames = START_SECONDS * model.fps
-        self.moving_for = np.full(count, np.inf)  # frames each body has moved since it last stood
+        self.stop_frames = STOP_SECONDS * model.fps
+        self.level = np.ones(count)  # how far each body is eased into its travel, 0 (standing) to 1
+        self.braking = np.full(count, np.inf)  # how much of its level a stopping body sheds a frame
         self.travel = np.ones(count)  # the share of its root's travel each body takes this frame
         self._settled: tuple[int, float] | None = None  # (gait, turn) that left nothing to do frame by frame
 
@@ -117,19 +132,38 @@ class UnitChooser:
         counters[:, UNIT] = coming
         self.coming = coming
         current = counters[:, LABEL] // 2
-        self._ease_starts(current == self.stand)
+        standing = current == self.stand
+        stopping = (coming == self.stand) & ~standing
+        self._ease(standing, stopping, self._frames_to_stand(stream, stopping) if stopping.any() else None)
         rest = turn - side * share * self.turn_rates.get(side, 0.0)  # what turning steps do not give
-        self.added_yaw[:] = np.where(current == self.stand, 0.0, rest)
+        self.added_yaw[:] = np.where(standing, 0.0, rest)
         self._settled = ((gait, turn) if share == 0.0 and stream.sent > 0 and (current == unit).all()
-                         and np.isinf(self.moving_for[current != self.stand]).all() else None)  # no start easing in
+                         and (self.level == np.where(standing, 0.0, 1.0)).all() else None)  # no easing in or out
 
-    def _ease_starts(self, standing: np.ndarray) -> None:
-        """Count each body's frames since it last stood, and ease its travel in over the first
-        START_SECONDS of them (smoothstep: no jump in speed nor in acceleration at either end)."""
-        self.moving_for = np.where(standing, 0.0, self.moving_for + 1.0)
-        x = np.minimum(self.moving_for / self.start_frames, 1.0)
-        self.travel = x * x * (3.0 - 2.0 * x)
-        self.moving_for[self.moving_for >= self.start_frames] = np.inf  # eased in: no longer counted
+    def _ease(self, standing: np.ndarray, stopping: np.ndarray, left: np.ndarray | None) -> None:
+        """Each body's travel: eased in over START_SECONDS once it moves, and eased out while it
+        stops, linearly in its level over the `left` frames before the stand begins (at least
+        STOP_SECONDS' frames, the rest in the stand), so the level is 0 as it does; none while it
+        stands. The travel is the level's smoothstep: no jump in speed nor in acceleration at
+        either end."""
+        if left is not None:
+            self.braking[stopping] = self.level[stopping] / (np.maximum(left[stopping], self.stop_frames) + 1.0)
+        moving = ~standing & ~stopping
+        self.braking[moving] = np.inf  # a stop that changed its mind brakes afresh next time
+        level = np.where(moving, np.minimum(self.level + 1.0 / self.start_frames, 1.0),
+                         np.maximum(self.level - self.braking, 0.0))
+        self.level = level
+        self.travel = level * level * (3.0 - 2.0 * level)
+
+    def _frames_to_stand(self, stream: Crowd, stopping: np.ndarray) -> np.ndarray:
+        """(N,) the frames each body still moves before its stand begins, after this one: the rest
+        of its step under way, and a whole step more where the change waits for it (NEXT)."""
+        counters = stream.counters
+        left = self._frames_left(stream) - 1.0
+        waiting = counters[:, NEXT] != 0
+        if waiting.any():
+            left = left + np.where(waiting, stream.base[np.arange(stream.count), counters[:, LABEL]].sum(axis=1), 0.0)
+        return np.maximum(left, 0.0)
 
     @staticmethod
     def _frames_left(stream: Crowd) -> np.ndarray:
