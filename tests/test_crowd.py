@@ -337,3 +337,30 @@ def test_the_locked_speeds_array_follows_the_states_speeds_as_they_are_set_and_c
         performed = float(rng.uniform(0.5, 2.0))
         assert np.array_equal(locked_speed(kept, performed, 12), locked_speed(plain, performed, 12)), frame
     assert not kept.changed  # read: nothing waits to be brought up to date
+
+
+def test_a_crowd_past_the_variance_limit_walks_as_with_its_tables_made_whole(model):
+    """Past the styles (elderly x4) some variances are at their limit, so a character's precisions
+    are not two factors: the stream makes each row it reads from the character's log offset
+    (CrowdLambda's clip_*), where every character's whole tables were made at each change (20 ms
+    a frame for 32 characters while a fader moved). The walk is the one the whole tables make."""
+    from instrument.synthesis.engine import default_controls
+    from instrument.synthesis.interpolation import CrowdLambda
+
+    controls = default_controls(model, {"elderly": 4.0, "youthful": -1.0})
+    made, whole = Engine(model, 6), Engine(model, 6)
+    interpolation = whole.features[0]
+    retune = interpolation.retune
+
+    def made_whole(mix, stream):  # the same tables, every character's put together by numpy
+        retune(mix, stream)
+        tables = stream.tables
+        shape = tables.mean_shared.shape
+        stream.tables = CrowdLambda(tables.means, np.zeros(shape), tables.precisions, np.ones(shape),
+                                    np.zeros(len(tables.plain), dtype=bool))
+
+    interpolation.retune = made_whole
+    for _ in range(90):
+        assert np.allclose(made.next_features(controls, 0.8), whole.next_features(controls, 0.8), rtol=1e-9, atol=1e-9)
+    tables = made.stream.tables
+    assert tables.limit > 0 and tables.plain.tolist() == [True] + [False] * 5  # character 0 has no offset of its own

@@ -149,6 +149,8 @@ class StyleInterpolation:
         self._spread: float | None = None
         self._own_reach = float(np.abs(self.offset_change[:, 1]).max(initial=0.0))  # the largest log variance offset
         self._mean_term = self._precision_factor = None
+        self._clip_spread: float | None = None  # the spread `_clip_own` (spread times the log variance offsets) is for
+        self._clip_own: np.ndarray | None = None
 
     def __call__(self, weights: np.ndarray, part_weights: np.ndarray | None, spread: float
                  ) -> tuple[CrowdLambda, np.ndarray, np.ndarray]:
@@ -166,16 +168,19 @@ class StyleInterpolation:
             # no variance at its limit: exp(-(a + b)) = exp(-a) exp(-b), the second kept while the spread stays
             tables = CrowdLambda(self._mean_term, space.base[0] + change[0], self._precision_factor,
                                  np.exp(-(space.base[1] + change[1])), self._plain)
-        else:  # some variance at its limit: every character's tables made whole (what an extreme weight costs)
-            means = np.add(self._mean_term, space.base[0] + change[0])
-            precisions = np.multiply(self.offset_change[:, 1], spread)
-            precisions += change[1]
-            np.clip(precisions, -limit, limit, out=precisions)
+        else:  # some variance at its limit: a character's precisions cannot be two factors
+            # made whole for every character, they cost a crowd of 32 some 20 ms a frame while a
+            # fader moved past the styles (1,000: most of a second): the shared table holds the
+            # precisions of a character with no offset of its own (`plain`), and the stream makes
+            # another's rows from its log offset as its window reads them (`clip_*`, stream.py `_gather`)
+            if self._clip_spread != spread:
+                self._clip_spread, self._clip_own = spread, np.multiply(self.offset_change[:, 1], spread)
+            precisions = np.clip(change[1], -limit, limit)
             precisions += space.base[1]
             np.negative(precisions, out=precisions)
             np.exp(precisions, out=precisions)
-            tables = CrowdLambda(means, np.zeros(means.shape[1:]), precisions, np.ones(means.shape[1:]),
-                                 np.zeros(len(means), dtype=bool))
+            tables = CrowdLambda(self._mean_term, space.base[0] + change[0], self._clip_own, precisions, self._plain,
+                                 change[1], space.base[1], limit)
         shape = (len(self.offsets), space.labels, space.states)
         means, variances = np.empty(shape), np.empty(shape)
         _duration_tables(space.duration_base, duration_change, self.offset_duration_change, spread, limit,
@@ -209,6 +214,13 @@ class CrowdLambda:
     precision_own: np.ndarray  # (N, labels * states, 3D)
     precision_shared: np.ndarray  # (labels * states, 3D)
     plain: np.ndarray  # (N,) bool: the character's own term is 0 and factor 1 (its lambda* is the shared one)
+    # where some variance is at its limit (`limit` above 0), precisions are not two factors:
+    # precision_own is then each character's log variance offset (spread times its own), and a
+    # character's precisions are exp(-(clip_base + clip(precision_own + clip_change, -limit, limit)))
+    # (precision_shared: those of a character with no offset, `plain`)
+    clip_change: np.ndarray | None = None  # (labels * states, 3D) the performed weights' log variance change
+    clip_base: np.ndarray | None = None  # (labels * states, 3D) lambda 0's log variances
+    limit: float = 0.0
 
     @property
     def means(self) -> np.ndarray:
@@ -216,7 +228,15 @@ class CrowdLambda:
 
     @property
     def precisions(self) -> np.ndarray:
-        return self.precision_own * self.precision_shared
+        if not self.limit:
+            return self.precision_own * self.precision_shared
+        whole = self.precision_own + self.clip_change
+        np.clip(whole, -self.limit, self.limit, out=whole)
+        whole += self.clip_base
+        np.negative(whole, out=whole)
+        np.exp(whole, out=whole)
+        whole[self.plain] = self.precision_shared
+        return whole
 
 
 def interpolate(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray | None = None) -> Lambda:

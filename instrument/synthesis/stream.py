@@ -50,10 +50,13 @@ class StreamTables(NamedTuple):
     lo: int  # the first of the tables' static dimensions the stream makes (D of them from there)
     guest: np.ndarray  # (2,) int: [a, b) of its D dimensions solved on `guest_rows` (a = b: none)
     guest_rows: np.ndarray  # (N, window) int: another stream's window rows (a gesture's, synthesis/gestures.py)
+    clip_change: np.ndarray  # (labels * states, 3D) where `limit` > 0: precisions made row by row (CrowdLambda)
+    clip_base: np.ndarray  # (labels * states, 3D)
+    limit: float  # 0: the precisions are two factors
 
     def part(self, start: int, stop: int) -> StreamTables:
         """Characters start to stop (views), for a part of the crowd on a core of its own."""
-        shared = {"mean_shared", "precision_shared", "max_step", "lo", "guest"}
+        shared = {"mean_shared", "precision_shared", "max_step", "lo", "guest", "clip_change", "clip_base", "limit"}
         return StreamTables(*(t if name in shared else t[start:stop] for name, t in zip(self._fields, self)))
 
 
@@ -257,7 +260,10 @@ class Crowd:
             self._made = key, StreamTables(lam.mean_own, lam.mean_shared, lam.precision_own, lam.precision_shared,
                                            lam.plain, self.base, self.sigma, self.counters, self.carry, self.pool,
                                            self.history, self.history_ids, self.max_step_ratio, self.max_step,
-                                           self.columns.start, self.guest, self.guest_rows)
+                                           self.columns.start, self.guest, self.guest_rows,
+                                           lam.precision_shared if lam.clip_change is None else lam.clip_change,
+                                           lam.precision_shared if lam.clip_base is None else lam.clip_base,
+                                           float(lam.limit))
         return self._made[1]
 
     def step(self) -> np.ndarray:
@@ -472,11 +478,9 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
                           lo, guest_rows[n : n + 1], a, b)
             frames[n] = solved[0, 0]
             continue
-        used = _gather(mean_own[n], mean_shared, precision_own[n], precision_shared, rows[n], local[0], means[0],
-                       precisions[0], 0)
+        used = _gather(tables, n, rows[n], local[0], means[0], precisions[0], 0)
         if a < b:  # the guest's rows too, after the character's own
-            _gather(mean_own[n], mean_shared, precision_own[n], precision_shared, guest_rows[n], local_guest[0], means[0],
-                    precisions[0], used)
+            _gather(tables, n, guest_rows[n], local_guest[0], means[0], precisions[0], used)
         _solve_window(means, precisions, local, known[n : n + 1], fixed, solved, work1, work2, lo, local_guest, a, b)
         frames[n] = solved[0, 0]
     for n in range(count):
@@ -495,10 +499,14 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
 
 
 @njit(cache=True, nogil=True)
-def _gather(mean_own, mean_shared, precision_own, precision_shared, rows, local, means, precisions, used):  # pragma: no cover - compiled
-    """A window's rows of one character's lambda* (its own term and the shared one put together),
-    written to `means` and `precisions` from row `used` on, each state's row once (a state lasts
-    some frames); local[m] is window frame m's row there. Returns the rows used."""
+def _gather(tables, n, rows, local, means, precisions, used):  # pragma: no cover - compiled
+    """A window's rows of character n's lambda* (its own term and the shared one put together, or
+    where a variance is at its limit its precisions made from its log offset, as CrowdLambda's
+    `precisions` makes them), written to `means` and `precisions` from row `used` on, each state's
+    row once (a state lasts some frames); local[m] is window frame m's row there. Returns the rows used."""
+    mean_own, mean_shared, precision_own, precision_shared = (tables.mean_own[n], tables.mean_shared,
+                                                              tables.precision_own[n], tables.precision_shared)
+    limit, clip_change, clip_base = tables.limit, tables.clip_change, tables.clip_base
     for m in range(rows.shape[0]):
         r = rows[m]
         if m > 0 and r == rows[m - 1]:
@@ -506,7 +514,13 @@ def _gather(mean_own, mean_shared, precision_own, precision_shared, rows, local,
             continue
         for c in range(means.shape[1]):
             means[used, c] = mean_own[r, c] + mean_shared[r, c]
-            precisions[used, c] = precision_own[r, c] * precision_shared[r, c]
+        if limit > 0.0:
+            for c in range(means.shape[1]):
+                value = min(max(precision_own[r, c] + clip_change[r, c], -limit), limit)
+                precisions[used, c] = np.exp(-(value + clip_base[r, c]))
+        else:
+            for c in range(means.shape[1]):
+                precisions[used, c] = precision_own[r, c] * precision_shared[r, c]
         local[m] = used
         used += 1
     return used
