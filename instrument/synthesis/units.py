@@ -126,8 +126,8 @@ class UnitChooser:
                           np.where(self.turning < 0, self.turn_units.get(-1, unit), unit))
         if stream.sent == 0:
             stream.begin_in(coming)
-        else:
-            late = (coming != self.coming) & (counters[:, NEXT] == 0) & (self._frames_left(stream) < self.notice)
+        elif (changed := coming != self.coming).any():  # (the steps' frames left only asked for a change)
+            late = changed & (counters[:, NEXT] == 0) & (self._frames_left(stream) < self.notice)
             counters[late, NEXT] = self.coming[late] + 1  # the step after this one as planned, then the change
         counters[:, UNIT] = coming
         self.coming = coming
