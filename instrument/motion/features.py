@@ -198,6 +198,16 @@ def heading_angle(world_rotation: np.ndarray, reference: np.ndarray | None = Non
     return np.unwrap(2.0 * np.arctan2(quat[:, 1], quat[:, 3]))
 
 
+def travel_direction(heading: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+    """(T, 3) the way a take goes, in world space frame by frame: the median of the root's
+    horizontal velocity (T, 3) in its heading frame (T, 3, 3), turned back by each frame's
+    heading (+Z of the heading frame for a take that stays put). Finding the feet (steps.py) and
+    measuring the limbs' swing (quality.py) read forward and back along it."""
+    direction = np.median(np.einsum("tji,tj->ti", heading, velocity), axis=0) * np.array([1.0, 0.0, 1.0])
+    norm = np.linalg.norm(direction)
+    return heading @ (direction / norm if norm > 1e-9 else np.array([0.0, 0.0, 1.0]))
+
+
 def extract(motion: Motion, layout: FeatureLayout) -> tuple[np.ndarray, np.ndarray, float]:
     """Features (T, D) of a motion, with the root's start position and heading for `restore`."""
     rotations, translations = local_transforms(motion)

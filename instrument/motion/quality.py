@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bvh import Motion
-from .features import FeatureLayout, heading_angle
+from .features import FeatureLayout, heading_angle, travel_direction
 from .kinematics import forward_kinematics, local_transforms
 from .limbs import Limbs, clearance, sole_clearance
 from .rotations import axis_angle_matrix
@@ -85,10 +85,7 @@ def limb_ranges(pos: np.ndarray, yaw: np.ndarray, limbs: Limbs, root: int) -> di
     """`knee_deg`, `hip_deg` and `shoulder_deg` (NaN without arms) of world positions (T, J, 3)
     whose root heads `yaw` (T,) radians: each the mean over both sides of its 1st to 99th
     percentile range. Training calibrates the range filter with it (synthesis/widen.py)."""
-    heading = axis_angle_matrix("y", yaw)
-    direction = np.median(np.einsum("tji,tj->ti", heading, np.gradient(pos[:, root], axis=0)), axis=0) * [1, 0, 1]
-    norm = np.linalg.norm(direction)  # the way the walk goes, in the heading frame
-    forward = heading @ (direction / norm if norm > 1e-9 else np.array([0.0, 0.0, 1.0]))
+    forward = travel_direction(axis_angle_matrix("y", yaw), np.gradient(pos[:, root], axis=0))
     knees, hips = [], []
     for leg in limbs.legs:
         thigh = pos[:, leg.knee] - pos[:, leg.hip]

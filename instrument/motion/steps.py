@@ -15,7 +15,7 @@ import numpy as np
 from scipy.ndimage import uniform_filter1d
 
 from .bvh import Motion
-from .features import FeatureLayout, choose_layout, heading_angle
+from .features import FeatureLayout, choose_layout, heading_angle, travel_direction
 from .kinematics import forward_kinematics, local_transforms
 from .rotations import axis_angle_matrix
 
@@ -50,13 +50,8 @@ def foot_signal(motion: Motion, layout: FeatureLayout | None = None) -> tuple[np
     world_rot, world_pos = forward_kinematics(motion.skeleton, rotations, translations)
     root_pos = world_pos[:, layout.root]
     heading = axis_angle_matrix("y", heading_angle(world_rot[:, layout.root], layout.heading_reference))
-    # direction of travel in the heading frame: the median of the root's horizontal velocity there
     velocity = np.gradient(root_pos, axis=0) * motion.fps
-    local_velocity = np.einsum("tji,tj->ti", heading, velocity)
-    direction = np.median(local_velocity, axis=0) * np.array([1.0, 0.0, 1.0])
-    norm = np.linalg.norm(direction)
-    direction = direction / norm if norm > 1e-9 else np.array([0.0, 0.0, 1.0])
-    forward = heading @ direction
+    forward = travel_direction(heading, velocity)
     left = np.cross(np.array([0.0, 1.0, 0.0]), forward)
     relative = world_pos - root_pos[:, None]
     side = _branch_sides(motion, layout.root, np.einsum("tjk,tk->j", relative, left) / motion.frames)
