@@ -54,6 +54,10 @@ from .units import UnitChooser
 from .widen import RangeFilter, RangeSpace, range_space, unit_targets
 
 ROOT_RATES = slice(1, 4)  # root.vx, root.vz, root.yaw_rate in the static features
+# a crowd of up to this many characters takes its range targets and contact shares from tables
+# of every unit and state made at a retune (a view a frame costs less than a compiled call a frame);
+# a larger one makes each character's frame's own, frame by frame
+TABLES_UP_TO = 8
 MIX_CONCENTRATION = 0.5  # of a crowd character's Dirichlet style draw: below 1 its mix leans on one or two styles
 MIX_STREAM = 1  # the draws of a character's mix and phase come from seed sequence (seed, MIX_STREAM)
 METHODS = ("stream", "full")
@@ -183,7 +187,6 @@ class RangeTargets:
     retune, and a frame takes views of them (cheaper than a call a frame)."""
 
     name = "range"
-    TABLE_UP_TO = 8  # characters whose targets of every unit are made at once
 
     def __init__(self, space: RangeSpace, units: list[str], count: int, dimension: int):
         self.space = space
@@ -209,7 +212,7 @@ class RangeTargets:
     def targets(self, units: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(N, D) stride means and factors of each character's frame, of unit `units` (N,)."""
         count = len(self.held)
-        if count > self.TABLE_UP_TO:
+        if count > TABLES_UP_TO:
             self._made(np.ascontiguousarray(units, dtype=np.int64))
             return self.means, self.factors
         if self.table is None:
@@ -238,7 +241,6 @@ class ContactTables:
     state; for a few characters a table is made at the retune (cheaper than a call a frame)."""
 
     name = "contact"
-    TABLE_UP_TO = 8  # characters whose shares of every state are made at a retune
 
     def __init__(self, space: ContactSpace):
         self.space = space
@@ -249,7 +251,7 @@ class ContactTables:
     def retune(self, mix: Mix, stream: Crowd) -> None:
         self.legs = np.ascontiguousarray(np.atleast_2d(self.space.leg_weights(mix.weights, mix.parts)))
         self.follow = follow_strength(self.legs)
-        if len(self.legs) <= self.TABLE_UP_TO:  # the same numbers as `at` makes (one kernel)
+        if len(self.legs) <= TABLES_UP_TO:  # the same numbers as `at` makes (one kernel)
             self.table = self.space.shares_in(self.legs, np.tile(np.arange(len(self.space.base)), (len(self.legs), 1)))
 
     def repace(self, mix: Mix, stream: Crowd) -> None:

@@ -45,7 +45,7 @@ from ..models.gestures import gesture_labels, gesture_repeats
 from ..models.modelfile import Model
 from .interpolation import StyleSpace, body_groups
 from .parameters import GROUPS
-from .stream import FOLLOWER, LABEL, UNIT, Crowd, _move_on, _plan_window
+from .stream import FOLLOWER, LABEL, UNIT, Crowd, _commit, _plan_window
 
 EASE_IN = 6  # frames the gesture's upper body takes to come in (its stream starts where the gait is)
 EASE_OUT = 12  # frames it takes to hand the arms back to the gait after the lower
@@ -261,13 +261,10 @@ def _plan_guest(base, sigma, counters, carry, pool, history_ids, ids, counts, ca
 def _move_guest(gait_history, lo, history, history_ids, counters, carry, ids, counts, carries, states):  # pragma: no cover - compiled
     """The gesture's stream moved on by the frame the gait's solve made for it (the gait's last
     frame, from column `lo`), as its own step would have (stream.py `_advance`)."""
+    width = history.shape[2]
     for n in range(history.shape[0]):
-        for d in range(history.shape[2]):
-            history[n, 0, d] = history[n, 1, d]
-            history[n, 1, d] = gait_history[n, 1, lo + d]
-        history_ids[n, 0] = history_ids[n, 1]
-        history_ids[n, 1] = ids[n, 0]
-        _move_on(counters[n], carry, n, counts[n], carries[n], states)
+        _commit(history, history_ids, counters, carry, n, gait_history[n, 1, lo:lo + width], ids[n, 0], counts[n], carries[n],
+                states)
 
 
 @njit(cache=True, nogil=True)

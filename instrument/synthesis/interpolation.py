@@ -175,10 +175,7 @@ class StyleInterpolation:
             # another's rows from its log offset as its window reads them (`clip_*`, stream.py `_gather`)
             if self._clip_spread != spread:
                 self._clip_spread, self._clip_own = spread, np.multiply(self.offset_change[:, 1], spread)
-            precisions = np.clip(change[1], -limit, limit)
-            precisions += space.base[1]
-            np.negative(precisions, out=precisions)
-            np.exp(precisions, out=precisions)
+            precisions = clipped_precisions(change[1], space.base[1], limit)
             tables = CrowdLambda(self._mean_term, space.base[0] + change[0], self._clip_own, precisions, self._plain,
                                  change[1], space.base[1], limit)
         shape = (len(self.offsets), space.labels, space.states)
@@ -230,13 +227,20 @@ class CrowdLambda:
     def precisions(self) -> np.ndarray:
         if not self.limit:
             return self.precision_own * self.precision_shared
-        whole = self.precision_own + self.clip_change
-        np.clip(whole, -self.limit, self.limit, out=whole)
-        whole += self.clip_base
-        np.negative(whole, out=whole)
-        np.exp(whole, out=whole)
+        whole = clipped_precisions(self.precision_own + self.clip_change, self.clip_base, self.limit)
         whole[self.plain] = self.precision_shared
         return whole
+
+
+def clipped_precisions(log_change: np.ndarray, log_base: np.ndarray, limit: float) -> np.ndarray:
+    """exp(-(log_base + clip(log_change, -limit, limit))): the precisions of log variances
+    `log_base` moved by `log_change`, each move within +-limit (MAX_LOG_VARIANCE_CHANGE). The
+    shared table of a crowd past the styles and `CrowdLambda.precisions` are made by it, and the
+    stream's `_gather` makes a row the same way."""
+    out = np.clip(log_change, -limit, limit)
+    out += log_base
+    np.negative(out, out=out)
+    return np.exp(out, out=out)
 
 
 def interpolate(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray | None = None) -> Lambda:

@@ -491,11 +491,19 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
                 bound = ratios[n] * max_step[d] if ratios[n] > 0 else np.inf
                 value = previous + min(max(value - previous, -bound), bound)
             frames[n, d] = value
-        history[n, 0] = history[n, 1]
-        history[n, 1] = frames[n]
-        history_ids[n, 0] = history_ids[n, 1]
-        history_ids[n, 1] = ids[n, 0]
-        _move_on(counters[n], carry, n, counts[n], carries[n], states)
+        _commit(history, history_ids, counters, carry, n, frames[n], ids[n, 0], counts[n], carries[n], states)
+
+
+@njit(cache=True, nogil=True)
+def _commit(history, history_ids, counters, carry, n, frame, state, counts, carries, states):  # pragma: no cover - compiled
+    """Character n sent `frame` (of state `state`): its last two frames and their states move on
+    by it, and its plan advances by a frame (`_move_on`). The gesture's stream commits this way
+    the frame the gait's solve made for it (gestures.py `_move_guest`)."""
+    history[n, 0] = history[n, 1]
+    history[n, 1] = frame
+    history_ids[n, 0] = history_ids[n, 1]
+    history_ids[n, 1] = state
+    _move_on(counters[n], carry, n, counts, carries, states)
 
 
 @njit(cache=True, nogil=True)
