@@ -39,6 +39,18 @@ class LockSpeeds(dict):
         self.changed.clear()
         self.array = self.known = None
 
+    def per_character(self, characters: int, performed: float) -> np.ndarray:
+        """(characters,) each character's speed: the lock's, or `performed` where it has set none;
+        the array brought up to date by the characters set since the last call only."""
+        if self.array is None or len(self.array) != characters:
+            self.array, self.known = np.zeros(characters), np.zeros(characters, dtype=bool)
+            self.changed[:] = list(self)
+        for k in self.changed:
+            if k < characters:
+                self.array[k], self.known[k] = self[k], True
+        self.changed.clear()
+        return np.where(self.known, self.array, performed)
+
 
 class ControlState:
     def __init__(self, style_names: list[str], states: int):

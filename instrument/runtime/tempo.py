@@ -268,14 +268,7 @@ def locked_speed(speeds: dict[int, float], performed: float, characters: int) ->
         return speeds.get(0, performed)
     if not isinstance(speeds, LockSpeeds):
         return np.array([speeds.get(k, performed) for k in range(characters)])
-    if speeds.array is None or len(speeds.array) != characters:
-        speeds.array, speeds.known = np.zeros(characters), np.zeros(characters, dtype=bool)
-        speeds.changed[:] = list(speeds)
-    for k in speeds.changed:
-        if k < characters:
-            speeds.array[k], speeds.known[k] = speeds[k], True
-    speeds.changed.clear()
-    return np.where(speeds.known, speeds.array, performed)
+    return speeds.per_character(characters, performed)
 
 
 def step_seconds(engine: Engine, controls: Controls, character: int | np.ndarray = 0) -> float | np.ndarray:
