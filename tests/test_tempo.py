@@ -297,27 +297,32 @@ def test_footfalls_are_notes_on_the_midi_out_port(jack, tmp_path):
     name = f"tempo-steps-{os.getpid()}"
     process = subprocess.Popen([sys.executable, "-m", "instrument", "run", "--midi-out", name, "--midi-api", "jack",
                                 "--no-osc", "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    received = []
+    received = []  # (arrival, message)
     port = None
     try:
         deadline = time.monotonic() + 120
         while port is None and time.monotonic() < deadline:
             names = [n for n in jack.get_input_names() if name in n]
-            port = jack.open_input(names[0], callback=received.append) if names else None
+            port = jack.open_input(names[0], callback=lambda m: received.append((time.monotonic(), m))) if names else None
             time.sleep(0.1)
         assert port is not None, "the --midi-out port never appeared"
-        while sum(m.type == "note_on" for m in received) < 6 and time.monotonic() < deadline:
+        while sum(m.type == "note_on" for _, m in received) < 12 and time.monotonic() < deadline:
             time.sleep(0.1)
     finally:
         process.terminate()
         process.communicate(timeout=60)
         if port is not None:
             port.close()
-    ons = [m for m in received if m.type == "note_on"]
-    assert len(ons) >= 6
-    assert {m.note for m in ons} == {36, 38} and all(m.channel == 9 and 1 <= m.velocity <= 127 for m in ons)
-    assert all(a.note != b.note for a, b in zip(ons, ons[1:]))  # left, right, left...
-    offs = [m for m in received if m.type == "note_off"]
+    ons = [(t, m) for t, m in received if m.type == "note_on"]
+    assert len(ons) >= 12
+    assert {m.note for _, m in ons} == {36, 38} and all(m.channel == 9 and 1 <= m.velocity <= 127 for _, m in ons)
+    # left, right, left...: a note follows the other foot's, or (a client of a busy JACK server
+    # loses the MIDI of the cycles it misses) its own foot's after a whole stride, the other lost
+    gaps = np.diff([t for t, _ in ons])
+    step = np.median(gaps)
+    alternate = np.array([a.note != b.note for (_, a), (_, b) in zip(ons, ons[1:])])
+    assert alternate.mean() >= 0.75 and (gaps[~alternate] > 1.5 * step).all(), (step, gaps[~alternate])
+    offs = [m for _, m in received if m.type == "note_off"]
     assert offs  # a note is let go
 
 
@@ -490,24 +495,29 @@ def test_a_synced_show_replays_exactly_from_its_log(model, tmp_path):
 
 
 class SentFootfalls:
-    """Character 0's footfalls, stamped with `time.monotonic()` when the frame is sent (at its
-    deadline: where a tempo source's beats are) and the source's beat then (a later tempo
-    change moves the beats of the past on a Link timeline)."""
+    """Character 0's footfalls, stamped with the deadline of the frame that sends them (the moment
+    the loop shows the frame, where the lock puts the beats; a frame a busy machine sends late is
+    the clock's lateness, which `instrument bench` measures, not the lock's) and the source's beat
+    then (a later tempo change moves the beats of the past on a Link timeline)."""
 
     name = "sent footfalls"
 
     def __init__(self, tempo):
         self.tempo = tempo
+        self.clock = None
         self.times: list[float] = []
         self.beats: list[float] = []
+
+    def watch(self, clock) -> None:
+        self.clock = clock
 
     def prepare(self, frame):
         return [f for f in frame.footfalls if f.character == 0] or None
 
     def send(self, prepared) -> None:
-        now = time.monotonic()
-        self.times += [now] * len(prepared)
-        self.beats += [self.tempo.beat_at(now)] * len(prepared)
+        due = self.clock.deadline()
+        self.times += [due] * len(prepared)
+        self.beats += [self.tempo.beat_at(due)] * len(prepared)
 
     def close(self) -> None:
         pass

@@ -80,24 +80,30 @@ class EventLog:
             return
         data = "".join(batch).encode("utf-8")
         if self.written + len(data) > LIMIT:
-            self.error = f"the log reached its limit of {LIMIT >> 20} MiB"
             self.lost += len(batch)
-            if self.warn is not None:
-                self.warn(f"{self.path}: {self.error}: recording stopped (the show goes on)")
+            self._stop(f"the log reached its limit of {LIMIT >> 20} MiB", "recording stopped (the show goes on)")
             return
         try:
             write_all(self.fd, data)  # one write unless the disk cuts it short: a kill cuts at most the last line
             self.written += len(data)
         except OSError as e:
-            self.error = f"cannot write: {e.strerror or e}"
             self.lost += len(batch)
             try:
                 os.ftruncate(self.fd, self.header_size + self.written)  # the log ends on a whole line
             except OSError:
                 pass  # a cut last line: the reader drops it with a warning
+            self._stop(f"cannot write: {e.strerror or e}",
+                       "recording stopped; the log keeps the events before it (the show goes on)",
+                       said=f"{e.strerror or e}")
+
+    def _stop(self, error: str, consequence: str, said: str | None = None) -> None:
+        """End the recording: the warning first, then `error`, so whoever sees the recording
+        stopped (the frame thread, a test) sees it after the console has been told."""
+        try:
             if self.warn is not None:
-                self.warn(f"{self.path}: {e.strerror or e}: recording stopped; the log keeps the events before it "
-                          "(the show goes on)")
+                self.warn(f"{self.path}: {said or error}: {consequence}")
+        finally:
+            self.error = error
 
     def close(self) -> None:
         if self.fd is None:
