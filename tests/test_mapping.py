@@ -214,6 +214,22 @@ def test_every_shipped_mapping_loads_and_names_the_default_styles():
         assert any(c.target == "speed" for c in mapping.controls), f
 
 
+def test_the_readmes_mapping_example_is_a_mapping_that_plays(tmp_path):
+    """The user's manual shows a mapping file: it loads, and its fader and gait button do what it says."""
+    readme = (REPO / "README.md").read_text()
+    start = readme.index('    name = "My fader box"')
+    block = readme[start:readme.index("\n\n`instrument run", start)]
+    path = tmp_path / "readme.toml"
+    path.write_text("\n".join(line[4:] for line in block.splitlines()) + "\n")
+    m, s = Mapper(load_mapping(path, state())), state()
+    send(m, s, "cc/1/0", 43, t=0.0)  # pick-up: the first value only says where the fader is
+    send(m, s, "cc/1/0", 43, t=1.0)  # at the parameter (0 is 42.3 of 127): picked up
+    send(m, s, "cc/1/0", 127, t=1.02)  # and swept to the top
+    assert s.get("style/elderly") == pytest.approx(2.0)
+    send(m, s, "note/1/41", 100)
+    assert s.get("gait") == 2.0
+
+
 def test_a_style_the_model_lacks_is_reported_not_fatal(tmp_path):
     from instrument.control.mapping import style_problems
 
