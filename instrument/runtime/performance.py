@@ -159,10 +159,11 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             return False
 
     prepared_revision = -1  # the control state's revision the engine's tables were last made ahead for
-    prepare_seconds: deque[float] = deque([0.0], maxlen=20)  # CPU seconds that making them ahead took, recently
+    prepare_seconds: deque[float] = deque(maxlen=20)  # CPU seconds that making them ahead took, recently
 
-    def between_frames(upcoming: float, wake: float) -> None:
-        """While waiting for the frame at `upcoming` (its work starts at `wake`, clock time): take
+    def between_frames(upcoming: float, wake: float, expected: float) -> None:
+        """While waiting for the frame at `upcoming` (its work starts at `wake`, clock time; a frame's
+        work recently took `expected`, which stands for a retune's cost until one was timed): take
         live events, and make the engine's tables for what they changed (`Engine.prepare`), so a
         control taken while waiting costs its frame no retune, which would otherwise set every
         frame's lead (the recent p99 of the work is a style change's retune). Only where the
@@ -172,7 +173,7 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
         take_live(upcoming)
         if state.revision == prepared_revision or beat_lock is not None or state.morph is not None:
             return
-        if wake - clock.now() < IDLE_UNTIL + max(prepare_seconds):  # CPU time: what it needs, not what others took
+        if wake - clock.now() < IDLE_UNTIL + max(prepare_seconds, default=expected):  # CPU time: what it needs
             return
         started, revision = time.thread_time(), state.revision
         if engine.prepare(upcoming, state.snapshot(), state.spread):
@@ -265,7 +266,7 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             upcoming = (index + 1) / fps
             lead = min(LEAD_SPREAD * expected + LEAD_MARGIN, MAX_LEAD_FRAMES / fps)
             clock.advance(lead=lead,
-                          idle=(lambda: between_frames(upcoming, clock.deadline() - lead)) if live_sources else None)
+                          idle=(lambda: between_frames(upcoming, clock.deadline() - lead, expected)) if live_sources else None)
     except KeyboardInterrupt:  # a caller that kept Python's own SIGINT handler
         pass
     finally:
