@@ -10,10 +10,24 @@ from instrument.motion.features import extract
 from instrument.motion.kinematics import world_positions
 from instrument.synthesis.posing import PoseStream
 from instrument.synthesis.contact import NEARLY_STRAIGHT, contact_space
-from instrument.synthesis.footlock import HEEL_RISE_SPEED, MAX_HEEL_RISE, FootLock, heel_rise, leg_swings
+from instrument.synthesis import footlock
+from instrument.synthesis.footlock import HEEL_RISE_SPEED, MAX_HEEL_RISE, FootLock
 from instrument.synthesis.engine import default_controls, render
 from walks import features, step
 from instrument.synthesis.stream import Controls, Crowd
+
+
+def leg_swings(hip, knee, ankle, target, toes):
+    """The compiled leg IK's thigh and shin turns (the kernel writes them into arrays it is given)."""
+    thigh, shin = np.empty((3, 3)), np.empty((3, 3))
+    footlock.leg_swings(hip, knee, ankle, target, toes, thigh, shin, np.empty((2, 3, 3)))
+    return thigh, shin
+
+
+def heel_rise(*arguments):
+    """The compiled heel rise's turn and angle (the kernel writes the turn into an array it is given)."""
+    turn = np.empty((3, 3))
+    return turn, footlock.heel_rise(*arguments, turn)
 
 
 def test_two_bone_ik_reaches_a_reachable_target_and_keeps_the_bones():

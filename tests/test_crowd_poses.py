@@ -7,6 +7,7 @@ import pytest
 import reference_lock as reference
 from instrument.synthesis.posing import CrowdPoses, PoseStream
 from instrument.synthesis.contact import contact_space
+from instrument.synthesis import footlock
 from instrument.synthesis.footlock import FootLock
 from instrument.synthesis.interpolation import GROUPS
 from instrument.synthesis.engine import drive
@@ -146,10 +147,15 @@ def test_each_frame_owns_its_arrays(model, space):
     np.testing.assert_array_equal(first.world_positions, kept)
 
 
+def _leg_swings(hip, knee, ankle, target, toes):
+    """The compiled leg IK's thigh and shin turns (the kernel writes them into arrays it is given)."""
+    thigh, shin = np.empty((3, 3)), np.empty((3, 3))
+    footlock.leg_swings(hip, knee, ankle, target, toes, thigh, shin, np.empty((2, 3, 3)))
+    return thigh, shin
+
+
 def test_the_compiled_leg_ik_turns_as_the_reference_does():
     """Reachable and unreachable targets, straight legs, knees bent a little backwards."""
-    from instrument.synthesis.footlock import leg_swings
-
     rng = np.random.default_rng(5)
     for case in range(300):
         hip = rng.normal(size=3)
@@ -159,7 +165,7 @@ def test_the_compiled_leg_ik_turns_as_the_reference_does():
             ankle = knee + (knee - hip) * (1.0 + 0.01 * rng.normal()) + 1e-4 * rng.normal(size=3) * (case % 2)
         target = hip + rng.normal(size=3) * rng.uniform(1.0, 12.0)
         toes = rng.normal(size=3)
-        got = leg_swings(hip, knee, ankle, target, toes)
+        got = _leg_swings(hip, knee, ankle, target, toes)
         want = reference._leg_swings(hip, knee, ankle, target, toes)
         for a, b in zip(got, want):
             np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
@@ -168,10 +174,8 @@ def test_the_compiled_leg_ik_turns_as_the_reference_does():
 def test_a_degenerate_leg_gives_numbers_not_an_exception():
     """Compiled division follows numpy (a live show must not stop on a zero length): a target at
     the hip has no direction, and the turns come back NaN as numpy's would, not as ZeroDivisionError."""
-    from instrument.synthesis.footlock import leg_swings
-
     hip, knee, ankle = np.zeros(3), np.array([0.0, -4.0, 0.0]), np.array([0.0, -8.0, 0.1])
-    thigh, shin = leg_swings(hip, knee, ankle, hip.copy(), np.array([0.0, 0.0, 1.0]))
+    thigh, shin = _leg_swings(hip, knee, ankle, hip.copy(), np.array([0.0, 0.0, 1.0]))
     assert thigh.shape == shin.shape == (3, 3)
 
 

@@ -92,6 +92,30 @@ def test_a_control_change_shows_in_the_next_posed_frame(model):
     assert np.abs(a.world_positions - b.world_positions).max() > 0.1
 
 
+def test_tables_made_ahead_of_a_frame_change_no_frame(model):
+    """`Engine.prepare` (the live loop makes a frame's tables while it waits for it) changes no
+    pose: at twice the model's rate (frames between model frames too), a crowd prepared before
+    each frame with that frame's controls, or now and then with controls that change again
+    before the frame, poses every frame as a crowd that retunes in its frames; and a frame whose
+    tables were made ahead does no retune of its own."""
+    fps = 2 * model.fps
+    plain, ahead = Engine(model, 3, fps), Engine(model, 3, fps)
+    looks = [default_controls(model), default_controls(model, {"feminine": 2.0}, speed=1.3),
+             default_controls(model, {"elderly": -1.0}, liveliness=0.7), default_controls(model, {"youthful": 1.0})]
+    spared = 0
+    for k in range(36):
+        controls, other = looks[(k // 3) % len(looks)], looks[(k // 3 + 1) % len(looks)]
+        ahead.prepare(k / fps, other if k % 7 == 0 else controls, 0.5)
+        plain.stage_seconds, ahead.stage_seconds = {}, {}
+        a, b = plain.frame(k / fps, controls, 0.5), ahead.frame(k / fps, controls, 0.5)
+        for name in ("rotations", "translations", "world_rotations", "world_positions"):
+            assert np.array_equal(getattr(a, name), getattr(b, name)), (k, name)
+        if "interpolation" in plain.stage_seconds and k % 7:
+            assert "interpolation" not in ahead.stage_seconds, k
+            spared += 1
+    assert spared >= 5
+
+
 def test_render_is_the_engine_without_a_clock(model):
     """`render` (synth, evaluate) gives the engine's own poses of character 0, frame by frame."""
     controls = default_controls(model, {"masculine": 2.0}, liveliness=0.7)

@@ -262,9 +262,17 @@ class Echoes:
         pass
 
 
+class Poses(Echoes):
+    name = "poses"
+
+    def prepare(self, frame):
+        return frame.index, frame.crowd.world_positions.copy()
+
+
 def test_live_events_taken_while_waiting_count_for_the_coming_frame(model):
     """A live source is read many times between frames; every event is stamped with the time of
-    the frame it comes before, and that frame already shows it (as a replay of the log would)."""
+    the frame it comes before, and that frame already shows it, as a replay of the log does: the
+    same poses, though the live loop made the frames' tables while it waited (Engine.prepare)."""
     fps = 30.0
     calls, events = [], []
 
@@ -274,9 +282,11 @@ def test_live_events_taken_while_waiting_count_for_the_coming_frame(model):
         events.append(event)
         return [event]
 
-    echoes = Echoes()
-    perform(Show(model, [echoes], fps=fps, seconds=0.5, sources=[source]), Console(quiet=True))
+    echoes, poses, replayed = Echoes(), Poses(), Poses()
+    perform(Show(model, [echoes, poses], fps=fps, seconds=0.5, sources=[source]), Console(quiet=True))
+    perform(Show(model, [replayed], fps=fps, seconds=0.5, replay=LogReplay(events), fast=True), Console(quiet=True))
     assert [i for i, _ in echoes.frames] == list(range(15))
+    assert all(np.array_equal(live, again) for (_, live), (_, again) in zip(poses.frames, replayed.frames, strict=True))
     assert all(abs(t * fps - round(t * fps)) < 1e-9 for t in calls)  # always a frame's time
     assert len(calls) > 3 * len(echoes.frames)  # looked at while waiting, not once a frame
     for index, shown in echoes.frames:

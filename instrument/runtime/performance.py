@@ -158,6 +158,28 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             _count(console, summary.input_errors, f"apply {event.source.kind}", error)
             return False
 
+    prepared_revision = -1  # the control state's revision the engine's tables were last made ahead for
+    prepare_seconds: deque[float] = deque(maxlen=20)  # CPU seconds that making them ahead took, recently
+
+    def between_frames(upcoming: float, wake: float, expected: float) -> None:
+        """While waiting for the frame at `upcoming` (its work starts at `wake`, clock time; a frame's
+        work recently took `expected`, which stands for a retune's cost until one was timed): take
+        live events, and make the engine's tables for what they changed (`Engine.prepare`), so a
+        control taken while waiting costs its frame no retune, which would otherwise set every
+        frame's lead (the recent p99 of the work is a style change's retune). Only where the
+        frame will take the same controls (no beat lock deciding speeds, no morph moving them) and
+        where there is time left before waking; otherwise the frame retunes as it did."""
+        nonlocal prepared_revision
+        take_live(upcoming)
+        if state.revision == prepared_revision or beat_lock is not None or state.morph is not None:
+            return
+        if wake - clock.now() < IDLE_UNTIL + max(prepare_seconds, default=expected):  # CPU time: what it needs
+            return
+        started, revision = time.thread_time(), state.revision
+        if engine.prepare(upcoming, state.snapshot(), state.spread):
+            prepared_revision = revision
+            prepare_seconds.append(time.thread_time() - started)
+
     def take_live(now: float) -> None:
         """Apply what devices sent, for at most INPUT_BUDGET seconds but at least one event (so a
         machine too busy for the budget still moves on); the rest waits its turn (stamped with the
@@ -242,8 +264,9 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             # if taken at its start), so a flood of them is handled while waiting, not at the frame
             expected = max(np.percentile(work_times, 99), work_times[-1]) if work_times else 0.5 / fps
             upcoming = (index + 1) / fps
-            clock.advance(lead=min(LEAD_SPREAD * expected + LEAD_MARGIN, MAX_LEAD_FRAMES / fps),
-                          idle=(lambda: take_live(upcoming)) if live_sources else None)
+            lead = min(LEAD_SPREAD * expected + LEAD_MARGIN, MAX_LEAD_FRAMES / fps)
+            clock.advance(lead=lead,
+                          idle=(lambda: between_frames(upcoming, clock.deadline() - lead, expected)) if live_sources else None)
     except KeyboardInterrupt:  # a caller that kept Python's own SIGINT handler
         pass
     finally:

@@ -439,13 +439,29 @@ class Engine:
         At the model's own rate this is exactly the newest frame (no added latency); between
         model frames it interpolates the two around `time_s`."""
         position = time_s * self.model.fps
-        newest = int(np.ceil(position - 1e-9))
+        newest = self._newest(time_s)
         while self.made <= newest:
             self.frames = (self.frames + [self.next_features(controls, spread)])[-2:]
         fraction = position - (newest - 1)
         if fraction >= 1.0 - 1e-9 or len(self.frames) == 1:
             return self.frames[-1]
         return self.frames[0] + (self.frames[1] - self.frames[0]) * fraction
+
+    def _newest(self, time_s: float) -> int:
+        """The model frame the pose at performance time `time_s` needs last."""
+        return int(np.ceil(time_s * self.model.fps - 1e-9))
+
+    def prepare(self, time_s: float, controls: Controls, spread: float = 0.0) -> bool:
+        """The tables for `controls` made ahead of the frame at `time_s`, if that frame makes a model
+        frame (the one that would retune): its own retune then finds them made, when the controls
+        are still these. The live loop calls it while it waits for the frame, so a control taken
+        then costs the frame no retune. The tables are made only where the frame would make them
+        itself (between model frames the poses read nothing a retune changes), so the frames are
+        the same. False when the frame makes no model frame (nothing was made)."""
+        if self.made > self._newest(time_s):
+            return False
+        self.retune(controls, spread)
+        return True
 
     def frame(self, time_s: float, controls: Controls, spread: float = 0.0) -> CrowdPose:
         """Every character's pose at performance time `time_s` (frames are asked for in order, at `fps`)."""

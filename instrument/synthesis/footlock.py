@@ -21,6 +21,10 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 - `lock_frame`: one character's frame, in the order above (`_targets` gathers `lock_target` and
   `heel_rise` for both legs); `lock_crowd`: every character's.
 
+Nothing is allocated a character: vectors are tuples (`_sub`, `_cross`), and matrices and
+per-frame arrays are written into the caller's arrays (`lock_work`, made once a call), since
+some seventy small heap arrays a character and frame were about half the lock's time.
+
 `FootLock` holds what does not change (the legs' joints, the floor, the units); each
 character's state (how far each foot's lock is blended in, the locked points and headings, the
 body's drop, the feet's previous positions, the heels' rises) lives in `LockState` arrays, one
@@ -119,22 +123,21 @@ def _lowest_lift(world_pos, foot, ground_f):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def planted_feet(shares, world_pos, previous, feet, ground, fps, cm):  # pragma: no cover - compiled
+def planted_feet(shares, world_pos, previous, feet, ground, fps, cm, planted):  # pragma: no cover - compiled
     """A foot is planted where its state says so, or where the state allows it and the generated
-    foot is on the floor and nearly still (as the data's contact was labelled); `previous` (2, 3)
-    becomes this frame's pivots."""
-    planted = np.zeros(2, dtype=np.bool_)
+    foot is on the floor and nearly still (as the data's contact was labelled): written into
+    `planted` (2,) bool; `previous` (2, 3) becomes this frame's pivots."""
     for f in range(2):
         pivot = world_pos[feet[f, -1]]
         speed = np.hypot(pivot[0] - previous[f, 0], pivot[2] - previous[f, 2]) * fps * cm
-        previous[f] = pivot
+        for i in range(3):
+            previous[f, i] = pivot[i]
         planted[f] = shares[f] >= PLANTED
         if not planted[f] and shares[f] >= POSSIBLE:
             lift = _lowest_lift(world_pos, feet[f], ground[f]) * cm
             planted[f] = lift < CONTACT_CM and speed < CONTACT_SPEED_CM_S  # NaN speed (first frame): False
     if not planted[0] and not planted[1] and max(shares[0], shares[1]) > 0.0:  # a walk has a foot on the floor
         planted[0 if shares[0] >= shares[1] else 1] = True
-    return planted
 
 
 @njit(cache=True, error_model="numpy")
@@ -155,17 +158,17 @@ def swing_share(world_pos, leg):  # pragma: no cover - compiled
     straight one (reaching for the floor to land: lifting it there bends the knee the data
     straightens and flexes the hip)."""
     hip, knee, ankle = world_pos[leg[0]], world_pos[leg[1]], world_pos[leg[2]]
-    thigh, shin = knee - hip, ankle - knee
+    thigh, shin = _sub(knee, hip), _sub(ankle, knee)
     cos = _dot(thigh, shin) / (np.sqrt(_dot(thigh, thigh)) * np.sqrt(_dot(shin, shin)) + 1e-12)
     return min(1.0, np.arccos(min(max(cos, -1.0), 1.0)) / SWING_BENT)
 
 
 @njit(cache=True, error_model="numpy")
-def lock_target(world_pos, leg, foot, ground_f, weight, point, planted, handing_over,
-                swing_lift):  # pragma: no cover - compiled
-    """Where the ankle (leg: hip, knee, ankle) should be: the lock blended in horizontally, the
-    lowest foot joint on the floor while planted, never below it, and a little above it while
-    swinging on a bent knee. A released foot rises as generated (held down, the knee would
+def lock_target(world_pos, leg, foot, ground_f, weight, point, planted, handing_over, swing_lift,
+                target):  # pragma: no cover - compiled
+    """Where the ankle (leg: hip, knee, ankle) should be, written into `target` (3,): the lock
+    blended in horizontally, the lowest foot joint on the floor while planted, never below it,
+    and a little above it while swinging on a bent knee. A released foot rises as generated (held down, the knee would
     straighten at toe-off), but for a hand-over: while the other foot is planted with its
     lowest point not yet down (a heel landing, its toes up), the released foot's lowest joint
     comes off the floor only as its lock blends out, so one foot or the other is always on the
@@ -173,7 +176,8 @@ def lock_target(world_pos, leg, foot, ground_f, weight, point, planted, handing_
     landing foot's were down: both feet off the floor in up to 7% of the frames
     (docs/evaluate.md, "Floating the stricter way")."""
     lift = _lowest_lift(world_pos, foot, ground_f)
-    target = world_pos[leg[2]].copy()
+    for i in range(3):
+        target[i] = world_pos[leg[2], i]
     w = ease(weight)
     down = w * lift if planted or handing_over else 0.0
     if w > 0:
@@ -185,13 +189,14 @@ def lock_target(world_pos, leg, foot, ground_f, weight, point, planted, handing_
     floor = 0.0 if planted else (1.0 - w) * swing_lift * swing_share(world_pos, leg)
     if lowest_after < floor:
         target[1] += floor - lowest_after
-    return target
 
 
 @njit(cache=True, error_model="numpy")
-def heel_rise(world_pos, leg, pivot, clearance, on_floor, target, allowed, low, high):  # pragma: no cover - compiled
-    """The foot's turn (3x3, world) and its angle about its pivot (its front-most joint, the toes) when the lock asks
-    the leg (hip, knee, ankle) to reach further than `allowed` (hip to ankle): the heel rises, as
+def heel_rise(world_pos, leg, pivot, clearance, on_floor, target, allowed, low, high,
+              turn):  # pragma: no cover - compiled
+    """The foot's turn (3x3, world: written into `turn`) and its angle (returned) about its pivot
+    (its front-most joint, the toes) when the lock asks the leg (hip, knee, ankle) to reach
+    further than `allowed` (hip to ankle): the heel rises, as
     a real foot rolls onto its toes, so the knee keeps its bend instead of straightening and the
     hip is not pulled into extension. Moves `target` (the ankle's) with it. The rise asked for:
     the smallest that reaches, the one that comes nearest when none does, none when the leg
@@ -202,13 +207,14 @@ def heel_rise(world_pos, leg, pivot, clearance, on_floor, target, allowed, low, 
     so a rise no longer asked for comes down at that pace), and the foot to at most
     MAX_HEEL_RISE from flat, which wins over `low`. `clearance` (2,): the ankle's and the
     pivot's heights standing on the floor."""
-    toes = world_pos[pivot] - world_pos[leg[2]]
-    toe = target + toes  # where the pivot goes with the ankle
-    k = np.array([toes[2], 0.0, -toes[0]])  # up x (toe direction): the foot's pitch axis, lifting the heel
+    toes = _sub(world_pos[pivot], world_pos[leg[2]])
+    toe = (target[0] + toes[0], target[1] + toes[1], target[2] + toes[2])  # where the pivot goes with the ankle
+    k = (toes[2], 0.0, -toes[0])  # up x (toe direction): the foot's pitch axis, lifting the heel
     norm = np.sqrt(_dot(k, k))
     if norm < 1e-12:
-        return np.eye(3), 0.0
-    k /= norm
+        _set_identity(turn)
+        return 0.0
+    k = (k[0] / norm, k[1] / norm, k[2] / norm)
     # from flat, not from the pose made: a foot made already rising at push-off was turned past
     # the vertical, its heel in front of its toes, and back the next frame (a 35 deg flicker)
     length = np.sqrt(_dot(toes, toes))
@@ -218,12 +224,13 @@ def heel_rise(world_pos, leg, pivot, clearance, on_floor, target, allowed, low, 
     theta = min(max(_needed_rise(world_pos[leg[0]], toes, toe, k, clearance, on_floor, target, allowed), min(low, high)),
                 high)
     if theta <= 0.0:
-        return np.eye(3), 0.0
-    turn = _axis_rotation(k, np.sin(theta), 1.0 - np.cos(theta))
-    v = target - toe
+        _set_identity(turn)
+        return 0.0
+    _axis_rotation(k, np.sin(theta), 1.0 - np.cos(theta), turn)
+    v = _sub(target, toe)
     for i in range(3):
         target[i] = toe[i] + _dot(turn[i], v)
-    return turn, theta
+    return theta
 
 
 @njit(cache=True, error_model="numpy")
@@ -232,12 +239,13 @@ def _needed_rise(hip, toes, toe, k, clearance, on_floor, target, allowed):  # pr
     `allowed`, else the one in [0, MAX_HEEL_RISE] that comes nearest; 0 where none is asked."""
     toes_up = toes[1] - (clearance[1] - clearance[0])  # toes' lift above the heel's, each above its clearance
     share = min(max(1.0 - toes_up / on_floor, 0.0), 1.0)
-    reach = np.sqrt(_dot(target - hip, target - hip))
+    gap = _sub(target, hip)
+    reach = np.sqrt(_dot(gap, gap))
     if share <= 0.0 or reach <= allowed:
         return 0.0
     allowed = reach - share * (reach - allowed)
-    v = target - toe
-    u = toe - hip
+    v = _sub(target, toe)
+    u = _sub(toe, hip)
     # the squared reach after a turn t is |u|^2 + |v|^2 + 2 (a cos t + b sin t + c), with
     # a cos t + b sin t = r cos(t - phi)
     kv, uk = _dot(k, v), _dot(u, k)
@@ -274,8 +282,7 @@ def body_drop(world_pos, joints, reach, targets, planted, extension):  # pragma:
     need = 0.0
     for f in range(2):
         if planted[f]:
-            hip = world_pos[joints[f, 0]]
-            gap = targets[f] - hip
+            gap = _sub(targets[f], world_pos[joints[f, 0]])
             need = max(need, np.sqrt(_dot(gap, gap)) - max(extension[f], STRETCH * reach[f]))
     return max(need, 0.0)
 
@@ -311,40 +318,65 @@ def _dot(a, b) -> float:  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def _cross(a, b):  # pragma: no cover - compiled
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+def _sub(a, b):  # pragma: no cover - compiled
+    """a - b for 3-vectors (arrays or tuples), as a tuple: the lock's vectors live in registers,
+    not in arrays allocated on the heap a character and frame."""
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
 
 
 @njit(cache=True, error_model="numpy")
-def _axis_rotation(axis, sine: float, versine: float):  # pragma: no cover - compiled
-    """I + sin K + (1 - cos) K K (Rodrigues), K the cross-product matrix of the unit `axis`."""
-    K = np.zeros((3, 3))
-    K[0, 1], K[0, 2], K[1, 0], K[1, 2], K[2, 0], K[2, 1] = -axis[2], axis[1], axis[2], -axis[0], -axis[1], axis[0]
-    KK = np.empty((3, 3))
-    _product(K, K, KK)
-    out = np.eye(3)
+def _scaled(a, s):  # pragma: no cover - compiled
+    """a / s for a 3-vector, as a tuple."""
+    return (a[0] / s, a[1] / s, a[2] / s)
+
+
+@njit(cache=True, error_model="numpy")
+def _cross(a, b):  # pragma: no cover - compiled
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@njit(cache=True, error_model="numpy")
+def _set_identity(out):  # pragma: no cover - compiled
     for i in range(3):
         for j in range(3):
-            out[i, j] += sine * K[i, j] + versine * KK[i, j]
-    return out
+            out[i, j] = 1.0 if i == j else 0.0
 
 
 @njit(cache=True, error_model="numpy")
-def _rotation_between(a, b):  # pragma: no cover - compiled
-    """The smallest rotation taking direction a to direction b."""
-    a = a / np.sqrt(_dot(a, a))
-    b = b / np.sqrt(_dot(b, b))
+def _copy_matrix(a, out):  # pragma: no cover - compiled
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i, j]
+
+
+@njit(cache=True, error_model="numpy")
+def _axis_rotation(axis, sine: float, versine: float, out):  # pragma: no cover - compiled
+    """out = I + sin K + (1 - cos) K K (Rodrigues), K the cross-product matrix of the unit `axis`."""
+    K = ((0.0, -axis[2], axis[1]), (axis[2], 0.0, -axis[0]), (-axis[1], axis[0], 0.0))
+    for i in range(3):
+        for j in range(3):
+            KK = K[i][0] * K[0][j] + K[i][1] * K[1][j] + K[i][2] * K[2][j]
+            out[i, j] = (1.0 if i == j else 0.0) + (sine * K[i][j] + versine * KK)
+
+
+@njit(cache=True, error_model="numpy")
+def _rotation_between(a, b, out):  # pragma: no cover - compiled
+    """out = the smallest rotation taking direction a to direction b."""
+    a = _scaled(a, np.sqrt(_dot(a, a)))
+    b = _scaled(b, np.sqrt(_dot(b, b)))
     axis = _cross(a, b)
     s = np.sqrt(_dot(axis, axis))
     if s < 1e-12:
-        return np.eye(3)
-    return _axis_rotation(axis / s, s, 1.0 - _dot(a, b))
+        _set_identity(out)
+    else:
+        _axis_rotation(_scaled(axis, s), s, 1.0 - _dot(a, b), out)
 
 
 @njit(cache=True, error_model="numpy")
-def leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
-    """Two-bone IK, as world rotations of the thigh (about the hip) and the shin (about the
-    knee, applied after the thigh's) that take the ankle to `target`, or as near as the leg
+def leg_swings(hip, knee, ankle, target, toes, swing, shin, work):  # pragma: no cover - compiled
+    """Two-bone IK, as world rotations of the thigh (about the hip: written into `swing`) and the
+    shin (about the knee, applied after the thigh's: into `shin`; `work` (2, 3, 3) is scratch)
+    that take the ankle to `target`, or as near as the leg
     allows: the knee bends about its own hinge (the axis across its generated bend; for a
     straight leg, across the line to the toes) to the angle the law of cosines gives, then the
     hip swings the leg onto the target. A generated leg bent a little backwards (less than
@@ -352,10 +384,10 @@ def leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
     straight, not further back, so a leg shortened from nearly straight never folds the wrong
     way and flips back a frame later; a clearer bend is the knee's own (a swinging foot's toes
     may point anywhere)."""
-    thigh_vector, shin_vector = knee - hip, ankle - knee
+    thigh_vector, shin_vector = _sub(knee, hip), _sub(ankle, knee)
     upper = np.sqrt(_dot(thigh_vector, thigh_vector))
     lower = np.sqrt(_dot(shin_vector, shin_vector))
-    reach = target - hip
+    reach = _sub(target, hip)
     distance = min(max(np.sqrt(_dot(reach, reach)), abs(upper - lower) + 1e-6), (upper + lower) * 0.9999)
     forward = _cross(toes, thigh_vector)  # the axis a knee bends forward about (the shin back, the knee towards the toes)
     hinge = _cross(thigh_vector, shin_vector)
@@ -363,33 +395,33 @@ def leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
     if np.sqrt(_dot(hinge, hinge)) < 1e-3 * upper * lower:  # straight: the knee bends forward
         hinge, now = forward, 0.0
     elif now < NEARLY_STRAIGHT and _dot(hinge, forward) < 0.0:  # bent a little backwards: bent forward through straight
-        hinge, now = -hinge, -now
+        hinge, now = (-hinge[0], -hinge[1], -hinge[2]), -now
     length = np.sqrt(_dot(hinge, hinge))
     if length < 1e-12:
-        return np.eye(3), np.eye(3)
+        _set_identity(swing)
+        _set_identity(shin)
+        return
     cos_new = min(max((upper**2 + lower**2 - distance**2) / (2.0 * upper * lower), -1.0), 1.0)
     angle = np.pi - np.arccos(cos_new) - now
-    bend = _axis_rotation(hinge / length, np.sin(angle), 1.0 - np.cos(angle))
-    bent_shin = np.empty(3)
-    for i in range(3):
-        bent_shin[i] = thigh_vector[i] + _dot(bend[i], shin_vector)  # thigh + bend @ shin
-    swing = _rotation_between(bent_shin, reach)
-    turned, shin = np.empty((3, 3)), np.empty((3, 3))
+    bend, turned = work[0], work[1]
+    _axis_rotation(_scaled(hinge, length), np.sin(angle), 1.0 - np.cos(angle), bend)
+    bent_shin = (thigh_vector[0] + _dot(bend[0], shin_vector), thigh_vector[1] + _dot(bend[1], shin_vector),
+                 thigh_vector[2] + _dot(bend[2], shin_vector))  # thigh + bend @ shin
+    _rotation_between(bent_shin, reach, swing)
     _product(swing, bend, turned)
     for i in range(3):
         for j in range(3):
             shin[i, j] = _dot(turned[i], swing[j])  # swing @ bend @ swing.T
-    return swing, shin
 
 
 @njit(cache=True, error_model="numpy")
-def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, target):  # pragma: no cover - compiled
+def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, target, work):  # pragma: no cover - compiled
     """Leg IK in place on the local rotations: hip and knee swung, the ankle keeping its world
     rotation. The hip is the knee's parent and the knee the ankle's (limbs.py): below the hip
-    everything turns with the thigh, below the knee also with the shin."""
-    toes = world_pos[toe] - world_pos[ankle]
-    thigh, shin = leg_swings(world_pos[hip], world_pos[knee], world_pos[ankle], target, toes)
-    hip_world, knee_world, turn = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    everything turns with the thigh, below the knee also with the shin. `work` (7, 3, 3): scratch."""
+    toes = _sub(world_pos[toe], world_pos[ankle])
+    thigh, shin, hip_world, knee_world, turn = work[0], work[1], work[2], work[3], work[4]
+    leg_swings(world_pos[hip], world_pos[knee], world_pos[ankle], target, toes, thigh, shin, work[5:])
     _product(thigh, world_rot[hip], hip_world)  # thigh @ world_rot[hip]
     _product(shin, thigh, turn)
     _product(turn, world_rot[knee], knee_world)  # shin @ thigh @ world_rot[knee]
@@ -397,21 +429,33 @@ def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, t
     if parent >= 0:
         _product_t(world_rot[parent], hip_world, rotations[hip])
     else:
-        rotations[hip] = hip_world
+        _copy_matrix(hip_world, rotations[hip])
     _product_t(hip_world, knee_world, rotations[knee])
     _product_t(knee_world, world_rot[ankle], rotations[ankle])
 
 
 @njit(cache=True, error_model="numpy")
+def lock_work():  # pragma: no cover - compiled
+    """What a character's `lock_frame` writes as it goes, made once for a whole crowd's call so the
+    lock allocates nothing a character: planted (2,) bool, extension (2,), targets (2, 3), turns
+    (2, 3, 3), angles (2,) and scratch matrices (8, 3, 3)."""
+    return (np.empty(2, dtype=np.bool_), np.empty(2), np.empty((2, 3)), np.empty((2, 3, 3)), np.empty(2),
+            np.empty((8, 3, 3)))
+
+
+@njit(cache=True, error_model="numpy")
 def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               parents, joints, feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
+               parents, joints, feet, ground, reach, parent_rot, root, fps, cm, swing_lift,
+               work):  # pragma: no cover - compiled
     """One character's frame (arrays of that character; `drop` a 1-element view). Returns nothing:
     rotations, translations, the world transforms and the state are updated in place."""
-    planted = planted_feet(shares, world_pos, previous, feet, ground, fps, cm)
+    planted, extension, targets, turns, angles, matrices = work
+    planted_feet(shares, world_pos, previous, feet, ground, fps, cm, planted)
     step = 1.0 / BLEND_FRAMES
     for f in range(2):
         if planted[f] and weights[f] == 0.0:
-            points[f] = world_pos[feet[f, -1]]
+            for i in range(3):
+                points[f, i] = world_pos[feet[f, -1], i]
             headings[f] = foot_heading(world_pos, joints[f, 2], feet[f, -1])
         weights[f] = min(1.0, weights[f] + step) if planted[f] else max(0.0, weights[f] - step)
         if weights[f] > 0.0:
@@ -422,22 +466,21 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         share = ease(weights[f]) * (1.0 - (ease(weights[1 - f]) if planted[1 - f] else 0.0))
         if share > 0.0:
             lay_flat(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], ground[f, 0], ground[f, -1], share)
-    extension = np.empty(2)  # each leg's generated hip-to-ankle distance, which the lock keeps where it can
-    for f in range(2):
-        gap = world_pos[joints[f, 2]] - world_pos[joints[f, 0]]
+    for f in range(2):  # each leg's generated hip-to-ankle distance, which the lock keeps where it can
+        gap = _sub(world_pos[joints[f, 2]], world_pos[joints[f, 0]])
         extension[f] = np.sqrt(_dot(gap, gap))
     on_floor = CONTACT_CM / cm
     rise_step = HEEL_RISE_SPEED / fps
-    targets, turns, angles = _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor,
-                                      extension, rises, rise_step)
+    _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension, rises, rise_step,
+             targets, turns, angles)
     drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) / BLEND_FRAMES
     if drop[0] > 1e-9:
         translations[root] -= drop[0] * parent_rot[1]  # [0, drop, 0] @ parent_rot
         world_pos[:, 1] -= drop[0]
-        targets, turns, angles = _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor,
-                                          extension, rises, rise_step)
-    rises[:] = angles
-    turned = np.empty((3, 3))
+        _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension, rises,
+                 rise_step, targets, turns, angles)
+    rises[0], rises[1] = angles[0], angles[1]
+    turned = matrices[0]
     for f in range(2):
         ankle, pivot = joints[f, 2], feet[f, -1]
         if pivot != ankle and not _identity(turns[f]):
@@ -446,10 +489,11 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             _product(turns[f], world_rot[parents[pivot]], turned)
             _product_t(turned, world_rot[pivot], rotations[pivot])
         _product(turns[f], world_rot[ankle], turned)
-        world_rot[ankle] = turned  # the foot keeps its generated world rotation, but for the heel's rise
-        gap = targets[f] - world_pos[ankle]
-        if np.sqrt(np.sum(gap * gap)) > 1e-9:
-            solve_leg(rotations, world_rot, world_pos, parents, joints[f, 0], joints[f, 1], ankle, feet[f, -1], targets[f])
+        _copy_matrix(turned, world_rot[ankle])  # the foot keeps its generated world rotation, but for the heel's rise
+        gap = _sub(targets[f], world_pos[ankle])
+        if np.sqrt(_dot(gap, gap)) > 1e-9:
+            solve_leg(rotations, world_rot, world_pos, parents, joints[f, 0], joints[f, 1], ankle, feet[f, -1], targets[f],
+                      matrices[1:])
         elif not _identity(turns[f]):  # the ankle where it was made, the foot turned all the same
             _product_t(world_rot[joints[f, 1]], world_rot[ankle], rotations[ankle])
 
@@ -527,29 +571,27 @@ def _turned(kx, ky, kz, c, s, x, y, z):  # pragma: no cover - compiled
 
 @njit(cache=True, error_model="numpy")
 def _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension, rises,
-             rise_step):  # pragma: no cover - compiled
-    """Each ankle's target, each foot's heel-rise turn (2, 3, 3) and angle (2,): a foot whose lock
+             rise_step, targets, turns, angles):  # pragma: no cover - compiled
+    """Each ankle's target (2, 3), each foot's heel-rise turn (2, 3, 3) and angle (2,), written into
+    `targets`, `turns` and `angles`: a foot whose lock
     is blended in rises on its toes where its leg would otherwise stretch past its generated
     extension, its rise within `rise_step` of the frame before's (`rises`), coming down at that
     pace after its lock has gone."""
-    targets = np.empty((2, 3))
-    turns = np.empty((2, 3, 3))
-    angles = np.zeros(2)
     for f in range(2):
         # the other foot planted but its lowest point not yet down: this one hands over to it
         handing_over = planted[1 - f] and _sole_lift(world_pos, feet[1 - f], ground[1 - f]) >= on_floor
-        targets[f] = lock_target(world_pos, joints[f], feet[f], ground[f], weights[f], points[f], planted[f],
-                                 handing_over, swing_lift)
-        turns[f] = np.eye(3)
+        lock_target(world_pos, joints[f], feet[f], ground[f], weights[f], points[f], planted[f], handing_over, swing_lift,
+                    targets[f])
+        _set_identity(turns[f])
+        angles[f] = 0.0
         if weights[f] > 0.0 or rises[f] > 0.0:
-            clearance = np.array([ground[f, 0], ground[f, -1]])
+            clearance = (ground[f, 0], ground[f, -1])
             low = max(rises[f] - rise_step, 0.0)
             high = min(rises[f] + rise_step, MAX_HEEL_RISE) if weights[f] > 0.0 else low
-            turns[f], angles[f] = heel_rise(world_pos, joints[f], feet[f, -1], clearance, on_floor, targets[f],
-                                            extension[f], low, high)
+            angles[f] = heel_rise(world_pos, joints[f], feet[f, -1], clearance, on_floor, targets[f], extension[f], low,
+                                  high, turns[f])
         if not planted[f] and not planted[1 - f] and weights[f] > 0.0:  # (a walk's other foot is down)
             within_reach(targets[f], world_pos[joints[f, 0]], extension[f])
-    return targets, turns, angles
 
 
 @njit(cache=True, error_model="numpy")
@@ -562,7 +604,7 @@ def within_reach(target, hip, extension):  # pragma: no cover - compiled
     pointing straight down, no heel rise left to take it) the leg was stretched straight for a
     frame, the knee from 31 degrees of bend to 2 and back to 20 (19 cm/frame^2, against 12 in
     the real runs)."""
-    gap = target - hip
+    gap = _sub(target, hip)
     distance = np.sqrt(_dot(gap, gap))
     if distance > extension > 0.0:
         for i in range(3):
@@ -573,8 +615,9 @@ def within_reach(target, hip, extension):  # pragma: no cover - compiled
 def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
                parents, joints, feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
     """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
+    work = lock_work()
     for n in range(rotations.shape[0]):
         lock_frame(rotations[n], translations[n], shares[n], world_rot[n], world_pos[n], weights[n], points[n], headings[n],
                    drop[n : n + 1], previous[n], rises[n], parents, joints, feet, ground, reach, parent_rot, root, fps, cm,
-                   swing_lift)
+                   swing_lift, work)
     _compose(parents, rotations, translations, world_rot, world_pos)
