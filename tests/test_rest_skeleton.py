@@ -4,8 +4,10 @@ with a length; `--template` still writes the model's own skeleton in its templat
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
+from bvh import Bvh
 
 from instrument.models.modelfile import load_model
 from instrument.motion.bvh import read_bvh
@@ -57,3 +59,23 @@ def test_template_option_writes_the_models_own_skeleton(tmp_path):
     motion = read_bvh(path)
     assert motion.skeleton.same_layout(model.layout.skeleton)
     assert np.allclose(motion.channels[0], model.layout.template, atol=1e-5)
+
+
+def test_rest_of_a_cmu_model_has_one_name_per_joint_and_finite_offsets(tmp_path):
+    """A model trained on the public CMU takes (ASF names: lowerneck, guessed as the Neck, above
+    a joint named Neck; collars at the chest's top): its rest, read back by the `bvh` package,
+    has 31 joints with 31 names and no NaN. Before, the two collars' line of no length made
+    every offset above the hips NaN, and two joints were named Neck (and two LeftShoulder)."""
+    model, rest = tmp_path / "cmu.npz", tmp_path / "rest.bvh"
+    data = Path(__file__).parent / "data" / "cmu-131"
+    trained = subprocess.run([sys.executable, "-m", "instrument", "train", str(data), "--out", str(model), "--quiet"],
+                             capture_output=True, text=True, timeout=600)
+    assert trained.returncode == 0, trained.stderr
+    result = subprocess.run(SKELETON + ["--model", str(model), "--out", str(rest)], capture_output=True, text=True)
+    assert result.returncode == 0 and "Warning" not in result.stderr, result.stderr
+    read = Bvh(rest.read_text())
+    names = read.get_joints_names()
+    assert len(names) == 31 and len(set(names)) == 31
+    assert {"Hips", "LeftUpperLeg", "LeftUpperArm", "LeftShoulder", "Neck", "Neck_2"} <= set(names)
+    offsets = np.array([read.joint_offset(name) for name in names])
+    assert np.all(np.isfinite(offsets)) and np.abs(offsets).sum() > 0

@@ -25,6 +25,7 @@ from oscrecv import Receiver
 from instrument.control.events import ControlEvent
 from instrument.models.modelfile import load_model
 from instrument.motion.bvh import Joint, Motion, Skeleton, read_bvh, write_bvh
+from instrument.motion.features import choose_layout, extract
 from instrument.motion.kinematics import channels_from_local, forward_kinematics, local_transforms
 from instrument.output.humanoid import guess_humanoid
 from instrument.output.outputs import make_profile
@@ -274,6 +275,36 @@ def test_normalised_avatar_matches_the_bvh_with_a_model_on_another_skeleton(walk
         profile = make_profile("vmc", model, str(humanoid), vmc_root=root)
         assert profile.scale == 1.0  # metres, recognised
         assert_close(compare(profile, motion, mapping))
+
+
+CMU_ASF = sorted((Path(__file__).parent / "data" / "cmu-131").glob("*.bvh"))
+
+
+@pytest.mark.parametrize("take", CMU_ASF, ids=[t.stem for t in CMU_ASF])
+def test_a_cmu_take_with_its_asf_names_poses_the_avatar_as_the_capture(take):
+    """The public CMU takes name their joints as CMU's ASF files do: LeftHip (the thigh) under
+    LHipJoint, LeftShoulder (the upper arm) under LeftCollar, both collars and the lower neck
+    starting at the top of the chest, the lower back at the hips. Before, no upper arm or upper
+    leg was found, the chest's left-right line had no length and every torso bone was sent as
+    NaN. The VMC profile made from the take itself now sends finite values and poses the
+    avatar's limbs and head as the capture. Not compared: the torso (its lean, twist and bend
+    are measured on lines between joints the avatar spaces otherwise, CMU's lower back sitting
+    on its hips and its lower neck on its chest: 4 to 12 degrees off) and the foot's pitch (the
+    flattest stance of a take of 4 steps)."""
+    motion = read_bvh(take)
+    mapping = guess_humanoid(motion.skeleton)
+    assert {joint: mapping.get(joint) for joint in ("LeftHip", "RightHip", "LeftCollar", "LeftShoulder", "RightShoulder",
+                                                     "lowerback", "lowerneck")} == {
+        "LeftHip": "LeftUpperLeg", "RightHip": "RightUpperLeg", "LeftCollar": "LeftShoulder",
+        "LeftShoulder": "LeftUpperArm", "RightShoulder": "RightUpperArm", "lowerback": "Spine", "lowerneck": "Neck"}
+    layout = choose_layout([motion])
+    features = extract(motion, layout)[0][:, : layout.dimension]
+    forward = np.array([features[:, 1].mean(), 0.0, features[:, 2].mean()])
+    profile = VmcProfile(layout, mapping, forward, stance=features)
+    for rotation in profile.tpose.rotations.values():
+        assert np.all(np.isfinite(rotation))
+    worst = compare(profile, motion, mapping)
+    assert_close({name: w for name, w in worst.items() if not name.startswith(("spine", "torso")) and "foot pitch" not in name})
 
 
 def test_run_sends_the_path_in_the_root_and_leaves_the_fingers_out_on_request(tmp_path):

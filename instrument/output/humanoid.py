@@ -1,7 +1,8 @@
 """Which joint of a skeleton is which humanoid bone (Unity's HumanBodyBones names, used by VMC).
 
 `guess_humanoid` reads common naming conventions (the shipped model's `UpperLeg_L`, CMU's
-`LeftUpLeg`, Mixamo's `mixamorig:LeftUpLeg`, Unreal's `thigh_l` / `ball_l`, Rigify's `thigh.L`,
+`LeftUpLeg` (or, in the conversions that keep the ASF names, `LeftHip` under `LHipJoint` and
+`LeftShoulder` under `LeftCollar`), Mixamo's `mixamorig:LeftUpLeg`, Unreal's `thigh_l` / `ball_l`, Rigify's `thigh.L`,
 VRoid's `J_Bip_L_UpperLeg`, 3ds Max Biped's `Bip01 L Thigh`, ...). For anything else, a TOML file
 maps joint names to bone names:
 
@@ -39,6 +40,7 @@ LIMB_PATTERNS = [
     (r"(toe|ball)", "Toes"),
     (r"(foot|ankle)", "Foot"),
     (r"(hipjoint)", None),
+    (r"^hip\d*$", "UpperLeg"),  # a sided hip is the thigh's joint (CMU's ASF names: LeftHip)
 ]
 
 
@@ -62,11 +64,13 @@ def guess_humanoid(skeleton: Skeleton) -> dict[str, str]:
     """{joint name: human bone} for the joints whose role is clear from their names."""
     mapping: dict[str, str] = {}
     names = skeleton.names
-    for name in names:
+    for name, parent in zip(names, skeleton.parents):
         core, side = _core(name), _side(name)
         if side:
             for pattern, bone in LIMB_PATTERNS:
                 if re.search(pattern, core):
+                    if bone == "Shoulder" and parent >= 0 and mapping.get(names[parent]) == f"{side}Shoulder":
+                        bone = "UpperArm"  # a shoulder under the collar bone is the arm's joint (CMU's ASF names)
                     if bone and f"{side}{bone}" not in mapping.values():
                         mapping[name] = f"{side}{bone}"
                     break

@@ -25,6 +25,24 @@ ROTATION_CHANNELS = ("Zrotation", "Xrotation", "Yrotation")
 POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
 
 
+def joint_names(skeleton: Skeleton, bone_of: dict[int, str]) -> list[str]:
+    """Each joint's name in the rest: its humanoid bone's, else its own, renamed NAME_2, NAME_3...
+    where a bone took it (CMU's Neck, under the lower neck guessed as the Neck): a BVH whose two
+    joints share a name is read as one joint by Blender and most importers."""
+    taken = set(bone_of.values())
+    names = []
+    for j, joint in enumerate(skeleton.joints):
+        name = bone_of.get(j)
+        if name is None:
+            name, k = joint.name, 1
+            while name in taken:
+                k += 1
+                name = f"{joint.name}_{k}"
+            taken.add(name)
+        names.append(name)
+    return names
+
+
 def tpose_rest(model: Model, humanoid_file: str | None = None) -> Motion:
     """The model's skeleton re-rested in the T-pose, as a one-frame motion at the model's rate."""
     profile = make_profile("vmc", model, humanoid_file, fingers=False)
@@ -48,9 +66,10 @@ def tpose_rest(model: Model, humanoid_file: str | None = None) -> Motion:
     if 0 not in bone_of:  # a joint above the hips stands on the floor under them
         positions[0] = 0.0
     height = float(positions[profile.joints[profile.bones.index("Hips")], 1]) if "Hips" in profile.bones else 1.0
+    names = joint_names(skeleton, bone_of)
     joints = []
     for j, joint in enumerate(skeleton.joints):
-        name = bone_of.get(j, joint.name)
+        name = names[j]
         offset = positions[j] - (positions[joint.parent] if joint.parent >= 0 else 0.0)
         end = None
         if not skeleton.children(j):

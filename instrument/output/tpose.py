@@ -133,9 +133,11 @@ class TPose:
         pairs = [("LeftUpperLeg", "RightUpperLeg"), ("LeftUpperArm", "RightUpperArm"), ("LeftShoulder", "RightShoulder")]
         if bone not in ("Hips", "Spine"):
             pairs = pairs[1:] + pairs[:1]
-        for left, right in pairs:
+        for left, right in pairs:  # a line of no length (CMU's collars both start at the neck) is no line
             if left in self.by_bone and right in self.by_bone:
-                return self.template_pos[self.by_bone[left]] - self.template_pos[self.by_bone[right]]
+                line = self.template_pos[self.by_bone[left]] - self.template_pos[self.by_bone[right]]
+                if np.linalg.norm(line) > 1e-9:
+                    return line
         return None
 
     def _reference(self, joint: int, bone: str) -> np.ndarray:
