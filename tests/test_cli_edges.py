@@ -192,6 +192,10 @@ def test_a_one_frame_bvh_is_inspected_with_the_others(capsys, tmp_path):
     (["log", "import", "{walk}", "--out", "{walk}", "--force"], "{walk}: is also the input"),
     (["info", "{walk}"], "{walk}: not a model file"),
     (["synth", "--out", "{tmp}/s.bvh", "--style", "elderly.arms=1"], "no body part 'arms'"),
+    (["synth", "--out", "{tmp}/s.bvh", "--gait", "jog"], "--gait: expected stand, walk, run or a number from 0 to 2, not 'jog'"),
+    (["synth", "--out", "{tmp}/s.bvh", "--seconds", "2", "--gesture", "wave@2"], "--gesture wave@2: starts after the walk ends"),
+    (["train", "{walk}", "--out", "{tmp}/m.bvh"], "--out {tmp}/m.bvh: give a .npz file"),
+    (["learn", "--out", "{tmp}/m.json", "--midi-virtual", "x"], "--out {tmp}/m.json: give a .toml file"),
 ])
 def test_outputs_and_inputs_are_one_line(capsys, files, tmp_path, argv, message):
     fill = {"{walk}": str(files / "walk.bvh"), "{log}": str(files / "mid.jsonl"), "{tmp}": str(tmp_path)}
@@ -210,6 +214,33 @@ def test_outputs_and_inputs_are_one_line(capsys, files, tmp_path, argv, message)
     assert status == 1 and filled(message) in one_line(err), err
     assert {p.name: p.stat().st_mtime_ns for p in files.iterdir()} == before  # inputs untouched
     assert not list(tmp_path.iterdir())
+
+
+def test_a_take_named_twice_is_one_line_and_a_manifest_gives_its_folders_styles(capsys, files, tmp_path):
+    """The same take twice (a folder and a file in it, or a manifest giving it two styles) would
+    weigh double or teach two styles the same steps: refused, naming it. A folder given with a
+    manifest naming its takes reads their styles from the manifest (before, from their names,
+    which here hold none)."""
+    takes = tmp_path / "takes"
+    takes.mkdir()
+    (takes / "a.bvh").write_text((files / "walk.bvh").read_text())
+    twice = tmp_path / "twice.csv"
+    twice.write_text("file,style\ntakes/a.bvh,proud\ntakes/a.bvh,calm\n")
+    status, err = cli(capsys, "train", "--manifest", twice, "--out", tmp_path / "m.npz")
+    assert status == 1 and f"{takes / 'a.bvh'}: named twice (as proud walk and as calm walk)" in one_line(err)
+    status, err = cli(capsys, "train", takes, takes / "a.bvh", "--style-from", "(a)", "--out", tmp_path / "m.npz")
+    assert status == 1 and "a.bvh: named twice" in one_line(err)
+    manifest = tmp_path / "styles.csv"
+    manifest.write_text("file,style\ntakes/a.bvh,proud\n")
+    status, err = cli(capsys, "train", takes, "--manifest", manifest, "--out", tmp_path / "m.npz", "--quiet")
+    assert status == 0, err
+    assert json.loads(main_output(capsys, "info", tmp_path / "m.npz", "--json"))["styles"] == ["proud"]
+
+
+def main_output(capsys, *argv) -> str:
+    capsys.readouterr()
+    assert main([str(a) for a in argv]) == 0
+    return capsys.readouterr().out
 
 
 def test_force_overwrites_through_a_part_file(capsys, tmp_path):

@@ -103,19 +103,23 @@ def exported(tmp_path_factory) -> dict:
     """A synthesized walk (as BVH, as .glb straight from synth, and converted) and a recording of
     `instrument run` converted."""
     folder = tmp_path_factory.mktemp("gltf")
-    paths = {name: folder / name for name in ("walk.bvh", "walk.glb", "converted.glb", "rec.bvh", "rec.glb")}
+    paths = {name: folder / name for name in ("walk.bvh", "walk.glb", "converted.glb", "rec.bvh", "rec.glb", "rest.bvh",
+                                              "rest.glb")}
     for out in ("walk.bvh", "walk.glb"):
         result = instrument("synth", "--seconds", str(SECONDS), "--out", str(paths[out]))
         assert result.returncode == 0, result.stderr
     result = instrument("run", "--seconds", str(SECONDS), "--no-osc", "--quiet", "--bvh", str(paths["rec.bvh"]))
     assert result.returncode == 0, result.stderr
+    for out in ("rest.bvh", "rest.glb"):
+        result = instrument("skeleton", "--out", str(paths[out]))
+        assert result.returncode == 0, result.stderr
     for source, out in (("walk.bvh", "converted.glb"), ("rec.bvh", "rec.glb")):
         result = instrument("convert", str(paths[source]), "--out", str(paths[out]))
         assert result.returncode == 0, result.stderr
     return paths
 
 
-@pytest.mark.parametrize("name", ["walk.glb", "converted.glb", "rec.glb"])
+@pytest.mark.parametrize("name", ["walk.glb", "converted.glb", "rec.glb", "rest.glb"])
 def test_the_khronos_validator_finds_no_error(exported, name):
     issues = validate(exported[name])
     assert issues["numErrors"] == 0, issues["messages"]
@@ -138,6 +142,14 @@ def test_a_converted_file_carries_the_motion(exported, glb, bvh):
     assert_same_motion(exported[glb], motion)
 
 
+def test_skeleton_writes_the_same_rest_as_glb(exported):
+    """skeleton --out rest.glb: the rest of skeleton --out rest.bvh (before, any name was written
+    as BVH text, rest.glb included)."""
+    rest = read_bvh(exported["rest.bvh"])
+    assert rest.frames == 1 and "LeftUpperArm" in rest.skeleton.names
+    assert_same_motion(exported["rest.glb"], rest)
+
+
 def test_synth_writes_the_same_walk_as_glb(exported):
     """synth --out walk.glb and synth --out walk.bvh (the same seed) are the same walk."""
     assert_same_motion(exported["walk.glb"], read_bvh(exported["walk.bvh"]))
@@ -145,7 +157,8 @@ def test_synth_writes_the_same_walk_as_glb(exported):
 
 def test_unknown_extensions_are_refused_in_one_line(exported, tmp_path):
     for command in (["synth", "--seconds", "1", "--out", str(tmp_path / "walk.fbx")],
-                    ["convert", str(exported["rec.bvh"]), "--out", str(tmp_path / "rec.gltf")]):
+                    ["convert", str(exported["rec.bvh"]), "--out", str(tmp_path / "rec.gltf")],
+                    ["skeleton", "--out", str(tmp_path / "rest.txt")]):
         result = instrument(*command)
         assert result.returncode == 1
         lines = result.stderr.strip().splitlines()
@@ -158,6 +171,22 @@ def test_convert_will_not_overwrite_without_force(exported):
     result = instrument("convert", str(exported["walk.bvh"]), "--out", str(exported["rec.glb"]))
     assert result.returncode == 1 and "--force" in result.stderr
     assert exported["rec.glb"].read_bytes() == before
+
+
+def test_a_value_past_float32_is_one_line_not_a_broken_file(exported, tmp_path):
+    """A BVH may hold a position float64 takes and float32 cannot (1e300): the .glb held
+    Infinity, which the validator refuses, and numpy warned on stderr; now one line, no file."""
+    lines = exported["walk.bvh"].read_text().splitlines()
+    first = lines.index(next(line for line in lines if line.startswith("Frame Time"))) + 1
+    values = lines[first + 5].split()
+    values[0] = "1e300"
+    lines[first + 5] = " ".join(values)
+    (tmp_path / "huge.bvh").write_text("\n".join(lines) + "\n")
+    result = instrument("convert", str(tmp_path / "huge.bvh"), "--out", str(tmp_path / "huge.glb"))
+    assert result.returncode == 1
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "huge.glb: a value is too large for glTF's 32-bit floats" in lines[0], result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["huge.bvh"]
 
 
 def test_a_motion_without_frames_is_refused():

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 from ..control.devices import MidiInput
 from ..control.hid import HidInput, detect_hid
@@ -57,6 +58,8 @@ def capture(device: MidiInput | HidInput, timeout: float) -> list[tuple[str, flo
 
 def run(args: argparse.Namespace) -> int:
     out = check_output(args.out, args.force)
+    if out.suffix.lower() != ".toml":
+        raise UserError(f"--out {out}: give a .toml file (a mapping)")
     if not (args.midi or args.midi_virtual or args.hid):
         raise UserError("give --midi PATTERN (a port to listen to), --midi-virtual NAME or --hid VVVV:PPPP")
     hid_ids = parse_hid_id(args.hid) if args.hid else None

@@ -81,6 +81,16 @@ def parse_gestures(items: list[str], model) -> list[tuple[str, float]]:
     return out
 
 
+def _gait_number(text: str) -> object:
+    """--gait as its number: a name (stand, walk, run) or a number, checked by the option table."""
+    number = TABLE["gait"].number(text)
+    try:
+        float(number)
+    except (TypeError, ValueError):
+        raise UserError(f"--gait: expected {', '.join(TABLE['gait'].choices)} or a number from 0 to 2, not {text!r}") from None
+    return number
+
+
 def run(args: argparse.Namespace) -> int:
     # the synthesizer's code (numpy, scipy, numba): loaded when run, not for --help
     from ..models.modelfile import load_model
@@ -93,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
     model = load_model(args.model or default_model_path())
     weights, part_weights = parse_weights(args.style, model.style_names)
     speed = value("synth --speed", args.speed)
-    gait = gait_index(value("synth --gait", TABLE["gait"].number(args.gait)))
+    gait = gait_index(value("synth --gait", _gait_number(args.gait)))
     turn = value("synth --turn", args.turn)
     seconds = value("synth --seconds", args.seconds)
     lookahead = value("synth --lookahead", args.lookahead)
@@ -101,6 +111,9 @@ def run(args: argparse.Namespace) -> int:
     seed = value("synth --seed", args.seed)
     frames = max(1, int(round(seconds * model.fps)))
     gestures = parse_gestures(args.gesture, model)
+    for (name, start), item in zip(gestures, args.gesture):
+        if start >= frames / model.fps:
+            raise UserError(f"--gesture {item}: starts after the walk ends ({seconds:g} s; give a longer --seconds)")
     controls = default_controls(model, weights, part_weights=part_weights, speed=speed, liveliness=liveliness, gait=gait,
                                 turn=turn)
     # the engine as `run` plays it, without a clock: the feet planted, from the origin, heading 0

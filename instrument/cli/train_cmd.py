@@ -38,7 +38,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _pairs(args: argparse.Namespace) -> list:
-    from ..training.corpus import DEFAULT_STYLE_PATTERN, read_manifest, styled_takes
+    from ..training.corpus import DEFAULT_STYLE_PATTERN, bvh_files, read_manifest, styled_takes
 
     style_from = args.style_from or DEFAULT_STYLE_PATTERN
     pairs: list = []
@@ -58,9 +58,16 @@ def _pairs(args: argparse.Namespace) -> list:
                 raise UserError(f"--unit-from: not a regular expression: {e}") from None
             if groups != 1:
                 raise UserError(f"--unit-from: the expression needs exactly one group, it has {groups}")
-        pairs += styled_takes(args.data, style_from, args.unit_from)
+        listed = {p.path.resolve() for p in pairs}  # a take the manifest names takes its style from there
+        pairs += styled_takes([f for f in bvh_files(args.data) if f.resolve() not in listed], style_from, args.unit_from)
     if not pairs:
         raise UserError("no training data: give BVH files or folders, or --manifest")
+    first: dict = {}
+    for take in pairs:  # twice, a take would weigh double (or teach two styles the same steps)
+        seen = first.setdefault(take.path.resolve(), take)
+        if seen is not take:
+            raise UserError(f"{take.path}: named twice (as {seen.style} {seen.unit} and as {take.style} {take.unit}); "
+                            "give each take once")
     return pairs
 
 
@@ -70,6 +77,8 @@ def run(args: argparse.Namespace) -> int:
     from ..models.modelfile import save_model
 
     check_output(args.out, args.force)
+    if Path(args.out).suffix.lower() != ".npz":  # a model is read back by its content, but named as one
+        raise UserError(f"--out {args.out}: give a .npz file (a model)")
     pairs = _pairs(args)
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
     styles = sorted({p.style for p in pairs})

@@ -31,6 +31,9 @@ def write_motion(path: str | Path, motion: Motion) -> None:
         return
     from .gltf import glb_bytes
 
-    data = glb_bytes(motion)
+    try:
+        data = glb_bytes(motion)
+    except UserError as e:
+        raise UserError(f"{path}: {e}") from None
     with written(path) as part:
         part.write_bytes(data)

@@ -30,6 +30,7 @@ from ..motion.rotations import continuous_quaternions, matrix_to_quat
 from ..motion.limbs import units_to_metres
 
 FLOAT = 5126  # componentType of float32 accessors
+FLOAT_MAX = float(np.finfo(np.float32).max)
 GLB_MAGIC, GLB_VERSION = b"glTF", 2
 JSON_CHUNK, BIN_CHUNK = b"JSON", b"BIN\0"
 
@@ -55,6 +56,9 @@ class _Buffer:
     def add(self, values: np.ndarray, kind: str, bounds: bool = False) -> int:
         """Append a float32 array (count, components...) as one accessor of `kind` (SCALAR, VEC3,
         VEC4, MAT4); `bounds` adds the min and max glTF requires of animation inputs."""
+        largest = float(np.abs(values).max(initial=0.0))
+        if not largest <= FLOAT_MAX:  # the validator refuses Infinity: one line, not a broken file
+            raise UserError(f"a value is too large for glTF's 32-bit floats ({largest:.3g}; at most {FLOAT_MAX:.2g})")
         values = np.ascontiguousarray(values, dtype="<f4")
         self.views.append({"buffer": 0, "byteOffset": len(self.data), "byteLength": values.nbytes})
         self.data += values.tobytes()
