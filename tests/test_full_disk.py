@@ -12,6 +12,7 @@ import errno
 import os
 import re
 import resource
+import shutil
 import signal
 import subprocess
 import sys
@@ -326,3 +327,37 @@ def test_writing_to_a_full_device_raises_instead_of_losing_bytes():
         os.close(fd)
 
 
+
+
+@pytest.mark.parametrize("command, out", [
+    (["synth", "--seconds", "1", "--out"], "walk.bvh"),
+    (["synth", "--seconds", "1", "--out"], "walk.glb"),
+    (["skeleton", "--out"], "rest.bvh"),
+    (["train", str(Path(__file__).resolve().parents[1] / "examples" / "data"), "--quiet", "--out"], "model.npz"),
+])
+def test_an_output_cut_short_by_the_file_size_limit_is_one_line_and_leaves_no_part(tmp_path, command, out):
+    """The rule of every output (docs/cli.md): the .part is removed on failure. BVH and model
+    files left their .part behind (only glTF went through the shared writer)."""
+    warm = tmp_path / "warm"  # the same command once without the limit: numba's cache holds its kernels
+    warm.mkdir()
+    assert subprocess.run(INSTRUMENT + command + [str(warm / out)], capture_output=True, timeout=600).returncode == 0
+    shutil.rmtree(warm)
+    (tmp_path / out).write_bytes(b"precious")
+    result = subprocess.run(INSTRUMENT + command + [str(tmp_path / out), "--force"], capture_output=True, text=True,
+                            timeout=600, preexec_fn=limited(2000))
+    assert result.returncode == 1 and len(result.stderr.strip().splitlines()) == 1, result.stderr
+    assert f"{out}: cannot write: File too large" in result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == [out] and (tmp_path / out).read_bytes() == b"precious"
+
+
+def test_a_first_run_that_cannot_cache_its_kernels_is_one_line(tmp_path):
+    """numba saves a first run's compiled kernels to its cache; a full disk or a file size limit
+    there was a traceback from inside numba. Now one line naming the cache."""
+    cache = tmp_path / "cache"
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
+    result = subprocess.run(INSTRUMENT + ["synth", "--seconds", "1", "--out", str(tmp_path / "walk.bvh")], capture_output=True,
+                            text=True, timeout=600, preexec_fn=limited(2000), env=env)
+    assert result.returncode == 1 and "Traceback" not in result.stderr, result.stderr
+    errors = [line for line in result.stderr.splitlines() if "error" in line]
+    assert errors == [f"instrument synth: error: the kernels' cache {cache}: cannot write: File too large"], result.stderr
+    assert not (tmp_path / "walk.bvh").exists()

@@ -15,6 +15,7 @@ its own: `run` turns both into a stop flag, the others see KeyboardInterrupt ("i
 from __future__ import annotations
 
 import argparse
+import errno
 import faulthandler
 import importlib
 import os
@@ -165,3 +166,21 @@ def _command(argv: list[str] | None) -> int:
         return 130
     except BrokenPipeError:  # e.g. `instrument inspect ... | head`
         return 0
+    except OSError as error:
+        where = _full_disk_writer(error)
+        if where is None:
+            raise
+        print(f"instrument {args.command}: error: {where}: cannot write: {error.strerror}", file=sys.stderr)
+        return 1
+
+
+def _full_disk_writer(error: OSError) -> str | None:
+    """What a command could not write for want of space (a full disk, a quota, a file size limit)
+    where nothing of ours caught it: numba saving a first run's compiled kernels to its cache.
+    None for any other error (a bug: its traceback is wanted)."""
+    if error.errno not in (errno.ENOSPC, errno.EFBIG, errno.EDQUOT):
+        return None
+    frames = traceback.extract_tb(error.__traceback__)
+    if any("numba" in frame.filename and "caching" in frame.filename for frame in frames):
+        return f"the kernels' cache {os.environ.get('NUMBA_CACHE_DIR', '')}".rstrip()
+    return error.filename or None

@@ -28,6 +28,7 @@ from ..motion.bvh import Skeleton
 from ..motion.features import FeatureLayout
 from ..models.units import UNITS
 from ..motion.gestures import PHASES
+from ..outputfile import written
 from ..shipped import default_model_path  # noqa: F401  (re-exported: where the default model is)
 from .hsmm import HSMM
 
@@ -90,14 +91,12 @@ def save_model(path: str | Path, model: Model) -> None:
     arrays |= {name: np.asarray(value) for name, value in model.extras.items() if name in OPTIONAL}
     metadata = dict(model.metadata, format=FORMAT, format_version=FORMAT_VERSION)
     arrays["metadata"] = np.array(json.dumps(metadata, indent=1))
-    tmp = path.with_name(path.name + ".part")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with open(tmp, "wb") as f:
-            np.savez_compressed(f, **arrays)
-        tmp.replace(path)
     except OSError as e:
         raise UserError(f"{path}: cannot write: {e.strerror or e}") from None
+    with written(path) as part, open(part, "wb") as f:  # a failed write leaves no PATH.part behind
+        np.savez_compressed(f, **arrays)
 
 
 def load_model(path: str | Path) -> Model:

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError, located, quoted
+from ..outputfile import written
 
 POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
 ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
@@ -354,11 +355,8 @@ def bvh_text(motion: Motion) -> str:
 
 
 def write_bvh(path: str | Path, motion: Motion) -> None:
-    """Write atomically: a crash mid-write never leaves a half file in place of a good one."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".part")
-    try:
-        tmp.write_text(bvh_text(motion), encoding="utf-8")
-        tmp.replace(path)
-    except OSError as e:
-        raise UserError(f"{path}: cannot write: {e.strerror or e}") from None
+    """Write atomically: a crash mid-write never leaves a half file in place of a good one, and a
+    failed write (a full disk) leaves no PATH.part behind."""
+    text = bvh_text(motion)
+    with written(path) as part:
+        part.write_text(text, encoding="utf-8")
