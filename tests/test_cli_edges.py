@@ -270,6 +270,9 @@ def test_a_failed_start_creates_no_recording(capsys, tmp_path):
     assert not list(tmp_path.iterdir())  # the corrected command can run
     status, err = cli(capsys, "run", "--record", log, "--bvh", log, "--no-osc", "--seconds", "1")
     assert status == 1 and "both name" in one_line(err)
+    status, err = cli(capsys, "run", "--bvh", tmp_path / "take.glb", "--no-osc", "--seconds", "1")  # it held BVH text
+    assert status == 1 and f"{tmp_path / 'take.glb'}: a recording is BVH: give a .bvh name" in one_line(err)
+    assert not list(tmp_path.iterdir())
 
 
 def test_recover_leaves_a_healthy_recording_alone(capsys, tmp_path):

@@ -290,9 +290,11 @@ def choose_mappings(args: argparse.Namespace, state: ControlState, console: Cons
 
 
 def check_recordings(args: argparse.Namespace) -> None:
-    """--bvh and --record may be written (the output rule), and are two different files."""
+    """--bvh and --record may be written (the output rule), are two different files, and --bvh is named .bvh."""
     if args.bvh and args.record and Path(args.bvh).resolve() == Path(args.record).resolve():
         raise UserError(f"--bvh and --record both name {args.bvh}: give two files")
+    if args.bvh and Path(args.bvh).suffix.lower() != ".bvh":  # x.glb held BVH text
+        raise UserError(f"{args.bvh}: a recording is BVH: give a .bvh name (`instrument convert` makes a .glb of it)")
     for path in (args.bvh, args.record):
         if path:
             check_output(path, args.force, inputs=(args.replay,))
