@@ -92,7 +92,8 @@ BROKEN = {
     "CHANNELS count": (SIMPLE.replace("CHANNELS 3 Zrotation", "CHANNELS 4 Zrotation"), "CHANNELS says 4 channels but lists 3"),
     "unknown channel": (SIMPLE.replace("Xrotation Yrotation\n\t\tEnd", "Xrotation Wrotation\n\t\tEnd"), "unknown channel 'Wrotation'"),
     "bad offset": (SIMPLE.replace("OFFSET 0 -10 0\n\t\tCHANNELS", "OFFSET 0 x 0\n\t\tCHANNELS"), "OFFSET has a value that is not a number"),
-    "empty file": ("", "unexpected end of file"),
+    "empty file": ("", "bad.bvh: the file is empty"),  # not "bad.bvh:0: unexpected end of file"
+    "blank file": ("\n  \n\t\n", "bad.bvh: the file is empty"),
 }
 LINES = {"missing MOTION": 15, "truncated frames": 20, "channel count": 20, "not a number": 20, "CHANNELS count": 9, "unknown channel": 9, "bad offset": 8}
 

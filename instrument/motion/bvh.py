@@ -158,6 +158,8 @@ def _floats(lines: _Lines, tokens: list[str], count: int, what: str) -> tuple[fl
 
 
 def _parse_hierarchy(lines: _Lines) -> Skeleton:
+    if not any(line.strip() for line in lines.lines):  # (not "FILE:0: unexpected end of file")
+        raise lines.error("the file is empty: a BVH file starts with HIERARCHY")
     tokens = lines.next_tokens()
     if tokens[0].upper() != "HIERARCHY":
         raise lines.error("a BVH file starts with HIERARCHY")
