@@ -176,6 +176,9 @@ def test_a_one_frame_bvh_is_inspected_with_the_others(capsys, tmp_path):
     assert status == 0
     assert [len(d["steps"]) > 0 for d in document] == [False, True]
     assert "too short to hold a step" in document[0]["warnings"][0]
+    assert document[0]["feet"] == [] and len(document[1]["feet"]) == 2  # none found: not ["", ""]
+    assert main(["inspect", str(tmp_path / "rest.bvh")]) == 0
+    assert "feet not found" in capsys.readouterr().out  # not "feet  / "
 
 
 @pytest.mark.parametrize("argv,message", [

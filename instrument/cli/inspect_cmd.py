@@ -37,7 +37,7 @@ def describe(path: Path) -> dict:
         "duration": motion.duration,
         "joints": [{"name": j.name, "channels": list(j.channels)} for j in skeleton.joints],
         "channels": skeleton.channel_count,
-        "feet": list(segmentation.feet),
+        "feet": [foot for foot in segmentation.feet if foot],  # none found: [], not ["", ""]
         "steps": [{"label": s.label, "start": s.start, "frames": s.frames} for s in steps],
         "warnings": warnings,
     }
@@ -52,7 +52,7 @@ def _text(info: dict) -> str:
         f"  joints   {len(info['joints'])} ({', '.join(j['name'] for j in info['joints'])})",
         f"  channels {info['channels']} (rotation orders {', '.join(rotation_orders)})",
         f"  frames   {info['frames']} at {info['fps']:g} fps, {info['duration']:.2f} s",
-        f"  steps    {len(steps)}, mean {mean:.1f} frames ({mean / info['fps']:.2f} s); feet {' / '.join(info['feet'])}",
+        f"  steps    {len(steps)}, mean {mean:.1f} frames ({mean / info['fps']:.2f} s); feet {' / '.join(info['feet']) or 'not found'}",
     ]
     lines += [f"  warning: {w}" for w in info["warnings"]]
     return "\n".join(lines)
