@@ -40,7 +40,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "synth": ("synth_cmd", "synthesize a walk with given style weights and write it as BVH"),
     "evaluate": ("evaluate_cmd", "measure a model's walks (skate, floor, ranges, drift, recognisability) against real takes"),
     "bench": ("bench_cmd", "measure parsing and synthesis speed on this machine"),
-    "skeleton": ("skeleton_cmd", "write the model's skeleton as a one-frame BVH: a T-pose rest to rig, or the template"),
+    "skeleton": ("skeleton_cmd", "write the model's skeleton as a one-frame BVH (or .glb): a T-pose rest to rig, or the template"),
     "render": ("render_cmd", "draw a BVH recording: contact sheet (.png) or animation (.gif)"),
     "convert": ("convert_cmd", "convert a BVH recording to binary glTF (.glb) or BVH, by the --out extension"),
     "recover": ("recover_cmd", "repair the frame count of a BVH recording left by a killed run"),
