@@ -33,7 +33,7 @@ from instrument.errors import UserError, run_script
 from instrument.motion.bvh import Joint, Motion, Skeleton, read_bvh, write_bvh
 from instrument.motion.features import resample
 from instrument.motion.kinematics import channels_from_local, forward_kinematics, local_transforms
-from instrument.motion.rotations import expmap_to_matrix
+from instrument.motion.rotations import expmap_to_matrix, matrix_to_expmap
 from instrument.training.corpus import styled_takes
 
 SIDES = {"_L": "Left", "_R": "Right"}
@@ -58,6 +58,72 @@ def cmu_name(name: str) -> str:
     return {"Chest": "Spine1", "Neck": "Neck1"}.get(name, name)
 
 
+def asf_name(name: str) -> str:
+    """The Bandai walks' joint as CMU's ASF skeletons name it (Hips -> hip, UpperArm_L -> lhumerus)."""
+    parts = {"UpperLeg": "femur", "LowerLeg": "tibia", "Foot": "foot", "Toes": "toes", "Shoulder": "clavicle",
+             "UpperArm": "humerus", "LowerArm": "radius", "Hand": "wrist"}
+    if name[-2:] in SIDES:
+        return name[-1].lower() + parts[name[:-2]]
+    return {"Hips": "hip", "Spine": "lowerback", "Chest": "thorax", "Neck": "lowerneck", "Head": "head"}.get(name, name)
+
+
+def blender_name(name: str) -> str:
+    """The Bandai walks' joint as Blender's Rigify names it (UpperLeg_L -> thigh.L, Hand_R -> hand.R)."""
+    parts = {"UpperLeg": "thigh", "LowerLeg": "shin", "Foot": "foot", "Toes": "toe", "Shoulder": "shoulder",
+             "UpperArm": "upper_arm", "LowerArm": "forearm", "Hand": "hand"}
+    if name[-2:] in SIDES:
+        return f"{parts[name[:-2]]}.{name[-1]}"
+    return name.lower()
+
+
+def suit_name(name: str) -> str:
+    """The Bandai walks' joint as a 23-joint inertial suit's BVH names it (Hips, Chest to Chest4, Neck,
+    Head, and per side Collar, Shoulder, Elbow, Wrist, Hip, Knee, Ankle, Toe); the walks' Chest is
+    split in three (`split_joint`: Chest, Chest.1, Chest.2)."""
+    parts = {"UpperLeg": "Hip", "LowerLeg": "Knee", "Foot": "Ankle", "Toes": "Toe", "Shoulder": "Collar",
+             "UpperArm": "Shoulder", "LowerArm": "Elbow", "Hand": "Wrist"}
+    if name[-2:] in SIDES:
+        return SIDES[name[-2:]] + parts[name[:-2]]
+    return {"Spine": "Chest", "Chest": "Chest2", "Chest.1": "Chest3", "Chest.2": "Chest4"}.get(name, name)
+
+
+RENAMES = {"mixamo": mixamo_name, "cmu": cmu_name, "asf": asf_name, "blender": blender_name, "suit": suit_name}
+
+
+def split_joint(motion: Motion, name: str, pieces: int) -> Motion:
+    """`name`'s bone (to its first child) cut into `pieces` joints named name.1, name.2, ..., its
+    rotation shared among them (each turns by 1/pieces of it, so the last turns as `name` did)
+    and its other children hung from the last: a spine of more joints that bends along its length.
+    The joints beyond move by less than a centimetre against the take's."""
+    skeleton = motion.skeleton
+    rotations, translations = local_transforms(motion)
+    j = skeleton.index(name)
+    children = skeleton.children(j)
+    step = np.asarray(skeleton.joints[children[0]].offset) / pieces
+    piece = expmap_to_matrix(matrix_to_expmap(rotations[:, j]) / pieces)
+    order = list(range(j + 1)) + [-k for k in range(1, pieces)] + list(range(j + 1, len(skeleton.joints)))
+    position = {old: new for new, old in enumerate(order)}
+    joints, rot, trans = [], [], []
+    for new, old in enumerate(order):
+        if old < 0:  # an inserted piece
+            source = skeleton.joints[j]
+            joints.append(Joint(f"{name}.{-old}", new - 1, tuple(step), tuple(c for c in source.channels if c.endswith("rotation"))))
+            rot.append(piece)
+            trans.append(np.broadcast_to(step, (motion.frames, 3)))
+            continue
+        joint = skeleton.joints[old]
+        parent = position[joint.parent] if joint.parent >= 0 else -1
+        offset, moved = np.asarray(joint.offset), translations[:, old]
+        if joint.parent == j:  # hangs from the last piece, where `name`'s bone now ends
+            parent = position[j] + pieces - 1
+            offset, moved = offset - (pieces - 1) * step, moved - (pieces - 1) * step
+        joints.append(Joint(joint.name, parent, tuple(float(v) for v in offset), joint.channels, joint.end_site))
+        rot.append(piece if old == j else rotations[:, old])
+        trans.append(moved)
+    skeleton = Skeleton(tuple(joints))
+    return Motion(skeleton, channels_from_local(skeleton, np.stack(rot, 1), np.stack(trans, 1)), motion.fps, motion.source)
+
+
 # CMU's joints the walks lack: (name, the renamed joint it is inserted above, at zero offset, unrotated)
 CMU_ABOVE = (("LHipJoint", "LeftUpLeg"), ("RHipJoint", "RightUpLeg"), ("LowerBack", "Spine"), ("Neck", "Neck1"))
 # and below each hand: (name, parent, offset as a share of a quarter of the forearm, along it)
@@ -75,9 +141,17 @@ class Rig:
     rename: str = ""  # "", "mixamo" or "cmu" (CMU's 31 joints)
     rest_turn_deg: float = 0.0  # each joint's rest orientation turned by up to this much (a fixed seed)
     keep_root: bool = True  # keep a static floor joint above the hips (else re-root at the hips)
+    up: str = "Y"  # "Z": the world turned so that Z is up (as Blender's and 3ds Max's scenes are)
+    positions: bool = False  # position channels on every joint (a joint's offset then moves nothing)
+    drop: tuple[str, ...] = ()  # the take's joints left out (leaves: the toes; the foot then ends the leg)
+    split: tuple[str, int] | None = None  # a joint whose bone is cut into this many (`split_joint`)
+    rest_pose: bool = False  # every joint's rest orientation that of the first take's first frame (world axes)
+    frames: int = 0  # keep only this many frames of each take (0: all)
+    lift: float = 0.0  # the whole take raised by this much (the take's units; negative: the floor below the origin)
 
 
 SETS = {
+    "suit23-60": Rig(60.0, 1.0, "ZXY", "suit", keep_root=False, split=("Chest", 3), rest_pose=True),
     "mixamo-60": Rig(60.0, 1.0, "ZXY", "mixamo", keep_root=False),
     "cmu31-120": Rig(120.0, 0.01, "ZYX", "cmu", keep_root=False),
     "bandai-24-m": Rig(24.0, 0.01, "ZXY"),
@@ -85,19 +159,39 @@ SETS = {
 }
 
 
-def rerig(motion: Motion, rig: Rig) -> Motion:
+Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # Y up -> Z up (+90 degrees about X)
+
+
+def rest_turns(motion: Motion, rig: Rig) -> np.ndarray:
+    """For `rig.rest_pose`: each source joint's world rotation in the take's first frame, inverted:
+    the set's joints then rest in that pose, their rotations all zero there."""
+    if rig.split:
+        motion = split_joint(motion, *rig.split)
+    world_rot, _ = forward_kinematics(motion.skeleton, *local_transforms(motion))
+    return np.swapaxes((Z_UP if rig.up == "Z" else np.eye(3)) @ world_rot[0], -1, -2)
+
+
+def rerig(motion: Motion, rig: Rig, rest: np.ndarray | None = None) -> Motion:
     """The same body motion on another rig (see the module's text): world positions of every
-    kept joint are those of the take, times `rig.scale`."""
+    kept joint are those of the take, times `rig.scale` (turned to Z up for `rig.up`). `rest`
+    (`rest_turns` of the set's first take) sets every joint's rest orientation for `rig.rest_pose`."""
+    if rig.split:
+        motion = split_joint(motion, *rig.split)
+    if rig.frames:
+        motion = Motion(motion.skeleton, motion.channels[:rig.frames], motion.fps, motion.source)
     source = motion.skeleton
     rotations, translations = local_transforms(motion)
     world_rot, world_pos = forward_kinematics(source, rotations, translations)
+    world_pos = world_pos + np.array([0.0, rig.lift, 0.0])
+    if rig.up == "Z":
+        world_rot, world_pos = Z_UP @ world_rot, world_pos @ Z_UP.T
     names = [j.name for j in source.joints]
-    rename = {"mixamo": mixamo_name, "cmu": cmu_name}.get(rig.rename, lambda n: n)
+    rename = RENAMES.get(rig.rename, lambda n: n)
     first = 0 if rig.keep_root else names.index("Hips")
     # the new tree: (name, source joint or -1, parent name or None, offset share of the hand's end site)
     rows: list[tuple[str, int, str | None, float]] = []
     for j, joint in enumerate(source.joints):
-        if j < first:
+        if j < first or joint.name in rig.drop:
             continue
         parent = None if j == first else rename(names[joint.parent])
         rows.append((rename(joint.name), j, parent, 0.0))
@@ -114,6 +208,8 @@ def rerig(motion: Motion, rig: Rig) -> Motion:
     turns = np.random.default_rng(30).normal(size=(count, 3))
     turns *= math.radians(rig.rest_turn_deg) / np.maximum(np.linalg.norm(turns, axis=1, keepdims=True), 1e-9)
     turn = expmap_to_matrix(turns) if rig.rest_turn_deg else np.broadcast_to(np.eye(3), (count, 3, 3))
+    if rig.rest_pose:
+        turn = np.stack([rest[r[1]] if r[1] >= 0 else np.eye(3) for r in rows]) if rest is not None else world_rot[0, [r[1] for r in rows]].swapaxes(-1, -2)
     w_rot = np.empty((frames, count, 3, 3))
     w_pos = np.empty((frames, count, 3))
     end_sites: list[tuple | None] = []
@@ -122,6 +218,9 @@ def rerig(motion: Motion, rig: Rig) -> Motion:
             w_rot[:, k] = world_rot[:, j] @ turn[k]
             w_pos[:, k] = world_pos[:, j] * rig.scale
             end = source.joints[j].end_site
+            dropped = [c for c in source.children(j) if source.joints[c].name in rig.drop]
+            if dropped:  # the dropped joint's place becomes this joint's end site
+                end = source.joints[dropped[0]].offset
             has_children = any(r[2] == name for r in rows)
             end_sites.append(None if end is None or has_children else tuple(turn[k].T @ np.asarray(end) * rig.scale))
         else:  # an inserted joint sits on its parent (a finger: further along the forearm's line) unrotated
@@ -146,7 +245,7 @@ def rerig(motion: Motion, rig: Rig) -> Motion:
     offsets = np.median(local_pos, axis=0)
     moves = np.abs(local_pos - offsets).max(axis=0).max(axis=1) > 1e-6 * np.abs(offsets).max()  # the root, or hips under a floor joint
     joints = tuple(Joint(name, p, tuple(float(v) for v in offsets[k]) if p >= 0 else (0.0, 0.0, 0.0),
-                         (("Xposition", "Yposition", "Zposition") if p < 0 or moves[k] else ()) + rotation, end)
+                         (("Xposition", "Yposition", "Zposition") if p < 0 or moves[k] or rig.positions else ()) + rotation, end)
                    for k, (name, p, end) in enumerate(zip(new_names, parents, end_sites)))
     skeleton = Skeleton(joints)
     return resample(Motion(skeleton, channels_from_local(skeleton, local_rot, local_pos), motion.fps), rig.fps)
@@ -156,9 +255,10 @@ def build_set(takes: list[Path], rig: Rig, folder: Path) -> list[Path]:
     """Write every take re-rigged into `folder` (same file names); returns the files."""
     folder.mkdir(parents=True, exist_ok=True)
     out = []
+    rest = rest_turns(read_bvh(takes[0]), rig) if rig.rest_pose else None
     for path in takes:
         target = folder / path.name
-        write_bvh(target, rerig(read_bvh(path), rig))
+        write_bvh(target, rerig(read_bvh(path), rig, rest))
         out.append(target)
     return out
 
