@@ -3,7 +3,7 @@ and the figures a model trained on each gets (issue 30).
 
     python examples/other_rigs.py ../shared/data/bandai-walk [--out /tmp/rigs] [--sets mixamo-60,cmu31-120]
                                   [--styles elderly,active,feminine] [--takes 6] [--seconds 12]
-                                  [--public tests/data/cmu-131]
+                                  [--public tests/data/cmu-131] [--curving N [--turns DIR]]
 
 Every set is the same takes re-rigged (`rerig`): joints renamed to another convention (Mixamo's
 "mixamorig:Hips"..., CMU's 31 joints with its zero-length hip, lower-back and finger joints),
@@ -14,7 +14,10 @@ the body moves exactly as before). For each set it trains a model (`instrument t
 it (`instrument evaluate --real SET --variants one --json`) and prints, per style, the issue's
 targets: synthesized walks recognised at >= 0.9x the rate of the real takes (cross-validated over
 whole takes), knee, hip and shoulder ranges within 10% of the takes', skate at weight 1 no more
-than 1.2x the takes'. `--public DIR` adds a set of public captures as they are (no re-rig).
+than 1.2x the takes', both feet off the floor (float, the stricter way) in no more frames than the
+takes. `--public DIR` adds a set of public captures as they are (no re-rig).
+`--curving N` adds N left and N right turning walks of each style to every set, named as walks:
+a capture whose walks curve, as an actor's do walking round a room.
 """
 
 from __future__ import annotations
@@ -251,13 +254,13 @@ def rerig(motion: Motion, rig: Rig, rest: np.ndarray | None = None) -> Motion:
     return resample(Motion(skeleton, channels_from_local(skeleton, local_rot, local_pos), motion.fps), rig.fps)
 
 
-def build_set(takes: list[Path], rig: Rig, folder: Path) -> list[Path]:
-    """Write every take re-rigged into `folder` (same file names); returns the files."""
+def build_set(takes: list[Path], rig: Rig, folder: Path, names: list[str] | None = None) -> list[Path]:
+    """Write every take re-rigged into `folder` (same file names, or `names`); returns the files."""
     folder.mkdir(parents=True, exist_ok=True)
     out = []
     rest = rest_turns(read_bvh(takes[0]), rig) if rig.rest_pose else None
-    for path in takes:
-        target = folder / path.name
+    for k, path in enumerate(takes):
+        target = folder / (names[k] if names else path.name)
         write_bvh(target, rerig(read_bvh(path), rig, rest))
         out.append(target)
     return out
@@ -273,6 +276,20 @@ def chosen_takes(data: Path, styles: list[str], count: int) -> list[Path]:
             raise UserError(f"{data}: no walks of style {style!r}")
         chosen += mine
     return chosen
+
+
+def curving_takes(folder: Path, styles: list[str], count: int) -> tuple[list[Path], list[str]]:
+    """The first `count` left and right turning walks of each style in `folder`, and the names
+    they are written under: as walks (`dataset-2_walk_<style>_turn-left-001.bvh`), so they train
+    as a capture of walks that curve (an actor walking round a room) rather than as turns."""
+    pairs = [p for p in styled_takes([folder]) if p.unit in ("turn-left", "turn-right")]
+    chosen, names = [], []
+    for style in styles:
+        for unit in ("turn-left", "turn-right"):
+            for p in [p for p in pairs if p.style == style and p.unit == unit][:count]:
+                chosen.append(p.path)
+                names.append(f"dataset-2_walk_{style}_{unit}-{p.path.stem.rsplit('_', 1)[-1]}.bvh")
+    return chosen, names
 
 
 def cli(*args: str) -> subprocess.CompletedProcess:
@@ -291,6 +308,7 @@ def targets(figures: dict) -> dict[str, dict]:
         for key, name in (("knee_deg", "knee"), ("hip_deg", "hip"), ("shoulder_deg", "shoulder")):
             row[name] = (real[key], made[key], abs(made[key] / real[key] - 1.0) <= 0.10)
         row["skate"] = (real["skate_cm_s"], made["skate_cm_s"], made["skate_cm_s"] <= 1.2 * real["skate_cm_s"])
+        row["float"] = (real["float_frac"], made["float_frac"], made["float_frac"] <= real["float_frac"] + 1e-9)
         r, m = real.get("recognised"), made.get("recognised")
         row["recognised"] = (r, m, r is None or m is None or math.isnan(r) or m >= 0.9 * r)
         out[style] = row
@@ -311,10 +329,12 @@ def _cell(real, made, ok: bool, ratio: bool) -> str:
 
 
 def table(name: str, rows: dict[str, dict]) -> str:
-    lines = [f"| {name} | recognised real / made | knee deg | hip deg | shoulder deg | skate cm/s |", "|---" * 6 + "|"]
+    lines = [f"| {name} | recognised real / made | knee deg | hip deg | shoulder deg | skate cm/s | float % |", "|---" * 7 + "|"]
     for style, row in rows.items():
         cells = [_cell(*row["recognised"], ratio=True)] + [_cell(*row[k], ratio=False) for k in ("knee", "hip", "shoulder")]
         cells.append(_cell(*row["skate"], ratio=True))
+        real, made, ok = row["float"]
+        cells.append(f"{100 * real:.1f} / {100 * made:.1f}" + ("" if ok else " **FAIL**"))
         lines.append(f"| {style} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -327,6 +347,9 @@ def main() -> None:
     parser.add_argument("--styles", default="elderly,active,feminine", help="styles to take (default elderly,active,feminine)")
     parser.add_argument("--takes", type=int, default=6, help="walks per style (default 6)")
     parser.add_argument("--seconds", type=float, default=12.0, help="length of each synthesized walk (default 12)")
+    parser.add_argument("--curving", type=int, default=0, metavar="N",
+                        help="also N left and N right turning walks of each style (from --turns), named as walks")
+    parser.add_argument("--turns", default=None, help="folder of turning walks (default: bandai-motions beside DATA)")
     parser.add_argument("--public", action="append", default=[], metavar="DIR",
                         help="also a folder of public captures, trained and measured as they are")
     args = parser.parse_args()
@@ -337,12 +360,18 @@ def main() -> None:
     if args.takes < 2 or not 2 <= args.seconds <= 600:
         raise UserError(f"--takes must be at least 2 and --seconds 2 to 600 (got {args.takes}, {args.seconds})")
     out = Path(args.out)
-    takes = chosen_takes(Path(args.data), [s.strip() for s in args.styles.split(",") if s.strip()], args.takes)
+    styles = [s.strip() for s in args.styles.split(",") if s.strip()]
+    takes = chosen_takes(Path(args.data), styles, args.takes)
+    names = [p.name for p in takes]
+    if args.curving:
+        turns, turn_names = curving_takes(Path(args.turns) if args.turns else Path(args.data).parent / "bandai-motions",
+                                          styles, args.curving)
+        takes, names = takes + turns, names + turn_names
     folders = {name: out / name for name in sets} | {Path(p).name: Path(p) for p in args.public}
     report = {}
     for name, folder in folders.items():
         if name in SETS:
-            build_set(takes, SETS[name], folder)
+            build_set(takes, SETS[name], folder, names)
         print(f"{name}: training and measuring", file=sys.stderr)
         report[name] = targets(measure(folder, out / f"{name}.npz", args.seconds))
         print(table(name, report[name]) + "\n", flush=True)
