@@ -7,9 +7,10 @@ VMC, whose bones are guessed from the joint names) on them.
                                   [--styles elderly,active] [--takes 2]
 
 Prints one row per variant: each command's outcome (`ok`, or the one line it printed on
-failure; a traceback is a failure of its own) and, where evaluate ran, the made walk's knee, hip
-and skate against the takes'. Exit status 1 when any command failed with a traceback or a
-variant that should work did not.
+failure; a traceback is a failure of its own), the humanoid bones VMC could not guess from the
+joint names (UpperChest, which few skeletons have, aside) and, where evaluate ran, the made
+walk's knee, hip and skate against the takes'. Exit status 1 when any command failed with a traceback or a
+variant that should work did not, or a bone was not guessed.
 """
 
 from __future__ import annotations
@@ -21,6 +22,8 @@ import sys
 from pathlib import Path
 
 from instrument.errors import UserError, run_script
+from instrument.models.modelfile import load_model
+from instrument.output.humanoid import HUMAN_BONES, guess_humanoid
 from instrument.motion.bvh import Motion, read_bvh, write_bvh
 from other_rigs import Rig, chosen_takes, rerig, rest_turns
 
@@ -90,6 +93,8 @@ def check(folder: Path, out: Path) -> dict:
         row["figures"] = {s: {k: (figures["real"][s].get(k), figures["synth"][s].get(k))
                               for k in ("knee_deg", "hip_deg", "shoulder_deg", "skate_cm_s", "float_frac")}
                           for s in figures["real"]}
+    skeleton = load_model(model).layout.skeleton
+    row["vmc_unguessed"] = [b for b in HUMAN_BONES if b not in guess_humanoid(skeleton).values() and b != "UpperChest"]
     row["live"], _ = run("run", "--model", str(model), "--fast", "--seconds", "3", "--quiet", "--force",
                          "--bvh", str(out / f"{folder.name}-live.bvh"), "--osc", "127.0.0.1:59991/vmc")
     return row
@@ -122,6 +127,7 @@ def main() -> None:
             build(takes, VARIANTS[name], folder)
         row = check(folder, out)
         bad += any(str(v).startswith("TRACEBACK") or str(v).startswith("error") for v in row.values())
+        bad += bool(row.get("vmc_unguessed"))
         print(json.dumps({name: row}), flush=True)
     print(f"{bad} variant(s) with a failure")
     sys.exit(1 if bad else 0)
