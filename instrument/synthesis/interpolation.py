@@ -6,7 +6,9 @@ move linearly along the offsets. Variances move in log space, so they stay posit
 weights (a linear sum, as in hts_engine, goes negative under extrapolation), and each stays
 within the span the models themselves have (the least and the largest of lambda 0's and the
 styles' for that state and dimension): between the styles a log variance moves as the means do,
-but past them (x2, -1) its extrapolation has nothing in the data behind it. Unbounded, an
+but past them (x2, -1) its extrapolation has nothing in the data behind it. lambda 0 is in the
+span because every mix between the styles is (a weight moving out past them meets the bound
+where it already is, no jump); the bound is only applied past them. Unbounded, an
 inverted run's root speed variances reached 120-470 cm/s (its styles' 11-40, the average's 66-76)
 against delta variances of a few cm/s a frame, so the window MLPG barely pulled the speed
 towards the run's: a run set off from a stand took 4 to 7 steps to reach speed. A crowd
