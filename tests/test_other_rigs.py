@@ -7,6 +7,7 @@ tests/data/cmu-131 and, where they are here, the shared Bandai walks."""
 import json
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -15,9 +16,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from instrument.motion.bvh import Motion, read_bvh, write_bvh
-from instrument.motion.kinematics import channels_from_local, local_transforms, world_positions
-from instrument.motion.features import ROOT_FEATURES, choose_layout, extract, resample
-from instrument.motion.limbs import find_limbs, hip_height, units_to_metres
+from instrument.motion.kinematics import channels_from_local, forward_kinematics, local_transforms, world_positions
+from instrument.motion.features import ROOT_FEATURES, choose_layout, extract, heading_angle, resample
+from instrument.motion.limbs import Leg, Limbs, find_limbs, hip_height, units_to_metres
+from instrument.motion.quality import limb_ranges
 from instrument.motion.steps import segment_steps
 from instrument.motion.upright import TO_Y_UP, up_axis, upright
 from instrument.training.corpus import read_motions
@@ -48,6 +50,42 @@ def test_both_arms_of_a_cmu_skeleton_are_upper_arm_and_forearm(cmu_take):
     assert [(names[s], names[e]) for s, e in limbs.arms] == [("LeftShoulder", "LeftElbow"), ("RightShoulder", "RightElbow")]
     assert [(names[leg.hip], names[leg.knee], names[leg.ankle]) for leg in limbs.legs] == [
         ("LeftHip", "LeftKnee", "LeftAnkle"), ("RightHip", "RightKnee", "RightAnkle")]
+
+
+def test_an_arm_held_out_sideways_is_not_a_swing(cmu_take):
+    """The shoulder's swing is measured in the vertical plane of travel, where the upper arm lies
+    nearer that plane than across it: the take's right arm, held out sideways in 6 of its frames
+    (30 fps), read +135 and -146 degrees there and its range 270-odd degrees (the takes' shoulder
+    figure 93.6 where the arms swing through 66). Made up: an arm swinging +-30 degrees that is
+    held out sideways in 10 frames (a centimetre off the side) swings 60 degrees; one that swings
+    +-30 degrees about straight up (overhead) 60 too, not 300 (no wrap at 180)."""
+    motion = resample(cmu_take, 30.0)
+    layout = choose_layout([motion])
+    limbs = find_limbs(motion.skeleton, layout.root, np.asarray(layout.template))
+    world_rot, positions = forward_kinematics(motion.skeleton, *local_transforms(motion))
+    yaw = heading_angle(world_rot[:, layout.root], layout.heading_reference)
+    right = limb_ranges(positions, yaw, replace(limbs, arms=limbs.arms[1:]), layout.root)["shoulder_deg"]
+    assert 100.0 < right < 180.0  # 150 degrees (was 271)
+
+    frames = 200
+    swing = np.radians(30.0) * np.sin(np.linspace(0.0, 8.0 * np.pi, frames))
+    leg = Leg(hip=3, knee=4, ankle=5, foot=(5,), pivot=5, thigh=1.0, shin=1.0)
+    made_up = Limbs(0, (leg, leg), ((1, 2),), 2.0)
+
+    def shoulder(bone: np.ndarray) -> float:
+        """The shoulder's range of an arm `bone` (frames, 3) on a body walking along +z."""
+        pose = np.zeros((frames, 6, 3))
+        pose[:, :, 2] = np.arange(frames)[:, None] * 0.05
+        pose[:, 1, 1], pose[:, 3, 1], pose[:, 4, 1], pose[:, 5, 1] = 1.5, 1.0, 0.5, 0.0
+        pose[:, 2] = pose[:, 1] + bone
+        return limb_ranges(pose, np.zeros(frames), made_up, 0)["shoulder_deg"]
+
+    hanging = np.stack([np.zeros(frames), -np.cos(swing), np.sin(swing)], axis=1)
+    sideways = hanging.copy()
+    sideways[::20] = [[1.0, 0.01, -0.01], [-1.0, 0.01, 0.01]] * 5
+    assert shoulder(hanging) == pytest.approx(60.0, abs=1.0)
+    assert shoulder(sideways) == pytest.approx(60.0, abs=1.0)
+    assert shoulder(-hanging) == pytest.approx(60.0, abs=1.0)
 
 
 def _features(motion):
