@@ -3,7 +3,7 @@ and the figures a model trained on each gets (issue 30).
 
     python examples/other_rigs.py ../shared/data/bandai-walk [--out /tmp/rigs] [--sets mixamo-60,cmu31-120]
                                   [--styles elderly,active,feminine] [--takes 6] [--seconds 12]
-                                  [--public tests/data/cmu-131]
+                                  [--public tests/data/cmu-131] [--curving N [--turns DIR]]
 
 Every set is the same takes re-rigged (`rerig`): joints renamed to another convention (Mixamo's
 "mixamorig:Hips"..., CMU's 31 joints with its zero-length hip, lower-back and finger joints),
@@ -14,7 +14,10 @@ the body moves exactly as before). For each set it trains a model (`instrument t
 it (`instrument evaluate --real SET --variants one --json`) and prints, per style, the issue's
 targets: synthesized walks recognised at >= 0.9x the rate of the real takes (cross-validated over
 whole takes), knee, hip and shoulder ranges within 10% of the takes', skate at weight 1 no more
-than 1.2x the takes'. `--public DIR` adds a set of public captures as they are (no re-rig).
+than 1.2x the takes', both feet off the floor (float, the stricter way) in no more frames than the
+takes. `--public DIR` adds a set of public captures as they are (no re-rig).
+`--curving N` adds N left and N right turning walks of each style to every set, named as walks:
+a capture whose walks curve, as an actor's do walking round a room.
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ from instrument.errors import UserError, run_script
 from instrument.motion.bvh import Joint, Motion, Skeleton, read_bvh, write_bvh
 from instrument.motion.features import resample
 from instrument.motion.kinematics import channels_from_local, forward_kinematics, local_transforms
-from instrument.motion.rotations import expmap_to_matrix
+from instrument.motion.rotations import expmap_to_matrix, matrix_to_expmap
 from instrument.training.corpus import styled_takes
 
 SIDES = {"_L": "Left", "_R": "Right"}
@@ -58,6 +61,72 @@ def cmu_name(name: str) -> str:
     return {"Chest": "Spine1", "Neck": "Neck1"}.get(name, name)
 
 
+def asf_name(name: str) -> str:
+    """The Bandai walks' joint as CMU's ASF skeletons name it (Hips -> hip, UpperArm_L -> lhumerus)."""
+    parts = {"UpperLeg": "femur", "LowerLeg": "tibia", "Foot": "foot", "Toes": "toes", "Shoulder": "clavicle",
+             "UpperArm": "humerus", "LowerArm": "radius", "Hand": "wrist"}
+    if name[-2:] in SIDES:
+        return name[-1].lower() + parts[name[:-2]]
+    return {"Hips": "hip", "Spine": "lowerback", "Chest": "thorax", "Neck": "lowerneck", "Head": "head"}.get(name, name)
+
+
+def blender_name(name: str) -> str:
+    """The Bandai walks' joint as Blender's Rigify names it (UpperLeg_L -> thigh.L, Hand_R -> hand.R)."""
+    parts = {"UpperLeg": "thigh", "LowerLeg": "shin", "Foot": "foot", "Toes": "toe", "Shoulder": "shoulder",
+             "UpperArm": "upper_arm", "LowerArm": "forearm", "Hand": "hand"}
+    if name[-2:] in SIDES:
+        return f"{parts[name[:-2]]}.{name[-1]}"
+    return name.lower()
+
+
+def suit_name(name: str) -> str:
+    """The Bandai walks' joint as a 23-joint inertial suit's BVH names it (Hips, Chest to Chest4, Neck,
+    Head, and per side Collar, Shoulder, Elbow, Wrist, Hip, Knee, Ankle, Toe); the walks' Chest is
+    split in three (`split_joint`: Chest, Chest.1, Chest.2)."""
+    parts = {"UpperLeg": "Hip", "LowerLeg": "Knee", "Foot": "Ankle", "Toes": "Toe", "Shoulder": "Collar",
+             "UpperArm": "Shoulder", "LowerArm": "Elbow", "Hand": "Wrist"}
+    if name[-2:] in SIDES:
+        return SIDES[name[-2:]] + parts[name[:-2]]
+    return {"Spine": "Chest", "Chest": "Chest2", "Chest.1": "Chest3", "Chest.2": "Chest4"}.get(name, name)
+
+
+RENAMES = {"mixamo": mixamo_name, "cmu": cmu_name, "asf": asf_name, "blender": blender_name, "suit": suit_name}
+
+
+def split_joint(motion: Motion, name: str, pieces: int) -> Motion:
+    """`name`'s bone (to its first child) cut into `pieces` joints named name.1, name.2, ..., its
+    rotation shared among them (each turns by 1/pieces of it, so the last turns as `name` did)
+    and its other children hung from the last: a spine of more joints that bends along its length.
+    The joints beyond move by less than a centimetre against the take's."""
+    skeleton = motion.skeleton
+    rotations, translations = local_transforms(motion)
+    j = skeleton.index(name)
+    children = skeleton.children(j)
+    step = np.asarray(skeleton.joints[children[0]].offset) / pieces
+    piece = expmap_to_matrix(matrix_to_expmap(rotations[:, j]) / pieces)
+    order = list(range(j + 1)) + [-k for k in range(1, pieces)] + list(range(j + 1, len(skeleton.joints)))
+    position = {old: new for new, old in enumerate(order)}
+    joints, rot, trans = [], [], []
+    for new, old in enumerate(order):
+        if old < 0:  # an inserted piece
+            source = skeleton.joints[j]
+            joints.append(Joint(f"{name}.{-old}", new - 1, tuple(step), tuple(c for c in source.channels if c.endswith("rotation"))))
+            rot.append(piece)
+            trans.append(np.broadcast_to(step, (motion.frames, 3)))
+            continue
+        joint = skeleton.joints[old]
+        parent = position[joint.parent] if joint.parent >= 0 else -1
+        offset, moved = np.asarray(joint.offset), translations[:, old]
+        if joint.parent == j:  # hangs from the last piece, where `name`'s bone now ends
+            parent = position[j] + pieces - 1
+            offset, moved = offset - (pieces - 1) * step, moved - (pieces - 1) * step
+        joints.append(Joint(joint.name, parent, tuple(float(v) for v in offset), joint.channels, joint.end_site))
+        rot.append(piece if old == j else rotations[:, old])
+        trans.append(moved)
+    skeleton = Skeleton(tuple(joints))
+    return Motion(skeleton, channels_from_local(skeleton, np.stack(rot, 1), np.stack(trans, 1)), motion.fps, motion.source)
+
+
 # CMU's joints the walks lack: (name, the renamed joint it is inserted above, at zero offset, unrotated)
 CMU_ABOVE = (("LHipJoint", "LeftUpLeg"), ("RHipJoint", "RightUpLeg"), ("LowerBack", "Spine"), ("Neck", "Neck1"))
 # and below each hand: (name, parent, offset as a share of a quarter of the forearm, along it)
@@ -75,9 +144,17 @@ class Rig:
     rename: str = ""  # "", "mixamo" or "cmu" (CMU's 31 joints)
     rest_turn_deg: float = 0.0  # each joint's rest orientation turned by up to this much (a fixed seed)
     keep_root: bool = True  # keep a static floor joint above the hips (else re-root at the hips)
+    up: str = "Y"  # "Z": the world turned so that Z is up (as Blender's and 3ds Max's scenes are)
+    positions: bool = False  # position channels on every joint (a joint's offset then moves nothing)
+    drop: tuple[str, ...] = ()  # the take's joints left out (leaves: the toes; the foot then ends the leg)
+    split: tuple[str, int] | None = None  # a joint whose bone is cut into this many (`split_joint`)
+    rest_pose: bool = False  # every joint's rest orientation that of the first take's first frame (world axes)
+    frames: int = 0  # keep only this many frames of each take (0: all)
+    lift: float = 0.0  # the whole take raised by this much (the take's units; negative: the floor below the origin)
 
 
 SETS = {
+    "suit23-60": Rig(60.0, 1.0, "ZXY", "suit", keep_root=False, split=("Chest", 3), rest_pose=True),
     "mixamo-60": Rig(60.0, 1.0, "ZXY", "mixamo", keep_root=False),
     "cmu31-120": Rig(120.0, 0.01, "ZYX", "cmu", keep_root=False),
     "bandai-24-m": Rig(24.0, 0.01, "ZXY"),
@@ -85,19 +162,39 @@ SETS = {
 }
 
 
-def rerig(motion: Motion, rig: Rig) -> Motion:
+Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # Y up -> Z up (+90 degrees about X)
+
+
+def rest_turns(motion: Motion, rig: Rig) -> np.ndarray:
+    """For `rig.rest_pose`: each source joint's world rotation in the take's first frame, inverted:
+    the set's joints then rest in that pose, their rotations all zero there."""
+    if rig.split:
+        motion = split_joint(motion, *rig.split)
+    world_rot, _ = forward_kinematics(motion.skeleton, *local_transforms(motion))
+    return np.swapaxes((Z_UP if rig.up == "Z" else np.eye(3)) @ world_rot[0], -1, -2)
+
+
+def rerig(motion: Motion, rig: Rig, rest: np.ndarray | None = None) -> Motion:
     """The same body motion on another rig (see the module's text): world positions of every
-    kept joint are those of the take, times `rig.scale`."""
+    kept joint are those of the take, times `rig.scale` (turned to Z up for `rig.up`). `rest`
+    (`rest_turns` of the set's first take) sets every joint's rest orientation for `rig.rest_pose`."""
+    if rig.split:
+        motion = split_joint(motion, *rig.split)
+    if rig.frames:
+        motion = Motion(motion.skeleton, motion.channels[:rig.frames], motion.fps, motion.source)
     source = motion.skeleton
     rotations, translations = local_transforms(motion)
     world_rot, world_pos = forward_kinematics(source, rotations, translations)
+    world_pos = world_pos + np.array([0.0, rig.lift, 0.0])
+    if rig.up == "Z":
+        world_rot, world_pos = Z_UP @ world_rot, world_pos @ Z_UP.T
     names = [j.name for j in source.joints]
-    rename = {"mixamo": mixamo_name, "cmu": cmu_name}.get(rig.rename, lambda n: n)
+    rename = RENAMES.get(rig.rename, lambda n: n)
     first = 0 if rig.keep_root else names.index("Hips")
     # the new tree: (name, source joint or -1, parent name or None, offset share of the hand's end site)
     rows: list[tuple[str, int, str | None, float]] = []
     for j, joint in enumerate(source.joints):
-        if j < first:
+        if j < first or joint.name in rig.drop:
             continue
         parent = None if j == first else rename(names[joint.parent])
         rows.append((rename(joint.name), j, parent, 0.0))
@@ -114,6 +211,8 @@ def rerig(motion: Motion, rig: Rig) -> Motion:
     turns = np.random.default_rng(30).normal(size=(count, 3))
     turns *= math.radians(rig.rest_turn_deg) / np.maximum(np.linalg.norm(turns, axis=1, keepdims=True), 1e-9)
     turn = expmap_to_matrix(turns) if rig.rest_turn_deg else np.broadcast_to(np.eye(3), (count, 3, 3))
+    if rig.rest_pose:
+        turn = np.stack([rest[r[1]] if r[1] >= 0 else np.eye(3) for r in rows]) if rest is not None else world_rot[0, [r[1] for r in rows]].swapaxes(-1, -2)
     w_rot = np.empty((frames, count, 3, 3))
     w_pos = np.empty((frames, count, 3))
     end_sites: list[tuple | None] = []
@@ -122,6 +221,9 @@ def rerig(motion: Motion, rig: Rig) -> Motion:
             w_rot[:, k] = world_rot[:, j] @ turn[k]
             w_pos[:, k] = world_pos[:, j] * rig.scale
             end = source.joints[j].end_site
+            dropped = [c for c in source.children(j) if source.joints[c].name in rig.drop]
+            if dropped:  # the dropped joint's place becomes this joint's end site
+                end = source.joints[dropped[0]].offset
             has_children = any(r[2] == name for r in rows)
             end_sites.append(None if end is None or has_children else tuple(turn[k].T @ np.asarray(end) * rig.scale))
         else:  # an inserted joint sits on its parent (a finger: further along the forearm's line) unrotated
@@ -146,19 +248,20 @@ def rerig(motion: Motion, rig: Rig) -> Motion:
     offsets = np.median(local_pos, axis=0)
     moves = np.abs(local_pos - offsets).max(axis=0).max(axis=1) > 1e-6 * np.abs(offsets).max()  # the root, or hips under a floor joint
     joints = tuple(Joint(name, p, tuple(float(v) for v in offsets[k]) if p >= 0 else (0.0, 0.0, 0.0),
-                         (("Xposition", "Yposition", "Zposition") if p < 0 or moves[k] else ()) + rotation, end)
+                         (("Xposition", "Yposition", "Zposition") if p < 0 or moves[k] or rig.positions else ()) + rotation, end)
                    for k, (name, p, end) in enumerate(zip(new_names, parents, end_sites)))
     skeleton = Skeleton(joints)
     return resample(Motion(skeleton, channels_from_local(skeleton, local_rot, local_pos), motion.fps), rig.fps)
 
 
-def build_set(takes: list[Path], rig: Rig, folder: Path) -> list[Path]:
-    """Write every take re-rigged into `folder` (same file names); returns the files."""
+def build_set(takes: list[Path], rig: Rig, folder: Path, names: list[str] | None = None) -> list[Path]:
+    """Write every take re-rigged into `folder` (same file names, or `names`); returns the files."""
     folder.mkdir(parents=True, exist_ok=True)
     out = []
-    for path in takes:
-        target = folder / path.name
-        write_bvh(target, rerig(read_bvh(path), rig))
+    rest = rest_turns(read_bvh(takes[0]), rig) if rig.rest_pose else None
+    for k, path in enumerate(takes):
+        target = folder / (names[k] if names else path.name)
+        write_bvh(target, rerig(read_bvh(path), rig, rest))
         out.append(target)
     return out
 
@@ -173,6 +276,20 @@ def chosen_takes(data: Path, styles: list[str], count: int) -> list[Path]:
             raise UserError(f"{data}: no walks of style {style!r}")
         chosen += mine
     return chosen
+
+
+def curving_takes(folder: Path, styles: list[str], count: int) -> tuple[list[Path], list[str]]:
+    """The first `count` left and right turning walks of each style in `folder`, and the names
+    they are written under: as walks (`dataset-2_walk_<style>_turn-left-001.bvh`), so they train
+    as a capture of walks that curve (an actor walking round a room) rather than as turns."""
+    pairs = [p for p in styled_takes([folder]) if p.unit in ("turn-left", "turn-right")]
+    chosen, names = [], []
+    for style in styles:
+        for unit in ("turn-left", "turn-right"):
+            for p in [p for p in pairs if p.style == style and p.unit == unit][:count]:
+                chosen.append(p.path)
+                names.append(f"dataset-2_walk_{style}_{unit}-{p.path.stem.rsplit('_', 1)[-1]}.bvh")
+    return chosen, names
 
 
 def cli(*args: str) -> subprocess.CompletedProcess:
@@ -191,6 +308,7 @@ def targets(figures: dict) -> dict[str, dict]:
         for key, name in (("knee_deg", "knee"), ("hip_deg", "hip"), ("shoulder_deg", "shoulder")):
             row[name] = (real[key], made[key], abs(made[key] / real[key] - 1.0) <= 0.10)
         row["skate"] = (real["skate_cm_s"], made["skate_cm_s"], made["skate_cm_s"] <= 1.2 * real["skate_cm_s"])
+        row["float"] = (real["float_frac"], made["float_frac"], made["float_frac"] <= real["float_frac"] + 1e-9)
         r, m = real.get("recognised"), made.get("recognised")
         row["recognised"] = (r, m, r is None or m is None or math.isnan(r) or m >= 0.9 * r)
         out[style] = row
@@ -211,10 +329,12 @@ def _cell(real, made, ok: bool, ratio: bool) -> str:
 
 
 def table(name: str, rows: dict[str, dict]) -> str:
-    lines = [f"| {name} | recognised real / made | knee deg | hip deg | shoulder deg | skate cm/s |", "|---" * 6 + "|"]
+    lines = [f"| {name} | recognised real / made | knee deg | hip deg | shoulder deg | skate cm/s | float % |", "|---" * 7 + "|"]
     for style, row in rows.items():
         cells = [_cell(*row["recognised"], ratio=True)] + [_cell(*row[k], ratio=False) for k in ("knee", "hip", "shoulder")]
         cells.append(_cell(*row["skate"], ratio=True))
+        real, made, ok = row["float"]
+        cells.append(f"{100 * real:.1f} / {100 * made:.1f}" + ("" if ok else " **FAIL**"))
         lines.append(f"| {style} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -227,6 +347,9 @@ def main() -> None:
     parser.add_argument("--styles", default="elderly,active,feminine", help="styles to take (default elderly,active,feminine)")
     parser.add_argument("--takes", type=int, default=6, help="walks per style (default 6)")
     parser.add_argument("--seconds", type=float, default=12.0, help="length of each synthesized walk (default 12)")
+    parser.add_argument("--curving", type=int, default=0, metavar="N",
+                        help="also N left and N right turning walks of each style (from --turns), named as walks")
+    parser.add_argument("--turns", default=None, help="folder of turning walks (default: bandai-motions beside DATA)")
     parser.add_argument("--public", action="append", default=[], metavar="DIR",
                         help="also a folder of public captures, trained and measured as they are")
     args = parser.parse_args()
@@ -237,12 +360,18 @@ def main() -> None:
     if args.takes < 2 or not 2 <= args.seconds <= 600:
         raise UserError(f"--takes must be at least 2 and --seconds 2 to 600 (got {args.takes}, {args.seconds})")
     out = Path(args.out)
-    takes = chosen_takes(Path(args.data), [s.strip() for s in args.styles.split(",") if s.strip()], args.takes)
+    styles = [s.strip() for s in args.styles.split(",") if s.strip()]
+    takes = chosen_takes(Path(args.data), styles, args.takes)
+    names = [p.name for p in takes]
+    if args.curving:
+        turns, turn_names = curving_takes(Path(args.turns) if args.turns else Path(args.data).parent / "bandai-motions",
+                                          styles, args.curving)
+        takes, names = takes + turns, names + turn_names
     folders = {name: out / name for name in sets} | {Path(p).name: Path(p) for p in args.public}
     report = {}
     for name, folder in folders.items():
         if name in SETS:
-            build_set(takes, SETS[name], folder)
+            build_set(takes, SETS[name], folder, names)
         print(f"{name}: training and measuring", file=sys.stderr)
         report[name] = targets(measure(folder, out / f"{name}.npz", args.seconds))
         print(table(name, report[name]) + "\n", flush=True)

@@ -122,6 +122,13 @@ CONVENTIONS = {
     "3ds Max Biped": _body("Bip01 Pelvis", ["Bip01 Spine", "Bip01 Spine1", "Bip01 Spine2"], "Bip01 Neck", "Bip01 Head",
                            ["Bip01 L Thigh", "Bip01 L Calf", "Bip01 L Foot", "Bip01 L Toe0"],
                            ["Bip01 L Clavicle", "Bip01 L UpperArm", "Bip01 L Forearm", "Bip01 L Hand"]),
+    # issue 30's suit and the CMU conversions in tests/data/cmu-131: a hip, knee and ankle per leg,
+    # and a collar before the shoulder (which is the upper arm); the upper arm and leg were unmapped
+    "suit": _body("Hips", ["Chest2", "Chest3", "Chest4"], "Neck", "Head",
+                  ["LeftHip", "LeftKnee", "LeftAnkle", "LeftToe"], ["LeftCollar", "LeftShoulder", "LeftElbow", "LeftWrist"]),
+    # CMU's ASF skeletons (amc2bvh): a lower-case side letter and the bones' Latin names; no limb was mapped
+    "CMU ASF": _body("hip", ["lowerback", "upperback", "thorax"], "lowerneck", "head",
+                     ["lfemur", "ltibia", "lfoot", "ltoes"], ["lclavicle", "lhumerus", "lradius", "lwrist"]),
 }
 
 

@@ -340,10 +340,12 @@ def test_the_locked_speeds_array_follows_the_states_speeds_as_they_are_set_and_c
 
 
 def test_a_crowd_past_the_variance_limit_walks_as_with_its_tables_made_whole(model):
-    """Past the styles (elderly x4) some variances are at their limit, so a character's precisions
-    are not two factors: the stream makes each row it reads from the character's log offset
-    (CrowdLambda's clip_*), where every character's whole tables were made at each change (20 ms
-    a frame for 32 characters while a fader moved). The walk is the one the whole tables make."""
+    """Past the styles (elderly x4) with a wide spread, the characters' own offsets carry some
+    variances to their limit (the performed weights' alone stay within the styles' span), so a
+    character's precisions are not two factors: the stream makes each row it reads from the
+    character's log offset (CrowdLambda's clip_*), where every character's whole tables were made
+    at each change (20 ms a frame for 32 characters while a fader moved). The walk is the one the
+    whole tables make."""
     from instrument.synthesis.engine import default_controls
     from instrument.synthesis.interpolation import CrowdLambda
 
@@ -361,6 +363,6 @@ def test_a_crowd_past_the_variance_limit_walks_as_with_its_tables_made_whole(mod
 
     interpolation.retune = made_whole
     for _ in range(90):
-        assert np.allclose(made.next_features(controls, 0.8), whole.next_features(controls, 0.8), rtol=1e-9, atol=1e-9)
+        assert np.allclose(made.next_features(controls, 1.5), whole.next_features(controls, 1.5), rtol=1e-9, atol=1e-9)
     tables = made.stream.tables
     assert tables.limit > 0 and tables.plain.tolist() == [True] + [False] * 5  # character 0 has no offset of its own

@@ -31,6 +31,7 @@ from hypothesis import strategies as st
 
 from conftest import REPO, walk_files
 from instrument.cli import showplan
+from instrument.cli.inspect_cmd import describe
 from instrument.control.attract import load_attract
 from instrument.control.checks import held_refusal, raw_problem, refusal, row_of, value_refusal
 from instrument.control.events import ControlEvent, read_log
@@ -41,8 +42,9 @@ from instrument.control.score import load_score
 from instrument.control.smf import export_smf, import_smf
 from instrument.control.state import ControlState
 from instrument.errors import UserError
-from instrument.training.corpus import read_manifest
 from instrument.motion.bvh import read_bvh
+from instrument.motion.upright import TO_Y_UP
+from instrument.training.corpus import read_manifest
 
 STYLES = ["active", "elderly", "exhausted", "feminine", "masculine", "normal", "youthful"]  # the shipped model's
 STATES = 5
@@ -425,6 +427,12 @@ def test_a_bvh_file_is_valid_or_one_line(ops):
     assert motion.channels.ndim == 2 and len(motion.channels) > 0
     assert motion.channels.shape[1] == sum(len(j.channels) for j in motion.skeleton.joints)
     assert bool((abs(motion.channels) < math.inf).all()) and 0 < motion.fps <= 1000
+    try:  # what `inspect` and training do next with a file that reads: turn it Y up, find its feet and steps
+        info = describe(path)
+    except UserError as error:
+        one_line(error, path)
+        return
+    assert info["up"] in TO_Y_UP and info["frames"] == motion.frames
 
 
 @FUZZ

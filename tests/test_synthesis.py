@@ -56,6 +56,26 @@ def test_half_weight_lies_between_and_inversion_mirrors(model, space):
     np.testing.assert_allclose(inverse - base, base - full, atol=1e-12)
 
 
+def test_extrapolated_variances_stay_within_the_models_span_and_blends_move_freely(model, space):
+    """Past the styles (x2, -1) each variance stays between the least and the largest of lambda
+    0's and the styles' for its state and dimension (its log-linear extrapolation has nothing in
+    the data behind it: an inverted run's root speed sd reached 4 m/s), while a blend inside the
+    styles is the log-linear mix, untouched."""
+    styles = len(model.style_names)
+    own = np.log(np.concatenate([model.average.variances[None], model.styles.variances]))  # (1 + styles, labels, states, 3D)
+    low, high = own.min(axis=0).reshape(-1, own.shape[-1]), own.max(axis=0).reshape(-1, own.shape[-1])
+    for weights in (-1.0 * np.eye(styles)[model.style_names.index("normal")], 2.0 * np.eye(styles)[0],
+                    np.full(styles, -3.0)):
+        logs = -np.log(interpolate(space, weights).precisions)
+        assert (logs >= low - 1e-9).all() and (logs <= high + 1e-9).all()
+    unbounded = np.log(model.average.variances) - 1.0 * (np.log(model.style("normal").variances) - np.log(model.average.variances))
+    assert (unbounded.reshape(low.shape) > high + 1.0).any()  # the bound does bind at -1
+    a, b = model.style_names.index("elderly"), model.style_names.index("active")
+    blend = -np.log(interpolate(space, 0.5 * (np.eye(styles)[a] + np.eye(styles)[b])).precisions)
+    mixed = 0.5 * (np.log(model.style("elderly").variances) + np.log(model.style("active").variances))
+    np.testing.assert_allclose(blend, mixed.reshape(blend.shape), atol=1e-9)
+
+
 @pytest.mark.parametrize("weight", [-10.0, -3.0, 5.0, 25.0])
 def test_variances_stay_positive_for_extreme_weights(model, space, weight):
     weights = np.full(len(model.style_names), weight)

@@ -9,12 +9,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from instrument.models.hsmm import HSMM
 from instrument.motion.bvh import Motion, read_bvh
 from instrument.motion.features import choose_layout
 from instrument.motion.kinematics import world_positions
 from instrument.motion.limbs import centimetres_per_unit, clearance, find_limbs, sole_clearance
 from instrument.motion.quality import take_floors, walk_figures
-from instrument.training.contact import contact_labels
+from instrument.synthesis.contact import PLANTED, flight_states
+from instrument.training.average import train_average, variance_floors
+from instrument.training.contact import air_labels, contact_labels, train_contact
+from instrument.training.corpus import load_corpus, segments_by_label, styled_takes
 
 CMU = Path(__file__).parent / "data" / "cmu-131"
 FLOOR_FIGURES = ("air_frac", "float_frac", "under_frac", "contact_skate_cm_s")
@@ -65,3 +69,62 @@ def test_contact_is_found_on_each_takes_own_floor(take):
     assert own.mean() > 0.2
     shared = contact_labels(high, limbs, clearance([positions, high], limbs), cm, motion.fps)
     assert shared.mean() == 0.0  # 3.5 cm above the shared floor: never within 2 cm of it
+
+
+@pytest.fixture(scope="module")
+def cmu_contact():
+    """The public CMU takes' average step model and contact statistics, trained as `instrument
+    train` trains them (30 fps, 5 states), and each take's contact and air labels."""
+    pairs = styled_takes([CMU])
+    layout, takes, _ = load_corpus(pairs, 30.0)
+    segments = segments_by_label(takes, 5)
+    average = train_average(segments, 5, variance_floors(segments))
+    one_style = HSMM(*(getattr(average, p)[None] for p in ("means", "variances", "duration_means", "duration_variances")))
+    arrays, metadata = train_contact(layout, takes, average, one_style, ["jackson"], 30.0, 5)
+    return arrays, metadata
+
+
+def test_a_stylised_walk_whose_feet_slide_has_no_flight(cmu_contact):
+    """The public CMU walk plants neither foot surely (share below PLANTED) in some of its states,
+    its feet sliding and pivoting on the floor (not still, so not planted); those states were
+    taken for a run's flight and the lock let both feet go there: the walk skated 93 cm/s
+    against its takes' 21 (4.4x). Both feet are in the air in at most a third of any state's
+    frames, so the walk has no flight: the lock plants the likelier foot (skate 7.7 cm/s, 0.36x)."""
+    arrays, metadata = cmu_contact
+    shares = arrays["contact_average"].reshape(-1, 2)
+    air = np.asarray(metadata["air"])
+    assert air.shape == arrays["contact_average"].shape[:2] and air.max() < PLANTED
+    assert flight_states(shares).any()  # by the shares alone (models trained before `air`): flight
+    assert not flight_states(shares, metadata["air"], 5, 1).any()
+
+
+def test_a_unit_with_flight_keeps_its_flight_states():
+    """A run (a state with both feet in the air in most frames) keeps every state that plants
+    neither foot as flight, its landing state too, whatever that state's own air share (the shared
+    runs' flight states are in the air in 0.29-0.60 of their frames, their landing states in
+    0.02-0.06); a walk beside it with uncertain states and some air has none; a model without
+    `air`, or with one of another shape, reads flight from the shares alone."""
+    states = 5
+    shares = np.full((4 * states, 2), 0.9)  # walk/right, walk/left, run/right, run/left
+    uncertain = [1, 6, 10, 13, 14, 15, 18, 19]
+    shares[uncertain] = [[0.4, 0.1], [0.2, 0.35], [0.41, 0.01], [0.24, 0.0], [0.12, 0.0], [0.01, 0.3], [0.0, 0.23],
+                         [0.0, 0.11]]
+    air = np.zeros(4 * states)
+    air[uncertain] = [0.3, 0.4, 0.02, 0.29, 0.6, 0.06, 0.34, 0.45]  # run/left alone never reaches PLANTED
+    flight = flight_states(shares, air.reshape(4, states).tolist(), states, 2)
+    assert list(np.flatnonzero(flight)) == [10, 13, 14, 15, 18, 19]
+    assert list(np.flatnonzero(flight_states(shares))) == uncertain
+    assert list(np.flatnonzero(flight_states(shares, air[:-1].tolist(), states, 2))) == uncertain
+
+
+def test_air_is_both_feet_above_the_floor_however_they_move(take):
+    """Training's air labels: both feet's lowest joints more than AIR_CM above their take's
+    floor, as `instrument evaluate` counts its air (the same frames), where contact also asks for
+    a still foot: the CMU take has neither foot planted in many more frames than both in the air."""
+    motion, layout, limbs, positions, cm = take
+    floors = take_floors([positions], limbs)
+    air = air_labels(positions, limbs, floors.ground[0], cm)[:, 0]
+    figures = walk_figures(motion, layout, limbs, floors.ground[0], cm, floors.sole[0])
+    assert air.mean() == pytest.approx(figures["air_frac"])
+    planted = contact_labels(positions, limbs, floors.ground[0], cm, motion.fps)
+    assert 0.0 < air.mean() < 0.5 * (planted.max(axis=1) == 0).mean()

@@ -21,11 +21,14 @@ def describe(path: Path) -> dict:
     # numpy, and scipy and numba for finding the steps: loaded when run, not for --help (nor for `train`'s)
     from ..motion.bvh import read_bvh
     from ..motion.steps import contiguous_runs, segment_steps
+    from ..motion.upright import upright
 
-    motion = read_bvh(path)
+    motion, up = upright(read_bvh(path))
     segmentation = segment_steps(motion)
     steps = segmentation.steps
     warnings = list(segmentation.warnings)
+    if up != "+Y":
+        warnings.append(f"{up} is up in this capture: read turned Y up (the models trained on it and their walks are Y up)")
     runs = contiguous_runs(steps)
     if len(runs) > 1:
         warnings.append(f"steps fall into {len(runs)} separate runs")
@@ -34,6 +37,7 @@ def describe(path: Path) -> dict:
         "file": str(path),
         "frames": motion.frames,
         "fps": motion.fps,
+        "up": up,
         "duration": motion.duration,
         "joints": [{"name": j.name, "channels": list(j.channels)} for j in skeleton.joints],
         "channels": skeleton.channel_count,

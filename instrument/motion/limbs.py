@@ -177,8 +177,15 @@ def units_to_metres(hip_height: float) -> float:
     return 0.95 / hip_height if hip_height > 0 else 1.0
 
 
+def hip_height(world_pose: np.ndarray, root: int) -> float:
+    """How high the hips stand in a pose (J, 3), for guessing the unit: above the floor at height
+    0, or above the lowest joint where a joint is lower than that (a capture whose floor is below
+    the origin: hips at the origin, or at 0.2 m in metres, which was guessed as 4.75 m a unit)."""
+    return float(world_pose[root, 1] - min(0.0, float(world_pose[:, 1].min())))
+
+
 def centimetres_per_unit(layout: FeatureLayout, world_template: np.ndarray) -> float:
-    return 100.0 * units_to_metres(float(world_template[layout.root, 1]))
+    return 100.0 * units_to_metres(hip_height(world_template, layout.root))
 
 
 def clearance(positions: list[np.ndarray], limbs: Limbs) -> np.ndarray:

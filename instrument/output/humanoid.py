@@ -1,9 +1,10 @@
 """Which joint of a skeleton is which humanoid bone (Unity's HumanBodyBones names, used by VMC).
 
 `guess_humanoid` reads common naming conventions (the shipped model's `UpperLeg_L`, CMU's
-`LeftUpLeg` (or, in the conversions that keep the ASF names, `LeftHip` under `LHipJoint` and
-`LeftShoulder` under `LeftCollar`), Mixamo's `mixamorig:LeftUpLeg`, Unreal's `thigh_l` / `ball_l`, Rigify's `thigh.L`,
-VRoid's `J_Bip_L_UpperLeg`, 3ds Max Biped's `Bip01 L Thigh`, ...). For anything else, a TOML file
+`LeftUpLeg`, Mixamo's `mixamorig:LeftUpLeg`, Unreal's `thigh_l` / `ball_l`, Rigify's `thigh.L`,
+VRoid's `J_Bip_L_UpperLeg`, 3ds Max Biped's `Bip01 L Thigh`, an inertial suit's and the CMU
+conversions' `LeftHip` / `LeftCollar` / `LeftShoulder` (the upper arm), CMU's ASF `lfemur` /
+`lhumerus`, ...). For anything else, a TOML file
 maps joint names to bone names:
 
     [bones]
@@ -31,20 +32,24 @@ SPINE_CHAIN = ("Spine", "Chest", "UpperChest")
 # (pattern on the lower-cased name without side markers, bone without side); first match wins
 LIMB_PATTERNS = [
     (r"(index|thumb|finger|middle|ring|pinky)", None),
-    (r"(shoulder|clavicle|collar)", "Shoulder"),
-    (r"(forearm|lowerarm|elbow)", "LowerArm"),
-    (r"(upperarm|^arm$|^arm\d*$)", "UpperArm"),
+    (r"(shoulder|clavicle|collar)", "Shoulder"),  # the upper arm where a collar came before it (`_limb`)
+    (r"(forearm|lowerarm|elbow|radius)", "LowerArm"),
+    (r"(upperarm|^arm$|^arm\d*$|humerus)", "UpperArm"),
     (r"(hand|wrist)", "Hand"),
-    (r"(upleg|upperleg|thigh)", "UpperLeg"),
-    (r"(lowerleg|^leg$|shin|knee|calf)", "LowerLeg"),
+    (r"(upleg|upperleg|thigh|femur)", "UpperLeg"),
+    (r"(lowerleg|^leg$|shin|knee|calf|tibia)", "LowerLeg"),
     (r"(toe|ball)", "Toes"),
     (r"(foot|ankle)", "Foot"),
     (r"(hipjoint)", None),
-    (r"^hip\d*$", "UpperLeg"),  # a sided hip is the thigh's joint (CMU's ASF names: LeftHip)
+    (r"^hips?$", "UpperLeg"),  # a sided hip (LeftHip, then LeftKnee, LeftAnkle) is the thigh's joint
 ]
+# CMU's ASF names: a lower-case side letter before the bone's name (lfemur, rhumerus, lclavicle)
+ASF_LIMB = r"^[lr](?=(hipjoint|femur|tibia|foot|toes|clavicle|humerus|radius|wrist|hand|fingers|thumb)$)"
 
 
 def _side(name: str) -> str | None:
+    if re.match(ASF_LIMB, name):
+        return "Left" if name[0] == "l" else "Right"
     if re.search(r"(^|[_.:\s-])l($|[_.\s-])|left", name, re.IGNORECASE) or re.match(r"^L[A-Z]", name):
         return "Left"
     if re.search(r"(^|[_.:\s-])r($|[_.\s-])|right", name, re.IGNORECASE) or re.match(r"^R[A-Z]", name):
@@ -54,26 +59,35 @@ def _side(name: str) -> str | None:
 
 def _core(name: str) -> str:
     name = name.split(":")[-1]
+    name = re.sub(ASF_LIMB, "", name)
     name = re.sub(r"(?i)left|right", "", name)
     name = re.sub(r"(^|[_.\s-])[LRlr]($|[_.\s-])", "", name)
     name = re.sub(r"^[LR](?=[A-Z])", "", name)
     return re.sub(r"[_.\s-]", "", name).lower()
 
 
+def _limb(core: str, side: str, taken: set[str]) -> str | None:
+    """The sided bone a joint's name says (None: none, or one already taken). A shoulder after a
+    collar on its side is the upper arm (a suit's and the CMU conversions' LeftCollar,
+    LeftShoulder, LeftElbow, LeftWrist), as Mixamo's LeftShoulder, LeftArm is the collar first."""
+    for pattern, bone in LIMB_PATTERNS:
+        if re.search(pattern, core):
+            if bone == "Shoulder" and f"{side}Shoulder" in taken:
+                bone = "UpperArm"
+            return f"{side}{bone}" if bone and f"{side}{bone}" not in taken else None
+    return None
+
+
 def guess_humanoid(skeleton: Skeleton) -> dict[str, str]:
     """{joint name: human bone} for the joints whose role is clear from their names."""
     mapping: dict[str, str] = {}
     names = skeleton.names
-    for name, parent in zip(names, skeleton.parents):
+    for name in names:
         core, side = _core(name), _side(name)
         if side:
-            for pattern, bone in LIMB_PATTERNS:
-                if re.search(pattern, core):
-                    if bone == "Shoulder" and parent >= 0 and mapping.get(names[parent]) == f"{side}Shoulder":
-                        bone = "UpperArm"  # a shoulder under the collar bone is the arm's joint (CMU's ASF names)
-                    if bone and f"{side}{bone}" not in mapping.values():
-                        mapping[name] = f"{side}{bone}"
-                    break
+            bone = _limb(core, side, set(mapping.values()))
+            if bone:
+                mapping[name] = bone
         elif re.search(r"(hips?|pelvis)$", core) and "Hips" not in mapping.values():
             mapping[name] = "Hips"
         elif re.search(r"neck", core) and "Neck" not in mapping.values():

@@ -23,7 +23,7 @@ import numpy as np
 from ..motion.bvh import Motion
 from ..motion.features import FeatureLayout, extract, restore_local
 from ..motion.kinematics import forward_kinematics
-from ..motion.limbs import units_to_metres
+from ..motion.limbs import hip_height, units_to_metres
 from ..motion.rotations import axis_angle_matrix
 from ..synthesis.posing import Pose, quaternions
 from .osc import bundles, float_messages, float_prefix, message
@@ -79,7 +79,7 @@ class VmcProfile:
         template_rot, template_pos = _standing_world(layout, template_features)
         world_rot, world_pos = self.turn @ template_rot[0], template_pos[0] @ self.turn.T
         stance_rot, stance_pos = _standing_world(layout, template_features if stance is None else stance)
-        self.scale = units_to_metres(float(world_pos[layout.root][1])) if scale is None else scale
+        self.scale = units_to_metres(hip_height(world_pos, layout.root)) if scale is None else scale
         tpose = TPose(skeleton, self.joints, self.bones, world_rot, world_pos, self.turn @ stance_rot, stance_pos @ self.turn.T)
         self.tpose = tpose
         self.rest_inverse = np.transpose(np.array([tpose.rotations[b] for b in self.bones]), (0, 2, 1))

@@ -3,8 +3,18 @@
 A weight of 0 leaves a style out, 1 gives that style's model, 0 < w < 1 inhibits it, w > 1
 exaggerates it and w < 0 inverts it; several weights blend. Means (of outputs and durations)
 move linearly along the offsets. Variances move in log space, so they stay positive for any
-weights (a linear sum, as in hts_engine, goes negative under extrapolation); far out, a
-variance changes at most 10^4 times from lambda 0's so the solver stays well conditioned.
+weights (a linear sum, as in hts_engine, goes negative under extrapolation), and each stays
+within the span the models themselves have (the least and the largest of lambda 0's and the
+styles' for that state and dimension): between the styles a log variance moves as the means do,
+but past them (x2, -1) its extrapolation has nothing in the data behind it. lambda 0 is in the
+span because every mix between the styles is (a weight moving out past them meets the bound
+where it already is, no jump); the bound is only applied past them. Unbounded, an
+inverted run's root speed variances reached 120-470 cm/s (its styles' 11-40, the average's 66-76)
+against delta variances of a few cm/s a frame, so the window MLPG barely pulled the speed
+towards the run's: a run set off from a stand took 4 to 7 steps to reach speed. A crowd
+character's own offset moves its variances on from the bounded performance's, and far out
+(beyond the span, or with a wide spread) a variance changes at most 10^4 times from lambda 0's
+so the solver stays well conditioned.
 
 Weights can also be given per body part: the static dimensions fall into groups derived from
 the skeleton (the root's motion, the legs, the upper body), and each style may weigh each group
@@ -42,6 +52,7 @@ class StyleSpace:
     duration_base: np.ndarray  # (2, labels * states) the same for the state durations
     duration_offsets: np.ndarray  # (styles, 2, labels * states)
     group_masks: np.ndarray  # (groups, 3D) which observation dimensions belong to each group
+    log_variance_span: np.ndarray  # (2, labels * states, 3D) the least and largest log variance offset (0: lambda 0)
     max_step: np.ndarray  # (D,) largest frame-to-frame change of each static feature in the data
 
 
@@ -93,16 +104,19 @@ def style_space(model: Model) -> StyleSpace:
     duration_base = np.stack([model.average.duration_means.reshape(-1), np.log(model.average.duration_variances.reshape(-1))])
     styles = len(model.style_names)
     masks = np.tile(body_groups(model.layout), (1, 3))
+    log_offsets = np.log(flat(model.styles.variances)) - base[1]
+    span = np.stack([np.minimum(log_offsets.min(axis=0), 0.0), np.maximum(log_offsets.max(axis=0), 0.0)])
     return StyleSpace(
         style_names=tuple(model.style_names),
         labels=labels,
         states=states,
         base=base,
-        offsets=np.stack([flat(model.styles.means), np.log(flat(model.styles.variances))], axis=1) - base,
+        offsets=np.stack([flat(model.styles.means), log_offsets], axis=1) - np.stack([base[0], np.zeros_like(base[1])]),
         duration_base=duration_base,
         duration_offsets=np.stack([model.styles.duration_means.reshape(styles, -1),
                                    np.log(model.styles.duration_variances.reshape(styles, -1))], axis=1) - duration_base,
         group_masks=masks,
+        log_variance_span=span,
         max_step=model.static_step_max,
     )
 
@@ -118,15 +132,21 @@ def part_weights_per_group(weights: np.ndarray, part_weights: np.ndarray) -> np.
 def style_change(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray | None = None
                  ) -> tuple[np.ndarray, np.ndarray]:
     """How far lambda* moves from lambda 0 at one character's weights (styles,) and part
-    weights (styles, groups), before the variances' limit: (2, labels * states, 3D) means and
-    log variances, and (2, labels * states) of the durations (which follow the overall weights)."""
+    weights (styles, groups): (2, labels * states, 3D) means and log variances, the log
+    variances' within the span of the models' own (`StyleSpace.log_variance_span`), and
+    (2, labels * states) of the durations (which follow the overall weights)."""
     weights = np.asarray(weights, dtype=np.float64)
     styles = len(weights)
     if part_weights is None:
         change = (weights @ space.offsets.reshape(styles, -1)).reshape(space.base.shape)
+        mixes = weights[:, None]
     else:
-        per_dim = part_weights_per_group(weights, part_weights) @ space.group_masks  # each dimension is in one group
+        mixes = part_weights_per_group(weights, part_weights)  # (styles, groups)
+        per_dim = mixes @ space.group_masks  # each dimension is in one group
         change = np.einsum("sf,sxkf->xkf", per_dim, space.offsets)
+    if (mixes < 0.0).any() or (mixes.sum(axis=0) > 1.0).any():  # past the styles: a convex mix needs no bound
+        np.maximum(change[1], space.log_variance_span[0], out=change[1])  # (two passes: half np.clip's time)
+        np.minimum(change[1], space.log_variance_span[1], out=change[1])
     return change, (weights @ space.duration_offsets.reshape(styles, -1)).reshape(space.duration_base.shape)
 
 

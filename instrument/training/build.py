@@ -21,6 +21,7 @@ from .average import TrainingReport, train_average, variance_floors
 from .contact import train_contact
 from .corpus import Take, load_corpus, segments_by_label
 from .gestures import gesture_metadata, gesture_segments, model_gestures
+from .height import stand_on_the_floor
 from .little import LITTLE_TAU, keep_own_steps
 from .symmetry import symmetric_models
 from .units import held_posture, mirrored_pairs, model_units
@@ -127,4 +128,5 @@ def build_model(
     if gestures:
         metadata["gestures"] = gesture_metadata(takes, gestures, 2 * len(units))
     model = Model(metadata, average, styles, static_std, step_max, contact)
-    return Model(metadata, average, styles, static_std, step_max, contact | train_range(model, walks, little_tau)), report, takes
+    model = Model(metadata, average, styles, static_std, step_max, contact | train_range(model, walks, little_tau))
+    return stand_on_the_floor(model, walks), report, takes

@@ -3,8 +3,10 @@
 Each foot of each frame of a take is labelled as in contact when its lowest joint is within
 CONTACT_CM of its ground clearance and moves slower than CONTACT_SPEED_CM_S horizontally; the
 share of contact frames in each (label, state) is stored for the average model and for each
-style, the frames aligned by each model's own state posteriors. How the instrument uses these
-shares live is described in `instrument.synthesis.contact`.
+style, the frames aligned by each model's own state posteriors. For the average model it also
+stores each state's share of frames with both feet in the air (`air_labels`), which tells a
+run's flight from a walk's states whose feet slide on the floor (`synthesis.contact.flight_states`).
+How the instrument uses these shares live is described in `instrument.synthesis.contact`.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from ..models.hsmm import HSMM, forward_backward, pad_segments
 from ..motion.features import FeatureLayout, restore_local
 from ..motion.kinematics import forward_kinematics
 from ..motion.limbs import Limbs, centimetres_per_unit, find_limbs
-from ..motion.quality import take_floors
+from ..motion.quality import AIR_CM, take_floors
 from ..synthesis.contact import CONTACT_CM, CONTACT_SPEED_CM_S
 
 
@@ -37,8 +39,19 @@ def contact_labels(positions: np.ndarray, limbs: Limbs, ground: np.ndarray, cm: 
     return out
 
 
+def air_labels(positions: np.ndarray, limbs: Limbs, ground: np.ndarray, cm: float) -> np.ndarray:
+    """(frames, 1) 1.0 where both feet are in the air: each foot's lowest joint more than AIR_CM
+    above its clearance, however fast it moves (as `instrument evaluate`'s air counts them). A
+    run's flight; not a walk's foot that slides or pivots on the floor, or stands a centimetre or
+    two above the floor its take's lowest frames set, which `contact_labels` does not count as
+    planted either."""
+    lifts = [(positions[:, list(foot), 1] - ground[f]).min(axis=1) * cm for f, foot in enumerate(limbs.feet)]
+    return ((lifts[0] > AIR_CM) & (lifts[1] > AIR_CM)).astype(np.float64)[:, None]
+
+
 def _state_contact(model: HSMM, segments: list[list[np.ndarray]], flags: list[list[np.ndarray]], fallback: np.ndarray) -> np.ndarray:
-    """(labels, states, 2): posterior-weighted share of contact frames in each state."""
+    """(labels, states, columns of the flags): posterior-weighted share of flagged frames in each
+    state (contact per foot, or air)."""
     out = fallback.copy()
     for label, (segs, contact) in enumerate(zip(segments, flags)):
         if not segs:
@@ -64,11 +77,12 @@ def train_contact(layout: FeatureLayout, takes, average: HSMM, styles: HSMM, sty
     cm = centimetres_per_unit(layout, positions[0][0])
     floors = take_floors(positions, limbs)  # each take on its own floor (a capture's is not always level)
     labels = [contact_labels(p, limbs, g, cm, fps) for p, g in zip(positions, floors.ground)]
+    airs = [air_labels(p, limbs, g, cm) for p, g in zip(positions, floors.ground)]
     ground = floors.mean_ground  # the lock's: the floor of the walk the model learnt from them all
 
     units = units or ["walk"]
 
-    def split(chosen):
+    def split(chosen, labels=labels):
         segs = [[] for _ in range(2 * len(units))]
         flags = [[] for _ in range(2 * len(units))]
         for k in chosen:
@@ -82,6 +96,7 @@ def train_contact(layout: FeatureLayout, takes, average: HSMM, styles: HSMM, sty
     everything = split(range(len(takes)))
     neutral = np.full(average.duration_means.shape + (2,), 0.5)
     base = _state_contact(average, *everything, neutral)
+    air = _state_contact(average, *split(range(len(takes)), airs), np.zeros(average.duration_means.shape + (1,)))[..., 0]
     per_style = []
     for s, name in enumerate(style_names):
         model = HSMM(*(getattr(styles, p)[s] for p in ("means", "variances", "duration_means", "duration_variances")))
@@ -90,6 +105,7 @@ def train_contact(layout: FeatureLayout, takes, average: HSMM, styles: HSMM, sty
     metadata = {
         "feet": [[names[j] for j in foot] for foot in limbs.feet],
         "clearance": ground.tolist(),
+        "air": air.tolist(),  # (labels, states) share of frames with both feet off the floor (ContactSpace.flight)
         "contact_cm": CONTACT_CM,
         "contact_speed_cm_s": CONTACT_SPEED_CM_S,
     }

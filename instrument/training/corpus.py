@@ -18,6 +18,7 @@ from ..motion.kinematics import local_transforms
 from ..motion.gestures import gesture_phases
 from ..motion.standing import standing_steps
 from ..motion.steps import LABELS, segment_steps
+from ..motion.upright import upright
 from ..models.units import UNITS
 from ..textfile import read_text
 from ..tomlfile import read_toml
@@ -177,7 +178,7 @@ def read_motions(pairs: Sequence[tuple], fps: float, progress=None) -> list[Moti
     for k, (path, *_) in enumerate(pairs):
         if not path.is_file():
             raise UserError(f"{path}: no such file")
-        motions.append(resample(read_bvh(path), fps))
+        motions.append(resample(upright(read_bvh(path))[0], fps))  # Y up, whatever the capture's axes
         if progress:
             progress(k + 1, len(pairs), "reading")
     first = motions[0].skeleton
