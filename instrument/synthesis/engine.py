@@ -291,18 +291,17 @@ class GestureTables:
 
 
 @njit(cache=True, nogil=True)
-def drive(static: np.ndarray, cadence: np.ndarray, travel: np.ndarray, turn: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
-    """Root speeds of frames (N, D) scaled by each character's cadence (a step taken faster covers
-    the same ground sooner, so the feet do not slide) times the share of its travel it takes (N,
-    each), and the steering the units stage leaves to it added to the yaw rate (rad/s, (N,)).
-    Compiled: as numpy's three array operations it cost a one-character frame some 3 us more."""
-    out = static.copy()
-    for n in range(out.shape[0]):
+def drive(static: np.ndarray, cadence: np.ndarray, travel: np.ndarray, turn: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """`out` = frames `static` (N, D) with their root speeds scaled by each character's cadence
+    (a step taken faster covers the same ground sooner, so the feet do not slide) times the share
+    of its travel it takes (N, each), and the steering the units stage leaves to it added to the
+    yaw rate (rad/s, (N,)). Compiled: numpy's three array operations cost a one-character frame
+    some 3 us more (and a kernel that returns a new array unpickles its type at each call)."""
+    for n in range(static.shape[0]):
         scale = cadence[n] * travel[n]
-        for d in range(ROOT_RATES[0], ROOT_RATES[1]):
-            out[n, d] *= scale
+        for d in range(static.shape[1]):
+            out[n, d] = static[n, d] * scale if ROOT_RATES[0] <= d < ROOT_RATES[1] else static[n, d]
         out[n, 3] += turn[n]
-    return out
 
 
 # ---- the engine ---------------------------------------------------------------------------------
@@ -417,7 +416,9 @@ class Engine:
         if self.range_filter is not None:
             frames = self.range_filter(frames, *self.range_targets.targets(ids // (2 * self.model.states)))
             self._timed("range")
-        frames = drive(frames, self.stream.cadence, self.units.travel, self.units.added_yaw)
+        driven = np.empty(frames.shape)
+        drive(frames, self.stream.cadence, self.units.travel, self.units.added_yaw, driven)
+        frames = driven
         self._timed("drive")
         if self.gestures.crowd is not None:
             frames = self.gestures.after(frames, ids)
