@@ -258,6 +258,25 @@ def test_a_crowd_gestures_at_once_each_character_in_its_own_style_mix(model):
     assert np.array_equal(raised[..., ~upper], plain[..., ~upper])
 
 
+def test_a_crowd_cut_into_parts_on_the_cores_gestures_as_one_part_does(model, monkeypatch):
+    """A crowd's stream cut into one part per core (cores.py; each part's solve on a thread of its
+    own) makes a held wave, the gait's solve making the gesture's frames, as the crowd in one part
+    does: the same frames to the bit (the gesture's plan is the whole crowd's, made before the parts)."""
+    from instrument.synthesis import stream
+
+    controls = default_controls(model, {"active": 1.0, "feminine": 0.5}, liveliness=0.3)
+    runs = []
+    for cut in (lambda count: [(0, count // 2), (count // 2, count)], lambda count: [(0, count)]):
+        monkeypatch.setattr(stream, "parts", cut)
+        engine, frames, hosted = Engine(model, 6), [], 0
+        for k in range(150):
+            frames.append(engine.next_features(replace(controls, gestures=("wave",) if 20 <= k < 100 else ()), 0.7))
+            hosted += engine.gestures.host is not None
+        assert hosted > 40 and engine.gestures.started == 1
+        runs.append(np.array(frames))
+    assert np.array_equal(*runs)
+
+
 def test_a_gesture_the_model_lacks_or_a_second_press_while_one_plays_changes_nothing(model):
     engine = Engine(model)
     controls = default_controls(model, {"normal": 1.0})
