@@ -210,8 +210,8 @@ class RangeTargets:
         self.held[slice(None) if mix.paced is None else mix.paced] = -1
         self.table = None
 
-    def targets(self, units: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(N, D) stride means and factors of each character's frame, of unit `units` (N,)."""
+    def targets(self, units: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+        """(N, D) stride means and factors of each character's frame, of unit `units` (N,: an array or a list)."""
         count = len(self.held)
         if count > TABLES_UP_TO:
             self._made(np.ascontiguousarray(units, dtype=np.int64))
@@ -350,6 +350,7 @@ class Engine:
         self._pace: tuple | None = None  # and the durations (speed, phase stretch, liveliness)
         self.frames: list[np.ndarray] = []  # the last two model frames (N, D), driven
         self.made = 0  # model frames made
+        self._unit_span = 2 * model.states  # states a unit's two labels hold
         # when a dict: seconds spent in each stage, added up frame after frame (`instrument bench`'s stage costs)
         self.stage_seconds: dict[str, float] | None = None
         self._clock = 0.0
@@ -414,7 +415,9 @@ class Engine:
             ids = self.stream.history_ids[:, 1]
         self._timed("stream")
         if self.range_filter is not None:
-            frames = self.range_filter(frames, *self.range_targets.targets(ids // (2 * self.model.states)))
+            span = self._unit_span  # a frame's unit (one character's by Python's division: numpy's cost 1 us)
+            units = [int(ids[0]) // span] if self.count == 1 else ids // span
+            frames = self.range_filter(frames, *self.range_targets.targets(units))
             self._timed("range")
         driven = np.empty(frames.shape)
         drive(frames, self.stream.cadence, self.units.travel, self.units.added_yaw, driven)
