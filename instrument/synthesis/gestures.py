@@ -66,6 +66,7 @@ class GestureLayer:
         # whose upper joints follow one another, as they do in a depth-first joint order)
         self.solved = slice(int(self.columns.min()), int(self.columns.max()) + 1)
         self.crowd = Crowd(space, count, lookahead, seeds=seeds, columns=self.solved) if self.labels else None
+        self._work = None if self.crowd is None else self.crowd._window_buffers(2)  # its plan's, while the gait's solve makes its frame
         self._next_units = np.zeros((2, 6), dtype=np.int64)  # the unit the plan goes on in, by phase (`_start`)
         self._repeats = 0  # the playing gesture's repeat half cycles, as its takes hold them
         self._holding = False  # whether its target is held
@@ -125,7 +126,7 @@ class GestureLayer:
             # the gait's solve may make this frame if it made the last or could have (`_progress`: every weight 1, none lowering)
             if self.whole and gait is not None and self.whole_range and gait.sent >= 2 and crowd.sent >= 2:
                 crowd._draws_for(crowd.lookahead + 1)
-                work = crowd._window_buffers(2)
+                work = self._work
                 playing, guest = _plan_guest(crowd.counters, self.label, self.done, self.tapped, self._holding, self._repeats,
                                              self.first, self._next_units, crowd.base, crowd.sigma, crowd.carry, crowd.pool,
                                              crowd.history_ids, work.ids, work.counts, work.carries, gait.guest_rows,
@@ -170,7 +171,7 @@ class GestureLayer:
             frames = np.asarray(frames, dtype=np.float64)
             crowd = self.crowd
             if self.host is not None:
-                work = crowd._window_buffers(2)
+                work = self._work
                 _move_guest(self.host.history, self.solved.start, crowd.history, crowd.history_ids, crowd.counters, crowd.carry,
                             work.ids, work.counts, work.carries, crowd.space.states, self.weights, frames, self.columns,
                             self.shown, self.shown_ids, ids)
