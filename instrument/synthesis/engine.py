@@ -291,7 +291,8 @@ class GestureTables:
 
 
 @njit(cache=True, nogil=True)
-def drive(static: np.ndarray, cadence: np.ndarray, travel: np.ndarray, turn: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - compiled
+def drive(static: np.ndarray, cadence: np.ndarray, travel: np.ndarray, turn: np.ndarray,
+          out: np.ndarray) -> None:  # pragma: no cover - compiled
     """`out` = frames `static` (N, D) with their root speeds scaled by each character's cadence
     (a step taken faster covers the same ground sooner, so the feet do not slide) times the share
     of its travel it takes (N, each), and the steering the units stage leaves to it added to the

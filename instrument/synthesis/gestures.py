@@ -66,7 +66,8 @@ class GestureLayer:
         # whose upper joints follow one another, as they do in a depth-first joint order)
         self.solved = slice(int(self.columns.min()), int(self.columns.max()) + 1)
         self.crowd = Crowd(space, count, lookahead, seeds=seeds, columns=self.solved) if self.labels else None
-        self._work = None if self.crowd is None else self.crowd._window_buffers(2)  # its plan's, while the gait's solve makes its frame
+        # its plan's work, while the gait's solve makes its frame
+        self._work = None if self.crowd is None else self.crowd._window_buffers(2)
         self._next_units = np.zeros((2, 6), dtype=np.int64)  # the unit the plan goes on in, by phase (`_start`)
         self._repeats = 0  # the playing gesture's repeat half cycles, as its takes hold them
         self._holding = False  # whether its target is held
