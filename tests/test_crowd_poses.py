@@ -42,7 +42,8 @@ def _features(model, space, performances: list[list[Controls]]):
     statics, shares = [], []
     for controls in zip(*performances):
         frame = step(walker, list(controls))
-        statics.append(np.stack([drive(frame[n], walker.cadence[n], c.turn) for n, c in enumerate(controls)]))
+        statics.append(np.empty(frame.shape))
+        drive(frame, walker.cadence, np.ones(len(controls)), np.array([c.turn for c in controls]), statics[-1])
         shares.append(np.stack([contact.shares(c.weights, c.part_weights)[0, walker.history_ids[n, 1]]
                                 for n, c in enumerate(controls)]))
     return np.array(statics), np.array(shares)

@@ -6,7 +6,7 @@ The phases are found in the real takes; the shipped model holds both gestures; a
 while walking raises the hands above the head and lowers them, leaving the legs and the root
 exactly as the walk without it; a hold repeats until released; `synth --gesture` writes one
 (read back with an independent BVH reader); a surface's OSC press reaches the engine through a
-real UDP socket, and the recorded log replays it.
+real UDP socket, and the recorded log replays it; so does a score's tap.
 """
 
 from __future__ import annotations
@@ -258,6 +258,25 @@ def test_a_crowd_gestures_at_once_each_character_in_its_own_style_mix(model):
     assert np.array_equal(raised[..., ~upper], plain[..., ~upper])
 
 
+def test_a_crowd_cut_into_parts_on_the_cores_gestures_as_one_part_does(model, monkeypatch):
+    """A crowd's stream cut into one part per core (cores.py; each part's solve on a thread of its
+    own) makes a held wave, the gait's solve making the gesture's frames, as the crowd in one part
+    does: the same frames to the bit (the gesture's plan is the whole crowd's, made before the parts)."""
+    from instrument.synthesis import stream
+
+    controls = default_controls(model, {"active": 1.0, "feminine": 0.5}, liveliness=0.3)
+    runs = []
+    for cut in (lambda count: [(0, count // 2), (count // 2, count)], lambda count: [(0, count)]):
+        monkeypatch.setattr(stream, "parts", cut)
+        engine, frames, hosted = Engine(model, 6), [], 0
+        for k in range(150):
+            frames.append(engine.next_features(replace(controls, gestures=("wave",) if 20 <= k < 100 else ()), 0.7))
+            hosted += engine.gestures.host is not None
+        assert hosted > 40 and engine.gestures.started == 1
+        runs.append(np.array(frames))
+    assert np.array_equal(*runs)
+
+
 def test_a_gesture_the_model_lacks_or_a_second_press_while_one_plays_changes_nothing(model):
     engine = Engine(model)
     controls = default_controls(model, {"normal": 1.0})
@@ -374,6 +393,27 @@ def test_an_osc_press_reaches_the_engine_and_the_recorded_log_replays_it(tmp_pat
                                    str(replayed)], capture_output=True, text=True, timeout=120)
     assert replay.returncode == 0, replay.stderr
     assert live.read_bytes() == replayed.read_bytes()
+
+
+def test_a_scores_cue_taps_a_gesture_and_the_recorded_log_replays_it(tmp_path):
+    """A score's cues press the wave at 1 s and let go 0.1 s later (docs/scores.md): the BVH `run
+    --score --fast` writes (read back independently) has the hands over the head only after the
+    press, the recording holds the press and the release at the cues' times, and replays the same
+    frames byte for byte."""
+    score, log = tmp_path / "wave.toml", tmp_path / "take.jsonl"
+    score.write_text('[[cue]]\nat = 1\nramp = { "gesture/wave" = 1 }\n\n[[cue]]\nafter = 0.1\nramp = { "gesture/wave" = 0 }\n')
+    walks = {name: tmp_path / f"{name}.bvh" for name in ("scored", "replayed")}
+    for name, source in (("scored", ["--score", str(score), "--record", str(log)]), ("replayed", ["--replay", str(log)])):
+        result = subprocess.run(RUN + source + ["--fast", "--no-osc", "--quiet", "--seconds", "6", "--bvh", str(walks[name])],
+                                capture_output=True, text=True, timeout=120)
+        assert result.returncode == 0, result.stderr
+    events = [json.loads(line) for line in log.read_text().splitlines()[1:]]
+    assert [(e["control"], e["value"]) for e in events] == [("gesture/wave", 1.0), ("gesture/wave", 0.0)]
+    assert [e["t"] for e in events] == pytest.approx([1.0, 1.1])
+    names, positions, _ = world_positions(walks["scored"])
+    over = positions[:, [names.index("Hand_R"), names.index("Hand_L")], 1].max(axis=1) - positions[:, names.index("Head"), 1]
+    assert over[:30].max() < 0 < over[30:].max()
+    assert walks["scored"].read_bytes() == walks["replayed"].read_bytes()
 
 
 def _pressed(log) -> bool:

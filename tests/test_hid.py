@@ -293,6 +293,38 @@ def test_every_shipped_hid_mapping_drives_the_walk(model, name, descriptor, ids,
     assert watch.seen[20] == pytest.approx(value)
 
 
+# each pad's gesture buttons (wave, raise) as its reports carry them, from the published layouts:
+# the DualShock 4's L1, R1 (the shoulder byte's first bits), the Xbox pad's LB, RB (Buttons 7, 8 of
+# its 15-bit field), the Switch Pro's L, R (after B A Y X), the joystick's Buttons 5, 6
+GESTURE_BUTTONS = [
+    ("sony-dualshock4", DUALSHOCK4_USB, (0x054C, 0x05C4), lambda bits: ds4_report(shoulders=bits), (1, 2)),
+    ("xbox-wireless-bluetooth", XBOX_WIRELESS_BT, (0x045E, 0x0B13), lambda bits: xbox_report(buttons=bits), (1 << 6, 1 << 7)),
+    ("nintendo-switch-pro", SWITCH_PRO_BT, (0x057E, 0x2009), lambda bits: switch_pro_report(buttons=bits), (1 << 4, 1 << 5)),
+    ("generic-gamepad", MADE_UP_JOYSTICK, (0x16C0, 0x05DC), lambda bits: joystick_report(buttons=bits), (1 << 4, 1 << 5)),
+]
+
+
+@pytest.mark.parametrize("name,descriptor,ids,report,buttons", GESTURE_BUTTONS, ids=[g[0] for g in GESTURE_BUTTONS])
+def test_every_shipped_pads_gesture_buttons_hold_the_gestures_while_pressed(model, name, descriptor, ids, report, buttons):
+    """Issue 26's pads: each shipped gamepad's two gesture buttons, pressed and let go through its
+    mapping, hold `gesture/wave` and then `gesture/raise` (a press starts one; synthesis/gestures.py)."""
+    sim = SimulatedDevice(descriptor, *ids)
+    hid = SimulatedHid(sim)
+    state = state_of(model)
+    mapping, why = choose_mapping([load_mapping(p, state) for p in shipped_mappings()], *ids, hid=hid)
+    assert mapping.path.endswith(f"{name}.toml"), why
+    console = Console(stream=io.StringIO())
+    device = HidInput(console, *ids, hid=hid)
+    wave_bits, raise_bits = buttons
+    script = {5: lambda: sim.send(report(wave_bits)), 20: lambda: sim.send(report(0)),
+              30: lambda: sim.send(report(raise_bits)), 45: lambda: sim.send(report(0))}
+    wave, raised = Watch(state, "gesture/wave", script), Watch(state, "gesture/raise", {})
+    perform(Show(model, [wave, raised], fps=30, seconds=2.0, apply=ControlHub([mapping]).apply, state=state,
+                 sources=[device.poll]), console)
+    assert (wave.seen[4], wave.seen[18], wave.seen[28]) == (0.0, 1.0, 0.0)
+    assert (raised.seen[28], raised.seen[43], raised.seen[59]) == (0.0, 1.0, 0.0)
+
+
 class EchoWatch(Watch):
     """Records what the frame echoes to control surfaces (/walk/<target> on the wire), not the state."""
 

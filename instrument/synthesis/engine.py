@@ -34,6 +34,7 @@ from dataclasses import dataclass, replace
 from typing import Protocol, Sequence
 
 import numpy as np
+from numba import njit
 
 from ..models.modelfile import Model
 from ..motion.bvh import Motion
@@ -53,7 +54,7 @@ from .stream import Controls, Crowd
 from .units import UnitChooser
 from .widen import RangeFilter, RangeSpace, range_space, unit_targets
 
-ROOT_RATES = slice(1, 4)  # root.vx, root.vz, root.yaw_rate in the static features
+ROOT_RATES = (1, 4)  # [first, last) of root.vx, root.vz, root.yaw_rate in the static features
 # a crowd of up to this many characters takes its range targets and contact shares from tables
 # of every unit and state made at a retune (a view a frame costs less than a compiled call a frame);
 # a larger one makes each character's frame's own, frame by frame
@@ -209,8 +210,8 @@ class RangeTargets:
         self.held[slice(None) if mix.paced is None else mix.paced] = -1
         self.table = None
 
-    def targets(self, units: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(N, D) stride means and factors of each character's frame, of unit `units` (N,)."""
+    def targets(self, units: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+        """(N, D) stride means and factors of each character's frame, of unit `units` (N,: an array or a list)."""
         count = len(self.held)
         if count > TABLES_UP_TO:
             self._made(np.ascontiguousarray(units, dtype=np.int64))
@@ -260,6 +261,8 @@ class ContactTables:
     def at(self, ids: np.ndarray) -> np.ndarray:
         """(N, 2) how surely each character's feet are planted in its state `ids` (N,)."""
         if self.table is not None:
+            if len(self.table) == 1:  # one character: a view, no copy (a fancy index cost its frame 1.5 us)
+                return self.table[:, ids[0]]
             return self.table[np.arange(len(self.table)), ids]
         return self.space.shares_in(self.legs, np.asarray(ids, dtype=np.int64).reshape(-1, 1))[:, 0]
 
@@ -287,14 +290,19 @@ class GestureTables:
             self.stream = None
 
 
-def drive(static: np.ndarray, cadence: np.ndarray, turn: float | np.ndarray) -> np.ndarray:
-    """Root speeds (N, D) scaled by each character's cadence (a step taken faster covers the same
-    ground sooner, so the feet do not slide) and the steering the units stage leaves to it added
-    to the yaw rate (rad/s; one number or one per character)."""
-    out = np.array(static, dtype=np.float64)
-    out[..., ROOT_RATES] *= np.asarray(cadence)[..., None]
-    out[..., 3] += turn
-    return out
+@njit(cache=True, nogil=True)
+def drive(static: np.ndarray, cadence: np.ndarray, travel: np.ndarray, turn: np.ndarray,
+          out: np.ndarray) -> None:  # pragma: no cover - compiled
+    """`out` = frames `static` (N, D) with their root speeds scaled by each character's cadence
+    (a step taken faster covers the same ground sooner, so the feet do not slide) times the share
+    of its travel it takes (N, each), and the steering the units stage leaves to it added to the
+    yaw rate (rad/s, (N,)). Compiled: numpy's three array operations cost a one-character frame
+    some 3 us more (and a kernel that returns a new array unpickles its type at each call)."""
+    for n in range(static.shape[0]):
+        scale = cadence[n] * travel[n]
+        for d in range(static.shape[1]):
+            out[n, d] = static[n, d] * scale if ROOT_RATES[0] <= d < ROOT_RATES[1] else static[n, d]
+        out[n, 3] += turn[n]
 
 
 # ---- the engine ---------------------------------------------------------------------------------
@@ -343,6 +351,7 @@ class Engine:
         self._pace: tuple | None = None  # and the durations (speed, phase stretch, liveliness)
         self.frames: list[np.ndarray] = []  # the last two model frames (N, D), driven
         self.made = 0  # model frames made
+        self._unit_span = 2 * model.states  # states a unit's two labels hold
         # when a dict: seconds spent in each stage, added up frame after frame (`instrument bench`'s stage costs)
         self.stage_seconds: dict[str, float] | None = None
         self._clock = 0.0
@@ -407,9 +416,13 @@ class Engine:
             ids = self.stream.history_ids[:, 1]
         self._timed("stream")
         if self.range_filter is not None:
-            frames = self.range_filter(frames, *self.range_targets.targets(ids // (2 * self.model.states)))
+            span = self._unit_span  # a frame's unit (one character's by Python's division: numpy's cost 1 us)
+            units = [int(ids[0]) // span] if self.count == 1 else ids // span
+            frames = self.range_filter(frames, *self.range_targets.targets(units))
             self._timed("range")
-        frames = drive(frames, self.stream.cadence * self.units.travel, self.units.added_yaw)
+        driven = np.empty(frames.shape)
+        drive(frames, self.stream.cadence, self.units.travel, self.units.added_yaw, driven)
+        frames = driven
         self._timed("drive")
         if self.gestures.crowd is not None:
             frames = self.gestures.after(frames, ids)

@@ -66,7 +66,11 @@ class GestureLayer:
         # whose upper joints follow one another, as they do in a depth-first joint order)
         self.solved = slice(int(self.columns.min()), int(self.columns.max()) + 1)
         self.crowd = Crowd(space, count, lookahead, seeds=seeds, columns=self.solved) if self.labels else None
-        self._next_repeating = self._next_ending = np.zeros(6, dtype=np.int64)  # set by _start
+        # its plan's work, while the gait's solve makes its frame
+        self._work = None if self.crowd is None else self.crowd._window_buffers(2)
+        self._next_units = np.zeros((2, 6), dtype=np.int64)  # the unit the plan goes on in, by phase (`_start`)
+        self._repeats = 0  # the playing gesture's repeat half cycles, as its takes hold them
+        self._holding = False  # whether its target is held
         self.playing: str | None = None
         self.first = 0  # the playing gesture's first label
         self.done = np.zeros(count, dtype=np.int64)  # repeat half cycles finished, per character
@@ -115,22 +119,27 @@ class GestureLayer:
             known = sorted(pressed & set(self.labels))  # one the model lacks: `run` says so, the walk goes on
             if known and self.playing is None:
                 self._start(known[0])
+            self._holding = self.playing in held
         self.blending = self.playing is not None
         guest = False
         if self.blending:
             crowd = self.crowd
-            _choose_units(crowd.counters, self.label, self.done, self.tapped, self.playing in self.held,
-                          self.repeats[self.playing], self.first, self._next_repeating, self._next_ending)
             # the gait's solve may make this frame if it made the last or could have (`_progress`: every weight 1, none lowering)
             if self.whole and gait is not None and self.whole_range and gait.sent >= 2 and crowd.sent >= 2:
                 crowd._draws_for(crowd.lookahead + 1)
-                work = crowd._window_buffers(2)
-                _plan_guest(crowd.base, crowd.sigma, crowd.counters, crowd.carry, crowd.pool, crowd.history_ids, work.ids,
-                            work.counts, work.carries, gait.guest_rows)
-                guest = self._progress(work.ids[:, 0])
+                work = self._work
+                playing, guest = _plan_guest(crowd.counters, self.label, self.done, self.tapped, self._holding, self._repeats,
+                                             self.first, self._next_units, crowd.base, crowd.sigma, crowd.carry, crowd.pool,
+                                             crowd.history_ids, work.ids, work.counts, work.carries, gait.guest_rows,
+                                             crowd.space.states, self.ease, self.weights)
+                self.whole = guest
+                if not playing:
+                    self.playing = None
                 if not guest:  # its own stream again (the same plan)
                     self.gesture = crowd.step()
             else:
+                _choose_units(crowd.counters, self.label, self.done, self.tapped, self._holding, self._repeats, self.first,
+                              self._next_units)
                 self.gesture = crowd.step()
                 self._progress(crowd.history_ids[:, 1])
         self._host(guest, gait)
@@ -154,22 +163,22 @@ class GestureLayer:
 
     def after(self, frames: np.ndarray, ids: np.ndarray) -> np.ndarray:
         """The frame (N, D) with the gesture's upper body layered on at this frame's weights
-        (`begin`), and remembered with its states `ids` (where a gesture starts from). When the
-        gait's solve made the gesture's frame (the host's last), the gesture's stream moves on by it."""
+        (`begin`; in place: the engine's frame is its own), and remembered with its states `ids`
+        (where a gesture starts from). When the gait's solve made the gesture's frame (the host's
+        last), the gesture's stream moves on by it, in the same compiled call."""
         if not self.blending:
             _remember(self.shown, self.shown_ids, frames, ids, self.solved.start)
         else:
+            frames = np.asarray(frames, dtype=np.float64)
             crowd = self.crowd
             if self.host is not None:
-                work = crowd._window_buffers(2)
+                work = self._work
                 _move_guest(self.host.history, self.solved.start, crowd.history, crowd.history_ids, crowd.counters, crowd.carry,
-                            work.ids, work.counts, work.carries, crowd.space.states)
+                            work.ids, work.counts, work.carries, crowd.space.states, self.weights, frames, self.columns,
+                            self.shown, self.shown_ids, ids)
                 crowd.sent += 1
-                self.gesture = crowd.history[:, 1]
-            out = np.empty_like(frames, dtype=np.float64)
-            _blend(self.weights, np.asarray(frames, dtype=np.float64), self.gesture, self.columns, self.solved.start, out,
-                   self.shown, self.shown_ids, ids)
-            frames = out
+            else:
+                _blend(self.weights, frames, self.gesture, self.columns, self.solved.start, self.shown, self.shown_ids, ids)
         self.seen = min(self.seen + 1, 2)
         return frames
 
@@ -195,21 +204,24 @@ class GestureLayer:
         # the unit the plan goes on in, by phase: (before, lower, raise, a, b, after); (lower, raise) is
         # the pair `first // 2`, (a, b) the next: its unit loops a and b, the first pair's ends b in the lower
         ends, repeats, rest = first // 2, first // 2 + 1, self.rest_unit
-        self._next_repeating = np.array([rest, rest, repeats, repeats, repeats, rest])
-        self._next_ending = np.array([rest, rest, repeats, repeats, ends, rest])
+        self._next_units = np.array([[rest, rest, repeats, repeats, repeats, rest],  # while it repeats
+                                     [rest, rest, repeats, repeats, ends, rest]])  # and after
+        self._repeats = self.repeats[name]
+
 
 @njit(cache=True, nogil=True)
-def _choose_units(counters, label, done, tapped, held, repeats, first, next_repeating, next_ending):  # pragma: no cover - compiled
+def _choose_units(counters, label, done, tapped, held, repeats, first, next_units):  # pragma: no cover - compiled
     """The unit each character's plan goes on in (module text): raise -> a, a -> b, b -> a while
-    it repeats, b -> lower, lower -> the rest. It repeats while held, or after a tap until the half
-    cycles played, the one under way (a b: only a b goes on to the lower) and the `done` before it,
-    make `repeats` (rounded up to a whole cycle). Counting only those done, a tap played two half
-    cycles more than its takes hold: an active raise, whose takes hold one or two, swayed twice
-    more than it should and its last sway no longer looked active (docs/evaluate.md)."""
+    it repeats, b -> lower, lower -> the rest (`next_units`: by phase, while it repeats and after).
+    It repeats while held, or after a tap until the half cycles played, the one under way (a b:
+    only a b goes on to the lower) and the `done` before it, make `repeats` (rounded up to a whole
+    cycle). Counting only those done, a tap played two half cycles more than its takes hold: an
+    active raise, whose takes hold one or two, swayed twice more than it should and its last sway
+    no longer looked active (docs/evaluate.md)."""
     for n in range(label.shape[0]):
         going_on = held or (tapped[n] and done[n] + 1 < repeats)
         phase = min(max(label[n] - first, -1), 4) + 1  # 0: before the gesture, 1..4 its labels, 5: after
-        counters[n, UNIT] = next_repeating[phase] if going_on else next_ending[phase]
+        counters[n, UNIT] = next_units[0 if going_on else 1, phase]
 
 
 @njit(cache=True, nogil=True)
@@ -236,35 +248,41 @@ def _progress(now, states, first, label, done, ease, weights):  # pragma: no cov
 
 
 @njit(cache=True, nogil=True)
-def _blend(weights, frames, gesture, columns, lo, out, shown, shown_ids, ids):  # pragma: no cover - compiled
-    """`out` = `frames` with the upper body `columns` moved each character's weight towards the
-    gesture's (whose column 0 is the frame's `lo`), remembered as shown (`_remember`: in the same
-    call, one dispatch less a frame)."""
-    for n in range(frames.shape[0]):
-        w = weights[n]
-        for d in range(frames.shape[1]):
-            out[n, d] = frames[n, d]
-        for c in columns:
-            out[n, c] = frames[n, c] + w * (gesture[n, c - lo] - frames[n, c])
-    _remember(shown, shown_ids, out, ids, lo)
-
-
-@njit(cache=True, nogil=True)
-def _plan_guest(base, sigma, counters, carry, pool, history_ids, ids, counts, carries, rows):  # pragma: no cover - compiled
-    """Each character's gesture plan, its window's rows into `rows` (the gait's `guest_rows`)."""
+def _plan_guest(counters, label, done, tapped, held, repeats, first, next_units, base, sigma, carry, pool, history_ids, ids,
+                counts, carries, rows, states, ease, weights):  # pragma: no cover - compiled
+    """The gesture's frame planned for the gait's solve to make, in one call: each character's
+    unit (`_choose_units`), its plan and its window's rows into `rows` (the gait's `guest_rows`),
+    and its weight at the frame planned (`_progress`, whose two answers it returns)."""
+    _choose_units(counters, label, done, tapped, held, repeats, first, next_units)
     for n in range(counters.shape[0]):
         _plan_window(base[n], sigma[n], counters[n], carry[n], pool[n], history_ids[n], 2, ids[n], counts[n], carries[n],
                      rows[n])
+    return _progress(ids[:, 0], states, first, label, done, ease, weights)
 
 
 @njit(cache=True, nogil=True)
-def _move_guest(gait_history, lo, history, history_ids, counters, carry, ids, counts, carries, states):  # pragma: no cover - compiled
+def _blend(weights, frames, gesture, columns, lo, shown, shown_ids, ids):  # pragma: no cover - compiled
+    """The upper body `columns` of `frames` moved each character's weight towards the gesture's
+    (whose column 0 is the frame's `lo`), in place, and remembered as shown (`_remember`: in the
+    same call, one dispatch less a frame)."""
+    for n in range(frames.shape[0]):
+        w = weights[n]
+        for c in columns:
+            frames[n, c] = frames[n, c] + w * (gesture[n, c - lo] - frames[n, c])
+    _remember(shown, shown_ids, frames, ids, lo)
+
+
+@njit(cache=True, nogil=True)
+def _move_guest(gait_history, lo, history, history_ids, counters, carry, ids, counts, carries, states, weights, frames, columns,
+                shown, shown_ids, frame_ids):  # pragma: no cover - compiled
     """The gesture's stream moved on by the frame the gait's solve made for it (the gait's last
-    frame, from column `lo`), as its own step would have (stream.py `_advance`)."""
+    frame, from column `lo`), as its own step would have (stream.py `_advance`), and that frame
+    blended into `frames` (`_blend`): one call."""
     width = history.shape[2]
     for n in range(history.shape[0]):
         _commit(history, history_ids, counters, carry, n, gait_history[n, 1, lo:lo + width], ids[n, 0], counts[n], carries[n],
                 states)
+    _blend(weights, frames, history[:, 1], columns, lo, shown, shown_ids, frame_ids)
 
 
 @njit(cache=True, nogil=True)

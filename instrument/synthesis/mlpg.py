@@ -62,29 +62,12 @@ def _precision_row(second, k, as_variance, rows, r, lo, solved):  # pragma: no c
 
 
 @njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
-def _two_rows(table, k, k2, a, b, rows, r, lo, solved):  # pragma: no cover - compiled
-    """As `_precision_row` (of precisions or means as they are), the dimensions a to b from row k2."""
-    dim = table.shape[1] // 3
-    for w in range(3):
-        target = _part(rows, r, w * solved, solved)
-        first, second = _part(table, k, w * dim + lo, solved), _part(table, k2, w * dim + lo, solved)
-        for j in range(solved):  # one loop with a select, which the compiler vectorises (three left short ones scalar)
-            target[j] = second[j] if a <= j < b else first[j]
-
-
-@njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
-def _solve(means, second, rows, as_variance, fixed, count, out, l1, l2, lo, rows2, a, b):  # pragma: no cover - compiled
+def _solve(means, second, rows, as_variance, fixed, count, out, l1, l2, lo):  # pragma: no cover - compiled
     """means and `second` (precisions, or variances when as_variance): (N, R, 3D) tables whose
     rows[n, t] is frame t of window n (rows: (N, M), so a stream reads its model's few state rows
     in place instead of copying a window); fixed: (N, max(F, 1), D) holding F = count known
     frames; out: (N, M - F, D); l1, l2: (M, D) work. lo: the first of the D static dimensions solved
     (the tables may hold more: a gesture's stream solves only the upper body's, synthesis/gestures.py).
-    rows2 (N, M) or None, a, b: dimensions a to b of the solved ones take window n's rows from
-    rows2 (a gait's window with the upper body of its gesture's, synthesis/gestures.py: each
-    dimension's solve is independent of the others; `second` then holds precisions). None: one
-    source, compiled apart (numba prunes the branches on it), as fast as before there were two.
-    (No defaults: numba, given a call that left trailing arguments out beside one that gave
-    them, once ran the wrong one's code.)
 
     One forward sweep forms row t of W'PW (from the windows centred on t-1, t and t+1) and
     eliminates it at once (LDL'); one backward sweep substitutes. Precisions and pivots live in
@@ -96,10 +79,6 @@ def _solve(means, second, rows, as_variance, fixed, count, out, l1, l2, lo, rows
     dim = width // 3  # the tables'
     solved = out.shape[2]  # the dimensions solved: lo to lo + solved
     prec_rows = np.empty((3, 3 * solved))
-    if rows2 is not None:  # two sources of rows: the means too go through a ring of rows put together (`_two_rows`)
-        mean_rows = np.empty((3, 3 * solved))
-    else:
-        mean_rows = np.empty((1, 1))
     pivots = np.ones((3, solved))
     inverses = np.ones((3, solved))
     last_fixed = max(count - 1, 0)
@@ -107,23 +86,13 @@ def _solve(means, second, rows, as_variance, fixed, count, out, l1, l2, lo, rows
         z = out[n]  # the forward sweep's values, overwritten by the solution
         mu = means[n]
         row = rows[n]
-        # the rings' first rows, then one ahead a frame (the branches on rows2 are pruned at compile
-        # time; through a function of their own the one-source solve cost 7% more)
-        if rows2 is None:
-            _precision_row(second[n], row[max(count - 1, 0)], as_variance, prec_rows, max(count - 1, 0) % 3, lo, solved)
-            _precision_row(second[n], row[count], as_variance, prec_rows, count % 3, lo, solved)
-        else:
-            for t in (max(count - 1, 0), count):
-                _two_rows(second[n], row[t], rows2[n, t], a, b, prec_rows, t % 3, lo, solved)
-                _two_rows(mu, row[t], rows2[n, t], a, b, mean_rows, t % 3, lo, solved)
+        # the ring's first rows, then one ahead a frame
+        _precision_row(second[n], row[max(count - 1, 0)], as_variance, prec_rows, max(count - 1, 0) % 3, lo, solved)
+        _precision_row(second[n], row[count], as_variance, prec_rows, count % 3, lo, solved)
         for t in range(count, frames):
             tp, tn, tpp = max(t - 1, 0), min(t + 1, frames - 1), max(t - 2, 0)
             if t + 1 < frames:
-                if rows2 is None:
-                    _precision_row(second[n], row[t + 1], as_variance, prec_rows, (t + 1) % 3, lo, solved)
-                else:
-                    _two_rows(second[n], row[t + 1], rows2[n, t + 1], a, b, prec_rows, (t + 1) % 3, lo, solved)
-                    _two_rows(mu, row[t + 1], rows2[n, t + 1], a, b, mean_rows, (t + 1) % 3, lo, solved)
+                _precision_row(second[n], row[t + 1], as_variance, prec_rows, (t + 1) % 3, lo, solved)
             # dynamic windows centred on the first or last frame have zero precision
             w_here = 1.0 if 0 < t < frames - 1 else 0.0
             w_prev = 1.0 if 0 < t - 1 else 0.0
@@ -140,14 +109,9 @@ def _solve(means, second, rows, as_variance, fixed, count, out, l1, l2, lo, rows
             mt, mp, mn = row[t], row[tp], row[tn]  # the table rows of frames t, t - 1, t + 1
             # their means of the dimensions solved, as views (an offset index `lo + d` of unknown sign
             # kept the loop below from being vectorised: a gesture's solve of 36 of 66 dimensions cost a full one)
-            if rows2 is None:
-                mu0_t, mu2_t = _part(mu, mt, lo, solved), _part(mu, mt, 2 * dim + lo, solved)
-                mu1_n, mu2_n = _part(mu, mn, dim + lo, solved), _part(mu, mn, 2 * dim + lo, solved)
-                mu1_p, mu2_p = _part(mu, mp, dim + lo, solved), _part(mu, mp, 2 * dim + lo, solved)
-            else:  # the same, from the ring's rows of frames t, t + 1, t - 1
-                mu0_t, mu2_t = _part(mean_rows, rt, 0, solved), _part(mean_rows, rt, 2 * solved, solved)
-                mu1_n, mu2_n = _part(mean_rows, rn, solved, solved), _part(mean_rows, rn, 2 * solved, solved)
-                mu1_p, mu2_p = _part(mean_rows, rp, solved, solved), _part(mean_rows, rp, 2 * solved, solved)
+            mu0_t, mu2_t = _part(mu, mt, lo, solved), _part(mu, mt, 2 * dim + lo, solved)
+            mu1_n, mu2_n = _part(mu, mn, dim + lo, solved), _part(mu, mn, 2 * dim + lo, solved)
+            mu1_p, mu2_p = _part(mu, mp, dim + lo, solved), _part(mu, mp, 2 * dim + lo, solved)
             for d in range(solved):
                 p0 = prec_rows[rt, d]
                 p2_here = prec_rows[rt, 2 * solved + d] * w_here
@@ -204,7 +168,7 @@ def mlpg_continued(means: np.ndarray, precisions: np.ndarray, fixed: np.ndarray,
     l1 = np.zeros((frames, width // 3))
     l2 = np.zeros((frames, width // 3))
     rows = np.broadcast_to(np.arange(frames), (sequences, frames))
-    _solve(means, precisions, rows, as_variance, fixed, count, out, l1, l2, 0, None, 0, 0)
+    _solve(means, precisions, rows, as_variance, fixed, count, out, l1, l2, 0)
     return out
 
 

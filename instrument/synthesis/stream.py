@@ -456,14 +456,13 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
     # solver reads them (or the shared tables as they are): a window passes through some ten state
     # instances, and putting together all 90 rows of both tables cost the crowd's stream two thirds of its time
     window, width = rows.shape[1], mean_shared.shape[1]
-    means = np.empty((1, window + tables.guest_rows.shape[1], width))  # room for a guest's window rows too
-    precisions = np.empty((1, window + tables.guest_rows.shape[1], width))
+    means = np.empty((1, window, width))
+    precisions = np.empty((1, window, width))
     local = np.empty((1, window), dtype=np.int64)  # each window frame's row of `means` and `precisions`
     shared_means = mean_shared.reshape((1,) + mean_shared.shape)
     shared_precisions = precision_shared.reshape((1,) + precision_shared.shape)
     plain = tables.plain
     guest_rows = tables.guest_rows
-    local_guest = np.empty((1, guest_rows.shape[1]), dtype=np.int64)  # the guest's window frames' rows, likewise
     for n in range(count):  # every plan first, so the rows a character's window reads are known before it is solved
         _plan_window(base[n], sigma[n], counters[n], carry[n], pool[n], history_ids[n], fixed, ids[n], counts[n],
                      carries[n], rows[n])
@@ -473,15 +472,12 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
                 if m == 0 or rows[n + 1, m] != rows[n + 1, m - 1]:
                     _prefetch_row(mean_own[n + 1], rows[n + 1, m], 0, width)
                     _prefetch_row(precision_own[n + 1], rows[n + 1, m], 0, width)
-        if plain[n]:  # 0 + x and 1 x are x: the shared tables are the character's, to the bit
-            _solve_window(shared_means, shared_precisions, rows[n : n + 1], known[n : n + 1], fixed, solved, work1, work2,
-                          lo, guest_rows[n : n + 1], a, b)
-            frames[n] = solved[0, 0]
-            continue
-        used = _gather(tables, n, rows[n], local[0], means[0], precisions[0], 0)
-        if a < b:  # the guest's rows too, after the character's own
-            _gather(tables, n, guest_rows[n], local_guest[0], means[0], precisions[0], used)
-        _solve_window(means, precisions, local, known[n : n + 1], fixed, solved, work1, work2, lo, local_guest, a, b)
+        if plain[n] and a == b:  # 0 + x and 1 x are x: the shared tables are the character's, to the bit
+            _solve(shared_means, shared_precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved, work1, work2,
+                   lo)
+        else:  # its window's rows put together, a guest's dimensions from the guest's rows
+            _gather(tables, n, rows[n], guest_rows[n], lo + a, lo + b, local[0], means[0], precisions[0])
+            _solve(means, precisions, local, False, known[n : n + 1], fixed, solved, work1, work2, lo)
         frames[n] = solved[0, 0]
     for n in range(count):
         for d in range(dimension):
@@ -507,41 +503,45 @@ def _commit(history, history_ids, counters, carry, n, frame, state, counts, carr
 
 
 @njit(cache=True, nogil=True)
-def _gather(tables, n, rows, local, means, precisions, used):  # pragma: no cover - compiled
-    """A window's rows of character n's lambda* (its own term and the shared one put together, or
-    where a variance is at its limit its precisions made from its log offset, as CrowdLambda's
-    `precisions` makes them), written to `means` and `precisions` from row `used` on, each state's
-    row once (a state lasts some frames); local[m] is window frame m's row there. Returns the rows used."""
+def _gather(tables, n, rows, guest_rows, a, b, local, means, precisions):  # pragma: no cover - compiled
+    """A window's rows of character n's lambda* (the shared tables as they are for a plain
+    character, else its own term and the shared one put together, or where a variance is at its
+    limit its precisions made from its log offset, as CrowdLambda's `precisions` makes them), each
+    state's row once (a state lasts some frames); local[m] is window frame m's row of `means` and
+    `precisions`. The tables' static dimensions a to b (each window's: the delta and delta-delta
+    columns too) are taken from the rows `guest_rows` (a gesture's, `Crowd.guest`; a = b: none), so
+    a window frame's row is of a pair of states and the solve reads one source."""
     mean_own, mean_shared, precision_own, precision_shared = (tables.mean_own[n], tables.mean_shared,
                                                               tables.precision_own[n], tables.precision_shared)
-    limit, clip_change, clip_base = tables.limit, tables.clip_change, tables.clip_base
+    plain, limit, clip_change, clip_base = tables.plain[n], tables.limit, tables.clip_change, tables.clip_base
+    width = means.shape[1]
+    dim = width // 3
+    used = 0
     for m in range(rows.shape[0]):
         r = rows[m]
-        if m > 0 and r == rows[m - 1]:
+        if m > 0 and r == rows[m - 1] and (a == b or guest_rows[m] == guest_rows[m - 1]):
             local[m] = local[m - 1]
             continue
-        for c in range(means.shape[1]):
-            means[used, c] = mean_own[r, c] + mean_shared[r, c]
-        if limit > 0.0:
-            for c in range(means.shape[1]):
-                value = min(max(precision_own[r, c] + clip_change[r, c], -limit), limit)
-                precisions[used, c] = np.exp(-(value + clip_base[r, c]))
-        else:
-            for c in range(means.shape[1]):
-                precisions[used, c] = precision_own[r, c] * precision_shared[r, c]
+        for k in range(2 if a < b else 1):  # the character's row, then the guest's columns from its row
+            r = rows[m] if k == 0 else guest_rows[m]
+            for w in range(3 if k else 1):
+                start, stop = (w * dim + a, w * dim + b) if k else (0, width)
+                if plain:
+                    for c in range(start, stop):
+                        means[used, c] = mean_shared[r, c]
+                        precisions[used, c] = precision_shared[r, c]
+                    continue
+                for c in range(start, stop):
+                    means[used, c] = mean_own[r, c] + mean_shared[r, c]
+                if limit > 0.0:
+                    for c in range(start, stop):
+                        value = min(max(precision_own[r, c] + clip_change[r, c], -limit), limit)
+                        precisions[used, c] = np.exp(-(value + clip_base[r, c]))
+                else:
+                    for c in range(start, stop):
+                        precisions[used, c] = precision_own[r, c] * precision_shared[r, c]
         local[m] = used
         used += 1
-    return used
-
-
-@njit(cache=True, nogil=True)
-def _solve_window(means, precisions, rows, known, fixed, solved, work1, work2, lo, guest_rows, a, b):  # pragma: no cover - compiled
-    """One window's solve, its dimensions a to b on `guest_rows` when a < b (`Crowd.guest`); the
-    one-source solve otherwise, compiled apart (mlpg.py `_solve`)."""
-    if a < b:
-        _solve(means, precisions, rows, False, known, fixed, solved, work1, work2, lo, guest_rows, a, b)
-    else:
-        _solve(means, precisions, rows, False, known, fixed, solved, work1, work2, lo, None, 0, 0)
 
 
 @njit(cache=True, nogil=True)

@@ -178,15 +178,15 @@ class RangeFilter:
     def __call__(self, frames: np.ndarray, mean: np.ndarray, factor: np.ndarray) -> np.ndarray:
         """Frames (N, D) as made, their swing scaled towards targets `mean` and `factor` (N, D)."""
         frames = np.ascontiguousarray(frames, dtype=np.float64)
+        mean, factor = np.ascontiguousarray(mean, dtype=np.float64), np.ascontiguousarray(factor, dtype=np.float64)
         first = self.mean is None
-        if np.shape(mean) != frames.shape or np.shape(factor) != frames.shape or not (first or self.mean.shape == frames.shape):
-            raise ValueError(f"RangeFilter: frames {frames.shape}, targets {np.shape(mean)} and {np.shape(factor)} "
+        if mean.shape != frames.shape or factor.shape != frames.shape or not (first or self.mean.shape == frames.shape):
+            raise ValueError(f"RangeFilter: frames {frames.shape}, targets {mean.shape} and {factor.shape} "
                              f"(the filter's characters: {None if first else self.mean.shape})")
         if first:  # the filter's own arrays, eased in place from now on (the targets are the engine's)
             self.mean, self.factor = np.empty(frames.shape), np.empty(frames.shape)
         out = np.empty(frames.shape)
-        _range_step(frames, np.ascontiguousarray(mean, dtype=np.float64), np.ascontiguousarray(factor, dtype=np.float64),
-                    self.mean, self.factor, first, KEPT_FROM, KEPT_TO, out)
+        _range_step(frames, mean, factor, self.mean, self.factor, first, KEPT_FROM, KEPT_TO, out)
         return out
 
 
