@@ -127,8 +127,8 @@ def test_what_is_learnt_does_not_depend_on_the_rig(cmu_take, turn, scale, order,
 
 @pytest.mark.parametrize("axis", sorted(TO_Y_UP))
 def test_up_is_found_in_a_walk_and_in_a_still_stand(cmu_take, axis):
-    """The take turned so that each axis is up (both signs): found from how it moves, and, still
-    (its first frame held for a second: nothing moves), from where its legs hang."""
+    """The take turned so that each axis is up (both signs): found from where its legs hang, walking,
+    still (its first frame held for a second) and walking in place."""
     turned = Motion(cmu_take.skeleton, cmu_take.channels.copy(), cmu_take.fps)
     rotations, translations = local_transforms(turned)
     back = TO_Y_UP[axis].T  # Y up -> `axis` up
@@ -137,6 +137,16 @@ def test_up_is_found_in_a_walk_and_in_a_still_stand(cmu_take, axis):
     assert up_axis(turned) == axis
     still = Motion(turned.skeleton, turned.channels[[0] * 120], turned.fps)
     assert up_axis(still) == axis
+    # in place (a treadmill, an exporter's "in place" walk): the root's travel taken out, so the
+    # planted foot moves backwards and the head stays; the legs still hang below
+    rotations, translations = local_transforms(cmu_take)
+    travel = translations[:, 0] - translations[:1, 0]
+    translations[:, 0] -= travel * np.array([1.0, 0.0, 1.0])
+    in_place = channels_from_local(cmu_take.skeleton, rotations, translations)
+    rotations, translations = local_transforms(Motion(cmu_take.skeleton, in_place, cmu_take.fps))
+    rotations[:, 0], translations[:, 0] = back @ rotations[:, 0], translations[:, 0] @ back.T
+    assert up_axis(Motion(cmu_take.skeleton, channels_from_local(cmu_take.skeleton, rotations, translations),
+                          cmu_take.fps)) == axis
     upright_again = world_positions(upright(turned)[0])
     np.testing.assert_allclose(upright_again, world_positions(cmu_take), atol=1e-6 * np.abs(upright_again).max())
 

@@ -5,9 +5,11 @@ a capture exported from a Z-up scene (Blender's, 3ds Max's, some suits' tools) h
 lying along Y. What is up is found from the motion, not the file: over the take's frames, the
 body's extent (its joints' spread along an axis) is largest along the vertical for a walker
 (standing height against a stride or a shoulder width), and of the two ends of that axis the
-floor is where the lowest joint stays still (a planted foot) while the highest moves with the
-body. A take that hardly moves (a stand) decides the end by where its legs hang: the joint
-furthest from the root along the axis is a foot.
+floor is where the legs hang: the joint furthest from the body's middle along the axis is a foot
+(a standing body's feet are further below its middle joint than its head is above it). That
+holds for a walk, a stand and a walk in place alike; which end stays still does not (on a
+treadmill or in an exporter's "in place" walk the planted foot moves backwards while the head
+stays, so "the still end is the floor" turned such takes upside down).
 """
 
 from __future__ import annotations
@@ -36,27 +38,19 @@ SAMPLED_FRAMES = 64  # frames the up axis is judged on (evenly spread over the t
 
 def up_axis(motion: Motion) -> str:
     """'+Y', '+Z', '-Y', ... : the axis the body stands along, with its sign (see the module's text)."""
-    if motion.frames < 2 or len(motion.skeleton.joints) < 3:
+    if motion.frames < 1 or len(motion.skeleton.joints) < 3:
         return "+Y"
-    first = np.unique(np.linspace(0, motion.frames - 2, min(SAMPLED_FRAMES, motion.frames - 1)).astype(int))
-    picked = Motion(motion.skeleton, motion.channels[np.concatenate([first, first + 1])], motion.fps)
-    positions = forward_kinematics(picked.skeleton, *local_transforms(picked))[1]
-    now, after = positions[: len(first)], positions[len(first):]
+    sampled = np.unique(np.linspace(0, motion.frames - 1, min(SAMPLED_FRAMES, motion.frames)).astype(int))
+    picked = Motion(motion.skeleton, motion.channels[sampled], motion.fps)
+    now = forward_kinematics(picked.skeleton, *local_transforms(picked))[1]
     body = _body(now)
     top, bottom = np.where(body[..., None], now, -np.inf).max(axis=1), np.where(body[..., None], now, np.inf).min(axis=1)
     extent = np.median(top - bottom, axis=0)
     axis = int(np.argmax(extent))
     height = np.where(body, now[..., axis], np.nan)
-    rows = np.arange(len(first))
-    speed = np.linalg.norm(after - now, axis=2)
-    low = np.median(speed[rows, np.nanargmin(height, axis=1)])
-    high = np.median(speed[rows, np.nanargmax(height, axis=1)])
-    if max(low, high) > 1e-9 and abs(high - low) > 0.25 * max(low, high):
-        up = 1.0 if low < high else -1.0  # the still end is the floor
-    else:  # too still to tell: the joint furthest from the body's middle along the axis is a foot
-        kept = height[:, ~np.isnan(height).all(axis=0)]
-        relative = np.nanmedian(kept - np.nanmedian(kept, axis=1, keepdims=True), axis=0)
-        up = -1.0 if relative[np.nanargmax(np.abs(relative))] > 0 else 1.0
+    kept = height[:, ~np.isnan(height).all(axis=0)]
+    relative = np.nanmedian(kept - np.nanmedian(kept, axis=1, keepdims=True), axis=0)  # each joint from the middle
+    up = -1.0 if relative[np.nanargmax(np.abs(relative))] > 0 else 1.0  # the furthest is a foot: below
     return ("+" if up > 0 else "-") + "XYZ"[axis]
 
 
