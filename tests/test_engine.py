@@ -116,6 +116,26 @@ def test_tables_made_ahead_of_a_frame_change_no_frame(model):
     assert spared >= 5
 
 
+def test_prepare_says_what_it_made(model):
+    """What the live loop times (only restyles, the dearest work) comes from what `prepare` says it
+    made: every table for a style change, the pace's for a speed change, nothing for a turn or a
+    gait, and nothing for a frame between model frames."""
+    fps = 2 * model.fps  # frames 1, 3, 5... make a model frame; 2, 4, 6... lie between two made
+    engine = Engine(model, 1, fps)
+    engine.frame(0.0, default_controls(model))
+    made, between = {}, []
+    for k, (name, controls) in enumerate((("style", default_controls(model, {"elderly": 1.0})),
+                                          ("speed", default_controls(model, {"elderly": 1.0}, speed=1.3)),
+                                          ("turn", default_controls(model, {"elderly": 1.0}, speed=1.3, turn=0.5)))):
+        made[name] = engine.prepare((2 * k + 1) / fps, controls)
+        engine.frame((2 * k + 1) / fps, controls)
+        between.append((engine.makes_model_frame((2 * k + 2) / fps),
+                        engine.prepare((2 * k + 2) / fps, default_controls(model, {"feminine": 1.0}))))
+        engine.frame((2 * k + 2) / fps, controls)
+    assert made == {"style": "restyled", "speed": "repaced", "turn": None}
+    assert between == [(False, None)] * 3  # nothing made for a frame between model frames
+
+
 def test_render_is_the_engine_without_a_clock(model):
     """`render` (synth, evaluate) gives the engine's own poses of character 0, frame by frame."""
     controls = default_controls(model, {"masculine": 2.0}, liveliness=0.7)

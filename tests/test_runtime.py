@@ -269,26 +269,53 @@ class Poses(Echoes):
         return frame.index, frame.crowd.world_positions.copy()
 
 
-def test_live_events_taken_while_waiting_count_for_the_coming_frame(model):
+def test_live_events_taken_while_waiting_count_for_the_coming_frame(model, monkeypatch):
     """A live source is read many times between frames; every event is stamped with the time of
     the frame it comes before, and that frame already shows it, as a replay of the log does: the
-    same poses, though the live loop made the frames' tables while it waited (Engine.prepare)."""
+    same poses, though the live loop made the frames' tables while it waited (Engine.prepare).
+    The source has news at its first look for each frame only (a fader moved while the loop
+    waited), so tables made ahead are the ones the frames use."""
+    from instrument.runtime import performance
+    from instrument.synthesis.engine import Engine
+
     fps = 30.0
-    calls, events = [], []
+    calls, events, restyles = [], [], []
+
+    class Watched(Engine):
+        """The live loop's engine, noting where each restyle was made: ahead, or in a frame."""
+        in_frame = False
+
+        def frame(self, *args, **kwargs):
+            self.in_frame = True
+            try:
+                return super().frame(*args, **kwargs)
+            finally:
+                self.in_frame = False
+
+        def retune(self, *args, **kwargs):
+            made = super().retune(*args, **kwargs)
+            if made == "restyled":
+                restyles.append("frame" if self.in_frame else "ahead")
+            return made
 
     def source(now):
         calls.append(now)
-        event = ControlEvent(now, "direct", "style/elderly", len(calls) / 1000.0)
+        if calls.count(now) > 1:
+            return []
+        event = ControlEvent(now, "direct", "style/elderly", len(events) / 100.0)
         events.append(event)
         return [event]
 
+    monkeypatch.setattr(performance, "Engine", Watched)
     echoes, poses, replayed = Echoes(), Poses(), Poses()
     perform(Show(model, [echoes, poses], fps=fps, seconds=0.5, sources=[source]), Console(quiet=True))
+    monkeypatch.undo()
     perform(Show(model, [replayed], fps=fps, seconds=0.5, replay=LogReplay(events), fast=True), Console(quiet=True))
     assert [i for i, _ in echoes.frames] == list(range(15))
     assert all(np.array_equal(live, again) for (_, live), (_, again) in zip(poses.frames, replayed.frames, strict=True))
     assert all(abs(t * fps - round(t * fps)) < 1e-9 for t in calls)  # always a frame's time
     assert len(calls) > 3 * len(echoes.frames)  # looked at while waiting, not once a frame
+    assert "ahead" in restyles  # the frames used tables made while the loop waited
     for index, shown in echoes.frames:
         latest = [e.value for e in events if e.time <= index / fps + 1e-9][-1]
         assert shown == latest

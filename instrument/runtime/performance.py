@@ -159,7 +159,7 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             return False
 
     prepared_revision = -1  # the control state's revision the engine's tables were last made ahead for
-    prepare_seconds: deque[float] = deque(maxlen=20)  # CPU seconds that making them ahead took, recently
+    restyle_seconds: deque[float] = deque(maxlen=20)  # clock seconds that restyling ahead took, recently
 
     def between_frames(upcoming: float, wake: float, expected: float) -> None:
         """While waiting for the frame at `upcoming` (its work starts at `wake`, clock time; a frame's
@@ -173,12 +173,17 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
         take_live(upcoming)
         if state.revision == prepared_revision or beat_lock is not None or state.morph is not None:
             return
-        if wake - clock.now() < IDLE_UNTIL + max(prepare_seconds, default=expected):  # CPU time: what it needs
+        if not engine.makes_model_frame(upcoming):
             return
-        started, revision = time.thread_time(), state.revision
-        if engine.prepare(upcoming, state.snapshot(), state.spread):
-            prepared_revision = revision
-            prepare_seconds.append(time.thread_time() - started)
+        # the dearest work it may do (restyling every table) must end before waking, on the clock:
+        # only restyles are timed (a turn or a gait retunes nothing, a speed only the pace)
+        if wake - clock.now() < IDLE_UNTIL + max(restyle_seconds, default=expected):
+            return
+        started, revision = time.monotonic(), state.revision
+        made = engine.prepare(upcoming, state.snapshot(), state.spread)
+        prepared_revision = revision
+        if made == "restyled":
+            restyle_seconds.append(time.monotonic() - started)
 
     def take_live(now: float) -> None:
         """Apply what devices sent, for at most INPUT_BUDGET seconds but at least one event (so a

@@ -367,18 +367,19 @@ class Engine:
         if self.stage_seconds is not None:
             self._clock = time.perf_counter()
 
-    def retune(self, controls: Controls, spread: float = 0.0) -> None:
+    def retune(self, controls: Controls, spread: float = 0.0) -> str | None:
         """Every style feature's tables for these controls, if they changed since the last call
         (a Controls object seen before is not even compared); when only the pace changed, only
-        what moves with it (`StyleFeature.repace`)."""
+        what moves with it (`StyleFeature.repace`). Returns what was made: "restyled" (every
+        table), "repaced" (what moves with the pace) or None (nothing: the tables stand)."""
         spread = float(spread)
         if controls is self._controls and spread == self._spread:
-            return
+            return None
         self._controls, self._spread = controls, spread
         key = controls.key()
         style, pace = (key[0], key[1], spread), key[2:]
         if style == self._style and pace == self._pace:
-            return
+            return None
         self._mark()
         if style != self._style:
             offsets = self.cast.offsets
@@ -395,6 +396,7 @@ class Engine:
             elif hasattr(feature, "repace"):  # a feature without it does not move with the pace
                 feature.repace(self.mix, self.stream)
             self._timed(feature.name)
+        return "restyled" if restyled else "repaced"
 
     def next_features(self, controls: Controls, spread: float = 0.0) -> np.ndarray:
         """The next model frame of every character, (N, D): stream, range, drive; the frame's
@@ -464,17 +466,20 @@ class Engine:
         """The model frame the pose at performance time `time_s` needs last."""
         return int(np.ceil(time_s * self.model.fps - 1e-9))
 
-    def prepare(self, time_s: float, controls: Controls, spread: float = 0.0) -> bool:
+    def makes_model_frame(self, time_s: float) -> bool:
+        """Whether the frame at `time_s` makes a model frame (the frame that would retune): at an
+        output rate above the model's, the frames between model frames read nothing a retune makes."""
+        return self.made <= self._newest(time_s)
+
+    def prepare(self, time_s: float, controls: Controls, spread: float = 0.0) -> str | None:
         """The tables for `controls` made ahead of the frame at `time_s`, if that frame makes a model
-        frame (the one that would retune): its own retune then finds them made, when the controls
-        are still these. The live loop calls it while it waits for the frame, so a control taken
-        then costs the frame no retune. The tables are made only where the frame would make them
-        itself (between model frames the poses read nothing a retune changes), so the frames are
-        the same. False when the frame makes no model frame (nothing was made)."""
-        if self.made > self._newest(time_s):
-            return False
-        self.retune(controls, spread)
-        return True
+        frame: its own retune then finds them made, when the controls are still these. The live
+        loop calls it while it waits for the frame, so a control taken then costs the frame no
+        retune. The tables are made only where the frame would make them itself, so the frames
+        are the same. Returns what `retune` made (None also when the frame makes no model frame)."""
+        if not self.makes_model_frame(time_s):
+            return None
+        return self.retune(controls, spread)
 
     def frame(self, time_s: float, controls: Controls, spread: float = 0.0) -> CrowdPose:
         """Every character's pose at performance time `time_s` (frames are asked for in order, at `fps`)."""
