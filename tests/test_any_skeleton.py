@@ -141,6 +141,16 @@ def test_humanoid_bones_are_guessed_from_common_naming_conventions(convention):
     assert guessed == expected
 
 
+def test_a_hip_stub_above_a_named_thigh_is_not_the_thigh():
+    """A rig with LeftHip above LeftUpLeg: the thigh is the joint named so, the stub is left out
+    (a sided hip is the thigh only where no joint is named as one: the suit's LeftHip, LeftKnee)."""
+    pairs = _body("Hips", ["Spine", "Chest", "UpperChest"], "Neck", "Head",
+                  ["LeftHip", "LeftUpLeg", "LeftLeg", "LeftFoot", "LeftToeBase"],
+                  ["LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand"])
+    guessed = guess_humanoid(_skeleton(pairs))
+    assert guessed["LeftUpLeg"] == "LeftUpperLeg" and "LeftHip" not in guessed
+
+
 def test_humanoid_guess_of_the_shipped_skeleton():
     guessed = guess_humanoid(load_model(default_model_path()).layout.skeleton)
     assert {guessed[n] for n in ("Hips", "UpperLeg_L", "LowerLeg_R", "Toes_L", "UpperArm_R", "Chest")} == {

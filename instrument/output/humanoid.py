@@ -29,6 +29,7 @@ HUMAN_BONES = (
     "RightUpperLeg", "RightLowerLeg", "RightFoot", "RightToes",
 )
 SPINE_CHAIN = ("Spine", "Chest", "UpperChest")
+THIGH_NAMES = r"(upleg|upperleg|thigh|femur)"
 # (pattern on the lower-cased name without side markers, bone without side); first match wins
 LIMB_PATTERNS = [
     (r"(index|thumb|finger|middle|ring|pinky)", None),
@@ -36,13 +37,14 @@ LIMB_PATTERNS = [
     (r"(forearm|lowerarm|elbow|radius)", "LowerArm"),
     (r"(upperarm|^arm$|^arm\d*$|humerus)", "UpperArm"),
     (r"(hand|wrist)", "Hand"),
-    (r"(upleg|upperleg|thigh|femur)", "UpperLeg"),
+    (THIGH_NAMES, "UpperLeg"),
     (r"(lowerleg|^leg$|shin|knee|calf|tibia)", "LowerLeg"),
     (r"(toe|ball)", "Toes"),
     (r"(foot|ankle)", "Foot"),
     (r"(hipjoint)", None),
-    (r"^hips?$", "UpperLeg"),  # a sided hip (LeftHip, then LeftKnee, LeftAnkle) is the thigh's joint
+    (r"^hips?$", "UpperLeg"),  # a sided hip (LeftHip, then LeftKnee, LeftAnkle) is the thigh's joint (`_limb`)
 ]
+
 # CMU's ASF names: a lower-case side letter before the bone's name (lfemur, rhumerus, lclavicle)
 ASF_LIMB = r"^[lr](?=(hipjoint|femur|tibia|foot|toes|clavicle|humerus|radius|wrist|hand|fingers|thumb)$)"
 
@@ -66,14 +68,18 @@ def _core(name: str) -> str:
     return re.sub(r"[_.\s-]", "", name).lower()
 
 
-def _limb(core: str, side: str, taken: set[str]) -> str | None:
+def _limb(core: str, side: str, taken: set[str], thighs: set[str]) -> str | None:
     """The sided bone a joint's name says (None: none, or one already taken). A shoulder after a
     collar on its side is the upper arm (a suit's and the CMU conversions' LeftCollar,
-    LeftShoulder, LeftElbow, LeftWrist), as Mixamo's LeftShoulder, LeftArm is the collar first."""
+    LeftShoulder, LeftElbow, LeftWrist), as Mixamo's LeftShoulder, LeftArm is the collar first.
+    A sided hip is the thigh only on a side (`thighs`) with no joint named as a thigh (a rig with
+    LeftHip above LeftUpLeg has a stub there)."""
     for pattern, bone in LIMB_PATTERNS:
         if re.search(pattern, core):
             if bone == "Shoulder" and f"{side}Shoulder" in taken:
                 bone = "UpperArm"
+            if bone == "UpperLeg" and not re.search(THIGH_NAMES, core) and side in thighs:
+                return None
             return f"{side}{bone}" if bone and f"{side}{bone}" not in taken else None
     return None
 
@@ -82,10 +88,11 @@ def guess_humanoid(skeleton: Skeleton) -> dict[str, str]:
     """{joint name: human bone} for the joints whose role is clear from their names."""
     mapping: dict[str, str] = {}
     names = skeleton.names
+    thighs = {_side(name) for name in names if _side(name) and re.search(THIGH_NAMES, _core(name))}
     for name in names:
         core, side = _core(name), _side(name)
         if side:
-            bone = _limb(core, side, set(mapping.values()))
+            bone = _limb(core, side, set(mapping.values()), thighs)
             if bone:
                 mapping[name] = bone
         elif re.search(r"(hips?|pelvis)$", core) and "Hips" not in mapping.values():
