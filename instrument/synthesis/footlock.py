@@ -475,7 +475,8 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
              targets, turns, angles)
     drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) / BLEND_FRAMES
     if drop[0] > 1e-9:
-        translations[root] -= drop[0] * parent_rot[1]  # [0, drop, 0] @ parent_rot
+        for a in range(3):  # [0, drop, 0] @ parent_rot, element by element (no temporary array)
+            translations[root, a] -= drop[0] * parent_rot[1, a]
         world_pos[:, 1] -= drop[0]
         _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension, rises,
                  rise_step, targets, turns, angles)
