@@ -135,8 +135,9 @@ def flight_states(shares: np.ndarray, air=None, states: int = 1, units: int = 0)
     of few steps (the public CMU takes, tests/data/cmu-131) half of the states planted neither
     foot surely while both feet were in the air in at most a third of their frames; taken for
     flight, the lock let both feet go there and the walk skated 4.4 times as much as its takes.
-    The shared runs' flight states are in the air in 0.53-0.60 of their frames. A model trained
-    before `air` was stored reads flight from the shares alone."""
+    In the shared runs the most airborne state of each step is in the air in 0.53-0.60 of its
+    frames (a unit's other flight states in 0.29 and up: the unit decides, not the state). A
+    model trained before `air` was stored reads flight from the shares alone."""
     flight = shares.max(axis=1) < PLANTED
     try:
         air = np.asarray(air if air is not None else [], dtype=np.float64)
