@@ -8,7 +8,7 @@ VMC, whose bones are guessed from the joint names) on them.
 
 Prints one row per variant: each command's outcome (`ok`, or the one line it printed on
 failure; a traceback is a failure of its own), the humanoid bones VMC could not guess from the
-joint names (UpperChest, which few skeletons have, aside) and, where evaluate ran, the made
+joint names (UpperChest, which few skeletons have, and toes a skeleton lacks, aside) and, where evaluate ran, the made
 walk's knee, hip and skate against the takes'. Exit status 1 when any command failed with a traceback or a
 variant that should work did not, or a bone was not guessed.
 """
@@ -94,7 +94,8 @@ def check(folder: Path, out: Path) -> dict:
                               for k in ("knee_deg", "hip_deg", "shoulder_deg", "skate_cm_s", "float_frac")}
                           for s in figures["real"]}
     skeleton = load_model(model).layout.skeleton
-    row["vmc_unguessed"] = [b for b in HUMAN_BONES if b not in guess_humanoid(skeleton).values() and b != "UpperChest"]
+    absent = {"UpperChest"} | ({"LeftToes", "RightToes"} if not any("toe" in n.lower() for n in skeleton.names) else set())
+    row["vmc_unguessed"] = [b for b in HUMAN_BONES if b not in guess_humanoid(skeleton).values() and b not in absent]
     row["live"], _ = run("run", "--model", str(model), "--fast", "--seconds", "3", "--quiet", "--force",
                          "--bvh", str(out / f"{folder.name}-live.bvh"), "--osc", "127.0.0.1:59991/vmc")
     return row
