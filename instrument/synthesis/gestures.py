@@ -156,9 +156,9 @@ class GestureLayer:
         """The gait's solve takes the gesture's upper body (its fixed frames the gesture's), or gives it back."""
         if guest and self.host is None:
             gait.history[:, :, self.solved] = self.crowd.history
-            gait.guest[:] = self.solved.start, self.solved.stop
+            gait.host(self.solved.start, self.solved.stop)
         elif self.host is not None and not guest:
-            self.host.guest[:] = 0
+            self.host.host(0, 0)
         self.host = gait if guest else None
 
     def after(self, frames: np.ndarray, ids: np.ndarray) -> np.ndarray:
