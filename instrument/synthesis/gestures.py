@@ -43,9 +43,9 @@ from numba import njit
 
 from ..models.gestures import gesture_labels, gesture_repeats
 from ..models.modelfile import Model
+from .direct import entry_point
 from .interpolation import StyleSpace, body_groups
 from .parameters import GROUPS
-from .direct import entry_point
 from .stream import FOLLOWER, LABEL, UNIT, Crowd, _commit, _plan_window
 
 EASE_IN = 6  # frames the gesture's upper body takes to come in (its stream starts where the gait is)
@@ -94,7 +94,7 @@ class GestureLayer:
         # `_plan_guest`'s compiled entry point (direct.py): its arguments are the layer's and the two
         # streams' own arrays and numbers, each made by them of one type, so the dispatcher's typing
         # of 16 arrays a frame (0.5 us) is spared
-        self._plan_guest: object = None
+        self._plan_call: object = None
         self.started = 0  # gestures begun
 
     @property
@@ -136,9 +136,9 @@ class GestureLayer:
                 arguments = (crowd.counters, self.label, self.done, self.tapped, self._holding, self._repeats, self.first,
                              self._next_units, crowd.base, crowd.sigma, crowd.carry, crowd.pool, crowd.history_ids, work.ids,
                              work.counts, work.carries, gait.guest_rows, crowd.space.states, self.ease, self.weights)
-                if self._plan_guest is None:
-                    self._plan_guest = entry_point(_plan_guest, arguments)
-                playing, guest = self._plan_guest(*arguments)
+                if self._plan_call is None:
+                    self._plan_call = entry_point(_plan_guest, arguments)
+                playing, guest = self._plan_call(*arguments)
                 self.whole = guest
                 if not playing:
                     self.playing = None

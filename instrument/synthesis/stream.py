@@ -502,7 +502,7 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
         if plain[n] and a == b:  # 0 + x and 1 x are x: the shared tables are the character's, to the bit
             _solve(shared_means, shared_precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved, work1, work2,
                    lo)
-        elif plain[n] and tables.pair_keys.shape[0] > 3:  # hosted, its pairs' rows the shared tables': from the cache
+        elif plain[n] and tables.pair_keys.shape[0] - 3 >= 2 * window:  # hosted, its pairs' rows the shared tables': kept
             _gather_pairs(tables, n, rows[n], guest_rows[n], lo + a, lo + b, local[0])
             pair_rows = tables.pair_rows
             _solve(pair_rows[0], pair_rows[1], local, False, known[n : n + 1], fixed, solved, work1, work2, lo)
@@ -581,7 +581,8 @@ def _gather_pairs(tables, n, rows, guest_rows, a, b, local):  # pragma: no cover
     rows are of (row, guest row) pairs of the shared tables, the same for every plain character,
     so each pair's row is put together once and kept in `tables.pair_rows` (an open table of
     slots keyed by the pair, `pair_keys`) while the tables and the range stay; local[m] is window
-    frame m's slot. The slots are emptied before a window that might not fit."""
+    frame m's slot. The slots are emptied before a window that might fill more than half of them
+    (the caller's promise: there are at least twice the window's)."""
     slots, labels_states = tables.pair_keys.shape[0] - 3, tables.mean_shared.shape[0]
     keys, state, pair_rows = tables.pair_keys[:slots], tables.pair_keys[slots:], tables.pair_rows
     if state[0] + rows.shape[0] > slots // 2 or state[1] != a or state[2] != b:
