@@ -198,6 +198,28 @@ def test_the_gaits_solve_makes_the_gestures_frame_as_the_gestures_own_stream_doe
     np.testing.assert_allclose(np.array(frames[0][:-1]), np.array(frames[1][:-1]), rtol=0, atol=1e-12)
 
 
+def test_the_hosted_rows_cache_makes_the_frames_the_rows_put_together_each_frame_make(model, monkeypatch):
+    """The gait's stream keeps a plain character's hosted (gait state, gesture state) rows while
+    its tables stay (stream.py `_gather_pairs`): the frames are those of the rows put together
+    every frame, to the bit, through a style change while the gesture plays (its rows are the
+    new tables') and with a cache so small it is emptied and filled again all along."""
+    import instrument.synthesis.stream as stream
+
+    controls = default_controls(model, {"youthful": 1.0})
+    changed = default_controls(model, {"elderly": 1.0, "feminine": 0.5})
+    made = []
+    for slots in (0, 100, stream.PAIR_SLOTS):  # none (every row put together each frame), a small one, the shipped one
+        monkeypatch.setattr(stream, "PAIR_SLOTS", slots)
+        engine, frames, hosted = Engine(model), [], 0
+        for k in range(260):
+            mix = controls if k < 150 else changed
+            frames.append(engine.next_features(replace(mix, gestures=("wave",) if 20 <= k < 220 else ())))
+            hosted += engine.gestures.host is not None
+        assert hosted > 150 and len(engine.stream._pairs[0]) == slots + 3
+        made.append(np.array(frames))
+    assert np.array_equal(made[0], made[1]) and np.array_equal(made[0], made[2])
+
+
 def test_a_wave_while_walking_raises_the_hands_over_the_head_and_leaves_the_legs_alone(model):
     with_wave, shares, engine = walk(model, {"youthful": 1.0}, 12, {"wave": (2.0, 2.1)})
     plain, _, _ = walk(model, {"youthful": 1.0}, 12, {})

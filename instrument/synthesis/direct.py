@@ -51,9 +51,15 @@ class DirectCall:
             kinds = tuple(_kind(a) for a in arguments)
             entry = self._entries.get(kinds)
             if entry is None:
-                types = tuple(typeof(a) for a in arguments)
-                if types not in self.kernel.overloads:
-                    self.kernel.compile(types)
-                entry = self._entries[kinds] = self.kernel.overloads[types].entry_point
+                entry = self._entries[kinds] = entry_point(self.kernel, arguments)
             self._entry, self._held = entry, held
         return self._entry(*arguments)
+
+
+def entry_point(kernel: Any, arguments: tuple) -> Any:
+    """The compiled entry point of `kernel` for the types of `arguments` (compiled if need be):
+    called with arguments of those same types, it skips the dispatcher's typing of each."""
+    types = tuple(typeof(a) for a in arguments)
+    if types not in kernel.overloads:
+        kernel.compile(types)
+    return kernel.overloads[types].entry_point

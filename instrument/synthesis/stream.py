@@ -50,6 +50,9 @@ class StreamTables(NamedTuple):
     lo: int  # the first of the tables' static dimensions the stream makes (D of them from there)
     guest: np.ndarray  # (2,) int: [a, b) of its D dimensions solved on `guest_rows` (a = b: none)
     guest_rows: np.ndarray  # (N, window) int: another stream's window rows (a gesture's, synthesis/gestures.py)
+    pair_keys: np.ndarray  # (S + 3,) int: the (row, guest row) pair each slot holds (-1: none), then the slots
+    # used and the guest range [a, b) they were made for (S = 0: no cache)
+    pair_rows: np.ndarray  # (2, 1, S, 3D) a plain character's hosted rows: means, precisions (`_gather_pairs`)
     clip_change: np.ndarray  # (labels * states, 3D) where `limit` > 0: precisions made row by row (CrowdLambda)
     clip_base: np.ndarray  # (labels * states, 3D)
     limit: float  # 0: the precisions are two factors
@@ -57,7 +60,17 @@ class StreamTables(NamedTuple):
     def part(self, start: int, stop: int) -> StreamTables:
         """Characters start to stop (views), for a part of the crowd on a core of its own."""
         shared = {"mean_shared", "precision_shared", "max_step", "lo", "guest", "clip_change", "clip_base", "limit"}
-        return StreamTables(*(t if name in shared else t[start:stop] for name, t in zip(self._fields, self)))
+        pairs = {"pair_keys", "pair_rows"}  # not shared among cores that run at once: none
+        return StreamTables(*(_NO_PAIRS[name] if name in pairs else t if name in shared else t[start:stop]
+                              for name, t in zip(self._fields, self)))
+
+
+# the pair cache of a part of a crowd on a core of its own: none (parts run at once)
+_NO_PAIRS = {"pair_keys": np.zeros(3, dtype=np.int64), "pair_rows": np.zeros((2, 1, 0, 0))}
+# slots of the cache of a hosted window's rows, at most half of them used (then emptied): a held wave
+# or raise over the shipped model's walk passes through about 105 pairs of states; another model's
+# more pairs only empty it more often
+PAIR_SLOTS = 512
 
 
 class WindowWork(NamedTuple):
@@ -156,6 +169,7 @@ class Crowd:
         # body of a gesture that has all of it, in the gait's solve (synthesis/gestures.py sets both)
         self.guest = np.zeros(2, dtype=np.int64)
         self.guest_rows = np.zeros((count, lookahead + 3), dtype=np.int64)
+        self._pairs = tuple(_NO_PAIRS.values())  # the hosted rows' cache, made at the first `host`
         self._buffers: dict[int, tuple] = {}
         self._made: tuple | None = None  # (what it was made from, the StreamTables record): `_record`
         self._advance = DirectCall(_advance)  # one core's frame: no dispatch a call (direct.py)
@@ -256,15 +270,28 @@ class Crowd:
         in place): a record a frame cost a one-character frame about 1 us."""
         key = (self.tables, self.pool, self.max_step_ratio)
         if self._made is None or any(a is not b for a, b in zip(key, self._made[0])):
+            if len(self._pairs[0]) > 3:  # the hosted rows' cache held rows of the tables before
+                self._pairs[0][:-3] = -1
+                self._pairs[0][-3] = 0
             lam = self.tables
             self._made = key, StreamTables(lam.mean_own, lam.mean_shared, lam.precision_own, lam.precision_shared,
                                            lam.plain, self.base, self.sigma, self.counters, self.carry, self.pool,
                                            self.history, self.history_ids, self.max_step_ratio, self.max_step,
-                                           self.columns.start, self.guest, self.guest_rows,
+                                           self.columns.start, self.guest, self.guest_rows, *self._pairs,
                                            lam.precision_shared if lam.clip_change is None else lam.clip_change,
                                            lam.precision_shared if lam.clip_base is None else lam.clip_base,
                                            float(lam.limit))
         return self._made[1]
+
+    def host(self, a: int, b: int) -> None:
+        """Solve static dimensions [a, b) on `guest_rows` from the next frame (a = b: none), the
+        hosted rows kept in a cache of their own while the tables are (`_gather_pairs`)."""
+        self.guest[:] = a, b
+        if a < b and len(self._pairs[0]) == 3:
+            keys = np.full(PAIR_SLOTS + 3, -1, dtype=np.int64)
+            keys[-3:] = 0
+            self._pairs = keys, np.zeros((2, 1, PAIR_SLOTS, self.tables.mean_shared.shape[1]))
+            self._made = None
 
     def step(self) -> np.ndarray:
         """One frame for each character, (N, D), from the tables the engine's stages set."""
@@ -475,6 +502,10 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
         if plain[n] and a == b:  # 0 + x and 1 x are x: the shared tables are the character's, to the bit
             _solve(shared_means, shared_precisions, rows[n : n + 1], False, known[n : n + 1], fixed, solved, work1, work2,
                    lo)
+        elif plain[n] and tables.pair_keys.shape[0] - 3 >= 2 * window:  # hosted, its pairs' rows the shared tables': kept
+            _gather_pairs(tables, n, rows[n], guest_rows[n], lo + a, lo + b, local[0])
+            pair_rows = tables.pair_rows
+            _solve(pair_rows[0], pair_rows[1], local, False, known[n : n + 1], fixed, solved, work1, work2, lo)
         else:  # its window's rows put together, a guest's dimensions from the guest's rows
             _gather(tables, n, rows[n], guest_rows[n], lo + a, lo + b, local[0], means[0], precisions[0])
             _solve(means, precisions, local, False, known[n : n + 1], fixed, solved, work1, work2, lo)
@@ -542,6 +573,35 @@ def _gather(tables, n, rows, guest_rows, a, b, local, means, precisions):  # pra
                         precisions[used, c] = precision_own[r, c] * precision_shared[r, c]
         local[m] = used
         used += 1
+
+
+@njit(cache=True, nogil=True)
+def _gather_pairs(tables, n, rows, guest_rows, a, b, local):  # pragma: no cover - compiled
+    """`_gather` for a plain character (n) whose static dimensions a to b are hosted: its window's
+    rows are of (row, guest row) pairs of the shared tables, the same for every plain character,
+    so each pair's row is put together once and kept in `tables.pair_rows` (an open table of
+    slots keyed by the pair, `pair_keys`) while the tables and the range stay; local[m] is window
+    frame m's slot. The slots are emptied before a window that might fill more than half of them
+    (the caller's promise: there are at least twice the window's)."""
+    slots, labels_states = tables.pair_keys.shape[0] - 3, tables.mean_shared.shape[0]
+    keys, state, pair_rows = tables.pair_keys[:slots], tables.pair_keys[slots:], tables.pair_rows
+    if state[0] + rows.shape[0] > slots // 2 or state[1] != a or state[2] != b:
+        keys[:] = -1
+        state[0], state[1], state[2] = 0, a, b
+    for m in range(rows.shape[0]):
+        if m > 0 and rows[m] == rows[m - 1] and guest_rows[m] == guest_rows[m - 1]:
+            local[m] = local[m - 1]
+            continue
+        key = rows[m] * labels_states + guest_rows[m]
+        slot = key % slots
+        while keys[slot] != -1 and keys[slot] != key:
+            slot = (slot + 1) % slots
+        if keys[slot] == -1:  # a pair not seen since the tables came: its row put together as `_gather` does
+            _gather(tables, n, rows[m : m + 1], guest_rows[m : m + 1], a, b, local[m : m + 1],
+                    pair_rows[0, 0, slot : slot + 1], pair_rows[1, 0, slot : slot + 1])
+            keys[slot] = key
+            state[0] += 1
+        local[m] = slot
 
 
 @njit(cache=True, nogil=True)
