@@ -6,10 +6,12 @@ parses with python-osc."""
 from __future__ import annotations
 
 import socket
+import threading
 
 import numpy as np
 import pytest
 from pythonosc.osc_bundle import OscBundle
+from pythonosc.osc_message import OscMessage
 
 from instrument.output import osc
 from instrument.output.flat import FlatProfile, character_prefix
@@ -82,6 +84,21 @@ def test_the_compiled_quaternions_are_scipys_to_the_last_bit(crowd_frames):
     assert np.array_equal(values.reshape(count, 17)[:, 10:14], got)  # the root's world rotation: the same kernel
 
 
+def test_the_compiled_writer_rounds_and_orders_floats_as_numpy_does():
+    from instrument.output.flat import _write
+
+    rng = np.random.default_rng(5)
+    values = np.concatenate([rng.normal(size=5000) * 10.0 ** rng.integers(-40, 38, 5000),  # float32's whole range
+                             [0.0, -0.0, np.inf, -np.inf, 1e-46, -3e-39, 3.4e38, 1 + 2.0**-24, 1 + 3 * 2.0**-24]])
+    widths = np.array([4] * (len(values) // 4) + [len(values) % 4], dtype=np.int64)  # messages of 4 floats, a shorter last
+    starts = 4 * np.arange(len(widths)) * 6 + 8  # each run 8 bytes after the last one's start slot, so runs are apart
+    words = np.zeros(len(widths) * 6 + 4, dtype=np.uint32)
+    _write(words, starts, widths, values)
+    slots = np.concatenate([np.arange(w) + a // 4 for a, w in zip(starts, widths)])
+    assert words[slots].tobytes() == values.astype(">f4").tobytes()
+    assert not np.delete(words, slots).any()  # nothing written between the runs
+
+
 def test_a_pose_of_another_crowd_size_is_refused(model, crowd_frames):
     with pytest.raises(ValueError, match="characters"):
         FlatProfile(model.layout.skeleton.names, model.layout.root, CHARACTERS - 1).encode(crowd_frames[0], ECHO)
@@ -138,3 +155,66 @@ def test_a_refused_target_is_reported_by_the_batched_send_and_the_show_goes_on(m
         assert any("refused" in w.lower() for w in warnings), warnings
     finally:
         out.close()
+
+
+def tiled(pose: CrowdPose, count: int) -> CrowdPose:
+    """A crowd of `count` characters made of `pose`'s, repeated (a large crowd without its engine)."""
+    def grown(a):
+        return np.ascontiguousarray(np.resize(a, (count, *a.shape[1:])))
+
+    return CrowdPose(pose.index, pose.time, grown(pose.rotations), grown(pose.translations), grown(pose.world_rotations),
+                     grown(pose.world_positions))
+
+
+def test_a_crowd_shared_over_cores_sends_from_its_own_thread_every_frame_in_order(model, crowd_frames, monkeypatch):
+    from instrument.output.outputs import OscOutput
+    from instrument.synthesis import cores
+    from instrument.synthesis.footfalls import Footfall
+    from instrument.synthesis.posing import Frame
+
+    monkeypatch.setattr(cores, "_cores", lambda: 2)  # a crowd this size is then shared over two cores
+    count = 2 * cores.LEAST_PER_PART
+    names, root = model.layout.skeleton.names, model.layout.root
+    receiver = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    receiver.bind(("127.0.0.1", 0))
+    receiver.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
+    output = OscOutput(OscTarget("127.0.0.1", receiver.getsockname()[1], "flat"), FlatProfile(names, root, count),
+                       Console(quiet=True))
+    assert output.background is not None
+    senders: list[str] = []
+    send = output.out.send
+    output.out.send = lambda datagrams: senders.append(threading.current_thread().name) or send(datagrams)
+    expected: list[bytes] = []
+    try:
+        for pose in crowd_frames:
+            crowd = tiled(pose, count)
+            landed = [Footfall(count - 1, 1, pose.time, 1.25)]
+            output.send(output.prepare(Frame(pose.index, pose.time, crowd, {}, ECHO, landed)))
+            expected += [message("/walk/footfall", "right", count - 1, pose.time, 1.25)]  # in a bundle of its own, first
+            expected += [m for data in reference(names, root, crowd, ECHO) for m in osc.unbundled([data])]
+        output.close()  # waits for the last frame's sending
+        got = [m for data in receive(receiver, output.out.sent) for m in osc.unbundled([data])]
+    finally:
+        receiver.close()
+    assert got == expected
+    assert senders and threading.current_thread().name not in senders
+    parsed = [OscMessage(m) for m in got]  # python-osc's own parser reads every message
+    assert [m.address for m in parsed].count("/walk/footfall") == len(crowd_frames)
+    assert parsed[-1].address == "/walk/frame" and parsed[-1].params[0] == crowd_frames[-1].index
+
+
+def test_an_error_of_a_background_sending_is_raised_by_the_next_wait():
+    from instrument.output.background import Background
+
+    background = Background("test")
+    done: list[int] = []
+
+    def fails():
+        raise OSError("no route")
+
+    background.hand(fails)
+    with pytest.raises(OSError, match="no route"):
+        background.wait()
+    background.hand(lambda: done.append(1))  # the thread goes on with the next
+    background.close()
+    assert done == [1]

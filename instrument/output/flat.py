@@ -72,27 +72,41 @@ class FrameTemplate:
             raise ValueError("flat profile: a float slot off a 4-byte boundary")
         self.buffer = Datagrams(np.frombuffer(b"".join(datagrams), dtype=np.uint8).copy(), bounds)
 
-    def fill(self, values: np.ndarray, index: int) -> Datagrams:
-        """The frame's datagrams with `values` (every float, in message order) written in: views
-        of the kept buffer, good until the next fill."""
+    def fill(self, values: np.ndarray, index: int, first: int = 0) -> Datagrams:
+        """The frame's datagrams with `values` (every float of the messages from message `first`
+        on, in message order) written in, and the frame index: views of the kept buffer, good
+        until the next fill."""
         data = self.buffer.data
-        _write(data.view(np.uint32), self.float_starts, self.float_widths,
-               np.ascontiguousarray(values, dtype=">f4").view(np.uint32))
+        _write(data.view(np.uint32), self.float_starts[first:], self.float_widths[first:],
+               np.ascontiguousarray(values, dtype=np.float64))
         data[self.index_slot : self.index_slot + 4] = np.array([index], dtype=">i4").view(np.uint8)
         return self.buffer
 
 
 @njit(cache=True, nogil=True)
 def _write(words, starts, widths, values):  # pragma: no cover - compiled
-    """Copies the big-endian float32s `values` (as 4-byte words) into the messages' runs of float
-    slots; `words` is the frame's buffer as 4-byte words (OSC keeps every argument on a multiple
-    of 4 bytes, and so does a bundle), `starts` in bytes."""
+    """Writes `values` (float64) as big-endian float32s into the messages' runs of float slots
+    (each rounded to float32 as numpy's astype rounds it, then its bytes swapped); `words` is the
+    frame's buffer as 4-byte words (OSC keeps every argument on a multiple of 4 bytes, and so
+    does a bundle), `starts` in bytes."""
+    single = np.empty(1, dtype=np.float32)
+    bits = single.view(np.uint32)
     at = 0
     for m in range(starts.shape[0]):
         start = starts[m] // 4
         for i in range(widths[m]):
-            words[start + i] = values[at + i]
+            single[0] = values[at + i]
+            u = bits[0]
+            words[start + i] = (u >> 24) | ((u >> 8) & 0xFF00) | ((u << 8) & 0xFF0000) | ((u << 24) & 0xFF000000)
         at += widths[m]
+
+
+@njit(cache=True, nogil=True)
+def _encode(rotations, world_rotations, world_positions, translations, root, values, words, starts, widths):  # pragma: no cover
+    """Some characters' values (`_pose_values`) written into their messages (`_write`): one call
+    a part of the crowd, so both run on the part's core."""
+    _pose_values(rotations, world_rotations, world_positions, translations, root, values)
+    _write(words, starts, widths, values)
 
 
 @njit(cache=True, nogil=True)
@@ -155,6 +169,7 @@ class FlatProfile:
     def __init__(self, joint_names: list[str], root: int, characters: int = 1):
         self.names = joint_names
         self.root = root
+        self.characters = characters
         self.whole_crowd = characters > 1  # datagrams() takes every character's pose (a CrowdPose)
         joints = len(joint_names)
         # per character, in the order sent: a quaternion per joint, a position per joint, the root's position,
@@ -190,16 +205,15 @@ class FlatProfile:
             raise ValueError(f"flat profile of {len(self.prefixes) // (2 * len(self.names) + 3)} characters given "
                              f"{arrays[0].shape[0]}")
         arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in arrays]
-        each = poses // len(arrays[0])  # values per character
-        cut = parts(len(arrays[0]))
-        if len(cut) == 1:
-            _pose_values(*arrays, self.root, values[:poses])
-        else:
-            over_cores(_pose_values, [(*(a[start:stop] for a in arrays), self.root, values[start * each : stop * each])
-                                      for start, stop in cut])
+        template = self._template[1]
+        words, starts, widths = template.buffer.data.view(np.uint32), template.float_starts, template.float_widths
+        each, per = poses // len(arrays[0]), 2 * len(self.names) + 3  # values and messages per character
+        over_cores(_encode, [(*(a[start:stop] for a in arrays), self.root, values[start * each : stop * each], words,
+                              starts[start * per : stop * per], widths[start * per : stop * per])
+                             for start, stop in parts(len(arrays[0]))])
         values[poses:-1] = np.fromiter(echo.values(), float, len(names))
         values[-1] = float(pose.time)
-        return self._template[1].fill(values, int(pose.index))
+        return template.fill(values[poses:], int(pose.index), first=len(arrays[0]) * per)
 
 
 def footfall_datagrams(footfalls: list[Footfall], characters: range) -> list[bytes]:

@@ -8,7 +8,9 @@ from ..models.modelfile import Model
 from ..motion.features import forward_direction
 from ..terminal import Console
 from ..motion.kinematics import ChannelStream
+from ..synthesis.cores import parts
 from ..synthesis.posing import Frame
+from .background import Background
 from .flat import FlatProfile, footfall_datagrams
 from .humanoid import guess_humanoid, read_humanoid
 from .osc import Datagrams, OscTarget, UdpOut, unbundled
@@ -18,7 +20,12 @@ from .vmc import VmcProfile
 
 class OscOutput:
     """One OSC target. It sends the pose of its `character`, or (a crowd's flat profile) every
-    character's: the live loop hands it what it asks for."""
+    character's: the live loop hands it what it asks for.
+
+    A crowd large enough to share its frame's work over the cores sends from a thread of its own
+    (`Background`): its frame's datagrams take milliseconds of the kernel's time, which then run
+    beside the next frame's work instead of before it. A smaller crowd, and one character, send
+    in the loop's thread, where a hand-over would cost more than the sending."""
 
     def __init__(self, target: OscTarget, profile, console: Console, character: int = 0):
         self.name = f"osc {target}"
@@ -27,10 +34,14 @@ class OscOutput:
         self.whole_crowd = getattr(profile, "whole_crowd", False)
         self.bundled = target.bundled
         self.out = UdpOut(target, console)
+        crowd = getattr(profile, "characters", 1) if self.whole_crowd else 1
+        self.background = Background(f"send {target}") if len(parts(crowd)) > 1 else None
 
     def prepare(self, frame: Frame) -> tuple[list[bytes], list[bytes] | Datagrams]:
         """The frame's footfalls (flat profile; sent first: the frame's /walk/frame comes last),
         and the frame itself (a crowd's flat profile written in place, sent from there)."""
+        if self.background is not None:  # the last frame's datagrams are sent from the buffer this one is written into
+            self.background.wait()
         pose = frame.crowd if self.whole_crowd else frame.pose(self.character)
         footfalls = []
         if frame.footfalls and isinstance(self.profile, FlatProfile):
@@ -42,13 +53,23 @@ class OscOutput:
         return (footfalls, datagrams) if self.bundled else (unbundled(footfalls), unbundled(datagrams))
 
     def send(self, prepared: tuple[list[bytes], list[bytes] | Datagrams]) -> None:
+        if self.background is not None:
+            self.background.hand(lambda: self._send(prepared))
+        else:
+            self._send(prepared)
+
+    def _send(self, prepared: tuple[list[bytes], list[bytes] | Datagrams]) -> None:
         footfalls, datagrams = prepared
         if footfalls:
             self.out.send(footfalls)
         self.out.send(datagrams)
 
     def close(self) -> None:
-        self.out.close()
+        try:
+            if self.background is not None:  # the last frame sent before the socket closes
+                self.background.close()
+        finally:
+            self.out.close()
 
 
 class RecorderOutput:
