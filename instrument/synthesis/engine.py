@@ -52,7 +52,8 @@ from .parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING
 from .posing import CrowdPose, CrowdPoses
 from .stream import Controls, Crowd
 from .units import UnitChooser
-from .widen import RangeFilter, RangeSpace, range_space, unit_targets
+from .cores import over_cores, parts
+from .widen import RangeFilter, RangeSpace, range_part, range_space, unit_targets
 
 ROOT_RATES = (1, 4)  # [first, last) of root.vx, root.vz, root.yaw_rate in the static features
 # a crowd of up to this many characters takes its range targets and contact shares from tables
@@ -227,6 +228,20 @@ class RangeTargets:
             return self.table[0][:, units[0]], self.table[1][:, units[0]]
         rows = np.arange(count)
         return self.table[0][rows, units], self.table[1][rows, units]
+
+    def filtered(self, frames: np.ndarray, units: np.ndarray, range_filter: RangeFilter) -> np.ndarray:
+        """A crowd's frames (N, D; more than TABLES_UP_TO characters) through `range_filter`,
+        towards the targets of units `units` (N,): each part of the crowd (`cores.parts`) its
+        targets made and its frames filtered in one call, on a core of its own (the same numbers
+        as `targets` then the filter make, character by character)."""
+        stream = self.stream
+        frames, out, first = range_filter.begin(frames, self.means.shape, self.factors.shape)
+        units = np.ascontiguousarray(units, dtype=np.int64)
+        own, shared, mean, eased = stream.tables.mean_own, stream.tables.mean_shared, range_filter.mean, range_filter.factor
+        over_cores(range_part, [(units[a:b], self.held[a:b], self.scaled, stream.base[a:b], own[a:b], shared, self.factor[a:b],
+                                 self.means[a:b], self.factors[a:b], frames[a:b], mean[a:b], eased[a:b], first, out[a:b])
+                                for a, b in parts(len(frames))])
+        return out
 
     def _made(self, units: np.ndarray) -> None:
         """`means` and `factors` for units `units` (N,), each stride mean made if not held."""
@@ -420,7 +435,10 @@ class Engine:
         if self.range_filter is not None:
             span = self._unit_span  # a frame's unit (one character's by Python's division: numpy's cost 1 us)
             units = [int(ids[0]) // span] if self.count == 1 else ids // span
-            frames = self.range_filter(frames, *self.range_targets.targets(units))
+            if self.count > TABLES_UP_TO:  # a crowd's: made and filtered part by part, over the cores
+                frames = self.range_targets.filtered(frames, units, self.range_filter)
+            else:
+                frames = self.range_filter(frames, *self.range_targets.targets(units))
             self._timed("range")
         driven = np.empty(frames.shape)
         drive(frames, self.stream.cadence, self.units.travel, self.units.added_yaw, driven)

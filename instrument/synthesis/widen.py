@@ -177,17 +177,23 @@ class RangeFilter:
 
     def __call__(self, frames: np.ndarray, mean: np.ndarray, factor: np.ndarray) -> np.ndarray:
         """Frames (N, D) as made, their swing scaled towards targets `mean` and `factor` (N, D)."""
-        frames = np.ascontiguousarray(frames, dtype=np.float64)
         mean, factor = np.ascontiguousarray(mean, dtype=np.float64), np.ascontiguousarray(factor, dtype=np.float64)
+        frames, out, first = self.begin(frames, mean.shape, factor.shape)
+        _range_step(frames, mean, factor, self.mean, self.factor, first, KEPT_FROM, KEPT_TO, out)
+        return out
+
+    def begin(self, frames: np.ndarray, mean_shape: tuple, factor_shape: tuple) -> tuple[np.ndarray, np.ndarray, bool]:
+        """A frame's step begun: `frames` checked against the targets' shapes and the filter's, as
+        a float64 C array, the array to write the filtered frames into, and whether this is the
+        filter's first frame (its eased mean and factor then made, to be set to the targets)."""
+        frames = np.ascontiguousarray(frames, dtype=np.float64)
         first = self.mean is None
-        if mean.shape != frames.shape or factor.shape != frames.shape or not (first or self.mean.shape == frames.shape):
-            raise ValueError(f"RangeFilter: frames {frames.shape}, targets {mean.shape} and {factor.shape} "
+        if mean_shape != frames.shape or factor_shape != frames.shape or not (first or self.mean.shape == frames.shape):
+            raise ValueError(f"RangeFilter: frames {frames.shape}, targets {mean_shape} and {factor_shape} "
                              f"(the filter's characters: {None if first else self.mean.shape})")
         if first:  # the filter's own arrays, eased in place from now on (the targets are the engine's)
             self.mean, self.factor = np.empty(frames.shape), np.empty(frames.shape)
-        out = np.empty(frames.shape)
-        _range_step(frames, mean, factor, self.mean, self.factor, first, KEPT_FROM, KEPT_TO, out)
-        return out
+        return frames, np.empty(frames.shape), first
 
 
 KEPT_FROM, KEPT_TO = min(KEPT), max(KEPT) + 1  # the kept features are one run of columns (root.vx, root.vz, root.yaw_rate)
@@ -209,6 +215,15 @@ def _range_step(frames, target_mean, target_factor, mean, factor, first, kept_fr
                 f = factor[n, d] + (target_factor[n, d] - factor[n, d]) / EASE_FRAMES
             mean[n, d], factor[n, d] = m, f
             out[n, d] = frames[n, d] if kept_from <= d < kept_to else m + f * (frames[n, d] - m)
+
+
+@njit(cache=True, nogil=True)
+def range_part(units, held, scaled, base, own, shared, factor, means, factors, frames, mean, eased, first, out):  # pragma: no cover
+    """Some characters' range stage in one call (a part of a crowd, on a core of its own): their
+    targets (`unit_targets`, into `means` and `factors`) and their frames filtered towards them
+    (`_range_step`, `mean` and `eased` the filter's eased mean and factor, into `out`)."""
+    unit_targets(units, held, scaled, base, own, shared, factor, means, factors)
+    _range_step(frames, means, factors, mean, eased, first, KEPT_FROM, KEPT_TO, out)
 
 
 def without_range(model):
