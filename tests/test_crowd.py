@@ -245,6 +245,32 @@ def test_character_0_of_a_crowd_walks_exactly_as_a_run_of_one(model):
     assert moved > 0.0  # the others are elsewhere (and walk otherwise)
 
 
+def test_a_crowds_range_stage_over_the_cores_makes_the_numbers_of_its_stage_made_whole(model, monkeypatch):
+    """A crowd's range stage runs part by part (`RangeTargets.filtered`, each part's targets and
+    filter in one call on a core of its own): the same frames, bit for bit, as the targets made
+    for the whole crowd and then filtered, through a style jump and spread."""
+    from instrument.synthesis import cores
+
+    monkeypatch.setattr(cores, "_cores", lambda: 2)  # two parts, whatever this machine has
+    count = 2 * cores.LEAST_PER_PART
+    parted, whole = Engine(model, characters=count), Engine(model, characters=count)
+    targets = whole.range_targets
+    targets.filtered = lambda frames, units, scale: scale(frames, *targets.targets(units))
+    calls = []
+    filtered = parted.range_targets.filtered
+    parted.range_targets.filtered = lambda *arguments: calls.append(1) or filtered(*arguments)
+    state = ControlState(model.style_names, model.states)
+    state.set("spread", 1.0)
+    for i in range(40):
+        if i == 20:
+            state.set("style/feminine", 0.8)
+        controls = state.snapshot()
+        ours, theirs = (e.frame(i / model.fps, controls, state.spread) for e in (parted, whole))
+        assert np.array_equal(ours.rotations, theirs.rotations), i
+        assert np.array_equal(ours.world_positions, theirs.world_positions), i
+    assert len(calls) == 40  # every frame's range stage went part by part
+
+
 def test_an_osc_surface_moves_the_spread_and_sees_it_echoed(tmp_path):
     from pythonosc.udp_client import SimpleUDPClient
 

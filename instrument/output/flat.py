@@ -46,8 +46,9 @@ def character_prefix(k: int) -> str:
 class FrameTemplate:
     """A frame's bundles with every value left as a slot: every message of the profile has a
     fixed size, so the bundles are cut the same way every frame, and a frame is the template
-    with its float32 values (and the frame index) written in place by one compiled call into a
-    buffer kept from frame to frame (`Datagrams`: the bundles as views of it, sent as they are)."""
+    with its float32 values (and the frame index) written in place by compiled code (`_write`:
+    the characters' by their parts' `_encode`, the echo's by `fill`) into a buffer kept from
+    frame to frame (`Datagrams`: the bundles as views of it, sent as they are)."""
 
     def __init__(self, prefixes: list[bytes], widths: list[int]):
         """For messages of `widths[k]` float32 values after `prefixes[k]`, then /walk/frame."""
