@@ -20,6 +20,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--console", metavar="[HOST:]PORT", help="for --pacing: serve the browser console meanwhile")
     p.add_argument("--console-pages", type=checked("bench --console-pages"), metavar="N",
                    help="for --pacing with --console: wait until N pages are open before measuring")
+    p.add_argument("--crowd", action="store_true",
+                   help="instead: only the live crowd's figures (each stage's cost per character, the largest crowd "
+                        "keeping 30 fps)")
     p.add_argument("--startup", action="store_true",
                    help="instead: how long `instrument --version`, `--help` and each `COMMAND --help` take to start, "
                         "against `python -c pass` in the same run")
@@ -38,8 +41,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"{line:32s} {f['seconds']:6.2f} s  (python -c pass {f['bare_seconds']:.2f} s: x{f['ratio']:.1f})")
         return 0
     # what is measured (numpy, scipy, numba): loaded when run, not for --help nor --startup
-    from .benchmarks import BATCH, measure, measure_pacing
-    from .crowd_bench import LATENESS_P99_MS, STAGES
+    from .benchmarks import BATCH, measure, measure_crowd, measure_pacing
 
     if args.pacing:
         f = measure_pacing(args.model, args.pacing, args.fps, args.console, args.console_pages or 0)
@@ -51,6 +53,16 @@ def run(args: argparse.Namespace) -> int:
                   f"2 OSC outputs{with_console}, {f['pacing_scheduling']} scheduling):")
             print(f"send time minus deadline: p50 {f['pacing_p50_ms']:.3f} ms, p99 {f['pacing_p99_ms']:.3f} ms, "
                   f"max {f['pacing_max_ms']:.3f} ms; late frames {f['pacing_late_frames']}, dropped {f['pacing_dropped_frames']}")
+        return 0
+    if args.crowd:
+        f = measure_crowd(args.model)
+        if args.json:
+            print(json.dumps(f, indent=1))
+        else:
+            m = f["machine"]
+            load = f", load {m['load_1min']:.1f}" if m["load_1min"] is not None else ""
+            print(f"machine: {m['cores']} cores, {m['cpu']}{load}")
+            _print_crowd(f)
         return 0
     f = measure(args.model, max(1, args.repeat))
     if args.json:
@@ -91,6 +103,13 @@ def run(args: argparse.Namespace) -> int:
     print(f"streaming, per character in a crowd of {BATCH}: {f['stream_us_per_frame_batch']:6.1f} us/frame "
           f"(x{f['stream_batch_to_window_solve']:.2f} the window solve)")
     print(f"characters in realtime on one core:     {f['characters_at_30fps']} at 30 fps, {f['characters_at_60fps']} at 60 fps")
+    _print_crowd(f)
+    return 0
+
+
+def _print_crowd(f: dict) -> None:
+    from .crowd_bench import LATENESS_P99_MS, STAGES
+
     print(f"live crowd of {f['crowd_size_for_cost']}, per character:     {f['stream_us_per_character']:8.1f} us/frame "
           f"(x{f['stream_per_character_to_window_solve']:.2f} the window solve: engine {f['crowd_engine_us_per_character']:.1f}, "
           f"pose {f['crowd_pose_us_per_character']:.1f}, flat OSC {f['crowd_flat_us_per_character']:.1f})")
@@ -99,4 +118,3 @@ def run(args: argparse.Namespace) -> int:
     print(f"largest live crowd at 30 fps:           {f['largest_crowd_30fps']:8d} characters (p99 lateness under "
           f"{LATENESS_P99_MS:g} ms, flat OSC to 127.0.0.1, {f['largest_crowd_scheduling']} scheduling; "
           f"tried {f['largest_crowd_tried']} in {f['largest_crowd_search_s']:.0f} s)")
-    return 0

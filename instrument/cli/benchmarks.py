@@ -213,13 +213,7 @@ def measure(model_path: str | None, repeat: int) -> dict:
     # the yardstick of the streaming figures: the bare solve of one window of the same size, `frames`
     # times a block, timed turn about with each figure set against it (`against_yardstick`)
     frames, turns = 100, max(7, repeat)
-    window = 2 + DEFAULT_LOOKAHEAD + 1
-    window_means, window_precisions = lam.means[ids[None, :window]], lam.precisions[ids[None, :window]]
-    known = np.zeros((1, 2, dimension))
-
-    def solves():
-        for _ in range(frames):
-            mlpg_continued(window_means, window_precisions, known)
+    solves = window_solves(lam, ids, frames)
 
     # the engine's stream stage alone (plan, window solve, rate limit), its tables set by the other stages
     walker = Engine(model)
@@ -243,6 +237,36 @@ def measure(model_path: str | None, repeat: int) -> dict:
     figures["characters_at_30fps"] = int(1e6 / 30 / per_character)
     figures["characters_at_60fps"] = int(1e6 / 60 / per_character)
     figures |= measure_cost(model, solves, frames)  # the whole live path of a crowd, per character and stage
+    figures |= largest_crowd(model, figures["stream_us_per_character"])
+    return figures
+
+
+def window_solves(lam, ids: np.ndarray, frames: int):
+    """The yardstick: a function making `frames` bare solves of one streaming window (its states
+    the first of `ids`, lambda* `lam`)."""
+    window = 2 + DEFAULT_LOOKAHEAD + 1
+    window_means, window_precisions = lam.means[ids[None, :window]], lam.precisions[ids[None, :window]]
+    known = np.zeros((1, 2, window_means.shape[-1] // 3))
+
+    def solves():
+        for _ in range(frames):
+            mlpg_continued(window_means, window_precisions, known)
+
+    return solves
+
+
+def measure_crowd(model_path: str | None) -> dict:
+    """`bench --crowd`: only the live crowd's figures (`crowd_bench`: the cost of each stage per
+    character against the window solve, and the largest crowd that keeps time), in a minute or
+    two, where the whole bench takes several."""
+    model = load_model(model_path or default_model_path())
+    all_styles = Controls(np.full(len(model.style_names), 1.0 / len(model.style_names)) * 1.5)
+    planner = Engine(model)
+    planner.retune(all_styles)
+    ids = planner.stream.state_plan(MLPG_FRAMES)
+    frames = 100
+    figures = {"machine": machine()}
+    figures |= measure_cost(model, window_solves(interpolate(planner.space, all_styles.weights), ids, frames), frames)
     figures |= largest_crowd(model, figures["stream_us_per_character"])
     return figures
 
