@@ -72,13 +72,14 @@ class FrameTemplate:
         if self.float_starts.size and (self.float_starts % 4).any():  # cannot be: OSC aligns every argument
             raise ValueError("flat profile: a float slot off a 4-byte boundary")
         self.buffer = Datagrams(np.frombuffer(b"".join(datagrams), dtype=np.uint8).copy(), bounds)
+        self.words = self.buffer.data.view(np.uint32)  # the buffer as the 4-byte words `_write` writes
 
     def fill(self, values: np.ndarray, index: int, first: int = 0) -> Datagrams:
         """The frame's datagrams with `values` (every float of the messages from message `first`
         on, in message order) written in, and the frame index: views of the kept buffer, good
         until the next fill."""
         data = self.buffer.data
-        _write(data.view(np.uint32), self.float_starts[first:], self.float_widths[first:],
+        _write(self.words, self.float_starts[first:], self.float_widths[first:],
                np.ascontiguousarray(values, dtype=np.float64))
         data[self.index_slot : self.index_slot + 4] = np.array([index], dtype=">i4").view(np.uint8)
         return self.buffer
@@ -207,11 +208,15 @@ class FlatProfile:
                              f"{arrays[0].shape[0]}")
         arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in arrays]
         template = self._template[1]
-        words, starts, widths = template.buffer.data.view(np.uint32), template.float_starts, template.float_widths
-        each, per = poses // len(arrays[0]), 2 * len(self.names) + 3  # values and messages per character
-        over_cores(_encode, [(*(a[start:stop] for a in arrays), self.root, values[start * each : stop * each], words,
-                              starts[start * per : stop * per], widths[start * per : stop * per])
-                             for start, stop in parts(len(arrays[0]))])
+        words, starts, widths = template.words, template.float_starts, template.float_widths
+        count, per = len(arrays[0]), 2 * len(self.names) + 3  # characters, and messages per character
+        cut = parts(count)
+        if len(cut) == 1:  # one core's worth (one character): no parts to cut
+            _encode(*arrays, self.root, values[:poses], words, starts[: count * per], widths[: count * per])
+        else:
+            each = poses // count  # values per character
+            over_cores(_encode, [(*(a[start:stop] for a in arrays), self.root, values[start * each : stop * each], words,
+                                  starts[start * per : stop * per], widths[start * per : stop * per]) for start, stop in cut])
         values[poses:-1] = np.fromiter(echo.values(), float, len(names))
         values[-1] = float(pose.time)
         return template.fill(values[poses:], int(pose.index), first=len(arrays[0]) * per)
