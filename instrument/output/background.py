@@ -18,6 +18,8 @@ from __future__ import annotations
 import threading
 from typing import Callable
 
+BEGIN_WAIT = 0.001  # seconds `hand` waits at most for the thread to begin (when no core is free for it)
+
 
 class Background:
     """One thread that runs the sendings handed to it, one at a time, in order.
@@ -37,11 +39,13 @@ class Background:
         self._thread: threading.Thread | None = None
 
     def hand(self, job: Callable[[], object]) -> None:
-        """Run `job` on the thread, and return once the thread has begun it (the one handed
-        before is waited for first). Waiting for it to begin costs the caller a thread's wake-up
-        (some 0.06 ms): without it, a caller going on with Python work held the interpreter's
-        lock, and the sending began only when the caller next let it go (0.3 to 0.6 ms later in
-        the live loop, which goes on to its status and its next frame)."""
+        """Run `job` on the thread, and return once the thread has begun it, or after BEGIN_WAIT
+        (the one handed before is waited for first). Waiting for it to begin costs the caller a
+        thread's wake-up (some 0.06 ms): without it, a caller going on with Python work held the
+        interpreter's lock, and the sending began only when the caller next let it go (0.3 to
+        0.6 ms later in the live loop, which goes on to its status and its next frame). At most
+        BEGIN_WAIT: when no core is free for the thread (another program's realtime thread, the
+        host), the caller goes on rather than wait with it (once 9 ms in 360 frames)."""
         self.wait()
         if self._thread is None:
             self._thread = threading.Thread(target=self._run, name=self.name, daemon=True)
@@ -51,7 +55,7 @@ class Background:
             self._begun.clear()
             self._job = job
             self._wake.notify()
-        self._begun.wait()
+        self._begun.wait(BEGIN_WAIT)
 
     def wait(self) -> None:
         """Return once the last job handed over is done; raise what it raised, if anything."""
