@@ -15,7 +15,7 @@ from instrument.synthesis.posing import Pose
 from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, POSSIBLE,
                                           PLANTED, SWING_BENT, SWING_CM)
 from instrument.synthesis.follow import STRENGTH
-from instrument.synthesis.footlock import HEEL_RISE_SPEED, MAX_HEEL_RISE, SLIDE_KEPT, STRETCH
+from instrument.synthesis.footlock import HEEL_RISE_SPEED, MAX_HEEL_RISE, STRETCH
 
 
 def EASE(x: float) -> float:
@@ -200,17 +200,12 @@ class FootLock:
         rotations = rotations.copy()
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
         world_rot, world_pos = world_rot[0], world_pos[0]
-        forward = np.stack([np.sin(self.heading), np.cos(self.heading)], axis=1)  # (2, [x, z]) each foot's heading
-        moved = np.nan_to_num((world_pos[self.pivot] - self.previous)[:, [0, 2]])  # the generated pivots' slide
-        back = SLIDE_KEPT * np.minimum(np.einsum("fa,fa->f", moved, forward), 0.0)
         planted = self._planted(shares, world_pos)
         step = 1.0 / BLEND_FRAMES
         for f, leg in enumerate(self.limbs.legs):
             if planted[f] and self.weight[f] == 0.0:
                 self.lock[f] = world_pos[self.pivot[f]]
                 self.heading[f] = _heading(world_pos, leg)
-            elif planted[f] and self.rise[f] > 0.0:  # on its toes, the foot keeps some of its backward slide
-                self.lock[f][[0, 2]] += back[f] * forward[f]
             self.weight[f] = min(1.0, self.weight[f] + step) if planted[f] else max(0.0, self.weight[f] - step)
             if self.weight[f] > 0.0:  # the foot turned about the vertical through its ankle, back to its landing heading
                 turn = EASE(self.weight[f]) * ((self.heading[f] - _heading(world_pos, leg) + np.pi) % (2 * np.pi) - np.pi)

@@ -6,8 +6,6 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 
 - `planted_feet`: which feet are planted this frame (the state's share, or a foot on the floor
   and still where the state allows it; always one foot);
-- `backward_slide`: how far a planted foot's generated pivot slid back, of which the lock keeps
-  SLIDE_KEPT while the heel rises (the trailing thigh swings back as far as the features make it);
 - `hold_heading`: a planted foot turned back about the vertical to the heading it landed with;
 - `lay_flat`: a planted foot alone on the floor, toes up, pitched down about its ankle to flat;
 - `lock_target`: where an ankle should go (the lock blended in, the floor, the swing lift as
@@ -50,13 +48,6 @@ MAX_HEEL_RISE = np.radians(50.0)  # the most a planted foot pitches up about its
 # how fast a heel rise may change (real ankles turn at up to 300-400 deg/s at push-off): near a
 # leg's full reach the rise that just reaches can swing by 35 deg from one frame to the next
 HEEL_RISE_SPEED = np.radians(400.0)  # radians per second
-# of a planted foot's generated backward slide (along its heading), what its lock keeps while its
-# heel rises: the generated leg sweeps more ground than the body travels, and a foot held where it
-# landed stopped the trailing thigh short of the swing the features make (elderly's hip 5.5%
-# short of its takes'); all of it, the thighs swung up to 9% wide and the feet skated up to 1.5x
-# their takes'. A quarter is where the styles' largest hip error is least (docs/evaluate.md,
-# "Elderly's hip: a planted foot keeps some of its slide")
-SLIDE_KEPT = 0.25
 STRETCH = 0.98  # of a leg's full length: how far the lock stretches a leg before the body comes down
 
 
@@ -459,8 +450,6 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     """One character's frame (arrays of that character; `drop` a 1-element view). Returns nothing:
     rotations, translations, the world transforms and the state are updated in place."""
     planted, extension, targets, turns, angles, matrices = work
-    back0 = SLIDE_KEPT * backward_slide(world_pos[feet[0, -1]], previous[0], headings[0])
-    back1 = SLIDE_KEPT * backward_slide(world_pos[feet[1, -1]], previous[1], headings[1])
     planted_feet(shares, world_pos, previous, feet, ground, fps, cm, planted)
     step = 1.0 / BLEND_FRAMES
     for f in range(2):
@@ -468,10 +457,6 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             for i in range(3):
                 points[f, i] = world_pos[feet[f, -1], i]
             headings[f] = foot_heading(world_pos, joints[f, 2], feet[f, -1])
-        elif planted[f] and rises[f] > 0.0:  # rising on its toes, a planted foot keeps SLIDE_KEPT of its backward slide
-            back = back0 if f == 0 else back1
-            points[f, 0] += back * np.sin(headings[f])
-            points[f, 2] += back * np.cos(headings[f])
         weights[f] = min(1.0, weights[f] + step) if planted[f] else max(0.0, weights[f] - step)
         if weights[f] > 0.0:
             hold_heading(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], headings[f], ease(weights[f]))
@@ -512,16 +497,6 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
                       matrices[1:])
         elif not _identity(turns[f]):  # the ankle where it was made, the foot turned all the same
             _product_t(world_rot[joints[f, 1]], world_rot[ankle], rotations[ankle])
-
-
-@njit(cache=True, error_model="numpy")
-def backward_slide(pivot, previous, heading) -> float:  # pragma: no cover - compiled
-    """How far the generated pivot moved back along the foot's `heading` since the frame before
-    (`previous`), as a negative distance; 0 where it moved forward or there is no frame before."""
-    along = (pivot[0] - previous[0]) * np.sin(heading) + (pivot[2] - previous[2]) * np.cos(heading)
-    if not np.isfinite(along) or along >= 0.0:
-        return 0.0
-    return along
 
 
 @njit(cache=True, error_model="numpy")
