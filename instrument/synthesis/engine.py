@@ -342,6 +342,7 @@ class Engine:
         self.frame_ids: np.ndarray | None = None  # (N,) the state (label * states + state) of each newest model frame
         self.contact_shares: np.ndarray | None = None  # (N, 2) how surely each character's newest frame has each foot planted
         self.follow_strengths: np.ndarray | None = None  # (N,) how much of a planted foot's slide each body takes
+        self.standing: np.ndarray | None = None  # (N,) bool: each character's newest frame is of a stand (its feet close up)
         self.method, self.total_frames = method, frames
         self._whole: tuple[np.ndarray, np.ndarray] | None = None  # method "full": the solved walk and its state ids
         self._controls: Controls | None = None  # the last controls and spread retuned for
@@ -433,6 +434,8 @@ class Engine:
         if self.contact is not None:
             self.contact_shares = self.contact.at(ids)
             self.follow_strengths = self.contact.follow
+            if self.units.stand >= 0:
+                self.standing = ids // self._unit_span == self.units.stand
             self._timed("contact")
         self.made += 1
         return frames
@@ -485,7 +488,7 @@ class Engine:
         """Every character's pose at performance time `time_s` (frames are asked for in order, at `fps`)."""
         static = self.sample(time_s, controls, spread)
         self._mark()
-        pose = self.poses.next(static, self.contact_shares, self.follow_strengths)
+        pose = self.poses.next(static, self.contact_shares, self.follow_strengths, self.standing)
         self._timed("posing")
         return pose
 
