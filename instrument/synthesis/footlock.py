@@ -58,6 +58,10 @@ SETTLE_LIFT_CM = 4.0  # how high a closing step lifts the foot, at its middle
 # in its last frames before a start the pose already steps off, towards the walk's first state)
 SETTLE_STILL_CM_S = 5.0
 CLOSED = 2.0  # LockState.settling of a foot that has taken its closing step, or needed none
+# a foot a still stand has closed up (or found in place) lets go of its lock over this many times
+# BLEND_FRAMES as it sets off: a step's first state has the swinging foot behind, at toe-off, and let
+# go at a walk's pace the foot standing beside the other swung back there and forward again in a few frames
+STAND_RELEASE = 2.0
 
 
 @dataclass
@@ -476,7 +480,8 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
                 points[f, i] = world_pos[feet[f, -1], i]
             headings[f] = foot_heading(world_pos, joints[f, 2], feet[f, -1])
             settling[f] = 0.0  # landed: a stand may close it up again
-        weights[f] = min(1.0, weights[f] + step) if planted[f] else max(0.0, weights[f] - step)
+        release = step / STAND_RELEASE if settling[f] == CLOSED else step  # set off from a still stand: slower
+        weights[f] = min(1.0, weights[f] + step) if planted[f] else max(0.0, weights[f] - release)
     settle_feet(still, planted, weights, points, headings, settling, world_pos, joints, feet, SETTLE_CM / cm,
                 1.0 / (SETTLE_SECONDS * fps), SETTLE_LIFT_CM / cm, lifts)
     for f in range(2):
