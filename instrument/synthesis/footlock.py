@@ -15,6 +15,9 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
   as a real foot bends there, instead of dipping into the floor), at most MAX_HEEL_RISE from
   flat and within HEEL_RISE_SPEED of the frame before's rise;
 - `within_reach`: a foot released in a run's flight brought back within its leg's generated length;
+- `settle_feet`: in a still stand, a foot locked away from where the stand's pose puts it (a stop
+  leaves them staggered) steps there, lifted, one at a time (a closing step); a foot so closed
+  up lets go of its lock at 1 / STAND_RELEASE of the usual pace as it sets off;
 - `body_drop`: how far the body must come down for a planted leg to reach its target;
 - `leg_swings`: two-bone IK, the thigh's and the shin's turns that take an ankle to a target;
 - `solve_leg`: those turns applied in place to the local rotations;
