@@ -46,7 +46,11 @@ frame at a time, on the pose the features give:
   reaches PLANTED, so the lock never pulls a foot down in mid-flight (doing so made the knees
   jump twice as far in a frame as in the real runs);
 - where a planted leg cannot reach even so (an exaggerated style can lift the hips), it stretches
-  up to STRETCH of its length, and the body comes down by the rest, eased over BLEND_FRAMES frames.
+  up to STRETCH of its length, and the body comes down by the rest, eased over BLEND_FRAMES frames;
+- in a stand (the engine says which frames are), once its pose is still with both feet locked
+  in, a foot locked away from where the pose puts it (a stop lands its last steps staggered)
+  steps there, lifted, one foot at a time, and a foot so closed up lets go of its lock over
+  twice BLEND_FRAMES as it sets off (footlock.settle_feet, STAND_RELEASE).
 Before the lock, outside the data, the body takes a share of a planted foot's generated slide
 (`follow.py`), so the IK does not have to stretch the leg after a body that slides on.
 Nothing looks ahead beyond what the frame's state already says, so live and `synth` agree.
