@@ -13,8 +13,12 @@ from pathlib import Path
 from .errors import UserError
 
 
-def read_text(path: str | Path) -> str:
-    """The file's text, or a UserError naming the file (and line) and what is wrong."""
+def read_text(path: str | Path, *, latin1_fallback: bool = False) -> str:
+    """The file's text, or a UserError naming the file (and line) and what is wrong.
+
+    With `latin1_fallback`, a file that is not UTF-8 is read as Latin-1 instead of refused: motion
+    capture exporters write joint names in the machine's 8-bit code page, and every byte is a
+    Latin-1 character, so the numbers still read and the names stay distinct."""
     path = Path(path)
     try:
         data = path.read_bytes()
@@ -23,6 +27,8 @@ def read_text(path: str | Path) -> str:
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as e:
+        if latin1_fallback:
+            return data.decode("latin-1")
         line = data[: e.start].count(b"\n") + 1
         utf16 = data[:2] in (b"\xff\xfe", b"\xfe\xff")
         raise UserError(f"{path}:{line}: not UTF-8 text" + ("; it is UTF-16: save it as UTF-8" if utf16 else "")) from None

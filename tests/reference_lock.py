@@ -15,7 +15,8 @@ from instrument.synthesis.posing import Pose
 from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, POSSIBLE,
                                           PLANTED, SWING_BENT, SWING_CM)
 from instrument.synthesis.follow import STRENGTH
-from instrument.synthesis.footlock import HEEL_RISE_SPEED, MAX_HEEL_RISE, STRETCH
+from instrument.synthesis.footlock import (CLOSED, HEEL_RISE_SPEED, MAX_HEEL_RISE, SETTLE_CM, SETTLE_LIFT_CM, SETTLE_SECONDS,
+                                           SETTLE_STILL_CM_S, STAND_RELEASE, STRETCH)
 
 
 def EASE(x: float) -> float:
@@ -192,21 +193,29 @@ class FootLock:
         self.cm = centimetres_per_unit(layout, template)
         self.swing_lift = SWING_CM / self.cm  # in the skeleton's units
         self.previous = np.full((2, 3), np.nan)  # each pivot's generated position in the frame before
+        self.settling = np.zeros(2)  # each foot's closing step: 0 may take one, (0, 1) how far, CLOSED
 
-    def apply(self, rotations: np.ndarray, translations: np.ndarray, shares: np.ndarray) -> tuple[np.ndarray, ...]:
+    def apply(self, rotations: np.ndarray, translations: np.ndarray, shares: np.ndarray,
+              standing: bool = False) -> tuple[np.ndarray, ...]:
         """Local rotations (J, 3, 3) of one frame, adjusted, the translations (J, 3), and their
         world rotations and positions; `shares` (2,) says how surely each foot is planted in
-        the frame's state."""
+        the frame's state; `standing`: the frame is of a stand (its feet close up)."""
         rotations = rotations.copy()
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
         world_rot, world_pos = world_rot[0], world_pos[0]
+        speeds = np.hypot(*(world_pos[self.pivot] - self.previous)[:, [0, 2]].T) * self.fps * self.cm
+        still = standing and bool((speeds < SETTLE_STILL_CM_S).all())  # NaN (first frame): not still
         planted = self._planted(shares, world_pos)
         step = 1.0 / BLEND_FRAMES
         for f, leg in enumerate(self.limbs.legs):
             if planted[f] and self.weight[f] == 0.0:
                 self.lock[f] = world_pos[self.pivot[f]]
                 self.heading[f] = _heading(world_pos, leg)
-            self.weight[f] = min(1.0, self.weight[f] + step) if planted[f] else max(0.0, self.weight[f] - step)
+                self.settling[f] = 0.0
+            release = step / STAND_RELEASE if self.settling[f] == CLOSED else step  # set off from a still stand
+            self.weight[f] = min(1.0, self.weight[f] + step) if planted[f] else max(0.0, self.weight[f] - release)
+        lifts = self._settle(still, planted, world_pos)
+        for f, leg in enumerate(self.limbs.legs):
             if self.weight[f] > 0.0:  # the foot turned about the vertical through its ankle, back to its landing heading
                 turn = EASE(self.weight[f]) * ((self.heading[f] - _heading(world_pos, leg) + np.pi) % (2 * np.pi) - np.pi)
                 yaw = _axis_rotation(np.array([0.0, 1.0, 0.0]), turn)
@@ -247,6 +256,8 @@ class FootLock:
             world_pos = world_pos - np.array([0.0, self.drop, 0.0])
             targets, turns = self._targets(world_pos, planted, extension)
         self.rise = self.next_rise  # the rises of the targets taken
+        for f in range(2):  # a closing step's foot off the floor
+            targets[f][1] += lifts[f]
         for f, leg in enumerate(self.limbs.legs):
             if leg.pivot != leg.ankle and not np.array_equal(turns[f], np.eye(3)):  # the toes keep their world rotation
                 rotations[leg.pivot] = (turns[f] @ world_rot[self.parents[leg.pivot]]).T @ world_rot[leg.pivot]
@@ -257,6 +268,35 @@ class FootLock:
                 rotations[leg.ankle] = world_rot[leg.knee].T @ world_rot[leg.ankle]
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
         return rotations, translations, world_rot[0], world_pos[0]
+
+    def _settle(self, still: bool, planted: np.ndarray, world_pos: np.ndarray) -> np.ndarray:
+        """A closing step (footlock.settle_feet): the first time since a landing that a still stand
+        has both feet locked in, each foot locked more than SETTLE_CM from where the pose puts it
+        steps there, the further first, lifted along a half sine; returns each foot's lift."""
+        lifts = np.zeros(2)
+        stepping = [f for f in range(2) if 0.0 < self.settling[f] < CLOSED]
+        if not stepping:
+            if not (still and planted.all() and (self.weight == 1.0).all()):
+                return lifts
+            away = {f: np.hypot(*(self.lock[f] - world_pos[self.pivot[f]])[[0, 2]]) for f in range(2) if self.settling[f] == 0.0}
+            over = {f: d for f, d in away.items() if d > SETTLE_CM / self.cm}
+            if not over:
+                for f in away:
+                    self.settling[f] = CLOSED
+                return lifts
+            stepping = [max(over, key=over.get)]
+        f = stepping[0]
+        before = EASE(self.settling[f])
+        self.settling[f] = min(self.settling[f] + 1.0 / (SETTLE_SECONDS * self.fps), 1.0)
+        keep = (1.0 - EASE(self.settling[f])) / (1.0 - before)
+        goal = world_pos[self.pivot[f]]
+        self.lock[f][[0, 2]] = goal[[0, 2]] + (self.lock[f] - goal)[[0, 2]] * keep
+        turn = (self.heading[f] - _heading(world_pos, self.limbs.legs[f]) + np.pi) % (2 * np.pi) - np.pi
+        self.heading[f] -= turn * (1.0 - keep)
+        lifts[f] = SETTLE_LIFT_CM / self.cm * np.sin(np.pi * self.settling[f])
+        if self.settling[f] >= 1.0:
+            self.settling[f] = CLOSED
+        return lifts
 
     def _planted(self, shares: np.ndarray, world_pos: np.ndarray) -> np.ndarray:
         """A foot is planted where its state says so, or where the state allows it and the

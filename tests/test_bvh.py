@@ -137,3 +137,20 @@ def test_text_of_written_file_has_hierarchy_and_frame_count(real_walks):
     assert text.startswith("HIERARCHY\nROOT joint_Root\n")
     assert f"Frames: {motion.frames}\n" in text
     assert text.count("End Site") == 5
+
+
+@pytest.mark.parametrize(
+    "encode",
+    [
+        pytest.param(lambda text: text.encode("latin-1"), id="latin-1"),
+        pytest.param(lambda text: b"\xef\xbb\xbf" + text.encode("utf-8"), id="utf-8 with a byte-order mark"),
+    ],
+)
+def test_a_file_in_an_exporters_code_page_reads_with_its_joint_names(tmp_path, encode):
+    """Exporters on Windows write joint names in the machine's 8-bit code page, or UTF-8 with a
+    byte-order mark: both read, the names as written, the numbers as in plain UTF-8."""
+    path = tmp_path / "hüfte.bvh"
+    path.write_bytes(encode(SIMPLE.replace("JOINT Leg", "JOINT Hüfte_links")))
+    motion = read_bvh(path)
+    assert motion.skeleton.names == ["Hips", "Hüfte_links"]
+    np.testing.assert_array_equal(motion.channels, parse_bvh(SIMPLE, "simple").channels)

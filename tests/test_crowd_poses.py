@@ -236,3 +236,56 @@ def test_a_foot_with_a_heel_joint_is_locked_as_the_reference_does_in_any_units(h
         risen += state.rises[0, 0] > 0.0
         flattened += not np.allclose(rotations[0, legs[0].ankle], rot[legs[0].ankle]) and i < 10
     assert risen > 10 and flattened > 5  # the heel rose, the foot was laid flat: both were compared
+
+
+@pytest.mark.parametrize("scale", [1.0, 0.01])
+def test_a_stand_closes_up_feet_left_away_from_its_pose_as_the_reference_does(scale):
+    """Both feet locked where they stood while the hips moved 15 cm on (a stop leaves the feet
+    where its last steps landed them), then a still stand: each foot steps, one at a time and off
+    the floor, to where the stand's pose puts it, and stays there; then a foot set off lets go of
+    its lock at half the walk's pace (STAND_RELEASE); the compiled lock and the reference make
+    the same poses. Not standing, the lock holds the feet where they were."""
+    from test_contact import _feet_skeleton
+
+    from instrument.motion.features import FeatureLayout
+    from instrument.motion.kinematics import forward_kinematics
+    from instrument.motion.limbs import find_limbs
+    from instrument.synthesis.contact import BLEND_FRAMES
+    from instrument.synthesis.footlock import STAND_RELEASE
+
+    skeleton, template = _scaled(*_feet_skeleton(False), scale)
+    layout = FeatureLayout(skeleton, 0, tuple(range(len(skeleton.joints))), tuple(template))
+    rest_rot, rest_tr = layout.template_pose[0], layout.template_pose[1]
+    _, rest_pos = forward_kinematics(skeleton, rest_rot[None], rest_tr[None])
+    legs = find_limbs(skeleton, 0, np.asarray(template)).legs
+    ground = np.array([[rest_pos[0, j, 1] for j in leg.foot] for leg in legs])
+    compiled, oracle, held = FootLock(layout, ground, 30.0), reference.FootLock(layout, ground, 30.0), FootLock(layout, ground, 30.0)
+    state, held_state = compiled.start(1), held.start(1)
+    lifted, weights = [], []
+    for i in range(86):
+        rot, tr = rest_rot.copy(), rest_tr.copy()
+        tr[0, 2] = scale * min(i, 15)  # the hips move on 15 cm over the feet, then stand
+        standing = 30 <= i < 80
+        shares = np.array([1.0, 1.0]) if i < 80 else np.array([1.0, 0.0])  # then the right foot sets off
+        expected = oracle.apply(rot, tr, shares, standing)
+        world_rot, world_pos = forward_kinematics(skeleton, rot[None], tr[None])
+        rotations, translations = rot[None].copy(), tr[None].copy()
+        compiled.apply(state, rotations, translations, shares[None], world_rot.copy(), world_pos.copy(), np.array([standing]))
+        _, positions = forward_kinematics(skeleton, rotations, translations)
+        np.testing.assert_allclose(positions[0] / scale, expected[3] / scale, atol=1e-8)
+        np.testing.assert_allclose(rotations[0], expected[0], atol=1e-9)
+        lifted.append([(positions[0, list(leg.foot), 1] - ground[f]).min() / scale for f, leg in enumerate(legs)])
+        weights.append(state.weights[0, 1])
+        if i < 80:  # the same frames, never told it stands
+            kept_rot, kept_tr = rot[None].copy(), tr[None].copy()
+            held.apply(held_state, kept_rot, kept_tr, shares[None], world_rot.copy(), world_pos.copy())
+        if i == 79:  # the stand's last frame: its pose as made has both feet under the standing hips
+            kept = forward_kinematics(skeleton, kept_rot, kept_tr)[1][0]
+            for leg in legs:
+                assert np.hypot(*(positions[0, leg.pivot] - world_pos[0, leg.pivot])[[0, 2]]) / scale < 0.01  # closed up
+                assert np.hypot(*(kept[leg.pivot] - world_pos[0, leg.pivot])[[0, 2]]) / scale > 14.0  # held where they were
+    lifted = np.array(lifted)
+    assert (lifted[:30] < 0.5).all()  # moving on, nothing steps
+    up = lifted[30:80] > 1.0
+    assert up[:, 0].sum() > 5 and up[:, 1].sum() > 5 and not (up[:, 0] & up[:, 1]).any()  # each foot once, one at a time
+    assert weights[80 + BLEND_FRAMES - 1] == pytest.approx(1.0 - 1.0 / STAND_RELEASE)  # letting go, slower

@@ -1,7 +1,9 @@
 """The stop-and-start figures (`instrument evaluate --units`, examples/units_figures.py) measure
 what a user gets: the sequence the evaluation renders through the engine is, frame for frame, the
 BVH that `instrument run --fast --bvh` records from a score playing the same cues, read back by an
-independent reader (tests/bvh_independent.py: the `bvh` package and scipy's rotations)."""
+independent reader (tests/bvh_independent.py: the `bvh` package and scipy's rotations). And what
+the file shows of a stop: the feet closed up as a stand from rest has them, so the next start sets
+off without a jolt (docs/evaluate.md, "A stop that closes its feet")."""
 
 from __future__ import annotations
 
@@ -13,20 +15,34 @@ import numpy as np
 from bvh_independent import world_positions
 from conftest import REPO
 from instrument.evaluation.sequence import velocity_jumps
-from instrument.evaluation.transitions import transition_sequence
+from instrument.evaluation.transitions import step_frames, transition_sequence
 from instrument.models.modelfile import load_model
 from instrument.motion.kinematics import world_positions as own_world_positions
+from instrument.motion.limbs import find_limbs
+from instrument.synthesis.engine import default_controls, render
+from instrument.synthesis.parameters import GAITS
+
+
+def _feet_apart(positions: np.ndarray, hips: list[int], pivots: list[int], frame: int) -> np.ndarray:
+    """Where one foot's front-most joint (`pivots`) stands from the other's at `frame`,
+    horizontally, in the body's frame: (forward, sideways), sideways along the line between the
+    hip joints (`hips`)."""
+    side = positions[frame, hips[0]] - positions[frame, hips[1]]
+    side = side[[0, 2]] / np.linalg.norm(side[[0, 2]])
+    forward = np.array([side[1], -side[0]])
+    apart = (positions[frame, pivots[0]] - positions[frame, pivots[1]])[[0, 2]]
+    return np.array([apart @ forward, apart @ side])
 
 
 def test_the_evaluations_stop_and_start_is_the_bvh_a_score_records(tmp_path):
     model = load_model(REPO / "models" / "default.npz")
-    sequence = transition_sequence(model, "walk", {"youthful": 1.0})
+    sequence = transition_sequence(model, "walk", {"feminine": 1.0})
     stop_at, start_at = sequence.changes
     fps = model.fps
     frames = len(sequence.labels)
     # the same cues as a score: the style and the walk from the start, a stand, the walk again
     (tmp_path / "stop.toml").write_text(
-        f'[[cue]]\nat = 0\nramp = {{ "style/youthful" = 1.0, gait = "walk" }}\n\n'
+        f'[[cue]]\nat = 0\nramp = {{ "style/feminine" = 1.0, gait = "walk" }}\n\n'
         f'[[cue]]\nat = {stop_at / fps!r}\nramp = {{ gait = "stand" }}\n\n'
         f'[[cue]]\nat = {start_at / fps!r}\nramp = {{ gait = "walk" }}\n')
     done = subprocess.run([sys.executable, "-m", "instrument", "run", "--score", "stop.toml", "--fast", "--no-osc",
@@ -46,3 +62,18 @@ def test_the_evaluations_stop_and_start_is_the_bvh_a_score_records(tmp_path):
     walking, standing = speed[stop_at - 60:stop_at].mean(), speed[stop_at + 60:start_at].mean()
     assert walking > 60.0 and standing < 2.0
     assert speed[-60:].mean() > 0.8 * walking
+    # the stop closes the feet up: in the stand's last frame they stand as a stand from rest has them
+    # (the stop left them where its last steps landed, 15 cm from that), within a twentieth of a stride
+    legs = find_limbs(model.layout.skeleton, model.layout.root, np.asarray(model.layout.template)).legs
+    hip_joints, pivots = [leg.hip for leg in legs], [leg.pivot for leg in legs]
+    joint_names = sequence.motion.skeleton.names
+    in_file = {j: names.index(joint_names[j]) for j in hip_joints + pivots}  # the BVH's joint order
+    rest = own_world_positions(render(model, default_controls(model, {"feminine": 1.0}, gait=GAITS.index("stand")), 60))
+    stride = walking * 2.0 * step_frames(model, "walk") / fps
+    closed = (_feet_apart(recorded, [in_file[j] for j in hip_joints], [in_file[j] for j in pivots], start_at - 1)
+              - _feet_apart(rest, hip_joints, pivots, 59))
+    assert np.linalg.norm(closed) < stride / 20.0, (closed, stride)
+    # so the start after it jolts little more than the walk itself does (set off from the feet as the
+    # stop left them, its first step's knee jumped 2.6 times as far in a frame as the walk's largest)
+    jumps = velocity_jumps(recorded)
+    assert jumps[start_at:start_at + 2 * int(fps)].max() < 1.5 * jumps[stop_at - 90:stop_at].max()

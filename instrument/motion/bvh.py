@@ -16,6 +16,7 @@ import numpy as np
 
 from ..errors import UserError, located, quoted
 from ..outputfile import written
+from ..textfile import read_text
 
 POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
 ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
@@ -302,15 +303,7 @@ def _raise_frame_error(path: str, rows: list[str], first_line: int, width: int) 
 
 def read_bvh(path: str | Path) -> Motion:
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as e:
-        raise UserError(f"{path}: cannot read: {e.strerror or e}") from None
-    try:
-        text = raw.decode("utf-8-sig")  # a byte-order mark is not part of the text
-    except UnicodeDecodeError:
-        text = raw.decode("latin-1")
-    return parse_bvh(text, str(path))
+    return parse_bvh(read_text(path, latin1_fallback=True), str(path))
 
 
 def _fmt(values) -> str:

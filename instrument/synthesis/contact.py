@@ -41,12 +41,16 @@ frame at a time, on the pose the features give:
   landing, its toes up), the released foot's lowest joint leaves the floor only as its lock
   blends out, so one foot or the other is always on it;
 - a walk always has a foot on the floor: when no state plants either, the likelier one is; a run
-  has flight: a state where lambda 0 plants neither foot, in a unit whose data has both feet in
-  the air in most frames of some state (`flight_states`), plants a foot only where its share
+  has flight: a state where lambda 0 plants neither foot, in a unit whose data is more often in
+  the air than on both feet (`flight_states`), plants a foot only where its share
   reaches PLANTED, so the lock never pulls a foot down in mid-flight (doing so made the knees
   jump twice as far in a frame as in the real runs);
 - where a planted leg cannot reach even so (an exaggerated style can lift the hips), it stretches
-  up to STRETCH of its length, and the body comes down by the rest, eased over BLEND_FRAMES frames.
+  up to STRETCH of its length, and the body comes down by the rest, eased over BLEND_FRAMES frames;
+- in a stand (the engine says which frames are), once its pose is still with both feet locked
+  in, a foot locked away from where the pose puts it (a stop lands its last steps staggered)
+  steps there, lifted, one foot at a time, and a foot so closed up lets go of its lock over
+  twice BLEND_FRAMES as it sets off (footlock.settle_feet, STAND_RELEASE).
 Before the lock, outside the data, the body takes a share of a planted foot's generated slide
 (`follow.py`), so the IK does not have to stretch the leg after a body that slides on.
 Nothing looks ahead beyond what the frame's state already says, so live and `synth` agree.
@@ -128,16 +132,20 @@ def flight_states(shares: np.ndarray, air=None, states: int = 1, units: int = 0)
     """(labels * states,) bool: the states of a run's flight, where lambda 0's shares `shares`
     (labels * states, 2) plant neither foot, in a unit that has flight. Where training stored
     `air` ((labels, states): the share of each state's frames with both feet in the air,
-    training/contact.air_labels), a unit (its two labels, the first 2 * `units`) has flight
-    when in some state of its steps both feet are in the air in most frames (at least PLANTED);
-    the other labels (gestures) each on its own. Not planted is not in the air: a foot that
-    slides or pivots on the floor is not still, so not counted as planted, and in a stylised walk
-    of few steps (the public CMU takes, tests/data/cmu-131) half of the states planted neither
-    foot surely while both feet were in the air in at most a third of their frames; taken for
-    flight, the lock let both feet go there and the walk skated 4.4 times as much as its takes.
-    In the shared runs the most airborne state of each step is in the air in 0.53-0.60 of its
-    frames (a unit's other flight states in 0.29 and up: the unit decides, not the state). A
-    model trained before `air` was stored reads flight from the shares alone."""
+    training/contact.air_labels), a unit (its two labels, the first 2 * `units`) has flight when
+    its steps are more often in the air than on both feet: some state's air share exceeds every
+    state's share of both feet planted (the lesser of the two feet's shares, a bound on it); the
+    other labels (gestures) each on its own. That is what tells a run from a walk (a walk has
+    double support and no flight, a run flight and no double support) and it asks no threshold of
+    a capture: the shared runs' most airborne states are in the air in 0.54-0.60 of their frames
+    with both feet planted in at most 0.03 of any state's, but another actor's jog, its flight
+    shorter, can stay under half, and a walk's air can be a floor misread: the public CMU walk
+    (tests/data/cmu-131), whose feet slide and pivot on the floor so that half of its states
+    plant neither foot surely, is in the air in up to 0.33 of a state's frames and on both feet
+    in up to 0.44. (Taken for flight before `air` was stored, the lock let both feet go there
+    and the walk skated 4.4 times as much as its takes; the rule before this one asked for a
+    state in the air in half its frames.) A model trained before `air` was stored reads flight
+    from the shares alone."""
     flight = shares.max(axis=1) < PLANTED
     try:
         air = np.asarray(air if air is not None else [], dtype=np.float64)
@@ -145,10 +153,12 @@ def flight_states(shares: np.ndarray, air=None, states: int = 1, units: int = 0)
         return flight
     if air.size != len(flight) or len(flight) % states or not np.isfinite(air).all():
         return flight
-    airborne = air.reshape(-1, states).max(axis=1) >= PLANTED  # per label
+    airborne = air.reshape(-1, states).max(axis=1)  # per label
+    both = shares.min(axis=1).reshape(-1, states).max(axis=1)
     for unit in range(min(units, len(airborne) // 2)):
-        airborne[2 * unit : 2 * unit + 2] = airborne[2 * unit : 2 * unit + 2].any()
-    return flight & np.repeat(airborne, states)
+        steps = slice(2 * unit, 2 * unit + 2)
+        airborne[steps], both[steps] = airborne[steps].max(), both[steps].max()
+    return flight & np.repeat(airborne > both, states)
 
 
 @njit(cache=True, nogil=True)

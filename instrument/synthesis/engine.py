@@ -357,6 +357,8 @@ class Engine:
         self.frame_ids: np.ndarray | None = None  # (N,) the state (label * states + state) of each newest model frame
         self.contact_shares: np.ndarray | None = None  # (N, 2) how surely each character's newest frame has each foot planted
         self.follow_strengths: np.ndarray | None = None  # (N,) how much of a planted foot's slide each body takes
+        # (N,) bool: each character's newest frame is of a stand (its feet close up); None: the model has no stand
+        self.standing: np.ndarray | None = None if self.units.stand < 0 else np.zeros(characters, dtype=np.bool_)
         self.method, self.total_frames = method, frames
         self._whole: tuple[np.ndarray, np.ndarray] | None = None  # method "full": the solved walk and its state ids
         self._controls: Controls | None = None  # the last controls and spread retuned for
@@ -451,6 +453,10 @@ class Engine:
         if self.contact is not None:
             self.contact_shares = self.contact.at(ids)
             self.follow_strengths = self.contact.follow
+            if self.standing is not None and self.count == 1:  # a Python number: numpy's array forms cost a frame 1 us
+                self.standing[0] = int(ids[0]) // self._unit_span == self.units.stand
+            elif self.standing is not None:
+                np.equal(ids // self._unit_span, self.units.stand, out=self.standing)
             self._timed("contact")
         self.made += 1
         return frames
@@ -503,7 +509,7 @@ class Engine:
         """Every character's pose at performance time `time_s` (frames are asked for in order, at `fps`)."""
         static = self.sample(time_s, controls, spread)
         self._mark()
-        pose = self.poses.next(static, self.contact_shares, self.follow_strengths)
+        pose = self.poses.next(static, self.contact_shares, self.follow_strengths, self.standing)
         self._timed("posing")
         return pose
 

@@ -15,6 +15,9 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
   as a real foot bends there, instead of dipping into the floor), at most MAX_HEEL_RISE from
   flat and within HEEL_RISE_SPEED of the frame before's rise;
 - `within_reach`: a foot released in a run's flight brought back within its leg's generated length;
+- `settle_feet`: in a still stand, a foot locked away from where the stand's pose puts it (a stop
+  leaves them staggered) steps there, lifted, one at a time (a closing step); a foot so closed
+  up lets go of its lock at 1 / STAND_RELEASE of the usual pace as it sets off;
 - `body_drop`: how far the body must come down for a planted leg to reach its target;
 - `leg_swings`: two-bone IK, the thigh's and the shin's turns that take an ankle to a target;
 - `solve_leg`: those turns applied in place to the local rotations;
@@ -49,6 +52,20 @@ MAX_HEEL_RISE = np.radians(50.0)  # the most a planted foot pitches up about its
 # leg's full reach the rise that just reaches can swing by 35 deg from one frame to the next
 HEEL_RISE_SPEED = np.radians(400.0)  # radians per second
 STRETCH = 0.98  # of a leg's full length: how far the lock stretches a leg before the body comes down
+# a standing body's planted foot further than this from where the stand's pose puts it steps there
+# (a closing step): a stop leaves its feet where its last, braked steps landed them (on the shipped
+# model at weight 1, 7-17 cm staggered front to back)
+SETTLE_CM = 4.0
+SETTLE_SECONDS = 0.4  # how long a closing step takes, lift-off to touch-down
+SETTLE_LIFT_CM = 4.0  # how high a closing step lifts the foot, at its middle
+# ... and begins only while both generated feet move slower than this (a stand's move under 3 cm/s;
+# in its last frames before a start the pose already steps off, towards the walk's first state)
+SETTLE_STILL_CM_S = 5.0
+CLOSED = 2.0  # LockState.settling of a foot that has taken its closing step, or needed none
+# a foot a still stand has closed up (or found in place) lets go of its lock over this many times
+# BLEND_FRAMES as it sets off: a step's first state has the swinging foot behind, at toe-off, and let
+# go at a walk's pace the foot standing beside the other swung back there and forward again in a few frames
+STAND_RELEASE = 2.0
 
 
 @dataclass
@@ -62,6 +79,7 @@ class LockState:
     previous: np.ndarray  # (N, 2, 3) each pivot's position in the frame before, the body's follow offset
     # included (NaN at first): what the lock's 'nearly still' test measures; not RootFollow.previous
     rises: np.ndarray  # (N, 2) each foot's heel rise in the frame before (radians)
+    settling: np.ndarray  # (N, 2) each foot's closing step: 0 may take one, (0, 1) how far through, CLOSED (`settle_feet`)
 
     def part(self, start: int, stop: int) -> LockState:
         """Characters start to stop: views of the same arrays, for a part of the crowd on a core."""
@@ -71,6 +89,7 @@ class LockState:
         """Character n's feet unlocked, as before its first frame (it was put somewhere else)."""
         self.weights[n], self.points[n], self.headings[n], self.drop[n], self.previous[n] = 0.0, np.nan, 0.0, 0.0, np.nan
         self.rises[n] = 0.0
+        self.settling[n] = 0.0
 
 
 class FootLock:
@@ -97,18 +116,20 @@ class FootLock:
     def start(self, count: int) -> LockState:
         """The state of `count` characters before their first frame: nothing locked yet."""
         return LockState(np.zeros((count, 2)), np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros(count),
-                         np.full((count, 2, 3), np.nan), np.zeros((count, 2)))
+                         np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros((count, 2)))
 
     def apply(self, state: LockState, rotations: np.ndarray, translations: np.ndarray, shares: np.ndarray,
-              world_rot: np.ndarray, world_pos: np.ndarray) -> None:
+              world_rot: np.ndarray, world_pos: np.ndarray, standing: np.ndarray | None = None) -> None:
         """Plants the feet of N characters in place: local rotations (N, J, 3, 3) and translations
         (N, J, 3) are adjusted and their world transforms (same shapes) written; `world_rot` and
         `world_pos` hold the unadjusted pose's on entry. `shares` (N, 2): how surely each foot is
-        planted in each character's state."""
+        planted in each character's state; `standing` (N,) bool: the character's frame is of a
+        stand, where a foot held away from the stand's pose steps there (`settle_feet`; None: none is)."""
+        standing = np.zeros(len(shares), dtype=np.bool_) if standing is None else np.ascontiguousarray(standing, dtype=np.bool_)
         lock_crowd(rotations, translations, np.ascontiguousarray(shares, dtype=np.float64), world_rot, world_pos,
-                   state.weights, state.points, state.headings, state.drop, state.previous, state.rises, self.parents,
-                   self.joints, self.feet, self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm,
-                   self.swing_lift)
+                   state.weights, state.points, state.headings, state.drop, state.previous, state.rises,
+                   state.settling, standing, self.parents, self.joints, self.feet, self.ground, self.reach, self.parent_rot,
+                   self.layout.root, self.fps, self.cm, self.swing_lift)
 
 
 # ---- kernels (compiled; the names and jobs of the plain-Python lock's methods) --------------
@@ -438,18 +459,23 @@ def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, t
 def lock_work():  # pragma: no cover - compiled
     """What a character's `lock_frame` writes as it goes, made once for a whole crowd's call so the
     lock allocates nothing a character: planted (2,) bool, extension (2,), targets (2, 3), turns
-    (2, 3, 3), angles (2,) and scratch matrices (8, 3, 3)."""
+    (2, 3, 3), angles (2,), scratch matrices (8, 3, 3) and closing steps' lifts (2,)."""
     return (np.empty(2, dtype=np.bool_), np.empty(2), np.empty((2, 3)), np.empty((2, 3, 3)), np.empty(2),
-            np.empty((8, 3, 3)))
+            np.empty((8, 3, 3)), np.empty(2))
 
 
 @njit(cache=True, error_model="numpy")
 def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               parents, joints, feet, ground, reach, parent_rot, root, fps, cm, swing_lift,
+               settling, standing, parents, joints, feet, ground, reach, parent_rot, root, fps, cm, swing_lift,
                work):  # pragma: no cover - compiled
-    """One character's frame (arrays of that character; `drop` a 1-element view). Returns nothing:
-    rotations, translations, the world transforms and the state are updated in place."""
-    planted, extension, targets, turns, angles, matrices = work
+    """One character's frame (arrays of that character; `drop` a 1-element view, `standing` a
+    bool). Returns nothing: rotations, translations, the world transforms and the state are
+    updated in place."""
+    planted, extension, targets, turns, angles, matrices, lifts = work
+    still = standing  # both generated feet nearly still (no closing step while the pose steps off)
+    for f in range(2):
+        pivot = world_pos[feet[f, -1]]
+        still = still and np.hypot(pivot[0] - previous[f, 0], pivot[2] - previous[f, 2]) * fps * cm < SETTLE_STILL_CM_S
     planted_feet(shares, world_pos, previous, feet, ground, fps, cm, planted)
     step = 1.0 / BLEND_FRAMES
     for f in range(2):
@@ -457,7 +483,12 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             for i in range(3):
                 points[f, i] = world_pos[feet[f, -1], i]
             headings[f] = foot_heading(world_pos, joints[f, 2], feet[f, -1])
-        weights[f] = min(1.0, weights[f] + step) if planted[f] else max(0.0, weights[f] - step)
+            settling[f] = 0.0  # landed: a stand may close it up again
+        release = step / STAND_RELEASE if settling[f] == CLOSED else step  # set off from a still stand: slower
+        weights[f] = min(1.0, weights[f] + step) if planted[f] else max(0.0, weights[f] - release)
+    settle_feet(still, planted, weights, points, headings, settling, world_pos, joints, feet, SETTLE_CM / cm,
+                1.0 / (SETTLE_SECONDS * fps), SETTLE_LIFT_CM / cm, lifts)
+    for f in range(2):
         if weights[f] > 0.0:
             hold_heading(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], headings[f], ease(weights[f]))
     for f in range(2):  # alone on the floor, a planted foot stands flat; a released other foot whose lock is
@@ -481,6 +512,8 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension, rises,
                  rise_step, targets, turns, angles)
     rises[0], rises[1] = angles[0], angles[1]
+    for f in range(2):  # a closing step's foot off the floor
+        targets[f, 1] += lifts[f]
     turned = matrices[0]
     for f in range(2):
         ankle, pivot = joints[f, 2], feet[f, -1]
@@ -497,6 +530,53 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
                       matrices[1:])
         elif not _identity(turns[f]):  # the ankle where it was made, the foot turned all the same
             _product_t(world_rot[joints[f, 1]], world_rot[ankle], rotations[ankle])
+
+
+@njit(cache=True, error_model="numpy")
+def settle_feet(still, planted, weights, points, headings, settling, world_pos, joints, feet, threshold, step, height,
+                lifts):  # pragma: no cover - compiled
+    """A closing step: the first time a stand's pose is `still` with both feet planted and locked
+    in since a foot landed, each foot whose locked point is more than `threshold` from where the
+    stand's pose puts it (its generated pivot, horizontally) steps there, the further first and
+    one at a time: its point (and the heading it is held to) moves to the generated one along a
+    smoothstep over 1 / `step` frames while the foot is lifted by up to `height` (a half sine;
+    written into `lifts` (2,), 0 for a foot not stepping). `settling` (2,): 0 a foot that may
+    step, in (0, 1) how far its step is, CLOSED one that has stepped or needed none (until it
+    lands again). A stop leaves the feet where its last, braked steps landed them, staggered, and
+    the lock held them there through the stand: the body stood between feet its pose did not
+    have, a heel risen, and the next start's first step set off from them (docs/evaluate.md, "A
+    stop that closes its feet"). Only then: a stand's pose drifting a few centimetres over
+    seconds is held, as before. A step under way finishes even if the stand ends (its lift never
+    drops in a frame)."""
+    lifts[0], lifts[1] = 0.0, 0.0
+    moving = 0 if 0.0 < settling[0] < CLOSED else 1 if 0.0 < settling[1] < CLOSED else -1
+    if moving < 0:
+        if not (still and planted[0] and planted[1] and weights[0] == 1.0 and weights[1] == 1.0):
+            return
+        far = threshold
+        for f in range(2):
+            if settling[f] == 0.0:
+                pivot = world_pos[feet[f, -1]]
+                away = np.hypot(points[f, 0] - pivot[0], points[f, 2] - pivot[2])
+                if away > far:
+                    moving, far = f, away
+        if moving < 0:  # none is far: the stand holds them where they are
+            for f in range(2):
+                if settling[f] == 0.0:
+                    settling[f] = CLOSED
+            return
+    f = moving
+    before = ease(settling[f])
+    settling[f] = min(settling[f] + step, 1.0)
+    keep = (1.0 - ease(settling[f])) / (1.0 - before)  # the share of the way still to go that stays to go
+    pivot = world_pos[feet[f, -1]]
+    for i in (0, 2):
+        points[f, i] = pivot[i] + (points[f, i] - pivot[i]) * keep
+    turn = (headings[f] - foot_heading(world_pos, joints[f, 2], feet[f, -1]) + np.pi) % (2.0 * np.pi) - np.pi
+    headings[f] -= turn * (1.0 - keep)
+    lifts[f] = height * np.sin(np.pi * settling[f])
+    if settling[f] >= 1.0:
+        settling[f] = CLOSED
 
 
 @njit(cache=True, error_model="numpy")
@@ -614,11 +694,12 @@ def within_reach(target, hip, extension):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               parents, joints, feet, ground, reach, parent_rot, root, fps, cm, swing_lift):  # pragma: no cover - compiled
+               settling, standing, parents, joints, feet, ground, reach, parent_rot, root, fps, cm,
+               swing_lift):  # pragma: no cover - compiled
     """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
     work = lock_work()
     for n in range(rotations.shape[0]):
         lock_frame(rotations[n], translations[n], shares[n], world_rot[n], world_pos[n], weights[n], points[n], headings[n],
-                   drop[n : n + 1], previous[n], rises[n], parents, joints, feet, ground, reach, parent_rot, root, fps, cm,
-                   swing_lift, work)
+                   drop[n : n + 1], previous[n], rises[n], settling[n], standing[n], parents, joints, feet, ground, reach,
+                   parent_rot, root, fps, cm, swing_lift, work)
     _compose(parents, rotations, translations, world_rot, world_pos)

@@ -95,10 +95,12 @@ class CrowdPoses:
             self.lock_state.release(n)
             self.follow.release(n)
 
-    def next(self, static: np.ndarray, shares: np.ndarray | None = None, follow: np.ndarray | None = None) -> CrowdPose:
+    def next(self, static: np.ndarray, shares: np.ndarray | None = None, follow: np.ndarray | None = None,
+             standing: np.ndarray | None = None) -> CrowdPose:
         """The poses of static features (N, D); `shares` (N, 2) says how surely each character's
         state has each foot planted (None: the feet are not planted this frame); `follow` (N,)
-        how much of a planted foot's slide each body takes (default follow.STRENGTH)."""
+        how much of a planted foot's slide each body takes (default follow.STRENGTH); `standing`
+        (N,) bool: which characters' frames are of a stand (its feet close up: FootLock.apply)."""
         static = np.asarray(static, dtype=np.float64)
         if static.shape != (self.count, self.layout.dimension) or (shares is not None and np.shape(shares) != (self.count, 2)):
             # the kernels do not check their bounds: a wrong shape would read past the arrays
@@ -117,12 +119,13 @@ class CrowdPoses:
                                      translations[a:b], world_rot[a:b], world_pos[a:b]) for a, b in cut])
         if self.lock is not None and shares is not None:
             self._follow(translations, world_pos, np.full(self.count, STRENGTH) if follow is None else follow)
+            standing = np.zeros(self.count, dtype=np.bool_) if standing is None else np.asarray(standing, dtype=np.bool_)
             if len(cut) == 1:
-                self.lock.apply(self.lock_state, rotations, translations, shares, world_rot, world_pos)
+                self.lock.apply(self.lock_state, rotations, translations, shares, world_rot, world_pos, standing)
             else:
                 shares = np.ascontiguousarray(shares, dtype=np.float64)
                 over_cores(self.lock.apply, [(self.lock_state.part(a, b), rotations[a:b], translations[a:b], shares[a:b],
-                                              world_rot[a:b], world_pos[a:b]) for a, b in cut])
+                                              world_rot[a:b], world_pos[a:b], standing[a:b]) for a, b in cut])
         elif self.lock is not None:  # no feet planted this frame: the body stays where following took it
             self._shift(translations, world_pos, self.follow.offset)
         pose = CrowdPose(self.index, self.index / self.fps, rotations, translations, world_rot, world_pos)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import platform
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Callable
 
@@ -25,7 +26,7 @@ from .height import stand_on_the_floor
 from .little import LITTLE_TAU, keep_own_steps
 from .symmetry import symmetric_models
 from .units import held_posture, mirrored_pairs, model_units
-from .widen import train_range
+from .widen import calibrate_range, train_range
 
 UNSPECIFIED_LICENCE = "unspecified: the licence of the training data applies"
 
@@ -128,5 +129,15 @@ def build_model(
     if gestures:
         metadata["gestures"] = gesture_metadata(takes, gestures, 2 * len(units))
     model = Model(metadata, average, styles, static_std, step_max, contact)
-    model = Model(metadata, average, styles, static_std, step_max, contact | train_range(model, walks, little_tau))
-    return stand_on_the_floor(model, walks), report, takes
+    return ranged_and_standing(model, walks, little_tau), report, takes
+
+
+def ranged_and_standing(model: Model, walks: list[Take], little_tau: float | None = LITTLE_TAU) -> Model:
+    """`model` (its contact statistics trained) with its range factors, its body's height and
+    then its knees' calibration, in that order: the height shift is measured on the walk the
+    features and their ranges make, feet not locked; the knees are calibrated on the walk as
+    played, feet locked on the floor, which is only the takes' once the body stands on it (the
+    calibration run first fitted a raised capture's knees to a walk the shift then moved)."""
+    model = replace(model, extras=dict(model.extras or {}) | train_range(model, walks))
+    model = stand_on_the_floor(model, walks)
+    return replace(model, extras=dict(model.extras) | calibrate_range(model, walks, little_tau))

@@ -2,8 +2,9 @@
 
 For the average model and for each style, every static feature's range (1st to 99th
 percentile) is measured in the real walking frames and in a walk the model makes with the
-filter off, and the log of their ratio stored; the knees' factors are then calibrated on the
-walk as the instrument plays it, feet planted (`_calibrate_knees`). What the factors mean and
+filter off, and the log of their ratio stored (`train_range`); once the body's height is set
+(training/height.py), the knees' factors are calibrated on the walk as the instrument plays it,
+feet planted (`calibrate_range`). What the factors mean and
 how the engine applies them is described in `instrument.synthesis.widen`.
 """
 
@@ -109,12 +110,11 @@ def _calibrate_knees(model, takes, log_factors: np.ndarray, weights: np.ndarray,
         np.clip(log_factors, -LIMIT, LIMIT, out=log_factors)
 
 
-def train_range(model, takes, little_tau: float | None = None) -> dict[str, np.ndarray]:
+def train_range(model, takes) -> dict[str, np.ndarray]:
     """Model-file arrays `range_average` (D,) and `range_styles` (styles, D): the log ratio of
-    each feature's range in the data to its range in a walk the model makes, the knees' then
-    calibrated on the walk as it is played (`_calibrate_knees`). With `little_tau` (steps) each
-    style's factors are then pulled toward the average's by the amount of its data
-    (training/little.py)."""
+    each feature's range in the data to its range in a walk the model makes, before the knees'
+    calibration (`calibrate_range`), which plays the walk on the floor the body stands on and so
+    runs after the body's height is set (training/height.py)."""
     dimension = model.layout.dimension
     names = model.style_names
 
@@ -129,6 +129,20 @@ def train_range(model, takes, little_tau: float | None = None) -> dict[str, np.n
 
     average = log_factor(takes, np.zeros(len(names)))
     styles = np.stack([log_factor([t for t in takes if t.style == name], np.eye(len(names))[s]) for s, name in enumerate(names)])
+    return {"range_average": average, "range_styles": styles}
+
+
+def calibrate_range(model, takes, little_tau: float | None = None) -> dict[str, np.ndarray]:
+    """`model`'s range arrays (`train_range`'s) with the knees' factors calibrated on the walk as
+    it is played (`_calibrate_knees`), by the model as it stands (its body's height set: a
+    calibration before the height moved fitted the knees to a walk whose stance legs the lock
+    bent or stretched to reach a floor the shift then moved). With `little_tau` (steps) each
+    style's factors are then pulled toward the average's by the amount of its data
+    (training/little.py)."""
+    names = model.style_names
+    average = np.array(model.extras["range_average"], dtype=np.float64)
+    styles = np.array(model.extras["range_styles"], dtype=np.float64)
+
     def extras_with(_changed: np.ndarray) -> dict:  # the factors are calibrated in place, in these arrays
         return dict(model.extras) | {"range_average": average, "range_styles": styles}
 
