@@ -34,7 +34,8 @@ from .mlpg import _prefetch_row
 from .stream import numpy_sum
 
 STRENGTH = 1.0  # share of the learnt log factor applied (chosen by `instrument evaluate`, docs/evaluate.md)
-LIMIT = np.log(2.0)  # no feature's swing is scaled by more than 2x or less than 1/2
+LIMIT = np.log(2.0)  # no feature's swing is scaled by its range ratio by more than 2x or less than 1/2
+CALIBRATED_LIMIT = np.log(4.0)  # nor the shoulders' swing, calibrated on the played walk, by more than 4x or less than 1/4
 EASE_FRAMES = 4
 KEPT = tuple(ROOT_FEATURES.index(name) for name in ("root.vx", "root.vz", "root.yaw_rate"))  # never scaled
 
@@ -135,7 +136,8 @@ def unit_targets(units, held, scaled, base, own, shared, factor, means, factors)
 def _log_factors(per_dim, base, offsets, out):  # pragma: no cover - compiled
     """The log of `RangeSpace.factors` (N, D) for the style weights of each feature `per_dim`
     (N, styles, 1 or D): inside the blends the offsets blended by the positive weights (scaled to
-    add up to at most 1), faded to 0 by the distance outside them, within +-LIMIT. The numpy form
+    add up to at most 1), faded to 0 by the distance outside them, within +-CALIBRATED_LIMIT (training
+bounds each feature's factors, within this: a blend of them stays inside). The numpy form
     of the same arithmetic, in the same order (each sum over the styles in their order), took ten
     passes over the crowd a retune."""
     styles, per_feature = per_dim.shape[1], per_dim.shape[2] > 1
@@ -158,7 +160,7 @@ def _log_factors(per_dim, base, offsets, out):  # pragma: no cover - compiled
                 for d in range(first, last):
                     row[d - first] += inside[s] * offsets[s, d]
             for d in range(first, last):
-                row[d - first] = fade * min(max(base[d] + row[d - first], -LIMIT), LIMIT)
+                row[d - first] = fade * min(max(base[d] + row[d - first], -CALIBRATED_LIMIT), CALIBRATED_LIMIT)
 
 
 class RangeFilter:
