@@ -6,6 +6,7 @@ parses with python-osc."""
 from __future__ import annotations
 
 import socket
+import time
 import threading
 
 import numpy as np
@@ -201,6 +202,45 @@ def test_a_crowd_shared_over_cores_sends_from_its_own_thread_every_frame_in_orde
     parsed = [OscMessage(m) for m in got]  # python-osc's own parser reads every message
     assert [m.address for m in parsed].count("/walk/footfall") == len(crowd_frames)
     assert parsed[-1].address == "/walk/frame" and parsed[-1].params[0] == crowd_frames[-1].index
+
+
+def test_two_targets_of_one_crowd_profile_each_get_every_frame_as_encoded(model, crowd_frames, monkeypatch):
+    """`run` makes one profile per kind, so two flat targets write their frames into one buffer:
+    a target's frame must not be written while the other's sending is still reading the last one.
+    The second target's kernel is made slow (each sending 20 ms late), so a frame written too soon
+    would reach it in place of the one before."""
+    from instrument.output.outputs import OscOutput
+    from instrument.synthesis import cores
+    from instrument.synthesis.posing import Frame
+
+    monkeypatch.setattr(cores, "_cores", lambda: 2)
+    count = 2 * cores.LEAST_PER_PART
+    names, root = model.layout.skeleton.names, model.layout.root
+    profile = FlatProfile(names, root, count)
+    receivers, outputs = [], []
+    try:
+        for _ in range(2):
+            receiver = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            receiver.bind(("127.0.0.1", 0))
+            receiver.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
+            receivers.append(receiver)
+            outputs.append(OscOutput(OscTarget("127.0.0.1", receiver.getsockname()[1], "flat"), profile, Console(quiet=True)))
+        send = outputs[1].out.send
+        outputs[1].out.send = lambda datagrams: time.sleep(0.02) or send(datagrams)
+        expected: list[bytes] = []
+        for pose in crowd_frames[:8]:
+            crowd = tiled(pose, count)
+            for output in outputs:
+                output.send(output.prepare(Frame(pose.index, pose.time, crowd, {}, ECHO, [])))
+            expected += [m for data in reference(names, root, crowd, ECHO) for m in osc.unbundled([data])]
+        for output in outputs:
+            output.close()
+        for output, receiver in zip(outputs, receivers):
+            got = [m for data in receive(receiver, output.out.sent) for m in osc.unbundled([data])]
+            assert got == expected
+    finally:
+        for receiver in receivers:
+            receiver.close()
 
 
 def test_an_error_of_a_background_sending_is_raised_by_the_next_wait():

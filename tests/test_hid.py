@@ -275,16 +275,22 @@ DRIVES = [  # mapping, device descriptor and ids, a report moving one control, t
 ]
 
 
-@pytest.mark.parametrize("name,descriptor,ids,report,target,value", DRIVES, ids=[f"{d[0]}-{d[2][0]:04x}" for d in DRIVES])
-def test_every_shipped_hid_mapping_drives_the_walk(model, name, descriptor, ids, report, target, value):
+def _shipped_pad(model, name: str, descriptor: bytes, ids: tuple[int, int]):
+    """A simulated pad of `descriptor` and `ids`, the shipped mapping `run` chooses for it (by
+    vendor:product, or by usages: the joystick, the DualSense), checked to be `name`'s, and the
+    device reading it: (sim, state, mapping, console, device)."""
     sim = SimulatedDevice(descriptor, *ids)
     hid = SimulatedHid(sim)
     state = state_of(model)
-    shipped = [load_mapping(p, state) for p in shipped_mappings()]
-    mapping, why = choose_mapping(shipped, *ids, hid=hid)  # by vendor:product, or by usages (the joystick, the DualSense)
+    mapping, why = choose_mapping([load_mapping(p, state) for p in shipped_mappings()], *ids, hid=hid)
     assert mapping.path.endswith(f"{name}.toml"), why
     console = Console(stream=io.StringIO())
-    device = HidInput(console, *ids, hid=hid)
+    return sim, state, mapping, console, HidInput(console, *ids, hid=hid)
+
+
+@pytest.mark.parametrize("name,descriptor,ids,report,target,value", DRIVES, ids=[f"{d[0]}-{d[2][0]:04x}" for d in DRIVES])
+def test_every_shipped_hid_mapping_drives_the_walk(model, name, descriptor, ids, report, target, value):
+    sim, state, mapping, console, device = _shipped_pad(model, name, descriptor, ids)
     hub = ControlHub([mapping])
     watch = Watch(state, target, {5: lambda: sim.send(report)})
     perform(Show(model, [watch], fps=30, seconds=1.0, apply=hub.apply, state=state, sources=[device.poll]), console)
@@ -308,13 +314,7 @@ GESTURE_BUTTONS = [
 def test_every_shipped_pads_gesture_buttons_hold_the_gestures_while_pressed(model, name, descriptor, ids, report, buttons):
     """Issue 26's pads: each shipped gamepad's two gesture buttons, pressed and let go through its
     mapping, hold `gesture/wave` and then `gesture/raise` (a press starts one; synthesis/gestures.py)."""
-    sim = SimulatedDevice(descriptor, *ids)
-    hid = SimulatedHid(sim)
-    state = state_of(model)
-    mapping, why = choose_mapping([load_mapping(p, state) for p in shipped_mappings()], *ids, hid=hid)
-    assert mapping.path.endswith(f"{name}.toml"), why
-    console = Console(stream=io.StringIO())
-    device = HidInput(console, *ids, hid=hid)
+    sim, state, mapping, console, device = _shipped_pad(model, name, descriptor, ids)
     wave_bits, raise_bits = buttons
     script = {5: lambda: sim.send(report(wave_bits)), 20: lambda: sim.send(report(0)),
               30: lambda: sim.send(report(raise_bits)), 45: lambda: sim.send(report(0))}
@@ -351,13 +351,7 @@ def test_the_dpad_of_every_shipped_pad_sets_the_gait_and_a_release_keeps_it(mode
     """Up runs, down stands, right walks (mode "set"): the value stays when the pad is let go, and
     the frame's echo (what /walk/gait carries) follows."""
     up, right, down, released = hats
-    sim = SimulatedDevice(descriptor, *ids)
-    hid = SimulatedHid(sim)
-    state = state_of(model)
-    mapping, why = choose_mapping([load_mapping(p, state) for p in shipped_mappings()], *ids, hid=hid)
-    assert mapping.path.endswith(f"{name}.toml"), why
-    console = Console(stream=io.StringIO())
-    device = HidInput(console, *ids, hid=hid)
+    sim, state, mapping, console, device = _shipped_pad(model, name, descriptor, ids)
     press = lambda hat: lambda: sim.send(report(hat), report(released))  # noqa: E731 (pressed and let go)
     watch = EchoWatch(state, "gait", {5: press(up), 15: press(down), 25: press(right)})
     hub = ControlHub([mapping], console=console)

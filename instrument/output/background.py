@@ -74,6 +74,7 @@ class Background:
                 self._wake.notify()
             if self._thread is not None:
                 self._thread.join()
+            self._thread, self._closing = None, False  # a later `hand` starts a thread again (a profile shared by shows)
 
     def _run(self) -> None:
         while True:

@@ -34,6 +34,7 @@ from numba import njit
 from ..synthesis.cores import over_cores, parts
 from ..synthesis.footfalls import SIDES, Footfall
 from ..synthesis.posing import Pose
+from .background import Background
 from .osc import Datagrams, bundles, float_prefix, message
 
 
@@ -189,6 +190,10 @@ class FlatProfile:
             self.widths += [4] * joints + [3] * joints + [3, 4, 3]
         self._template: tuple[tuple[str, ...], FrameTemplate] | None = None  # for the echo's names
         self._values = np.empty(0)
+        # a crowd shared over the cores is sent from a thread of its own (outputs.OscOutput); one thread
+        # for every target of this profile, since their frames are written into its one buffer: a target's
+        # frame is not written before the last sending from the buffer has ended, whichever target's it was
+        self.sending = Background("send flat") if len(parts(characters)) > 1 else None
 
     def datagrams(self, pose: Pose, echo: dict[str, float]) -> list[bytes]:
         """One frame's bundles: of one character (a Pose), or of a crowd (a CrowdPose: the same

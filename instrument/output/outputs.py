@@ -8,7 +8,6 @@ from ..models.modelfile import Model
 from ..motion.features import forward_direction
 from ..terminal import Console
 from ..motion.kinematics import ChannelStream
-from ..synthesis.cores import parts
 from ..synthesis.posing import Frame
 from .background import Background
 from .flat import FlatProfile, footfall_datagrams
@@ -22,10 +21,12 @@ class OscOutput:
     """One OSC target. It sends the pose of its `character`, or (a crowd's flat profile) every
     character's: the live loop hands it what it asks for.
 
-    A crowd large enough to share its frame's work over the cores sends from a thread of its own
-    (`Background`): its frame's datagrams take milliseconds of the kernel's time, which then run
-    beside the next frame's work instead of before it. A smaller crowd, and one character, send
-    in the loop's thread, where a hand-over would cost more than the sending."""
+    A crowd large enough to share its frame's work over the cores sends from its profile's thread
+    (`FlatProfile.sending`, a `Background`): its frame's datagrams take milliseconds of the
+    kernel's time, which then run beside the next frame's work instead of before it. The thread
+    is the profile's, not the target's, because every target of a profile sends from the
+    profile's one buffer. A smaller crowd, and one character, send in the loop's thread, where a
+    hand-over would cost more than the sending."""
 
     def __init__(self, target: OscTarget, profile, console: Console, character: int = 0):
         self.name = f"osc {target}"
@@ -34,8 +35,7 @@ class OscOutput:
         self.whole_crowd = getattr(profile, "whole_crowd", False)
         self.bundled = target.bundled
         self.out = UdpOut(target, console)
-        crowd = getattr(profile, "characters", 1) if self.whole_crowd else 1
-        self.background = Background(f"send {target}") if len(parts(crowd)) > 1 else None
+        self.background: Background | None = getattr(profile, "sending", None) if self.whole_crowd else None
 
     def prepare(self, frame: Frame) -> tuple[list[bytes], list[bytes] | Datagrams]:
         """The frame's footfalls (flat profile; sent first: the frame's /walk/frame comes last),
