@@ -243,6 +243,36 @@ def test_two_targets_of_one_crowd_profile_each_get_every_frame_as_encoded(model,
             receiver.close()
 
 
+def test_a_failed_sending_on_the_thread_is_raised_at_the_next_frame_which_is_sent_still(model, crowd_frames, monkeypatch):
+    """An error of a sending on the thread is the target's, raised by its next `send` (the loop
+    counts it against the target there) after that frame is handed over: no frame is lost to it."""
+    from instrument.output.outputs import OscOutput
+    from instrument.synthesis import cores
+    from instrument.synthesis.posing import Frame
+
+    monkeypatch.setattr(cores, "_cores", lambda: 2)
+    count = 2 * cores.LEAST_PER_PART
+    output = OscOutput(OscTarget("127.0.0.1", 9, "flat"), FlatProfile(model.layout.skeleton.names, model.layout.root, count),
+                       Console(quiet=True))
+    sent: list[int] = []
+
+    def send(datagrams):
+        index = OscMessage(osc.unbundled([bytes(list(datagrams)[-1])])[-1]).params[0]  # the frame's /walk/frame
+        if not sent and index == crowd_frames[0].index and not getattr(send, "failed", False):
+            send.failed = True
+            raise RuntimeError("a broken sending")
+        sent.append(index)
+
+    output.out.send = send
+    frames = [Frame(pose.index, pose.time, tiled(pose, count), {}, ECHO, []) for pose in crowd_frames[:3]]
+    output.send(output.prepare(frames[0]))
+    with pytest.raises(RuntimeError, match="a broken sending"):
+        output.send(output.prepare(frames[1]))
+    output.send(output.prepare(frames[2]))
+    output.close()
+    assert sent == [frames[1].index, frames[2].index]
+
+
 def test_an_error_of_a_background_sending_is_raised_by_the_next_wait():
     from instrument.output.background import Background
 

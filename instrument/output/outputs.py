@@ -36,6 +36,7 @@ class OscOutput:
         self.bundled = target.bundled
         self.out = UdpOut(target, console)
         self.background: Background | None = getattr(profile, "sending", None) if self.whole_crowd else None
+        self._error: Exception | None = None  # what this target's last sending on the thread raised
 
     def prepare(self, frame: Frame) -> tuple[list[bytes], list[bytes] | Datagrams]:
         """The frame's footfalls (flat profile; sent first: the frame's /walk/frame comes last),
@@ -53,10 +54,20 @@ class OscOutput:
         return (footfalls, datagrams) if self.bundled else (unbundled(footfalls), unbundled(datagrams))
 
     def send(self, prepared: tuple[list[bytes], list[bytes] | Datagrams]) -> None:
-        if self.background is not None:
-            self.background.hand(lambda: self._send(prepared))
-        else:
+        if self.background is None:
             self._send(prepared)
+            return
+        error, self._error = self._error, None  # the last frame's sending's (it has ended: `prepare` waited for it)
+        self.background.hand(lambda: self._send_noting(prepared))
+        if error is not None:  # counted against this target now, with this frame handed over still
+            raise error
+
+    def _send_noting(self, prepared: tuple[list[bytes], list[bytes] | Datagrams]) -> None:
+        """`_send` on the sending thread: what it raises is kept for this target's next `send`."""
+        try:
+            self._send(prepared)
+        except Exception as error:
+            self._error = error
 
     def _send(self, prepared: tuple[list[bytes], list[bytes] | Datagrams]) -> None:
         footfalls, datagrams = prepared
@@ -68,6 +79,9 @@ class OscOutput:
         try:
             if self.background is not None:  # the last frame sent before the socket closes
                 self.background.close()
+                error, self._error = self._error, None
+                if error is not None:
+                    raise error
         finally:
             self.out.close()
 

@@ -82,6 +82,7 @@ class CrowdPoses:
         self.headings = np.zeros(count) if headings is None else np.array(headings, dtype=np.float64).reshape(count)
         self.lock_state = None if lock is None else lock.start(count)
         self.follow = None if lock is None else RootFollow(count)  # the body follows its stance foot
+        self._none_standing = np.zeros(count, dtype=np.bool_)  # a frame's `standing` when it is not told (made once)
         self.index = 0
         self._restorer = FrameRestorer(layout, fps)
         self._parents = np.asarray(layout.skeleton.parents, dtype=np.int64)
@@ -119,7 +120,7 @@ class CrowdPoses:
                                      translations[a:b], world_rot[a:b], world_pos[a:b]) for a, b in cut])
         if self.lock is not None and shares is not None:
             self._follow(translations, world_pos, np.full(self.count, STRENGTH) if follow is None else follow)
-            standing = np.zeros(self.count, dtype=np.bool_) if standing is None else np.asarray(standing, dtype=np.bool_)
+            standing = self._none_standing if standing is None else np.asarray(standing, dtype=np.bool_)
             if len(cut) == 1:
                 self.lock.apply(self.lock_state, rotations, translations, shares, world_rot, world_pos, standing)
             else:
