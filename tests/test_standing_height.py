@@ -5,22 +5,17 @@ knees to lift the feet onto it, and the played knee swung 14% less than the take
 from dataclasses import replace
 
 import numpy as np
-import pytest
 
 from instrument.motion.bvh import Motion
-from instrument.motion.features import ROOT_FEATURES
-from instrument.motion.kinematics import world_positions
+from instrument.motion.features import ROOT_FEATURES, heading_angle, restore
+from instrument.motion.kinematics import forward_kinematics, local_transforms, world_positions
 from instrument.motion.limbs import centimetres_per_unit, find_limbs
+from instrument.motion.quality import limb_ranges, take_floors
 from instrument.synthesis.engine import default_controls, render
-from instrument.motion.quality import take_floors
-from instrument.training.corpus import make_takes, read_motions
-from instrument.motion.features import heading_angle
-from instrument.motion.kinematics import forward_kinematics, local_transforms
-from instrument.motion.quality import limb_ranges
 from instrument.training.build import ranged_and_standing
+from instrument.training.corpus import make_takes, read_motions
 from instrument.training.height import _unlocked, stand_on_the_floor, standing_height
 from instrument.training.widen import calibrate_range
-from instrument.motion.features import restore
 
 STYLE = "elderly"
 
@@ -51,6 +46,19 @@ def _limb(motion: Motion, model, limbs, figure: str = "knee_deg") -> float:
     return limb_ranges(world_pos, heading_angle(world_rot[:, model.layout.root]), limbs, model.layout.root)[figure]
 
 
+def _rig(model):
+    """The model's limbs and its centimetres per unit."""
+    layout = model.layout
+    template = world_positions(Motion(layout.skeleton, np.asarray(layout.template)[None], model.fps))[0]
+    return find_limbs(layout.skeleton, layout.root, np.asarray(layout.template)), centimetres_per_unit(layout, template)
+
+
+def _played(model, controls_model, limbs, figure: str = "knee_deg") -> float:
+    """A limb's range in `controls_model`'s elderly walk at weight 1, its first 2 s left out."""
+    made = render(controls_model, default_controls(controls_model, {STYLE: 1.0}), 60 + 360)
+    return _limb(Motion(made.skeleton, made.channels[60:], made.fps), model, limbs, figure)
+
+
 def test_the_knees_are_calibrated_on_the_body_standing_on_the_floor(model, real_walks):
     """Training's last steps (range factors, the body's height, the knees' calibration) on the
     shipped model lowered by 6 cm, with two of elderly's takes: the knees are calibrated on the
@@ -58,14 +66,11 @@ def test_the_knees_are_calibrated_on_the_body_standing_on_the_floor(model, real_
     takes'. Calibrated before the shift (the order before), the knees were fitted to stance legs
     the lock bent to reach the floor, and once the body was raised the knee swung 61% more than
     the takes' (80 degrees against 50)."""
-    layout = model.layout
-    limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
-    template = world_positions(Motion(layout.skeleton, np.asarray(layout.template)[None], model.fps))[0]
+    limbs, cm = _rig(model)
     takes, motions = _elderly_takes(model, real_walks)
     real = np.average([_limb(m, model, limbs) for m in motions], weights=[len(m.channels) for m in motions])
-    fitted = ranged_and_standing(_lowered(model, 6.0, centimetres_per_unit(layout, template)), takes, None)
-    made = render(fitted, default_controls(fitted, {STYLE: 1.0}), 60 + 360)
-    played = _limb(Motion(made.skeleton, made.channels[60:], made.fps), model, limbs)
+    fitted = ranged_and_standing(_lowered(model, 6.0, cm), takes, None)
+    played = _played(model, fitted, limbs)
     assert fitted.metadata["training"]["standing_shift_cm"][STYLE] > 5.0
     assert abs(played / real - 1.0) < 0.05, (played, real)
 
@@ -75,13 +80,8 @@ def test_a_body_too_low_for_its_legs_is_raised_onto_the_floor(model, real_walks)
     lower, below the floor, as the CMU model's did): calibrated on two of elderly's takes,
     elderly's body comes back up by 5 cm or more, and its made walk's feet (not locked) stand
     within 1 cm of where the takes' stand (each take on its own floor)."""
-    layout = model.layout
-    limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
-    template = world_positions(Motion(layout.skeleton, np.asarray(layout.template)[None], model.fps))[0]
-    cm = centimetres_per_unit(layout, template)
-    files = [(p, STYLE) for p in real_walks if f"_{STYLE}_" in p.name][:2]
-    motions = read_motions(files, model.fps)
-    takes, _ = make_takes(files, motions, layout)
+    limbs, cm = _rig(model)
+    takes, motions = _elderly_takes(model, real_walks)
     ground = np.asarray(model.metadata["contact"]["clearance"])
     low = _lowered(model, 6.0, cm)
     assert _made_height(low, ground, limbs) * cm < _made_height(model, ground, limbs) * cm - 5.0
@@ -102,7 +102,7 @@ def test_the_shoulders_are_calibrated_past_the_features_bound(model, real_walks)
     shoulders were not calibrated and their features' factors stopped at LIMIT (2x): here the
     played shoulder stayed at 22 degrees against 52, and the CMU walk's 32% short of its takes'."""
     layout = model.layout
-    limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
+    limbs, _ = _rig(model)
     takes, _ = _elderly_takes(model, real_walks)
     columns = [len(ROOT_FEATURES) + 3 * layout.joints.index(s) + a for s, _ in limbs.arms for a in range(3)]
     wide = []
@@ -114,9 +114,7 @@ def test_the_shoulders_are_calibrated_past_the_features_bound(model, real_walks)
     restored = [restore(t.observations[:, : layout.dimension], layout, model.fps) for t in wide]
     real = np.average([_limb(m, model, limbs, "shoulder_deg") for m in restored],
                       weights=[t.frames for t in wide])
-    before = render(model, default_controls(model, {STYLE: 1.0}), 60 + 360)
-    assert _limb(Motion(before.skeleton, before.channels[60:], before.fps), model, limbs, "shoulder_deg") < 0.7 * real
+    assert _played(model, model, limbs, "shoulder_deg") < 0.7 * real
     fitted = replace(model, extras=dict(model.extras) | calibrate_range(model, wide))
-    made = render(fitted, default_controls(fitted, {STYLE: 1.0}), 60 + 360)
-    played = _limb(Motion(made.skeleton, made.channels[60:], made.fps), model, limbs, "shoulder_deg")
+    played = _played(model, fitted, limbs, "shoulder_deg")
     assert abs(played / real - 1.0) < 0.10, (played, real)
