@@ -11,7 +11,6 @@ from ..outputfile import check_output
 from ..shipped import default_model_path
 from ..synthesis.parameters import DEFAULT_LOOKAHEAD, GROUPS, MAX_SPEED, MIN_SPEED
 from ..control.options import value
-from ..control.spec import TABLE
 
 if TYPE_CHECKING:
     import numpy as np
@@ -81,16 +80,6 @@ def parse_gestures(items: list[str], model) -> list[tuple[str, float]]:
     return out
 
 
-def _gait_number(text: str) -> object:
-    """--gait as its number: a name (stand, walk, run) or a number, checked by the option table."""
-    number = TABLE["gait"].number(text)
-    try:
-        float(number)
-    except (TypeError, ValueError):
-        raise UserError(f"--gait: expected {', '.join(TABLE['gait'].choices)} or a number from 0 to 2, not {text!r}") from None
-    return number
-
-
 def run(args: argparse.Namespace) -> int:
     # the synthesizer's code (numpy, scipy, numba): loaded when run, not for --help
     from ..models.modelfile import load_model
@@ -103,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
     model = load_model(args.model or default_model_path())
     weights, part_weights = parse_weights(args.style, model.style_names)
     speed = value("synth --speed", args.speed)
-    gait = gait_index(value("synth --gait", _gait_number(args.gait)))
+    gait = gait_index(value("synth --gait", args.gait))
     turn = value("synth --turn", args.turn)
     seconds = value("synth --seconds", args.seconds)
     lookahead = value("synth --lookahead", args.lookahead)

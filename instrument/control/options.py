@@ -27,24 +27,29 @@ MAX_CHARACTERS = 1000  # a crowd larger than this is a typo (docs/crowds.md: how
 
 @dataclass(frozen=True)
 class Accepts:
-    """A whole or real number in [low, high]; `above_low` makes low itself refused (> low)."""
+    """A whole or real number in [low, high]; `above_low` makes low itself refused (> low).
+    `choices` name the whole values 0, 1, ... as the spec's Row.number does (a gait's "run" is 2)."""
 
     kind: type = float
     low: float | None = None
     high: float | None = None
     above_low: bool = False
+    choices: tuple[str, ...] = ()
 
     def describe(self) -> str:
         word = "a whole number" if self.kind is int else "a number"
         low, high = (f"{x:g}" if self.kind is float else f"{x:d}" for x in (self.low or 0, self.high or 0))
         if self.low is not None and self.high is not None:
-            return f"{word} {'above' if self.above_low else 'from'} {low} {'up ' if self.above_low else ''}to {high}"
+            ranged = f"{word} {'above' if self.above_low else 'from'} {low} {'up ' if self.above_low else ''}to {high}"
+            return f"{', '.join(self.choices)} or {ranged}" if self.choices else ranged
         if self.low is not None:
             return f"{word} {'above' if self.above_low else 'of at least'} {low}"
         return word
 
     def read(self, text: object):
         """The value, or ValueError with a message saying what is accepted."""
+        if isinstance(text, str) and text in self.choices:
+            text = float(self.choices.index(text))
         try:
             number = self.kind(text) if not isinstance(text, float) or self.kind is float else None
         except (TypeError, ValueError, OverflowError):
@@ -60,7 +65,8 @@ class Accepts:
 def target(kind: str) -> Accepts:
     """What an option that sets a control target accepts: that target's row (control/spec.py),
     so `synth --speed 9` is refused as a show's `speed = 9` is."""
-    return Accepts(float, TABLE[kind].low, TABLE[kind].high)
+    row = TABLE[kind]
+    return Accepts(float, row.low, row.high, choices=row.choices)
 
 
 PORT = Accepts(int, 1, 65535)
@@ -76,7 +82,7 @@ OPTIONS: dict[str, Accepts] = {
     "train --states": Accepts(int, 1, 12),
     "synth --style": target("style"),  # the weight of NAME=W
     "synth --speed": target("speed"),
-    "synth --gait": target("gait"),  # or its name (stand, walk, run): Row.number
+    "synth --gait": target("gait"),
     "synth --turn": target("turn"),
     "synth --seconds": Accepts(float, 0, 3600, above_low=True),
     "synth --lookahead": Accepts(int, 1, 1000),
