@@ -138,10 +138,7 @@ class GestureLayer:
                              work.counts, work.carries, gait.guest_rows, crowd.space.states, self.ease, self.weights)
                 if self._plan_call is None:
                     self._plan_call = entry_point(_plan_guest, arguments)
-                playing, guest = self._plan_call(*arguments)
-                self.whole = guest
-                if not playing:
-                    self.playing = None
+                guest = self._keep(*self._plan_call(*arguments))
                 if not guest:  # its own stream again (the same plan)
                     self.gesture = crowd.step()
             else:
@@ -153,11 +150,16 @@ class GestureLayer:
 
     def _progress(self, now: np.ndarray) -> bool:
         """The weights for the frame of states `now`; whether every character's is 1."""
-        playing, self.whole = _progress(now, self.crowd.space.states, self.first, self.label, self.done, self.ease,
-                                        self.weights)
+        return self._keep(*_progress(now, self.crowd.space.states, self.first, self.label, self.done, self.ease,
+                                     self.weights))
+
+    def _keep(self, playing: bool, whole: bool) -> bool:
+        """`_progress`'s two answers (from either path) kept: the gesture ends when no character
+        plays it; returns `whole`."""
+        self.whole = whole
         if not playing:
             self.playing = None
-        return self.whole
+        return whole
 
     def _host(self, guest: bool, gait: Crowd | None) -> None:
         """The gait's solve takes the gesture's upper body (its fixed frames the gesture's), or gives it back."""
