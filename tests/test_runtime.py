@@ -315,7 +315,9 @@ def test_live_events_taken_while_waiting_count_for_the_coming_frame(model, monke
     assert all(np.array_equal(live, again) for (_, live), (_, again) in zip(poses.frames, replayed.frames, strict=True))
     assert all(abs(t * fps - round(t * fps)) < 1e-9 for t in calls)  # always a frame's time
     assert len(calls) > 3 * len(echoes.frames)  # looked at while waiting, not once a frame
-    assert "ahead" in restyles  # the frames used tables made while the loop waited
+    # the frames used tables made while the loop waited: most of them (a busy machine may leave a
+    # frame no time to wait, and that frame retunes itself), not one that happened to
+    assert restyles.count("ahead") > len(restyles) / 2, restyles
     for index, shown in echoes.frames:
         latest = [e.value for e in events if e.time <= index / fps + 1e-9][-1]
         assert shown == latest
