@@ -272,7 +272,7 @@ class Poses(Echoes):
 def test_live_events_taken_while_waiting_count_for_the_coming_frame(model, monkeypatch):
     """A live source is read many times between frames; every event is stamped with the time of
     the frame it comes before, and that frame already shows it, as a replay of the log does: the
-    same poses, though the live loop made the frames' tables while it waited (Engine.prepare).
+    same poses, though the live loop made the frames' tables while it waited (Engine.retune).
     The source has news at its first look for each frame only (a fader moved while the loop
     waited), so tables made ahead are the ones the frames use."""
     from instrument.runtime import performance
