@@ -90,6 +90,8 @@ def finish(run: subprocess.Popen, out: rtmidi.MidiOut) -> str:
 
 
 SO_TIMESTAMPNS = 35  # Linux's (asm-generic/socket.h); Python's socket module does not name it
+SO_RXQ_OVFL = 40  # Linux's: each datagram carries how many the socket has dropped so far
+RECEIVE_BUFFER = 4 << 20  # bytes: some seconds of frames, for a listener kept off the CPU on a busy machine
 
 
 def _kernel_stamps(sock: socket.socket) -> bool:
@@ -100,6 +102,25 @@ def _kernel_stamps(sock: socket.socket) -> bool:
         print("  (no kernel receive stamps here: arrivals are stamped when this script reads them)")
         return False
     return True
+
+
+def _listening(sock: socket.socket) -> None:
+    """A receive buffer of some seconds of frames, and the kernel's count of the datagrams it
+    dropped on each datagram (where Linux gives it): a change no frame is seen to show, on a
+    listener kept off the CPU, is then told apart from one the instrument never showed."""
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, SO_RXQ_OVFL, 1)
+    except OSError:
+        pass
+
+
+def _dropped(ancillary: list) -> int | None:
+    """The socket's count of dropped datagrams so far, from a datagram's ancillary data."""
+    for level, kind, data in ancillary:
+        if level == socket.SOL_SOCKET and kind == SO_RXQ_OVFL:
+            return struct.unpack("I", data[:4])[0]
+    return None
 
 
 def _arrival(ancillary: list) -> float:
@@ -118,6 +139,8 @@ def latency(mapping: str, fps: float, count: int) -> None:
     stop = threading.Event()
 
     stamped = _kernel_stamps(sock)
+    _listening(sock)
+    dropped = [0]  # datagrams the kernel dropped before this script read them (the latest count)
 
     def listen() -> None:
         """Take every datagram with the time the kernel received it (SO_TIMESTAMPNS, so this
@@ -130,10 +153,11 @@ def latency(mapping: str, fps: float, count: int) -> None:
             received = []
             while True:
                 try:
-                    data, ancillary, _, _ = sock.recvmsg(65536, 64)
+                    data, ancillary, _, _ = sock.recvmsg(65536, 128)  # room for the stamp and the drop count
                 except BlockingIOError:
                     break
                 received.append((data, _arrival(ancillary) if stamped else time.monotonic()))
+                dropped[0] = _dropped(ancillary) or dropped[0]
             for data, now in received:
                 for m in OscBundle(data):
                     if m.address == "/walk/style/elderly":
@@ -178,13 +202,27 @@ def latency(mapping: str, fps: float, count: int) -> None:
     period = 1000 / fps
     print(f"latency at {fps:g} fps (frame period {period:.1f} ms), {np.isfinite(shown).sum()} of {len(shown)} changes seen "
           f"before the next ({np.isfinite(arrived).sum()} probed); target: at most {period + 2:.1f} ms")
+    unseen = ~np.isfinite(shown)
+    if unseen.any():  # never probed: the message reached no JACK input (a non-realtime server on a busy machine)
+        print(f"  {unseen.sum()} never shown, {(unseen & ~np.isfinite(arrived)).sum()} of them never reached the probe "
+              "either (left out of the latency from arrival, infinite from sending)")
+    if dropped[0]:
+        print(f"  {dropped[0]} OSC datagrams dropped by the kernel before this script read them: "
+              "changes not seen may have been shown")
     for name, start_times in (("from arrival", arrived), ("from sending", sent)):
         lat = (shown - start_times)[np.isfinite(start_times)] * 1000  # a change never shown: inf
-        print(f"  {name}: p50 {np.percentile(lat, 50):.1f} ms, p99 {np.percentile(lat, 99):.1f} ms, max {lat.max():.1f} ms")
+        p50, p99 = (_percentile(lat, q) for q in (50, 99))
+        print(f"  {name}: p50 {p50:.1f} ms, p99 {p99:.1f} ms, max {lat.max():.1f} ms")
     transit = (arrived - sent)[np.isfinite(arrived)] * 1000
     print(f"  JACK transport (sending to arrival): p50 {np.median(transit):.2f} ms, max {transit.max():.2f} ms; "
           f"probe callbacks came a median {(np.median(delays) - delays.min()) * 1000:.3f} ms later than the soonest one")
     print(f"  instrument: {closing}")
+
+
+def _percentile(values: np.ndarray, q: float) -> float:
+    """numpy's percentile, except with a change never shown (inf) among them: then the value at or
+    above the rank (inf where the rank falls among those), not a mix of an inf and a finite one."""
+    return float(np.percentile(values, q, method="linear" if np.isfinite(values).all() else "higher"))
 
 
 def flood(mapping: str, fps: float, seconds: float) -> None:
