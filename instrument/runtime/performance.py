@@ -159,7 +159,7 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             return False
 
     prepared_revision = -1  # the control state's revision the engine's tables were last made ahead for
-    restyle_seconds: deque[float] = deque(maxlen=20)  # clock seconds that restyling ahead took, recently
+    restyle_seconds: deque[float] = deque(maxlen=20)  # clock seconds that restyling took recently, ahead or in a frame
 
     def between_frames(upcoming: float, wake: float, expected: float) -> None:
         """While waiting for the frame at `upcoming` (its work starts at `wake`, clock time; a frame's
@@ -228,6 +228,12 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
                 state.lock_speeds.clear()  # turned on again, the lock starts afresh
             elif state.lock_speeds:  # the lock's (live, or a replayed log's)
                 controls = replace(controls, speed=locked_speed(state.lock_speeds, controls.speed, show.characters))
+            if engine.makes_model_frame(now):  # its retune, if any, here (the frame's own finds it made) and timed:
+                # the estimate of a restyle's time learns from these too, or one restyle ahead that a
+                # stall made slow would keep every later one out of the wait (none fits) for the show
+                retune_started = time.monotonic()
+                if engine.retune(controls, state.spread) == "restyled" and index > 0:  # the first warms up
+                    restyle_seconds.append(time.monotonic() - retune_started)
             crowd = engine.frame(now, controls, state.spread)
             if GAITS[controls.gait] in engine.units.missing:  # said, not refused: the walk goes on
                 console.warn(f"gait {GAITS[controls.gait]}", f"gait {GAITS[controls.gait]}: this model has no "
