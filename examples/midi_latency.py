@@ -7,6 +7,9 @@
    the time to the arrival of the first OSC frame whose echo shows the new weight, from the
    message's arrival at the instrument's MIDI input and from its sending. Reports p50, p99 and
    max of both. The two differ by JACK's transport (up to a period or two of the JACK server).
+   A value no frame showed before the next jump counts as never shown (an infinite latency in
+   the p99 and the max, not left out of them). The instrument's closing line counts its late
+   frames (sent more than 0.1 ms after their deadline) over the whole run.
 
    Arrival is measured by a second JACK MIDI input listening to the same sender (JACK hands a
    message to every reader in the same cycle). python-rtmidi stamps each message with the time
@@ -87,6 +90,8 @@ def finish(run: subprocess.Popen, out: rtmidi.MidiOut) -> str:
 
 
 SO_TIMESTAMPNS = 35  # Linux's (asm-generic/socket.h); Python's socket module does not name it
+SO_RXQ_OVFL = 40  # Linux's: each datagram carries how many the socket has dropped so far
+RECEIVE_BUFFER = 4 << 20  # bytes: some seconds of frames, for a listener kept off the CPU on a busy machine
 
 
 def _kernel_stamps(sock: socket.socket) -> bool:
@@ -97,6 +102,25 @@ def _kernel_stamps(sock: socket.socket) -> bool:
         print("  (no kernel receive stamps here: arrivals are stamped when this script reads them)")
         return False
     return True
+
+
+def _listening(sock: socket.socket) -> None:
+    """A receive buffer of some seconds of frames, and the kernel's count of the datagrams it
+    dropped on each datagram (where Linux gives it): a change no frame is seen to show, on a
+    listener kept off the CPU, is then told apart from one the instrument never showed."""
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, SO_RXQ_OVFL, 1)
+    except OSError:
+        pass
+
+
+def _dropped(ancillary: list) -> int | None:
+    """The socket's count of dropped datagrams so far, from a datagram's ancillary data."""
+    for level, kind, data in ancillary:
+        if level == socket.SOL_SOCKET and kind == SO_RXQ_OVFL:
+            return struct.unpack("I", data[:4])[0]
+    return None
 
 
 def _arrival(ancillary: list) -> float:
@@ -115,6 +139,8 @@ def latency(mapping: str, fps: float, count: int) -> None:
     stop = threading.Event()
 
     stamped = _kernel_stamps(sock)
+    _listening(sock)
+    dropped = [0]  # datagrams the kernel dropped before this script read them (the latest count)
 
     def listen() -> None:
         """Take every datagram with the time the kernel received it (SO_TIMESTAMPNS, so this
@@ -127,10 +153,11 @@ def latency(mapping: str, fps: float, count: int) -> None:
             received = []
             while True:
                 try:
-                    data, ancillary, _, _ = sock.recvmsg(65536, 64)
+                    data, ancillary, _, _ = sock.recvmsg(65536, 128)  # room for the stamp and the drop count
                 except BlockingIOError:
                     break
                 received.append((data, _arrival(ancillary) if stamped else time.monotonic()))
+                dropped[0] = _dropped(ancillary) or dropped[0]
             for data, now in received:
                 for m in OscBundle(data):
                     if m.address == "/walk/style/elderly":
@@ -155,9 +182,11 @@ def latency(mapping: str, fps: float, count: int) -> None:
     closing = finish(run, out)
     time.sleep(0.5)  # the listener has read what the kernel holds
     stop.set()
-    # the first OSC frame showing each value, within the 0.15 s before the next change was sent
-    shown = [min((t for t, v in arrivals if s <= t < s + 0.15 and abs(v - x / 100.0) < 1e-4), default=np.nan)
-             for s, x in changes]
+    # the first OSC frame showing each value before the next change was sent (a value never
+    # shown in that time counts as never shown: an infinite latency in the figures, not left out)
+    ends = [s for s, _ in changes[1:]] + [changes[-1][0] + 0.25]
+    shown = [min((t for t, v in arrivals if s <= t < end and abs(v - x / 100.0) < 1e-4), default=np.inf)
+             for (s, x), end in zip(changes, ends)]
 
     callback_times, gaps, values = np.array(probed).T
     since_first = np.cumsum(gaps)
@@ -172,14 +201,28 @@ def latency(mapping: str, fps: float, count: int) -> None:
             arrived[k] = probe_arrivals[match[0]]
     period = 1000 / fps
     print(f"latency at {fps:g} fps (frame period {period:.1f} ms), {np.isfinite(shown).sum()} of {len(shown)} changes seen "
-          f"({np.isfinite(arrived).sum()} probed); target: at most {period + 2:.1f} ms")
+          f"before the next ({np.isfinite(arrived).sum()} probed); target: at most {period + 2:.1f} ms")
+    unseen = ~np.isfinite(shown)
+    if unseen.any():  # never probed: the message reached no JACK input (a non-realtime server on a busy machine)
+        print(f"  {unseen.sum()} never shown, {(unseen & ~np.isfinite(arrived)).sum()} of them never reached the probe "
+              "either (left out of the latency from arrival, infinite from sending)")
+    if dropped[0]:
+        print(f"  {dropped[0]} OSC datagrams dropped by the kernel before this script read them: "
+              "changes not seen may have been shown")
     for name, start_times in (("from arrival", arrived), ("from sending", sent)):
-        lat = (shown - start_times)[np.isfinite(shown - start_times)] * 1000
-        print(f"  {name}: p50 {np.percentile(lat, 50):.1f} ms, p99 {np.percentile(lat, 99):.1f} ms, max {lat.max():.1f} ms")
+        lat = (shown - start_times)[np.isfinite(start_times)] * 1000  # a change never shown: inf
+        p50, p99 = (_percentile(lat, q) for q in (50, 99))
+        print(f"  {name}: p50 {p50:.1f} ms, p99 {p99:.1f} ms, max {lat.max():.1f} ms")
     transit = (arrived - sent)[np.isfinite(arrived)] * 1000
     print(f"  JACK transport (sending to arrival): p50 {np.median(transit):.2f} ms, max {transit.max():.2f} ms; "
           f"probe callbacks came a median {(np.median(delays) - delays.min()) * 1000:.3f} ms later than the soonest one")
     print(f"  instrument: {closing}")
+
+
+def _percentile(values: np.ndarray, q: float) -> float:
+    """numpy's percentile, except with a change never shown (inf) among them: then the value at or
+    above the rank (inf where the rank falls among those), not a mix of an inf and a finite one."""
+    return float(np.percentile(values, q, method="linear" if np.isfinite(values).all() else "higher"))
 
 
 def flood(mapping: str, fps: float, seconds: float) -> None:

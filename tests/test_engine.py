@@ -93,11 +93,11 @@ def test_a_control_change_shows_in_the_next_posed_frame(model):
 
 
 def test_tables_made_ahead_of_a_frame_change_no_frame(model):
-    """`Engine.prepare` (the live loop makes a frame's tables while it waits for it) changes no
-    pose: at twice the model's rate (frames between model frames too), a crowd prepared before
-    each frame with that frame's controls, or now and then with controls that change again
-    before the frame, poses every frame as a crowd that retunes in its frames; and a frame whose
-    tables were made ahead does no retune of its own."""
+    """Tables made ahead (the live loop retunes while it waits for a frame that makes a model
+    frame) change no pose: at twice the model's rate, a crowd retuned before each frame that
+    makes a model frame with that frame's controls, or now and then with controls that change
+    again before the frame, poses every frame as a crowd that retunes in its frames; and a frame
+    whose tables were made ahead does no retune of its own."""
     fps = 2 * model.fps
     plain, ahead = Engine(model, 3, fps), Engine(model, 3, fps)
     looks = [default_controls(model), default_controls(model, {"feminine": 2.0}, speed=1.3),
@@ -105,7 +105,8 @@ def test_tables_made_ahead_of_a_frame_change_no_frame(model):
     spared = 0
     for k in range(36):
         controls, other = looks[(k // 3) % len(looks)], looks[(k // 3 + 1) % len(looks)]
-        ahead.prepare(k / fps, other if k % 7 == 0 else controls, 0.5)
+        if ahead.makes_model_frame(k / fps):  # as the live loop does (runtime/performance.py)
+            ahead.retune(other if k % 7 == 0 else controls, 0.5)
         plain.stage_seconds, ahead.stage_seconds = {}, {}
         a, b = plain.frame(k / fps, controls, 0.5), ahead.frame(k / fps, controls, 0.5)
         for name in ("rotations", "translations", "world_rotations", "world_positions"):
@@ -116,10 +117,10 @@ def test_tables_made_ahead_of_a_frame_change_no_frame(model):
     assert spared >= 5
 
 
-def test_prepare_says_what_it_made(model):
-    """What the live loop times (only restyles, the dearest work) comes from what `prepare` says it
-    made: every table for a style change, the pace's for a speed change, nothing for a turn or a
-    gait, and nothing for a frame between model frames."""
+def test_retune_says_what_it_made(model):
+    """What the live loop times (only restyles, the dearest work) comes from what `retune` says it
+    made ahead of a frame: every table for a style change, the pace's for a speed change, nothing
+    for a turn or a gait; and a frame between model frames is one it retunes nothing for."""
     fps = 2 * model.fps  # frames 1, 3, 5... make a model frame; 2, 4, 6... lie between two made
     engine = Engine(model, 1, fps)
     engine.frame(0.0, default_controls(model))
@@ -127,13 +128,13 @@ def test_prepare_says_what_it_made(model):
     for k, (name, controls) in enumerate((("style", default_controls(model, {"elderly": 1.0})),
                                           ("speed", default_controls(model, {"elderly": 1.0}, speed=1.3)),
                                           ("turn", default_controls(model, {"elderly": 1.0}, speed=1.3, turn=0.5)))):
-        made[name] = engine.prepare((2 * k + 1) / fps, controls)
+        assert engine.makes_model_frame((2 * k + 1) / fps)
+        made[name] = engine.retune(controls)
         engine.frame((2 * k + 1) / fps, controls)
-        between.append((engine.makes_model_frame((2 * k + 2) / fps),
-                        engine.prepare((2 * k + 2) / fps, default_controls(model, {"feminine": 1.0}))))
+        between.append(engine.makes_model_frame((2 * k + 2) / fps))
         engine.frame((2 * k + 2) / fps, controls)
     assert made == {"style": "restyled", "speed": "repaced", "turn": None}
-    assert between == [(False, None)] * 3  # nothing made for a frame between model frames
+    assert between == [False] * 3
 
 
 def test_render_is_the_engine_without_a_clock(model):

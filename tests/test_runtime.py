@@ -269,10 +269,23 @@ class Poses(Echoes):
         return frame.index, frame.crowd.world_positions.copy()
 
 
+def _made_while_waiting() -> bool:
+    """Whether the engine's retune running now was called by the live loop's look while it waits
+    for a frame (`between_frames`), not by the frame itself."""
+    frame = sys._getframe(2)
+    for _ in range(3):
+        if frame is None:
+            return False
+        if "between_frames" in frame.f_code.co_name:
+            return True
+        frame = frame.f_back
+    return False
+
+
 def test_live_events_taken_while_waiting_count_for_the_coming_frame(model, monkeypatch):
     """A live source is read many times between frames; every event is stamped with the time of
     the frame it comes before, and that frame already shows it, as a replay of the log does: the
-    same poses, though the live loop made the frames' tables while it waited (Engine.prepare).
+    same poses, though the live loop made the frames' tables while it waited (Engine.retune).
     The source has news at its first look for each frame only (a fader moved while the loop
     waited), so tables made ahead are the ones the frames use."""
     from instrument.runtime import performance
@@ -283,19 +296,11 @@ def test_live_events_taken_while_waiting_count_for_the_coming_frame(model, monke
 
     class Watched(Engine):
         """The live loop's engine, noting where each restyle was made: ahead, or in a frame."""
-        in_frame = False
-
-        def frame(self, *args, **kwargs):
-            self.in_frame = True
-            try:
-                return super().frame(*args, **kwargs)
-            finally:
-                self.in_frame = False
 
         def retune(self, *args, **kwargs):
             made = super().retune(*args, **kwargs)
             if made == "restyled":
-                restyles.append("frame" if self.in_frame else "ahead")
+                restyles.append("ahead" if _made_while_waiting() else "frame")
             return made
 
     def source(now):
@@ -321,6 +326,42 @@ def test_live_events_taken_while_waiting_count_for_the_coming_frame(model, monke
     for index, shown in echoes.frames:
         latest = [e.value for e in events if e.time <= index / fps + 1e-9][-1]
         assert shown == latest
+
+
+def test_one_slow_restyle_ahead_does_not_keep_the_later_ones_in_their_frames(model, monkeypatch):
+    """The loop retunes ahead only where its recent restyles' time fits before waking. One restyle
+    ahead made slow (a stall of the machine: longer than a frame) must not keep every later one
+    in its frame for the rest of the show: the restyles the frames make are timed too, so the
+    slow one ages out of the estimate and the loop retunes ahead again."""
+    from instrument.runtime import performance
+    from instrument.synthesis.engine import Engine
+
+    fps = 30.0
+    where, looked = [], []
+
+    class Stalled(Engine):
+        """The live loop's engine, its first restyle ahead of a frame held up by 0.1 s."""
+
+        def retune(self, *args, **kwargs):
+            made = super().retune(*args, **kwargs)
+            if made == "restyled":
+                ahead = _made_while_waiting()
+                where.append("ahead" if ahead else "frame")
+                if ahead and where.count("ahead") == 1:
+                    time.sleep(0.1)
+            return made
+
+    def source(now):
+        looked.append(now)
+        if looked.count(now) > 1:  # news at the first look for each frame only
+            return []
+        return [ControlEvent(now, "direct", "style/elderly", (len(set(looked)) % 50) / 50.0)]
+
+    monkeypatch.setattr(performance, "Engine", Stalled)
+    perform(Show(model, [], fps=fps, seconds=2.5, sources=[source]), Console(quiet=True))
+    assert "ahead" in where
+    first = where.index("ahead")
+    assert "ahead" in where[first + 1:]  # retuned ahead again after the slow one
 
 
 def test_realtime_scheduling_is_taken_or_refused_with_a_reason():

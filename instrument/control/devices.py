@@ -194,6 +194,10 @@ class MidiInput:
         self.api, self.api_name = getattr(rtmidi, RTMIDI_APIS[api]), api
         with midi_system(api):  # no MIDI system at all (no ALSA, no JACK server): one line
             self.port = self._new_port()
+        # mido (and what it loads: its version's metadata, email's parser) loaded now, not by the
+        # show's first message: 10 ms of imports in the live loop, which made a frame late and
+        # the first control's response the slowest of the show (docs/crowds.md)
+        raw_from_bytes([0xB0, 0, 0])
         self.open = False
         self.port_name = ""
         self.next_attempt = 0.0

@@ -159,12 +159,12 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             return False
 
     prepared_revision = -1  # the control state's revision the engine's tables were last made ahead for
-    restyle_seconds: deque[float] = deque(maxlen=20)  # clock seconds that restyling ahead took, recently
+    restyle_seconds: deque[float] = deque(maxlen=20)  # clock seconds that restyling took recently, ahead or in a frame
 
     def between_frames(upcoming: float, wake: float, expected: float) -> None:
         """While waiting for the frame at `upcoming` (its work starts at `wake`, clock time; a frame's
         work recently took `expected`, which stands for a retune's cost until one was timed): take
-        live events, and make the engine's tables for what they changed (`Engine.prepare`), so a
+        live events, and make the engine's tables for what they changed (`Engine.retune`), so a
         control taken while waiting costs its frame no retune, which would otherwise set every
         frame's lead (the recent p99 of the work is a style change's retune). Only where the
         frame will take the same controls (no beat lock deciding speeds, no morph moving them) and
@@ -173,6 +173,8 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
         take_live(upcoming)
         if state.revision == prepared_revision or beat_lock is not None or state.morph is not None:
             return
+        # only a frame that makes a model frame retunes (the frames between read nothing a retune
+        # makes): tables made for one between would be made again, or for nothing
         if not engine.makes_model_frame(upcoming):
             return
         # the dearest work it may do (restyling every table) must end before waking, on the clock:
@@ -180,7 +182,7 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
         if wake - clock.now() < IDLE_UNTIL + max(restyle_seconds, default=expected):
             return
         started, revision = time.monotonic(), state.revision
-        made = engine.prepare(upcoming, state.snapshot(), state.spread)
+        made = engine.retune(state.snapshot(), state.spread)  # the frame finds them made (same controls)
         prepared_revision = revision
         if made == "restyled":
             restyle_seconds.append(time.monotonic() - started)
@@ -226,6 +228,12 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
                 state.lock_speeds.clear()  # turned on again, the lock starts afresh
             elif state.lock_speeds:  # the lock's (live, or a replayed log's)
                 controls = replace(controls, speed=locked_speed(state.lock_speeds, controls.speed, show.characters))
+            if engine.makes_model_frame(now):  # its retune, if any, here (the frame's own finds it made) and timed:
+                # the estimate of a restyle's time learns from these too, or one restyle ahead that a
+                # stall made slow would keep every later one out of the wait (none fits) for the show
+                retune_started = time.monotonic()
+                if engine.retune(controls, state.spread) == "restyled" and index > 0:  # the first warms up
+                    restyle_seconds.append(time.monotonic() - retune_started)
             crowd = engine.frame(now, controls, state.spread)
             if GAITS[controls.gait] in engine.units.missing:  # said, not refused: the walk goes on
                 console.warn(f"gait {GAITS[controls.gait]}", f"gait {GAITS[controls.gait]}: this model has no "

@@ -492,18 +492,10 @@ class Engine:
 
     def makes_model_frame(self, time_s: float) -> bool:
         """Whether the frame at `time_s` makes a model frame (the frame that would retune): at an
-        output rate above the model's, the frames between model frames read nothing a retune makes."""
+        output rate above the model's, the frames between model frames read nothing a retune makes.
+        The live loop retunes ahead of such a frame only (`retune` while it waits for it), so the
+        frame finds its tables made and the poses are those of a frame that retuned itself."""
         return self.made <= self._newest(time_s)
-
-    def prepare(self, time_s: float, controls: Controls, spread: float = 0.0) -> str | None:
-        """The tables for `controls` made ahead of the frame at `time_s`, if that frame makes a model
-        frame: its own retune then finds them made, when the controls are still these. The live
-        loop calls it while it waits for the frame, so a control taken then costs the frame no
-        retune. The tables are made only where the frame would make them itself, so the frames
-        are the same. Returns what `retune` made (None also when the frame makes no model frame)."""
-        if not self.makes_model_frame(time_s):
-            return None
-        return self.retune(controls, spread)
 
     def frame(self, time_s: float, controls: Controls, spread: float = 0.0) -> CrowdPose:
         """Every character's pose at performance time `time_s` (frames are asked for in order, at `fps`)."""
