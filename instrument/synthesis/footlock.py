@@ -6,8 +6,11 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 
 - `planted_feet`: which feet are planted this frame (the state's share, or a foot on the floor
   and still where the state allows it; always one foot);
-- `hold_heading`: a planted foot turned back about the vertical to the heading it landed with;
-- `lay_flat`: a planted foot alone on the floor, toes up, pitched down about its ankle to flat;
+- `hold_heading`: a planted foot turned back about the vertical to the heading it landed with
+  (`foot_heading`: read from the foot's axis across it, `across_axes`, which its pitching leaves
+  where it is; the toe line's heading turns half round as a run's toe-off pitches the foot past vertical);
+- `lay_flat`: a planted foot alone on the floor, toes up, pitched down about its ankle to flat
+  (about its axis across it, as `heel_rise` pitches it);
 - `lock_target`: where an ankle should go (the lock blended in, the floor, the swing lift as
   `swing_share` allows);
 - `heel_rise`: the foot pitched up about its front-most joint (the toes) where the lock would stretch a
@@ -17,7 +20,8 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 - `within_reach`: a foot released in a run's flight brought back within its leg's generated length;
 - `settle_feet`: in a still stand, a foot locked away from where the stand's pose puts it (a stop
   leaves them staggered) steps there, lifted, one at a time (a closing step); a foot so closed
-  up lets go of its lock at 1 / STAND_RELEASE of the usual pace as it sets off;
+  up lets go of its lock at 1 / STAND_RELEASE of the usual pace as it sets off (until the other
+  foot lands: the stance foot of the first step then lets go at a step's pace);
 - `body_drop`: how far the body must come down for a planted leg to reach its target;
 - `leg_swings`: two-bone IK, the thigh's and the shin's turns that take an ankle to a target;
 - `solve_leg`: those turns applied in place to the local rotations;
@@ -64,7 +68,8 @@ SETTLE_STILL_CM_S = 5.0
 CLOSED = 2.0  # LockState.settling of a foot that has taken its closing step, or needed none
 # a foot a still stand has closed up (or found in place) lets go of its lock over this many times
 # BLEND_FRAMES as it sets off: a step's first state has the swinging foot behind, at toe-off, and let
-# go at a walk's pace the foot standing beside the other swung back there and forward again in a few frames
+# go at a walk's pace the foot standing beside the other swung back there and forward again in a few frames;
+# once the other foot has landed the body has stepped, and a foot still closed up lets go at a step's pace
 STAND_RELEASE = 2.0
 
 
