@@ -23,10 +23,20 @@ def EASE(x: float) -> float:
     return x * x * (3.0 - 2.0 * x)  # smoothstep: the lock starts and ends with zero speed
 
 
-def _heading(world_pos: np.ndarray, leg) -> float:
-    """Which way a foot points, about the vertical (0 along +z)."""
+def _across(world_rot: np.ndarray, world_pos: np.ndarray, leg) -> np.ndarray:
+    """A foot's axis across it in its ankle's frame: level and to the side of its toe line in the
+    template pose (`world_rot`, `world_pos`); zeros for a foot without toes."""
     toes = world_pos[leg.pivot] - world_pos[leg.ankle]
-    return float(np.arctan2(toes[0], toes[2]))
+    if leg.pivot == leg.ankle or np.hypot(toes[0], toes[2]) <= 1e-9:
+        return np.zeros(3)
+    across = np.cross([0.0, 1.0, 0.0], toes)
+    return world_rot[leg.ankle].T @ (across / np.linalg.norm(across))
+
+
+def _heading(world_rot: np.ndarray, leg, across: np.ndarray) -> float:
+    """Which way a foot points, about the vertical (0 along +z), from its axis across it."""
+    side = world_rot[leg.ankle] @ across
+    return float(np.arctan2(-side[2], side[0]))
 
 
 class _Follow:
@@ -110,8 +120,31 @@ def _leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
     return swing, swing @ bend @ swing.T
 
 
-def _heel_rise(world_pos: np.ndarray, leg, ground: np.ndarray, on_floor: float, target: np.ndarray,
-               allowed: float, low: float, high: float) -> tuple[np.ndarray, np.ndarray, float]:
+def _pitch_to_height(toes: np.ndarray, axis: np.ndarray, height: float) -> float | None:
+    """The turn about `axis` (unit) nearest 0 that brings the `toes` vector's height to `height`,
+    found numerically (a scan, then bisection) to check the compiled closed form; None if none does."""
+    def excess(angle: float) -> float:
+        return float((_axis_rotation(axis, angle) @ toes)[1] - height)
+
+    angles = np.linspace(-np.pi, np.pi, 721)
+    values = np.array([excess(a) for a in angles])
+    crossings = np.flatnonzero(np.sign(values[1:]) != np.sign(values[:-1]))
+    if not len(crossings):
+        return None
+    best = None
+    for i in crossings:
+        low, high = angles[i], angles[i + 1]
+        for _ in range(80):
+            middle = (low + high) / 2.0
+            low, high = (middle, high) if np.sign(excess(middle)) == np.sign(values[i]) else (low, middle)
+        root = (low + high) / 2.0
+        if best is None or abs(root) < abs(best):
+            best = root
+    return best
+
+
+def _heel_rise(world_rot: np.ndarray, world_pos: np.ndarray, leg, across: np.ndarray, ground: np.ndarray, on_floor: float,
+               target: np.ndarray, allowed: float, low: float, high: float) -> tuple[np.ndarray, np.ndarray, float]:
     """The foot's turn about its front-most joint (leg.pivot) that raises the heel until the leg
     reaches no further than `allowed` (less of the way where the toes are higher above their
     clearance than the heel above its own, none from `on_floor` higher), and the ankle's target
@@ -120,12 +153,14 @@ def _heel_rise(world_pos: np.ndarray, leg, ground: np.ndarray, on_floor: float, 
     nearest; then held in [low, high] and to at most MAX_HEEL_RISE from standing flat. Also the
     angle."""
     toes = world_pos[leg.pivot] - world_pos[leg.ankle]
-    axis = np.cross([0.0, 1.0, 0.0], toes)  # lifting the heel about the toes
-    if np.linalg.norm(axis) < 1e-12:
+    axis = world_rot[leg.ankle] @ across  # lifting the heel about the foot's axis across it
+    if np.linalg.norm(axis[[0, 2]]) < 1e-12:
         return np.eye(3), target, 0.0
     drop = ground[leg.foot.index(leg.pivot)] - ground[0]  # the toes' height below the ankle's, standing flat
     length = np.linalg.norm(toes)
-    risen = np.arcsin(np.clip(drop / length, -1, 1)) - np.arcsin(np.clip(toes[1] / length, -1, 1))
+    forward = np.cross(axis, [0.0, 1.0, 0.0])  # level, towards the toes of a flat foot
+    forward /= np.linalg.norm(forward)
+    risen = np.arcsin(np.clip(drop / length, -1, 1)) - np.arctan2(toes[1], toes @ forward)
     high = min(high, max(MAX_HEEL_RISE - risen, 0.0))
     angle = float(np.clip(_needed_rise(world_pos, leg, toes, axis, ground, on_floor, target, allowed), min(low, high), high))
     if angle <= 0.0:
@@ -189,8 +224,10 @@ class FootLock:
         self.rise_step = HEEL_RISE_SPEED / fps  # how far a rise may change in a frame
         self.parent_rot = layout.template_pose[2]  # the root's parent's world rotation
         self.pivot = [leg.pivot for leg in self.limbs.legs]  # the joint whose landing point is locked (the toes)
-        template = forward_kinematics(layout.skeleton, layout.template_pose[0][None], layout.template_pose[1][None])[1][0]
+        template_rot, template = (a[0] for a in forward_kinematics(layout.skeleton, layout.template_pose[0][None],
+                                                                   layout.template_pose[1][None]))
         self.cm = centimetres_per_unit(layout, template)
+        self.across = [_across(template_rot, template, leg) for leg in self.limbs.legs]
         self.swing_lift = SWING_CM / self.cm  # in the skeleton's units
         self.previous = np.full((2, 3), np.nan)  # each pivot's generated position in the frame before
         self.settling = np.zeros(2)  # each foot's closing step: 0 may take one, (0, 1) how far, CLOSED
@@ -210,14 +247,15 @@ class FootLock:
         for f, leg in enumerate(self.limbs.legs):
             if planted[f] and self.weight[f] == 0.0:
                 self.lock[f] = world_pos[self.pivot[f]]
-                self.heading[f] = _heading(world_pos, leg)
+                self.heading[f] = _heading(world_rot, leg, self.across[f])
                 self.settling[f] = 0.0
             release = step / STAND_RELEASE if self.settling[f] == CLOSED else step  # set off from a still stand
             self.weight[f] = min(1.0, self.weight[f] + step) if planted[f] else max(0.0, self.weight[f] - release)
-        lifts = self._settle(still, planted, world_pos)
+        lifts = self._settle(still, planted, world_rot, world_pos)
         for f, leg in enumerate(self.limbs.legs):
             if self.weight[f] > 0.0:  # the foot turned about the vertical through its ankle, back to its landing heading
-                turn = EASE(self.weight[f]) * ((self.heading[f] - _heading(world_pos, leg) + np.pi) % (2 * np.pi) - np.pi)
+                turn = EASE(self.weight[f]) * ((self.heading[f] - _heading(world_rot, leg, self.across[f]) + np.pi)
+                                               % (2 * np.pi) - np.pi)
                 yaw = _axis_rotation(np.array([0.0, 1.0, 0.0]), turn)
                 ankle = world_pos[leg.ankle].copy()
                 for j in leg.foot:
@@ -230,18 +268,19 @@ class FootLock:
             toes = world_pos[leg.pivot] - world_pos[leg.ankle]
             ground = self.ground[f]
             up = toes[1] - (ground[list(leg.foot).index(leg.pivot)] - ground[list(leg.foot).index(leg.ankle)])
-            if share > 0.0 and leg.pivot != leg.ankle and up > 0.0:
-                flat = toes.copy()
-                flat[1] -= share * up
-                flat[[0, 2]] *= np.sqrt(toes @ toes - flat[1] ** 2) / np.linalg.norm(toes[[0, 2]])
-                pitch = _rotation_between(toes, flat)
+            axis = world_rot[leg.ankle] @ self.across[f]  # pitched about its axis across it
+            if share > 0.0 and leg.pivot != leg.ankle and up > 0.0 and np.linalg.norm(axis) > 1e-12:
+                angle = _pitch_to_height(toes, axis, toes[1] - share * up)
+                if angle is None:
+                    continue
+                pitch = _axis_rotation(axis, angle)
                 ankle = world_pos[leg.ankle].copy()
                 for j in leg.foot:
                     world_rot[j] = pitch @ world_rot[j]
                     world_pos[j] = ankle + pitch @ (world_pos[j] - ankle)
                 rotations[leg.ankle] = world_rot[leg.knee].T @ world_rot[leg.ankle]
         extension = [np.linalg.norm(world_pos[leg.ankle] - world_pos[leg.hip]) for leg in self.limbs.legs]
-        targets, turns = self._targets(world_pos, planted, extension)
+        targets, turns = self._targets(world_rot, world_pos, planted, extension)
         # a planted leg that cannot reach its target even on its toes (an exaggerated style can
         # lift the hips): the body comes down, eased over a few frames so it does not bob
         need = 0.0
@@ -254,7 +293,7 @@ class FootLock:
             translations = translations.copy()
             translations[self.layout.root] -= np.array([0.0, self.drop, 0.0]) @ self.parent_rot
             world_pos = world_pos - np.array([0.0, self.drop, 0.0])
-            targets, turns = self._targets(world_pos, planted, extension)
+            targets, turns = self._targets(world_rot, world_pos, planted, extension)
         self.rise = self.next_rise  # the rises of the targets taken
         for f in range(2):  # a closing step's foot off the floor
             targets[f][1] += lifts[f]
@@ -269,7 +308,7 @@ class FootLock:
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
         return rotations, translations, world_rot[0], world_pos[0]
 
-    def _settle(self, still: bool, planted: np.ndarray, world_pos: np.ndarray) -> np.ndarray:
+    def _settle(self, still: bool, planted: np.ndarray, world_rot: np.ndarray, world_pos: np.ndarray) -> np.ndarray:
         """A closing step (footlock.settle_feet): the first time since a landing that a still stand
         has both feet locked in, each foot locked more than SETTLE_CM from where the pose puts it
         steps there, the further first, lifted along a half sine; returns each foot's lift."""
@@ -291,7 +330,7 @@ class FootLock:
         keep = (1.0 - EASE(self.settling[f])) / (1.0 - before)
         goal = world_pos[self.pivot[f]]
         self.lock[f][[0, 2]] = goal[[0, 2]] + (self.lock[f] - goal)[[0, 2]] * keep
-        turn = (self.heading[f] - _heading(world_pos, self.limbs.legs[f]) + np.pi) % (2 * np.pi) - np.pi
+        turn = (self.heading[f] - _heading(world_rot, self.limbs.legs[f], self.across[f]) + np.pi) % (2 * np.pi) - np.pi
         self.heading[f] -= turn * (1.0 - keep)
         lifts[f] = SETTLE_LIFT_CM / self.cm * np.sin(np.pi * self.settling[f])
         if self.settling[f] >= 1.0:
@@ -332,7 +371,8 @@ class FootLock:
             target[1] += floor - lowest_after
         return target
 
-    def _targets(self, world_pos: np.ndarray, planted: np.ndarray, extension: list[float]) -> tuple[list, list]:
+    def _targets(self, world_rot: np.ndarray, world_pos: np.ndarray, planted: np.ndarray,
+                 extension: list[float]) -> tuple[list, list]:
         """Each ankle's target, and each foot's heel-rise turn where its lock is blended in or its
         heel still up from it."""
         targets, turns, self.next_rise = [], [], np.zeros(2)
@@ -344,8 +384,8 @@ class FootLock:
             if self.weight[f] > 0 or self.rise[f] > 0:  # after its lock, a heel comes down at the same pace
                 low = max(self.rise[f] - self.rise_step, 0.0)
                 high = min(self.rise[f] + self.rise_step, MAX_HEEL_RISE) if self.weight[f] > 0 else low
-                turn, target, self.next_rise[f] = _heel_rise(world_pos, leg, self.ground[f], CONTACT_CM / self.cm, target,
-                                                             extension[f], low, high)
+                turn, target, self.next_rise[f] = _heel_rise(world_rot, world_pos, leg, self.across[f], self.ground[f],
+                                                             CONTACT_CM / self.cm, target, extension[f], low, high)
             if not planted[f] and not planted[1 - f] and self.weight[f] > 0:  # released in flight: the leg no longer than made
                 gap = target - world_pos[leg.hip]
                 if np.linalg.norm(gap) > extension[f] > 0.0:

@@ -6,8 +6,11 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 
 - `planted_feet`: which feet are planted this frame (the state's share, or a foot on the floor
   and still where the state allows it; always one foot);
-- `hold_heading`: a planted foot turned back about the vertical to the heading it landed with;
-- `lay_flat`: a planted foot alone on the floor, toes up, pitched down about its ankle to flat;
+- `hold_heading`: a planted foot turned back about the vertical to the heading it landed with
+  (`foot_heading`: read from the foot's axis across it, `across_axes`, which its pitching leaves
+  where it is; the toe line's heading turns half round as a run's toe-off pitches the foot past vertical);
+- `lay_flat`: a planted foot alone on the floor, toes up, pitched down about its ankle to flat
+  (about its axis across it, as `heel_rise` pitches it);
 - `lock_target`: where an ankle should go (the lock blended in, the floor, the swing lift as
   `swing_share` allows);
 - `heel_rise`: the foot pitched up about its front-most joint (the toes) where the lock would stretch a
@@ -17,7 +20,8 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 - `within_reach`: a foot released in a run's flight brought back within its leg's generated length;
 - `settle_feet`: in a still stand, a foot locked away from where the stand's pose puts it (a stop
   leaves them staggered) steps there, lifted, one at a time (a closing step); a foot so closed
-  up lets go of its lock at 1 / STAND_RELEASE of the usual pace as it sets off;
+  up lets go of its lock at 1 / STAND_RELEASE of the usual pace as it sets off (until the other
+  foot lands: the stance foot of the first step then lets go at a step's pace);
 - `body_drop`: how far the body must come down for a planted leg to reach its target;
 - `leg_swings`: two-bone IK, the thigh's and the shin's turns that take an ankle to a target;
 - `solve_leg`: those turns applied in place to the local rotations;
@@ -64,7 +68,8 @@ SETTLE_STILL_CM_S = 5.0
 CLOSED = 2.0  # LockState.settling of a foot that has taken its closing step, or needed none
 # a foot a still stand has closed up (or found in place) lets go of its lock over this many times
 # BLEND_FRAMES as it sets off: a step's first state has the swinging foot behind, at toe-off, and let
-# go at a walk's pace the foot standing beside the other swung back there and forward again in a few frames
+# go at a walk's pace the foot standing beside the other swung back there and forward again in a few frames;
+# once the other foot has landed the body has stepped, and a foot still closed up lets go at a step's pace
 STAND_RELEASE = 2.0
 
 
@@ -74,7 +79,7 @@ class LockState:
 
     weights: np.ndarray  # (N, 2) how far each foot's lock is blended in, 0..1
     points: np.ndarray  # (N, 2, 3) world point each foot is locked to (NaN before its first landing)
-    headings: np.ndarray  # (N, 2) each locked foot's heading (ankle to pivot, about the vertical) at landing
+    headings: np.ndarray  # (N, 2) each locked foot's heading (foot_heading: about the vertical) at landing
     drop: np.ndarray  # (N,) how far the body is lowered for a planted leg to reach its target
     previous: np.ndarray  # (N, 2, 3) each pivot's position in the frame before, the body's follow offset
     # included (NaN at first): what the lock's 'nearly still' test measures; not RootFollow.previous
@@ -112,6 +117,7 @@ class FootLock:
         template = forward_kinematics(layout.skeleton, layout.template_pose[0][None], layout.template_pose[1][None])[1][0]
         self.cm = centimetres_per_unit(layout, template)
         self.swing_lift = SWING_CM / self.cm  # in the skeleton's units
+        self.across = across_axes(layout, legs)
 
     def start(self, count: int) -> LockState:
         """The state of `count` characters before their first frame: nothing locked yet."""
@@ -128,8 +134,27 @@ class FootLock:
         standing = np.zeros(len(shares), dtype=np.bool_) if standing is None else np.ascontiguousarray(standing, dtype=np.bool_)
         lock_crowd(rotations, translations, np.ascontiguousarray(shares, dtype=np.float64), world_rot, world_pos,
                    state.weights, state.points, state.headings, state.drop, state.previous, state.rises,
-                   state.settling, standing, self.parents, self.joints, self.feet, self.ground, self.reach, self.parent_rot,
-                   self.layout.root, self.fps, self.cm, self.swing_lift)
+                   state.settling, standing, self.parents, self.joints, self.feet, self.across, self.ground, self.reach,
+                   self.parent_rot, self.layout.root, self.fps, self.cm, self.swing_lift)
+
+
+def across_axes(layout: FeatureLayout, legs) -> np.ndarray:
+    """(2, 3) each foot's axis across it (level, to the side of its toe line in the template
+    pose), in its ankle's frame: what `foot_heading` reads a foot's heading from. The toe line's
+    own heading turns half round as a foot pitches past vertical (a run's toe-off has the toes
+    behind the ankle), and a lock holding the heading it landed with spun the foot about the
+    vertical as it let go; pitching leaves the axis across the foot where it was. A foot without
+    joints below its ankle has none (zeros: no heading, none held)."""
+    world_rot, world_pos = (a[0] for a in forward_kinematics(layout.skeleton, layout.template_pose[0][None],
+                                                              layout.template_pose[1][None]))
+    axes = np.zeros((2, 3))
+    for f, leg in enumerate(legs):
+        toes = world_pos[leg.pivot] - world_pos[leg.ankle]
+        level = np.hypot(toes[0], toes[2])
+        if leg.pivot != leg.ankle and level > 1e-9:
+            across = np.array([toes[2], 0.0, -toes[0]]) / level  # up x toes: the heading's +90 deg, level
+            axes[f] = world_rot[leg.ankle].T @ across
+    return axes
 
 
 # ---- kernels (compiled; the names and jobs of the plain-Python lock's methods) --------------
@@ -213,7 +238,7 @@ def lock_target(world_pos, leg, foot, ground_f, weight, point, planted, handing_
 
 
 @njit(cache=True, error_model="numpy")
-def heel_rise(world_pos, leg, pivot, clearance, on_floor, target, allowed, low, high,
+def heel_rise(world_rot, world_pos, leg, pivot, across, clearance, on_floor, target, allowed, low, high,
               turn):  # pragma: no cover - compiled
     """The foot's turn (3x3, world: written into `turn`) and its angle (returned) about its pivot
     (its front-most joint, the toes) when the lock asks the leg (hip, knee, ankle) to reach
@@ -230,17 +255,22 @@ def heel_rise(world_pos, leg, pivot, clearance, on_floor, target, allowed, low, 
     pivot's heights standing on the floor."""
     toes = _sub(world_pos[pivot], world_pos[leg[2]])
     toe = (target[0] + toes[0], target[1] + toes[1], target[2] + toes[2])  # where the pivot goes with the ankle
-    k = (toes[2], 0.0, -toes[0])  # up x (toe direction): the foot's pitch axis, lifting the heel
-    norm = np.sqrt(_dot(k, k))
-    if norm < 1e-12:
+    # the foot's pitch axis, lifting the heel: its axis across it (up x the toe line, for a flat
+    # foot), which the turn leaves where it is, and so the heading held; the toe line's own, near
+    # vertical at toe-off, turned the foot sideways
+    r = world_rot[leg[2]]
+    k = (_dot(r[0], across), _dot(r[1], across), _dot(r[2], across))
+    level = np.hypot(k[0], k[2])
+    if level < 1e-12:
         _set_identity(turn)
         return 0.0
-    k = (k[0] / norm, k[1] / norm, k[2] / norm)
     # from flat, not from the pose made: a foot made already rising at push-off was turned past
     # the vertical, its heel in front of its toes, and back the next frame (a 35 deg flicker)
     length = np.sqrt(_dot(toes, toes))
     flat = np.arcsin(min(max((clearance[1] - clearance[0]) / length, -1.0), 1.0))  # the toes' elevation standing flat
-    risen = flat - np.arcsin(min(max(toes[1] / length, -1.0), 1.0))  # how far the heel is up in the pose made
+    # how far the heel is up in the pose made, the toes' elevation measured along the foot's level
+    # forward (k x up), so it keeps growing as a foot pitches past vertical
+    risen = flat - np.arctan2(toes[1], (toes[2] * k[0] - toes[0] * k[2]) / level)
     high = min(high, max(MAX_HEEL_RISE - risen, 0.0))
     theta = min(max(_needed_rise(world_pos[leg[0]], toes, toe, k, clearance, on_floor, target, allowed), min(low, high)),
                 high)
@@ -466,7 +496,7 @@ def lock_work():  # pragma: no cover - compiled
 
 @njit(cache=True, error_model="numpy")
 def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, standing, parents, joints, feet, ground, reach, parent_rot, root, fps, cm, swing_lift,
+               settling, standing, parents, joints, feet, across, ground, reach, parent_rot, root, fps, cm, swing_lift,
                work):  # pragma: no cover - compiled
     """One character's frame (arrays of that character; `drop` a 1-element view, `standing` a
     bool). Returns nothing: rotations, translations, the world transforms and the state are
@@ -482,35 +512,42 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         if planted[f] and weights[f] == 0.0:
             for i in range(3):
                 points[f, i] = world_pos[feet[f, -1], i]
-            headings[f] = foot_heading(world_pos, joints[f, 2], feet[f, -1])
-            settling[f] = 0.0  # landed: a stand may close it up again
+            headings[f] = foot_heading(world_rot, joints[f, 2], across[f])
+            # landed: a stand may close it up again; and the body has stepped, so the other foot,
+            # if a stand closed it up, is set off from a step now: it lets go at a step's pace
+            settling[f] = 0.0
+            if settling[1 - f] == CLOSED:
+                settling[1 - f] = 0.0
+    for f in range(2):
         release = step / STAND_RELEASE if settling[f] == CLOSED else step  # set off from a still stand: slower
         weights[f] = min(1.0, weights[f] + step) if planted[f] else max(0.0, weights[f] - release)
-    settle_feet(still, planted, weights, points, headings, settling, world_pos, joints, feet, SETTLE_CM / cm,
+    settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, across, SETTLE_CM / cm,
                 1.0 / (SETTLE_SECONDS * fps), SETTLE_LIFT_CM / cm, lifts)
     for f in range(2):
         if weights[f] > 0.0:
-            hold_heading(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], headings[f], ease(weights[f]))
+            hold_heading(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], across[f], headings[f],
+                         ease(weights[f]))
     for f in range(2):  # alone on the floor, a planted foot stands flat; a released other foot whose lock is
         # still blending out does not keep it from doing so (it would hold the landing foot's toes up
         # while the trailing foot's come off the floor: docs/evaluate.md, "Floating the stricter way")
         share = ease(weights[f]) * (1.0 - (ease(weights[1 - f]) if planted[1 - f] else 0.0))
         if share > 0.0:
-            lay_flat(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], ground[f, 0], ground[f, -1], share)
+            lay_flat(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], across[f], ground[f, 0],
+                     ground[f, -1], share)
     for f in range(2):  # each leg's generated hip-to-ankle distance, which the lock keeps where it can
         gap = _sub(world_pos[joints[f, 2]], world_pos[joints[f, 0]])
         extension[f] = np.sqrt(_dot(gap, gap))
     on_floor = CONTACT_CM / cm
     rise_step = HEEL_RISE_SPEED / fps
-    _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension, rises, rise_step,
-             targets, turns, angles)
+    _targets(world_rot, world_pos, joints, feet, across, ground, weights, points, planted, swing_lift, on_floor, extension,
+             rises, rise_step, targets, turns, angles)
     drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) / BLEND_FRAMES
     if drop[0] > 1e-9:
         for a in range(3):  # [0, drop, 0] @ parent_rot, element by element (no temporary array)
             translations[root, a] -= drop[0] * parent_rot[1, a]
         world_pos[:, 1] -= drop[0]
-        _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension, rises,
-                 rise_step, targets, turns, angles)
+        _targets(world_rot, world_pos, joints, feet, across, ground, weights, points, planted, swing_lift, on_floor,
+                 extension, rises, rise_step, targets, turns, angles)
     rises[0], rises[1] = angles[0], angles[1]
     for f in range(2):  # a closing step's foot off the floor
         targets[f, 1] += lifts[f]
@@ -533,7 +570,8 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
 
 
 @njit(cache=True, error_model="numpy")
-def settle_feet(still, planted, weights, points, headings, settling, world_pos, joints, feet, threshold, step, height,
+def settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, across, threshold,
+                step, height,
                 lifts):  # pragma: no cover - compiled
     """A closing step: the first time a stand's pose is `still` with both feet planted and locked
     in since a foot landed, each foot whose locked point is more than `threshold` from where the
@@ -572,7 +610,7 @@ def settle_feet(still, planted, weights, points, headings, settling, world_pos, 
     pivot = world_pos[feet[f, -1]]
     for i in (0, 2):
         points[f, i] = pivot[i] + (points[f, i] - pivot[i]) * keep
-    turn = (headings[f] - foot_heading(world_pos, joints[f, 2], feet[f, -1]) + np.pi) % (2.0 * np.pi) - np.pi
+    turn = (headings[f] - foot_heading(world_rot, joints[f, 2], across[f]) + np.pi) % (2.0 * np.pi) - np.pi
     headings[f] -= turn * (1.0 - keep)
     lifts[f] = height * np.sin(np.pi * settling[f])
     if settling[f] >= 1.0:
@@ -580,25 +618,29 @@ def settle_feet(still, planted, weights, points, headings, settling, world_pos, 
 
 
 @njit(cache=True, error_model="numpy")
-def foot_heading(world_pos, ankle, pivot) -> float:  # pragma: no cover - compiled
-    """Which way the foot points, about the vertical (radians; 0 along +z)."""
-    return np.arctan2(world_pos[pivot, 0] - world_pos[ankle, 0], world_pos[pivot, 2] - world_pos[ankle, 2])
+def foot_heading(world_rot, ankle, across) -> float:  # pragma: no cover - compiled
+    """Which way the foot points, about the vertical (radians; 0 along +z), from its axis
+    `across` (in the ankle's frame: `across_axes`), which pitching does not turn."""
+    r = world_rot[ankle]
+    x = r[0, 0] * across[0] + r[0, 1] * across[1] + r[0, 2] * across[2]
+    z = r[2, 0] * across[0] + r[2, 1] * across[1] + r[2, 2] * across[2]
+    return np.arctan2(-z, x)
 
 
 @njit(cache=True, error_model="numpy")
-def hold_heading(rotations, world_rot, world_pos, knee, ankle, foot, heading, share):  # pragma: no cover - compiled
+def hold_heading(rotations, world_rot, world_pos, knee, ankle, foot, across, heading, share):  # pragma: no cover - compiled
     """A planted foot turned about the vertical through its ankle, `share` of the way back to the
     heading it landed with: a foot that yaws in the generated walk would swing its toes and heel
     about its locked toes, sliding them (skate 3-20% lower on the shipped model's walks with
     it). Its joints' world transforms follow; the ankle's local rotation takes the turn."""
-    turn = heading - foot_heading(world_pos, ankle, foot[-1])  # `foot`: the ankle and the joints below it, pivot last
+    turn = heading - foot_heading(world_rot, ankle, across)  # `foot`: the ankle and the joints below it, pivot last
     turn = share * ((turn + np.pi) % (2.0 * np.pi) - np.pi)
     if turn != 0.0:  # about +y: +z turns towards +x
         turn_foot(rotations, world_rot, world_pos, knee, ankle, foot, 0.0, 1.0, 0.0, np.cos(turn), np.sin(turn))
 
 
 @njit(cache=True, error_model="numpy")
-def lay_flat(rotations, world_rot, world_pos, knee, ankle, foot, ankle_clearance, pivot_clearance,
+def lay_flat(rotations, world_rot, world_pos, knee, ankle, foot, across, ankle_clearance, pivot_clearance,
              share):  # pragma: no cover - compiled
     """A planted foot whose toes are up (its pivot higher above its clearance than the ankle is
     above its own) pitched down about its ankle, `share` of the way to flat. Real feet roll flat
@@ -614,15 +656,28 @@ def lay_flat(rotations, world_rot, world_pos, knee, ankle, foot, ankle_clearance
     toes_up = vy - (pivot_clearance - ankle_clearance)
     if toes_up <= 0.0:
         return
-    length2 = vx * vx + vy * vy + vz * vz
-    along = np.hypot(vx, vz)
-    drop_y = vy - share * toes_up
-    if drop_y * drop_y >= length2 or along < 1e-12:
+    # about the foot's axis across it (up x toes for a flat foot; as the heading and the heel rise
+    # read it, so the turn leaves the heading held): a positive turn pitches the toes down. The
+    # toes turned by t are at height  along_k + a cos t + b sin t:  solved for the height wanted
+    r = world_rot[ankle]
+    k = (_dot(r[0], across), _dot(r[1], across), _dot(r[2], across))
+    if _dot(k, k) < 1e-12:
         return
-    pitch = np.arctan2(vy, along) - np.arctan2(drop_y, np.sqrt(length2 - drop_y * drop_y))
-    # about the horizontal axis across the foot (up x toes): a positive turn pitches the toes down
-    turn_foot(rotations, world_rot, world_pos, knee, ankle, foot, vz / along, 0.0, -vx / along, np.cos(pitch),
-              np.sin(pitch))
+    v = (vx, vy, vz)
+    along_k = _dot(v, k) * k[1]
+    a = vy - along_k  # the height of the toes' part the turn moves
+    b = _cross(k, v)[1]
+    spread = np.hypot(a, b)
+    wanted = vy - share * toes_up - along_k
+    if spread < 1e-12 or abs(wanted) >= spread:
+        return
+    phi = np.arctan2(b, a)
+    gap = np.arccos(wanted / spread)
+    pitch = (phi - gap + np.pi) % (2.0 * np.pi) - np.pi
+    other = (phi + gap + np.pi) % (2.0 * np.pi) - np.pi
+    if abs(other) < abs(pitch):
+        pitch = other
+    turn_foot(rotations, world_rot, world_pos, knee, ankle, foot, k[0], k[1], k[2], np.cos(pitch), np.sin(pitch))
 
 
 @njit(cache=True, error_model="numpy")
@@ -651,8 +706,8 @@ def _turned(kx, ky, kz, c, s, x, y, z):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def _targets(world_pos, joints, feet, ground, weights, points, planted, swing_lift, on_floor, extension, rises,
-             rise_step, targets, turns, angles):  # pragma: no cover - compiled
+def _targets(world_rot, world_pos, joints, feet, across, ground, weights, points, planted, swing_lift, on_floor, extension,
+             rises, rise_step, targets, turns, angles):  # pragma: no cover - compiled
     """Each ankle's target (2, 3), each foot's heel-rise turn (2, 3, 3) and angle (2,), written into
     `targets`, `turns` and `angles`: a foot whose lock
     is blended in rises on its toes where its leg would otherwise stretch past its generated
@@ -669,8 +724,8 @@ def _targets(world_pos, joints, feet, ground, weights, points, planted, swing_li
             clearance = (ground[f, 0], ground[f, -1])
             low = max(rises[f] - rise_step, 0.0)
             high = min(rises[f] + rise_step, MAX_HEEL_RISE) if weights[f] > 0.0 else low
-            angles[f] = heel_rise(world_pos, joints[f], feet[f, -1], clearance, on_floor, targets[f], extension[f], low,
-                                  high, turns[f])
+            angles[f] = heel_rise(world_rot, world_pos, joints[f], feet[f, -1], across[f], clearance, on_floor, targets[f],
+                                  extension[f], low, high, turns[f])
         if not planted[f] and not planted[1 - f] and weights[f] > 0.0:  # (a walk's other foot is down)
             within_reach(targets[f], world_pos[joints[f, 0]], extension[f])
 
@@ -694,12 +749,12 @@ def within_reach(target, hip, extension):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, standing, parents, joints, feet, ground, reach, parent_rot, root, fps, cm,
+               settling, standing, parents, joints, feet, across, ground, reach, parent_rot, root, fps, cm,
                swing_lift):  # pragma: no cover - compiled
     """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
     work = lock_work()
     for n in range(rotations.shape[0]):
         lock_frame(rotations[n], translations[n], shares[n], world_rot[n], world_pos[n], weights[n], points[n], headings[n],
-                   drop[n : n + 1], previous[n], rises[n], settling[n], standing[n], parents, joints, feet, ground, reach,
-                   parent_rot, root, fps, cm, swing_lift, work)
+                   drop[n : n + 1], previous[n], rises[n], settling[n], standing[n], parents, joints, feet, across, ground,
+                   reach, parent_rot, root, fps, cm, swing_lift, work)
     _compose(parents, rotations, translations, world_rot, world_pos)
