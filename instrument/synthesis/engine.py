@@ -454,7 +454,7 @@ class Engine:
             else:
                 frames = self.range_filter(frames, *self.range_targets.targets(units))
             self._timed("range")
-        if self.units.stand >= 0 and (self.units.stride < 1.0).any():  # a body braking: its steps shortened
+        if self.units.shortening:  # a body braking, or just stood still: its steps shortened
             frames = shortened(frames, self._stand_pose(), self.units.stride)
         driven = np.empty(frames.shape)
         drive(frames, self.stream.cadence, self.units.travel, self.units.added_yaw, driven)

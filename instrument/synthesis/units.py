@@ -111,6 +111,7 @@ class UnitChooser:
         self.travel = np.ones(count)  # the share of its root's travel each body takes this frame
         self.stride_level = np.ones(count)  # how far each body's pose takes its step's swing, 0 to 1
         self.stride = np.ones(count)  # its smoothstep: the share of the swing the engine leaves (1: as made)
+        self.shortening = False  # some body's stride is below 1 (the engine draws its pose in)
         self._settled: tuple[int, float] | None = None  # (gait, turn) that left nothing to do frame by frame
 
     def __call__(self, gait: int, turn: float, stream: Crowd) -> None:
@@ -178,6 +179,7 @@ class UnitChooser:
                           np.minimum(self.stride_level + 1.0 / self.stop_frames, 1.0))
         self.stride_level = stride
         self.stride = stride * stride * (3.0 - 2.0 * stride)
+        self.shortening = bool(stride.min() < 1.0)
 
     def _frames_to_stand(self, stream: Crowd, stopping: np.ndarray) -> np.ndarray:
         """(N,) the frames each body still moves before its stand begins, after this one: the rest
