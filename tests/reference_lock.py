@@ -240,9 +240,8 @@ class FootLock:
         rotations = rotations.copy()
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
         world_rot, world_pos = world_rot[0], world_pos[0]
-        speeds = np.hypot(*(world_pos[self.pivot] - self.previous)[:, [0, 2]].T) * self.fps * self.cm
+        planted, speeds = self._planted(shares, world_pos)
         still = standing and bool((speeds < SETTLE_STILL_CM_S).all())  # NaN (first frame): not still
-        planted = self._planted(shares, world_pos)
         step = 1.0 / BLEND_FRAMES
         for f, leg in enumerate(self.limbs.legs):
             if planted[f] and self.weight[f] == 0.0:
@@ -337,9 +336,10 @@ class FootLock:
             self.settling[f] = CLOSED
         return lifts
 
-    def _planted(self, shares: np.ndarray, world_pos: np.ndarray) -> np.ndarray:
+    def _planted(self, shares: np.ndarray, world_pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A foot is planted where its state says so, or where the state allows it and the
-        generated foot is on the floor and nearly still (as the data's contact was labelled)."""
+        generated foot is on the floor and nearly still (as the data's contact was labelled);
+        and each generated pivot's horizontal speed (cm/s), which the closing step reads too."""
         planted = shares >= PLANTED
         pivots = world_pos[self.pivot]
         speed = np.hypot(*(pivots - self.previous)[:, [0, 2]].T) * self.fps * self.cm
@@ -350,7 +350,7 @@ class FootLock:
                 planted[f] = lift < CONTACT_CM and speed[f] < CONTACT_SPEED_CM_S  # NaN speed (first frame): False
         if not planted.any() and shares.max() > 0.0:  # a walk has a foot on the floor: the likelier one
             planted[int(np.argmax(shares))] = True
-        return planted
+        return planted, speed
 
     def _target(self, f: int, leg, world_pos: np.ndarray, planted: bool, handing_over: bool) -> np.ndarray:
         """Where the ankle should be: the lock blended in horizontally, the lowest foot joint on

@@ -19,7 +19,7 @@ from instrument.runtime.tempo import (TICKS_PER_BEAT, BeatLock, TempoFollower, c
                                       step_seconds)
 from instrument.shipped import default_model_path
 from instrument.synthesis.engine import Engine, default_controls
-from instrument.synthesis.footfalls import Footfalls, side_of
+from instrument.synthesis.footfalls import Footfalls, pacing, side_of
 from instrument.synthesis.parameters import GAITS
 
 REPO = Path(__file__).resolve().parents[1]
@@ -176,19 +176,46 @@ def test_footfall_sides_come_from_the_hip_names():
     assert [side_of(n, 9) for n in ("UpperLeg_L", "RightUpLeg", "LHipJoint", "rhip", "r_thigh", "Hip")] == [0, 1, 0, 9, 1, 9]
 
 
+def test_a_stands_closing_step_is_a_footfall_the_beat_lock_does_not_read(model):
+    """A walk that stops: the stand's closing step (footlock.settle_feet) is reported once, in the
+    frame the lock's closing step is done, marked `closing` (a footstep sound plays for it), and
+    `pacing` leaves it out; the gait's own footfalls are not marked. Before, a closing step
+    reported nothing."""
+    from instrument.synthesis.footlock import CLOSED
+    from instrument.synthesis.stream import Controls
+
+    engine = Engine(model)
+    feet = Footfalls(engine.poses)
+    weights = default_controls(model, {"feminine": 1.0}).weights
+    falls, done = [], []
+    for k in range(150):
+        before = engine.poses.lock_state.settling[0].copy()
+        pose = engine.frame(k / engine.fps, Controls(weights, gait=GAITS.index("walk" if k < 60 else "stand")))
+        after = engine.poses.lock_state.settling[0]
+        done += [(k, f) for f in range(2) if 0.0 < before[f] < CLOSED and after[f] == CLOSED]
+        falls += [(k, f) for f in feet.after(pose)]
+    closing = [(k, f) for k, f in falls if f.closing]
+    assert done and len(closing) == len(done)
+    assert [k for k, _ in closing] == [k for k, _ in done]
+    assert all(f.speed > 0.0 for _, f in closing)  # the foot moved as it came down
+    assert not any(f.closing for k, f in falls if k < 60)  # the walk's own steps pace the lock
+    assert pacing([f for _, f in falls]) == [f for _, f in falls if not f.closing]
+
+
 def walk(model, bpm: float | None, seconds: float = 16.0, forced: float = 0.0, stop_at: float | None = None,
-         weights=None, clock_start: float = 1.0, gaits: tuple[tuple[float, str], ...] = ()):
+         weights=None, clock_start: float = 1.0, gaits: tuple[tuple[float, str], ...] = (), with_closing: bool = False):
     """The live loop's three pieces on the real engine (Engine, Footfalls, BeatLock), frame by frame at
     FPS, performance time as the clock; a MIDI clock at `bpm` (jittering) from `clock_start`; None: no
     lock; `gaits`: (from when, gait) the performer chooses. Returns the footfalls (time, side, speed)
-    of character 0 and the lock."""
+    of character 0 and the lock (with `with_closing`, also the times of its closing steps' footfalls,
+    which the lock does not read: `footfalls.pacing`)."""
     engine = Engine(model, fps=FPS)
     feet = Footfalls(engine.poses)
     follower = TempoFollower()
     lock = BeatLock(follower) if bpm else None
     controls = default_controls(model, weights or {"normal": 1.0})
     rng = np.random.default_rng(2)
-    tick, k, landed, speeds, out = (60.0 / bpm / TICKS_PER_BEAT if bpm else None), 0, {}, {}, []
+    tick, k, landed, speeds, out, closing = (60.0 / bpm / TICKS_PER_BEAT if bpm else None), 0, {}, {}, [], []
     if bpm:
         follower.message("start", clock_start - tick)
     for index in range(int(seconds * FPS)):
@@ -210,9 +237,10 @@ def walk(model, bpm: float | None, seconds: float = 16.0, forced: float = 0.0, s
         used = replace(controls, speed=locked_speed(speeds, controls.speed, 1)) if speeds else controls
         pose = engine.frame(now, used)
         falls = feet.after(pose)
-        landed = {f.character: now for f in falls if index > 0}
-        out += [(f.time, f.side, f.speed) for f in falls if f.character == 0]
-    return out, lock
+        landed = {f.character: now for f in pacing(falls) if index > 0}
+        out += [(f.time, f.side, f.speed) for f in pacing(falls) if f.character == 0]
+        closing += [f.time for f in falls if f.closing and f.character == 0]
+    return (out, lock, closing) if with_closing else (out, lock)
 
 
 def offsets_ms(times: np.ndarray, start: float, period: float) -> np.ndarray:
@@ -266,8 +294,10 @@ def test_every_gait_locks_a_run_to_its_own_ratio_and_a_stand_keeps_the_lock(mode
     clock as they were; the walk started from the stand is on the beat from its third footfall."""
     bpm, beat = 174.0, 60.0 / 174.0
     plan = ((0.0, "walk"), (7.0, "run"), (15.0, "stand"), (20.0, "walk"))
-    falls, lock = walk(model, bpm, seconds=30.0, gaits=plan)
+    falls, lock, closing = walk(model, bpm, seconds=30.0, gaits=plan, with_closing=True)
     times = np.array([t for t, _, _ in falls])
+    # the stand's closing steps are footfalls a sound plays for, in the stand, which the lock does not read
+    assert all(15.0 < t < 20.0 for t in closing)
     walked = times[(times > 4.0) & (times < 7.0)]
     assert np.percentile(offsets_ms(walked, 1.0, 2 * beat), 95) <= 40.0  # half a step a beat
     ran = times[(times > 10.0) & (times < 15.0)]

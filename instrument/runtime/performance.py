@@ -23,7 +23,7 @@ from ..models.modelfile import Model
 from ..synthesis.engine import Engine
 from ..synthesis.parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING, GAITS
 from ..control.values import all_values
-from ..synthesis.footfalls import Footfalls
+from ..synthesis.footfalls import Footfalls, pacing
 from ..synthesis.posing import Frame
 from ..synthesis.stream import gait_index
 from .clock import IDLE_UNTIL, FrameClock
@@ -244,7 +244,7 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
                                  f"({'it has ' + ', '.join(engine.gestures.names) if engine.gestures.names else 'none'}); "
                                  "the walk goes on")
             footfalls = feet.after(crowd)
-            landed = {f.character: clock.deadline(index) for f in footfalls if index > 0}
+            landed = {f.character: clock.deadline(index) for f in pacing(footfalls) if index > 0}
             frame = Frame(index, now, crowd, all_values(state), state.echo(), footfalls)
             prepared = [_attempt(console, summary, output, output.prepare, frame) for output in outputs]
             if index > 0:

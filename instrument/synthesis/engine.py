@@ -12,7 +12,8 @@ character is a crowd of one):
                                    turning steps in proportion to the steering (UnitChooser)
              -> plan + stream ---- the state plan and streaming MLPG (Crowd: one compiled call)
              -> range ------------ each feature's swing scaled to the data's (RangeFilter)
-             -> drive ------------ root speeds scaled by the cadence, the steering added
+             -> drive ------------ a braking body's steps shortened towards the stand's pose,
+                                   root speeds scaled by the cadence, the steering added
              -> gestures --------- while a gesture plays, its own label stream's upper body
                                    eased in over the gait's (GestureLayer, synthesis/gestures.py;
                                    its plan comes before the stream's, whose solve makes its
@@ -53,7 +54,7 @@ from .posing import CrowdPose, CrowdPoses
 from .stream import Controls, Crowd
 from .units import UnitChooser
 from .cores import over_cores, parts
-from .widen import RangeFilter, RangeSpace, range_part, range_space, unit_targets
+from .widen import RangeFilter, RangeSpace, range_part, range_space, stride_means, unit_targets
 
 ROOT_RATES = (1, 4)  # [first, last) of root.vx, root.vz, root.yaw_rate in the static features
 # a crowd of up to this many characters takes its range targets and contact shares from tables
@@ -320,6 +321,15 @@ def drive(static: np.ndarray, cadence: np.ndarray, travel: np.ndarray, turn: np.
         out[n, 3] += turn[n]
 
 
+def shortened(frames: np.ndarray, stand: np.ndarray, stride: np.ndarray) -> np.ndarray:
+    """Frames (N, D) with every feature but the root's rates (which the drive scales by the
+    travel) drawn towards the stand's pose `stand` (N, D) to the share `stride` (N,) of their
+    distance from it: a braking body's steps shortened as its travel eases out (units.py)."""
+    out = stand + stride[:, None] * (frames - stand)
+    out[:, ROOT_RATES[0]:ROOT_RATES[1]] = frames[:, ROOT_RATES[0]:ROOT_RATES[1]]
+    return out
+
+
 # ---- the engine ---------------------------------------------------------------------------------
 
 class Engine:
@@ -369,6 +379,7 @@ class Engine:
         self.frames: list[np.ndarray] = []  # the last two model frames (N, D), driven
         self.made = 0  # model frames made
         self._unit_span = 2 * model.states  # states a unit's two labels hold
+        self._stand_means: np.ndarray | None = None  # (N, D) `_stand_pose` as of the last retune (None: not made)
         # when a dict: seconds spent in each stage, added up frame after frame (`instrument bench`'s stage costs)
         self.stage_seconds: dict[str, float] | None = None
         self._clock = 0.0
@@ -407,6 +418,7 @@ class Engine:
             self.mix = replace(self.mix, performed=controls, paced=_changed_speeds(self._pace, pace, self.count))
         self._timed("cast")
         restyled, self._style, self._pace = style != self._style, style, pace
+        self._stand_means = None  # made again when a body next brakes
         for feature in self.features:
             if restyled:
                 feature.retune(self.mix, self.stream)
@@ -434,14 +446,16 @@ class Engine:
             frames = self.stream.step()
             ids = self.stream.history_ids[:, 1]
         self._timed("stream")
+        span = self._unit_span  # each frame's unit (one character's by Python's division: numpy's cost 1 us)
+        units = [int(ids[0]) // span] if self.count == 1 else ids // span
         if self.range_filter is not None:
-            span = self._unit_span  # a frame's unit (one character's by Python's division: numpy's cost 1 us)
-            units = [int(ids[0]) // span] if self.count == 1 else ids // span
             if self.count > TABLES_UP_TO:  # a crowd's: made and filtered part by part, over the cores
                 frames = self.range_targets.filtered(frames, units, self.range_filter)
             else:
                 frames = self.range_filter(frames, *self.range_targets.targets(units))
             self._timed("range")
+        if self.units.shortening:  # a body braking, or just stood still: its steps shortened
+            frames = shortened(frames, self._stand_pose(), self.units.stride)
         driven = np.empty(frames.shape)
         drive(frames, self.stream.cadence, self.units.travel, self.units.added_yaw, driven)
         frames = driven
@@ -454,12 +468,22 @@ class Engine:
             self.contact_shares = self.contact.at(ids)
             self.follow_strengths = self.contact.follow
             if self.standing is not None and self.count == 1:  # a Python number: numpy's array forms cost a frame 1 us
-                self.standing[0] = int(ids[0]) // self._unit_span == self.units.stand
+                self.standing[0] = units[0] == self.units.stand
             elif self.standing is not None:
-                np.equal(ids // self._unit_span, self.units.stand, out=self.standing)
+                np.equal(units, self.units.stand, out=self.standing)
             self._timed("contact")
         self.made += 1
         return frames
+
+    def _stand_pose(self) -> np.ndarray:
+        """(N, D) what each character's stand averages over its two pieces (its stride mean), as
+        the tables stand since the last retune: where a braking body's steps are drawn to."""
+        if self._stand_means is None:
+            k, states, tables = self.units.stand, self.model.states, self.stream.tables
+            rows = slice(2 * k * states, (2 * k + 2) * states)
+            self._stand_means = stride_means(self.stream.base[:, 2 * k:2 * k + 2], tables.mean_own[:, rows],
+                                             tables.mean_shared[rows])
+        return self._stand_means
 
     def _next_of_whole(self) -> tuple[np.ndarray, np.ndarray]:
         """Method "full": the walk's frames solved at once at the first call (with the tables as

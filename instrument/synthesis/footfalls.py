@@ -5,6 +5,12 @@ free: its blend weight leaves 0. `Footfalls.after` compares every character's we
 frame before's, so a footfall is reported in the frame the lock plants the foot, once, for every
 gait the lock handles. The foot's speed at impact is its pivot's (the front-most foot joint's)
 speed over the frame before, in metres per second: what a sampler turns into velocity.
+
+A stand's closing step (footlock.settle_feet: a foot stepping to where the stand's pose puts it,
+lifted and set down again while its lock holds) is a footfall too, in the frame the step is done
+(the foot's `settling` reaching CLOSED), so a footstep sound plays for it; it is marked `closing`,
+since it paces nothing: the beat lock reads only the walk's and run's footfalls (`pacing`), and
+a stand has none of those.
 """
 
 from __future__ import annotations
@@ -14,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .footlock import CLOSED
 from .posing import CrowdPose, CrowdPoses
 
 SIDES = ("left", "right")
@@ -37,6 +44,12 @@ class Footfall:
     side: int  # 0 left, 1 right (SIDES)
     time: float  # seconds of performance time (the frame's)
     speed: float  # metres per second of the foot just before it landed
+    closing: bool = False  # a stand's closing step (the foot set down beside the other), not a gait's step
+
+
+def pacing(footfalls: list[Footfall]) -> list[Footfall]:
+    """The footfalls that pace a walk or a run (what the beat lock times): all but closing steps."""
+    return [f for f in footfalls if not f.closing]
 
 
 class Footfalls:
@@ -46,6 +59,7 @@ class Footfalls:
         self.poses = poses
         lock = poses.lock
         self.weights = None if lock is None else np.zeros((poses.count, 2))  # the lock's blends in the frame before
+        self.settling = None if lock is None else np.zeros((poses.count, 2))  # and its closing steps' progress
         self.pivots: np.ndarray | None = None  # (N, 2, 3) the feet's pivots in the frame before
         self.metres = 0.0 if lock is None else lock.cm / 100.0  # metres per model unit
         names = [] if lock is None else lock.layout.skeleton.names
@@ -58,11 +72,15 @@ class Footfalls:
             return []
         weights = self.poses.lock_state.weights
         pivots = pose.world_positions[:, lock.feet[:, -1]]  # (N, 2, 3)
-        landed = np.argwhere((self.weights == 0.0) & (weights > 0.0))
+        settling = self.poses.lock_state.settling
+        landed = (self.weights == 0.0) & (weights > 0.0)
+        closed = (self.settling > 0.0) & (self.settling < CLOSED) & (settling == CLOSED)  # a closing step set down
         out = []
-        for n, side in landed:
+        for n, side in np.argwhere(landed | closed):
             moved = 0.0 if self.pivots is None else float(np.linalg.norm(pivots[n, side] - self.pivots[n, side]))
-            out.append(Footfall(int(n), self.sides[side], float(pose.time), moved * self.metres * self.poses.fps))
+            out.append(Footfall(int(n), self.sides[side], float(pose.time), moved * self.metres * self.poses.fps,
+                                bool(closed[n, side] and not landed[n, side])))
         self.weights = weights.copy()
+        self.settling = settling.copy()
         self.pivots = pivots.copy()
         return out

@@ -172,10 +172,14 @@ def _lowest_lift(world_pos, foot, ground_f):  # pragma: no cover - compiled
 def planted_feet(shares, world_pos, previous, feet, ground, fps, cm, planted):  # pragma: no cover - compiled
     """A foot is planted where its state says so, or where the state allows it and the generated
     foot is on the floor and nearly still (as the data's contact was labelled): written into
-    `planted` (2,) bool; `previous` (2, 3) becomes this frame's pivots."""
+    `planted` (2,) bool; `previous` (2, 3) becomes this frame's pivots. Returns each generated
+    pivot's horizontal speed since the frame before (cm/s; NaN at first), which the closing
+    step's 'still' test reads too."""
+    speeds = (np.hypot(world_pos[feet[0, -1], 0] - previous[0, 0], world_pos[feet[0, -1], 2] - previous[0, 2]) * fps * cm,
+              np.hypot(world_pos[feet[1, -1], 0] - previous[1, 0], world_pos[feet[1, -1], 2] - previous[1, 2]) * fps * cm)
     for f in range(2):
         pivot = world_pos[feet[f, -1]]
-        speed = np.hypot(pivot[0] - previous[f, 0], pivot[2] - previous[f, 2]) * fps * cm
+        speed = speeds[f]
         for i in range(3):
             previous[f, i] = pivot[i]
         planted[f] = shares[f] >= PLANTED
@@ -184,6 +188,7 @@ def planted_feet(shares, world_pos, previous, feet, ground, fps, cm, planted):  
             planted[f] = lift < CONTACT_CM and speed < CONTACT_SPEED_CM_S  # NaN speed (first frame): False
     if not planted[0] and not planted[1] and max(shares[0], shares[1]) > 0.0:  # a walk has a foot on the floor
         planted[0 if shares[0] >= shares[1] else 1] = True
+    return speeds
 
 
 @njit(cache=True, error_model="numpy")
@@ -502,11 +507,9 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     bool). Returns nothing: rotations, translations, the world transforms and the state are
     updated in place."""
     planted, extension, targets, turns, angles, matrices, lifts = work
-    still = standing  # both generated feet nearly still (no closing step while the pose steps off)
-    for f in range(2):
-        pivot = world_pos[feet[f, -1]]
-        still = still and np.hypot(pivot[0] - previous[f, 0], pivot[2] - previous[f, 2]) * fps * cm < SETTLE_STILL_CM_S
-    planted_feet(shares, world_pos, previous, feet, ground, fps, cm, planted)
+    speeds = planted_feet(shares, world_pos, previous, feet, ground, fps, cm, planted)
+    # both generated feet nearly still (no closing step while the pose steps off; NaN at first: not still)
+    still = standing and speeds[0] < SETTLE_STILL_CM_S and speeds[1] < SETTLE_STILL_CM_S
     step = 1.0 / BLEND_FRAMES
     for f in range(2):
         if planted[f] and weights[f] == 0.0:

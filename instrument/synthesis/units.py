@@ -39,6 +39,19 @@ holds the root's travel at 0; cut there at once, a run stopped dead (the hips fr
 to none: every joint's velocity jumped by that much) while the window's root speeds were still
 easing down from the run's. A stop called off before the stand eases back in from wherever its
 braking had got to.
+
+A body that brakes also shortens its steps: the engine draws each stopping body's pose towards
+the stand's (its stride mean) by the share its travel has lost (`stride`: the same smoothstep),
+so the stance foot moves back under the body no faster than the body slows, and the swinging
+foot lands shorter. Braked with the steps' full swing, the last step landed the swinging foot
+a stride ahead of a body that had stopped, and the stand's pose pulled it back under the hips
+at 10-14 cm a frame, stopped dead in one as the stand began (a toe's velocity jumped 12 cm/frame^2
+against 5-6 in the takes of the styles it happened to). A stop told less than STOP_SECONDS
+before its step ends takes one more, braked, step (the change waits, as NOTICE_SECONDS has a
+late one wait): braked within the rest of the step, the foot about to land was pulled back as it
+landed; with one more step, the other foot comes up beside it, a closing step as people stop.
+Once the body stands still (its travel 0), the stride eases back to 1 over STOP_SECONDS, where
+the stand's pose and its stride mean differ only by its sway.
 """
 
 from __future__ import annotations
@@ -96,6 +109,9 @@ class UnitChooser:
         self.level = np.ones(count)  # how far each body is eased into its travel, 0 (standing) to 1
         self.braking = np.full(count, np.inf)  # how much of its level a stopping body sheds a frame
         self.travel = np.ones(count)  # the share of its root's travel each body takes this frame
+        self.stride_level = np.ones(count)  # how far each body's pose takes its step's swing, 0 to 1
+        self.stride = np.ones(count)  # its smoothstep: the share of the swing the engine leaves (1: as made)
+        self.shortening = False  # some body's stride is below 1 (the engine draws its pose in)
         self._settled: tuple[int, float] | None = None  # (gait, turn) that left nothing to do frame by frame
 
     def __call__(self, gait: int, turn: float, stream: Crowd) -> None:
@@ -127,7 +143,9 @@ class UnitChooser:
         if stream.sent == 0:
             stream.begin_in(coming)
         elif (changed := coming != self.coming).any():  # (the steps' frames left only asked for a change)
-            late = changed & (counters[:, NEXT] == 0) & (self._frames_left(stream) < self.notice)
+            # a stop brakes over at least STOP_SECONDS of its steps: told later, it takes one more
+            notice = np.where(coming == self.stand, max(self.notice, self.stop_frames), self.notice)
+            late = changed & (counters[:, NEXT] == 0) & (self._frames_left(stream) < notice)
             counters[late, NEXT] = self.coming[late] + 1  # the step after this one as planned, then the change
         counters[:, UNIT] = coming
         self.coming = coming
@@ -138,14 +156,16 @@ class UnitChooser:
         rest = turn - side * share * self.turn_rates.get(side, 0.0)  # what turning steps do not give
         self.added_yaw[:] = np.where(standing, 0.0, rest)
         self._settled = ((gait, turn) if share == 0.0 and stream.sent > 0 and (current == unit).all()
-                         and (self.level == np.where(standing, 0.0, 1.0)).all() else None)  # no easing in or out
+                         and (self.level == np.where(standing, 0.0, 1.0)).all() and (self.stride_level == 1.0).all()
+                         else None)  # no easing in or out
 
     def _ease(self, standing: np.ndarray, stopping: np.ndarray, left: np.ndarray | None) -> None:
         """Each body's travel: eased in over START_SECONDS once it moves, and eased out while it
         stops, linearly in its level over the `left` frames before the stand begins (at least
         STOP_SECONDS' frames, the rest in the stand), so the level is 0 as it does; none while it
         stands. The travel is the level's smoothstep: no jump in speed nor in acceleration at
-        either end."""
+        either end. The stride follows the level down while the body brakes (never up: a stop
+        called off just after a stand) and comes back up over STOP_SECONDS once it is still."""
         if left is not None:
             self.braking[stopping] = self.level[stopping] / (np.maximum(left[stopping], self.stop_frames) + 1.0)
         moving = ~standing & ~stopping
@@ -154,6 +174,12 @@ class UnitChooser:
                          np.maximum(self.level - self.braking, 0.0))
         self.level = level
         self.travel = level * level * (3.0 - 2.0 * level)
+        braking = stopping | (standing & (level > 0.0))
+        stride = np.where(braking, np.minimum(self.stride_level, level),
+                          np.minimum(self.stride_level + 1.0 / self.stop_frames, 1.0))
+        self.stride_level = stride
+        self.stride = stride * stride * (3.0 - 2.0 * stride)
+        self.shortening = bool(stride.min() < 1.0)
 
     def _frames_to_stand(self, stream: Crowd, stopping: np.ndarray) -> np.ndarray:
         """(N,) the frames each body still moves before its stand begins, after this one: the rest
