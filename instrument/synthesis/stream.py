@@ -23,7 +23,7 @@ from numba import njit
 
 from .durations import MIN_FRAMES, whole_frames
 from .interpolation import CrowdLambda, StyleSpace
-from .cores import over_cores, parts
+from .cores import LEAST_PER_LIGHT_PART, over_cores, parts
 from .direct import DirectCall
 from .mlpg import _part, _prefetch_row, _solve
 from .parameters import DEFAULT_LOOKAHEAD, GAITS, MAX_SPEED, MIN_SPEED
@@ -217,7 +217,7 @@ class Crowd:
         speeds, liveliness = np.ascontiguousarray(speeds), float(liveliness)
         # a crowd's rows part by part over the cores (each row written by its own part only)
         over_cores(_tune, [(means, variances, speeds, scale, liveliness, rows[a:b], self.base, self.sigma, self.cadence)
-                           for a, b in parts(len(rows))])
+                           for a, b in parts(len(rows), LEAST_PER_LIGHT_PART)])
 
     def _draws_for(self, frames: int) -> None:
         """Make sure every character has draws for a plan over `frames` frames (at most one state
