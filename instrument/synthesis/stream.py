@@ -564,8 +564,8 @@ def _gather(tables, n, rows, guest_rows, a, b, local, means, precisions):  # pra
                 length = stop - start
                 mean_row, precision_row = _part(means, used, start, length), _part(precisions, used, start, length)
                 if plain:
-                    mean_row[:] = _part(mean_shared, r, start, length)
-                    precision_row[:] = _part(precision_shared, r, start, length)
+                    _copy_row(_part(mean_shared, r, start, length), mean_row)
+                    _copy_row(_part(precision_shared, r, start, length), precision_row)
                     continue
                 _sum_row(_part(mean_own, r, start, length), _part(mean_shared, r, start, length), mean_row)
                 if limit > 0.0:
@@ -577,6 +577,13 @@ def _gather(tables, n, rows, guest_rows, a, b, local, means, precisions):  # pra
                                  precision_row)
         local[m] = used
         used += 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _copy_row(a, out):  # pragma: no cover - compiled
+    """out = a (a slice's assignment would check the two for overlap and may copy through a new array)."""
+    for c in range(out.shape[0]):
+        out[c] = a[c]
 
 
 @njit(cache=True, nogil=True, inline="always")
