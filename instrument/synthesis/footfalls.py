@@ -58,11 +58,15 @@ class Footfalls:
             return []
         weights = self.poses.lock_state.weights
         pivots = pose.world_positions[:, lock.feet[:, -1]]  # (N, 2, 3)
-        landed = np.argwhere((self.weights == 0.0) & (weights > 0.0))
-        out = []
-        for n, side in landed:
-            moved = 0.0 if self.pivots is None else float(np.linalg.norm(pivots[n, side] - self.pivots[n, side]))
-            out.append(Footfall(int(n), self.sides[side], float(pose.time), moved * self.metres * self.poses.fps))
+        characters, feet = np.nonzero((self.weights == 0.0) & (weights > 0.0))
+        if self.pivots is None:
+            moved = np.zeros(len(characters))
+        else:  # every landed foot's pivot's move at once (a crowd of 1,000 lands some 60 feet a frame)
+            step = pivots[characters, feet] - self.pivots[characters, feet]
+            moved = np.sqrt(step[:, 0] * step[:, 0] + step[:, 1] * step[:, 1] + step[:, 2] * step[:, 2])
+        time_s, sides = float(pose.time), self.sides
+        out = [Footfall(n, sides[side], time_s, speed)
+               for n, side, speed in zip(characters.tolist(), feet.tolist(), (moved * self.metres * self.poses.fps).tolist())]
         self.weights = weights.copy()
-        self.pivots = pivots.copy()
+        self.pivots = pivots  # a copy already (the feet's columns taken out)
         return out
