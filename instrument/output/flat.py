@@ -240,8 +240,8 @@ _FOOTFALL_NUMBERS = struct.Struct(">iff")  # the character, the time, the speed
 
 def footfall_datagrams(footfalls: list[Footfall], characters: range) -> list[bytes]:
     """The /walk/footfall messages of a frame's footfalls of `characters`, bundled (none: []).
-    Each is its side's prefix and three numbers packed at once (a crowd of 1,000 lands some 60
-    feet a frame; `message` took 5 us each)."""
+    Each is its side's prefix and three numbers packed at once: a crowd of 1,000 lands some 60
+    feet a frame, and `message` works out the type tags of each again."""
     prefixes, pack = _FOOTFALL_PREFIXES, _FOOTFALL_NUMBERS.pack
     messages = [prefixes[f.side] + pack(f.character, f.time, f.speed) for f in footfalls if f.character in characters]
     return bundles(messages) if messages else []

@@ -14,8 +14,8 @@ from typing import Callable
 from .mlpg import _cores, _pool
 
 LEAST_PER_PART = 16  # characters: below this a part is not worth a thread's hand-over
-# ... for a stage of about a microsecond a character (the duration tables, `_tune`): a hand-over
-# costs the calling thread some 50 to 100 us (40 characters in two parts cost 135 us more a frame)
+# ... for a stage of about a microsecond a character (the duration tables, `_tune`), which a
+# hand-over's cost to the calling thread outweighs in a smaller crowd (docs/crowds.md)
 LEAST_PER_LIGHT_PART = 256
 
 

@@ -588,8 +588,8 @@ def _copy_row(a, out):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True, inline="always")
 def _sum_row(a, b, out):  # pragma: no cover - compiled
-    """out = a + b, rows as views that own nothing (`mlpg._part`): indexed in the 2-D tables the
-    loop stayed scalar (`_gather` put a character's ten rows together in 4.6 us)."""
+    """out = a + b, rows as views that own nothing (`mlpg._part`): indexed in the 2-D tables, the
+    compiler kept the loop scalar (docs/crowds.md)."""
     for c in range(out.shape[0]):
         out[c] = a[c] + b[c]
 
