@@ -248,17 +248,25 @@ def test_character_0_of_a_crowd_walks_exactly_as_a_run_of_one(model):
 def test_a_crowds_range_stage_over_the_cores_makes_the_numbers_of_its_stage_made_whole(model, monkeypatch):
     """A crowd's range stage runs part by part (`RangeTargets.filtered`, each part's targets and
     filter in one call on a core of its own): the same frames, bit for bit, as the targets made
-    for the whole crowd and then filtered, through a style jump and spread."""
-    from instrument.synthesis import cores
+    for the whole crowd and then filtered, through a style jump and spread. Every frame's stage is
+    seen cut in two parts that cover the crowd (the kernel's calls, counted where the engine hands
+    them to the cores), so a stage run whole would fail here."""
+    from instrument.synthesis import cores, engine
 
     monkeypatch.setattr(cores, "_cores", lambda: 2)  # two parts, whatever this machine has
     count = 2 * cores.LEAST_PER_PART
     parted, whole = Engine(model, characters=count), Engine(model, characters=count)
     targets = whole.range_targets
     targets.filtered = lambda frames, units, scale: scale(frames, *targets.targets(units))
-    calls = []
-    filtered = parted.range_targets.filtered
-    parted.range_targets.filtered = lambda *arguments: calls.append(1) or filtered(*arguments)
+    calls = []  # each range stage handed to the cores: the characters of each of its parts
+    handed = engine.over_cores
+
+    def watched(kernel, arguments):
+        if kernel is engine.range_part:
+            calls.append([len(part[0]) for part in arguments])  # a part's first argument: its characters' units
+        handed(kernel, arguments)
+
+    monkeypatch.setattr(engine, "over_cores", watched)
     state = ControlState(model.style_names, model.states)
     state.set("spread", 1.0)
     for i in range(40):
@@ -268,7 +276,8 @@ def test_a_crowds_range_stage_over_the_cores_makes_the_numbers_of_its_stage_made
         ours, theirs = (e.frame(i / model.fps, controls, state.spread) for e in (parted, whole))
         assert np.array_equal(ours.rotations, theirs.rotations), i
         assert np.array_equal(ours.world_positions, theirs.world_positions), i
-    assert len(calls) == 40  # every frame's range stage went part by part
+    half = count // 2
+    assert calls == [[half, count - half]] * 40  # every frame's range stage went in two parts, the whole crowd
 
 
 def test_an_osc_surface_moves_the_spread_and_sees_it_echoed(tmp_path):

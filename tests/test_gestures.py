@@ -288,7 +288,7 @@ def test_a_crowd_cut_into_parts_on_the_cores_gestures_as_one_part_does(model, mo
 
     controls = default_controls(model, {"active": 1.0, "feminine": 0.5}, liveliness=0.3)
     runs = []
-    for cut in (lambda count: [(0, count // 2), (count // 2, count)], lambda count: [(0, count)]):
+    for cut in (lambda count, least=None: [(0, count // 2), (count // 2, count)], lambda count, least=None: [(0, count)]):
         monkeypatch.setattr(stream, "parts", cut)
         engine, frames, hosted = Engine(model, 6), [], 0
         for k in range(150):

@@ -25,6 +25,7 @@ from .crowd_bench import largest_crowd, measure_cost
 
 MLPG_FRAMES = 10_000
 BATCH = 100
+SOLVES = 100  # window solves in one turn of the yardstick
 
 
 def measure_pacing(model_path: str | None, seconds: float, fps: float, console_address: str | None = None,
@@ -184,14 +185,8 @@ def measure(model_path: str | None, repeat: int) -> dict:
     figures["bvh_parse_ms_500x22"] = 1000 * median_seconds(lambda: parse_bvh(text), repeat)
     figures["features_ms_500x22"] = 1000 * median_seconds(lambda: extract(motion, layout), repeat)
 
-    model = load_model(model_path or default_model_path())
+    model, all_styles, lam, ids = _walk_of_all_styles(model_path)
     dimension = model.layout.dimension
-    all_styles = Controls(np.full(len(model.style_names), 1.0 / len(model.style_names)) * 1.5)
-    planner = Engine(model)
-    planner.retune(all_styles)
-    ids = planner.stream.state_plan(MLPG_FRAMES)
-    space = planner.space
-    lam = interpolate(space, all_styles.weights)
     means, variances = lam.means[ids], 1.0 / lam.precisions[ids]
     figures["dimension"] = dimension
     figures["mlpg_frames"] = MLPG_FRAMES
@@ -212,7 +207,7 @@ def measure(model_path: str | None, repeat: int) -> dict:
 
     # the yardstick of the streaming figures: the bare solve of one window of the same size, `frames`
     # times a block, timed turn about with each figure set against it (`against_yardstick`)
-    frames, turns = 100, max(7, repeat)
+    frames, turns = SOLVES, max(7, repeat)
     solves = window_solves(lam, ids, frames)
 
     # the engine's stream stage alone (plan, window solve, rate limit), its tables set by the other stages
@@ -241,6 +236,18 @@ def measure(model_path: str | None, repeat: int) -> dict:
     return figures
 
 
+def _walk_of_all_styles(model_path: str | None):
+    """What the bench's figures are measured on: the model, the controls mixing all its styles
+    (1.5 x the even mix), their lambda* and the state ids of a walk of MLPG_FRAMES frames planned
+    with them (the window solve, the yardstick, is of its first states)."""
+    model = load_model(model_path or default_model_path())
+    all_styles = Controls(np.full(len(model.style_names), 1.0 / len(model.style_names)) * 1.5)
+    planner = Engine(model)
+    planner.retune(all_styles)
+    ids = planner.stream.state_plan(MLPG_FRAMES)
+    return model, all_styles, interpolate(planner.space, all_styles.weights), ids
+
+
 def window_solves(lam, ids: np.ndarray, frames: int):
     """The yardstick: a function making `frames` bare solves of one streaming window (its states
     the first of `ids`, lambda* `lam`)."""
@@ -259,14 +266,9 @@ def measure_crowd(model_path: str | None) -> dict:
     """`bench --crowd`: only the live crowd's figures (`crowd_bench`: the cost of each stage per
     character against the window solve, and the largest crowd that keeps time), in a minute or
     two, where the whole bench takes several."""
-    model = load_model(model_path or default_model_path())
-    all_styles = Controls(np.full(len(model.style_names), 1.0 / len(model.style_names)) * 1.5)
-    planner = Engine(model)
-    planner.retune(all_styles)
-    ids = planner.stream.state_plan(MLPG_FRAMES)
-    frames = 100
+    model, _, lam, ids = _walk_of_all_styles(model_path)
     figures = {"machine": machine()}
-    figures |= measure_cost(model, window_solves(interpolate(planner.space, all_styles.weights), ids, frames), frames)
+    figures |= measure_cost(model, window_solves(lam, ids, SOLVES), SOLVES)
     figures |= largest_crowd(model, figures["stream_us_per_character"])
     return figures
 

@@ -28,6 +28,8 @@ after character 0's root and before the echo. The echo and /walk/frame are sent 
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 from numba import njit
 
@@ -231,8 +233,15 @@ class FlatProfile:
         return template.fill(values[poses:], int(pose.index), first=len(arrays[0]) * per)
 
 
+# /walk/footfall's start for each side (address, type tags, the side): `message`'s bytes, made once
+_FOOTFALL_PREFIXES = [message("/walk/footfall", side, 0, 0.0, 0.0)[:-12] for side in SIDES]
+_FOOTFALL_NUMBERS = struct.Struct(">iff")  # the character, the time, the speed
+
+
 def footfall_datagrams(footfalls: list[Footfall], characters: range) -> list[bytes]:
-    """The /walk/footfall messages of a frame's footfalls of `characters`, bundled (none: [])."""
-    messages = [message("/walk/footfall", SIDES[f.side], f.character, f.time, f.speed)
-                for f in footfalls if f.character in characters]
+    """The /walk/footfall messages of a frame's footfalls of `characters`, bundled (none: []).
+    Each is its side's prefix and three numbers packed at once: a crowd of 1,000 lands some 60
+    feet a frame, and `message` works out the type tags of each again."""
+    prefixes, pack = _FOOTFALL_PREFIXES, _FOOTFALL_NUMBERS.pack
+    messages = [prefixes[f.side] + pack(f.character, f.time, f.speed) for f in footfalls if f.character in characters]
     return bundles(messages) if messages else []

@@ -14,6 +14,9 @@ from typing import Callable
 from .mlpg import _cores, _pool
 
 LEAST_PER_PART = 16  # characters: below this a part is not worth a thread's hand-over
+# ... for a stage of about a microsecond a character (the duration tables, `_tune`), which a
+# hand-over's cost to the calling thread outweighs in a smaller crowd (docs/crowds.md)
+LEAST_PER_LIGHT_PART = 256
 
 
 def parts(count: int, least: int = LEAST_PER_PART) -> list[tuple[int, int]]:

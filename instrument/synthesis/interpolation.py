@@ -32,6 +32,7 @@ from ..models.modelfile import Model
 from ..motion.bvh import Motion
 from ..motion.features import ROOT_FEATURES, FeatureLayout
 from ..motion.kinematics import forward_kinematics, local_transforms
+from .cores import LEAST_PER_LIGHT_PART, over_cores, parts
 from .parameters import GROUPS
 
 MAX_LOG_VARIANCE_CHANGE = float(np.log(1e4))  # extreme weights may scale a variance 10^4 times, no more
@@ -200,9 +201,19 @@ class StyleInterpolation:
                                  change[1], space.base[1], limit)
         shape = (len(self.offsets), space.labels, space.states)
         means, variances = np.empty(shape), np.empty(shape)
-        _duration_tables(space.duration_base, duration_change, self.offset_duration_change, spread, limit,
-                         means.reshape(len(means), -1), variances.reshape(len(means), -1))
-        return tables, means, np.exp(variances, out=variances)  # numpy's exp, as the shared tables' (one character's bits)
+        flat_means, flat_variances = means.reshape(len(means), -1), variances.reshape(len(means), -1)
+        # a crowd's part by part over the cores (each character's numbers its own: the same bits in any part)
+        over_cores(_duration_part, [(space.duration_base, duration_change, self.offset_duration_change[a:b], spread, limit,
+                                     flat_means[a:b], flat_variances[a:b]) for a, b in parts(len(means), LEAST_PER_LIGHT_PART)])
+        return tables, means, variances
+
+
+def _duration_part(base: np.ndarray, shared: np.ndarray, own: np.ndarray, spread: float, limit: float, means: np.ndarray,
+                   variances: np.ndarray) -> None:
+    """Some characters' duration means and variances (`_duration_tables`, then numpy's exp of the
+    log variances, as the shared tables' exp: one character's bits; both let go of the GIL)."""
+    _duration_tables(base, shared, own, spread, limit, means, variances)
+    np.exp(variances, out=variances)
 
 
 @njit(cache=True, nogil=True)

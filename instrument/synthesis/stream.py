@@ -23,9 +23,9 @@ from numba import njit
 
 from .durations import MIN_FRAMES, whole_frames
 from .interpolation import CrowdLambda, StyleSpace
-from .cores import over_cores, parts
+from .cores import LEAST_PER_LIGHT_PART, over_cores, parts
 from .direct import DirectCall
-from .mlpg import _prefetch_row, _solve
+from .mlpg import _part, _prefetch_row, _solve
 from .parameters import DEFAULT_LOOKAHEAD, GAITS, MAX_SPEED, MIN_SPEED
 
 
@@ -212,8 +212,12 @@ class Crowd:
         scale = np.ones(self.space.states) if state_scale is None else np.asarray(state_scale, dtype=np.float64)
         speeds = np.broadcast_to(np.asarray(speed, dtype=np.float64), (self.count,))  # one a character: the beat lock's
         rows = np.arange(self.count) if rows is None else np.asarray(rows, dtype=np.int64)
-        _tune(np.ascontiguousarray(duration_means, dtype=np.float64), np.ascontiguousarray(duration_variances, dtype=np.float64),
-              np.ascontiguousarray(speeds), scale, float(liveliness), rows, self.base, self.sigma, self.cadence)
+        means = np.ascontiguousarray(duration_means, dtype=np.float64)
+        variances = np.ascontiguousarray(duration_variances, dtype=np.float64)
+        speeds, liveliness = np.ascontiguousarray(speeds), float(liveliness)
+        # a crowd's rows part by part over the cores (each row written by its own part only)
+        over_cores(_tune, [(means, variances, speeds, scale, liveliness, rows[a:b], self.base, self.sigma, self.cadence)
+                           for a, b in parts(len(rows), LEAST_PER_LIGHT_PART)])
 
     def _draws_for(self, frames: int) -> None:
         """Make sure every character has draws for a plan over `frames` frames (at most one state
@@ -557,22 +561,44 @@ def _gather(tables, n, rows, guest_rows, a, b, local, means, precisions):  # pra
             r = rows[m] if k == 0 else guest_rows[m]
             for w in range(3 if k else 1):
                 start, stop = (w * dim + a, w * dim + b) if k else (0, width)
+                length = stop - start
+                mean_row, precision_row = _part(means, used, start, length), _part(precisions, used, start, length)
                 if plain:
-                    for c in range(start, stop):
-                        means[used, c] = mean_shared[r, c]
-                        precisions[used, c] = precision_shared[r, c]
+                    _copy_row(_part(mean_shared, r, start, length), mean_row)
+                    _copy_row(_part(precision_shared, r, start, length), precision_row)
                     continue
-                for c in range(start, stop):
-                    means[used, c] = mean_own[r, c] + mean_shared[r, c]
+                _sum_row(_part(mean_own, r, start, length), _part(mean_shared, r, start, length), mean_row)
                 if limit > 0.0:
                     for c in range(start, stop):
                         value = min(max(precision_own[r, c] + clip_change[r, c], -limit), limit)
                         precisions[used, c] = np.exp(-(value + clip_base[r, c]))
                 else:
-                    for c in range(start, stop):
-                        precisions[used, c] = precision_own[r, c] * precision_shared[r, c]
+                    _product_row(_part(precision_own, r, start, length), _part(precision_shared, r, start, length),
+                                 precision_row)
         local[m] = used
         used += 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _copy_row(a, out):  # pragma: no cover - compiled
+    """out = a (a slice's assignment would check the two for overlap and may copy through a new array)."""
+    for c in range(out.shape[0]):
+        out[c] = a[c]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _sum_row(a, b, out):  # pragma: no cover - compiled
+    """out = a + b, rows as views that own nothing (`mlpg._part`): indexed in the 2-D tables, the
+    compiler kept the loop scalar (docs/crowds.md)."""
+    for c in range(out.shape[0]):
+        out[c] = a[c] + b[c]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _product_row(a, b, out):  # pragma: no cover - compiled
+    """out = a * b, as `_sum_row`."""
+    for c in range(out.shape[0]):
+        out[c] = a[c] * b[c]
 
 
 @njit(cache=True, nogil=True)

@@ -30,7 +30,7 @@ from numba import njit
 
 from ..motion.features import ROOT_FEATURES
 from .interpolation import body_groups, part_weights_per_group
-from .mlpg import _prefetch_row
+from .mlpg import _part, _prefetch_row
 from .stream import numpy_sum
 
 STRENGTH = 1.0  # share of the learnt log factor applied (chosen by `instrument evaluate`, docs/evaluate.md)
@@ -119,17 +119,29 @@ def unit_targets(units, held, scaled, base, own, shared, factor, means, factors)
             for k in range(2 * states):
                 frames[k] = base[n, 2 * unit + k // states, k % states]
             total = numpy_sum(frames)
-            first = 2 * unit * states
-            for d in range(means.shape[1]):  # the sums run row by row (each in k's order), as the rows lie
-                means[n, d] = frames[0] * (own[n, first, d] + shared[first, d])
+            first, width = 2 * unit * states, means.shape[1]
+            # the sums run row by row (each in k's order), as the rows lie; rows as views that own
+            # nothing (`mlpg._part`): indexed in the 2-D and 3-D tables the loops stayed scalar
+            mean, mine = _part(means, n, 0, width), own[n]
+            _weighted_row(frames[0], _part(mine, first, 0, width), _part(shared, first, 0, width), mean, False)
             for k in range(1, 2 * states):
-                for d in range(means.shape[1]):
-                    means[n, d] += frames[k] * (own[n, first + k, d] + shared[first + k, d])
-            for d in range(means.shape[1]):
-                means[n, d] /= total
+                _weighted_row(frames[k], _part(mine, first + k, 0, width), _part(shared, first + k, 0, width), mean, True)
+            for d in range(width):
+                mean[d] /= total
             held[n] = unit
         for d in range(factors.shape[1]):
             factors[n, d] = factor[n, d] if scaled[unit] else 1.0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _weighted_row(weight, own, shared, out, adding):  # pragma: no cover - compiled
+    """out = weight (own + shared), or out += that when `adding` (`unit_targets`' stride mean)."""
+    if adding:
+        for d in range(out.shape[0]):
+            out[d] += weight * (own[d] + shared[d])
+    else:
+        for d in range(out.shape[0]):
+            out[d] = weight * (own[d] + shared[d])
 
 
 @njit(cache=True, nogil=True)
