@@ -19,7 +19,7 @@ from ..motion.bvh import Motion
 from ..motion.features import ROOT_FEATURES, heading_angle, restore
 from ..motion.kinematics import forward_kinematics, local_transforms
 from ..motion.limbs import find_limbs
-from ..motion.quality import limb_ranges
+from ..motion.quality import limb_ranges, skate
 from ..synthesis.engine import Engine, render
 from ..synthesis.stream import Controls
 from .little import data_weight, pulled_factors
@@ -72,8 +72,8 @@ def _real_range(takes, dimension: int) -> np.ndarray | None:
 # takes' range) took the hip from -4% to -8% of its takes' and the skate from 0.43x to 0.56x (the
 # lock bends what the knee adds); the arms move nothing the lock holds.
 CALIBRATED = {"knee_deg": LIMIT, "hip_deg": LIMIT, "shoulder_deg": CALIBRATED_LIMIT}
-# The legs' figures, calibrated together through their measured sensitivities (`_calibrate_limbs`);
-# the others each by its own ratio.
+# The legs' figures, calibrated together through their measured sensitivities (`_calibrate_legs`)
+# after the knees' and shoulders' own ratios.
 COUPLED = ("hip_deg", "knee_deg")
 PROBE = 0.1  # the change of a leg's log factors by which its figures' sensitivities are measured
 
@@ -91,9 +91,11 @@ def _calibrated_columns(layout, limbs) -> dict[str, list[int]]:
 
 
 def _limb_figures(motion, limbs, root: int) -> dict[str, float]:
-    """The knees', hips' and shoulders' ranges of a walk in degrees, as `instrument evaluate` measures them."""
+    """The knees', hips' and shoulders' ranges of a walk in degrees, and its feet's skate (in the
+    skeleton's units per second), as `instrument evaluate` measures them."""
     world_rot, world_pos = forward_kinematics(motion.skeleton, *local_transforms(motion))
-    return limb_ranges(world_pos, heading_angle(world_rot[:, root]), limbs, root)
+    return limb_ranges(world_pos, heading_angle(world_rot[:, root]), limbs, root) | {
+        "skate": skate(world_pos, limbs, motion.fps)}
 
 
 def _miss(real: dict[str, float], made: dict[str, float], figures) -> float:
@@ -116,25 +118,17 @@ def _calibrate_limbs(model, takes, log_factors: np.ndarray, weights: np.ndarray,
     """Moves the knees', hips' and shoulders' log factors (in place) so that the walk the
     instrument plays at `weights`, feet planted, bends its knees and swings its thighs and upper
     arms through the takes' ranges, as `instrument evaluate` measures them (a figure it cannot
-    measure is left as the features gave it); of the walks played, the factors of the one
-    nearest the takes (`_miss`) are kept.
+    measure is left as the features gave it).
 
-    The foot lock keeps a planted leg's generated bend where it can (a heel rises instead), but a
-    swinging foot kept off the floor bends its knee more, so the features' range alone left the
-    played knee up to 13% short (elderly). A planted thigh's swing is the lock's geometry: the
-    foot stays where it landed and the body travels on, so a thigh swung wider by its features
-    lands its foot further ahead and ends its stance further forward, and a knee bent more at
-    toe-off turns the thigh forward: on the shipped model, widening elderly's thighs by 10%
-    narrowed its played hip from 25.7 to 22.8 deg (docs/evaluate.md). So the hips' and knees'
-    factors are moved together, by their figures' sensitivities to each, measured on the played
-    walk (PROBE: two more walks, once), a Newton step a round; each figure alone, by its own
-    ratio, did not converge. An upper arm's swing is the turn of the shoulder, collar and spine
+    First the knees and the shoulders, each by its own ratio, CALIBRATION_ROUNDS times. The foot
+    lock keeps a planted leg's generated bend where it can (a heel rises instead), but a swinging
+    foot kept off the floor bends its knee more, so the features' range alone left the played knee
+    up to 13% short (elderly). An upper arm's swing is the turn of the shoulder, collar and spine
     together, and where takes swing their arms differently the states average them nearly away:
     the shoulder features' range ratio, bounded at LIMIT, left a public capture's swing 32% short
     (tests/data/cmu-131; docs/evaluate.md): the shoulders' factors, measured on the walk itself,
-    are bounded at CALIBRATED_LIMIT instead, and moved by their own ratio (the arms move nothing
-    the lock holds). `extras_with(log_factors)` gives the model's extras with these factors in
-    their place."""
+    are bounded at CALIBRATED_LIMIT instead. Then the hips with the knees (`_calibrate_legs`).
+    `extras_with(log_factors)` gives the model's extras with these factors in their place."""
     layout = model.layout
     limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
     chosen = [t for t in takes if t.steps]
@@ -147,46 +141,69 @@ def _calibrate_limbs(model, takes, log_factors: np.ndarray, weights: np.ndarray,
                 for t in chosen]
     frames_of = [t.frames for t in chosen]
     real = {figure: float(np.average([m[figure] for m in measured], weights=frames_of)) for figure in columns}
-    coupled = [f for f in COUPLED if f in columns and np.isfinite(real[f]) and real[f] > 0]
-    alone = [f for f in columns if f not in coupled]
 
-    def played(factors: np.ndarray) -> dict[str, float]:
-        log_factors[:] = factors
+    def played() -> dict[str, float]:
         trial = replace(model, extras=extras_with(log_factors))
         made = render(trial, Controls(weights), SETTLE + int(round(CALIBRATION_SECONDS * model.fps)))
         return _limb_figures(Motion(made.skeleton, made.channels[SETTLE:], made.fps), limbs, layout.root)
+
+    for _ in range(CALIBRATION_ROUNDS):
+        made = played()
+        for figure in (f for f in ("knee_deg", "shoulder_deg") if f in columns):
+            step = np.log(real[figure] / made[figure])
+            if np.isfinite(step):  # a walk too short or too still to measure: keep what the features gave
+                bound = CALIBRATED[figure]
+                log_factors[columns[figure]] = np.clip(log_factors[columns[figure]] + step, -bound, bound)
+    legs = [f for f in COUPLED if f in columns and np.isfinite(real[f]) and real[f] > 0]
+    if len(legs) == len(COUPLED):
+        _calibrate_legs(log_factors, real, {f: columns[f] for f in legs}, played)
+
+
+def _calibrate_legs(log_factors: np.ndarray, real: dict[str, float], columns: dict[str, list[int]], played) -> None:
+    """Moves the hips' and knees' log factors (in place) together toward the takes' hip and knee
+    ranges: a planted thigh's swing is the lock's geometry, the foot staying where it landed while
+    the body travels on, so a thigh swung wider by its features lands its foot further ahead and
+    ends its stance further forward, and a knee bent more at toe-off turns the thigh forward. On
+    the shipped model, widening elderly's thighs by 10% narrowed its played hip from 25.7 to 22.8
+    deg (docs/evaluate.md), and the hips corrected by their own ratio did not converge. So the
+    figures' sensitivities to each leg's factors are measured once on the played walk (`played()`
+    with the factors in place; PROBE: two more walks), then CALIBRATION_ROUNDS Newton steps are
+    played, and the factors of the walk nearest the takes (`_miss`) among those whose feet skate
+    no more than the walk's before are kept: calibrated at any cost, a re-rigged feminine walk's
+    skate went from 0.37x its takes' to 1.43x."""
+    figures = list(columns)
+    start = log_factors.copy()
 
     def moved(factors: np.ndarray, figure: str, step: float) -> np.ndarray:
         out = factors.copy()
         out[columns[figure]] = np.clip(out[columns[figure]] + step, -CALIBRATED[figure], CALIBRATED[figure])
         return out
 
-    start = log_factors.copy()
-    made = played(start)
-    best, nearest = start.copy(), _miss(real, made, columns)
-    sensitivity = None
-    if coupled and all(np.isfinite(made[f]) for f in coupled):
-        sensitivity = np.empty((len(coupled), len(coupled)))
-        for k, lever in enumerate(coupled):
-            probed = played(moved(start, lever, PROBE))
-            sensitivity[:, k] = [np.log(probed[f] / made[f]) / PROBE for f in coupled]
-        if not np.isfinite(sensitivity).all():
-            sensitivity = None
+    def play(factors: np.ndarray) -> dict[str, float]:
+        log_factors[:] = factors
+        return played()
+
+    made = play(start)
+    best, nearest, sliding = start, _miss(real, made, figures), made["skate"]
+    if not np.isfinite(nearest):
+        log_factors[:] = start
+        return
+    sensitivity = np.empty((len(figures), len(figures)))
+    for k, lever in enumerate(figures):
+        probed = play(moved(start, lever, PROBE))
+        sensitivity[:, k] = [np.log(probed[f] / made[f]) / PROBE for f in figures]
     current = start
-    for _ in range(CALIBRATION_ROUNDS):
-        factors = current.copy()
-        if sensitivity is not None:
-            wanted = np.array([np.log(real[f] / made[f]) for f in coupled])
-            for lever, step in zip(coupled, _leg_step(sensitivity, wanted)):
-                factors = moved(factors, lever, step)
-        for figure in alone:
-            step = np.log(real[figure] / made[figure])
-            if np.isfinite(step):  # a walk too short or too still to measure: keep what the features gave
-                factors = moved(factors, figure, step)
-        current, made = factors, played(factors)
-        miss = _miss(real, made, columns)
-        if miss < nearest:
-            best, nearest = current.copy(), miss
+    if np.isfinite(sensitivity).all():
+        for _ in range(CALIBRATION_ROUNDS):
+            wanted = np.array([np.log(real[f] / made[f]) for f in figures])
+            if not np.isfinite(wanted).all():
+                break
+            for lever, step in zip(figures, _leg_step(sensitivity, wanted)):
+                current = moved(current, lever, step)
+            made = play(current)
+            miss = _miss(real, made, figures)
+            if miss < nearest and made["skate"] <= sliding:
+                best, nearest = current, miss
     log_factors[:] = best
 
 
