@@ -115,7 +115,7 @@ def limb_ranges(pos: np.ndarray, yaw: np.ndarray, limbs: Limbs, root: int) -> di
 def skate(pos: np.ndarray, limbs: Limbs, fps: float) -> float:
     """How fast the foot joint carrying the body (the lowest of both feet's in each frame) moves
     over the floor, on average, in the units of the world positions `pos` (T, J, 3) per second.
-    Training's range calibration holds it too (synthesis/widen.py)."""
+    Training's range calibration holds it no higher (training/widen.py)."""
     feet = list(limbs.feet[0] + limbs.feet[1])
     lowest = np.argmin(pos[:, feet, 1], axis=1)
     moving = np.linalg.norm(np.gradient(pos[:, feet][:, :, [0, 2]], axis=0), axis=2) * fps
