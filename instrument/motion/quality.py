@@ -112,6 +112,16 @@ def limb_ranges(pos: np.ndarray, yaw: np.ndarray, limbs: Limbs, root: int) -> di
             "shoulder_deg": float(np.mean(shoulders)) if shoulders else float("nan")}
 
 
+def skate(pos: np.ndarray, limbs: Limbs, fps: float) -> float:
+    """How fast the foot joint carrying the body (the lowest of both feet's in each frame) moves
+    over the floor, on average, in the units of the world positions `pos` (T, J, 3) per second.
+    Training's range calibration holds it no higher (training/widen.py)."""
+    feet = list(limbs.feet[0] + limbs.feet[1])
+    lowest = np.argmin(pos[:, feet, 1], axis=1)
+    moving = np.linalg.norm(np.gradient(pos[:, feet][:, :, [0, 2]], axis=0), axis=2) * fps
+    return float(moving[np.arange(len(pos)), lowest].mean())
+
+
 def walk_figures(motion: Motion, layout: FeatureLayout, limbs: Limbs, ground: np.ndarray, cm: float,
                  sole: float | None = None) -> dict[str, float]:
     """The figures of one walk (see the module's docstring); NaN where a walk has too few steps.
@@ -142,10 +152,7 @@ def walk_figures(motion: Motion, layout: FeatureLayout, limbs: Limbs, ground: np
         horizontal = np.linalg.norm(np.gradient(pos[:, list(foot)][:, :, [0, 2]], axis=0), axis=2) * fps
         speeds.append(horizontal[np.arange(motion.frames), lowest])
     lift, speed = np.array(lifts), np.array(speeds)
-    feet = list(limbs.feet[0] + limbs.feet[1])
-    lowest = np.argmin(pos[:, feet, 1], axis=1)  # the lowest foot joint carries the body
-    moving = np.linalg.norm(np.gradient(pos[:, feet][:, :, [0, 2]], axis=0), axis=2) * fps
-    out["skate_cm_s"] = float(moving[np.arange(motion.frames), lowest].mean())
+    out["skate_cm_s"] = skate(pos, limbs, fps)
     contact = lift < CONTACT_CM
     out["contact_skate_cm_s"] = float(speed[contact].mean()) if contact.any() else float("nan")
     out["under_frac"] = float((lift < -UNDER_CM).any(axis=0).mean())

@@ -134,10 +134,11 @@ def build_model(
 
 def ranged_and_standing(model: Model, walks: list[Take], little_tau: float | None = LITTLE_TAU) -> Model:
     """`model` (its contact statistics trained) with its range factors, its body's height and
-    then its knees' calibration, in that order: the height shift is measured on the walk the
-    features and their ranges make, feet not locked; the knees are calibrated on the walk as
-    played, feet locked on the floor, which is only the takes' once the body stands on it (the
-    calibration run first fitted a raised capture's knees to a walk the shift then moved)."""
+    then its limbs' calibration (knees, hips, shoulders), in that order: the height shift is
+    measured on the walk the features and their ranges make, feet not locked; the limbs are
+    calibrated on the walk as played, feet locked on the floor, which is only the takes' once the
+    body stands on it (the calibration run first fitted a raised capture's knees to a walk the
+    shift then moved)."""
     model = replace(model, extras=dict(model.extras or {}) | train_range(model, walks))
     model = stand_on_the_floor(model, walks)
     return replace(model, extras=dict(model.extras) | calibrate_range(model, walks, little_tau))
