@@ -99,9 +99,6 @@ def test_played_walks_swing_knees_and_hips_through_the_takes_ranges(model):
 
 
 @needs_walks
-@pytest.mark.xfail(strict=True, reason="not met by the shipped model: elderly's played hip is 5.5% short of its takes'. "
-                   "Training now calibrates the hips (widen._calibrate_legs; a retrain plays it -0.2%), but a retrain "
-                   "fails two x2 start rows of issue 25 the shipped model passes, so it is not shipped (docs/evaluate.md)")
 def test_elderly_swings_its_hips_through_its_takes_range(model):
     made, real = _played_ranges(model).synth["elderly"], _played_ranges(model).real["elderly"]
     assert made["hip_deg"] == pytest.approx(real["hip_deg"], rel=0.05)
