@@ -95,3 +95,16 @@ def test_a_mutated_model_loads_and_walks_or_is_one_line(model_parts):
         for k in range(5):
             pose = engine.frame(k / engine.fps, controls)
         assert np.isfinite(pose.world_positions).all()
+
+
+def test_a_metadata_number_too_large_for_a_float_is_one_line(tmp_path):
+    """JSON holds whole numbers of any size; numpy's isfinite cannot take one past 2**64 (the
+    fuzzer's find, a TypeError from the loader): such a frame rate is refused in one line."""
+    path = tmp_path / "huge.npz"
+    np.savez(path, **ARRAYS | {"metadata": np.array(json.dumps(METADATA | {"fps": 10 ** 400}))})
+    try:
+        load_model(path)
+    except UserError as error:
+        assert len(str(error).splitlines()) == 1 and "'fps'" in str(error) and str(path) in str(error)
+    else:
+        raise AssertionError("a frame rate of 10**400 was accepted")

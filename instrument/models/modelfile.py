@@ -17,6 +17,7 @@ Arrays:
 from __future__ import annotations
 
 import json
+import math
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -145,8 +146,8 @@ def _check_metadata(path: Path, metadata: dict) -> None:
         shown = json.dumps(metadata.get(key))
         return UserError(f"{path}: metadata {key!r}: expected {expected}, not {shown[:60]}{'...' if len(shown) > 60 else ''}")
 
-    def number(value) -> bool:
-        return isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value)
+    def number(value) -> bool:  # a whole number of any size (JSON's), or a finite real one
+        return (isinstance(value, int) and not isinstance(value, bool)) or (isinstance(value, float) and math.isfinite(value))
 
     for key in ("fps", "states", "labels", "styles", "skeleton", "features"):
         if key not in metadata:
