@@ -90,6 +90,13 @@ def _calibrated_columns(layout, limbs) -> dict[str, list[int]]:
     return {figure: found for figure, found in columns.items() if found}
 
 
+def _widen(log_factors: np.ndarray, found: list[int], figure: str, step: float) -> None:
+    """The log factors of a calibrated figure's columns `found` moved by `step` (in place), held
+    within the figure's bound (CALIBRATED)."""
+    bound = CALIBRATED[figure]
+    log_factors[found] = np.clip(log_factors[found] + step, -bound, bound)
+
+
 def _limb_figures(motion, limbs, root: int) -> dict[str, float]:
     """The knees', hips' and shoulders' ranges of a walk in degrees, and its feet's skate (in the
     skeleton's units per second), as `instrument evaluate` measures them."""
@@ -152,8 +159,7 @@ def _calibrate_limbs(model, takes, log_factors: np.ndarray, weights: np.ndarray,
         for figure in (f for f in ("knee_deg", "shoulder_deg") if f in columns):
             step = np.log(real[figure] / made[figure])
             if np.isfinite(step):  # a walk too short or too still to measure: keep what the features gave
-                bound = CALIBRATED[figure]
-                log_factors[columns[figure]] = np.clip(log_factors[columns[figure]] + step, -bound, bound)
+                _widen(log_factors, columns[figure], figure, step)
     legs = [f for f in COUPLED if f in columns and np.isfinite(real[f]) and real[f] > 0]
     if len(legs) == len(COUPLED):
         _calibrate_legs(log_factors, real, {f: columns[f] for f in legs}, played)
@@ -176,7 +182,7 @@ def _calibrate_legs(log_factors: np.ndarray, real: dict[str, float], columns: di
 
     def moved(factors: np.ndarray, figure: str, step: float) -> np.ndarray:
         out = factors.copy()
-        out[columns[figure]] = np.clip(out[columns[figure]] + step, -CALIBRATED[figure], CALIBRATED[figure])
+        _widen(out, columns[figure], figure, step)
         return out
 
     def play(factors: np.ndarray) -> dict[str, float]:
