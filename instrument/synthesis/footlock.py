@@ -114,10 +114,11 @@ class FootLock:
         self.feet = np.array([np.asarray(leg.foot)[o] for leg, o in zip(legs, order)], dtype=np.int64)
         self.ground = np.ascontiguousarray([self.ground[f, o] for f, o in enumerate(order)])
         self.reach = np.array([leg.thigh + leg.shin for leg in legs])  # hip to ankle, stretched
-        template = forward_kinematics(layout.skeleton, layout.template_pose[0][None], layout.template_pose[1][None])[1][0]
-        self.cm = centimetres_per_unit(layout, template)
+        template_rot, template_pos = (a[0] for a in forward_kinematics(layout.skeleton, layout.template_pose[0][None],
+                                                                        layout.template_pose[1][None]))
+        self.cm = centimetres_per_unit(layout, template_pos)
         self.swing_lift = SWING_CM / self.cm  # in the skeleton's units
-        self.across = across_axes(layout, legs)
+        self.across = across_axes(template_rot, template_pos, legs)
 
     def start(self, count: int) -> LockState:
         """The state of `count` characters before their first frame: nothing locked yet."""
@@ -138,15 +139,14 @@ class FootLock:
                    self.parent_rot, self.layout.root, self.fps, self.cm, self.swing_lift)
 
 
-def across_axes(layout: FeatureLayout, legs) -> np.ndarray:
+def across_axes(world_rot: np.ndarray, world_pos: np.ndarray, legs) -> np.ndarray:
     """(2, 3) each foot's axis across it (level, to the side of its toe line in the template
-    pose), in its ankle's frame: what `foot_heading` reads a foot's heading from. The toe line's
+    pose, whose world rotations and positions are given), in its ankle's frame: what
+    `foot_heading` reads a foot's heading from. The toe line's
     own heading turns half round as a foot pitches past vertical (a run's toe-off has the toes
     behind the ankle), and a lock holding the heading it landed with spun the foot about the
     vertical as it let go; pitching leaves the axis across the foot where it was. A foot without
     joints below its ankle has none (zeros: no heading, none held)."""
-    world_rot, world_pos = (a[0] for a in forward_kinematics(layout.skeleton, layout.template_pose[0][None],
-                                                              layout.template_pose[1][None]))
     axes = np.zeros((2, 3))
     for f, leg in enumerate(legs):
         toes = world_pos[leg.pivot] - world_pos[leg.ankle]
