@@ -80,7 +80,7 @@ class Footfalls:
             moved = np.zeros(len(characters))
         else:  # every landed foot's pivot's move at once (a crowd of 1,000 lands some 60 feet a frame)
             step = pivots[characters, feet] - self.pivots[characters, feet]
-            moved = np.sqrt(step[:, 0] * step[:, 0] + step[:, 1] * step[:, 1] + step[:, 2] * step[:, 2])
+            moved = np.linalg.norm(step, axis=1)
         closing = (closed & ~landed)[characters, feet]
         time_s, sides = float(pose.time), self.sides
         out = [Footfall(n, sides[side], time_s, speed, shut)
