@@ -15,8 +15,8 @@ from instrument.synthesis.posing import Pose
 from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, POSSIBLE,
                                           PLANTED, SWING_BENT, SWING_CM)
 from instrument.synthesis.follow import STRENGTH
-from instrument.synthesis.footlock import (CLOSED, HEEL_RISE_SPEED, MAX_HEEL_RISE, SETTLE_CM, SETTLE_LIFT_CM, SETTLE_SECONDS,
-                                           SETTLE_STILL_CM_S, STAND_RELEASE, STRETCH)
+from instrument.synthesis.footlock import (CLOSED, HEEL_RISE_SPEED, LANDING_PACE, MAX_HEEL_RISE, SETTLE_CM, SETTLE_LIFT_CM,
+                                           SETTLE_SECONDS, SETTLE_STILL_CM_S, STAND_RELEASE, STRETCH)
 
 
 def EASE(x: float) -> float:
@@ -243,13 +243,15 @@ class FootLock:
         planted, speeds = self._planted(shares, world_pos)
         still = standing and bool((speeds < SETTLE_STILL_CM_S).all())  # NaN (first frame): not still
         step = 1.0 / BLEND_FRAMES
+        # landing from flight (the other foot neither planted nor held): its lock comes in faster
+        pace = [LANDING_PACE * step if self.weight[1 - f] == 0.0 and not planted[1 - f] else step for f in range(2)]
         for f, leg in enumerate(self.limbs.legs):
             if planted[f] and self.weight[f] == 0.0:
                 self.lock[f] = world_pos[self.pivot[f]]
                 self.heading[f] = _heading(world_rot, leg, self.across[f])
                 self.settling[f] = 0.0
             release = step / STAND_RELEASE if self.settling[f] == CLOSED else step  # set off from a still stand
-            self.weight[f] = min(1.0, self.weight[f] + step) if planted[f] else max(0.0, self.weight[f] - release)
+            self.weight[f] = min(1.0, self.weight[f] + pace[f]) if planted[f] else max(0.0, self.weight[f] - release)
         lifts = self._settle(still, planted, world_rot, world_pos)
         for f, leg in enumerate(self.limbs.legs):
             if self.weight[f] > 0.0:  # the foot turned about the vertical through its ankle, back to its landing heading

@@ -478,3 +478,31 @@ def test_a_steady_run_jumps_no_more_than_the_real_runs(model, style):
     motion = render(model, default_controls(model, {style: 1.0}, gait=GAITS.index("run")), 165)
     jumps = velocity_jumps(world_positions(motion)[15:] * cm)
     assert jumps.max() < 11.9
+
+
+def test_a_run_lands_from_flight_onto_a_foot_that_stops_at_once(model):
+    """A run's foot lands from flight (the other foot's lock already out): its lock comes in at
+    LANDING_PACE times the usual pace, so from the frame after its state plants it the foot
+    (posed, world) stands still, as the real runs' feet do (active's: 131, 32, 3 cm/s in the
+    frames after touching down). At a walk's pace (a heel strike rolls in over BLEND_FRAMES
+    frames, the other foot on the floor), a run's landing foot went on sliding at half, then a
+    sixth of its made speed for two frames of a stance of six: active's run skated 1.08x its
+    takes' (docs/evaluate.md, "A run's foot landing from flight")."""
+    from instrument.synthesis.contact import PLANTED
+    from instrument.synthesis.engine import Engine
+    from instrument.synthesis.parameters import GAITS
+
+    engine = Engine(model)
+    controls = default_controls(model, {"active": 1.0}, gait=GAITS.index("run"))
+    pivots = [leg.pivot for leg in engine.poses.lock.limbs.legs]
+    positions, planted = [], []
+    for k in range(120):
+        pose = engine.frame(k / engine.fps, controls)
+        positions.append(pose.world_positions[0][pivots][:, [0, 2]])
+        planted.append(engine.contact_shares[0] >= PLANTED)
+    positions, planted = np.array(positions), np.array(planted)  # (frames, 2, 2), (frames, 2)
+    speed = np.linalg.norm(np.diff(positions, axis=0), axis=-1) * engine.fps * engine.poses.lock.cm  # cm/s, frame k to k + 1
+    landings = [(k, f) for f in range(2) for k in range(30, 118) if planted[k, f] and not planted[k - 1, f]]
+    assert len(landings) >= 6
+    for k, f in landings:  # from the frame after the plant, through the next
+        assert speed[k:k + 2, f].max() < 5.0, (k, f, speed[k - 1:k + 3, f])

@@ -11,6 +11,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from bvh_independent import world_positions
 from conftest import REPO
@@ -77,3 +78,34 @@ def test_the_evaluations_stop_and_start_is_the_bvh_a_score_records(tmp_path):
     # stop left them, its first step's knee jumped 2.6 times as far in a frame as the walk's largest)
     jumps = velocity_jumps(recorded)
     assert jumps[start_at:start_at + 2 * int(fps)].max() < 1.5 * jumps[stop_at - 90:stop_at].max()
+
+
+@pytest.mark.parametrize("walk_frames", [60, 64, 68])  # the stop told early, half way and late in a step
+def test_a_recorded_walk_stops_without_flinging_a_foot_forward_and_back(tmp_path, walk_frames):
+    """What a user gets of a stop: a score that walks (feminine at weight 1, whose stop popped
+    hardest) and then stands, recorded by `instrument run --fast --bvh` and read back by the
+    independent reader. From the stop cue to a second into the stand no joint's velocity (its
+    frame-to-frame displacement, from the file's positions) changes more in a frame than 1.25
+    times it does in the steady walk before it: the braking body shortens its steps as its travel
+    eases out, and a stop told too late in a step to brake within it takes one more step. Braked
+    with the steps' full swing, the swinging foot landed a stride ahead of the stopped body and
+    was pulled back under the hips, stopped dead as the stand began: 12.3-12.4 cm/frame^2
+    against the walk's 4.9 (docs/evaluate.md, "A braking body shortens its steps")."""
+    fps = 30.0
+    (tmp_path / "stop.toml").write_text(
+        f'[[cue]]\nat = 0\nramp = {{ "style/feminine" = 1.0, gait = "walk" }}\n\n'
+        f'[[cue]]\nat = {walk_frames / fps!r}\nramp = {{ gait = "stand" }}\n')
+    frames = walk_frames + 90
+    done = subprocess.run([sys.executable, "-m", "instrument", "run", "--score", "stop.toml", "--fast", "--no-osc",
+                           "--quiet", "--fps", repr(fps), "--seconds", repr(frames / fps), "--bvh", "stop.bvh"],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=900)
+    assert done.returncode == 0, done.stderr
+    names, recorded, recorded_fps = world_positions(tmp_path / "stop.bvh")
+    assert abs(recorded_fps - fps) < 1e-3 and len(recorded) == frames
+    jumps = np.zeros(frames)  # each frame's largest joint velocity change, from the file alone
+    jumps[2:] = np.linalg.norm(np.diff(recorded, 2, axis=0), axis=-1).max(axis=1)
+    layout = load_model(REPO / "models" / "default.npz").layout
+    hips = recorded[:, names.index(layout.skeleton.names[layout.root])][:, [0, 2]]
+    speed = np.linalg.norm(np.diff(hips, axis=0), axis=1) * fps
+    assert speed[walk_frames - 30:walk_frames].mean() > 60.0 and speed[-30:].mean() < 2.0  # walked, then stood still
+    assert jumps[walk_frames:walk_frames + 60].max() <= 1.25 * jumps[15:walk_frames].max()

@@ -178,34 +178,25 @@ def test_a_gait_change_is_in_the_next_frames_plan_and_takes_the_body_at_the_next
     assert (units[first_stand:, 0] == stand).all()
 
 
-@pytest.mark.parametrize("walk_frames", [60, 64, 68])  # told early, half way and late in a step
-def test_a_walk_stops_without_flinging_a_foot_forward_and_back(model, walk_frames):
-    """From the stop command to a second into the stand, no joint's velocity jumps more than in
-    the steady walk before it (feminine at weight 1, whose stop popped hardest): the braking body
-    shortens its steps as its travel eases out, and a stop told too late in a step to brake
-    within it takes one more step. Braked with the steps' full swing, the swinging foot landed a
-    stride ahead of the stopped body and was pulled back under the hips, stopped dead as the
-    stand began: 12.3-12.4 cm/frame^2 against the walk's 4.9 (now 5.0-5.6)."""
-    from instrument.evaluation.sequence import velocity_jumps
-    from instrument.motion.bvh import Motion
-    from instrument.motion.kinematics import ChannelStream
-    from instrument.motion.kinematics import world_positions as positions_of
-
+@pytest.mark.parametrize("walk_frames", [60, 68])  # told early and late in a step
+def test_a_braking_walk_draws_its_pose_in_no_faster_than_it_slows(model, walk_frames):
+    """From the stop command until the stand, the engine draws the pose towards the stand's no
+    faster than the body's travel eases out (`UnitChooser.stride` never below `travel`), and the
+    stand begins within two seconds: the steps shorten as the body brakes. What the user gets of
+    it, a stop that does not fling a foot forward and back, is measured on the recorded BVH
+    (tests/test_transition_bvh.py)."""
     engine = Engine(model)
     base = default_controls(model, {"feminine": 1.0})
     walk, stand = Controls(base.weights, gait=WALK), Controls(base.weights, gait=STAND)
-    channels = ChannelStream(model.layout.skeleton)
-    rows, units = [], []
-    for k in range(walk_frames + 90):
-        pose = engine.frame(k / engine.fps, walk if k < walk_frames else stand)
-        rows.append(channels.next(pose.rotations[0], pose.translations[0]))
+    units, shortened = [], False
+    for k in range(walk_frames + 60):
+        engine.next_features(walk if k < walk_frames else stand)
         units.append(int(engine.frame_ids[0]) // (2 * model.states))
-        if k >= walk_frames:  # the pose draws towards the stand's no faster than the travel eases out
-            assert engine.units.stride[0] <= engine.units.travel[0] + 1e-12 or units[-1] == model.units.index("stand")
+        if k >= walk_frames and units[-1] != model.units.index("stand"):
+            assert engine.units.stride[0] <= engine.units.travel[0] + 1e-12
+            shortened |= engine.units.stride[0] < 1.0
     first_stand = int(np.argmax(np.array(units) == model.units.index("stand")))
-    assert walk_frames < first_stand < walk_frames + 60
-    jumps = velocity_jumps(positions_of(Motion(model.layout.skeleton, np.array(rows), model.fps)))
-    assert jumps[walk_frames:first_stand + 30].max() <= 1.25 * jumps[15:walk_frames].max()  # 5.0-5.6 against 4.9
+    assert walk_frames < first_stand < walk_frames + 60 and shortened
 
 
 def test_a_stop_told_too_late_in_a_step_waits_a_step_and_does_not_jolt(model):

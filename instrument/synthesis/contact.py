@@ -24,7 +24,9 @@ frame at a time, on the pose the features give:
 - each leg is solved by analytic two-bone IK (law of cosines for the knee, bent about its own
   hinge; then the hip swings the leg), the foot keeping its generated world orientation, towards: the lock
   horizontally, its lowest joint on the floor vertically; the lock blends in and out over
-  BLEND_FRAMES frames, so nothing pops;
+  BLEND_FRAMES frames, so nothing pops, but for a foot landing from flight (the other foot
+  neither planted nor held: a run's), which the body comes down on alone and which stops as
+  real feet so landed do, within two frames (footlock.LANDING_PACE);
 - where that would stretch a planted leg past its generated length (hip to ankle), the heel
   rises instead: the foot pitches up about its front-most joint, up to MAX_HEEL_RISE from
   standing flat (a cap that wins) and otherwise changing no faster than HEEL_RISE_SPEED,

@@ -5,7 +5,8 @@ contact statistics). Here it runs as numba kernels over arrays, each with the jo
 of the plain-Python lock it replaced (kept as the test oracle, tests/reference_lock.py):
 
 - `planted_feet`: which feet are planted this frame (the state's share, or a foot on the floor
-  and still where the state allows it; always one foot);
+  and still where the state allows it; always one foot); a foot landing from flight takes its
+  lock in at LANDING_PACE times the usual pace (`lock_frame`);
 - `hold_heading`: a planted foot turned back about the vertical to the heading it landed with
   (`foot_heading`: read from the foot's axis across it, `across_axes`, which its pitching leaves
   where it is; the toe line's heading turns half round as a run's toe-off pitches the foot past vertical);
@@ -71,6 +72,12 @@ CLOSED = 2.0  # LockState.settling of a foot that has taken its closing step, or
 # go at a walk's pace the foot standing beside the other swung back there and forward again in a few frames;
 # once the other foot has landed the body has stepped, and a foot still closed up lets go at a step's pace
 STAND_RELEASE = 2.0
+# a foot landing from flight (the other foot neither planted nor held by its lock: a run's) takes its
+# lock in this many times the usual pace: the body comes down on it alone, and real feet so landed stop
+# within two frames of touching down (the shipped runs' active takes: 131, 32, 3 cm/s); taken in over
+# BLEND_FRAMES, as a walk's heel strike rolls in with the other foot down, a run's landing foot slid on
+# for a third of a stance of six frames (active's run skated 1.08x its takes')
+LANDING_PACE = 2.0
 
 
 @dataclass
@@ -521,9 +528,12 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             settling[f] = 0.0
             if settling[1 - f] == CLOSED:
                 settling[1 - f] = 0.0
+    # each foot's pace in: faster landing from flight, the other foot neither planted nor held
+    pace = (LANDING_PACE * step if weights[1] == 0.0 and not planted[1] else step,
+            LANDING_PACE * step if weights[0] == 0.0 and not planted[0] else step)
     for f in range(2):
         release = step / STAND_RELEASE if settling[f] == CLOSED else step  # set off from a still stand: slower
-        weights[f] = min(1.0, weights[f] + step) if planted[f] else max(0.0, weights[f] - release)
+        weights[f] = min(1.0, weights[f] + pace[f]) if planted[f] else max(0.0, weights[f] - release)
     settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, across, SETTLE_CM / cm,
                 1.0 / (SETTLE_SECONDS * fps), SETTLE_LIFT_CM / cm, lifts)
     for f in range(2):
