@@ -39,9 +39,10 @@ the same share as the travel (`starting`). Over a step eased in by a smoothstep 
 half the step's ground, and the stance foot, swept from where it stood by the same share, moves
 back under the body as fast as the body moves on: it stays where the stand left it, where the
 lock holds it.
-With the step's full swing from the first frame, the stance foot as made ran ahead of the body
-that was only setting off, the lock held it behind, the heel rose up to 39 deg, and when the
-other foot landed and the lock let go, the rise collapsed in 2-3 frames and the knee caught up
+With the step's full swing from the first frame, the stance foot as made swept back at a
+walk's pace under a body only setting off, away from where the lock held it (up to 9 cm), the
+heel rose up to 39 deg, and when the other foot landed and the lock let go, the rise collapsed
+in 2-3 frames and the knee caught up
 (a joint jumping up to 14.5 cm/frame^2 against 5.5 in the walk itself). Eased in over a fixed
 0.5 s instead of the step, the ground the body covers in the step is not half the step's when
 the step is longer or shorter, and the stance foot ends it away from its lock (feminine's start
