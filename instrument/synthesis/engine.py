@@ -12,8 +12,9 @@ character is a crowd of one):
                                    turning steps in proportion to the steering (UnitChooser)
              -> plan + stream ---- the state plan and streaming MLPG (Crowd: one compiled call)
              -> range ------------ each feature's swing scaled to the data's (RangeFilter)
-             -> drive ------------ a braking body's steps shortened towards the stand's pose,
-                                   root speeds scaled by the cadence, the steering added
+             -> drive ------------ a braking body's steps shortened towards the stand's pose
+                                   (a body setting off: its first step drawn from the pose it
+                                   stood in), root speeds scaled by the cadence, the steering added
              -> gestures --------- while a gesture plays, its own label stream's upper body
                                    eased in over the gait's (GestureLayer, synthesis/gestures.py;
                                    its plan comes before the stream's, whose solve makes its
@@ -323,8 +324,9 @@ def drive(static: np.ndarray, cadence: np.ndarray, travel: np.ndarray, turn: np.
 
 def shortened(frames: np.ndarray, stand: np.ndarray, stride: np.ndarray) -> np.ndarray:
     """Frames (N, D) with every feature but the root's rates (which the drive scales by the
-    travel) drawn towards the stand's pose `stand` (N, D) to the share `stride` (N,) of their
-    distance from it: a braking body's steps shortened as its travel eases out (units.py)."""
+    travel) drawn towards a standing pose `stand` (N, D) to the share `stride` (N,) of their
+    distance from it: a braking body's steps shortened as its travel eases out, a body's first
+    step from a standstill as its travel eases in (units.py)."""
     out = stand + stride[:, None] * (frames - stand)
     out[:, ROOT_RATES[0]:ROOT_RATES[1]] = frames[:, ROOT_RATES[0]:ROOT_RATES[1]]
     return out
@@ -380,6 +382,8 @@ class Engine:
         self.made = 0  # model frames made
         self._unit_span = 2 * model.states  # states a unit's two labels hold
         self._stand_means: np.ndarray | None = None  # (N, D) `_stand_pose` as of the last retune (None: not made)
+        self._last = np.zeros((characters, model.layout.dimension))  # (N, D) the last frame driven
+        self._stood = np.zeros((characters, model.layout.dimension))  # (N, D) the pose each body last set off from
         # when a dict: seconds spent in each stage, added up frame after frame (`instrument bench`'s stage costs)
         self.stage_seconds: dict[str, float] | None = None
         self._clock = 0.0
@@ -454,11 +458,17 @@ class Engine:
             else:
                 frames = self.range_filter(frames, *self.range_targets.targets(units))
             self._timed("range")
-        if self.units.shortening:  # a body braking, or just stood still: its steps shortened
-            frames = shortened(frames, self._stand_pose(), self.units.stride)
+        if self.units.setting_off:  # the pose each body setting off stood in, its first step drawn from
+            self._stood[self.units.set_off] = self._last[self.units.set_off]
+        if self.units.shortening:  # a body braking, setting off, or just stood still: its steps shortened
+            towards = self._stand_pose()
+            if self.units.starting.any():
+                towards = np.where(self.units.starting[:, None], self._stood, towards)
+            frames = shortened(frames, towards, self.units.stride)
         driven = np.empty(frames.shape)
         drive(frames, self.stream.cadence, self.units.travel, self.units.added_yaw, driven)
         frames = driven
+        self._last = driven  # (a new array each frame: kept without a copy)
         self._timed("drive")
         if self.gestures.crowd is not None:
             frames = self.gestures.after(frames, ids)

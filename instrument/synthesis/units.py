@@ -26,10 +26,27 @@ step under way ends lets one more step of the old unit come first (`Crowd.counte
 the plan shows the new unit at once, one step further on.
 
 A body setting off from a stand accelerates: its root's travel (the drive's speeds) is eased in
-from 0 over START_SECONDS, about its first step, as a person's first step covers about half a
-stride. Taken at full speed from the first frame (no take starts walking, so the model has no
-start), the body shot forward (0 to 77 cm/s in a frame) and, half the times, left its planted
-foot behind until the lock let go: a stance foot skated 4.9 m/s for a few frames.
+from 0 over its first step (the frames the step is planned to take), as a person's first step
+covers about half a stride. Taken at full speed from the first frame (no take starts walking, so
+the model has no start), the body shot forward (0 to 77 cm/s in a frame) and, half the times,
+left its planted foot behind until the lock let go: a stance foot skated 4.9 m/s for a few frames.
+
+Its legs take that half step too. From the frame a standing body still is told to move, the
+engine holds the pose it stood in (`stride` 0: the window MLPG already bends the stand's last
+frames towards the step's first state, and feminine x2's feet as made went 7-8 cm either side
+of where the lock held them), and through the first step draws the step's pose from that one by
+the same share as the travel (`starting`). Over a step eased in by a smoothstep the body covers
+half the step's ground, and the stance foot, swept from where it stood by the same share, moves
+back under the body as fast as the body moves on: it stays where the stand left it, where the
+lock holds it.
+With the step's full swing from the first frame, the stance foot as made swept back at a
+walk's pace under a body only setting off, away from where the lock held it (up to 9 cm), the
+heel rose up to 39 deg, and when the other foot landed and the lock let go, the rise collapsed
+in 2-3 frames and the knee caught up
+(a joint jumping up to 14.5 cm/frame^2 against 5.5 in the walk itself). Eased in over a fixed
+0.5 s instead of the step, the ground the body covers in the step is not half the step's when
+the step is longer or shorter, and the stance foot ends it away from its lock (feminine's start
+jumped 5.4 cm/frame^2 against 5.0, feminine x2's 10.1 against 6.6).
 
 A body stopping brakes the same way, over the steps it still takes: from the frame its coming
 unit becomes the stand, its travel is eased out so that it reaches 0 as the last step ends (the
@@ -65,7 +82,7 @@ from .stream import ELAPSED, LABEL, NEXT, STATE, UNIT, Crowd
 
 YAW = ROOT_FEATURES.index("root.yaw_rate")
 NOTICE_SECONDS = 0.2  # the least notice a unit change takes at the coming step boundary
-START_SECONDS = 0.5  # a body setting off from a stand reaches its gait's travel over this
+START_SECONDS = 0.5  # a body moving again before its stop stood still reaches its gait's travel over this
 # the shortest a body brakes over: braked over the 6 frames a step may have left when the stop
 # comes, a run at 4.2 m/s (active x2) would change its speed by up to 105 cm/s in a frame (the
 # smoothstep's steepest is 1.5 times its mean), against 62 in its steady run
@@ -112,6 +129,11 @@ class UnitChooser:
         self.stride_level = np.ones(count)  # how far each body's pose takes its step's swing, 0 to 1
         self.stride = np.ones(count)  # its smoothstep: the share of the swing the engine leaves (1: as made)
         self.shortening = False  # some body's stride is below 1 (the engine draws its pose in)
+        self.start_rate = np.full(count, 1.0 / self.start_frames)  # how much of its level a moving body gains a frame
+        # this frame a body standing still was told to move (the engine keeps the pose it stood in)
+        self.set_off = np.zeros(count, dtype=np.bool_)
+        self.setting_off = False  # some body was (a Python bool: the engine reads it every frame)
+        self.starting = np.zeros(count, dtype=np.bool_)  # since then: its stride is its level, drawn from that pose
         self._settled: tuple[int, float] | None = None  # (gait, turn) that left nothing to do frame by frame
 
     def __call__(self, gait: int, turn: float, stream: Crowd) -> None:
@@ -152,6 +174,15 @@ class UnitChooser:
         current = counters[:, LABEL] // 2
         standing = current == self.stand
         stopping = (coming == self.stand) & ~standing
+        # a body standing still told to move holds the pose it stood in until its first step
+        # begins, and takes that step drawn from it (its stride) as its travel eases in
+        still = (coming != self.stand) & (self.level == 0.0)
+        self.set_off = still & ~self.starting
+        self.setting_off = bool(self.set_off.any())
+        self.starting = (self.starting | still) & (coming != self.stand)
+        first = still & ~standing
+        if first.any():  # its first step has begun: its travel eases in over the step, a half step
+            self.start_rate[first] = 1.0 / np.maximum(self._frames_left(stream)[first], 1.0)
         self._ease(standing, stopping, self._frames_to_stand(stream, stopping) if stopping.any() else None)
         rest = turn - side * share * self.turn_rates.get(side, 0.0)  # what turning steps do not give
         self.added_yaw[:] = np.where(standing, 0.0, rest)
@@ -160,23 +191,27 @@ class UnitChooser:
                          else None)  # no easing in or out
 
     def _ease(self, standing: np.ndarray, stopping: np.ndarray, left: np.ndarray | None) -> None:
-        """Each body's travel: eased in over START_SECONDS once it moves, and eased out while it
-        stops, linearly in its level over the `left` frames before the stand begins (at least
+        """Each body's travel: eased in once it moves (over its first step from a standstill,
+        `start_rate`; over START_SECONDS from a stop called off), and eased out while it stops,
+        linearly in its level over the `left` frames before the stand begins (at least
         STOP_SECONDS' frames, the rest in the stand), so the level is 0 as it does; none while it
         stands. The travel is the level's smoothstep: no jump in speed nor in acceleration at
-        either end. The stride follows the level down while the body brakes (never up: a stop
-        called off just after a stand) and comes back up over STOP_SECONDS once it is still."""
+        either end. The stride follows the level down while the body brakes, and up while it sets
+        off from a standstill (0 from the command, drawn from the pose it stood in); otherwise
+        (a stop called off just after a stand, a stand still) it comes back up over STOP_SECONDS."""
         if left is not None:
             self.braking[stopping] = self.level[stopping] / (np.maximum(left[stopping], self.stop_frames) + 1.0)
         moving = ~standing & ~stopping
         self.braking[moving] = np.inf  # a stop that changed its mind brakes afresh next time
-        level = np.where(moving, np.minimum(self.level + 1.0 / self.start_frames, 1.0),
+        self.start_rate[~moving] = 1.0 / self.start_frames
+        level = np.where(moving, np.minimum(self.level + self.start_rate, 1.0),
                          np.maximum(self.level - self.braking, 0.0))
         self.level = level
         self.travel = level * level * (3.0 - 2.0 * level)
         braking = stopping | (standing & (level > 0.0))
         stride = np.where(braking, np.minimum(self.stride_level, level),
-                          np.minimum(self.stride_level + 1.0 / self.stop_frames, 1.0))
+                          np.where(self.starting, level, np.minimum(self.stride_level + 1.0 / self.stop_frames, 1.0)))
+        self.starting &= level < 1.0
         self.stride_level = stride
         self.stride = stride * stride * (3.0 - 2.0 * stride)
         self.shortening = bool(stride.min() < 1.0)
