@@ -330,9 +330,9 @@ def test_live_events_taken_while_waiting_count_for_the_coming_frame(model, monke
 
 def test_one_slow_restyle_ahead_does_not_keep_the_later_ones_in_their_frames(model, monkeypatch):
     """The loop retunes ahead only where its recent restyles' time fits before waking. One restyle
-    ahead made slow (a stall of the machine: longer than a frame) must not keep every later one
-    in its frame for the rest of the show: the restyles the frames make are timed too, so the
-    slow one ages out of the estimate and the loop retunes ahead again."""
+    ahead made slow (a stall of the machine inside the engine's work: longer than a frame) must
+    not keep every later one in its frame for the rest of the show: the engine times the restyles
+    the frames make too, so the slow one ages out of the estimate and the loop retunes ahead again."""
     from instrument.runtime import performance
     from instrument.synthesis.engine import Engine
 
@@ -340,16 +340,21 @@ def test_one_slow_restyle_ahead_does_not_keep_the_later_ones_in_their_frames(mod
     where, looked = [], []
 
     class Stalled(Engine):
-        """The live loop's engine, its first restyle ahead of a frame held up by 0.1 s."""
+        """The live loop's engine, its first restyle ahead of a frame held up by 0.1 s in its work."""
 
-        def retune(self, *args, **kwargs):
-            made = super().retune(*args, **kwargs)
-            if made == "restyled":
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            interpolation = self.features[0]  # retuned by a restyle only
+            made = interpolation.retune
+
+            def retune(mix, stream):
+                made(mix, stream)
                 ahead = _made_while_waiting()
                 where.append("ahead" if ahead else "frame")
                 if ahead and where.count("ahead") == 1:
                     time.sleep(0.1)
-            return made
+
+            interpolation.retune = retune
 
     def source(now):
         looked.append(now)

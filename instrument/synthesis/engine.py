@@ -31,6 +31,7 @@ calls, frame by frame, so `synth` and a recorded `run` make the same frames.
 from __future__ import annotations
 
 import time
+from collections import deque
 from dataclasses import dataclass, replace
 from typing import Protocol, Sequence
 
@@ -64,6 +65,7 @@ TABLES_UP_TO = 8
 MIX_CONCENTRATION = 0.5  # of a crowd character's Dirichlet style draw: below 1 its mix leans on one or two styles
 MIX_STREAM = 1  # the draws of a character's mix and phase come from seed sequence (seed, MIX_STREAM)
 METHODS = ("stream", "full")
+RESTYLES_KEPT = 20  # the restyles whose time `Engine.restyle_seconds` keeps
 
 
 # ---- the cast: who walks ---------------------------------------------------------------------
@@ -398,6 +400,10 @@ class Engine:
         self._stand_means: np.ndarray | None = None  # (N, D) `_stand_pose` as of the last retune (None: not made)
         # when a dict: seconds spent in each stage, added up frame after frame (`instrument bench`'s stage costs)
         self.stage_seconds: dict[str, float] | None = None
+        # clock seconds (time.monotonic) the recent restyles took, ahead of a frame or in it: what the
+        # live loop reckons a coming one with (the first restyle, which loads compiled code, is not kept)
+        self.restyle_seconds: deque[float] = deque(maxlen=RESTYLES_KEPT)
+        self.restyles = 0  # restyles made
         self._clock = 0.0
 
     def _timed(self, stage: str) -> None:
@@ -424,6 +430,7 @@ class Engine:
         style, pace = (key[0], key[1], spread), key[2:]
         if style == self._style and pace == self._pace:
             return None
+        started = time.monotonic()
         self._mark()
         if style != self._style:
             offsets = self.cast.offsets
@@ -441,7 +448,12 @@ class Engine:
             elif hasattr(feature, "repace"):  # a feature without it does not move with the pace
                 feature.repace(self.mix, self.stream)
             self._timed(feature.name)
-        return "restyled" if restyled else "repaced"
+        if not restyled:
+            return "repaced"
+        if self.restyles:
+            self.restyle_seconds.append(time.monotonic() - started)
+        self.restyles += 1
+        return "restyled"
 
     def next_features(self, controls: Controls, spread: float = 0.0) -> np.ndarray:
         """The next model frame of every character, (N, D): stream, range, drive; the frame's
