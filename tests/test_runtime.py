@@ -369,6 +369,24 @@ def test_one_slow_restyle_ahead_does_not_keep_the_later_ones_in_their_frames(mod
     assert "ahead" in where[first + 1:]  # retuned ahead again after the slow one
 
 
+def test_the_lead_holds_a_restyle_in_the_frame_however_rare():
+    """A style change taken at a frame's start (after the loop's last look while waiting) is
+    retuned in that frame's work. When such frames are fewer than one in a hundred the recent p99
+    of the work does not hold them: the loop then wakes early enough for a typical frame plus the
+    dearest restyle the engine timed, and as before for the p99 when that is more."""
+    from instrument.runtime.performance import LEAD_MARGIN, LEAD_SPREAD, frame_lead
+
+    fps = 120.0
+    work = [0.0002] * 150 + [0.0011] + [0.0002] * 149  # one frame in 300 restyled in its work
+    _, plain = frame_lead(work, [], fps)
+    assert plain < 0.0011  # without a timed restyle: the p99's lead, shorter than the restyling frame's work
+    expected, lead = frame_lead(work, [0.0009, 0.0007], fps)
+    assert expected >= 0.0002 + 0.0009 and lead == LEAD_SPREAD * expected + LEAD_MARGIN
+    varied = [0.003] * 290 + [0.006] * 10  # a crowd whose frames vary by more than a restyle: the p99 rules
+    assert frame_lead(varied, [0.0009], fps)[0] == np.percentile(varied, 99)
+    assert frame_lead(work, [0.05], fps)[1] == 0.9 / fps  # never more than most of a frame
+
+
 def test_realtime_scheduling_is_taken_or_refused_with_a_reason():
     probe = ("import os; from instrument.runtime.priority import realtime_scheduling\n"
              "{drop}refused = realtime_scheduling()\n"

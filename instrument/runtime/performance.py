@@ -12,7 +12,7 @@ import gc
 import time
 from collections import deque
 from dataclasses import dataclass, field, replace
-from typing import Callable, Protocol
+from typing import Callable, Protocol, Sequence
 
 import numpy as np
 
@@ -267,9 +267,8 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             # wake early enough for what a frame has recently taken, and at once after a jump;
             # meanwhile take live events as they come (stamped with the coming frame's time, as
             # if taken at its start), so a flood of them is handled while waiting, not at the frame
-            expected = max(np.percentile(work_times, 99), work_times[-1]) if work_times else 0.5 / fps
+            expected, lead = frame_lead(work_times, engine.restyle_seconds, fps)
             upcoming = (index + 1) / fps
-            lead = min(LEAD_SPREAD * expected + LEAD_MARGIN, MAX_LEAD_FRAMES / fps)
             clock.advance(lead=lead,
                           idle=(lambda: between_frames(upcoming, clock.deadline() - lead, expected)) if live_sources else None)
     except KeyboardInterrupt:  # a caller that kept Python's own SIGINT handler
@@ -284,6 +283,21 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
     summary.late, summary.dropped = clock.late, clock.dropped
     summary.seconds = time.monotonic() - started
     return summary
+
+
+def frame_lead(work_times: Sequence[float], restyles: Sequence[float], fps: float) -> tuple[float, float]:
+    """(expected, lead): what the coming frame's work may take (seconds), and how long before its
+    deadline the loop wakes for it. The recent p99 of the work (or the last frame's, after a jump),
+    and, once the engine has timed restyles, at least a typical frame's work plus the dearest of
+    them: a style change taken at the frame's start (after the last look while waiting, too late
+    to retune ahead) is retuned in the frame's work, and when such frames are under one in a
+    hundred the p99 does not hold them, and each was late."""
+    if not work_times:
+        expected = 0.5 / fps
+    else:
+        typical, p99 = np.percentile(work_times, (50, 99))
+        expected = max(p99, work_times[-1], typical + max(restyles, default=0.0))
+    return expected, min(LEAD_SPREAD * expected + LEAD_MARGIN, MAX_LEAD_FRAMES / fps)
 
 
 def collect_between_frames() -> None:

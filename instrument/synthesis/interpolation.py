@@ -180,14 +180,23 @@ def _shared_rows(per_dim, offsets, base, span, bounded, rows, means, precisions)
     precisions exp(-(lambda 0's log variances + the change)), the change bounded to `span` when
     `bounded`; per_dim (styles, 3D) each style's weight in each dimension. One pass over the
     rows asked for, where numpy's product, sum and exp made five over every row (and the
-    rows of a gesture can wait until one plays: `StyleInterpolation.complete`)."""
+    rows of a gesture can wait until one plays: `StyleInterpolation.complete`), reading the
+    offsets of the styles in the mix only (a performer's faders mostly rest at 0; the offsets
+    are megabytes, out of the cache by the time a change comes). Adding a style weighed 0 would
+    add 0.0 to each sum: leaving it out changes no bit."""
     styles, width = per_dim.shape
     mean_change = np.empty(width)
     log_change = np.empty(width)
+    weighed = np.zeros(styles, dtype=np.bool_)  # a style weighed 0 everywhere adds nothing: its offsets go unread
+    for s in range(styles):
+        for f in range(width):
+            weighed[s] |= per_dim[s, f] != 0.0
     for r in rows:
         mean_change[:] = 0.0
         log_change[:] = 0.0
         for s in range(styles):
+            if not weighed[s]:
+                continue
             for f in range(width):
                 mean_change[f] += per_dim[s, f] * offsets[s, 0, r, f]
                 log_change[f] += per_dim[s, f] * offsets[s, 1, r, f]
