@@ -236,7 +236,7 @@ class StyleInterpolation:
         self._later = np.zeros(rows, dtype=np.bool_) if later is None else np.asarray(later, dtype=np.bool_)
         self._now_rows = np.flatnonzero(~self._later)  # the rows a retune makes; `complete` makes the others
         self._later_rows = np.flatnonzero(self._later)
-        self._pending: tuple | None = None  # (weights per dimension, bounded) of the rows still to make
+        self._pending: tuple | None = None  # (weights per dimension, bounded, the tables) of the rows still to make
         self._shared: list[tuple[np.ndarray, np.ndarray]] = []  # the shared tables' arrays, made again in place
 
     def __call__(self, weights: np.ndarray, part_weights: np.ndarray | None, spread: float
@@ -265,17 +265,21 @@ class StyleInterpolation:
             tables = CrowdLambda(self._mean_term, means, self._precision_factor, precisions, self._plain,
                                  rest=self.complete if self._pending is not None else None)
             duration_change = _duration_change(space, weights)
-        else:  # some variance at its limit: a character's precisions cannot be two factors
+        else:  # the bound above is loose: the change made whole says whether a variance is at its limit
             change, duration_change = style_change(space, weights, part_weights)
-            # made whole for every character, they cost a crowd of 32 some 20 ms a frame while a
-            # fader moved past the styles (1,000: most of a second): the shared table holds the
-            # precisions of a character with no offset of its own (`plain`), and the stream makes
-            # another's rows from its log offset as its window reads them (`clip_*`, stream.py `_gather`)
-            if self._clip_spread != spread:
-                self._clip_spread, self._clip_own = spread, np.multiply(self.offset_change[:, 1], spread)
-            precisions = clipped_precisions(change[1], space.base[1], limit)
-            tables = CrowdLambda(self._mean_term, space.base[0] + change[0], self._clip_own, precisions, self._plain,
-                                 change[1], space.base[1], limit)
+            if np.abs(change[1]).max() + abs(spread) * self._own_reach <= limit:  # none is: two factors
+                tables = CrowdLambda(self._mean_term, space.base[0] + change[0], self._precision_factor,
+                                     np.exp(-(space.base[1] + change[1])), self._plain)
+            else:  # some variance at its limit: a character's precisions cannot be two factors
+                # made whole for every character, they cost a crowd of 32 some 20 ms a frame while a
+                # fader moved past the styles (1,000: most of a second): the shared table holds the
+                # precisions of a character with no offset of its own (`plain`), and the stream makes
+                # another's rows from its log offset as its window reads them (`clip_*`, stream.py `_gather`)
+                if self._clip_spread != spread:
+                    self._clip_spread, self._clip_own = spread, np.multiply(self.offset_change[:, 1], spread)
+                precisions = clipped_precisions(change[1], space.base[1], limit)
+                tables = CrowdLambda(self._mean_term, space.base[0] + change[0], self._clip_own, precisions,
+                                     self._plain, change[1], space.base[1], limit)
         shape = (len(self.offsets), space.labels, space.states)
         means, variances = np.empty(shape), np.empty(shape)
         flat_means, flat_variances = means.reshape(len(means), -1), variances.reshape(len(means), -1)
