@@ -149,7 +149,7 @@ def style_change(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarra
     if (mixes < 0.0).any() or (mixes.sum(axis=0) > 1.0).any():  # past the styles: a convex mix needs no bound
         np.maximum(change[1], space.log_variance_span[0], out=change[1])  # (two passes: half np.clip's time)
         np.minimum(change[1], space.log_variance_span[1], out=change[1])
-    return change, (weights @ space.duration_offsets.reshape(styles, -1)).reshape(space.duration_base.shape)
+    return change, _duration_change(space, weights)
 
 
 def _mix_per_dimension(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray | None
