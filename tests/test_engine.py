@@ -5,6 +5,9 @@ reader, tests/bvh_independent.py)."""
 import subprocess
 import sys
 
+import time
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -135,6 +138,51 @@ def test_retune_says_what_it_made(model):
         engine.frame((2 * k + 2) / fps, controls)
     assert made == {"style": "restyled", "speed": "repaced", "turn": None}
     assert between == [False] * 3
+
+
+def test_a_restyle_leaves_the_gestures_rows_until_one_plays_and_they_play_as_if_made_with_it(model):
+    """A style change's retune makes the rows of lambda* the gait reads; a gesture's rows (which
+    only a playing gesture reads) wait until one may play, and it then plays them as made with
+    the others: the same poses, bit for bit, as an engine that makes every row at each retune."""
+    lazy, whole = Engine(model, 1, model.fps), Engine(model, 1, model.fps)
+    every = whole.features[0].stage
+    every._now_rows, every._later_rows = np.arange(len(every._later)), every._later_rows[:0]
+    gesture_rows = lazy.features[0].stage._later_rows
+    assert len(gesture_rows) and lazy.gestures.names
+    calm, bold = default_controls(model), default_controls(model, {"elderly": 1.2})
+    waving = replace(bold, gestures=(lazy.gestures.names[0],))
+    for k in range(60):
+        controls = calm if k < 10 else bold if k < 30 or k > 50 else waving
+        a, b = lazy.frame(k / model.fps, controls), whole.frame(k / model.fps, controls)
+        assert np.array_equal(a.world_positions, b.world_positions), k
+        if k == 20:  # restyled at frame 10, no gesture since: its rows not made yet
+            made = whole.stream.tables.precision_shared[gesture_rows]
+            assert not np.array_equal(lazy.stream.tables.precision_shared[gesture_rows], made)
+            assert np.array_equal(lazy.stream.precisions[0][gesture_rows], made)  # made when the whole is read
+    assert lazy.gestures.started == 1
+
+
+def test_the_engine_times_its_own_restyles(model):
+    """The live loop reckons whether a restyle fits before a frame from the engine's own timing
+    of its recent restyles (ahead of a frame or in it, the loop calling only `frame`): each
+    restyle after the first (which loads compiled code) is kept, a change of pace or of nothing
+    restyles nothing and adds no time, and a restyle made inside a frame is timed as one ahead."""
+    engine = Engine(model, 1, model.fps)
+    engine.frame(0.0, default_controls(model))  # the first restyle: not kept
+    assert (engine.restyles, len(engine.restyle_seconds)) == (1, 0)
+    engine.retune(default_controls(model, speed=1.2))  # the pace alone
+    engine.retune(default_controls(model, speed=1.2))  # nothing
+    assert (engine.restyles, len(engine.restyle_seconds)) == (1, 0)
+    before = time.monotonic()
+    engine.retune(default_controls(model, {"elderly": 1.0}, speed=1.2))
+    took = time.monotonic() - before
+    assert engine.restyles == 2 and len(engine.restyle_seconds) == 1
+    assert 0.0 < engine.restyle_seconds[-1] <= took
+    before = time.monotonic()
+    engine.frame(1 / model.fps, default_controls(model, {"elderly": 0.5}))  # restyled in the frame
+    took = time.monotonic() - before
+    assert engine.restyles == 3 and len(engine.restyle_seconds) == 2
+    assert 0.0 < engine.restyle_seconds[-1] < took  # the retune only, not the whole frame
 
 
 def test_render_is_the_engine_without_a_clock(model):

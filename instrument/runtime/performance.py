@@ -12,7 +12,7 @@ import gc
 import time
 from collections import deque
 from dataclasses import dataclass, field, replace
-from typing import Callable, Protocol
+from typing import Callable, Protocol, Sequence
 
 import numpy as np
 
@@ -159,7 +159,6 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             return False
 
     prepared_revision = -1  # the control state's revision the engine's tables were last made ahead for
-    restyle_seconds: deque[float] = deque(maxlen=20)  # clock seconds that restyling took recently, ahead or in a frame
 
     def between_frames(upcoming: float, wake: float, expected: float) -> None:
         """While waiting for the frame at `upcoming` (its work starts at `wake`, clock time; a frame's
@@ -178,14 +177,13 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
         if not engine.makes_model_frame(upcoming):
             return
         # the dearest work it may do (restyling every table) must end before waking, on the clock:
-        # only restyles are timed (a turn or a gait retunes nothing, a speed only the pace)
-        if wake - clock.now() < IDLE_UNTIL + max(restyle_seconds, default=expected):
+        # the engine times its restyles, ahead or in a frame (a turn or a gait retunes nothing, a
+        # speed only the pace), so one a stall made slow ages out rather than keep the later ones out
+        if wake - clock.now() < IDLE_UNTIL + max(engine.restyle_seconds, default=expected):
             return
-        started, revision = time.monotonic(), state.revision
-        made = engine.retune(state.snapshot(), state.spread)  # the frame finds them made (same controls)
+        revision = state.revision
+        engine.retune(state.snapshot(), state.spread)  # the frame finds them made (same controls)
         prepared_revision = revision
-        if made == "restyled":
-            restyle_seconds.append(time.monotonic() - started)
 
     def take_live(now: float) -> None:
         """Apply what devices sent, for at most INPUT_BUDGET seconds but at least one event (so a
@@ -228,13 +226,7 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
                 state.lock_speeds.clear()  # turned on again, the lock starts afresh
             elif state.lock_speeds:  # the lock's (live, or a replayed log's)
                 controls = replace(controls, speed=locked_speed(state.lock_speeds, controls.speed, show.characters))
-            if engine.makes_model_frame(now):  # its retune, if any, here (the frame's own finds it made) and timed:
-                # the estimate of a restyle's time learns from these too, or one restyle ahead that a
-                # stall made slow would keep every later one out of the wait (none fits) for the show
-                retune_started = time.monotonic()
-                if engine.retune(controls, state.spread) == "restyled" and index > 0:  # the first warms up
-                    restyle_seconds.append(time.monotonic() - retune_started)
-            crowd = engine.frame(now, controls, state.spread)
+            crowd = engine.frame(now, controls, state.spread)  # its retune, if any, timed by the engine
             if GAITS[controls.gait] in engine.units.missing:  # said, not refused: the walk goes on
                 console.warn(f"gait {GAITS[controls.gait]}", f"gait {GAITS[controls.gait]}: this model has no "
                              f"{GAITS[controls.gait]} unit (it has {', '.join(engine.model.units)}); it walks")
@@ -275,9 +267,8 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             # wake early enough for what a frame has recently taken, and at once after a jump;
             # meanwhile take live events as they come (stamped with the coming frame's time, as
             # if taken at its start), so a flood of them is handled while waiting, not at the frame
-            expected = max(np.percentile(work_times, 99), work_times[-1]) if work_times else 0.5 / fps
+            expected, lead = frame_lead(work_times, engine.restyle_seconds, fps)
             upcoming = (index + 1) / fps
-            lead = min(LEAD_SPREAD * expected + LEAD_MARGIN, MAX_LEAD_FRAMES / fps)
             clock.advance(lead=lead,
                           idle=(lambda: between_frames(upcoming, clock.deadline() - lead, expected)) if live_sources else None)
     except KeyboardInterrupt:  # a caller that kept Python's own SIGINT handler
@@ -292,6 +283,21 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
     summary.late, summary.dropped = clock.late, clock.dropped
     summary.seconds = time.monotonic() - started
     return summary
+
+
+def frame_lead(work_times: Sequence[float], restyles: Sequence[float], fps: float) -> tuple[float, float]:
+    """(expected, lead): what the coming frame's work may take (seconds), and how long before its
+    deadline the loop wakes for it. The recent p99 of the work (or the last frame's, after a jump),
+    and, once the engine has timed restyles, at least a typical frame's work plus the dearest of
+    them: a style change taken at the frame's start (after the last look while waiting, too late
+    to retune ahead) is retuned in the frame's work, and when such frames are under one in a
+    hundred the p99 does not hold them, and each was late."""
+    if not work_times:
+        expected = 0.5 / fps
+    else:
+        typical, p99 = np.percentile(work_times, (50, 99))
+        expected = max(p99, work_times[-1], typical + max(restyles, default=0.0))
+    return expected, min(LEAD_SPREAD * expected + LEAD_MARGIN, MAX_LEAD_FRAMES / fps)
 
 
 def collect_between_frames() -> None:

@@ -32,6 +32,7 @@ calls, frame by frame, so `synth` and a recorded `run` make the same frames.
 from __future__ import annotations
 
 import time
+from collections import deque
 from dataclasses import dataclass, replace
 from typing import Protocol, Sequence
 
@@ -65,6 +66,7 @@ TABLES_UP_TO = 8
 MIX_CONCENTRATION = 0.5  # of a crowd character's Dirichlet style draw: below 1 its mix leans on one or two styles
 MIX_STREAM = 1  # the draws of a character's mix and phase come from seed sequence (seed, MIX_STREAM)
 METHODS = ("stream", "full")
+RESTYLES_KEPT = 20  # the restyles whose time `Engine.restyle_seconds` keeps
 
 
 # ---- the cast: who walks ---------------------------------------------------------------------
@@ -149,8 +151,9 @@ class Interpolation:
 
     name = "interpolation"
 
-    def __init__(self, space: StyleSpace, offsets: np.ndarray):
-        self.stage = StyleInterpolation(space, offsets)
+    def __init__(self, space: StyleSpace, offsets: np.ndarray, later: np.ndarray | None = None):
+        # `later` (labels * states,) bool: rows only a playing gesture reads, made when one may play (`complete`)
+        self.stage = StyleInterpolation(space, offsets, later)
         self.duration_means: np.ndarray | None = None  # (N, labels, states)
         self.duration_variances: np.ndarray | None = None
 
@@ -161,6 +164,10 @@ class Interpolation:
 
     def repace(self, mix: Mix, stream: Crowd) -> None:
         """lambda* and the duration pdfs do not move with the pace."""
+
+    def complete(self) -> None:
+        """The rows of lambda* the last retune left for later (a gesture's), made now."""
+        self.stage.complete()
 
 
 class Durations:
@@ -202,6 +209,7 @@ class RangeTargets:
         self.factors = np.empty((count, dimension))
         self._targets = DirectCall(unit_targets)  # every argument's type is fixed: typed once per retune, not a frame
         self.table: tuple[np.ndarray, np.ndarray] | None = None  # a few characters' (N, U, D) means and factors
+        self._tabled = np.zeros(len(units), dtype=np.bool_)  # (U,) the units whose column of `table` is made
 
     def retune(self, mix: Mix, stream: Crowd) -> None:
         self.factor = self.space.factors(mix.weights, mix.parts)
@@ -211,7 +219,8 @@ class RangeTargets:
         """The stride means move with the planned durations: each is made again at its next frame."""
         self.stream = stream
         self.held[slice(None) if mix.paced is None else mix.paced] = -1
-        self.table = None
+        if self.table is not None:
+            self._tabled[:] = False
 
     def targets(self, units: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
         """(N, D) stride means and factors of each character's frame, of unit `units` (N,: an array or a list)."""
@@ -221,15 +230,23 @@ class RangeTargets:
             return self.means, self.factors
         if self.table is None:
             shape = (count, len(self.scaled), self.means.shape[1])
-            table = np.empty(shape), np.empty(shape)
-            for unit in range(len(self.scaled)):
-                self._made(np.full(count, unit, dtype=np.int64))
-                table[0][:, unit], table[1][:, unit] = self.means, self.factors
-            self.table = table
+            self.table = np.empty(shape), np.empty(shape)
+            self._tabled = np.zeros(len(self.scaled), dtype=np.bool_)
         if count == 1:  # views, no copy
+            self._tabulate(units[0])
             return self.table[0][:, units[0]], self.table[1][:, units[0]]
+        for unit in set(units):
+            self._tabulate(unit)
         rows = np.arange(count)
         return self.table[0][rows, units], self.table[1][rows, units]
+
+    def _tabulate(self, unit: int) -> None:
+        """Unit `unit`'s column of `table`, made at its first frame since the retune (a unit no
+        character walks in costs nothing: a style change's frame made all five)."""
+        if not self._tabled[unit]:
+            self._made(np.full(len(self.held), unit, dtype=np.int64))
+            self.table[0][:, unit], self.table[1][:, unit] = self.means, self.factors
+            self._tabled[unit] = True
 
     def filtered(self, frames: np.ndarray, units: np.ndarray, range_filter: RangeFilter) -> np.ndarray:
         """A crowd's frames (N, D; more than TABLES_UP_TO characters) through `range_filter`,
@@ -303,6 +320,7 @@ class GestureTables:
     def ready(self) -> None:
         """The gesture stream's tables as of the last retune, before it plays a frame."""
         if self.stream is not None:
+            self.interpolation.complete()  # the gesture's rows of lambda*, left by the retune until now
             self.layer.retune(self.interpolation.duration_means, self.interpolation.duration_variances, self.stream)
             self.stream = None
 
@@ -352,7 +370,8 @@ class Engine:
         self.cast = make_cast(characters, len(model.style_names), model.states, seed)
         self.stream = Crowd(self.space, characters, lookahead, seeds=self.cast.seeds)
         self.stream.start_at(self.cast.phases)
-        interpolation = Interpolation(self.space, self.cast.offsets)
+        self.gestures = GestureLayer(model, self.space, characters, lookahead, self.cast.seeds)
+        interpolation = Interpolation(self.space, self.cast.offsets, self.gestures.rows())
         self.features: list[StyleFeature] = [interpolation, Durations(interpolation)]
         ranges, contact = range_space(model), contact_space(model)
         self.range_targets = None if ranges is None else RangeTargets(ranges, model.units, characters, model.layout.dimension)
@@ -360,7 +379,6 @@ class Engine:
         self.contact = None if contact is None else ContactTables(contact)
         self.features += [f for f in (self.range_targets, self.contact) if f is not None]
         self.units = UnitChooser(model, characters)
-        self.gestures = GestureLayer(model, self.space, characters, lookahead, self.cast.seeds)
         self.gesture_tables = GestureTables(self.gestures, interpolation) if self.gestures.names else None
         if self.gesture_tables is not None:
             self.features.append(self.gesture_tables)
@@ -386,6 +404,10 @@ class Engine:
         self._stood = np.zeros((characters, model.layout.dimension))  # (N, D) the pose each body last set off from
         # when a dict: seconds spent in each stage, added up frame after frame (`instrument bench`'s stage costs)
         self.stage_seconds: dict[str, float] | None = None
+        # clock seconds (time.monotonic) the recent restyles took, ahead of a frame or in it: what the
+        # live loop reckons a coming one with (the first restyle, which loads compiled code, is not kept)
+        self.restyle_seconds: deque[float] = deque(maxlen=RESTYLES_KEPT)
+        self.restyles = 0  # restyles made
         self._clock = 0.0
 
     def _timed(self, stage: str) -> None:
@@ -412,6 +434,7 @@ class Engine:
         style, pace = (key[0], key[1], spread), key[2:]
         if style == self._style and pace == self._pace:
             return None
+        started = time.monotonic()
         self._mark()
         if style != self._style:
             offsets = self.cast.offsets
@@ -429,7 +452,12 @@ class Engine:
             elif hasattr(feature, "repace"):  # a feature without it does not move with the pace
                 feature.repace(self.mix, self.stream)
             self._timed(feature.name)
-        return "restyled" if restyled else "repaced"
+        if not restyled:
+            return "repaced"
+        if self.restyles:
+            self.restyle_seconds.append(time.monotonic() - started)
+        self.restyles += 1
+        return "restyled"
 
     def next_features(self, controls: Controls, spread: float = 0.0) -> np.ndarray:
         """The next model frame of every character, (N, D): stream, range, drive; the frame's

@@ -101,6 +101,19 @@ class GestureLayer:
     def names(self) -> list[str]:
         return list(self.labels)
 
+    def rows(self) -> np.ndarray | None:
+        """(labels * states,) bool: the rows of lambda* only the gestures' labels have (the
+        gait's stream reads none of them but while it makes a gesture's frame, `begin`); None
+        without gestures."""
+        if self.crowd is None:
+            return None
+        states = self.crowd.space.states
+        rows = np.zeros(self.crowd.space.labels * states, dtype=np.bool_)
+        for labels in self.labels.values():
+            for label in labels:
+                rows[label * states:(label + 1) * states] = True
+        return rows
+
     def retune(self, duration_means: np.ndarray, duration_variances: np.ndarray, stream: Crowd) -> None:
         """The gait's lambda* tables and the gesture's durations at the model's own pace (a walk
         sped up does not hurry the wave)."""

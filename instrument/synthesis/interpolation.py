@@ -24,6 +24,7 @@ differently ("legs youthful, upper body elderly"). Durations follow the overall 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 from numba import njit
@@ -148,7 +149,63 @@ def style_change(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarra
     if (mixes < 0.0).any() or (mixes.sum(axis=0) > 1.0).any():  # past the styles: a convex mix needs no bound
         np.maximum(change[1], space.log_variance_span[0], out=change[1])  # (two passes: half np.clip's time)
         np.minimum(change[1], space.log_variance_span[1], out=change[1])
-    return change, (weights @ space.duration_offsets.reshape(styles, -1)).reshape(space.duration_base.shape)
+    return change, _duration_change(space, weights)
+
+
+def _mix_per_dimension(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray | None
+                       ) -> tuple[np.ndarray, bool]:
+    """(styles, 3D) the weight of each style in each observation dimension (the overall weight,
+    or its group's part weight), and whether the mix is past the styles (a weight below 0, or
+    a group's adding up to more than 1), where the log variances' change is bounded to the span
+    (`style_change`'s rule)."""
+    weights = np.asarray(weights, dtype=np.float64)
+    if part_weights is None:
+        mixes = weights[:, None]
+        per_dim = np.repeat(mixes, space.group_masks.shape[1], axis=1)
+    else:
+        mixes = part_weights_per_group(weights, part_weights)
+        per_dim = mixes @ space.group_masks
+    return per_dim, bool((mixes < 0.0).any() or (mixes.sum(axis=0) > 1.0).any())
+
+
+def _duration_change(space: StyleSpace, weights: np.ndarray) -> np.ndarray:
+    """(2, labels * states) how far the duration pdfs move from lambda 0's (`style_change`'s second)."""
+    weights = np.asarray(weights, dtype=np.float64)
+    return (weights @ space.duration_offsets.reshape(len(weights), -1)).reshape(space.duration_base.shape)
+
+
+@njit(cache=True, nogil=True)
+def _shared_rows(per_dim, offsets, base, span, bounded, rows, means, precisions):  # pragma: no cover - compiled
+    """Rows `rows` of the shared tables: lambda 0's means plus the mix's change, and the
+    precisions exp(-(lambda 0's log variances + the change)), the change bounded to `span` when
+    `bounded`; per_dim (styles, 3D) each style's weight in each dimension. One pass over the
+    rows asked for, where numpy's product, sum and exp made five over every row (and the
+    rows of a gesture can wait until one plays: `StyleInterpolation.complete`), reading the
+    offsets of the styles in the mix only (a performer's faders mostly rest at 0; the offsets
+    are megabytes, out of the cache by the time a change comes). Adding a style weighed 0 would
+    add 0.0 to each sum: leaving it out changes no bit."""
+    styles, width = per_dim.shape
+    mean_change = np.empty(width)
+    log_change = np.empty(width)
+    weighed = np.zeros(styles, dtype=np.bool_)  # a style weighed 0 everywhere adds nothing: its offsets go unread
+    for s in range(styles):
+        for f in range(width):
+            weighed[s] |= per_dim[s, f] != 0.0
+    for r in rows:
+        mean_change[:] = 0.0
+        log_change[:] = 0.0
+        for s in range(styles):
+            if not weighed[s]:
+                continue
+            for f in range(width):
+                mean_change[f] += per_dim[s, f] * offsets[s, 0, r, f]
+                log_change[f] += per_dim[s, f] * offsets[s, 1, r, f]
+        for f in range(width):
+            change = log_change[f]
+            if bounded:
+                change = min(max(change, span[0, r, f]), span[1, r, f])
+            means[r, f] = base[0, r, f] + mean_change[f]
+            precisions[r, f] = np.exp(-(base[1, r, f] + change))
 
 
 class StyleInterpolation:
@@ -160,7 +217,7 @@ class StyleInterpolation:
     made once here (`CrowdLambda`'s own factors): a moving fader then costs only the shared
     factors, one small table, and no pass over the crowd's (megabytes)."""
 
-    def __init__(self, space: StyleSpace, offsets: np.ndarray):
+    def __init__(self, space: StyleSpace, offsets: np.ndarray, later: np.ndarray | None = None):
         self.space = space
         styles = len(space.style_names)
         self.offsets = np.asarray(offsets, dtype=np.float64)  # (N, styles)
@@ -172,6 +229,15 @@ class StyleInterpolation:
         self._mean_term = self._precision_factor = None
         self._clip_spread: float | None = None  # the spread `_clip_own` (spread times the log variance offsets) is for
         self._clip_own: np.ndarray | None = None
+        # (styles,) the largest log variance offset of each style: bounds a mix's change before it is made
+        self._style_reach = np.abs(space.offsets[:, 1]).reshape(styles, -1).max(axis=1)
+        self._span_reach = float(np.abs(space.log_variance_span).max(initial=0.0))
+        rows = space.labels * space.states
+        self._later = np.zeros(rows, dtype=np.bool_) if later is None else np.asarray(later, dtype=np.bool_)
+        self._now_rows = np.flatnonzero(~self._later)  # the rows a retune makes; `complete` makes the others
+        self._later_rows = np.flatnonzero(self._later)
+        self._pending: tuple | None = None  # (weights per dimension, bounded, the tables) of the rows still to make
+        self._shared: list[tuple[np.ndarray, np.ndarray]] = []  # the shared tables' arrays, made again in place
 
     def __call__(self, weights: np.ndarray, part_weights: np.ndarray | None, spread: float
                  ) -> tuple[CrowdLambda, np.ndarray, np.ndarray]:
@@ -183,22 +249,37 @@ class StyleInterpolation:
             self._mean_term = spread * self.offset_change[:, 0]
             self._precision_factor = np.exp(-spread * self.offset_change[:, 1])
             self._plain = ~(self._mean_term.any(axis=(1, 2)) | (self._precision_factor != 1.0).any(axis=(1, 2)))
-        change, duration_change = style_change(space, weights, part_weights)
         limit = MAX_LOG_VARIANCE_CHANGE
-        if np.abs(change[1]).max() + abs(spread) * self._own_reach <= limit:
-            # no variance at its limit: exp(-(a + b)) = exp(-a) exp(-b), the second kept while the spread stays
-            tables = CrowdLambda(self._mean_term, space.base[0] + change[0], self._precision_factor,
-                                 np.exp(-(space.base[1] + change[1])), self._plain)
-        else:  # some variance at its limit: a character's precisions cannot be two factors
-            # made whole for every character, they cost a crowd of 32 some 20 ms a frame while a
-            # fader moved past the styles (1,000: most of a second): the shared table holds the
-            # precisions of a character with no offset of its own (`plain`), and the stream makes
-            # another's rows from its log offset as its window reads them (`clip_*`, stream.py `_gather`)
-            if self._clip_spread != spread:
-                self._clip_spread, self._clip_own = spread, np.multiply(self.offset_change[:, 1], spread)
-            precisions = clipped_precisions(change[1], space.base[1], limit)
-            tables = CrowdLambda(self._mean_term, space.base[0] + change[0], self._clip_own, precisions, self._plain,
-                                 change[1], space.base[1], limit)
+        per_dim, bounded = _mix_per_dimension(space, weights, part_weights)
+        reach = float(np.abs(per_dim).max(axis=1) @ self._style_reach)  # no log variance change is larger
+        if bounded:
+            reach = min(reach, self._span_reach)
+        self._pending = None
+        if reach + abs(spread) * self._own_reach <= limit:
+            # no variance at its limit: exp(-(a + b)) = exp(-a) exp(-b), the second kept while the spread stays;
+            # the shared tables made row by row in one pass, the rows `later` left for `complete`
+            means, precisions = self._tables()
+            _shared_rows(per_dim, space.offsets, space.base, space.log_variance_span, bounded, self._now_rows, means,
+                         precisions)
+            self._pending = (per_dim, bounded, means, precisions) if len(self._later_rows) else None
+            tables = CrowdLambda(self._mean_term, means, self._precision_factor, precisions, self._plain,
+                                 rest=self.complete if self._pending is not None else None)
+            duration_change = _duration_change(space, weights)
+        else:  # the bound above is loose: the change made whole says whether a variance is at its limit
+            change, duration_change = style_change(space, weights, part_weights)
+            if np.abs(change[1]).max() + abs(spread) * self._own_reach <= limit:  # none is: two factors
+                tables = CrowdLambda(self._mean_term, space.base[0] + change[0], self._precision_factor,
+                                     np.exp(-(space.base[1] + change[1])), self._plain)
+            else:  # some variance at its limit: a character's precisions cannot be two factors
+                # made whole for every character, they cost a crowd of 32 some 20 ms a frame while a
+                # fader moved past the styles (1,000: most of a second): the shared table holds the
+                # precisions of a character with no offset of its own (`plain`), and the stream makes
+                # another's rows from its log offset as its window reads them (`clip_*`, stream.py `_gather`)
+                if self._clip_spread != spread:
+                    self._clip_spread, self._clip_own = spread, np.multiply(self.offset_change[:, 1], spread)
+                precisions = clipped_precisions(change[1], space.base[1], limit)
+                tables = CrowdLambda(self._mean_term, space.base[0] + change[0], self._clip_own, precisions,
+                                     self._plain, change[1], space.base[1], limit)
         shape = (len(self.offsets), space.labels, space.states)
         means, variances = np.empty(shape), np.empty(shape)
         flat_means, flat_variances = means.reshape(len(means), -1), variances.reshape(len(means), -1)
@@ -206,6 +287,28 @@ class StyleInterpolation:
         over_cores(_duration_part, [(space.duration_base, duration_change, self.offset_duration_change[a:b], spread, limit,
                                      flat_means[a:b], flat_variances[a:b]) for a, b in parts(len(means), LEAST_PER_LIGHT_PART)])
         return tables, means, variances
+
+
+    def complete(self) -> None:
+        """The rows the last call left (`later`: a gesture's, which only a playing gesture reads),
+        made into the same tables: the same numbers as if made with the others."""
+        if self._pending is not None:
+            per_dim, bounded, means, precisions = self._pending
+            self._pending = None
+            space = self.space
+            _shared_rows(per_dim, space.offsets, space.base, space.log_variance_span, bounded, self._later_rows, means,
+                         precisions)
+
+    def _tables(self) -> tuple[np.ndarray, np.ndarray]:
+        """The shared means and precisions to make: two pairs of arrays in turn, so the tables a
+        call hands over are never the last call's (whose holders may still read them), and no
+        table is allocated a call."""
+        shape = self.space.base.shape[1:]
+        if len(self._shared) < 2:
+            self._shared.append((np.empty(shape), np.empty(shape)))
+            return self._shared[-1]
+        self._shared.reverse()
+        return self._shared[0]
 
 
 def _duration_part(base: np.ndarray, shared: np.ndarray, own: np.ndarray, spread: float, limit: float, means: np.ndarray,
@@ -249,13 +352,20 @@ class CrowdLambda:
     clip_change: np.ndarray | None = None  # (labels * states, 3D) the performed weights' log variance change
     clip_base: np.ndarray | None = None  # (labels * states, 3D) lambda 0's log variances
     limit: float = 0.0
+    # makes the shared tables' rows left for later (a gesture's: `StyleInterpolation.complete`); the
+    # whole tables below are read through it (the stream reads the rows it solves, made by then)
+    rest: Callable[[], None] | None = None
 
     @property
     def means(self) -> np.ndarray:
+        if self.rest is not None:
+            self.rest()
         return self.mean_own + self.mean_shared
 
     @property
     def precisions(self) -> np.ndarray:
+        if self.rest is not None:
+            self.rest()
         if not self.limit:
             return self.precision_own * self.precision_shared
         whole = clipped_precisions(self.precision_own + self.clip_change, self.clip_base, self.limit)
