@@ -126,6 +126,11 @@ CONVENTIONS = {
     # and a collar before the shoulder (which is the upper arm); the upper arm and leg were unmapped
     "suit": _body("Hips", ["Chest2", "Chest3", "Chest4"], "Neck", "Head",
                   ["LeftHip", "LeftKnee", "LeftAnkle", "LeftToe"], ["LeftCollar", "LeftShoulder", "LeftElbow", "LeftWrist"]),
+    # MotionBuilder's HumanIK: CMU's names behind the character's prefix; the upper arm and shin were unmapped
+    "HumanIK": _body("Character1_Hips", ["Character1_Spine", "Character1_Spine1", "Character1_Spine2"],
+                     "Character1_Neck", "Character1_Head",
+                     ["Character1_LeftUpLeg", "Character1_LeftLeg", "Character1_LeftFoot", "Character1_LeftToeBase"],
+                     ["Character1_LeftShoulder", "Character1_LeftArm", "Character1_LeftForeArm", "Character1_LeftHand"]),
     # CMU's ASF skeletons (amc2bvh): a lower-case side letter and the bones' Latin names; no limb was mapped
     "CMU ASF": _body("hip", ["lowerback", "upperback", "thorax"], "lowerneck", "head",
                      ["lfemur", "ltibia", "lfoot", "ltoes"], ["lclavicle", "lhumerus", "lradius", "lwrist"]),
@@ -149,6 +154,16 @@ def test_a_hip_stub_above_a_named_thigh_is_not_the_thigh():
                   ["LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand"])
     guessed = guess_humanoid(_skeleton(pairs))
     assert guessed["LeftUpLeg"] == "LeftUpperLeg" and "LeftHip" not in guessed
+
+
+def test_a_spine_without_a_neck_joint_is_guessed_up_to_the_head():
+    """A skeleton whose head hangs from the chest (no neck joint) still has its spine mapped:
+    VMC avatars need a Spine, and it was left out when no joint was named as a neck."""
+    pairs = [(n, p) for n, p in _body("Hips", ["Spine", "Chest"], "Neck", "Head", LEG, ARM) if n != "Neck"]
+    pairs = [(n, "Chest" if p == "Neck" else p) for n, p in pairs]
+    guessed = guess_humanoid(_skeleton(pairs))
+    assert guessed["Spine"] == "Spine" and guessed["Chest"] == "Chest" and guessed["Head"] == "Head"
+    assert "Neck" not in guessed.values()
 
 
 def test_humanoid_guess_of_the_shipped_skeleton():

@@ -84,13 +84,28 @@ def _limb(core: str, side: str, taken: set[str], thighs: set[str]) -> str | None
     return None
 
 
+def _shared_prefix(names: list[str]) -> int:
+    """The length of a prefix every joint's name starts with, up to a separator (HumanIK's
+    `Character1_`, Biped's `Bip01 `, a namespace `rig:`), so the names are read without it
+    (`Character1_LeftArm` is the upper arm as `LeftArm` is); 0 when there is none."""
+    if len(names) < 2:
+        return 0
+    shared = names[0][: min(len(n) for n in names) - 1]  # never a whole name
+    for name in names[1:]:
+        while not name.startswith(shared):
+            shared = shared[:-1]
+    cut = max(shared.rfind(c) for c in "_.: -")
+    return cut + 1
+
+
 def guess_humanoid(skeleton: Skeleton) -> dict[str, str]:
     """{joint name: human bone} for the joints whose role is clear from their names."""
     mapping: dict[str, str] = {}
     names = skeleton.names
-    thighs = {_side(name) for name in names if _side(name) and re.search(THIGH_NAMES, _core(name))}
+    start = _shared_prefix(names)
+    thighs = {_side(name[start:]) for name in names if _side(name[start:]) and re.search(THIGH_NAMES, _core(name[start:]))}
     for name in names:
-        core, side = _core(name), _side(name)
+        core, side = _core(name[start:]), _side(name[start:])
         if side:
             bone = _limb(core, side, set(mapping.values()), thighs)
             if bone:
@@ -101,9 +116,10 @@ def guess_humanoid(skeleton: Skeleton) -> dict[str, str]:
             mapping[name] = "Neck"
         elif re.search(r"head", core) and "Head" not in mapping.values():
             mapping[name] = "Head"
-    # the spine: joints between the hips and the neck, the last three as Spine, Chest, UpperChest
+    # the spine: joints between the hips and the neck (the head, on a skeleton without a neck
+    # joint), the last three as Spine, Chest, UpperChest
     hips = next((n for n, b in mapping.items() if b == "Hips"), None)
-    neck = next((n for n, b in mapping.items() if b == "Neck"), None)
+    neck = next((n for n, b in mapping.items() if b == "Neck"), None) or next((n for n, b in mapping.items() if b == "Head"), None)
     if hips and neck:
         chain, j = [], skeleton.parents[names.index(neck)]
         while j >= 0 and names[j] != hips:
