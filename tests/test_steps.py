@@ -50,6 +50,18 @@ def test_standing_still_has_no_steps():
     assert segmentation.warnings
 
 
+def test_walking_on_the_spot_says_the_body_does_not_travel():
+    """A treadmill take (the legs walk, the root stays) has no steps, and says why rather than
+    leaving "no complete steps found" (then `train`'s "no steps found in any file") a mystery."""
+    text, _ = cmu_style_walk(fps=30)
+    walk = parse_bvh(text)
+    channels = walk.channels.copy()
+    channels[:, [0, 2]] = channels[:1, [0, 2]]  # the root's X and Z position held: no travel
+    segmentation = segment_steps(Motion(walk.skeleton, channels, 30.0))
+    assert segmentation.steps == [] and segment_steps(walk).steps
+    assert any("does not travel" in w and "treadmill" in w for w in segmentation.warnings), segmentation.warnings
+
+
 def test_a_pause_splits_the_walk_and_each_run_alternates():
     text, _ = cmu_style_walk(fps=30, seconds=4.4)
     walk = resample(parse_bvh(text), 30.0)
