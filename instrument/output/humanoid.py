@@ -2,9 +2,10 @@
 
 `guess_humanoid` reads common naming conventions (the shipped model's `UpperLeg_L`, CMU's
 `LeftUpLeg`, Mixamo's `mixamorig:LeftUpLeg`, Unreal's `thigh_l` / `ball_l`, Rigify's `thigh.L`,
-VRoid's `J_Bip_L_UpperLeg`, 3ds Max Biped's `Bip01 L Thigh`, an inertial suit's and the CMU
-conversions' `LeftHip` / `LeftCollar` / `LeftShoulder` (the upper arm), CMU's ASF `lfemur` /
-`lhumerus`, ...). For anything else, a TOML file
+VRoid's `J_Bip_L_UpperLeg`, 3ds Max Biped's `Bip01 L Thigh`, HumanIK's `Character1_LeftUpLeg`
+(a prefix every joint shares is read past), an inertial suit's and the CMU conversions'
+`LeftHip` / `LeftCollar` / `LeftShoulder` (the upper arm), CMU's ASF `lfemur` / `lhumerus`,
+...). For anything else, a TOML file
 maps joint names to bone names:
 
     [bones]
