@@ -166,6 +166,34 @@ def test_a_spine_without_a_neck_joint_is_guessed_up_to_the_head():
     assert "Neck" not in guessed.values()
 
 
+def test_joints_named_for_no_bone_ask_for_a_humanoid_map_in_one_line(tmp_path):
+    """A skeleton whose names say nothing (joint01, joint02, ...) made the VMC profile and the
+    T-pose rest (`run`'s default output, `skeleton`) raise numpy's "axes don't match array";
+    it is one line naming --humanoid, and a map given there plays."""
+    import copy
+    from dataclasses import replace
+
+    model = load_model(default_model_path())
+    skeleton = model.layout.skeleton
+    generic = {name: f"joint{k + 1:02d}" for k, name in enumerate(skeleton.names)}
+    metadata = copy.deepcopy(model.metadata)
+    for joint in metadata["skeleton"]["joints"]:
+        joint["name"] = generic[joint["name"]]
+    features = metadata["features"]
+    features["root"] = generic[features["root"]]
+    features["joints"] = [generic[n] for n in features["joints"]]
+    features["left_out"] = [generic[n] for n in features["left_out"]]
+    features["names"] = [generic.get(n.split(".")[0], n.split(".")[0]) + n[len(n.split(".")[0]):] for n in features["names"]]
+    model = replace(model, metadata=metadata)
+    assert guess_humanoid(model.layout.skeleton) == {}
+    with pytest.raises(UserError, match=r"^no joint name .*joint01, joint02, .* give --humanoid BONES\.toml") as error:
+        make_profile("vmc", model)
+    assert "\n" not in str(error.value)
+    bones = tmp_path / "bones.toml"
+    bones.write_text(f'[bones]\n"{generic["Hips"]}" = "Hips"\n')
+    assert make_profile("vmc", model, str(bones)).bones == ["Hips"]
+
+
 def test_humanoid_guess_of_the_shipped_skeleton():
     guessed = guess_humanoid(load_model(default_model_path()).layout.skeleton)
     assert {guessed[n] for n in ("Hips", "UpperLeg_L", "LowerLeg_R", "Toes_L", "UpperArm_R", "Chest")} == {
