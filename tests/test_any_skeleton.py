@@ -194,6 +194,16 @@ def test_joints_named_for_no_bone_ask_for_a_humanoid_map_in_one_line(tmp_path):
     assert make_profile("vmc", model, str(bones)).bones == ["Hips"]
 
 
+def test_a_humanoid_map_naming_one_bone_twice_is_one_line(tmp_path):
+    """Two joints mapped to one bone (a copied line left unchanged) sent the bone twice a frame."""
+    skeleton = load_model(default_model_path()).layout.skeleton
+    bones = tmp_path / "bones.toml"
+    bones.write_text('# the legs\n[bones]\n"UpperLeg_L" = "LeftUpperLeg"\n"LowerLeg_L" = "LeftUpperLeg"\n')
+    with pytest.raises(UserError) as error:
+        read_humanoid(bones, skeleton)
+    assert str(error.value) == f"{bones}:4: [bones] 'LowerLeg_L' = 'LeftUpperLeg': 'UpperLeg_L' is LeftUpperLeg already"
+
+
 def test_humanoid_guess_of_the_shipped_skeleton():
     guessed = guess_humanoid(load_model(default_model_path()).layout.skeleton)
     assert {guessed[n] for n in ("Hips", "UpperLeg_L", "LowerLeg_R", "Toes_L", "UpperArm_R", "Chest")} == {

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..errors import UserError
 from ..motion.bvh import Skeleton
-from ..tomlfile import read_toml
+from ..tomlfile import key_lines, read_toml
 
 HUMAN_BONES = (
     "Hips", "Spine", "Chest", "UpperChest", "Neck", "Head",
@@ -134,14 +134,20 @@ def guess_humanoid(skeleton: Skeleton) -> dict[str, str]:
 
 def read_humanoid(path: str | Path, skeleton: Skeleton) -> dict[str, str]:
     path = Path(path)
-    _, data = read_toml(path)
+    text, data = read_toml(path)
     bones = data.get("bones")
     if not isinstance(bones, dict) or not bones:
         raise UserError(f"{path}: expected a [bones] table of \"joint\" = \"HumanBone\"")
+    taken: dict[object, str] = {}
     for joint, bone in bones.items():
         if joint not in skeleton.names:
             raise UserError(f"{path}: [bones] key {joint!r}: the model's skeleton has no such joint (it has "
                             f"{', '.join(skeleton.names[:6])}, ...): this map is for another skeleton")
         if bone not in HUMAN_BONES:
             raise UserError(f"{path}: [bones] {joint!r} = {bone!r}: not a humanoid bone ({', '.join(HUMAN_BONES[:4])}, ...)")
+        if bone in taken:  # a VMC receiver would get the bone twice a frame, from two joints
+            line = key_lines(text).get(("bones", joint))
+            raise UserError(f"{path}:{line}: [bones] {joint!r} = {bone!r}: {taken[bone]!r} is {bone} already"
+                            if line else f"{path}: [bones] {joint!r} = {bone!r}: {taken[bone]!r} is {bone} already")
+        taken[bone] = joint
     return dict(bones)
