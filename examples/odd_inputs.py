@@ -41,6 +41,9 @@ VARIANTS: dict[str, Rig] = {
     "suit23-60": Rig(60.0, 1.0, "ZXY", "suit", keep_root=False, split=("Chest", 3), rest_pose=True),
     "floor-below-origin-metres": Rig(30.0, 0.01, "ZXY", keep_root=False, lift=-70.0),
     "short-takes": Rig(30.0, 1.0, "ZXY", keep_root=False, frames=45),
+    # HumanIK's prefixed names (upper arms and shins were unguessed), millimetres (guessed as an unknown
+    # unit: hips made 0.95 m, figures 9.6% long), Z up, 100 fps
+    "humanik-mm-z-up-100": Rig(100.0, 10.0, "YXZ", "humanik", keep_root=False, up="Z"),
 }
 
 EXTRA = ["turning-take", "tiny-take"]  # the plain walks with a turning take, or a take of 8 frames, among them

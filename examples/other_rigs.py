@@ -90,7 +90,14 @@ def suit_name(name: str) -> str:
     return {"Spine": "Chest", "Chest": "Chest2", "Chest.1": "Chest3", "Chest.2": "Chest4"}.get(name, name)
 
 
-RENAMES = {"mixamo": mixamo_name, "cmu": cmu_name, "asf": asf_name, "blender": blender_name, "suit": suit_name}
+def humanik_name(name: str) -> str:
+    """The Bandai walks' joint as MotionBuilder's HumanIK names it: CMU's names behind the
+    character's prefix (UpperArm_L -> Character1_LeftArm, LowerLeg_L -> Character1_LeftLeg)."""
+    return "Character1_" + cmu_name(name)
+
+
+RENAMES = {"mixamo": mixamo_name, "cmu": cmu_name, "asf": asf_name, "blender": blender_name, "suit": suit_name,
+           "humanik": humanik_name}
 
 
 def split_joint(motion: Motion, name: str, pieces: int) -> Motion:
@@ -141,7 +148,7 @@ class Rig:
     fps: float
     scale: float = 1.0  # units: 0.01 turns centimetres into metres
     order: str = "ZXY"  # Euler order of every rotation channel
-    rename: str = ""  # "", "mixamo" or "cmu" (CMU's 31 joints)
+    rename: str = ""  # "", "mixamo", "cmu" (CMU's 31 joints), "asf", "blender", "suit" or "humanik"
     rest_turn_deg: float = 0.0  # each joint's rest orientation turned by up to this much (a fixed seed)
     keep_root: bool = True  # keep a static floor joint above the hips (else re-root at the hips)
     up: str = "Y"  # "Z": the world turned so that Z is up (as Blender's and 3ds Max's scenes are)

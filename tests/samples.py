@@ -201,3 +201,17 @@ def cmu_named_walk(path) -> str:
     assert len(joints) == 31, [j.name for j in joints]
     text = bvh_text(Motion(Skeleton(tuple(joints)), np.hstack(blocks), motion.fps))
     return reorder_bvh(text, "ZYX", drop_joint_positions=True)
+
+
+def z_up(motion):
+    """The same take as exported from a Z-up scene (Blender's, 3ds Max's): its root turned so
+    that +Z is up (the inverse of what `upright` undoes)."""
+    from instrument.motion.bvh import Motion
+    from instrument.motion.kinematics import channels_from_local, local_transforms
+    from instrument.motion.upright import TO_Y_UP
+
+    rotations, translations = local_transforms(motion)
+    to_z_up = TO_Y_UP["+Z"].T
+    rotations[:, 0] = to_z_up @ rotations[:, 0]
+    translations[:, 0] = translations[:, 0] @ to_z_up.T
+    return Motion(motion.skeleton, channels_from_local(motion.skeleton, rotations, translations), motion.fps)

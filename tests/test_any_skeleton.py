@@ -126,6 +126,11 @@ CONVENTIONS = {
     # and a collar before the shoulder (which is the upper arm); the upper arm and leg were unmapped
     "suit": _body("Hips", ["Chest2", "Chest3", "Chest4"], "Neck", "Head",
                   ["LeftHip", "LeftKnee", "LeftAnkle", "LeftToe"], ["LeftCollar", "LeftShoulder", "LeftElbow", "LeftWrist"]),
+    # MotionBuilder's HumanIK: CMU's names behind the character's prefix; the upper arm and shin were unmapped
+    "HumanIK": _body("Character1_Hips", ["Character1_Spine", "Character1_Spine1", "Character1_Spine2"],
+                     "Character1_Neck", "Character1_Head",
+                     ["Character1_LeftUpLeg", "Character1_LeftLeg", "Character1_LeftFoot", "Character1_LeftToeBase"],
+                     ["Character1_LeftShoulder", "Character1_LeftArm", "Character1_LeftForeArm", "Character1_LeftHand"]),
     # CMU's ASF skeletons (amc2bvh): a lower-case side letter and the bones' Latin names; no limb was mapped
     "CMU ASF": _body("hip", ["lowerback", "upperback", "thorax"], "lowerneck", "head",
                      ["lfemur", "ltibia", "lfoot", "ltoes"], ["lclavicle", "lhumerus", "lradius", "lwrist"]),
@@ -149,6 +154,54 @@ def test_a_hip_stub_above_a_named_thigh_is_not_the_thigh():
                   ["LeftShoulder", "LeftArm", "LeftForeArm", "LeftHand"])
     guessed = guess_humanoid(_skeleton(pairs))
     assert guessed["LeftUpLeg"] == "LeftUpperLeg" and "LeftHip" not in guessed
+
+
+def test_a_spine_without_a_neck_joint_is_guessed_up_to_the_head():
+    """A skeleton whose head hangs from the chest (no neck joint) still has its spine mapped:
+    VMC avatars need a Spine, and it was left out when no joint was named as a neck."""
+    pairs = [(n, p) for n, p in _body("Hips", ["Spine", "Chest"], "Neck", "Head", LEG, ARM) if n != "Neck"]
+    pairs = [(n, "Chest" if p == "Neck" else p) for n, p in pairs]
+    guessed = guess_humanoid(_skeleton(pairs))
+    assert guessed["Spine"] == "Spine" and guessed["Chest"] == "Chest" and guessed["Head"] == "Head"
+    assert "Neck" not in guessed.values()
+
+
+def test_joints_named_for_no_bone_ask_for_a_humanoid_map_in_one_line(tmp_path):
+    """A skeleton whose names say nothing (joint01, joint02, ...) made the VMC profile and the
+    T-pose rest (`run`'s default output, `skeleton`) raise numpy's "axes don't match array";
+    it is one line naming --humanoid, and a map given there plays."""
+    import copy
+    from dataclasses import replace
+
+    model = load_model(default_model_path())
+    skeleton = model.layout.skeleton
+    generic = {name: f"joint{k + 1:02d}" for k, name in enumerate(skeleton.names)}
+    metadata = copy.deepcopy(model.metadata)
+    for joint in metadata["skeleton"]["joints"]:
+        joint["name"] = generic[joint["name"]]
+    features = metadata["features"]
+    features["root"] = generic[features["root"]]
+    features["joints"] = [generic[n] for n in features["joints"]]
+    features["left_out"] = [generic[n] for n in features["left_out"]]
+    features["names"] = [generic.get(n.split(".")[0], n.split(".")[0]) + n[len(n.split(".")[0]):] for n in features["names"]]
+    model = replace(model, metadata=metadata)
+    assert guess_humanoid(model.layout.skeleton) == {}
+    with pytest.raises(UserError, match=r"^no joint name .*joint01, joint02, .* give --humanoid BONES\.toml") as error:
+        make_profile("vmc", model)
+    assert "\n" not in str(error.value)
+    bones = tmp_path / "bones.toml"
+    bones.write_text(f'[bones]\n"{generic["Hips"]}" = "Hips"\n')
+    assert make_profile("vmc", model, str(bones)).bones == ["Hips"]
+
+
+def test_a_humanoid_map_naming_one_bone_twice_is_one_line(tmp_path):
+    """Two joints mapped to one bone (a copied line left unchanged) sent the bone twice a frame."""
+    skeleton = load_model(default_model_path()).layout.skeleton
+    bones = tmp_path / "bones.toml"
+    bones.write_text('# the legs\n[bones]\n"UpperLeg_L" = "LeftUpperLeg"\n"LowerLeg_L" = "LeftUpperLeg"\n')
+    with pytest.raises(UserError) as error:
+        read_humanoid(bones, skeleton)
+    assert str(error.value) == f"{bones}:4: [bones] 'LowerLeg_L' = 'LeftUpperLeg': 'UpperLeg_L' is LeftUpperLeg already"
 
 
 def test_humanoid_guess_of_the_shipped_skeleton():

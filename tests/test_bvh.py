@@ -3,6 +3,8 @@ import sys
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from instrument.errors import UserError
 from instrument.motion.bvh import bvh_text, parse_bvh, read_bvh, write_bvh
@@ -154,3 +156,24 @@ def test_a_file_in_an_exporters_code_page_reads_with_its_joint_names(tmp_path, e
     motion = read_bvh(path)
     assert motion.skeleton.names == ["Hips", "Hüfte_links"]
     np.testing.assert_array_equal(motion.channels, parse_bvh(SIMPLE, "simple").channels)
+
+
+@given(st.lists(st.tuples(st.integers(0, SIMPLE.count("\n")), st.sampled_from(["", "  ", "\t", " \t "])), max_size=6))
+@settings(max_examples=60, deadline=None)
+def test_blank_lines_anywhere_read_the_same_motion(blanks):
+    """Exporters and hand edits leave blank lines between frames too (Blender's reader skips them):
+    a file with blank lines anywhere reads as the file without them."""
+    lines = SIMPLE.split("\n")
+    for at, blank in sorted(blanks, reverse=True):
+        lines.insert(at, blank)
+    motion = parse_bvh("\n".join(lines), "blank.bvh")
+    plain = parse_bvh(SIMPLE)
+    assert motion.skeleton == plain.skeleton
+    np.testing.assert_array_equal(motion.channels, plain.channels)
+
+
+def test_a_bad_frame_after_blank_lines_is_named_by_its_own_line():
+    lines = SIMPLE.replace("15 25 35", "15 abc 35").split("\n")
+    lines[18:18] = ["", ""]  # two blank lines after the first frame: the bad frame moves from line 20 to 22
+    with pytest.raises(UserError, match=r"^bad\.bvh:22: not a number: 'abc'$"):
+        parse_bvh("\n".join(lines), "bad.bvh")

@@ -287,6 +287,23 @@ def test_recover_leaves_a_healthy_recording_alone(capsys, tmp_path):
     assert path.read_bytes() == before
 
 
+@pytest.mark.parametrize("newline", ["\n", ""])
+def test_recover_says_it_cut_a_partial_last_line(capsys, tmp_path, newline):
+    """A run killed while writing a frame leaves part of its line (with or without its newline):
+    recover cuts it, and says so (it said "as the header says; left as it is" of a file it had
+    just changed)."""
+    path = tmp_path / "take.bvh"
+    status, err = cli(capsys, "run", "--no-osc", "--quiet", "--fast", "--seconds", "0.5", "--bvh", path)
+    assert status == 0, err
+    healthy = path.read_bytes()
+    last = healthy.rstrip(b"\n").rsplit(b"\n", 1)[1]
+    path.write_bytes(healthy + last[: len(last) // 2] + newline.encode())
+    result = subprocess.run([sys.executable, "-m", "instrument", "recover", str(path)], capture_output=True, text=True, timeout=120)
+    status, said = result.returncode, result.stdout
+    assert status == 0 and "cut 1 line that was not a whole frame" in said and "left as it is" not in said, said
+    assert path.read_bytes() == healthy
+
+
 def test_a_recorded_log_carries_its_mappings(tmp_path):
     state = ControlState(STYLES, 5)
     mapping = load_mapping(NANO, state)

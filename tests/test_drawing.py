@@ -42,6 +42,22 @@ def test_contact_sheets_show_figures_and_differ_between_styles(walks):
     assert np.abs(sheets[0] - sheets[1]).mean() > 0.005
 
 
+def test_a_z_up_capture_is_drawn_standing(walks):
+    """A capture exported Z up is drawn as its Y-up take is (it lay flat: the figures a smear
+    along the floor), turned as training reads it."""
+    from instrument.motion.bvh import read_bvh, write_bvh
+    from samples import z_up
+
+    write_bvh(walks / "z-up.bvh", z_up(read_bvh(walks / "youthful.bvh")))
+    sheets = []
+    for name in ("youthful", "z-up"):
+        out = walks / f"{name}-sheet.png"
+        result = subprocess.run(CLI + ["render", "--bvh", str(walks / f"{name}.bvh"), "--out", str(out)], capture_output=True, text=True)
+        assert result.returncode == 0, result.stderr
+        sheets.append(picture(out))
+    assert np.abs(sheets[0] - sheets[1]).mean() < 0.002
+
+
 def test_animation_has_frames(walks):
     out = walks / "walk.gif"
     result = subprocess.run(CLI + ["render", "--bvh", str(walks / "youthful.bvh"), "--out", str(out)], capture_output=True, text=True)

@@ -218,3 +218,19 @@ def test_blender_imports_one_key_per_frame(exported, tmp_path, host, glb, bvh):
     for frame in frames:  # Blender is Z up: (x, y, z) -> (x, -z, y)
         theirs = np.array([imported["heads"][str(frame)][n] for n in names])
         np.testing.assert_allclose(theirs, ours[frame][:, [0, 2, 1]] * [1, -1, 1], atol=1e-3)
+
+
+def test_a_z_up_capture_is_converted_standing_y_up(exported, tmp_path):
+    """glTF is Y up: a capture exported Z up (Blender's, 3ds Max's scene) was written lying on its
+    back, and its unit guessed from the wrong axis; it is turned Y up as training reads it, and
+    its joints land where the Y-up take's do, in metres."""
+    from instrument.motion.bvh import write_bvh
+    from samples import z_up
+
+    walk = read_bvh(exported["walk.bvh"])
+    lying = z_up(walk)
+    write_bvh(tmp_path / "z-up.bvh", lying)
+    result = instrument("convert", str(tmp_path / "z-up.bvh"), "--out", str(tmp_path / "z-up.glb"))
+    assert result.returncode == 0 and "+Z is up" in result.stderr, result.stderr
+    _, _, positions = glb_world_positions(tmp_path / "z-up.glb")
+    np.testing.assert_allclose(positions, world_positions(walk) * CM, atol=1e-4)

@@ -125,3 +125,16 @@ def test_cli_log_export_import(tmp_path):
     other.write_text(ControlEvent(0, "demo", "speed", 1.0).to_json() + "\n")
     result = run("export", str(other), "--out", str(tmp_path / "m.mid"))
     assert result.returncode == 1 and "only MIDI events" in result.stderr
+
+
+def test_a_missing_midi_file_is_said_as_every_missing_input_is(tmp_path):
+    """`log import` of a file that is not there: "cannot read: No such file or directory", as
+    `log export` and every other input say it (it said "not a readable MIDI file ([Errno 2] ...)");
+    a file that is not MIDI keeps its own line."""
+    from instrument.errors import UserError
+
+    with pytest.raises(UserError, match=r"^.*nothere\.mid: cannot read: No such file or directory$"):
+        import_smf(tmp_path / "nothere.mid")
+    (tmp_path / "text.mid").write_text("not midi\n")
+    with pytest.raises(UserError, match=r"text\.mid: not a readable MIDI file \(MThd not found"):
+        import_smf(tmp_path / "text.mid")

@@ -163,6 +163,16 @@ def test_the_unit_is_guessed_wherever_the_floor_is(cmu_take, lift):
     assert units_to_metres(hip_height(pose, 0)) == 1.0
 
 
+@given(st.floats(0.55, 1.25), st.sampled_from([("m", 1.0), ("cm", 0.01), ("in", 0.0254), ("mm", 0.001)]))
+@settings(max_examples=80, deadline=None)
+def test_the_unit_is_each_one_a_capture_comes_in(hips_m, unit):
+    """Hips from 0.55 to 1.25 m high (a child to a tall adult; inches above 50 read as cm) in
+    metres, centimetres, inches or millimetres give back that unit: millimetres (Vicon's exports)
+    fell to the unknown unit's guess, the hips made 0.95 m whatever their height."""
+    _, metres_per_unit = unit
+    assert units_to_metres(hips_m / metres_per_unit) == metres_per_unit
+
+
 def test_training_reads_a_z_up_capture_y_up(cmu_take, tmp_path):
     """A take written Z up (as from a Z-up scene) is read for training and evaluation (read_motions)
     as the same take Y up: every joint where it was. It failed training with a numpy traceback."""

@@ -411,3 +411,25 @@ def test_the_states_values_and_echo_are_made_again_exactly_when_a_value_changes(
     made = all_values(state)
     assert list(made) == state.value_targets
     assert all(made[t] == state.get(t) or (math.isnan(made[t]) and math.isnan(state.get(t))) for t in made)
+
+
+@pytest.mark.parametrize("target, hint", [
+    ("style/sleepy", "(this model's styles: elderly, youthful)"),
+    ("part/sleepy/legs", "(this model's styles: elderly, youthful)"),
+    ("part/elderly/arms", "(the parts are root, legs, upper)"),  # the style is right: it named the styles
+    ("phase/0", "(phase/1 to phase/5: the states of this model's step)"),  # it listed every kind of target
+    ("phase/6", "(phase/1 to phase/5: the states of this model's step)"),
+    ("gesture/dance", "(gestures: wave, raise)"),
+])
+def test_an_unknown_target_says_what_its_kind_takes(tmp_path, target, hint):
+    """The refusal names what a target of its kind may be, by the check and in a mapping's line
+    (a mapping may name a style the model lacks: it is then left out, not refused)."""
+    refused = refusal(target, 1.0, ["elderly", "youthful"], 5)
+    assert refused.kind == UNKNOWN and refused.text == f"{target}: unknown target {hint}"
+    if "styles" in hint:
+        return
+    mapping = tmp_path / "m.toml"
+    mapping.write_text(f'name = "m"\n[device]\nmidi = "x"\n\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "{target}"\n')
+    with pytest.raises(UserError) as error:
+        load_mapping(mapping, ControlState(["elderly", "youthful"], 5))
+    assert str(error.value) == f"{mapping}:8: target: {target}: unknown target {hint}"

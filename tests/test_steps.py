@@ -1,7 +1,10 @@
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
-from instrument.motion.bvh import Motion, parse_bvh, read_bvh
+from instrument.motion.bvh import Motion, parse_bvh, read_bvh, write_bvh
 from instrument.motion.features import resample
 from instrument.motion.steps import contiguous_runs, segment_steps
 from samples import STRIDE_SECONDS, cmu_style_walk
@@ -48,6 +51,33 @@ def test_standing_still_has_no_steps():
     segmentation = segment_steps(still)
     assert segmentation.steps == []
     assert segmentation.warnings
+
+
+def test_walking_on_the_spot_says_the_body_does_not_travel():
+    """A treadmill take (the legs walk, the root stays) has no steps, and says why rather than
+    leaving "no complete steps found" (then `train`'s "no steps found in any file") a mystery."""
+    text, _ = cmu_style_walk(fps=30)
+    walk = parse_bvh(text)
+    channels = walk.channels.copy()
+    channels[:, [0, 2]] = channels[:1, [0, 2]]  # the root's X and Z position held: no travel
+    segmentation = segment_steps(Motion(walk.skeleton, channels, 30.0))
+    assert segmentation.steps == [] and segment_steps(walk).steps
+    assert any("does not travel" in w and "treadmill" in w for w in segmentation.warnings), segmentation.warnings
+
+
+def test_train_on_takes_without_steps_says_why_in_its_one_line(tmp_path):
+    """`train` on treadmill takes alone: its one line names a file and the reason (its warnings
+    are not printed when nothing is left to train on)."""
+    text, _ = cmu_style_walk(fps=30)
+    walk = parse_bvh(text)
+    channels = walk.channels.copy()
+    channels[:, [0, 2]] = channels[:1, [0, 2]]
+    write_bvh(tmp_path / "me_walk_calm_001.bvh", Motion(walk.skeleton, channels, 30.0))
+    result = subprocess.run([sys.executable, "-m", "instrument", "train", str(tmp_path), "--out", str(tmp_path / "m.npz"),
+                             "--quiet"], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    line = result.stderr.strip().splitlines()[-1]
+    assert "no steps found in any file" in line and "me_walk_calm_001.bvh" in line and "does not travel" in line, line
 
 
 def test_a_pause_splits_the_walk_and_each_run_alternates():

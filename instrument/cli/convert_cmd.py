@@ -21,11 +21,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..motion.bvh import read_bvh  # (numpy: loaded when run, not for --help)
+    from ..motion.upright import upright_take
     from ..output.export import motion_format, write_motion
 
-    motion_format(args.out)
+    kind = motion_format(args.out)
     check_output(args.out, args.force, inputs=(args.bvh,))
     motion = read_bvh(args.bvh)
+    if kind != ".bvh":  # glTF is Y up: a Z-up capture is turned as training reads it (a .bvh is rewritten as it is)
+        motion, up = upright_take(motion)
+        if up != "+Y":
+            print(f"{args.bvh}: {up} is up in this capture: written turned Y up", file=sys.stderr)
     write_motion(args.out, motion)
     print(f"wrote {motion.frames} frames ({motion.duration:g} s at {motion.fps:g} fps) to {args.out}", file=sys.stderr)
     return 0

@@ -15,13 +15,16 @@ def run(args: argparse.Namespace) -> int:
     from ..motion.bvh import read_bvh  # (numpy: loaded when run, not for --help)
     from ..output.recorder import recover
 
-    before, after, path = recover(args.bvh)
+    before, after, path, cut = recover(args.bvh)
     if after == 0:
         print(f"{path}: the run was stopped before its first frame: nothing was recorded; removed it")
         return 0
     read_bvh(path)  # proves the result reads
-    if before == after:
+    cut_lines = f"; cut {cut} line{'s' if cut > 1 else ''} that {'were' if cut > 1 else 'was'} not a whole frame" if cut else ""
+    if before == after and not cut:
         print(f"{path}: {after} frames, as the header says; left as it is")
+    elif before == after:
+        print(f"{path}: {after} frames, as the header says{cut_lines}")
     else:
-        print(f"{path}: {after} frames (the header said {before})")
+        print(f"{path}: {after} frames (the header said {before}){cut_lines}")
     return 0

@@ -40,9 +40,10 @@ def run(args: argparse.Namespace) -> int:
 
     from ..motion.bvh import read_bvh
     from ..motion.kinematics import world_positions
+    from ..motion.upright import upright_take
     from ..output.drawing import bone_colours, draw_framed, drawn_parents, pyplot, side_projection
 
-    motion = read_bvh(args.bvh)
+    motion, _ = upright_take(read_bvh(args.bvh))  # drawn standing whatever axis was up (a Z-up capture lay flat)
     plt = pyplot("Agg")
     positions = world_positions(motion)
     parents = drawn_parents(motion.skeleton.parents, positions)

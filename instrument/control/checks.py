@@ -70,12 +70,20 @@ def row_of(target: object, styles: Collection[str], states: int) -> Row | None:
     return None
 
 
-def unknown(target: object, styles: Collection[str] | None = None) -> Refusal:
-    """The refusal of a name no row answers; naming the model's styles when a style was meant."""
+def unknown(target: object, styles: Collection[str] | None = None, states: int | None = None) -> Refusal:
+    """The refusal of a name no row answers, with what the name's kind takes: the model's styles
+    when a style was meant, the body parts when the style is known, the phases, the gestures."""
     shown = printable(str(target))
-    head = shown.split("/")[0]
-    if styles is not None and head in ("style", "part"):
+    parts = shown.split("/")
+    head = parts[0]
+    if styles is not None and head == "part" and len(parts) == 3 and parts[1] in styles:
+        hint = f" (the parts are {', '.join(GROUPS)})"
+    elif styles is not None and head in ("style", "part"):
         hint = f" (this model's styles: {', '.join(sorted(styles))})"
+    elif head == "phase":
+        hint = f" (phase/1 to phase/{states}: the states of this model's step)" if states else " (phase/K, K from 1)"
+    elif head == "gesture":
+        hint = f" (gestures: {', '.join(GESTURES)})"
     elif head in ("preset", "store"):
         hint = " (a preset name is 1 to 40 letters, digits, '_', '.', '-')"
     else:
@@ -100,7 +108,7 @@ def refusal(target: object, value: object, styles: Collection[str], states: int)
     """Why (target, value) is refused for a model with these styles and states, or None."""
     row = row_of(target, styles, states)
     if row is None:
-        return unknown(target, styles)
+        return unknown(target, styles, states)
     return value_refusal(row, str(target), value)
 
 

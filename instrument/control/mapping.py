@@ -165,7 +165,7 @@ def _control(doc: TomlFile, item: dict, index: int, fail, model: tuple) -> Contr
     target = values["target"]
     row = row_of(target, *model)
     if row is None or row.kind == "store":
-        raise fail(unknown(target, model[0]).text if row is None else f"{target}: a mapping recalls presets, "
+        raise fail(unknown(target, *model).text if row is None else f"{target}: a mapping recalls presets, "
                    "it does not store them", "target", index)
     if values.get("mode") == "set" or "value" in values:
         values["value"] = _set_value(item, row, target, fail, index)

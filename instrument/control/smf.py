@@ -76,7 +76,11 @@ def import_smf(path: str | Path, fps: float = 30.0) -> list[ControlEvent]:
 
     try:
         midi = mido.MidiFile(str(path))
-    except (OSError, EOFError, ValueError, KeyError, IndexError) as e:  # (mido's parser: whatever a broken file makes it raise)
+    except OSError as e:
+        if e.errno is not None:  # a missing or unreadable file, said as every other input says it (mido's own
+            raise UserError(f"{path}: cannot read: {e.strerror or e}") from None  # "MThd not found" has no errno)
+        raise UserError(f"{path}: not a readable MIDI file ({printable(str(e), 120)})") from None
+    except (EOFError, ValueError, KeyError, IndexError) as e:  # (mido's parser: whatever a broken file makes it raise)
         raise UserError(f"{path}: not a readable MIDI file ({printable(str(e), 120)})") from None
     if midi.ticks_per_beat <= 0:  # (mido reads the field signed: SMPTE timing is negative)
         raise UserError(f"{path}: the MIDI file's time division is {midi.ticks_per_beat}: expected ticks per beat above 0 "

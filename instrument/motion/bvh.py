@@ -254,24 +254,26 @@ def parse_bvh(text: str, path: str = "<text>") -> Motion:
     if not MIN_FRAME_TIME <= frame_time <= MAX_FRAME_TIME:  # also refuses nan and inf
         raise lines.error(f"Frame Time must be {MIN_FRAME_TIME:g} to {MAX_FRAME_TIME:g} s (1000 to 1 frames per second), "
                           f"not {tokens[2]}")
-    first_line = lines.pos + 1  # 1-based number of the first frame line
-    rows = [row for row in lines.lines[lines.pos :]]
-    while rows and not rows[-1].strip():
-        rows.pop()
+    header_line = lines.pos  # 1-based number of the Frame Time line
+    # blank lines among the frames are skipped, as in the hierarchy (Blender's reader does the same)
+    numbered = [(header_line + 1 + k, row) for k, row in enumerate(lines.lines[lines.pos :]) if row.strip()]
+    line_numbers = [n for n, _ in numbered]
+    rows = [row for _, row in numbered]
     width = skeleton.channel_count
     if len(rows) < frame_count:
-        raise located(path, f"truncated: header says {frame_count} frames, file has {len(rows)}", first_line + len(rows) - 1)
+        last = line_numbers[-1] if line_numbers else header_line
+        raise located(path, f"truncated: header says {frame_count} frames, file has {len(rows)}", last)
     if len(rows) > frame_count:
-        raise located(path, f"header says {frame_count} frames but more lines follow", first_line + frame_count)
+        raise located(path, f"header says {frame_count} frames but more lines follow", line_numbers[frame_count])
     if frame_count == 0:
-        raise located(path, "the file has no frames", first_line - 2)
+        raise located(path, "the file has no frames", header_line - 1)
     joined = " ".join(rows)
     try:
         values = np.array(joined.split(), dtype=np.float64)
     except ValueError:
         values = None
     if values is None or values.size != frame_count * width or not np.isfinite(values).all():
-        _raise_frame_error(path, rows, first_line, width)
+        _raise_frame_error(path, numbered, width)
     return Motion(skeleton, values.reshape(frame_count, width), _fps_from_frame_time(frame_time), source=path)
 
 
@@ -285,19 +287,19 @@ def _fps_from_frame_time(frame_time: float) -> float:
     return float(whole) if whole > 0 and abs(fps - whole) < 1e-4 * fps else fps
 
 
-def _raise_frame_error(path: str, rows: list[str], first_line: int, width: int) -> None:
-    """Find the first bad frame line (slow path, only on error)."""
-    for k, row in enumerate(rows):
+def _raise_frame_error(path: str, numbered: list[tuple[int, str]], width: int) -> None:
+    """Find the first bad frame line (slow path, only on error); `numbered` holds (line number, text)."""
+    for line, row in numbered:
         tokens = row.split()
         if len(tokens) != width:
-            raise located(path, f"frame has {len(tokens)} values, the hierarchy has {width} channels", first_line + k)
+            raise located(path, f"frame has {len(tokens)} values, the hierarchy has {width} channels", line)
         for t in tokens:
             try:
                 v = float(t)
             except ValueError:
-                raise located(path, f"not a number: {quoted(t)}", first_line + k) from None
+                raise located(path, f"not a number: {quoted(t)}", line) from None
             if not math.isfinite(v):
-                raise located(path, f"not a finite number: {quoted(t)}", first_line + k)
+                raise located(path, f"not a finite number: {quoted(t)}", line)
     raise located(path, "frame data could not be read")
 
 

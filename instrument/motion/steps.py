@@ -132,18 +132,22 @@ def segment_steps(motion: Motion, layout: FeatureLayout | None = None) -> Segmen
     if amplitude < MIN_STRIDE * leg:
         return Segmentation([], ["the feet never pass each other: not a walk"], feet)
     extrema = _alternating_extrema(smooth, motion.fps, prominence=0.5 * amplitude)
-    steps, warnings, dropped = [], [], 0
+    steps, warnings, dropped, on_the_spot = [], [], 0, 0
     for (start, kind), (end, _) in zip(extrema[:-1], extrema[1:]):
         seconds = (end - start) / motion.fps
         stride = abs(smooth[end] - smooth[start])
         moved = travel[end] - travel[start]
         if not (MIN_STEP_SECONDS <= seconds <= MAX_STEP_SECONDS) or stride < 2 * MIN_STRIDE * leg or moved < MIN_STRIDE * leg:
             dropped += 1
+            on_the_spot += moved < MIN_STRIDE * leg
             continue
         steps.append(Step("right" if kind > 0 else "left", start, end))
     if dropped:
         warnings.append(f"dropped {dropped} stretch(es) that are not walking steps")
-    if not steps:
+    if not steps and on_the_spot == dropped > 0:  # say why, or a treadmill take is a mystery
+        warnings.append("no complete steps found: the feet pass each other but the body does not travel "
+                        "(walking on the spot or on a treadmill?); takes must walk across the floor")
+    elif not steps:
         warnings.append("no complete steps found")
     return Segmentation(steps, warnings, feet)
 

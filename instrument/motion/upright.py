@@ -83,3 +83,10 @@ def upright(motion: Motion) -> tuple[Motion, str]:
             joints[j] = replace(joints[j], offset=tuple(float(v) for v in turn @ np.asarray(joints[j].offset)))
     skeleton = Skeleton(tuple(joints))
     return Motion(skeleton, channels_from_local(skeleton, rotations, translations), motion.fps, motion.source), axis
+
+
+def upright_take(motion: Motion) -> tuple[Motion, str]:
+    """`upright` for a take of more than one frame, as `convert` and `render` show it (glTF is Y up;
+    a Z-up capture lay on its back); a one-frame pose (a T-pose rest, whose arms may span as far
+    as it stands tall) is left as it is, its up axis taken as +Y."""
+    return upright(motion) if motion.frames > 1 else (motion, "+Y")

@@ -2,9 +2,10 @@
 
 `guess_humanoid` reads common naming conventions (the shipped model's `UpperLeg_L`, CMU's
 `LeftUpLeg`, Mixamo's `mixamorig:LeftUpLeg`, Unreal's `thigh_l` / `ball_l`, Rigify's `thigh.L`,
-VRoid's `J_Bip_L_UpperLeg`, 3ds Max Biped's `Bip01 L Thigh`, an inertial suit's and the CMU
-conversions' `LeftHip` / `LeftCollar` / `LeftShoulder` (the upper arm), CMU's ASF `lfemur` /
-`lhumerus`, ...). For anything else, a TOML file
+VRoid's `J_Bip_L_UpperLeg`, 3ds Max Biped's `Bip01 L Thigh`, HumanIK's `Character1_LeftUpLeg`
+(a prefix every joint shares is read past), an inertial suit's and the CMU conversions'
+`LeftHip` / `LeftCollar` / `LeftShoulder` (the upper arm), CMU's ASF `lfemur` / `lhumerus`,
+...). For anything else, a TOML file
 maps joint names to bone names:
 
     [bones]
@@ -19,7 +20,7 @@ from pathlib import Path
 
 from ..errors import UserError
 from ..motion.bvh import Skeleton
-from ..tomlfile import read_toml
+from ..tomlfile import key_lines, read_toml
 
 HUMAN_BONES = (
     "Hips", "Spine", "Chest", "UpperChest", "Neck", "Head",
@@ -84,13 +85,28 @@ def _limb(core: str, side: str, taken: set[str], thighs: set[str]) -> str | None
     return None
 
 
+def _shared_prefix(names: list[str]) -> int:
+    """The length of a prefix every joint's name starts with, up to a separator (HumanIK's
+    `Character1_`, Biped's `Bip01 `, a namespace `rig:`), so the names are read without it
+    (`Character1_LeftArm` is the upper arm as `LeftArm` is); 0 when there is none."""
+    if len(names) < 2:
+        return 0
+    shared = names[0][: min(len(n) for n in names) - 1]  # never a whole name
+    for name in names[1:]:
+        while not name.startswith(shared):
+            shared = shared[:-1]
+    cut = max(shared.rfind(c) for c in "_.: -")
+    return cut + 1
+
+
 def guess_humanoid(skeleton: Skeleton) -> dict[str, str]:
     """{joint name: human bone} for the joints whose role is clear from their names."""
     mapping: dict[str, str] = {}
     names = skeleton.names
-    thighs = {_side(name) for name in names if _side(name) and re.search(THIGH_NAMES, _core(name))}
+    start = _shared_prefix(names)
+    thighs = {_side(name[start:]) for name in names if _side(name[start:]) and re.search(THIGH_NAMES, _core(name[start:]))}
     for name in names:
-        core, side = _core(name), _side(name)
+        core, side = _core(name[start:]), _side(name[start:])
         if side:
             bone = _limb(core, side, set(mapping.values()), thighs)
             if bone:
@@ -101,9 +117,10 @@ def guess_humanoid(skeleton: Skeleton) -> dict[str, str]:
             mapping[name] = "Neck"
         elif re.search(r"head", core) and "Head" not in mapping.values():
             mapping[name] = "Head"
-    # the spine: joints between the hips and the neck, the last three as Spine, Chest, UpperChest
+    # the spine: joints between the hips and the neck (the head, on a skeleton without a neck
+    # joint), the last three as Spine, Chest, UpperChest
     hips = next((n for n, b in mapping.items() if b == "Hips"), None)
-    neck = next((n for n, b in mapping.items() if b == "Neck"), None)
+    neck = next((n for n, b in mapping.items() if b == "Neck"), None) or next((n for n, b in mapping.items() if b == "Head"), None)
     if hips and neck:
         chain, j = [], skeleton.parents[names.index(neck)]
         while j >= 0 and names[j] != hips:
@@ -117,14 +134,20 @@ def guess_humanoid(skeleton: Skeleton) -> dict[str, str]:
 
 def read_humanoid(path: str | Path, skeleton: Skeleton) -> dict[str, str]:
     path = Path(path)
-    _, data = read_toml(path)
+    text, data = read_toml(path)
     bones = data.get("bones")
     if not isinstance(bones, dict) or not bones:
         raise UserError(f"{path}: expected a [bones] table of \"joint\" = \"HumanBone\"")
+    taken: dict[object, str] = {}
     for joint, bone in bones.items():
         if joint not in skeleton.names:
             raise UserError(f"{path}: [bones] key {joint!r}: the model's skeleton has no such joint (it has "
                             f"{', '.join(skeleton.names[:6])}, ...): this map is for another skeleton")
         if bone not in HUMAN_BONES:
             raise UserError(f"{path}: [bones] {joint!r} = {bone!r}: not a humanoid bone ({', '.join(HUMAN_BONES[:4])}, ...)")
+        if bone in taken:  # a VMC receiver would get the bone twice a frame, from two joints
+            line = key_lines(text).get(("bones", joint))
+            raise UserError(f"{path}:{line}: [bones] {joint!r} = {bone!r}: {taken[bone]!r} is {bone} already"
+                            if line else f"{path}: [bones] {joint!r} = {bone!r}: {taken[bone]!r} is {bone} already")
+        taken[bone] = joint
     return dict(bones)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import UserError
 from ..models.modelfile import Model
 from ..motion.features import forward_direction
 from ..terminal import Console
@@ -111,6 +112,12 @@ def make_profile(kind: str, model: Model, humanoid_file: str | None = None, vmc_
     if kind == "flat":
         return FlatProfile(layout.skeleton.names, layout.root, characters)
     mapping = read_humanoid(humanoid_file, layout.skeleton) if humanoid_file else guess_humanoid(layout.skeleton)
+    if not mapping:  # joints named joint01, joint02, ...: nothing to send a humanoid, nor to rest in a T-pose
+        names = layout.skeleton.names
+        raise UserError(f"no joint name of the model's skeleton ({', '.join(names[:4])}{', ...' if len(names) > 4 else ''}) "
+                        "says which humanoid bone it is, as the VMC profile and the T-pose rest need: give --humanoid "
+                        "BONES.toml ([bones] \"joint\" = \"Hips\", ...: docs/osc.md); without it `run` sends the flat "
+                        "profile (--osc HOST:PORT/flat) and `skeleton --template` writes the model's own rest")
     means = [m.means[..., : layout.dimension].reshape(-1, layout.dimension) for m in (model.average, model.styles)]
     return VmcProfile(layout, mapping, forward_direction(model.average.means[..., : layout.dimension]),
                       stance=np.concatenate(means), root=vmc_root, fingers=fingers)

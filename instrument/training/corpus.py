@@ -247,8 +247,9 @@ def load_corpus(pairs: Sequence[tuple], fps: float, progress=None, states: int =
     walks = [m for p, m in zip(pairs, motions) if p.unit == "walk"]
     layout = choose_layout(walks or motions)
     takes, warnings = make_takes(pairs, motions, layout, progress, states)
-    if not takes:
-        raise UserError("no steps found in any file: nothing to train on")
+    if not takes:  # the warnings are not printed on this path: the line carries the first file's reason
+        reason = next((w for w in warnings if not w.endswith(": no steps, left out") and ": dropped " not in w), None)
+        raise UserError("no steps found in any file: nothing to train on" + (f" (the first: {reason})" if reason else ""))
     kept = {t.style for t in takes}
     warnings += [f"style {style!r}: none of its takes has steps, so the model has no such style"
                  for style in sorted({p.style for p in pairs} - kept)]
