@@ -286,9 +286,9 @@ def resample(motion: Motion, fps: float = DEFAULT_FPS) -> Motion:
 
     Not linearly: a take upsampled linearly (slerp, lerp) moves at constant speed between its own
     frames and turns at each of them, so its accelerations are 0 at the new frames and spikes at
-    the old ones. Bandai's 30 fps walks at 60 fps had 5.7 times their jitter; trained at 60 fps
-    the delta-delta features' Gaussians learnt that alternation instead of the steps' shape, the
-    styles' adaptation chose other weights and active's walk came out 1.3% slow (evaluate.md,
+    the old ones. Bandai's 30 fps walks at 60 fps had 5.4-6.3 times their jitter; trained at
+    60 fps the delta-delta features' Gaussians learnt that alternation instead of the steps' shape,
+    the styles' adaptation chose other weights and active's model came out 1.3% slow (evaluate.md,
     "Walks trained at another rate than their capture's")."""
     if abs(motion.fps - fps) < 1e-9 or motion.frames < 2:
         return motion
@@ -299,7 +299,7 @@ def resample(motion: Motion, fps: float = DEFAULT_FPS) -> Motion:
     frames = np.arange(motion.frames)
 
     def curve(values: np.ndarray) -> np.ndarray:
-        """`values` (frames, ...) at `position`: a cubic spline through them (a line through two)."""
+        """`values` (frames, ...) at `position`: a cubic spline through them (lines below four frames)."""
         if motion.frames < 4:
             lower = np.minimum(np.floor(position).astype(int), motion.frames - 2)
             frac = (position - lower).reshape((-1,) + (1,) * (values.ndim - 1))
@@ -315,7 +315,8 @@ def resample(motion: Motion, fps: float = DEFAULT_FPS) -> Motion:
         if len(pos_cols):
             out[:, pos_cols] = curve(motion.channels[:, pos_cols])
         if rot.any():
-            quat = curve(continuous_quaternions(matrix_to_quat(euler_to_matrix(motion.channels[:, cols[rot]], joint.rotation_order))))
+            matrices = euler_to_matrix(motion.channels[:, cols[rot]], joint.rotation_order)
+            quat = curve(continuous_quaternions(matrix_to_quat(matrices)))
             quat /= np.linalg.norm(quat, axis=-1, keepdims=True)
             out[:, cols[rot]] = matrix_to_euler(quat_to_matrix(quat), joint.rotation_order)
     return Motion(skeleton, out, float(fps), source=motion.source)
