@@ -35,10 +35,13 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import rtmidi
 from pythonosc.osc_bundle import OscBundle
+
+STARTUP_SECONDS = 600  # a fresh install's first run compiles the kernels before its first frame
 
 MAPPING = """[device]
 midi = "latency"
@@ -65,11 +68,13 @@ def main() -> None:
         flood(mapping.name, args.fps, args.flood_seconds)
 
 
-def start(mapping: str, fps: float, seconds: float, osc_port: int, phase: str,
+def start(mapping: str, fps: float, seconds: float, osc_port: int, phase: str, streaming: Callable[[], bool],
           extra: tuple[str, ...] = ()) -> tuple[subprocess.Popen, rtmidi.MidiOut]:
     """The instrument on a virtual JACK MIDI port of its own name, and a sender connected to it
     (by exact name: JACK keeps a closed port's client around, and renames a client whose name
-    is taken)."""
+    is taken), once the instrument streams (`streaming()`): its port opens before its first
+    frame, which on a fresh install compiles the kernels for half a minute or more, and changes
+    sent meanwhile would be counted as never shown."""
     port = f"latency-{os.getpid()}-{phase}"
     run = subprocess.Popen([sys.executable, "-m", "instrument", "run", "--midi-virtual", port, "--midi-api", "jack",
                             "--mapping", mapping, "--no-feedback", "--osc", f"127.0.0.1:{osc_port}/flat",
@@ -78,6 +83,11 @@ def start(mapping: str, fps: float, seconds: float, osc_port: int, phase: str,
     while not [n for n in out.get_ports() if n.endswith(":" + port)]:
         time.sleep(0.1)
     out.open_port(next(i for i, n in enumerate(out.get_ports()) if n.endswith(":" + port)), name="out")
+    deadline = time.monotonic() + STARTUP_SECONDS
+    while not streaming():
+        if run.poll() is not None or time.monotonic() > deadline:
+            sys.exit(f"midi_latency: the instrument did not stream within {STARTUP_SECONDS} s: {run.stderr.read() if run.poll() is not None else ''}")
+        time.sleep(0.1)
     return run, out
 
 
@@ -164,7 +174,7 @@ def latency(mapping: str, fps: float, count: int) -> None:
                         arrivals.append((now, m.params[0]))
 
     threading.Thread(target=listen, daemon=True).start()
-    run, out = start(mapping, fps, count * 0.2 + 6, sock.getsockname()[1], "latency")
+    run, out = start(mapping, fps, count * 0.2 + 6, sock.getsockname()[1], "latency", lambda: bool(arrivals))
     probe = rtmidi.MidiIn(rtmidi.API_UNIX_JACK, name=f"probe-{os.getpid()}", queue_size_limit=1 << 20)
     probe.open_port(next(i for i, n in enumerate(probe.get_ports()) if n.startswith(f"sender-{os.getpid()}-latency:")))
     probed: list[tuple[float, float, int]] = []  # (callback time, JACK time since the previous message, value)
@@ -231,7 +241,15 @@ def flood(mapping: str, fps: float, seconds: float) -> None:
     sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sink.bind(("127.0.0.1", 0))
     log = Path(tempfile.mkdtemp()) / "flood.jsonl"
-    run, out = start(mapping, fps, seconds + 6, sink.getsockname()[1], "flood", ("--record", str(log)))
+    sink.settimeout(0.0)
+
+    def streaming() -> bool:
+        try:
+            return bool(sink.recv(65536))
+        except BlockingIOError:
+            return False
+
+    run, out = start(mapping, fps, seconds + 6, sink.getsockname()[1], "flood", streaming, ("--record", str(log)))
     time.sleep(2.0)
     flood_start = time.monotonic()
     count = 0
