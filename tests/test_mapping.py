@@ -318,3 +318,15 @@ def test_a_mapper_returns_target_events_and_sets_nothing_itself(tmp_path):
     assert m.decode(s, ControlEvent(2.5, "midi:test", "note/1/1", 0)) == []  # let go: nothing asked
     assert m.decode(s, ControlEvent(3.0, "midi:test", "cc/1/9", 64)) is None  # not the mapping's
     assert play_mapped(m, s, ControlEvent(4.0, "midi:test", "cc/1/7", 127)) and s.speed == 2.0
+
+
+@pytest.mark.parametrize("message,number,limit", [("cc", "0.5", 127), ("cc", "128", 127), ("note", '"x"', 127),
+                                                   ("cc14", "1.5", 127), ("nrpn", "20000", 16383), ("nrpn", "0.5", 16383)])
+def test_a_bad_number_is_told_the_range_of_its_message(tmp_path, message, number, limit):
+    """Every wrong `number` of a message hears one range, that message's: a fraction on a cc was
+    told the widest (0 to 16383, an NRPN's) and 128 the cc's."""
+    path = tmp_path / "bad.toml"
+    path.write_text(f'[device]\nmidi = "x"\n[[control]]\nmessage = "{message}"\nnumber = {number}\ntarget = "speed"\n')
+    with pytest.raises(UserError) as error:
+        load_mapping(path, state())
+    assert str(error.value) == f"{path}:5: number: expected a whole number from 0 to {limit}"

@@ -144,17 +144,18 @@ def load_mapping(path: str | Path, state: ControlState | None = None, text: str 
 
 
 def _control(doc: TomlFile, item: dict, index: int, fail, model: tuple) -> ControlSpec:
-    doc.check(("control", index), item, CONTROL)
-    message = item["message"]
+    message = item.get("message")
+    limit = 16383 if message == "nrpn" else 127
+    numbered = message in ("cc", "cc14", "nrpn", "note")  # their number's range is the message's, not the widest
+    doc.check(("control", index), item, CONTROL | {"number": Field("whole", 0, limit)} if numbered else CONTROL)
     values = dict(item)
     if "range" in values:
         r = values["range"]
         if not (len(r) == 2 and all(is_number(v) for v in r) and r[0] != r[1]):
             raise fail("expected [low, high], two different finite numbers", "range", index)
         values["range"] = (float(r[0]), float(r[1]))
-    limit = 16383 if message == "nrpn" else 127
-    if message in ("cc", "cc14", "nrpn", "note") and not ("number" in values and values["number"] <= limit):
-        raise fail(f"must be a whole number 0 to {limit}", "number", index)
+    if numbered and "number" not in values:
+        raise fail(f"expected a whole number from 0 to {limit}", "number", index)
     if message == "cc14" and values["number"] > 31:
         raise fail("a 14-bit pair has its MSB on CC 0 to 31 (the LSB is number + 32)", "number", index)
     if message == "hid":
