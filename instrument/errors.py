@@ -11,8 +11,9 @@ class UserError(Exception):
 
 def quoted(value: object, limit: int = 40) -> str:
     """A user's value as an error message quotes it (repr), cut short: a 5000-digit number or a
-    140 kB string in a file stays a readable line."""
-    text = repr(value)
+    140 kB string in a file stays a readable line. A boolean as the files and messages spell it
+    (TOML's and JSON's `true`), not as Python does."""
+    text = ("true" if value else "false") if isinstance(value, bool) else repr(value)
     return text if len(text) <= limit else text[:limit] + "..."
 
 

@@ -291,3 +291,14 @@ def test_a_show_file_plays_a_score(tmp_path):
     assert result.returncode == 0, result.stderr
     last = (tmp_path / "take.jsonl").read_text().splitlines()[-1]
     assert ControlEvent(0.5, "score", "style/elderly", 0.5).to_json() == last
+
+
+def test_a_boolean_where_a_number_belongs_is_quoted_as_the_file_spells_it(model, tmp_path):
+    """A score's `true` where a number belongs is told back as `true` (TOML's), not Python's `True`."""
+    from instrument.errors import UserError
+
+    path = tmp_path / "bad.toml"
+    path.write_text('[[cue]]\nat = 1\nramp = { "style/elderly" = true }\n')
+    with pytest.raises(UserError) as error:
+        load_score(path, state_of(model))
+    assert str(error.value).endswith("not a finite number, not true"), str(error.value)
