@@ -361,15 +361,21 @@ def test_every_character_of_a_crowd_changes_gait_at_its_own_step(model):
     assert len(set(arrivals)) > 1  # they started in different phases of the step: they arrive apart
 
 
-def test_a_walk_only_model_plays_every_gait_as_its_walk(model):
+def _walk_only(model):
+    """The shipped model with its walk's two steps only (a model trained on walks)."""
     from dataclasses import replace
 
     from instrument.models.hsmm import HSMM
 
-    walk_only = replace(model, metadata={k: v for k, v in model.metadata.items() if k != "units"} | {"labels": ["right", "left"]},
-                        average=HSMM(*(getattr(model.average, p)[:2] for p in HSMM.__dataclass_fields__)),
-                        styles=HSMM(*(getattr(model.styles, p)[:, :2] for p in HSMM.__dataclass_fields__)),
-                        extras={k: (v[..., :2, :, :] if k.startswith("contact") else v) for k, v in model.extras.items()})
+    return replace(model, metadata={k: v for k, v in model.metadata.items() if k not in ("units", "gestures")}
+                   | {"labels": ["right", "left"]},
+                   average=HSMM(*(getattr(model.average, p)[:2] for p in HSMM.__dataclass_fields__)),
+                   styles=HSMM(*(getattr(model.styles, p)[:, :2] for p in HSMM.__dataclass_fields__)),
+                   extras={k: (v[..., :2, :, :] if k.startswith("contact") else v) for k, v in model.extras.items()})
+
+
+def test_a_walk_only_model_plays_every_gait_as_its_walk(model):
+    walk_only = _walk_only(model)
     engine = Engine(walk_only)
     assert engine.units.missing == ["stand", "run"]
     _, units, _, _, _, speed = _engine_frames(walk_only, [(STAND, 60), (RUN, 60)])
@@ -427,3 +433,15 @@ def test_a_score_that_stops_stands_and_runs_renders_with_run_fast_bvh(tmp_path):
     assert walking > 60.0
     assert standing < 6.0  # stopped within a second and a half of the cue, and still
     assert running > 1.3 * walking
+
+
+def test_synth_says_when_a_model_has_no_unit_for_the_gait_and_writes_its_walk(model, tmp_path):
+    from instrument.models.modelfile import save_model
+
+    save_model(tmp_path / "walks.npz", _walk_only(model))
+    done = _synth(tmp_path, "--model", "walks.npz", "--gait", "run", "--seconds", "2", "--out", "run.bvh")
+    assert done.returncode == 0, done.stderr
+    assert "--gait run: this model has no run unit (it has walk); it walks" in done.stderr
+    assert len(world_positions(tmp_path / "run.bvh")[1]) == 2 * model.fps  # the walk, written whole
+    done = _synth(tmp_path, "--model", "walks.npz", "--gait", "walk", "--seconds", "2", "--out", "walk.bvh")
+    assert "unit" not in done.stderr, done.stderr

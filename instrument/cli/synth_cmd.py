@@ -85,6 +85,7 @@ def run(args: argparse.Namespace) -> int:
     from ..models.modelfile import load_model
     from ..output.export import motion_format, write_motion
     from ..synthesis.engine import default_controls, render
+    from ..synthesis.parameters import GAITS
     from ..synthesis.stream import gait_index
 
     motion_format(args.out)  # an extension it cannot write is refused before any work
@@ -99,6 +100,9 @@ def run(args: argparse.Namespace) -> int:
     liveliness = value("synth --liveliness", args.liveliness)
     seed = value("synth --seed", args.seed)
     frames = max(1, int(round(seconds * model.fps)))
+    if GAITS[gait] not in model.units:  # said, not refused, as `run` says it: the walk is written
+        print(f"--gait {GAITS[gait]}: this model has no {GAITS[gait]} unit (it has {', '.join(model.units)}); "
+              "it walks", file=sys.stderr)
     gestures = parse_gestures(args.gesture, model)
     for (name, start), item in zip(gestures, args.gesture):
         if start >= frames / model.fps:
