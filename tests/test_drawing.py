@@ -28,13 +28,16 @@ def walks(tmp_path_factory):
     return folder
 
 
+def rendered_sheet(walks, name: str, out_name: str) -> np.ndarray:
+    """`instrument render` of walks/NAME.bvh, read back as a picture."""
+    out = walks / out_name
+    result = subprocess.run(CLI + ["render", "--bvh", str(walks / f"{name}.bvh"), "--out", str(out)], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    return picture(out)
+
+
 def test_contact_sheets_show_figures_and_differ_between_styles(walks):
-    sheets = []
-    for style in ("elderly", "youthful"):
-        out = walks / f"{style}.png"
-        result = subprocess.run(CLI + ["render", "--bvh", str(walks / f"{style}.bvh"), "--out", str(out)], capture_output=True, text=True)
-        assert result.returncode == 0, result.stderr
-        sheets.append(picture(out))
+    sheets = [rendered_sheet(walks, style, f"{style}.png") for style in ("elderly", "youthful")]
     for sheet in sheets:
         ink = (sheet < 0.5).mean()
         assert 0.003 < ink < 0.3  # figures are drawn, the page is not filled
@@ -49,12 +52,7 @@ def test_a_z_up_capture_is_drawn_standing(walks):
     from samples import z_up
 
     write_bvh(walks / "z-up.bvh", z_up(read_bvh(walks / "youthful.bvh")))
-    sheets = []
-    for name in ("youthful", "z-up"):
-        out = walks / f"{name}-sheet.png"
-        result = subprocess.run(CLI + ["render", "--bvh", str(walks / f"{name}.bvh"), "--out", str(out)], capture_output=True, text=True)
-        assert result.returncode == 0, result.stderr
-        sheets.append(picture(out))
+    sheets = [rendered_sheet(walks, name, f"{name}-sheet.png") for name in ("youthful", "z-up")]
     assert np.abs(sheets[0] - sheets[1]).mean() < 0.002
 
 
