@@ -131,6 +131,12 @@ def part_weights_per_group(weights: np.ndarray, part_weights: np.ndarray) -> np.
     return np.where(np.isnan(part_weights), weights[..., None], part_weights)
 
 
+def past_the_styles(mixes: np.ndarray) -> bool:
+    """Whether a mix (styles, groups) of the weights is past the styles (a weight below 0, or a
+    group's adding up to more than 1): where the log variances' change is bounded to the span."""
+    return bool((mixes < 0.0).any() or (mixes.sum(axis=0) > 1.0).any())
+
+
 def style_change(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray | None = None
                  ) -> tuple[np.ndarray, np.ndarray]:
     """How far lambda* moves from lambda 0 at one character's weights (styles,) and part
@@ -146,7 +152,7 @@ def style_change(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarra
         mixes = part_weights_per_group(weights, part_weights)  # (styles, groups)
         per_dim = mixes @ space.group_masks  # each dimension is in one group
         change = np.einsum("sf,sxkf->xkf", per_dim, space.offsets)
-    if (mixes < 0.0).any() or (mixes.sum(axis=0) > 1.0).any():  # past the styles: a convex mix needs no bound
+    if past_the_styles(mixes):  # a convex mix needs no bound
         np.maximum(change[1], space.log_variance_span[0], out=change[1])  # (two passes: half np.clip's time)
         np.minimum(change[1], space.log_variance_span[1], out=change[1])
     return change, _duration_change(space, weights)
@@ -165,7 +171,7 @@ def _mix_per_dimension(space: StyleSpace, weights: np.ndarray, part_weights: np.
     else:
         mixes = part_weights_per_group(weights, part_weights)
         per_dim = mixes @ space.group_masks
-    return per_dim, bool((mixes < 0.0).any() or (mixes.sum(axis=0) > 1.0).any())
+    return per_dim, past_the_styles(mixes)
 
 
 def _duration_change(space: StyleSpace, weights: np.ndarray) -> np.ndarray:
