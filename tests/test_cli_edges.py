@@ -240,6 +240,22 @@ def test_a_take_named_twice_is_one_line_and_a_manifest_gives_its_folders_styles(
     assert json.loads(main_output(capsys, "info", tmp_path / "m.npz", "--json"))["styles"] == ["proud"]
 
 
+@pytest.mark.parametrize("kind", ["csv", "toml"])
+def test_a_manifest_naming_a_take_not_there_names_its_line(capsys, files, tmp_path, kind):
+    """A typo in a manifest's file column is refused where it was written (the manifest's line or
+    take), before any take is read; a folder named as a take is said to be one."""
+    (tmp_path / "a.bvh").write_text((files / "walk.bvh").read_text())
+    (tmp_path / "sub").mkdir()
+    for missing, said in (("a.bhv", "a.bhv: no such file"), ("sub", "sub: a folder, not a BVH file")):
+        manifest = tmp_path / f"takes.{kind}"
+        manifest.write_text("file,style\na.bvh,proud\n" + f"{missing},calm\n" if kind == "csv" else
+                            f'[[take]]\nfile = "a.bvh"\nstyle = "proud"\n\n[[take]]\nfile = "{missing}"\nstyle = "calm"\n')
+        status, err = cli(capsys, "train", "--manifest", manifest, "--out", tmp_path / "m.npz")
+        where = f"{manifest}:3" if kind == "csv" else f"{manifest}: take 2"
+        assert status == 1 and f"{where}: {said}" in one_line(err)
+    assert not (tmp_path / "m.npz").exists()
+
+
 def main_output(capsys, *argv) -> str:
     capsys.readouterr()
     assert main([str(a) for a in argv]) == 0

@@ -444,12 +444,15 @@ def test_a_manifest_is_valid_or_one_line(kind, ops):
     base = ('file,style\n"a.bvh",elderly\nb.bvh,youthful\n' if kind == "csv" else
             '[[take]]\nfile = "a.bvh"\nstyle = "elderly"\n\n[[take]]\nfile = "b.bvh"\nstyle = "youthful"\n')
     path = written(f"manifest.{kind}", mutated(base, ops))
+    for take in ("a.bvh", "b.bvh"):  # the takes it names are there: a renamed one is not
+        (WORK / take).touch()
     try:
         pairs = read_manifest(path)
     except UserError as error:
         one_line(error, path)
         return
     assert all(isinstance(t.path, Path) and isinstance(t.style, str) and t.style and t.unit for t in pairs)
+    assert all(t.path.is_file() for t in pairs)  # a file not there was refused at its line
 
 
 # --- the commands, as a user runs them ---------------------------------------------------------

@@ -185,6 +185,7 @@ def test_manifest_names_styles_and_other_conventions_train(tmp_path, kind):
 def test_bad_manifest_names_file_and_line(tmp_path):
     manifest = tmp_path / "takes.csv"
     manifest.write_text("file,style\na.bvh,slow\nb.bvh\n")
+    (tmp_path / "a.bvh").touch()  # line 2 names a file that is there: line 3 lacks its style
     result = cli("train", "--manifest", str(manifest), "--out", str(tmp_path / "m.npz"))
     assert result.returncode == 1 and f"{manifest}:3:" in result.stderr
 

@@ -54,6 +54,8 @@ def test_unit_from_a_pattern_that_finds_no_unit_names_the_file():
 
 
 def test_a_manifest_says_each_takes_unit_and_a_bad_one_names_its_line(tmp_path):
+    for take in ("a.bvh", "b.bvh", "c.bvh"):  # the takes named are there (a missing one is refused at its line)
+        (tmp_path / take).touch()
     (tmp_path / "m.csv").write_text("file,style,unit\na.bvh,calm,run\nb.bvh,calm,\nc.bvh,calm,stand\n")
     takes = read_manifest(tmp_path / "m.csv")
     assert [t.unit for t in takes] == ["run", "walk", "stand"]

@@ -110,7 +110,8 @@ def read_manifest(path: Path) -> list[TakeFile]:
             unit = take.get("unit", "walk")
             if not isinstance(unit, str):
                 raise UserError(f"{path}: take {k}: 'unit' is a string ({', '.join(UNITS)})")
-            pairs.append(TakeFile(base / take["file"], take["style"], checked_unit(f"{path}: take {k}", unit)))
+            pairs.append(TakeFile(_listed_file(base, take["file"], f"{path}: take {k}"), take["style"],
+                                  checked_unit(f"{path}: take {k}", unit)))
         return pairs
     text = read_text(path)
     reader = csv.reader(text.splitlines())
@@ -127,8 +128,18 @@ def read_manifest(path: Path) -> list[TakeFile]:
         if len(row) < 2 or not row[0].strip() or not row[1].strip():
             raise located(path, "expected 'file,style'", number)
         unit = row[2].strip() if with_units and len(row) > 2 and row[2].strip() else "walk"
-        pairs.append(TakeFile(base / row[0].strip(), row[1].strip(), checked_unit(f"{path}:{number}", unit)))
+        pairs.append(TakeFile(_listed_file(base, row[0].strip(), f"{path}:{number}"), row[1].strip(),
+                              checked_unit(f"{path}:{number}", unit)))
     return pairs
+
+
+def _listed_file(base: Path, name: str, where: str) -> Path:
+    """A manifest's take file (relative to the manifest's folder), refused at the line naming it
+    when it is not there: a typo is found before any take is read, where it was written."""
+    file = base / name
+    if not file.is_file():
+        raise UserError(f"{where}: {name}: " + ("a folder, not a BVH file" if file.is_dir() else "no such file"))
+    return file
 
 
 def _sha256(path: Path) -> str:
