@@ -331,6 +331,7 @@ def test_show_file_starts_the_whole_setup(tmp_path):
     ('seconds = 2\nvolume = 11\n', "show.toml:2: volume: unknown option"),
     ('seconds = 2\nquiet = "yes"\n', "show.toml:2: quiet: expected true or false"),
     ('seconds = [2]\n', "show.toml:1: seconds: expected a string or a number"),
+    ('seconds = 2\nmodel = 5\n', "show.toml:2: model: expected a file name in quotes, not 5"),
     ('seconds = 2\nfps = 200\n', "show.toml:2: fps: expected a number from 24 to 120, not '200'"),
     ('seconds = 2\nosc = ["127.0.0.1:9000", "127.0.0.1:99999"]\n', "show.toml:2: osc: '127.0.0.1:99999': port must be 1 to 65535"),
     ('seconds = 2\n[presets.x]\n"style/sleepy" = 1\n', "show.toml:3: presets.x: style/sleepy: unknown target"),

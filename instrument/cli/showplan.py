@@ -92,6 +92,8 @@ def file_value(option: Option, value: object, where: str) -> object:
         if not all(isinstance(v, str) for v in value):
             raise UserError(f"{where}: expected a string or a list of strings")
         return value
+    if option.kind == "path" and not isinstance(value, str):
+        raise UserError(f"{where}: expected a file name in quotes, not {quoted(value)}")
     if not isinstance(value, (str, int, float)) or isinstance(value, bool):
         raise UserError(f"{where}: expected a string or a number")
     text = str(value)
