@@ -103,3 +103,24 @@ def test_evaluate_units_prints_each_unit_beside_its_real_takes(tmp_path):
         assert any(line.startswith(row) for line in lines), row
     targets = [line for line in lines if line.startswith("| run speed cm/s | elderly |")]
     assert len(targets) == 1 and ("PASS" in targets[0] or "FAIL" in targets[0])
+
+
+def test_a_transition_past_the_styles_is_held_to_its_gait_at_those_weights():
+    """The jump target: at weight 1 the style's real takes bound a transition, whatever its gait
+    does; at x2 the larger of all styles' takes and the gait's own jump in the same sequence, so a
+    swing wider than any take's passes and a pop beyond the gait's own swing fails."""
+    from instrument.evaluation.targets import check
+    from instrument.evaluation.units import UnitAssessment
+
+    def jump_row(name: str, weight: float, jump: float, gait_jump: float):
+        result = UnitAssessment(weights={name.split(" ", 1)[1]: {"active": weight}},
+                                real_jumps={"walk": {"all": 10.0, "active": 8.0}})
+        result.transitions[name] = {"stop_steps": 1.0, "jump_cm_f2": jump, "jump_joint": "Hand_R",
+                                    "gait_jump_cm_f2": gait_jump, "slide_cm_s": 1.0, "air_frames": 0.0, "window_frames": 30.0}
+        return next(row for row in check(result) if row.target == "transition jump cm/frame^2")
+
+    assert jump_row("walk->stand active", 1.0, 9.0, 12.0).passed is False  # weight 1: the style's takes (8)
+    assert jump_row("walk->stand active x2", 2.0, 11.0, 9.0).passed is False  # neither the takes (10) nor its gait (9)
+    swing = jump_row("walk->stand active x2", 2.0, 13.0, 13.5)
+    assert swing.passed and "walk's own" in swing.bound  # the x2 walk swings 13.5 itself
+    assert jump_row("walk->stand active x2", 2.0, 14.0, 13.5).passed is False  # a pop beyond it

@@ -157,7 +157,7 @@ TRANSITION_COLUMNS = (
     ("stop_steps", "stop steps", 1.0, "{:.0f}"), ("speed_s", "to speed s", 1.0, "{:.2f}"),
     ("speed_steps", "to speed steps", 1.0, "{:.0f}"), ("slide_cm_s", "slide cm/s", 1.0, "{:.1f}"),
     ("jump_cm_f2", "jump cm/f^2", 1.0, "{:.1f}"), ("jump_joint", "joint", None, "{}"),
-    ("air_frames", "air frames", 1.0, "{:.0f}"),
+    ("gait_jump_cm_f2", "gait's jump cm/f^2", 1.0, "{:.1f}"), ("air_frames", "air frames", 1.0, "{:.0f}"),
 )
 
 

@@ -9,7 +9,11 @@ Bounds that the issue gives in words are read as follows:
 - "recognised as often as the real ones": at least the real takes' cross-validated share.
 - a joint jumping "no more than the real takes' largest frame-to-frame change": the largest jump
   among the style's own takes of that unit at weight 1, among all styles' at x2 and -1 (walks for
-  walk transitions, runs for run ones and for the steady run).
+  walk transitions, runs for run ones and for the steady run). Through a transition at x2 and -1,
+  no more than that or the gait's own largest jump at those weights in the same sequence, whichever
+  is larger: past the styles the steady gait itself may swing beyond every real take ("exaggerate
+  past anything recorded": the same swing's duration over more range is more acceleration), and a
+  pop is what the transition adds to it (docs/evaluate.md, "The x2 transitions held to their gait").
 - "no sliding foot" through a transition: the stance skate at most 1.2x the style's real takes'
   of the unit at weight 1, at most 1.2x the largest style's at x2 and -1.
 - "both feet in the air where the real motion has none" (walk transitions): a share of the
@@ -114,8 +118,11 @@ def check(result: UnitAssessment) -> list[Target]:
             rows.append(row)
         else:
             rows.append(_at_most("start steps", name, made["speed_steps"], MOST_STEPS, "{:.0f}"))
-        rows.append(_at_most("transition jump cm/frame^2", name, made["jump_cm_f2"],
-                             jumps.get(style if weight == 1.0 else "all", float("nan")), what=f" ({made.get('jump_joint', '')})"))
+        bound = jumps.get(style if weight == 1.0 else "all", float("nan"))
+        what = f" ({made.get('jump_joint', '')})"
+        if weight != 1.0 and made.get("gait_jump_cm_f2", 0.0) > bound:
+            bound, what = made["gait_jump_cm_f2"], f" (its {gait}'s own; {made.get('jump_joint', '')})"
+        rows.append(_at_most("transition jump cm/frame^2", name, made["jump_cm_f2"], bound, what=what))
         if reals:
             slides = [f["stance_skate_cm_s"] for f in reals.values()]
             bound = 1.2 * (reals[style]["stance_skate_cm_s"] if weight == 1.0 and style in reals else max(slides))

@@ -17,6 +17,12 @@ command if it is never done): `slide_cm_s` the mean speed of the lowest foot joi
 quality.py) over the frames a foot is on the ground (a run's flight is no slide), `jump_cm_f2`
 the largest joint velocity jump (sequence.velocity_jumps), with the joint (`jump_joint`) and
 when after the command (`jump_s`), and `air_frames` the frames with both feet in the air.
+
+Both carry `gait_jump_cm_f2`, the largest jump of the gait itself in the same sequence: over its
+steady stretches (from the settling to the stop's command, and from the end of the start's window
+to the sequence's end). At a weight past the styles (x2, -1) the gait's own swing may jump more
+than any real take (a swing of the same duration over more range is more acceleration): what a
+transition must not add is a jump beyond that (targets.py).
 """
 
 from __future__ import annotations
@@ -95,8 +101,11 @@ def transition_figures(model: Model, gait: str, weights: dict[str, float], measu
     start = {"steady_cm_s": steady,
              "speed_s": float("nan") if reached is None else (reached - start_at) / fps,
              "speed_steps": float("nan") if reached is None else float(_steps(sequence.labels, moving, start_at, reached))}
-    return {f"{gait}->stand": stop | window(stop_at, stopped, start_at),
-            f"stand->{gait}": start | window(start_at, reached, len(positions))}
+    # the gait's own largest jump: before the stop's command, and after the start's window
+    start_end = len(positions) if reached is None else min(len(positions), reached + after)
+    own = {"gait_jump_cm_f2": float(max(jumps[settle:stop_at].max(), jumps[start_end:].max(initial=0.0)))}
+    return {f"{gait}->stand": stop | window(stop_at, stopped, start_at) | own,
+            f"stand->{gait}": start | window(start_at, reached, len(positions)) | own}
 
 
 def settled(still: np.ndarray) -> int | None:
