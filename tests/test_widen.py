@@ -6,7 +6,7 @@ import pytest
 from instrument.synthesis.posing import PoseStream
 from instrument.synthesis.engine import Engine, default_controls
 from instrument.synthesis.stream import Controls, Crowd
-from instrument.synthesis.widen import EASE_FRAMES, KEPT, RangeFilter, range_space, stride_means, without_range
+from instrument.synthesis.widen import KEPT, RangeFilter, ease_per_frame, range_space, stride_means, without_range
 from instrument.training.widen import SETTLE, _generated_range, _spread
 from walks import features, step
 
@@ -87,36 +87,52 @@ def test_blends_are_widened_and_extrapolations_walk_as_made(model):
     np.testing.assert_allclose(legged[~legs], factors(one[0])[~legs])
 
 
-def _range_filter_in_numpy(frames, means, factors):
+def _range_filter_in_numpy(frames, means, factors, fps=30.0):
     """The range stage restated in numpy's elementwise form (what it was before it was compiled):
-    mean and factor eased a quarter of the way a frame, the swing about the mean scaled, the kept
-    features as made."""
+    mean and factor eased `ease_per_frame` of the way a frame (a quarter at 30 fps), the swing
+    about the mean scaled, the kept features as made."""
+    ease = ease_per_frame(fps)
     mean, factor, out = None, None, []
     for frame, target_mean, target_factor in zip(frames, means, factors):
         if mean is None:
             mean, factor = target_mean, target_factor
         else:
-            mean = mean + (target_mean - mean) / EASE_FRAMES
-            factor = factor + (target_factor - factor) / EASE_FRAMES
+            mean = mean + (target_mean - mean) * ease
+            factor = factor + (target_factor - factor) * ease
         made = mean + factor * (frame - mean)
         made[:, list(KEPT)] = frame[:, list(KEPT)]
         out.append(made)
     return out
 
 
-@pytest.mark.parametrize("characters", [1, 5])
-def test_the_compiled_range_filter_makes_numpys_numbers_to_the_bit(characters):
+@pytest.mark.parametrize("characters,fps", [(1, 30.0), (5, 30.0), (2, 120.0)])
+def test_the_compiled_range_filter_makes_numpys_numbers_to_the_bit(characters, fps):
     rng = np.random.default_rng(characters)
     dimension, frames = 66, 40
     made = rng.normal(0.0, 3.0, (frames, characters, dimension))
     # the targets stay a while, then jump (a style change), as the engine's do
     means = np.repeat(rng.normal(0.0, 1.0, (4, characters, dimension)), frames // 4, axis=0)
     factors = np.repeat(np.exp(rng.normal(0.0, 0.3, (4, characters, dimension))), frames // 4, axis=0)
-    scale = RangeFilter()
+    scale = RangeFilter(fps)
     compiled = [scale(frame, mean, factor) for frame, mean, factor in zip(made, means, factors)]
-    for ours, theirs in zip(compiled, _range_filter_in_numpy(made, means, factors)):
+    for ours, theirs in zip(compiled, _range_filter_in_numpy(made, means, factors, fps)):
         np.testing.assert_array_equal(ours, theirs)
     np.testing.assert_array_equal(means[-1], means[-2])  # the targets as they were handed over (not eased in place)
+
+
+def test_a_style_change_eases_in_over_the_same_time_at_any_rate():
+    """A stride mean's target moving by 1 reaches as far in 0.1 s (and in 0.4 s) at 120 fps as at
+    30: a quarter of the way a frame at 30 fps (within 1/e in 0.12 s). Counted in frames, at 120
+    fps it had all but arrived (99%) by 0.1 s where at 30 it was 58% of the way."""
+    reached = {}
+    for fps in (30.0, 120.0):
+        scale, frames = RangeFilter(fps), int(round(0.4 * fps))
+        half = np.full((1, 66), 0.5)  # out = mean + 0.5 (0 - mean): the eased mean, halved
+        scale(np.zeros((1, 66)), np.zeros((1, 66)), half)
+        out = [scale(np.zeros((1, 66)), np.ones((1, 66)), half)[0, 0] for _ in range(frames)]
+        reached[fps] = 2.0 * np.array([out[int(round(t * fps)) - 1] for t in (0.1, 0.4)])
+    np.testing.assert_allclose(reached[120.0], reached[30.0], rtol=1e-9)
+    np.testing.assert_allclose(reached[30.0], 1.0 - 0.75 ** np.array([3, 12]))
 
 
 def test_the_range_filter_refuses_frames_of_another_crowd():

@@ -325,7 +325,7 @@ def measure_pose(model, controls: Controls, turns: int, solves) -> dict:
         live = [Controls(controls.weights.copy(), controls.part_weights) for _ in range(frames)]  # a new snapshot a frame, as live
 
         def widened():  # what the range stage costs a frame: the controls compared, the swing scaled
-            scale = RangeFilter()
+            scale = RangeFilter(model.fps)
             for snapshot in live:
                 engine.retune(snapshot)
                 scale(frame, *targets.targets(walking))

@@ -258,7 +258,8 @@ class RangeTargets:
         units = np.ascontiguousarray(units, dtype=np.int64)
         own, shared, mean, eased = stream.tables.mean_own, stream.tables.mean_shared, range_filter.mean, range_filter.factor
         over_cores(range_part, [(units[a:b], self.held[a:b], self.scaled, stream.base[a:b], own[a:b], shared, self.factor[a:b],
-                                 self.means[a:b], self.factors[a:b], frames[a:b], mean[a:b], eased[a:b], first, out[a:b])
+                                 self.means[a:b], self.factors[a:b], frames[a:b], mean[a:b], eased[a:b], first,
+                                 range_filter.ease, out[a:b])
                                 for a, b in parts(len(frames))])
         return out
 
@@ -375,7 +376,7 @@ class Engine:
         self.features: list[StyleFeature] = [interpolation, Durations(interpolation)]
         ranges, contact = range_space(model), contact_space(model)
         self.range_targets = None if ranges is None else RangeTargets(ranges, model.units, characters, model.layout.dimension)
-        self.range_filter = None if ranges is None else RangeFilter()
+        self.range_filter = None if ranges is None else RangeFilter(model.fps)
         self.contact = None if contact is None else ContactTables(contact)
         self.features += [f for f in (self.range_targets, self.contact) if f is not None]
         self.units = UnitChooser(model, characters)
