@@ -7,8 +7,8 @@ from instrument.synthesis.posing import PoseStream
 from instrument.synthesis.engine import Engine, default_controls
 from instrument.synthesis.stream import Controls, Crowd
 from instrument.synthesis.widen import KEPT, RangeFilter, ease_per_frame, range_space, stride_means, without_range
-from instrument.training.widen import SETTLE, _generated_range, _spread
-from walks import features, step
+from instrument.training.widen import TRAINING_SECONDS, _generated_range, _made_walk, _spread, settle_frames
+from walks import features, finer, step
 
 
 def _widened(model, space, weights_per_frame):
@@ -25,8 +25,8 @@ def test_a_widened_walk_has_the_range_training_learnt_from_the_data(model, space
         weights = np.eye(len(names))[names.index(style)]
         factor = rng.factors(weights)[0]
         made = _generated_range(model, weights)  # as training measured it
-        frames, engine = _widened(model, space, [weights] * 600)
-        widened = _spread(frames[SETTLE:] - stride_means(engine.stream.base, engine.stream.means)[0])
+        frames, engine = _widened(model, space, [weights] * int(round(TRAINING_SECONDS * model.fps)))
+        widened = _spread(frames[settle_frames(model.fps):] - stride_means(engine.stream.base, engine.stream.means)[0])
         moving = made > 1e-3 * made.max()  # features that swing (a few are nearly still)
         np.testing.assert_allclose(widened[moving], (made * factor)[moving], rtol=0.02)
         assert np.abs(np.log(factor[moving])).max() > 0.05  # the filter did something
@@ -85,6 +85,22 @@ def test_blends_are_widened_and_extrapolations_walk_as_made(model):
     legged = factors(one[0], parts)
     np.testing.assert_array_equal(legged[legs], 1.0)
     np.testing.assert_allclose(legged[~legs], factors(one[0])[~legs])
+
+
+def test_the_range_training_measures_as_long_a_walk_at_any_rate(model):
+    """The walk whose range training measures, made by the shipped model and by its twin at 120
+    fps (every state four times as many frames: the same walk in seconds), lasts as long and
+    holds as many steps, counted from as long after its start. Counted in frames (600, the
+    first 60 left out) the 120 fps walk was 4.5 s from 0.5 s on, a quarter of the strides."""
+    fine = finer(model, 4)
+    weights = np.eye(len(model.style_names))[model.style_names.index("normal")]
+    measured = []
+    for m in (model, fine):
+        frames, ids, _ = _made_walk(m, weights)
+        steps = np.count_nonzero(np.diff(ids // m.states) != 0)
+        measured.append((len(frames) / m.fps, settle_frames(m.fps) / m.fps, steps))
+    assert measured[1] == measured[0]
+    assert measured[0][2] > 20  # some ten strides or more: the range's 1st-99th percentile over many
 
 
 def _range_filter_in_numpy(frames, means, factors, fps=30.0):
