@@ -21,9 +21,9 @@ from instrument.synthesis.stream import Controls, Crowd
 from instrument.synthesis.widen import without_range
 
 
-def features(model, controls: Controls, frames: int, method: str = "stream", lookahead: int = 32, seed: int = 0,
+def features(model, controls: Controls, frames: int, method: str = "stream", lookahead: int | None = None, seed: int = 0,
              widen: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """`walk_features`, with the range stage off unless `widen`."""
+    """`walk_features`, with the range stage off unless `widen` (`lookahead` None: the engine's default)."""
     return walk_features(model if widen else without_range(model), controls, frames, method, lookahead, seed)
 
 
