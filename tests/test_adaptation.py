@@ -121,7 +121,8 @@ def test_a_style_adapts_alike_at_any_frame_rate(average):
     fps = REFERENCE_FPS * rate
     np.testing.assert_allclose(duration_floor(fine, held, DEFAULT.floor_share, fps) / rate,
                                duration_floor(average, few, DEFAULT.floor_share), rtol=1e-12)
-    assert (duration_floor(fine, held, DEFAULT.floor_share) / rate < duration_floor(average, few, DEFAULT.floor_share) - 0.5).any()
+    in_frames = duration_floor(fine, held, DEFAULT.floor_share)  # the floor as frames of the fine rate
+    assert (in_frames / rate < duration_floor(average, few, DEFAULT.floor_share) - 0.5).any()
     for depth in (None, 0):  # MAP alone, and a shared transform under it
         settings = Settings(depth=depth, tau=16.0)
         reference = adapt(average, few, FLOORS, settings)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from .bvh import Motion
-from .features import FeatureLayout
+from .features import REFERENCE_FPS, FeatureLayout
 from .kinematics import forward_kinematics, local_transforms
 from .limbs import find_limbs
 from .steps import Segmentation, Step
@@ -25,7 +25,7 @@ FOOT_SPEED = 0.06  # leg lengths per second: a planted foot
 HAND_HEIGHT = 0.25  # leg lengths above the hips: a hand higher than this is gesturing
 PIECE_SECONDS = 0.4  # a stand "step"
 STATES = 5  # states of a step model unless told (training's default): a piece has at least a frame each
-MIN_STILL_SECONDS = 5 / 30  # the shortest still stretch kept (and never fewer frames than states; see standing_steps)
+MIN_STILL_SECONDS = 5 / REFERENCE_FPS  # the shortest still stretch kept (and never fewer frames than states; see standing_steps)
 
 
 def still_frames(motion: Motion, layout: FeatureLayout) -> np.ndarray:

@@ -108,7 +108,8 @@ class Show:
 
     def __post_init__(self):
         # `run` refuses these for the user with one line; here they are a caller's mistake
-        if not self.fps > 0 or self.characters < 1 or (self.lookahead is not None and self.lookahead < 1) or (self.seconds is not None and self.seconds < 0):
+        if (not self.fps > 0 or self.characters < 1 or (self.lookahead is not None and self.lookahead < 1)
+                or (self.seconds is not None and self.seconds < 0)):
             raise ValueError(f"Show: fps {self.fps}, characters {self.characters}, lookahead {self.lookahead}, "
                              f"seconds {self.seconds}")
         wanted = [getattr(sink, "character", 0) for sink in self.sinks]

@@ -48,7 +48,8 @@ TOLERANCE = 0.05  # EM stops when the log-likelihood per frame gains less than t
 @dataclass(frozen=True)
 class Settings:
     depth: int | None = 0  # regression class tree level of the transforms (see DEPTHS)
-    tau: float = 64.0  # MAP weight on top of the transforms (frames at REFERENCE_FPS), also each class's prior weight on its parent's transform
+    # MAP weight on top of the transforms (frames at REFERENCE_FPS), also each class's prior weight on its parent's transform
+    tau: float = 64.0
     iterations: int = 6  # EM iterations at most (1: one pass on lambda 0's alignment)
     floor_share: float = FLOOR_SHARE  # 0: no duration floor
 
