@@ -33,7 +33,8 @@ from instrument.synthesis.interpolation import interpolate, style_space
 from instrument.synthesis.mlpg import mlpg_continued
 from instrument.synthesis.engine import walk_features
 from instrument.synthesis.widen import without_range
-from instrument.synthesis.stream import DEFAULT_LOOKAHEAD, Controls
+from instrument.synthesis.parameters import default_lookahead
+from instrument.synthesis.stream import Controls
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import reference_lock  # noqa: E402  (the oracle lives with the tests)
@@ -90,7 +91,7 @@ def main() -> None:
     static, ids = walk_features(without_range(model), controls, args.frames)
     shares = contact.shares(controls.weights)[0][ids]
     lam = interpolate(space, controls.weights)
-    window = 2 + DEFAULT_LOOKAHEAD + 1
+    window = 2 + default_lookahead(model.fps) + 1
     means, precisions = lam.means[ids[None, :window]], lam.precisions[ids[None, :window]]
     known = np.zeros((1, 2, layout.dimension))
     solve = per_frame_us(lambda: [mlpg_continued(means, precisions, known) for _ in range(args.frames)], args.frames,

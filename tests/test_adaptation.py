@@ -5,9 +5,9 @@ the duration floor, and settings chosen by held-out likelihood."""
 import numpy as np
 import pytest
 
-from instrument.training.adaptation import (DEFAULT, ONE_PASS_MAP, Settings, adapt, adapt_styles, duration_floor,
-                                          floored_keeping_length, heldout_score)
-from instrument.models.hsmm import Floors
+from instrument.training.adaptation import (DEFAULT, ONE_PASS_MAP, REFERENCE_FPS, Settings, adapt, adapt_styles,
+                                          duration_floor, floored_keeping_length, heldout_score)
+from instrument.models.hsmm import HSMM, Floors
 from instrument.training.average import train_average
 from test_hsmm import STATES, TRUE_DURATION_MEANS, sample
 
@@ -106,3 +106,28 @@ def test_styles_choose_their_settings_and_tiny_styles_warn(average):
     for k in range(2):  # both styles move toward the shift, the one with data closer
         assert np.abs(styles.means[k] - average.means - SHIFT).mean() < np.abs(SHIFT).mean()
     assert np.isfinite(styles.variances).all() and (styles.variances > 0).all()
+
+
+def test_a_style_adapts_alike_at_any_frame_rate(average):
+    """The same steps sampled four times as often (each frame held four frames, as a 120 fps take
+    of a 30 fps one) with lambda 0 at that rate: the style comes out the same, its durations in
+    seconds. The prior's weight is data in seconds, and the duration floor a time: counted in
+    frames, a 120 fps style's data outweighed its prior four times sooner and its floor was a
+    quarter as long."""
+    rate = 4
+    fine = HSMM(average.means, average.variances, average.duration_means * rate, average.duration_variances * rate**2)
+    few = shifted(3, 3)  # little data: where the prior's weight shows
+    held = [[np.repeat(s, rate, axis=0) for s in label] for label in few]
+    fps = REFERENCE_FPS * rate
+    np.testing.assert_allclose(duration_floor(fine, held, DEFAULT.floor_share, fps) / rate,
+                               duration_floor(average, few, DEFAULT.floor_share), rtol=1e-12)
+    in_frames = duration_floor(fine, held, DEFAULT.floor_share)  # the floor as frames of the fine rate
+    assert (in_frames / rate < duration_floor(average, few, DEFAULT.floor_share) - 0.5).any()
+    for depth in (None, 0):  # MAP alone, and a shared transform under it
+        settings = Settings(depth=depth, tau=16.0)
+        reference = adapt(average, few, FLOORS, settings)
+        at_rate = adapt(fine, held, FLOORS, settings, fps=fps)
+        np.testing.assert_allclose(at_rate.means, reference.means, atol=1e-9)
+        np.testing.assert_allclose(at_rate.duration_means / rate, reference.duration_means, atol=1e-9)
+        in_frames = adapt(fine, held, FLOORS, settings)  # the weight as frames of the fine rate
+        assert np.abs(in_frames.means - reference.means).max() > 0.3

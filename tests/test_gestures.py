@@ -23,6 +23,7 @@ from bvh_independent import world_positions
 from conftest import REPO
 from oscrecv import Receiver, frame_count, free_port
 from waiting import wait_until
+from walks import finer
 
 from instrument.control.state import ControlState
 from instrument.errors import UserError
@@ -254,6 +255,22 @@ def test_holding_a_gesture_repeats_it_until_released(model):
     tap = walk(model, {"normal": 1.0}, 14, {"wave": (1.0, 1.05)})[1]
     short = walk(model, {"normal": 1.0}, 14, {"wave": (1.0, 2.5)})[1]  # let go once the hands are up: it lowers
     assert np.flatnonzero(short > 0)[-1] < 4.5 * model.fps < np.flatnonzero(tap > 0)[-1]
+
+
+def test_a_gesture_eases_in_and_out_over_the_same_seconds_at_any_rate(model):
+    """The shipped model and its twin at 120 fps (every state four times as many frames: the same
+    walk in seconds) hand the upper body to a wave and back over the same times: the ease is a
+    time. Counted in frames (6 and 12) it took a quarter as long at 120 fps."""
+    fine = finer(model, 4)
+    eases = []
+    for m in (model, fine):
+        shares = walk(m, {"normal": 1.0}, 9, {"wave": (1.0, 1.05)})[1]  # the wave lowered by 8 s
+        whole = np.flatnonzero(shares == 1.0)
+        rising = np.count_nonzero((shares[: whole[0]] > 0) & (shares[: whole[0]] < 1))
+        falling = np.count_nonzero((shares[whole[-1]:] > 0) & (shares[whole[-1]:] < 1))
+        eases.append(np.array([rising + 1, falling + 1]) / m.fps)  # frames to go from 0 to 1 and back, in seconds
+    np.testing.assert_allclose(eases[1], eases[0], rtol=1e-9)
+    assert eases[0][1] > eases[0][0] > 0  # it hands the arms back more slowly than it takes them
 
 
 def test_a_gesture_while_standing_and_running_keeps_the_feet_to_the_gait(model):

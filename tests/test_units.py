@@ -128,6 +128,21 @@ def test_still_standing_is_found_in_the_standing_takes_and_never_in_walks_or_run
     assert not still_frames(read_bvh(MOTIONS / "dataset-2_run_normal_001.bvh"), layout).any()
 
 
+@needs_motions
+@pytest.mark.parametrize("name", ["dataset-2_raise-up-both-hands_normal_001", "dataset-2_raise-up-both-hands_youthful_004"])
+def test_a_pause_is_no_stand_at_any_rate(model, name):
+    """A standing take read at 120 fps stands in as many pieces as at 30, none shorter than the
+    shortest stretch kept at 30 fps: a still stretch must last a time. Counted in frames (5), the
+    120 fps take's pauses of 42-167 ms were stand pieces too (3 pieces against 1, 2 against 0)."""
+    from instrument.motion.features import resample
+
+    take = read_bvh(MOTIONS / f"{name}.bvh")
+    found = {fps: standing_steps(resample(take, fps), model.layout).steps for fps in (30.0, 120.0)}
+    assert len(found[120.0]) == len(found[30.0])
+    shortest = min([(p.end - p.start) / 30.0 for p in found[30.0]], default=0.0)
+    assert all((p.end - p.start) / 120.0 >= min(shortest, 5 / 30) - 1e-9 for p in found[120.0])
+
+
 # ---- the shipped model ---------------------------------------------------------------------------
 
 def test_the_shipped_model_holds_every_unit(model):

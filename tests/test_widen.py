@@ -6,9 +6,9 @@ import pytest
 from instrument.synthesis.posing import PoseStream
 from instrument.synthesis.engine import Engine, default_controls
 from instrument.synthesis.stream import Controls, Crowd
-from instrument.synthesis.widen import EASE_FRAMES, KEPT, RangeFilter, range_space, stride_means, without_range
-from instrument.training.widen import SETTLE, _generated_range, _spread
-from walks import features, step
+from instrument.synthesis.widen import KEPT, RangeFilter, ease_per_frame, range_space, stride_means, without_range
+from instrument.training.widen import TRAINING_SECONDS, _generated_range, _made_walk, _spread, settle_frames
+from walks import features, finer, step
 
 
 def _widened(model, space, weights_per_frame):
@@ -25,8 +25,8 @@ def test_a_widened_walk_has_the_range_training_learnt_from_the_data(model, space
         weights = np.eye(len(names))[names.index(style)]
         factor = rng.factors(weights)[0]
         made = _generated_range(model, weights)  # as training measured it
-        frames, engine = _widened(model, space, [weights] * 600)
-        widened = _spread(frames[SETTLE:] - stride_means(engine.stream.base, engine.stream.means)[0])
+        frames, engine = _widened(model, space, [weights] * int(round(TRAINING_SECONDS * model.fps)))
+        widened = _spread(frames[settle_frames(model.fps):] - stride_means(engine.stream.base, engine.stream.means)[0])
         moving = made > 1e-3 * made.max()  # features that swing (a few are nearly still)
         np.testing.assert_allclose(widened[moving], (made * factor)[moving], rtol=0.02)
         assert np.abs(np.log(factor[moving])).max() > 0.05  # the filter did something
@@ -87,36 +87,68 @@ def test_blends_are_widened_and_extrapolations_walk_as_made(model):
     np.testing.assert_allclose(legged[~legs], factors(one[0])[~legs])
 
 
-def _range_filter_in_numpy(frames, means, factors):
+def test_the_range_training_measures_as_long_a_walk_at_any_rate(model):
+    """The walk whose range training measures, made by the shipped model and by its twin at 120
+    fps (every state four times as many frames: the same walk in seconds), lasts as long and
+    holds as many steps, counted from as long after its start. Counted in frames (600, the
+    first 60 left out) the 120 fps walk was 4.5 s from 0.5 s on, a quarter of the strides."""
+    fine = finer(model, 4)
+    weights = np.eye(len(model.style_names))[model.style_names.index("normal")]
+    measured = []
+    for m in (model, fine):
+        frames, ids, _ = _made_walk(m, weights)
+        steps = np.count_nonzero(np.diff(ids // m.states) != 0)
+        measured.append((len(frames) / m.fps, settle_frames(m.fps) / m.fps, steps))
+    assert measured[1] == measured[0]
+    assert measured[0][2] > 20  # some ten strides or more: the range's 1st-99th percentile over many
+
+
+def _range_filter_in_numpy(frames, means, factors, fps=30.0):
     """The range stage restated in numpy's elementwise form (what it was before it was compiled):
-    mean and factor eased a quarter of the way a frame, the swing about the mean scaled, the kept
-    features as made."""
+    mean and factor eased `ease_per_frame` of the way a frame (a quarter at 30 fps), the swing
+    about the mean scaled, the kept features as made."""
+    ease = ease_per_frame(fps)
     mean, factor, out = None, None, []
     for frame, target_mean, target_factor in zip(frames, means, factors):
         if mean is None:
             mean, factor = target_mean, target_factor
         else:
-            mean = mean + (target_mean - mean) / EASE_FRAMES
-            factor = factor + (target_factor - factor) / EASE_FRAMES
+            mean = mean + (target_mean - mean) * ease
+            factor = factor + (target_factor - factor) * ease
         made = mean + factor * (frame - mean)
         made[:, list(KEPT)] = frame[:, list(KEPT)]
         out.append(made)
     return out
 
 
-@pytest.mark.parametrize("characters", [1, 5])
-def test_the_compiled_range_filter_makes_numpys_numbers_to_the_bit(characters):
+@pytest.mark.parametrize("characters,fps", [(1, 30.0), (5, 30.0), (2, 120.0)])
+def test_the_compiled_range_filter_makes_numpys_numbers_to_the_bit(characters, fps):
     rng = np.random.default_rng(characters)
     dimension, frames = 66, 40
     made = rng.normal(0.0, 3.0, (frames, characters, dimension))
     # the targets stay a while, then jump (a style change), as the engine's do
     means = np.repeat(rng.normal(0.0, 1.0, (4, characters, dimension)), frames // 4, axis=0)
     factors = np.repeat(np.exp(rng.normal(0.0, 0.3, (4, characters, dimension))), frames // 4, axis=0)
-    scale = RangeFilter()
+    scale = RangeFilter(fps)
     compiled = [scale(frame, mean, factor) for frame, mean, factor in zip(made, means, factors)]
-    for ours, theirs in zip(compiled, _range_filter_in_numpy(made, means, factors)):
+    for ours, theirs in zip(compiled, _range_filter_in_numpy(made, means, factors, fps)):
         np.testing.assert_array_equal(ours, theirs)
     np.testing.assert_array_equal(means[-1], means[-2])  # the targets as they were handed over (not eased in place)
+
+
+def test_a_style_change_eases_in_over_the_same_time_at_any_rate():
+    """A stride mean's target moving by 1 reaches as far in 0.1 s (and in 0.4 s) at 120 fps as at
+    30: a quarter of the way a frame at 30 fps (within 1/e in 0.12 s). Counted in frames, at 120
+    fps it had all but arrived (99%) by 0.1 s where at 30 it was 58% of the way."""
+    reached = {}
+    for fps in (30.0, 120.0):
+        scale, frames = RangeFilter(fps), int(round(0.4 * fps))
+        half = np.full((1, 66), 0.5)  # out = mean + 0.5 (0 - mean): the eased mean, halved
+        scale(np.zeros((1, 66)), np.zeros((1, 66)), half)
+        out = [scale(np.zeros((1, 66)), np.ones((1, 66)), half)[0, 0] for _ in range(frames)]
+        reached[fps] = 2.0 * np.array([out[int(round(t * fps)) - 1] for t in (0.1, 0.4)])
+    np.testing.assert_allclose(reached[120.0], reached[30.0], rtol=1e-9)
+    np.testing.assert_allclose(reached[30.0], 1.0 - 0.75 ** np.array([3, 12]))
 
 
 def test_the_range_filter_refuses_frames_of_another_crowd():

@@ -2,12 +2,17 @@
 
 `features` gives what the engine makes before posing (a walk's static features and the state of
 each frame); `tune` sets a stream's tables per character from arbitrary controls, as a test of the
-stream stage alone needs (the engine's own characters differ only by the cast's style offsets).
+stream stage alone needs (the engine's own characters differ only by the cast's style offsets);
+`finer` gives a model's twin at a multiple of its rate.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
+
+from instrument.models.hsmm import HSMM
 
 from instrument.synthesis.durations import MIN_FRAMES, state_durations
 from instrument.synthesis.engine import walk_features
@@ -16,10 +21,20 @@ from instrument.synthesis.stream import Controls, Crowd
 from instrument.synthesis.widen import without_range
 
 
-def features(model, controls: Controls, frames: int, method: str = "stream", lookahead: int = 32, seed: int = 0,
+def features(model, controls: Controls, frames: int, method: str = "stream", lookahead: int | None = None, seed: int = 0,
              widen: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """`walk_features`, with the range stage off unless `widen`."""
+    """`walk_features`, with the range stage off unless `widen` (`lookahead` None: the engine's default)."""
     return walk_features(model if widen else without_range(model), controls, frames, method, lookahead, seed)
+
+
+def finer(model, rate: int):
+    """`model` at `rate` times its frame rate, every state lasting `rate` times as many frames: the
+    same steps in seconds (what settings meaning a time must not tell from the model itself)."""
+    def longer(hsmm: HSMM) -> HSMM:
+        return HSMM(hsmm.means, hsmm.variances, hsmm.duration_means * rate, hsmm.duration_variances * rate**2)
+
+    return replace(model, metadata={**model.metadata, "fps": rate * model.fps}, average=longer(model.average),
+                   styles=longer(model.styles))
 
 
 def tune(stream: Crowd, controls: list[Controls]) -> None:

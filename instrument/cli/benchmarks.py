@@ -19,7 +19,8 @@ from ..synthesis.footlock import FootLock
 from ..synthesis.interpolation import interpolate
 from ..synthesis.mlpg import mlpg, mlpg_continued, mlpg_threads
 from ..synthesis.posing import CrowdPoses, PoseStream
-from ..synthesis.stream import DEFAULT_LOOKAHEAD, Controls
+from ..synthesis.parameters import default_lookahead
+from ..synthesis.stream import Controls
 from ..synthesis.widen import RangeFilter
 from .crowd_bench import largest_crowd, measure_cost
 
@@ -208,7 +209,7 @@ def measure(model_path: str | None, repeat: int) -> dict:
     # the yardstick of the streaming figures: the bare solve of one window of the same size, `frames`
     # times a block, timed turn about with each figure set against it (`against_yardstick`)
     frames, turns = SOLVES, max(7, repeat)
-    solves = window_solves(lam, ids, frames)
+    solves = window_solves(lam, ids, frames, default_lookahead(model.fps))
 
     # the engine's stream stage alone (plan, window solve, rate limit), its tables set by the other stages
     walker = Engine(model)
@@ -225,7 +226,7 @@ def measure(model_path: str | None, repeat: int) -> dict:
     figures["stream_to_window_solve"] = ratios["one"]
     figures["stream_batch_to_window_solve"] = ratios["batch"] * frames / (batch_frames * BATCH)
     figures["yardstick_turns"] = turns
-    figures["lookahead"] = DEFAULT_LOOKAHEAD
+    figures["lookahead"] = default_lookahead(model.fps)
     figures |= measure_pose(model, all_styles, turns, solves)
     figures |= measure_gesture(model, all_styles, turns, solves)
     per_character = figures["stream_us_per_frame_batch"]
@@ -248,10 +249,10 @@ def _walk_of_all_styles(model_path: str | None):
     return model, all_styles, interpolate(planner.space, all_styles.weights), ids
 
 
-def window_solves(lam, ids: np.ndarray, frames: int):
-    """The yardstick: a function making `frames` bare solves of one streaming window (its states
-    the first of `ids`, lambda* `lam`)."""
-    window = 2 + DEFAULT_LOOKAHEAD + 1
+def window_solves(lam, ids: np.ndarray, frames: int, lookahead: int):
+    """The yardstick: a function making `frames` bare solves of one streaming window looking
+    `lookahead` frames ahead (its states the first of `ids`, lambda* `lam`)."""
+    window = 2 + lookahead + 1
     window_means, window_precisions = lam.means[ids[None, :window]], lam.precisions[ids[None, :window]]
     known = np.zeros((1, 2, window_means.shape[-1] // 3))
 
@@ -268,7 +269,7 @@ def measure_crowd(model_path: str | None) -> dict:
     two, where the whole bench takes several."""
     model, _, lam, ids = _walk_of_all_styles(model_path)
     figures = {"machine": machine()}
-    figures |= measure_cost(model, window_solves(lam, ids, SOLVES), SOLVES)
+    figures |= measure_cost(model, window_solves(lam, ids, SOLVES, default_lookahead(model.fps)), SOLVES)
     figures |= largest_crowd(model, figures["stream_us_per_character"])
     return figures
 
@@ -325,7 +326,7 @@ def measure_pose(model, controls: Controls, turns: int, solves) -> dict:
         live = [Controls(controls.weights.copy(), controls.part_weights) for _ in range(frames)]  # a new snapshot a frame, as live
 
         def widened():  # what the range stage costs a frame: the controls compared, the swing scaled
-            scale = RangeFilter()
+            scale = RangeFilter(model.fps)
             for snapshot in live:
                 engine.retune(snapshot)
                 scale(frame, *targets.targets(walking))

@@ -34,7 +34,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--force", action="store_true", help="overwrite the --out file if it exists (default: refuse)")
     p.add_argument("--method", choices=("stream", "full"), default="stream",
                    help="stream: frame by frame as live (default); full: one MLPG over the whole walk")
-    p.add_argument("--lookahead", default=str(DEFAULT_LOOKAHEAD), metavar="FRAMES", help=f"streaming look-ahead (default {DEFAULT_LOOKAHEAD})")
+    p.add_argument("--lookahead", default=None, metavar="FRAMES",
+                   help=f"streaming look-ahead (default {DEFAULT_LOOKAHEAD} at 30 fps: as long in the model's frames)")
     p.add_argument("--liveliness", default="0", help="0: mean state durations; 1: durations drawn from the model (seeded)")
     p.add_argument("--seed", default="0", help="seed for liveliness draws (default 0)")
     p.set_defaults(run=run)
@@ -96,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
     gait = gait_index(value("synth --gait", args.gait))
     turn = value("synth --turn", args.turn)
     seconds = value("synth --seconds", args.seconds)
-    lookahead = value("synth --lookahead", args.lookahead)
+    lookahead = None if args.lookahead is None else value("synth --lookahead", args.lookahead)
     liveliness = value("synth --liveliness", args.liveliness)
     seed = value("synth --seed", args.seed)
     frames = max(1, int(round(seconds * model.fps)))

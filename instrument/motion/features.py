@@ -42,6 +42,9 @@ from .rotations import (
 ROOT_FEATURES = ("root.height", "root.vx", "root.vz", "root.yaw_rate", "root.tilt.x", "root.tilt.z")
 STILL_RADIANS = 1e-4  # a joint whose rotation never strays further than this is left out
 DEFAULT_FPS = 30.0
+# the rate the settings counted in frames were chosen at (the shipped model's): one that means a
+# time or an amount of data counts `frames * fps / REFERENCE_FPS` of a model at `fps` (docs/evaluate.md, "Settings in frames")
+REFERENCE_FPS = 30.0
 
 # HTS windows for static, delta and delta-delta features
 WINDOWS = (np.array([0.0, 1.0, 0.0]), np.array([-0.5, 0.0, 0.5]), np.array([1.0, -2.0, 1.0]))

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from .bvh import Motion
-from .features import FeatureLayout
+from .features import REFERENCE_FPS, FeatureLayout
 from .kinematics import forward_kinematics, local_transforms
 from .limbs import find_limbs
 from .steps import Segmentation, Step
@@ -24,7 +24,8 @@ ROOT_SPEED = 0.07  # leg lengths per second: the root's horizontal speed at rest
 FOOT_SPEED = 0.06  # leg lengths per second: a planted foot
 HAND_HEIGHT = 0.25  # leg lengths above the hips: a hand higher than this is gesturing
 PIECE_SECONDS = 0.4  # a stand "step"
-MIN_FRAMES = 5  # the shortest still stretch kept (one frame per state of a 5-state model)
+STATES = 5  # states of a step model unless told (training's default): a piece has at least a frame each
+MIN_STILL_SECONDS = 5 / REFERENCE_FPS  # the shortest still stretch kept (and never fewer frames than states; see standing_steps)
 
 
 def still_frames(motion: Motion, layout: FeatureLayout) -> np.ndarray:
@@ -64,17 +65,22 @@ def stretches(mask: np.ndarray, shortest: int) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= shortest]
 
 
-def pieces(start: int, end: int, fps: float, states: int = MIN_FRAMES) -> list[tuple[int, int]]:
+def pieces(start: int, end: int, fps: float, states: int = STATES) -> list[tuple[int, int]]:
     """A still stretch [start, end) cut into pieces of about PIECE_SECONDS (at least `states` frames)."""
     piece = max(states, int(round(PIECE_SECONDS * fps)))
     bounds = np.linspace(start, end, max(1, (end - start) // piece) + 1).round().astype(int)
     return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
-def standing_steps(motion: Motion, layout: FeatureLayout, states: int = MIN_FRAMES) -> Segmentation:
-    """The still stretches of a take as alternating right and left pieces (see the module's text)."""
+def standing_steps(motion: Motion, layout: FeatureLayout, states: int = STATES) -> Segmentation:
+    """The still stretches of a take as alternating right and left pieces (see the module's text).
+
+    A stretch shorter than MIN_STILL_SECONDS is a pause, not a stand. It was 5 frames at any rate:
+    at 120 fps the gesture takes' 42-167 ms pauses (32 of 107 stretches) became stand pieces, and
+    the stand's pieces averaged 0.31 s where at 30 fps they average 0.39 s. A stretch also needs a
+    frame for each of the model's `states` (a count, whatever the rate)."""
     steps: list[Step] = []
-    for start, end in stretches(still_frames(motion, layout), max(states, MIN_FRAMES)):
+    for start, end in stretches(still_frames(motion, layout), max(states, int(round(MIN_STILL_SECONDS * motion.fps)))):
         for a, b in pieces(start, end, motion.fps, states):
             steps.append(Step("right" if len(steps) % 2 == 0 else "left", a, b))
     warnings = [] if steps else ["no still standing with the arms down found"]

@@ -21,7 +21,7 @@ from ..control.hub import ControlHub
 from ..control.state import ControlState
 from ..models.modelfile import Model
 from ..synthesis.engine import Engine
-from ..synthesis.parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING, GAITS
+from ..synthesis.parameters import DEFAULT_SPACING, GAITS
 from ..control.values import all_values
 from ..synthesis.footfalls import Footfalls, pacing
 from ..synthesis.posing import Frame
@@ -98,7 +98,7 @@ class Show:
     fast: bool = False  # no realtime pacing: as fast as the CPU allows
     characters: int = 1
     spacing: float = DEFAULT_SPACING  # metres between a crowd's characters
-    lookahead: int = DEFAULT_LOOKAHEAD
+    lookahead: int | None = None  # the stream's, in the model's frames (None: its rate's default, parameters.py)
     state: ControlState | None = None  # default: the model's, at rest
     replay: LogReplay | None = None
     sources: list[Callable[[float], list[ControlEvent]]] = field(default_factory=list)
@@ -108,7 +108,8 @@ class Show:
 
     def __post_init__(self):
         # `run` refuses these for the user with one line; here they are a caller's mistake
-        if not self.fps > 0 or self.characters < 1 or self.lookahead < 1 or (self.seconds is not None and self.seconds < 0):
+        if (not self.fps > 0 or self.characters < 1 or (self.lookahead is not None and self.lookahead < 1)
+                or (self.seconds is not None and self.seconds < 0)):
             raise ValueError(f"Show: fps {self.fps}, characters {self.characters}, lookahead {self.lookahead}, "
                              f"seconds {self.seconds}")
         wanted = [getattr(sink, "character", 0) for sink in self.sinks]

@@ -9,7 +9,7 @@ import numpy as np
 
 from .parameters import MAX_SPEED, MIN_SPEED
 
-MIN_FRAMES = 1.0
+MIN_FRAMES = 1.0  # a state lasts a frame at least: a count at any rate (the HSMM's), not a time
 
 
 def state_durations(

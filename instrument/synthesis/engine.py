@@ -51,7 +51,7 @@ from .footlock import FootLock
 from .gestures import GestureLayer
 from .interpolation import StyleInterpolation, StyleSpace, style_space
 from .mlpg import mlpg
-from .parameters import DEFAULT_LOOKAHEAD, DEFAULT_SPACING
+from .parameters import DEFAULT_SPACING, default_lookahead
 from .posing import CrowdPose, CrowdPoses
 from .stream import Controls, Crowd
 from .units import UnitChooser
@@ -258,7 +258,8 @@ class RangeTargets:
         units = np.ascontiguousarray(units, dtype=np.int64)
         own, shared, mean, eased = stream.tables.mean_own, stream.tables.mean_shared, range_filter.mean, range_filter.factor
         over_cores(range_part, [(units[a:b], self.held[a:b], self.scaled, stream.base[a:b], own[a:b], shared, self.factor[a:b],
-                                 self.means[a:b], self.factors[a:b], frames[a:b], mean[a:b], eased[a:b], first, out[a:b])
+                                 self.means[a:b], self.factors[a:b], frames[a:b], mean[a:b], eased[a:b], first,
+                                 range_filter.ease, out[a:b])
                                 for a, b in parts(len(frames))])
         return out
 
@@ -357,15 +358,17 @@ class Engine:
     unless given; other rates interpolate the model's frames), posed with planted feet.
 
     `method="full"` (offline only: one character, constant controls, `frames` known) solves one
-    MLPG over the whole walk in place of the stream; every other stage is the same."""
+    MLPG over the whole walk in place of the stream; every other stage is the same. `lookahead`:
+    the stream's, in the model's frames (default: `default_lookahead` of the model's rate)."""
 
-    def __init__(self, model: Model, characters: int = 1, fps: float | None = None, lookahead: int = DEFAULT_LOOKAHEAD,
+    def __init__(self, model: Model, characters: int = 1, fps: float | None = None, lookahead: int | None = None,
                  seed: int = 0, spacing: float = DEFAULT_SPACING, method: str = "stream", frames: int | None = None):
         if method not in METHODS or (method == "full" and (characters != 1 or frames is None)):
             raise ValueError(f"Engine: method {method!r} (full needs one character and the frame count)")
         self.model = model
         self.fps = float(model.fps if fps is None else fps)
         self.count = characters
+        lookahead = default_lookahead(model.fps) if lookahead is None else lookahead
         self.space = style_space(model)
         self.cast = make_cast(characters, len(model.style_names), model.states, seed)
         self.stream = Crowd(self.space, characters, lookahead, seeds=self.cast.seeds)
@@ -375,7 +378,7 @@ class Engine:
         self.features: list[StyleFeature] = [interpolation, Durations(interpolation)]
         ranges, contact = range_space(model), contact_space(model)
         self.range_targets = None if ranges is None else RangeTargets(ranges, model.units, characters, model.layout.dimension)
-        self.range_filter = None if ranges is None else RangeFilter()
+        self.range_filter = None if ranges is None else RangeFilter(model.fps)
         self.contact = None if contact is None else ContactTables(contact)
         self.features += [f for f in (self.range_targets, self.contact) if f is not None]
         self.units = UnitChooser(model, characters)
@@ -586,7 +589,7 @@ def default_controls(model: Model, weights: dict[str, float] | None = None, **kw
 
 
 def walk_features(model: Model, controls: Controls, frames: int, method: str = "stream",
-                  lookahead: int = DEFAULT_LOOKAHEAD, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+                  lookahead: int | None = None, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """A walk with constant controls before posing: its static features (frames, D), through
     every stage up to the drive, and the state id (label * states + state) of each frame."""
     engine = Engine(model, lookahead=lookahead, seed=seed, method=method, frames=frames)
@@ -598,7 +601,7 @@ def walk_features(model: Model, controls: Controls, frames: int, method: str = "
     return static, ids
 
 
-def render(model: Model, controls: Controls, frames: int, method: str = "stream", lookahead: int = DEFAULT_LOOKAHEAD,
+def render(model: Model, controls: Controls, frames: int, method: str = "stream", lookahead: int | None = None,
            seed: int = 0, gestures: Sequence[tuple[str, float]] = ()) -> Motion:
     """A walk with constant controls as a Motion on the model's skeleton, at the model's rate, from
     the origin, heading 0: the engine without a clock (what `synth` writes and `evaluate` measures).

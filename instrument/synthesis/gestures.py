@@ -20,7 +20,8 @@ end of the half cycle under way.
 The gesture's stream starts from the two frames the character has just shown (its window's fixed
 frames), so the arms leave the walk's swing without a jump; its upper-body features (the `upper`
 group: spine, neck, head, arms) then replace the gait's with a weight that eases in over EASE_IN
-frames and out over EASE_OUT once the lower has ended, the legs and the root staying the gait's:
+seconds and out over EASE_OUT once the lower has ended (times: they were 6 and 12 frames, a
+quarter as long at 120 fps as at 30), the legs and the root staying the gait's:
 the feet keep their plan and the foot lock, the walk its speed and heading. The gesture's stream
 solves only those dimensions (the range of static dimensions holding the `upper` group, read in
 place from the gait's tables: each dimension's solve is independent of the others, so the upper
@@ -43,13 +44,14 @@ from numba import njit
 
 from ..models.gestures import gesture_labels, gesture_repeats
 from ..models.modelfile import Model
+from ..motion.features import REFERENCE_FPS
 from .direct import entry_point
 from .interpolation import StyleSpace, body_groups
 from .parameters import GROUPS
 from .stream import FOLLOWER, LABEL, UNIT, Crowd, _commit, _plan_window
 
-EASE_IN = 6  # frames the gesture's upper body takes to come in (its stream starts where the gait is)
-EASE_OUT = 12  # frames it takes to hand the arms back to the gait after the lower
+EASE_IN = 6 / REFERENCE_FPS  # seconds the gesture's upper body takes to come in (its stream starts where the gait is)
+EASE_OUT = 12 / REFERENCE_FPS  # seconds it takes to hand the arms back to the gait after the lower
 
 
 class GestureLayer:
@@ -79,6 +81,7 @@ class GestureLayer:
         self.label = np.zeros(count, dtype=np.int64)  # the label under way at the last frame
         self.ease = np.zeros(count)  # 0..1 along the ease in, then back down along the ease out
         self.weights = np.zeros(count)  # the gesture's share of each character's upper body, this frame
+        self.rise, self.fall = 1.0 / (EASE_IN * model.fps), 1.0 / (EASE_OUT * model.fps)  # the ease's move a frame
         self.held: set[str] = set()  # the gesture targets held at the last frame
         self._as_given: Collection[str] = ()  # and as the controls gave them (a held pad: the same each frame)
         width = self.solved.stop - self.solved.start
@@ -148,7 +151,8 @@ class GestureLayer:
                 work = self._work
                 arguments = (crowd.counters, self.label, self.done, self.tapped, self._holding, self._repeats, self.first,
                              self._next_units, crowd.base, crowd.sigma, crowd.carry, crowd.pool, crowd.history_ids, work.ids,
-                             work.counts, work.carries, gait.guest_rows, crowd.space.states, self.ease, self.weights)
+                             work.counts, work.carries, gait.guest_rows, crowd.space.states, self.ease, self.weights,
+                             self.rise, self.fall)
                 if self._plan_call is None:
                     self._plan_call = entry_point(_plan_guest, arguments)
                 guest = self._keep(*self._plan_call(*arguments))
@@ -164,7 +168,7 @@ class GestureLayer:
     def _progress(self, now: np.ndarray) -> bool:
         """The weights for the frame of states `now`; whether every character's is 1."""
         return self._keep(*_progress(now, self.crowd.space.states, self.first, self.label, self.done, self.ease,
-                                     self.weights))
+                                     self.weights, self.rise, self.fall))
 
     def _keep(self, playing: bool, whole: bool) -> bool:
         """`_progress`'s two answers (from either path) kept: the gesture ends when no character
@@ -247,9 +251,10 @@ def _choose_units(counters, label, done, tapped, held, repeats, first, next_unit
 
 
 @njit(cache=True, nogil=True)
-def _progress(now, states, first, label, done, ease, weights):  # pragma: no cover - compiled
+def _progress(now, states, first, label, done, ease, weights, rise, fall):  # pragma: no cover - compiled
     """Each character's label under way at the frame of states `now`, the repeat half cycles it
-    has finished, its ease and weight (smoothstep: no kink at either end). Returns whether the
+    has finished, its ease (up by `rise` a frame while the gesture plays, down by `fall` after)
+    and weight (smoothstep: no kink at either end). Returns whether the
     gesture still has any character, and whether the gait's solve may make the gesture's frame:
     every character's weight 1 and none lowering (from the lower on, the gait's own upper body is
     solved again, unseen until the ease out, so its arms are back in the walk's swing by then)."""
@@ -260,7 +265,7 @@ def _progress(now, states, first, label, done, ease, weights):  # pragma: no cov
             done[n] += 1  # a repeat half finished
         label[n] = here
         inside = first <= here <= first + 3
-        e = min(max(ease[n] + (1.0 / EASE_IN if inside else -1.0 / EASE_OUT), 0.0), 1.0)
+        e = min(max(ease[n] + (rise if inside else -fall), 0.0), 1.0)
         ease[n] = e
         w = e * e * (3.0 - 2.0 * e)
         weights[n] = w
@@ -271,7 +276,7 @@ def _progress(now, states, first, label, done, ease, weights):  # pragma: no cov
 
 @njit(cache=True, nogil=True)
 def _plan_guest(counters, label, done, tapped, held, repeats, first, next_units, base, sigma, carry, pool, history_ids, ids,
-                counts, carries, rows, states, ease, weights):  # pragma: no cover - compiled
+                counts, carries, rows, states, ease, weights, rise, fall):  # pragma: no cover - compiled
     """The gesture's frame planned for the gait's solve to make, in one call: each character's
     unit (`_choose_units`), its plan and its window's rows into `rows` (the gait's `guest_rows`),
     and its weight at the frame planned (`_progress`, whose two answers it returns)."""
@@ -279,7 +284,7 @@ def _plan_guest(counters, label, done, tapped, held, repeats, first, next_units,
     for n in range(counters.shape[0]):
         _plan_window(base[n], sigma[n], counters[n], carry[n], pool[n], history_ids[n], 2, ids[n], counts[n], carries[n],
                      rows[n])
-    return _progress(ids[:, 0], states, first, label, done, ease, weights)
+    return _progress(ids[:, 0], states, first, label, done, ease, weights, rise, fall)
 
 
 @njit(cache=True, nogil=True)

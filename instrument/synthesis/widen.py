@@ -17,8 +17,10 @@ averages over a stride) by that factor. The log factors move with the style weig
 other parameter (offsets from the average, per body part when part weights are given) inside
 the styles' blends, and fade to no scaling outside them (see `RangeSpace.factors`). Nothing
 looks ahead; a style change moves mean and factor a quarter of
-the way per frame (EASE_FRAMES), so it shows in the next frame and never jumps. Root speeds and
-the yaw rate are left as made (the path, the cadence and the planted feet rely on them).
+the way per frame at 30 fps (EASE), so it shows in the next frame and never jumps. The ease is a
+time (0.12 s to within 1/e of the target) at any rate: a quarter of the way per frame at 120 fps
+would be 4 times as fast, a style change's swing settling in 30 ms (`ease_per_frame`). Root
+speeds and the yaw rate are left as made (the path, the cadence and the planted feet rely on them).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numba import njit
 
-from ..motion.features import ROOT_FEATURES
+from ..motion.features import REFERENCE_FPS, ROOT_FEATURES
 from .interpolation import body_groups, part_weights_per_group
 from .mlpg import _part, _prefetch_row
 from .stream import numpy_sum
@@ -36,7 +38,7 @@ from .stream import numpy_sum
 STRENGTH = 1.0  # share of the learnt log factor applied (chosen by `instrument evaluate`, docs/evaluate.md)
 LIMIT = np.log(2.0)  # no feature's swing is scaled by its range ratio by more than 2x or less than 1/2
 CALIBRATED_LIMIT = np.log(4.0)  # nor the shoulders' swing, calibrated on the played walk, by more than 4x or less than 1/4
-EASE_FRAMES = 4
+EASE = 0.25  # share of the way to the targets the range stage moves a frame at REFERENCE_FPS (see ease_per_frame)
 KEPT = tuple(ROOT_FEATURES.index(name) for name in ("root.vx", "root.vz", "root.yaw_rate"))  # never scaled
 
 
@@ -175,17 +177,24 @@ bounds each feature's factors, within this: a blend of them stays inside). The n
                 row[d - first] = fade * min(max(base[d] + row[d - first], -CALIBRATED_LIMIT), CALIBRATED_LIMIT)
 
 
+def ease_per_frame(fps: float) -> float:
+    """The share of the way to its targets the range stage moves a frame at `fps`: EASE at
+    REFERENCE_FPS, and at any rate as far in a second (1 - (1 - EASE) ** (REFERENCE_FPS / fps))."""
+    return 1.0 - (1.0 - EASE) ** (REFERENCE_FPS / fps)
+
+
 class RangeFilter:
-    """The engine's range stage for N characters, carried from frame to frame (see the module's
-    docstring): each frame the stride mean and the factor move a quarter of the way to their
-    targets, and each feature's swing about the mean is scaled.
+    """The engine's range stage for N characters at `fps`, carried from frame to frame (see the
+    module's docstring): each frame the stride mean and the factor move `ease_per_frame(fps)` of
+    the way to their targets (a quarter at 30 fps), and each feature's swing about the mean is scaled.
 
     One compiled pass does it all (`_range_step`): the numpy form of the same arithmetic took
     nine array operations and a fancy-indexed copy a frame, some 15-20 us for one character,
     where this takes a few (docs/figures.md); the numbers are the same to the bit
     (tests/test_widen.py holds it to a numpy restatement)."""
 
-    def __init__(self):
+    def __init__(self, fps: float = REFERENCE_FPS):
+        self.ease = ease_per_frame(fps)
         self.mean: np.ndarray | None = None  # (N, D) where the swing is scaled about, eased
         self.factor: np.ndarray | None = None  # (N, D) by how much, eased
 
@@ -193,7 +202,7 @@ class RangeFilter:
         """Frames (N, D) as made, their swing scaled towards targets `mean` and `factor` (N, D)."""
         mean, factor = np.ascontiguousarray(mean, dtype=np.float64), np.ascontiguousarray(factor, dtype=np.float64)
         frames, out, first = self.begin(frames, mean.shape, factor.shape)
-        _range_step(frames, mean, factor, self.mean, self.factor, first, KEPT_FROM, KEPT_TO, out)
+        _range_step(frames, mean, factor, self.mean, self.factor, first, self.ease, KEPT_FROM, KEPT_TO, out)
         return out
 
     def begin(self, frames: np.ndarray, mean_shape: tuple, factor_shape: tuple) -> tuple[np.ndarray, np.ndarray, bool]:
@@ -215,9 +224,9 @@ assert KEPT == tuple(range(KEPT_FROM, KEPT_TO))
 
 
 @njit(cache=True, nogil=True)
-def _range_step(frames, target_mean, target_factor, mean, factor, first, kept_from, kept_to, out):  # pragma: no cover
-    """One frame of `RangeFilter`: mean and factor (N, D) eased towards their targets in place
-    (set to them when `first`), out = mean + factor (frames - mean), columns kept_from to
+def _range_step(frames, target_mean, target_factor, mean, factor, first, ease, kept_from, kept_to, out):  # pragma: no cover
+    """One frame of `RangeFilter`: mean and factor (N, D) moved `ease` of the way to their targets
+    in place (set to them when `first`), out = mean + factor (frames - mean), columns kept_from to
     kept_to copied as made. The same operations, in the same order, as numpy's elementwise form
     (no fastmath: nothing is fused or reordered)."""
     for n in range(frames.shape[0]):
@@ -225,19 +234,20 @@ def _range_step(frames, target_mean, target_factor, mean, factor, first, kept_fr
             if first:
                 m, f = target_mean[n, d], target_factor[n, d]
             else:
-                m = mean[n, d] + (target_mean[n, d] - mean[n, d]) / EASE_FRAMES
-                f = factor[n, d] + (target_factor[n, d] - factor[n, d]) / EASE_FRAMES
+                m = mean[n, d] + (target_mean[n, d] - mean[n, d]) * ease
+                f = factor[n, d] + (target_factor[n, d] - factor[n, d]) * ease
             mean[n, d], factor[n, d] = m, f
             out[n, d] = frames[n, d] if kept_from <= d < kept_to else m + f * (frames[n, d] - m)
 
 
 @njit(cache=True, nogil=True)
-def range_part(units, held, scaled, base, own, shared, factor, means, factors, frames, mean, eased, first, out):  # pragma: no cover
+def range_part(units, held, scaled, base, own, shared, factor, means, factors, frames, mean, eased, first, ease,
+               out):  # pragma: no cover
     """Some characters' range stage in one call (a part of a crowd, on a core of its own): their
     targets (`unit_targets`, into `means` and `factors`) and their frames filtered towards them
-    (`_range_step`, `mean` and `eased` the filter's eased mean and factor, into `out`)."""
+    (`_range_step`, `mean` and `eased` the filter's eased mean and factor, `ease` its share a frame, into `out`)."""
     unit_targets(units, held, scaled, base, own, shared, factor, means, factors)
-    _range_step(frames, means, factors, mean, eased, first, KEPT_FROM, KEPT_TO, out)
+    _range_step(frames, means, factors, mean, eased, first, ease, KEPT_FROM, KEPT_TO, out)
 
 
 def without_range(model):

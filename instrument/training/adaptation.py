@@ -14,6 +14,14 @@ re-estimates in two layers:
 2. MAP on top: each state's parameters pulled toward the transformed model with a weight of
    `tau` frames, so with plenty of data every state follows its own statistics.
 
+The prior weights are amounts of data, and a second of walking is 30 frames at 30 fps but 120 at
+120 fps (the frames are not more independent for being finer: the same motion, sampled more
+often). So `tau` is stated in frames at REFERENCE_FPS and counts `tau * fps / REFERENCE_FPS` of
+the model's frames: with 16 frames at 120 fps, a style's data outweighed its prior four times
+sooner than at 30 fps and a 120 fps model's styles came out other than a 30 fps model's of the
+same takes (docs/evaluate.md, "Settings in frames"). Durations are counted in steps (one per
+state visit whatever the rate), so their weight `tau / 2` is not scaled.
+
 The tree depth and `tau` are chosen per style by two-fold held-out likelihood (alternate takes,
 or the halves of a single take), so a user never tunes them. State durations never fall below a floor taken from
 the data (see duration_floor), and the floor does not lengthen the step (floored_keeping_length).
@@ -26,12 +34,13 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from ..models.hsmm import HSMM, Floors, Statistics, expected_statistics, log_likelihood, map_update
+from ..motion.features import REFERENCE_FPS
 
 DEPTHS = (None, 0, 1, 2)  # None: no transform (MAP only); 0: one class; 1: one per label; 2: one per state
-TAUS = (16.0, 64.0, 256.0)  # MAP prior weights tried, in frames
+TAUS = (16.0, 64.0, 256.0)  # MAP prior weights tried, in frames at REFERENCE_FPS (0.53, 2.1, 8.5 s of data)
 ONE_TAKE_MIN_TAU = 64.0  # with a single take, no smaller weight (see choose_settings)
 FLOOR_SHARE = 0.5  # a state's duration stays above this share of its lambda 0 share of the style's step
-MIN_STATE_FRAMES = 2.0  # and above this, where the style's steps are long enough
+MIN_STATE_SECONDS = 2.0 / REFERENCE_FPS  # and above this (2 frames at 30 fps), where the style's steps are long enough
 MIN_STEPS_TO_CHOOSE = 4  # fewer steps of a label than this: no held-out choice, DEFAULT settings
 TOLERANCE = 0.05  # EM stops when the log-likelihood per frame gains less than this (it is in the hundreds)
 
@@ -39,7 +48,8 @@ TOLERANCE = 0.05  # EM stops when the log-likelihood per frame gains less than t
 @dataclass(frozen=True)
 class Settings:
     depth: int | None = 0  # regression class tree level of the transforms (see DEPTHS)
-    tau: float = 64.0  # MAP weight on top of the transforms (frames), also each class's prior weight on its parent's transform
+    # MAP weight on top of the transforms (frames at REFERENCE_FPS), also each class's prior weight on its parent's transform
+    tau: float = 64.0
     iterations: int = 6  # EM iterations at most (1: one pass on lambda 0's alignment)
     floor_share: float = FLOOR_SHARE  # 0: no duration floor
 
@@ -75,13 +85,13 @@ def _classes(depth: int, labels: int, states: int) -> list[list[np.ndarray]]:
     return levels[: depth + 1]
 
 
-def _transform_node(mu, var, dmu, dvar, occ, first, second, dcount, dfirst, parent, weight, spread):
+def _transform_node(mu, var, dmu, dvar, occ, first, second, dcount, dfirst, parent, weight, duration_weight, spread):
     """One class's (a, b, s, r) from its states' statistics with the parent's transform as prior.
 
     mu, var, first, second: (n, F); occ, dmu, dvar, dcount, dfirst: (n,). `weight` is the prior's
-    weight in frames (spread over the class's states as pseudo-data drawn from the parent's
-    transformed model); `spread` (F,) keeps the slope's prior from vanishing when the class's
-    means are all alike (one state)."""
+    weight in the model's frames (spread over the class's states as pseudo-data drawn from the
+    parent's transformed model), `duration_weight` the durations' in steps; `spread` (F,) keeps
+    the slope's prior from vanishing when the class's means are all alike (one state)."""
     a_p, b_p, s_p, r_p = parent
     n = len(occ)
     pseudo = weight / n
@@ -99,14 +109,16 @@ def _transform_node(mu, var, dmu, dvar, occ, first, second, dcount, dfirst, pare
     moved = a * mu + b
     residual = ((second - 2 * moved * first + occ[:, None] * moved**2) / var).sum(0)
     s = (residual + weight * s_p) / (occ.sum() + weight)
-    dpseudo = weight / 2.0 / n  # durations: steps, as tau_duration
+    dpseudo = duration_weight / n  # durations: steps, as tau_duration
     r = ((dmu * dfirst / dvar).sum() + dpseudo * r_p * (dmu**2 / dvar).sum()) / (
         (dmu**2 * dcount / dvar).sum() + dpseudo * (dmu**2 / dvar).sum())
     return a, b, s, r
 
 
-def transformed(average: HSMM, stats: list[Statistics], depth: int, weight: float, floors: Floors) -> HSMM:
-    """lambda 0 moved by the structural-MAP transforms of the class tree down to `depth`."""
+def transformed(average: HSMM, stats: list[Statistics], depth: int, weight: float, duration_weight: float,
+                floors: Floors) -> HSMM:
+    """lambda 0 moved by the structural-MAP transforms of the class tree down to `depth`, each class's
+    transform pulled toward its parent's by `weight` frames of the model (`duration_weight` steps)."""
     labels, states, features = average.means.shape
     mu = average.means.reshape(-1, features)
     var = average.variances.reshape(-1, features)
@@ -124,7 +136,7 @@ def transformed(average: HSMM, stats: list[Statistics], depth: int, weight: floa
         for members in level:
             parent = node_of[members[0]]  # every member of a class shares its parent class
             t = _transform_node(mu[members], var[members], dmu[members], dvar[members], occ[members], first[members],
-                                second[members], dcount[members], dfirst[members], parent, weight, spread)
+                                second[members], dcount[members], dfirst[members], parent, weight, duration_weight, spread)
             for i in members:
                 fresh[i] = t
         node_of = fresh
@@ -137,27 +149,34 @@ def transformed(average: HSMM, stats: list[Statistics], depth: int, weight: floa
     return HSMM(means, variances, dmeans, dvars)
 
 
-def duration_floor(average: HSMM, segments: list[list[np.ndarray]], share: float) -> np.ndarray:
-    """(labels, states), in frames: the larger of `share` of each state's lambda 0 share of this
-    style's mean step, and MIN_STATE_FRAMES unless the style's short steps (10th percentile of
-    length) cannot give every state that many. 0 where `share` is 0."""
+def duration_floor(average: HSMM, segments: list[list[np.ndarray]], share: float, fps: float = REFERENCE_FPS) -> np.ndarray:
+    """(labels, states), in frames at `fps`: the larger of `share` of each state's lambda 0 share
+    of this style's mean step, and MIN_STATE_SECONDS unless the style's short steps (10th
+    percentile of length) cannot give every state that long. 0 where `share` is 0. (The second
+    floor was 2 frames at any rate: at 120 fps, 17 ms, below the share of every state, so it never
+    held and a 120 fps style's short states could shrink to a quarter of a 30 fps one's.)"""
     floor = np.zeros_like(average.duration_means)
     for k, label in enumerate(segments):
         if label and share > 0:
             lengths = np.array([len(s) for s in label], dtype=np.float64)
             proportional = share * average.duration_means[k] * lengths.mean() / average.duration_means[k].sum()
-            floor[k] = np.maximum(proportional, min(MIN_STATE_FRAMES, np.percentile(lengths, 10) / floor.shape[1]))
+            floor[k] = np.maximum(proportional, min(MIN_STATE_SECONDS * fps, np.percentile(lengths, 10) / floor.shape[1]))
     return floor
 
 
-def m_step(average: HSMM, stats: list[Statistics | None], settings: Settings, floors: Floors, floor: np.ndarray) -> HSMM:
-    """Transforms over the class tree, then MAP toward the transformed model, then the duration floor."""
+def m_step(average: HSMM, stats: list[Statistics | None], settings: Settings, floors: Floors, floor: np.ndarray,
+           fps: float = REFERENCE_FPS) -> HSMM:
+    """Transforms over the class tree, then MAP toward the transformed model, then the duration
+    floor; the prior weighs `settings.tau` frames at REFERENCE_FPS, as many of the model's `fps`
+    as last as long (durations: `tau_duration` steps)."""
     complete = [s if s is not None else _empty(average) for s in stats]
-    prior = average if settings.depth is None else transformed(average, complete, settings.depth, settings.tau, floors)
+    tau = settings.tau * (fps / REFERENCE_FPS)
+    prior = average if settings.depth is None else transformed(average, complete, settings.depth, tau,
+                                                               settings.tau_duration, floors)
     parameters = []
     for k, s in enumerate(complete):
         p = (prior.means[k], prior.variances[k], prior.duration_means[k], prior.duration_variances[k])
-        parameters.append(map_update(s, p, floors, settings.tau, settings.tau_duration) if s.frames else p)
+        parameters.append(map_update(s, p, floors, tau, settings.tau_duration) if s.frames else p)
     means, variances, dmeans, dvars = (np.stack([p[i] for p in parameters]) for i in range(4))
     return HSMM(means, variances, floored_keeping_length(dmeans, floor), dvars)
 
@@ -209,19 +228,21 @@ def combined(a: list[Statistics | None], b: list[Statistics | None]) -> list[Sta
 
 
 def adapt(average: HSMM, segments: list[list[np.ndarray]], floors: Floors, settings: Settings = DEFAULT,
-          trace: list[float] | None = None, first: list[Statistics | None] | None = None) -> HSMM:
+          trace: list[float] | None = None, first: list[Statistics | None] | None = None,
+          fps: float = REFERENCE_FPS) -> HSMM:
     """A style model by EM from lambda 0, each iteration re-aligning the style's steps under the
     style's current model, until its log-likelihood per frame stops rising. No segments: lambda 0.
 
     `first` is lambda 0's alignment of the segments if already computed. Without `trace` the
-    last iteration is not scored (the held-out choice scores on other data)."""
+    last iteration is not scored (the held-out choice scores on other data). `fps`: the
+    segments' rate, which the prior's weight and the duration floor are measured in."""
     if not any(segments):
         return average
-    floor = duration_floor(average, segments, settings.floor_share)
+    floor = duration_floor(average, segments, settings.floor_share, fps)
     stats = first or alignment(average, segments)
     best, previous = average, -np.inf
     for iteration in range(1, settings.iterations + 1):
-        model = m_step(average, stats, settings, floors, floor)
+        model = m_step(average, stats, settings, floors, floor, fps)
         if trace is None and iteration == settings.iterations:
             return model
         stats = alignment(model, segments)
@@ -250,8 +271,8 @@ def _merge(takes: list[list[list[np.ndarray]]]) -> list[list[np.ndarray]]:
     return [[seg for take in takes for seg in take[k]] for k in range(len(takes[0]))]
 
 
-def choose_settings(average: HSMM, takes: list[list[list[np.ndarray]]],
-                    floors: Floors) -> tuple[Settings, float, list[Statistics | None]]:
+def choose_settings(average: HSMM, takes: list[list[list[np.ndarray]]], floors: Floors,
+                    fps: float = REFERENCE_FPS) -> tuple[Settings, float, list[Statistics | None]]:
     """The tree depth, then tau, with the best two-fold held-out log-likelihood per frame (and
     lambda 0's alignment of all the style's steps, computed on the way).
 
@@ -271,7 +292,7 @@ def choose_settings(average: HSMM, takes: list[list[list[np.ndarray]]],
     def score(settings: Settings) -> float:
         total, frames = 0.0, 0
         for train, test in ((0, 1), (1, 0)):
-            ll, n = heldout_score(adapt(average, folds[train], floors, settings, first=firsts[train]), folds[test])
+            ll, n = heldout_score(adapt(average, folds[train], floors, settings, first=firsts[train], fps=fps), folds[test])
             total, frames = total + ll, frames + n
         return total / max(frames, 1)
 
@@ -283,23 +304,24 @@ def choose_settings(average: HSMM, takes: list[list[list[np.ndarray]]],
 
 
 def adapt_styles(average: HSMM, takes_per_style: dict[str, list[list[list[np.ndarray]]]], floors: Floors,
-                 warnings: list[str], fixed: Settings | None = None) -> tuple[HSMM, dict[str, StyleReport]]:
+                 warnings: list[str], fixed: Settings | None = None,
+                 fps: float = REFERENCE_FPS) -> tuple[HSMM, dict[str, StyleReport]]:
     """All style models stacked on a leading style axis (in the order of `takes_per_style`, whose
-    values are per take, per label, the step segments), with what was chosen and measured for
-    each. `fixed` skips the held-out choice."""
+    values are per take, per label, the step segments at `fps`), with what was chosen and
+    measured for each. `fixed` skips the held-out choice."""
     models, reports = [], {}
     for style, takes in takes_per_style.items():
         segments = _merge(takes)
         fewest = min(len(label) for label in segments[:2])  # the walk's steps (other units may be few: MAP holds them)
         settings, heldout, first = fixed or DEFAULT, None, None
         if fixed is None and fewest >= MIN_STEPS_TO_CHOOSE:
-            settings, heldout, first = choose_settings(average, takes, floors)
+            settings, heldout, first = choose_settings(average, takes, floors, fps)
         elif fixed is None:
             message = (f"style {style!r} has only {fewest} walking steps of one foot: too few to choose the adaptation "
                        f"by held-out likelihood, one shared transform is used")
             warnings.append(message)
         trace: list[float] = []
-        model = adapt(average, segments, floors, settings, trace, first)
+        model = adapt(average, segments, floors, settings, trace, first, fps)
         models.append(model)
         reports[style] = StyleReport(settings, heldout, trace, float(model.duration_means.min()))
     fields = ("means", "variances", "duration_means", "duration_variances")

@@ -66,11 +66,12 @@ def build_model(
                         for k, g in enumerate(gestures) for p, phase in enumerate(PHASES)
                         if not segments[2 * len(units) + len(PHASES) * k + p]]
     per_style = {s: [labelled([t]) for t in takes if t.style == s] for s in style_names}
-    styles, adapted = adapt_styles(average, per_style, floors, report.warnings, adaptation)
+    styles, adapted = adapt_styles(average, per_style, floors, report.warnings, adaptation, fps)
     data_weights = {}
     if little_tau is not None:  # each unit's step durations toward the style's own (training/little.py)
         mine = [labelled([t for t in takes if t.style == style]) for style in style_names]
-        styles, by_index = keep_own_steps(average, styles, mine, units, little_tau, (adaptation or DEFAULT).floor_share)
+        styles, by_index = keep_own_steps(average, styles, mine, units, little_tau, (adaptation or DEFAULT).floor_share,
+                                            fps)
         data_weights = {style_names[s]: w for s, w in by_index.items()}
     contact, contact_metadata = train_contact(layout, takes, average, styles, style_names, fps, states, units)
     pairs_mirrored = mirrored_pairs(units)  # straight at turn = 0 (the turns keep their turn)

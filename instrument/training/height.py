@@ -26,8 +26,8 @@ from ..motion.limbs import Limbs, centimetres_per_unit, find_limbs
 from ..motion.quality import take_floors
 from ..synthesis.engine import render
 from ..synthesis.stream import Controls
+from .widen import settle_frames
 
-SETTLE = 60  # frames of each made walk left out (from rest)
 SECONDS = 12.0  # of each made walk measured
 
 
@@ -66,8 +66,9 @@ def stand_on_the_floor(model, takes):
     column = ROOT_FEATURES.index("root.height")
 
     def offset(weights: np.ndarray, heights: list[tuple[float, int]]) -> float:
-        made = render(unlocked, Controls(weights), SETTLE + int(round(SECONDS * model.fps)))
-        made = world_positions(Motion(made.skeleton, made.channels[SETTLE:], made.fps))
+        settle = settle_frames(model.fps)  # from rest
+        made = render(unlocked, Controls(weights), settle + int(round(SECONDS * model.fps)))
+        made = world_positions(Motion(made.skeleton, made.channels[settle:], made.fps))
         shift = np.average([h for h, _ in heights], weights=[n for _, n in heights]) - standing_height(made, limbs, ground)
         return float(shift) if np.isfinite(shift) else 0.0
 

@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..models.hsmm import HSMM
+from ..motion.features import REFERENCE_FPS
 from .adaptation import duration_floor, floored_keeping_length
 
 FIELDS = ("means", "variances", "duration_means", "duration_variances")
@@ -64,14 +65,14 @@ def own_durations(model: HSMM, segments: list[list[np.ndarray]], weight: float, 
 
 
 def keep_own_steps(average: HSMM, styles: HSMM, segments: list[list[list[np.ndarray]]], units: list[str],
-                   tau: float, floor_share: float) -> tuple[HSMM, dict[int, float]]:
+                   tau: float, floor_share: float, fps: float = REFERENCE_FPS) -> tuple[HSMM, dict[int, float]]:
     """The style models (stacked) with every unit's mean step moved toward each style's own by
     `data_weight` of its steps of that unit (`segments`: per style, per label, the steps), and
     the walk's weight per style (by index)."""
     kept, weights = [], {}
     for s, mine in enumerate(segments):
         model = HSMM(*(getattr(styles, f)[s] for f in FIELDS))
-        floor = duration_floor(average, mine, floor_share)
+        floor = duration_floor(average, mine, floor_share, fps)
         for k, unit in enumerate(units):
             weight = data_weight(len(mine[2 * k]) + len(mine[2 * k + 1]), tau)
             model = own_durations(model, mine, weight, [2 * k, 2 * k + 1], floor)

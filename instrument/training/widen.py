@@ -25,11 +25,18 @@ from ..synthesis.stream import Controls
 from .little import data_weight, pulled_factors
 from ..synthesis.widen import CALIBRATED_LIMIT, KEPT, LIMIT, stride_means, without_range
 
-TRAINING_FRAMES = 600  # frames of each generated walk measured in training (the first SETTLE dropped)
-SETTLE = 60
+TRAINING_SECONDS = 20.0  # each generated walk measured in training (its first SETTLE_SECONDS dropped)
+SETTLE_SECONDS = 2.0  # of a made walk left out: it starts from rest
 RANGE_PERCENTILES = (1.0, 99.0)  # a feature's range, as `instrument evaluate` measures a joint's
 CALIBRATION_ROUNDS = 3  # the legs' and shoulders' factors corrected on a played walk this many times
-CALIBRATION_SECONDS = 12.0  # each calibration walk, after SETTLE frames from rest
+CALIBRATION_SECONDS = 12.0  # each calibration walk, after SETTLE_SECONDS from rest
+
+
+def settle_frames(fps: float) -> int:
+    """The frames of a made walk at `fps` left out from its start (SETTLE_SECONDS). They were 60
+    frames, and the walk measured 600, at any rate: at 120 fps that was 0.5 s from rest and 4.5 s
+    of walk, some 9 strides whose 1st-99th percentile range is not a 30 fps model's 34 strides'."""
+    return int(round(SETTLE_SECONDS * fps))
 
 
 def _spread(values: np.ndarray) -> np.ndarray:
@@ -43,10 +50,22 @@ def _spread(values: np.ndarray) -> np.ndarray:
 def _generated_range(model, weights: np.ndarray) -> np.ndarray:
     """Range of each feature of a walk the model makes at `weights` (the range filter off),
     about its stride mean."""
+    frames, _, engine = _made_walk(model, weights)
+    return _spread(frames - stride_means(engine.stream.base, engine.stream.means)[0])
+
+
+def _made_walk(model, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray, Engine]:
+    """The walk `_generated_range` measures: the static features the model makes at `weights`
+    with the range filter off over TRAINING_SECONDS, the first SETTLE_SECONDS left out, each
+    frame's state id, and the engine that made them."""
     engine = Engine(without_range(model))
     controls = Controls(weights)
-    frames = np.array([engine.next_features(controls)[0] for _ in range(TRAINING_FRAMES)])[SETTLE:]
-    return _spread(frames - stride_means(engine.stream.base, engine.stream.means)[0])
+    frames, ids = [], []
+    for _ in range(int(round(TRAINING_SECONDS * model.fps))):
+        frames.append(engine.next_features(controls)[0])
+        ids.append(engine.frame_ids[0])
+    settle = settle_frames(model.fps)
+    return np.array(frames)[settle:], np.array(ids)[settle:], engine
 
 
 def _real_range(takes, dimension: int) -> np.ndarray | None:
@@ -151,8 +170,9 @@ def _calibrate_limbs(model, takes, log_factors: np.ndarray, weights: np.ndarray,
 
     def played() -> dict[str, float]:
         trial = replace(model, extras=extras_with(log_factors))
-        made = render(trial, Controls(weights), SETTLE + int(round(CALIBRATION_SECONDS * model.fps)))
-        return _limb_figures(Motion(made.skeleton, made.channels[SETTLE:], made.fps), limbs, layout.root)
+        settle = settle_frames(model.fps)
+        made = render(trial, Controls(weights), settle + int(round(CALIBRATION_SECONDS * model.fps)))
+        return _limb_figures(Motion(made.skeleton, made.channels[settle:], made.fps), limbs, layout.root)
 
     for _ in range(CALIBRATION_ROUNDS):
         made = played()
