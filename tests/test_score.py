@@ -6,11 +6,13 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from conftest import REPO
 from instrument.control.events import ControlEvent
-from instrument.control.score import ScorePlayer, eased, load_score
+from instrument.control.score import ScorePlayer, eased, load_demo, load_score
+from instrument.errors import UserError
 from instrument.control.state import ControlState
 from instrument.motion.bvh import read_bvh
 from oscrecv import Receiver, frame_count, free_port
@@ -126,6 +128,26 @@ def test_demo_score_plays_the_demo(model):
     assert max(v[0] for v in seen.values()) == 1.0  # elderly up to 1 between 4 and 8 s
     assert seen[8 * 30][0] == 1.0 and seen[63 * 30] == (0.0, 1.0) and seen[67 * 30][0] == 1.0  # and again after 59 s
     assert not player.finished
+
+
+def test_the_demo_plays_in_any_models_styles(model):
+    """The demo is written for the shipped model's styles; a model trained on one's own takes
+    plays the same minute in its own: every style faded in and out, one exaggerated to 2 and one
+    inverted to -1, as the shipped model's; the shipped model's demo is the file as written."""
+    shipped = state_of(model)
+    assert load_demo(shipped) == load_score(REPO / "examples" / "demo" / "demo.toml", shipped, loop=True)
+    mine = ControlState(["proud", "sneaky", "tired"], model.states)
+    player = ScorePlayer(load_demo(mine), mine)
+    seen = []
+    for k in range(int(60 * 30)):
+        for event in player.due(k / 30):
+            assert mine.set(event.control, event.value)
+        seen.append([mine.get(f"style/{name}") for name in mine.style_names])
+    seen = np.array(seen)
+    assert (seen.max(axis=0) >= 1.0).all() and seen.max() == 2.0 and seen.min() == -1.0
+    assert (seen[-1] == 0.0).all()  # back to the average, so the loop joins
+    with pytest.raises(UserError, match="demo.toml: the demo fades from style to style, and this model has one"):
+        load_demo(ControlState(["proud"], model.states))
 
 
 def test_score_and_its_recorded_log_give_the_same_bvh_byte_for_byte(tmp_path):

@@ -40,9 +40,8 @@ def measure_pacing(model_path: str | None, seconds: float, fps: float, console_a
     from ..terminal import Console
     from ..runtime.performance import Show, perform
     from ..runtime.priority import realtime_scheduling
-    from ..control.score import ScorePlayer, load_score
+    from ..control.score import ScorePlayer, load_demo
     from ..control.state import ControlState
-    from ..shipped import demo_score_path
 
     model = load_model(model_path or default_model_path())
     sinks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(2)]
@@ -59,7 +58,7 @@ def measure_pacing(model_path: str | None, seconds: float, fps: float, console_a
     timing: list[float] = []
     refused = realtime_scheduling()  # as `instrument run` does
     state = link.output.state if link else ControlState(model.style_names, model.states)
-    demo = ScorePlayer(load_score(demo_score_path(), state, loop=True), state)
+    demo = ScorePlayer(load_demo(state), state)
     try:
         summary = perform(Show(model, outputs, fps, seconds, state=state, replay=demo, sources=live_sources), console,
                           timing=timing)

@@ -32,12 +32,11 @@ def live_path(model: Model, count: int, spread: float = 0.5):
     the demo's controls moving from its first ramp on (the weights change every frame). Returns
     the frame function, the seconds per stage (added up over the frames made) and a closer."""
     from ..control.hub import ControlHub
-    from ..control.score import ScorePlayer, load_score
+    from ..control.score import ScorePlayer, load_demo
     from ..control.state import ControlState
     from ..output.osc import OscTarget, UdpOut
     from ..output.outputs import make_profile
     from ..terminal import Console
-    from ..shipped import demo_score_path
     from ..synthesis.engine import Engine
 
     engine = Engine(model, count, CROWD_FPS)
@@ -45,7 +44,7 @@ def live_path(model: Model, count: int, spread: float = 0.5):
     profile = make_profile("flat", model, characters=count)
     state = ControlState(model.style_names, model.states)
     state.set("spread", spread)
-    demo = ScorePlayer(load_score(demo_score_path(), state, loop=True), state, start=-DEMO_FIRST_RAMP_S)
+    demo = ScorePlayer(load_demo(state), state, start=-DEMO_FIRST_RAMP_S)
     console = Console(quiet=True)
     apply = ControlHub([], console=console).apply  # as the live loop applies a score's events
     sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -119,13 +118,12 @@ def keeps_time(model: Model, count: int, seconds: float = TRIAL_SECONDS) -> tupl
     """Whether the realtime live loop of `count` characters (the demo, spread 0.5, flat OSC to a
     local UDP socket) keeps time: no frame dropped and p99 lateness under LATENESS_P99_MS. Also
     the p99 lateness (ms) and the late frames (sent over 0.1 ms after their deadline)."""
-    from ..control.score import ScorePlayer, load_score
+    from ..control.score import ScorePlayer, load_demo
     from ..control.state import ControlState
     from ..output.osc import OscTarget
     from ..output.outputs import OscOutput, make_profile
     from ..terminal import Console
     from ..runtime.performance import Show, perform
-    from ..shipped import demo_score_path
 
     sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sink.bind(("127.0.0.1", 0))
@@ -137,7 +135,7 @@ def keeps_time(model: Model, count: int, seconds: float = TRIAL_SECONDS) -> tupl
     state.set("spread", 0.5)
     # from the demo's first ramp on: weights move every frame, the engine's dearest case (the
     # demo's first seconds stand still, and a crowd that holds them may not hold the rest)
-    demo = ScorePlayer(load_score(demo_score_path(), state, loop=True), state, start=-DEMO_FIRST_RAMP_S)
+    demo = ScorePlayer(load_demo(state), state, start=-DEMO_FIRST_RAMP_S)
     timing: list[float] = []
     try:
         summary = perform(Show(model, [output], CROWD_FPS, seconds, characters=count, state=state, replay=demo), console,

@@ -171,7 +171,7 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
     from ..control.attract import load_attract
     from ..control.events import LogReplay, read_log
     from ..control.hub import ControlHub
-    from ..control.score import ScorePlayer, load_score
+    from ..control.score import ScorePlayer, load_demo, load_score
     from ..control.state import ControlState
     from ..models.modelfile import load_model
     from ..output.outputs import make_profile
@@ -245,9 +245,9 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
         for target in preset_problems(mapping, hub.presets):
             raise UserError(f"{mapping.path}:{target_line(mapping, target)}: target {target!r}: no such preset "
                             "(the mapping, the show file and --presets define none by that name)")
-    if score_path and not args.score:  # the built-in demo, written for the shipped model's styles
+    if score_path and not args.score:  # the built-in demo, in this model's styles
         try:
-            replay = ScorePlayer(load_score(score_path, state, hub.presets, loop=True), state)
+            replay = ScorePlayer(load_demo(state, hub.presets), state)
         except UserError as error:
             console.say(f"the demo does not fit this model ({error}): the walk stays at the average; "
                         "give --score or a controller to play it")

@@ -16,10 +16,13 @@ performance time; a performer who moves a ramped target takes it over and the ra
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import UserError, quoted
+from ..shipped import demo_score_path
+from ..textfile import read_text
 from ..tomlfile import Field, TomlFile
 from .checks import between, row_of
 from .events import ControlEvent
@@ -61,10 +64,10 @@ class Score:
 
 
 def load_score(path: str | Path, state: ControlState, presets: dict[str, dict[str, float]] | None = None,
-               loop: bool | None = None) -> Score:
+               loop: bool | None = None, text: str | None = None) -> Score:
     """Read and check a score against the model's targets and the known presets; a mistake is
-    one line naming the file, the line and the key."""
-    doc = TomlFile(path)
+    one line naming the file, the line and the key. `text`: the file's text, already read."""
+    doc = TomlFile(path, text)
     data = doc.data
     model = model_of(state)
 
@@ -93,6 +96,30 @@ def load_score(path: str | Path, state: ControlState, presets: dict[str, dict[st
     if (data.get("loop", False) if loop is None else loop) and not _lasts(cues):
         raise fail("a looping score must take some time (add a hold or a ramp's over)", "loop")
     return Score(data.get("name", Path(path).stem), str(path), tuple(cues), data.get("loop", False) if loop is None else loop)
+
+
+DEMO_STYLE = re.compile(r'"style/([^"]+)"')
+
+
+def load_demo(state: ControlState, presets: dict[str, dict[str, float]] | None = None) -> Score:
+    """The built-in demo (examples/demo/demo.toml, looped), for any model. It is written for the
+    shipped model's styles; a model without all of them plays the demo's styles by its own in
+    turn (the demo's first style by the model's first, its second by the second, round again),
+    so a model trained on one's own takes performs the same minute of fades, exaggeration,
+    inversion, pace and turn. A cue fades from one style to the next named, which falls on
+    another of the model's whenever it has two. A UserError for a model of one style: nothing to
+    fade between."""
+    path = demo_score_path()
+    text = read_text(path)
+    mine = state.style_names
+    named = list(dict.fromkeys(DEMO_STYLE.findall(text)))
+    if all(name in mine for name in named):
+        return load_score(path, state, presets, loop=True, text=text)
+    if len(mine) < 2:
+        raise UserError(f"{path}: the demo fades from style to style, and this model has one ({', '.join(mine)})")
+    played_by = {name: mine[k % len(mine)] for k, name in enumerate(named)}
+    text = DEMO_STYLE.sub(lambda m: f'"style/{played_by[m.group(1)]}"', text)
+    return load_score(path, state, presets, loop=True, text=text)
 
 
 def _lasts(cues: list[Cue], since: float = 0.0) -> bool:
