@@ -71,8 +71,16 @@ from .parameters import GROUPS
 
 CONTACT_CM = 2.0
 CONTACT_SPEED_CM_S = 30.0
-BLEND_FRAMES = 4
+# the lock's times are counted in frames at this rate (the shipped model's) and taken as the same
+# time at any other: `per_frame` (docs/evaluate.md, "The lock the same in seconds at any rate")
+REFERENCE_FPS = 30.0
+BLEND_FRAMES = 4  # frames at REFERENCE_FPS a foot's lock takes to blend in or out (133 ms)
 SWING_CM = 2.0  # a foot in the air keeps its lowest joint this far above its clearance
+# frames at REFERENCE_FPS the swing lift takes to go as a foot is planted and the hold on its lowest
+# joint to go as it is released (or stops handing over): one, the frame it happens at 30 fps, but
+# eased over that time at a higher rate, where in one frame the same 2-3 cm made a pop whose third
+# difference grows with the rate's square (at 120 fps the made walk's jitter was 3.6x its takes')
+HOLD_FRAMES = 1
 PLANTED = 0.5  # a state this sure of a foot's contact plants it
 POSSIBLE = 0.2  # a state this sure plants a foot that is on the floor and still
 NEARLY_STRAIGHT = np.radians(10.0)  # a knee bent less than this may be bent the wrong way (see footlock.leg_swings)
@@ -110,6 +118,13 @@ class ContactSpace:
         if part_weights is None:
             return weights
         return part_weights_per_group(weights, part_weights)[..., self.legs]
+
+
+@njit(cache=True)
+def per_frame(frames: float, fps: float) -> float:
+    """The share of a change that takes `frames` frames at REFERENCE_FPS made in one frame at
+    `fps`: the same time at any rate (exactly 1 / frames at 30 fps)."""
+    return REFERENCE_FPS / (frames * fps)
 
 
 def contact_space(model) -> ContactSpace | None:
