@@ -18,13 +18,13 @@ frame at a time, on the pose the features give:
 - while the other foot swings, a planted foot stands flat: one whose toes are up (an
   extrapolated style can stand on its heels through the whole stance) is pitched down about
   its ankle, blended in with its own lock once the other foot is released (while both are
-  planted, not at all), so a heel strike keeps a rolling landing over BLEND_FRAMES frames and
+  planted, not at all), so a heel strike keeps a rolling landing over BLEND_FRAMES' time and
   the swinging foot never passes below the planted one's toes (blended in only as the other
   foot's lock blended out, the landing toes stayed up while the trailing ones left the floor);
 - each leg is solved by analytic two-bone IK (law of cosines for the knee, bent about its own
   hinge; then the hip swings the leg), the foot keeping its generated world orientation, towards: the lock
   horizontally, its lowest joint on the floor vertically; the lock blends in and out over
-  BLEND_FRAMES frames, so nothing pops, but for a foot landing from flight (the other foot
+  BLEND_FRAMES frames at 30 fps (REFERENCE_FPS; the same time at any rate), so nothing pops, but for a foot landing from flight (the other foot
   neither planted nor held: a run's), which the body comes down on alone and which stops as
   real feet so landed do, within two frames (footlock.LANDING_PACE);
 - where that would stretch a planted leg past its generated length (hip to ankle), the heel
@@ -35,7 +35,9 @@ frame at a time, on the pose the features give:
   straightened the knee (25 to 8 degrees for a 1.7 cm reach) and swung the thigh back, which
   left the hip's range up to 19% wider than the takes';
 - no foot joint goes below its clearance, planted or not, and a swinging foot keeps up to
-  SWING_CM above it (all of it on a bent knee, none on a straight one reaching to land);
+  SWING_CM above it (all of it on a bent knee, none on a straight one reaching to land), which
+  goes as the foot is planted over HOLD_FRAMES (a frame at 30 fps, eased over that time at a
+  higher rate: footlock's docstring);
 - a released foot rises as generated (only the horizontal pull blends out; in a run's flight,
   its leg no longer than made: the lock, letting go as the generated foot went on, stretched the
   leg straight for a frame at toe-off, the knee from 31 degrees of bend to 2 and back), but for a
@@ -48,11 +50,11 @@ frame at a time, on the pose the features give:
   reaches PLANTED, so the lock never pulls a foot down in mid-flight (doing so made the knees
   jump twice as far in a frame as in the real runs);
 - where a planted leg cannot reach even so (an exaggerated style can lift the hips), it stretches
-  up to STRETCH of its length, and the body comes down by the rest, eased over BLEND_FRAMES frames;
+  up to STRETCH of its length, and the body comes down by the rest, eased over BLEND_FRAMES' time;
 - in a stand (the engine says which frames are), once its pose is still with both feet locked
   in, a foot locked away from where the pose puts it (a stop lands its last steps staggered)
   steps there, lifted, one foot at a time, and a foot so closed up lets go of its lock over
-  twice BLEND_FRAMES as it sets off (footlock.settle_feet, STAND_RELEASE).
+  twice BLEND_FRAMES' time as it sets off (footlock.settle_feet, STAND_RELEASE).
 Before the lock, outside the data, the body takes a share of a planted foot's generated slide
 (`follow.py`), so the IK does not have to stretch the leg after a body that slides on.
 Nothing looks ahead beyond what the frame's state already says, so live and `synth` agree.
