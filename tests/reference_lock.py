@@ -258,7 +258,8 @@ class FootLock:
                 self.settling[f] = 0.0
             release = step / STAND_RELEASE if self.settling[f] == CLOSED else step  # set off from a still stand
             self.weight[f] = min(1.0, self.weight[f] + pace[f]) if planted[f] else max(0.0, self.weight[f] - release)
-            self.landed[f] = min(1.0, self.landed[f] + self.hold_step) if planted[f] else max(0.0, self.landed[f] - self.hold_step)
+            step_in = self.hold_step if planted[f] else -self.hold_step  # the swing lift goes as the foot is planted
+            self.landed[f] = min(max(self.landed[f] + step_in, 0.0), 1.0)
         lifts = self._settle(still, planted, world_rot, world_pos)
         for f, leg in enumerate(self.limbs.legs):
             if self.weight[f] > 0.0:  # the foot turned about the vertical through its ankle, back to its landing heading

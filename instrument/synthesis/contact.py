@@ -24,8 +24,8 @@ frame at a time, on the pose the features give:
 - each leg is solved by analytic two-bone IK (law of cosines for the knee, bent about its own
   hinge; then the hip swings the leg), the foot keeping its generated world orientation, towards: the lock
   horizontally, its lowest joint on the floor vertically; the lock blends in and out over
-  BLEND_FRAMES frames at 30 fps (REFERENCE_FPS; the same time at any rate), so nothing pops, but for a foot landing from flight (the other foot
-  neither planted nor held: a run's), which the body comes down on alone and which stops as
+  BLEND_FRAMES frames at 30 fps (REFERENCE_FPS; the same time at any rate), so nothing pops, but
+  for a foot landing from flight (the other foot neither planted nor held: a run's), which the body comes down on alone and which stops as
   real feet so landed do, within two frames (footlock.LANDING_PACE);
 - where that would stretch a planted leg past its generated length (hip to ankle), the heel
   rises instead: the foot pitches up about its front-most joint, up to MAX_HEEL_RISE from
@@ -81,7 +81,7 @@ SWING_CM = 2.0  # a foot in the air keeps its lowest joint this far above its cl
 # frames at REFERENCE_FPS the swing lift takes to go as a foot is planted and the hold on its lowest
 # joint to go as it is released (or stops handing over): one, the frame it happens at 30 fps, but
 # eased over that time at a higher rate, where in one frame the same 2-3 cm made a pop whose third
-# difference grows with the rate's square (at 120 fps the made walk's jitter was 3.6x its takes')
+# difference grows with the rate's square (at 120 fps the made walk's jitter was 3.9x its takes')
 HOLD_FRAMES = 1
 PLANTED = 0.5  # a state this sure of a foot's contact plants it
 POSSIBLE = 0.2  # a state this sure plants a foot that is on the floor and still

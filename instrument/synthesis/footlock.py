@@ -164,8 +164,7 @@ class FootLock:
         lock_crowd(rotations, translations, np.ascontiguousarray(shares, dtype=np.float64), world_rot, world_pos,
                    state.weights, state.points, state.headings, state.drop, state.previous, state.rises,
                    state.settling, state.landed, state.held, standing, self.parents, self.joints, self.feet, self.across,
-                   self.ground, self.reach,
-                   self.parent_rot, self.layout.root, self.fps, self.cm, self.swing_lift)
+                   self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm, self.swing_lift)
 
 
 def across_axes(world_rot: np.ndarray, world_pos: np.ndarray, legs) -> np.ndarray:
@@ -534,8 +533,8 @@ def lock_work():  # pragma: no cover - compiled
 
 @njit(cache=True, error_model="numpy")
 def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, landed, held, standing, parents, joints, feet, across, ground, reach, parent_rot, root, fps, cm, swing_lift,
-               work):  # pragma: no cover - compiled
+               settling, landed, held, standing, parents, joints, feet, across, ground, reach, parent_rot, root, fps, cm,
+               swing_lift, work):  # pragma: no cover - compiled
     """One character's frame (arrays of that character; `drop` a 1-element view, `standing` a
     bool). Returns nothing: rotations, translations, the world transforms and the state are
     updated in place."""
@@ -800,6 +799,6 @@ def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, p
     work = lock_work()
     for n in range(rotations.shape[0]):
         lock_frame(rotations[n], translations[n], shares[n], world_rot[n], world_pos[n], weights[n], points[n], headings[n],
-                   drop[n : n + 1], previous[n], rises[n], settling[n], landed[n], held[n], standing[n], parents, joints, feet, across, ground,
-                   reach, parent_rot, root, fps, cm, swing_lift, work)
+                   drop[n : n + 1], previous[n], rises[n], settling[n], landed[n], held[n], standing[n], parents, joints, feet,
+                   across, ground, reach, parent_rot, root, fps, cm, swing_lift, work)
     _compose(parents, rotations, translations, world_rot, world_pos)
