@@ -12,8 +12,8 @@ from instrument.motion.features import FeatureLayout, restore_local
 from instrument.motion.kinematics import forward_kinematics
 from instrument.motion.limbs import centimetres_per_unit, find_limbs
 from instrument.synthesis.posing import Pose
-from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, POSSIBLE,
-                                          PLANTED, SWING_BENT, SWING_CM)
+from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, HOLD_FRAMES, NEARLY_STRAIGHT,
+                                          POSSIBLE, PLANTED, REFERENCE_FPS, SWING_BENT, SWING_CM)
 from instrument.synthesis.follow import STRENGTH
 from instrument.synthesis.footlock import (CLOSED, HEEL_RISE_SPEED, LANDING_PACE, MAX_HEEL_RISE, SETTLE_CM, SETTLE_LIFT_CM,
                                            SETTLE_SECONDS, SETTLE_STILL_CM_S, STAND_RELEASE, STRETCH)
@@ -231,6 +231,12 @@ class FootLock:
         self.swing_lift = SWING_CM / self.cm  # in the skeleton's units
         self.previous = np.full((2, 3), np.nan)  # each pivot's generated position in the frame before
         self.settling = np.zeros(2)  # each foot's closing step: 0 may take one, (0, 1) how far, CLOSED
+        # the lock's times are frames at REFERENCE_FPS, the same time at this rate: a frame's share of them
+        self.blend_step = REFERENCE_FPS / fps / BLEND_FRAMES  # of a lock's blend in or out
+        self.hold_step = REFERENCE_FPS / fps / HOLD_FRAMES  # of the swing lift's going, or the hold's on the floor
+        self.drop_share = 1.0 - (1.0 - 1.0 / BLEND_FRAMES) ** (REFERENCE_FPS / fps)  # of the way to the body's drop
+        self.landed = np.zeros(2)  # how far each foot's swing lift has gone since it was planted
+        self.held = np.zeros(2)  # how far each foot's lowest joint is held on the floor
 
     def apply(self, rotations: np.ndarray, translations: np.ndarray, shares: np.ndarray,
               standing: bool = False) -> tuple[np.ndarray, ...]:
@@ -242,7 +248,7 @@ class FootLock:
         world_rot, world_pos = world_rot[0], world_pos[0]
         planted, speeds = self._planted(shares, world_pos)
         still = standing and bool((speeds < SETTLE_STILL_CM_S).all())  # NaN (first frame): not still
-        step = 1.0 / BLEND_FRAMES
+        step = self.blend_step
         # landing from flight (the other foot neither planted nor held): its lock comes in faster
         pace = [LANDING_PACE * step if self.weight[1 - f] == 0.0 and not planted[1 - f] else step for f in range(2)]
         for f, leg in enumerate(self.limbs.legs):
@@ -252,6 +258,8 @@ class FootLock:
                 self.settling[f] = 0.0
             release = step / STAND_RELEASE if self.settling[f] == CLOSED else step  # set off from a still stand
             self.weight[f] = min(1.0, self.weight[f] + pace[f]) if planted[f] else max(0.0, self.weight[f] - release)
+            step_in = self.hold_step if planted[f] else -self.hold_step  # the swing lift goes as the foot is planted
+            self.landed[f] = min(max(self.landed[f] + step_in, 0.0), 1.0)
         lifts = self._settle(still, planted, world_rot, world_pos)
         for f, leg in enumerate(self.limbs.legs):
             if self.weight[f] > 0.0:  # the foot turned about the vertical through its ankle, back to its landing heading
@@ -289,13 +297,14 @@ class FootLock:
             if planted[f]:
                 stretched = max(extension[f], STRETCH * (leg.thigh + leg.shin))
                 need = max(need, np.linalg.norm(targets[f] - world_pos[leg.hip]) - stretched)
-        self.drop += (max(need, 0.0) - self.drop) / BLEND_FRAMES
+        self.drop += (max(need, 0.0) - self.drop) * self.drop_share
         if self.drop > 1e-9:
             translations = translations.copy()
             translations[self.layout.root] -= np.array([0.0, self.drop, 0.0]) @ self.parent_rot
             world_pos = world_pos - np.array([0.0, self.drop, 0.0])
             targets, turns = self._targets(world_rot, world_pos, planted, extension)
-        self.rise = self.next_rise  # the rises of the targets taken
+        self.rise = self.next_rise  # the rises of the targets taken, and the holds
+        self.held = self.next_held
         for f in range(2):  # a closing step's foot off the floor
             targets[f][1] += lifts[f]
         for f, leg in enumerate(self.limbs.legs):
@@ -354,21 +363,24 @@ class FootLock:
             planted[int(np.argmax(shares))] = True
         return planted, speed
 
-    def _target(self, f: int, leg, world_pos: np.ndarray, planted: bool, handing_over: bool) -> np.ndarray:
+    def _target(self, f: int, leg, world_pos: np.ndarray, held: float) -> np.ndarray:
         """Where the ankle should be: the lock blended in horizontally, the lowest foot joint on
         the floor while planted, never below it, and a little above it while swinging; a
         released foot rises as generated, but while it hands over to the other (planted, its
-        lowest point not yet down) its lowest joint comes off the floor only as its lock blends out."""
+        lowest point not yet down) its lowest joint comes off the floor only as its lock blends
+        out. The swing lift goes (as the foot is planted) and the hold on the floor (as it is
+        released, not handing over) over HOLD_FRAMES frames at REFERENCE_FPS, eased: `held` is
+        how far the hold has come this frame, self.landed how far the lift has gone."""
         lift = np.min(world_pos[list(leg.foot), 1] - self.ground[f])
         target = world_pos[leg.ankle].copy()
         w = EASE(self.weight[f])
-        down = w * lift if planted or handing_over else 0.0
+        down = EASE(held) * w * lift if held > 0.0 else 0.0
         if w > 0:
             pull = self.lock[f] - world_pos[self.pivot[f]]
             target[[0, 2]] += w * pull[[0, 2]]
             target[1] -= down
         lowest_after = lift - down
-        floor = 0.0 if planted else (1.0 - w) * self.swing_lift * _swing_share(world_pos, leg)
+        floor = (1.0 - EASE(self.landed[f])) * (1.0 - w) * self.swing_lift * _swing_share(world_pos, leg)
         if lowest_after < floor:
             target[1] += floor - lowest_after
         return target
@@ -377,11 +389,13 @@ class FootLock:
                  extension: list[float]) -> tuple[list, list]:
         """Each ankle's target, and each foot's heel-rise turn where its lock is blended in or its
         heel still up from it."""
-        targets, turns, self.next_rise = [], [], np.zeros(2)
+        targets, turns, self.next_rise, self.next_held = [], [], np.zeros(2), np.zeros(2)
         for f, leg in enumerate(self.limbs.legs):
             other = self.limbs.legs[1 - f].foot
             sole = np.min(world_pos[list(other), 1]) - np.min(self.ground[1 - f])  # the other foot's lowest point
-            target = self._target(f, leg, world_pos, planted[f], planted[1 - f] and sole >= CONTACT_CM / self.cm)
+            holding = planted[f] or (planted[1 - f] and sole >= CONTACT_CM / self.cm)  # planted, or handing over
+            self.next_held[f] = min(1.0, self.held[f] + self.hold_step) if holding else max(0.0, self.held[f] - self.hold_step)
+            target = self._target(f, leg, world_pos, self.next_held[f])
             turn = np.eye(3)
             if self.weight[f] > 0 or self.rise[f] > 0:  # after its lock, a heel comes down at the same pace
                 low = max(self.rise[f] - self.rise_step, 0.0)

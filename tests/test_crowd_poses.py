@@ -49,13 +49,34 @@ def _features(model, space, performances: list[list[Controls]]):
     return np.array(statics), np.array(shares)
 
 
-def _reference_run(model, static, shares, position=None, heading=0.0, locked=True):
-    contact = contact_space(model)
-    lock = reference.FootLock(model.layout, contact.clearance, model.fps) if locked else None
-    stream = reference.PoseStream(model.layout, model.fps, lock)
+def _reference_run(model, static, shares, position=None, heading=0.0, locked=True, fps=None):
+    contact, fps = contact_space(model), fps or model.fps
+    lock = reference.FootLock(model.layout, contact.clearance, fps) if locked else None
+    stream = reference.PoseStream(model.layout, fps, lock)
     if position is not None:
         stream.position, stream.heading = np.asarray(position, dtype=float), heading
     return [stream.next(row, s if locked else None) for row, s in zip(static, shares)]
+
+
+@pytest.mark.parametrize("fps", [120.0, 24.0])
+def test_at_another_rate_the_lock_makes_the_reference_poses(model, space, fps):
+    """Posed at another rate than 30 fps (the same frames: a walk slower or faster, but the lock's
+    rule is what is compared), the lock's blend, the body's drop, the swing lift and the hold on
+    the floor move by their share of a time a frame (contact.REFERENCE_FPS), not by a 30 fps
+    frame's: the compiled lock and the reference make the same poses, and at 120 fps a foot's
+    hold passes through values between 0 and 1."""
+    static, shares = _features(model, space, [_performance(model, 200, 1)])
+    contact = contact_space(model)
+    stream = PoseStream(model.layout, fps, FootLock(model.layout, contact.clearance, fps))
+    poses, held = [], []
+    for row, s in zip(static[:, 0], shares[:, 0]):
+        poses.append(stream.next(row, s))
+        held.append(stream.crowd.lock_state.held[0].copy())
+    for got, want in zip(poses, _reference_run(model, static[:, 0], shares[:, 0], fps=fps)):
+        for field in FIELDS:
+            np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
+    between = ((np.array(held) > 0.0) & (np.array(held) < 1.0)).any()
+    assert between == (fps > 30.0)
 
 
 def test_one_character_makes_the_reference_poses_through_style_changes_and_extrapolation(model, space):

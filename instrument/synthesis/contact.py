@@ -18,14 +18,14 @@ frame at a time, on the pose the features give:
 - while the other foot swings, a planted foot stands flat: one whose toes are up (an
   extrapolated style can stand on its heels through the whole stance) is pitched down about
   its ankle, blended in with its own lock once the other foot is released (while both are
-  planted, not at all), so a heel strike keeps a rolling landing over BLEND_FRAMES frames and
+  planted, not at all), so a heel strike keeps a rolling landing over BLEND_FRAMES' time and
   the swinging foot never passes below the planted one's toes (blended in only as the other
   foot's lock blended out, the landing toes stayed up while the trailing ones left the floor);
 - each leg is solved by analytic two-bone IK (law of cosines for the knee, bent about its own
   hinge; then the hip swings the leg), the foot keeping its generated world orientation, towards: the lock
   horizontally, its lowest joint on the floor vertically; the lock blends in and out over
-  BLEND_FRAMES frames, so nothing pops, but for a foot landing from flight (the other foot
-  neither planted nor held: a run's), which the body comes down on alone and which stops as
+  BLEND_FRAMES frames at 30 fps (REFERENCE_FPS; the same time at any rate), so nothing pops, but
+  for a foot landing from flight (the other foot neither planted nor held: a run's), which the body comes down on alone and which stops as
   real feet so landed do, within two frames (footlock.LANDING_PACE);
 - where that would stretch a planted leg past its generated length (hip to ankle), the heel
   rises instead: the foot pitches up about its front-most joint, up to MAX_HEEL_RISE from
@@ -35,7 +35,9 @@ frame at a time, on the pose the features give:
   straightened the knee (25 to 8 degrees for a 1.7 cm reach) and swung the thigh back, which
   left the hip's range up to 19% wider than the takes';
 - no foot joint goes below its clearance, planted or not, and a swinging foot keeps up to
-  SWING_CM above it (all of it on a bent knee, none on a straight one reaching to land);
+  SWING_CM above it (all of it on a bent knee, none on a straight one reaching to land), which
+  goes as the foot is planted over HOLD_FRAMES (a frame at 30 fps, eased over that time at a
+  higher rate: footlock's docstring);
 - a released foot rises as generated (only the horizontal pull blends out; in a run's flight,
   its leg no longer than made: the lock, letting go as the generated foot went on, stretched the
   leg straight for a frame at toe-off, the knee from 31 degrees of bend to 2 and back), but for a
@@ -48,11 +50,11 @@ frame at a time, on the pose the features give:
   reaches PLANTED, so the lock never pulls a foot down in mid-flight (doing so made the knees
   jump twice as far in a frame as in the real runs);
 - where a planted leg cannot reach even so (an exaggerated style can lift the hips), it stretches
-  up to STRETCH of its length, and the body comes down by the rest, eased over BLEND_FRAMES frames;
+  up to STRETCH of its length, and the body comes down by the rest, eased over BLEND_FRAMES' time;
 - in a stand (the engine says which frames are), once its pose is still with both feet locked
   in, a foot locked away from where the pose puts it (a stop lands its last steps staggered)
   steps there, lifted, one foot at a time, and a foot so closed up lets go of its lock over
-  twice BLEND_FRAMES as it sets off (footlock.settle_feet, STAND_RELEASE).
+  twice BLEND_FRAMES' time as it sets off (footlock.settle_feet, STAND_RELEASE).
 Before the lock, outside the data, the body takes a share of a planted foot's generated slide
 (`follow.py`), so the IK does not have to stretch the leg after a body that slides on.
 Nothing looks ahead beyond what the frame's state already says, so live and `synth` agree.
@@ -71,8 +73,16 @@ from .parameters import GROUPS
 
 CONTACT_CM = 2.0
 CONTACT_SPEED_CM_S = 30.0
-BLEND_FRAMES = 4
+# the lock's times are counted in frames at this rate (the shipped model's) and taken as the same
+# time at any other: `per_frame` (docs/evaluate.md, "The lock the same in seconds at any rate")
+REFERENCE_FPS = 30.0
+BLEND_FRAMES = 4  # frames at REFERENCE_FPS a foot's lock takes to blend in or out (133 ms)
 SWING_CM = 2.0  # a foot in the air keeps its lowest joint this far above its clearance
+# frames at REFERENCE_FPS the swing lift takes to go as a foot is planted and the hold on its lowest
+# joint to go as it is released (or stops handing over): one, the frame it happens at 30 fps, but
+# eased over that time at a higher rate, where in one frame the same 2-3 cm made a pop whose third
+# difference grows with the rate's square (at 120 fps the made walk's jitter was 3.9x its takes')
+HOLD_FRAMES = 1
 PLANTED = 0.5  # a state this sure of a foot's contact plants it
 POSSIBLE = 0.2  # a state this sure plants a foot that is on the floor and still
 NEARLY_STRAIGHT = np.radians(10.0)  # a knee bent less than this may be bent the wrong way (see footlock.leg_swings)
@@ -110,6 +120,13 @@ class ContactSpace:
         if part_weights is None:
             return weights
         return part_weights_per_group(weights, part_weights)[..., self.legs]
+
+
+@njit(cache=True)
+def per_frame(frames: float, fps: float) -> float:
+    """The share of a change that takes `frames` frames at REFERENCE_FPS made in one frame at
+    `fps`: the same time at any rate (exactly 1 / frames at 30 fps)."""
+    return REFERENCE_FPS / (frames * fps)
 
 
 def contact_space(model) -> ContactSpace | None:

@@ -29,6 +29,22 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 - `lock_frame`: one character's frame, in the order above (`_targets` gathers `lock_target` and
   `heel_rise` for both legs); `lock_crowd`: every character's.
 
+Times, not frames: the lock's paces are counted in frames at `contact.REFERENCE_FPS` (30, the
+shipped model's rate) and taken as that time at any rate (`contact.per_frame`): its blend in and
+out (BLEND_FRAMES; LANDING_PACE and STAND_RELEASE are multiples of it), the body's drop (eased
+1 / BLEND_FRAMES of the way in a 30 fps frame's time), as HEEL_RISE_SPEED and SETTLE_SECONDS were
+already. The swing lift a foot keeps in the air goes as it is planted, and the hold of its
+lowest joint on the floor goes as it is released (not handing over), over HOLD_FRAMES: one frame
+at 30 fps, as before, but eased over that 33 ms at a higher rate (`LockState.landed` and `held`).
+Dropped in one frame, those 2-3 cm were a pop whose third difference grows with the square of
+the rate: active's walk made at 120 fps had 4.3 times the jitter of the same walk unlocked, now
+2.0 times, and at 30 fps the walks are the same to the digit. Only the vertical lift and hold
+fade so; the horizontal pull stays the lock's weight, so toes held down are held where they were
+planted as much as before, not slid along the floor (blending the hold out with the lock's
+weight instead kept the toes down while the lock let go: skate 1.5 to 6.2 cm/s at 120 fps, and
+at 30 fps the hips swung 2-3 degrees wider). docs/evaluate.md, "The lock the same in seconds at
+any rate".
+
 Nothing is allocated a character: vectors are tuples (`_sub`, `_cross`), and matrices and
 per-frame arrays are written into the caller's arrays (`lock_work`, made once a call), since
 some seventy small heap arrays a character and frame were about half the lock's time.
@@ -49,7 +65,8 @@ from numba import njit
 from ..motion.features import FeatureLayout
 from ..motion.kinematics import _compose, forward_kinematics
 from ..motion.limbs import centimetres_per_unit, find_limbs
-from .contact import BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, NEARLY_STRAIGHT, PLANTED, POSSIBLE, SWING_BENT, SWING_CM
+from .contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, HOLD_FRAMES, NEARLY_STRAIGHT, PLANTED, POSSIBLE, SWING_BENT,
+                      SWING_CM, per_frame)
 from .follow import ease
 
 MAX_HEEL_RISE = np.radians(50.0)  # the most a planted foot pitches up about its toes, from standing flat
@@ -92,6 +109,8 @@ class LockState:
     # included (NaN at first): what the lock's 'nearly still' test measures; not RootFollow.previous
     rises: np.ndarray  # (N, 2) each foot's heel rise in the frame before (radians)
     settling: np.ndarray  # (N, 2) each foot's closing step: 0 may take one, (0, 1) how far through, CLOSED (`settle_feet`)
+    landed: np.ndarray  # (N, 2) how far each foot's swing lift has gone as it was planted, 0..1 (over HOLD_FRAMES)
+    held: np.ndarray  # (N, 2) how far each foot's lowest joint is held on the floor, 0..1 (over HOLD_FRAMES)
 
     def part(self, start: int, stop: int) -> LockState:
         """Characters start to stop: views of the same arrays, for a part of the crowd on a core."""
@@ -102,6 +121,7 @@ class LockState:
         self.weights[n], self.points[n], self.headings[n], self.drop[n], self.previous[n] = 0.0, np.nan, 0.0, 0.0, np.nan
         self.rises[n] = 0.0
         self.settling[n] = 0.0
+        self.landed[n], self.held[n] = 0.0, 0.0
 
 
 class FootLock:
@@ -130,7 +150,8 @@ class FootLock:
     def start(self, count: int) -> LockState:
         """The state of `count` characters before their first frame: nothing locked yet."""
         return LockState(np.zeros((count, 2)), np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros(count),
-                         np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros((count, 2)))
+                         np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros((count, 2)), np.zeros((count, 2)),
+                         np.zeros((count, 2)))
 
     def apply(self, state: LockState, rotations: np.ndarray, translations: np.ndarray, shares: np.ndarray,
               world_rot: np.ndarray, world_pos: np.ndarray, standing: np.ndarray | None = None) -> None:
@@ -142,8 +163,8 @@ class FootLock:
         standing = np.zeros(len(shares), dtype=np.bool_) if standing is None else np.ascontiguousarray(standing, dtype=np.bool_)
         lock_crowd(rotations, translations, np.ascontiguousarray(shares, dtype=np.float64), world_rot, world_pos,
                    state.weights, state.points, state.headings, state.drop, state.previous, state.rises,
-                   state.settling, standing, self.parents, self.joints, self.feet, self.across, self.ground, self.reach,
-                   self.parent_rot, self.layout.root, self.fps, self.cm, self.swing_lift)
+                   state.settling, state.landed, state.held, standing, self.parents, self.joints, self.feet, self.across,
+                   self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm, self.swing_lift)
 
 
 def across_axes(world_rot: np.ndarray, world_pos: np.ndarray, legs) -> np.ndarray:
@@ -222,7 +243,7 @@ def swing_share(world_pos, leg):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def lock_target(world_pos, leg, foot, ground_f, weight, point, planted, handing_over, swing_lift,
+def lock_target(world_pos, leg, foot, ground_f, weight, point, landed, held, swing_lift,
                 target):  # pragma: no cover - compiled
     """Where the ankle (leg: hip, knee, ankle) should be, written into `target` (3,): the lock
     blended in horizontally, the lowest foot joint on the floor while planted, never below it,
@@ -232,19 +253,23 @@ def lock_target(world_pos, leg, foot, ground_f, weight, point, planted, handing_
     comes off the floor only as its lock blends out, so one foot or the other is always on the
     floor. Rising as generated there, the trailing foot's toes left the floor before the
     landing foot's were down: both feet off the floor in up to 7% of the frames
-    (docs/evaluate.md, "Floating the stricter way")."""
+    (docs/evaluate.md, "Floating the stricter way"). `landed` (0..1, eased): how far the swing
+    lift has gone as the foot was planted (1 planted, 0 swinging); `held`: how far its lowest
+    joint is held down (1 planted or handing over, 0 released): both change over HOLD_FRAMES'
+    time, not in a frame, and only vertically: the horizontal pull is the lock's own weight, so
+    a foot held down is held where it was planted as much as before."""
     lift = _lowest_lift(world_pos, foot, ground_f)
     for i in range(3):
         target[i] = world_pos[leg[2], i]
     w = ease(weight)
-    down = w * lift if planted or handing_over else 0.0
+    down = held * w * lift if held > 0.0 else 0.0
     if w > 0:
         pivot = world_pos[foot[-1]]
         target[0] += w * (point[0] - pivot[0])
         target[2] += w * (point[2] - pivot[2])
         target[1] -= down
     lowest_after = lift - down
-    floor = 0.0 if planted else (1.0 - w) * swing_lift * swing_share(world_pos, leg)
+    floor = (1.0 - landed) * (1.0 - w) * swing_lift * swing_share(world_pos, leg) if landed < 1.0 else 0.0
     if lowest_after < floor:
         target[1] += floor - lowest_after
 
@@ -501,23 +526,24 @@ def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, t
 def lock_work():  # pragma: no cover - compiled
     """What a character's `lock_frame` writes as it goes, made once for a whole crowd's call so the
     lock allocates nothing a character: planted (2,) bool, extension (2,), targets (2, 3), turns
-    (2, 3, 3), angles (2,), scratch matrices (8, 3, 3) and closing steps' lifts (2,)."""
+    (2, 3, 3), angles (2,), scratch matrices (8, 3, 3), closing steps' lifts (2,) and holds (2,)."""
     return (np.empty(2, dtype=np.bool_), np.empty(2), np.empty((2, 3)), np.empty((2, 3, 3)), np.empty(2),
-            np.empty((8, 3, 3)), np.empty(2))
+            np.empty((8, 3, 3)), np.empty(2), np.empty(2))
 
 
 @njit(cache=True, error_model="numpy")
 def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, standing, parents, joints, feet, across, ground, reach, parent_rot, root, fps, cm, swing_lift,
-               work):  # pragma: no cover - compiled
+               settling, landed, held, standing, parents, joints, feet, across, ground, reach, parent_rot, root, fps, cm,
+               swing_lift, work):  # pragma: no cover - compiled
     """One character's frame (arrays of that character; `drop` a 1-element view, `standing` a
     bool). Returns nothing: rotations, translations, the world transforms and the state are
     updated in place."""
-    planted, extension, targets, turns, angles, matrices, lifts = work
+    planted, extension, targets, turns, angles, matrices, lifts, holding = work
     speeds = planted_feet(shares, world_pos, previous, feet, ground, fps, cm, planted)
     # both generated feet nearly still (no closing step while the pose steps off; NaN at first: not still)
     still = standing and speeds[0] < SETTLE_STILL_CM_S and speeds[1] < SETTLE_STILL_CM_S
-    step = 1.0 / BLEND_FRAMES
+    step = per_frame(BLEND_FRAMES, fps)
+    hold_step = per_frame(HOLD_FRAMES, fps)
     for f in range(2):
         if planted[f] and weights[f] == 0.0:
             for i in range(3):
@@ -534,6 +560,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     for f in range(2):
         release = step / STAND_RELEASE if settling[f] == CLOSED else step  # set off from a still stand: slower
         weights[f] = min(1.0, weights[f] + pace[f]) if planted[f] else max(0.0, weights[f] - release)
+        landed[f] = min(1.0, landed[f] + hold_step) if planted[f] else max(0.0, landed[f] - hold_step)
     settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, across, SETTLE_CM / cm,
                 1.0 / (SETTLE_SECONDS * fps), SETTLE_LIFT_CM / cm, lifts)
     for f in range(2):
@@ -552,16 +579,19 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         extension[f] = np.sqrt(_dot(gap, gap))
     on_floor = CONTACT_CM / cm
     rise_step = HEEL_RISE_SPEED / fps
-    _targets(world_rot, world_pos, joints, feet, across, ground, weights, points, planted, swing_lift, on_floor, extension,
-             rises, rise_step, targets, turns, angles)
-    drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) / BLEND_FRAMES
+    _targets(world_rot, world_pos, joints, feet, across, ground, weights, points, planted, landed, held, hold_step, swing_lift,
+             on_floor, extension, rises, rise_step, targets, turns, angles, holding)
+    # eased towards what it needs by 1 / BLEND_FRAMES of the way a frame at REFERENCE_FPS: the same time at any rate
+    drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) * (
+        1.0 - (1.0 - 1.0 / BLEND_FRAMES) ** per_frame(1.0, fps))
     if drop[0] > 1e-9:
         for a in range(3):  # [0, drop, 0] @ parent_rot, element by element (no temporary array)
             translations[root, a] -= drop[0] * parent_rot[1, a]
         world_pos[:, 1] -= drop[0]
-        _targets(world_rot, world_pos, joints, feet, across, ground, weights, points, planted, swing_lift, on_floor,
-                 extension, rises, rise_step, targets, turns, angles)
+        _targets(world_rot, world_pos, joints, feet, across, ground, weights, points, planted, landed, held, hold_step,
+                 swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
     rises[0], rises[1] = angles[0], angles[1]
+    held[0], held[1] = holding[0], holding[1]
     for f in range(2):  # a closing step's foot off the floor
         targets[f, 1] += lifts[f]
     turned = matrices[0]
@@ -719,18 +749,19 @@ def _turned(kx, ky, kz, c, s, x, y, z):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def _targets(world_rot, world_pos, joints, feet, across, ground, weights, points, planted, swing_lift, on_floor, extension,
-             rises, rise_step, targets, turns, angles):  # pragma: no cover - compiled
-    """Each ankle's target (2, 3), each foot's heel-rise turn (2, 3, 3) and angle (2,), written into
-    `targets`, `turns` and `angles`: a foot whose lock
-    is blended in rises on its toes where its leg would otherwise stretch past its generated
-    extension, its rise within `rise_step` of the frame before's (`rises`), coming down at that
-    pace after its lock has gone."""
+def _targets(world_rot, world_pos, joints, feet, across, ground, weights, points, planted, landed, held, hold_step,
+             swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding):  # pragma: no cover - compiled
+    """Each ankle's target (2, 3), each foot's heel-rise turn (2, 3, 3) and angle (2,), and how far
+    its lowest joint is held down (2,), written into `targets`, `turns`, `angles` and `holding`: a
+    foot whose lock is blended in rises on its toes where its leg would otherwise stretch past its
+    generated extension, its rise within `rise_step` of the frame before's (`rises`), coming down
+    at that pace after its lock has gone; its hold within `hold_step` of the frame before's (`held`)."""
     for f in range(2):
         # the other foot planted but its lowest point not yet down: this one hands over to it
         handing_over = planted[1 - f] and _sole_lift(world_pos, feet[1 - f], ground[1 - f]) >= on_floor
-        lock_target(world_pos, joints[f], feet[f], ground[f], weights[f], points[f], planted[f], handing_over, swing_lift,
-                    targets[f])
+        holding[f] = min(1.0, held[f] + hold_step) if planted[f] or handing_over else max(0.0, held[f] - hold_step)
+        lock_target(world_pos, joints[f], feet[f], ground[f], weights[f], points[f], ease(landed[f]), ease(holding[f]),
+                    swing_lift, targets[f])
         _set_identity(turns[f])
         angles[f] = 0.0
         if weights[f] > 0.0 or rises[f] > 0.0:
@@ -762,12 +793,12 @@ def within_reach(target, hip, extension):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, standing, parents, joints, feet, across, ground, reach, parent_rot, root, fps, cm,
+               settling, landed, held, standing, parents, joints, feet, across, ground, reach, parent_rot, root, fps, cm,
                swing_lift):  # pragma: no cover - compiled
     """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
     work = lock_work()
     for n in range(rotations.shape[0]):
         lock_frame(rotations[n], translations[n], shares[n], world_rot[n], world_pos[n], weights[n], points[n], headings[n],
-                   drop[n : n + 1], previous[n], rises[n], settling[n], standing[n], parents, joints, feet, across, ground,
-                   reach, parent_rot, root, fps, cm, swing_lift, work)
+                   drop[n : n + 1], previous[n], rises[n], settling[n], landed[n], held[n], standing[n], parents, joints, feet,
+                   across, ground, reach, parent_rot, root, fps, cm, swing_lift, work)
     _compose(parents, rotations, translations, world_rot, world_pos)
