@@ -16,7 +16,7 @@ from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEE
                                           PLANTED, SWING_BENT, SWING_CM)
 from instrument.synthesis.follow import STRENGTH
 from instrument.synthesis.footlock import (CLOSED, HEEL_RISE_SPEED, LANDING_PACE, MAX_HEEL_RISE, SETTLE_CM, SETTLE_LIFT_CM,
-                                           SETTLE_SECONDS, SETTLE_STILL_CM_S, STAND_RELEASE, STRETCH)
+                                           SETTLE_SECONDS, SETTLE_STILL_CM_S, STRETCH)
 
 
 def EASE(x: float) -> float:
@@ -250,8 +250,7 @@ class FootLock:
                 self.lock[f] = world_pos[self.pivot[f]]
                 self.heading[f] = _heading(world_rot, leg, self.across[f])
                 self.settling[f] = 0.0
-            release = step / STAND_RELEASE if self.settling[f] == CLOSED else step  # set off from a still stand
-            self.weight[f] = min(1.0, self.weight[f] + pace[f]) if planted[f] else max(0.0, self.weight[f] - release)
+            self.weight[f] = min(1.0, self.weight[f] + pace[f]) if planted[f] else max(0.0, self.weight[f] - step)
         lifts = self._settle(still, planted, world_rot, world_pos)
         for f, leg in enumerate(self.limbs.legs):
             if self.weight[f] > 0.0:  # the foot turned about the vertical through its ankle, back to its landing heading

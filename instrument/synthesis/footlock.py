@@ -20,9 +20,9 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
   flat and within HEEL_RISE_SPEED of the frame before's rise;
 - `within_reach`: a foot released in a run's flight brought back within its leg's generated length;
 - `settle_feet`: in a still stand, a foot locked away from where the stand's pose puts it (a stop
-  leaves them staggered) steps there, lifted, one at a time (a closing step); a foot so closed
-  up lets go of its lock at 1 / STAND_RELEASE of the usual pace as it sets off (until the other
-  foot lands: the stance foot of the first step then lets go at a step's pace);
+  leaves them staggered) steps there, lifted, one at a time (a closing step); a foot set off
+  from a stand lets go of its lock at a step's pace, as every foot does (docs/evaluate.md, "A
+  run's first toe-off let go at a step's pace");
 - `body_drop`: how far the body must come down for a planted leg to reach its target;
 - `leg_swings`: two-bone IK, the thigh's and the shin's turns that take an ankle to a target;
 - `solve_leg`: those turns applied in place to the local rotations;
@@ -67,11 +67,6 @@ SETTLE_LIFT_CM = 4.0  # how high a closing step lifts the foot, at its middle
 # in its last frames before a start the pose already steps off, towards the walk's first state)
 SETTLE_STILL_CM_S = 5.0
 CLOSED = 2.0  # LockState.settling of a foot that has taken its closing step, or needed none
-# a foot a still stand has closed up (or found in place) lets go of its lock over this many times
-# BLEND_FRAMES as it sets off: a step's first state has the swinging foot behind, at toe-off, and let
-# go at a walk's pace the foot standing beside the other swung back there and forward again in a few frames;
-# once the other foot has landed the body has stepped, and a foot still closed up lets go at a step's pace
-STAND_RELEASE = 2.0
 # a foot landing from flight (the other foot neither planted nor held by its lock: a run's) takes its
 # lock in this many times the usual pace: the body comes down on it alone, and real feet so landed stop
 # within two frames of touching down (the shipped runs' active takes: 131, 32, 3 cm/s); taken in over
@@ -523,17 +518,12 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             for i in range(3):
                 points[f, i] = world_pos[feet[f, -1], i]
             headings[f] = foot_heading(world_rot, joints[f, 2], across[f])
-            # landed: a stand may close it up again; and the body has stepped, so the other foot,
-            # if a stand closed it up, is set off from a step now: it lets go at a step's pace
-            settling[f] = 0.0
-            if settling[1 - f] == CLOSED:
-                settling[1 - f] = 0.0
+            settling[f] = 0.0  # landed: a stand may close it up again
     # each foot's pace in: faster landing from flight, the other foot neither planted nor held
     pace = (LANDING_PACE * step if weights[1] == 0.0 and not planted[1] else step,
             LANDING_PACE * step if weights[0] == 0.0 and not planted[0] else step)
     for f in range(2):
-        release = step / STAND_RELEASE if settling[f] == CLOSED else step  # set off from a still stand: slower
-        weights[f] = min(1.0, weights[f] + pace[f]) if planted[f] else max(0.0, weights[f] - release)
+        weights[f] = min(1.0, weights[f] + pace[f]) if planted[f] else max(0.0, weights[f] - step)
     settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, across, SETTLE_CM / cm,
                 1.0 / (SETTLE_SECONDS * fps), SETTLE_LIFT_CM / cm, lifts)
     for f in range(2):

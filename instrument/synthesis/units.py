@@ -89,6 +89,11 @@ START_SECONDS = 0.5  # a body moving again before its stop stood still reaches i
 STOP_SECONDS = 0.4
 
 
+def smootherstep(x: np.ndarray) -> np.ndarray:
+    """6x^5 - 15x^4 + 10x^3: from 0 to 1 with no jump in rate nor in its change at either end."""
+    return x * x * x * (x * (x * 6.0 - 15.0) + 10.0)
+
+
 class UnitChooser:
     """Per character: the unit of the coming steps and the yaw rate the drive adds."""
 
@@ -211,9 +216,9 @@ class UnitChooser:
         braking = stopping | (standing & (level > 0.0))
         stride = np.where(braking, np.minimum(self.stride_level, level),
                           np.where(self.starting, level, np.minimum(self.stride_level + 1.0 / self.stop_frames, 1.0)))
-        self.starting &= level < 1.0
         self.stride_level = stride
-        self.stride = stride * stride * (3.0 - 2.0 * stride)
+        self.stride = np.where(self.starting, smootherstep(stride), stride * stride * (3.0 - 2.0 * stride))
+        self.starting &= level < 1.0
         self.shortening = bool(stride.min() < 1.0)
 
     def _frames_to_stand(self, stream: Crowd, stopping: np.ndarray) -> np.ndarray:
