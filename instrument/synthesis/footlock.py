@@ -21,8 +21,11 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 - `within_reach`: a foot released in a run's flight brought back within its leg's generated length;
 - `settle_feet`: in a still stand, a foot locked away from where the stand's pose puts it (a stop
   leaves them staggered) steps there, lifted, one at a time (a closing step); a foot set off
-  from a stand lets go of its lock at a step's pace, as every foot does (docs/evaluate.md, "A
-  run's first toe-off let go at a step's pace");
+  from a stand lets go of its lock at a step's pace, as every foot does. Let go at half that pace
+  (while a step's first state had the swinging foot behind, which the first step's pose, drawn
+  from the stood one, no longer has), a run's first stance foot, whose other foot does not land
+  before its toe-off, was held through it and dragged back towards the foot as made as it rose,
+  then swung forward at once (docs/evaluate.md, "A run's first toe-off let go at a step's pace");
 - `body_drop`: how far the body must come down for a planted leg to reach its target;
 - `leg_swings`: two-bone IK, the thigh's and the shin's turns that take an ankle to a target;
 - `solve_leg`: those turns applied in place to the local rotations;
