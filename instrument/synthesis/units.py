@@ -224,13 +224,19 @@ class UnitChooser:
         level = np.where(moving, np.minimum(self.level + self.start_rate, 1.0),
                          np.maximum(self.level - self.braking, 0.0))
         self.level = level
-        self.travel = np.where(self.starting, smootherstep(level), level * level * (3.0 - 2.0 * level))
+        starting = bool(self.starting.any())  # some body sets off from a standstill: its ease is a smootherstep
+        self.travel = level * level * (3.0 - 2.0 * level)
+        if starting:  # (its stride is its level: the same curve for both)
+            eased = smootherstep(level)
+            self.travel = np.where(self.starting, eased, self.travel)
         braking = stopping | (standing & (level > 0.0))
         stride = np.where(braking, np.minimum(self.stride_level, level),
                           np.where(self.starting, level, np.minimum(self.stride_level + 1.0 / self.stop_frames, 1.0)))
         self.stride_level = stride
-        self.stride = np.where(self.starting, smootherstep(stride), stride * stride * (3.0 - 2.0 * stride))
-        self.starting &= level < 1.0
+        self.stride = stride * stride * (3.0 - 2.0 * stride)
+        if starting:
+            self.stride = np.where(self.starting, eased, self.stride)
+            self.starting &= level < 1.0
         self.shortening = bool(stride.min() < 1.0)
 
     def _frames_to_stand(self, stream: Crowd, stopping: np.ndarray) -> np.ndarray:
