@@ -249,7 +249,9 @@ class FootLock:
             if planted[f] and self.weight[f] == 0.0:
                 self.lock[f] = world_pos[self.pivot[f]]
                 self.heading[f] = _heading(world_rot, leg, self.across[f])
-                self.settling[f] = 0.0
+                self.settling[f] = 0.0  # landed; and the other foot, if closed up, may be closed up again
+                if self.settling[1 - f] == CLOSED:
+                    self.settling[1 - f] = 0.0
             self.weight[f] = min(1.0, self.weight[f] + pace[f]) if planted[f] else max(0.0, self.weight[f] - step)
         lifts = self._settle(still, planted, world_rot, world_pos)
         for f, leg in enumerate(self.limbs.legs):

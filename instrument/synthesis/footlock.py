@@ -521,7 +521,11 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             for i in range(3):
                 points[f, i] = world_pos[feet[f, -1], i]
             headings[f] = foot_heading(world_rot, joints[f, 2], across[f])
-            settling[f] = 0.0  # landed: a stand may close it up again
+            # landed: a stand may close it up again; and the body has stepped, so the other foot, if
+            # a stand closed it up, may be closed up again too (a stop after one step leaves it behind)
+            settling[f] = 0.0
+            if settling[1 - f] == CLOSED:
+                settling[1 - f] = 0.0
     # each foot's pace in: faster landing from flight, the other foot neither planted nor held
     pace = (LANDING_PACE * step if weights[1] == 0.0 and not planted[1] else step,
             LANDING_PACE * step if weights[0] == 0.0 and not planted[0] else step)
