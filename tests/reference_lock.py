@@ -16,7 +16,7 @@ from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEE
                                           POSSIBLE, PLANTED, REFERENCE_FPS, SWING_BENT, SWING_CM)
 from instrument.synthesis.follow import STRENGTH
 from instrument.synthesis.footlock import (CLOSED, HEEL_RISE_SPEED, LANDING_PACE, MAX_HEEL_RISE, SETTLE_CM, SETTLE_LIFT_CM,
-                                           SETTLE_SECONDS, SETTLE_STILL_CM_S, STAND_RELEASE, STRETCH)
+                                           SETTLE_SECONDS, SETTLE_STILL_CM_S, STRETCH)
 
 
 def EASE(x: float) -> float:
@@ -255,9 +255,10 @@ class FootLock:
             if planted[f] and self.weight[f] == 0.0:
                 self.lock[f] = world_pos[self.pivot[f]]
                 self.heading[f] = _heading(world_rot, leg, self.across[f])
-                self.settling[f] = 0.0
-            release = step / STAND_RELEASE if self.settling[f] == CLOSED else step  # set off from a still stand
-            self.weight[f] = min(1.0, self.weight[f] + pace[f]) if planted[f] else max(0.0, self.weight[f] - release)
+                self.settling[f] = 0.0  # landed; and the other foot, if closed up, may be closed up again
+                if self.settling[1 - f] == CLOSED:
+                    self.settling[1 - f] = 0.0
+            self.weight[f] = min(1.0, self.weight[f] + pace[f]) if planted[f] else max(0.0, self.weight[f] - step)
             step_in = self.hold_step if planted[f] else -self.hold_step  # the swing lift goes as the foot is planted
             self.landed[f] = min(max(self.landed[f] + step_in, 0.0), 1.0)
         lifts = self._settle(still, planted, world_rot, world_pos)

@@ -53,8 +53,8 @@ frame at a time, on the pose the features give:
   up to STRETCH of its length, and the body comes down by the rest, eased over BLEND_FRAMES' time;
 - in a stand (the engine says which frames are), once its pose is still with both feet locked
   in, a foot locked away from where the pose puts it (a stop lands its last steps staggered)
-  steps there, lifted, one foot at a time, and a foot so closed up lets go of its lock over
-  twice BLEND_FRAMES' time as it sets off (footlock.settle_feet, STAND_RELEASE).
+  steps there, lifted, one foot at a time (footlock.settle_feet); set off, it lets go of its
+  lock over BLEND_FRAMES as any foot does.
 Before the lock, outside the data, the body takes a share of a planted foot's generated slide
 (`follow.py`), so the IK does not have to stretch the leg after a body that slides on.
 Nothing looks ahead beyond what the frame's state already says, so live and `synth` agree.

@@ -20,9 +20,12 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
   flat and within HEEL_RISE_SPEED of the frame before's rise;
 - `within_reach`: a foot released in a run's flight brought back within its leg's generated length;
 - `settle_feet`: in a still stand, a foot locked away from where the stand's pose puts it (a stop
-  leaves them staggered) steps there, lifted, one at a time (a closing step); a foot so closed
-  up lets go of its lock at 1 / STAND_RELEASE of the usual pace as it sets off (until the other
-  foot lands: the stance foot of the first step then lets go at a step's pace);
+  leaves them staggered) steps there, lifted, one at a time (a closing step); a foot set off
+  from a stand lets go of its lock at a step's pace, as every foot does. Let go at half that pace
+  (while a step's first state had the swinging foot behind, which the first step's pose, drawn
+  from the stood one, no longer has), a run's first stance foot, whose other foot does not land
+  before its toe-off, was held through it and dragged back towards the foot as made as it rose,
+  then swung forward at once (docs/evaluate.md, "A run's first toe-off let go at a step's pace");
 - `body_drop`: how far the body must come down for a planted leg to reach its target;
 - `leg_swings`: two-bone IK, the thigh's and the shin's turns that take an ankle to a target;
 - `solve_leg`: those turns applied in place to the local rotations;
@@ -31,7 +34,7 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 
 Times, not frames: the lock's paces are counted in frames at `contact.REFERENCE_FPS` (30, the
 shipped model's rate) and taken as that time at any rate (`contact.per_frame`): its blend in and
-out (BLEND_FRAMES; LANDING_PACE and STAND_RELEASE are multiples of it), the body's drop (eased
+out (BLEND_FRAMES; LANDING_PACE is a multiple of it), the body's drop (eased
 1 / BLEND_FRAMES of the way in a 30 fps frame's time), as HEEL_RISE_SPEED and SETTLE_SECONDS were
 already. The swing lift a foot keeps in the air goes as it is planted, and the hold of its
 lowest joint on the floor goes as it is released (not handing over), over HOLD_FRAMES: one frame
@@ -84,11 +87,6 @@ SETTLE_LIFT_CM = 4.0  # how high a closing step lifts the foot, at its middle
 # in its last frames before a start the pose already steps off, towards the walk's first state)
 SETTLE_STILL_CM_S = 5.0
 CLOSED = 2.0  # LockState.settling of a foot that has taken its closing step, or needed none
-# a foot a still stand has closed up (or found in place) lets go of its lock over this many times
-# BLEND_FRAMES as it sets off: a step's first state has the swinging foot behind, at toe-off, and let
-# go at a walk's pace the foot standing beside the other swung back there and forward again in a few frames;
-# once the other foot has landed the body has stepped, and a foot still closed up lets go at a step's pace
-STAND_RELEASE = 2.0
 # a foot landing from flight (the other foot neither planted nor held by its lock: a run's) takes its
 # lock in this many times the usual pace: the body comes down on it alone, and real feet so landed stop
 # within two frames of touching down (the shipped runs' active takes: 131, 32, 3 cm/s); taken in over
@@ -549,8 +547,8 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             for i in range(3):
                 points[f, i] = world_pos[feet[f, -1], i]
             headings[f] = foot_heading(world_rot, joints[f, 2], across[f])
-            # landed: a stand may close it up again; and the body has stepped, so the other foot,
-            # if a stand closed it up, is set off from a step now: it lets go at a step's pace
+            # landed: a stand may close it up again; and the body has stepped, so the other foot, if
+            # a stand closed it up, may be closed up again too (a stop after one step leaves it behind)
             settling[f] = 0.0
             if settling[1 - f] == CLOSED:
                 settling[1 - f] = 0.0
@@ -558,8 +556,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     pace = (LANDING_PACE * step if weights[1] == 0.0 and not planted[1] else step,
             LANDING_PACE * step if weights[0] == 0.0 and not planted[0] else step)
     for f in range(2):
-        release = step / STAND_RELEASE if settling[f] == CLOSED else step  # set off from a still stand: slower
-        weights[f] = min(1.0, weights[f] + pace[f]) if planted[f] else max(0.0, weights[f] - release)
+        weights[f] = min(1.0, weights[f] + pace[f]) if planted[f] else max(0.0, weights[f] - step)
         landed[f] = min(1.0, landed[f] + hold_step) if planted[f] else max(0.0, landed[f] - hold_step)
     settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, across, SETTLE_CM / cm,
                 1.0 / (SETTLE_SECONDS * fps), SETTLE_LIFT_CM / cm, lifts)

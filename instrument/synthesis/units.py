@@ -35,10 +35,21 @@ Its legs take that half step too. From the frame a standing body still is told t
 engine holds the pose it stood in (`stride` 0: the window MLPG already bends the stand's last
 frames towards the step's first state, and feminine x2's feet as made went 7-8 cm either side
 of where the lock held them), and through the first step draws the step's pose from that one by
-the same share as the travel (`starting`). Over a step eased in by a smoothstep the body covers
+the same share as the travel (`starting`). Over a step eased in from rest the body covers
 half the step's ground, and the stance foot, swept from where it stood by the same share, moves
 back under the body as fast as the body moves on: it stays where the stand left it, where the
 lock holds it.
+That share is a smootherstep (6x^5 - 15x^4 + 10x^3), not the smoothstep a stop brakes by: the
+step's pose is drawn from the stood one at the share's rate times how far apart they are, and a
+run's first step ends with its stance foot at toe-off, a stride behind where it stood (70 cm at
+normal x2). The smoothstep's rate in the step's last frames (0.09, 0.06, 0.02 a frame over a
+10-frame step) still swept that foot back at 6, 4 and 1 cm a frame as it rose (it went on at
+-2 and +3 cm a frame, against 8 and 11 in the steady run), and the next step's swing took it
+forward at 15 and 27: Toes_L jumped 15 cm/frame^2 as made, against 11.8 at the same point of
+the steady run. The smootherstep's rate there is 0.08, 0.03, 0.004 (its rate of change, too, is
+0 where the step ends), and the travel takes the same curve, so the body still covers half the
+step's ground (docs/evaluate.md, "A run's first toe-off let go at a step's pace").
+
 With the step's full swing from the first frame, the stance foot as made swept back at a
 walk's pace under a body only setting off, away from where the lock held it (up to 9 cm), the
 heel rose up to 39 deg, and when the other foot landed and the lock let go, the rise collapsed
@@ -87,6 +98,11 @@ START_SECONDS = 0.5  # a body moving again before its stop stood still reaches i
 # comes, a run at 4.2 m/s (active x2) would change its speed by up to 105 cm/s in a frame (the
 # smoothstep's steepest is 1.5 times its mean), against 62 in its steady run
 STOP_SECONDS = 0.4
+
+
+def smootherstep(x: np.ndarray) -> np.ndarray:
+    """6x^5 - 15x^4 + 10x^3: from 0 to 1 with no jump in rate nor in its change at either end."""
+    return x * x * x * (x * (x * 6.0 - 15.0) + 10.0)
 
 
 class UnitChooser:
@@ -195,10 +211,11 @@ class UnitChooser:
         `start_rate`; over START_SECONDS from a stop called off), and eased out while it stops,
         linearly in its level over the `left` frames before the stand begins (at least
         STOP_SECONDS' frames, the rest in the stand), so the level is 0 as it does; none while it
-        stands. The travel is the level's smoothstep: no jump in speed nor in acceleration at
-        either end. The stride follows the level down while the body brakes, and up while it sets
-        off from a standstill (0 from the command, drawn from the pose it stood in); otherwise
-        (a stop called off just after a stand, a stand still) it comes back up over STOP_SECONDS."""
+        stands. The travel is the level's smoothstep (a body setting off from a standstill: its
+        smootherstep, as its stride): no jump in speed nor in acceleration at either end. The
+        stride follows the level down while the body brakes, and up while it sets off from a
+        standstill (0 from the command, drawn from the pose it stood in); otherwise (a stop called
+        off just after a stand, a stand still) it comes back up over STOP_SECONDS."""
         if left is not None:
             self.braking[stopping] = self.level[stopping] / (np.maximum(left[stopping], self.stop_frames) + 1.0)
         moving = ~standing & ~stopping
@@ -207,13 +224,19 @@ class UnitChooser:
         level = np.where(moving, np.minimum(self.level + self.start_rate, 1.0),
                          np.maximum(self.level - self.braking, 0.0))
         self.level = level
+        starting = bool(self.starting.any())  # some body sets off from a standstill: its ease is a smootherstep
         self.travel = level * level * (3.0 - 2.0 * level)
+        if starting:  # (its stride is its level: the same curve for both)
+            eased = smootherstep(level)
+            self.travel = np.where(self.starting, eased, self.travel)
         braking = stopping | (standing & (level > 0.0))
         stride = np.where(braking, np.minimum(self.stride_level, level),
                           np.where(self.starting, level, np.minimum(self.stride_level + 1.0 / self.stop_frames, 1.0)))
-        self.starting &= level < 1.0
         self.stride_level = stride
         self.stride = stride * stride * (3.0 - 2.0 * stride)
+        if starting:
+            self.stride = np.where(self.starting, eased, self.stride)
+            self.starting &= level < 1.0
         self.shortening = bool(stride.min() < 1.0)
 
     def _frames_to_stand(self, stream: Crowd, stopping: np.ndarray) -> np.ndarray:
