@@ -467,3 +467,31 @@ def test_synth_says_when_a_model_has_no_unit_for_the_gait_and_writes_its_walk(mo
     assert len(world_positions(tmp_path / "run.bvh")[1]) == 2 * model.fps  # the walk, written whole
     done = _synth(tmp_path, "--model", "walks.npz", "--gait", "walk", "--seconds", "2", "--out", "walk.bvh")
     assert "unit" not in done.stderr, done.stderr
+
+
+@pytest.mark.parametrize("going_frames", [25, 35])  # its first step begins 19 frames on: stopped at levels 0.29 and 0.78
+def test_a_body_stopped_while_it_sets_off_brakes_without_a_jolt(model, going_frames):
+    """Walk, stand, set off, and stand again before the first step is done: the body brakes from
+    the travel and stride it had (its start eased by a smootherstep, its braking by a smoothstep).
+    Moved at once to its level's smoothstep, the stride fell from 0.93 to 0.85 in a frame and a
+    joint jumped 1.22 times the steady walk's (masculine x2)."""
+    from instrument.evaluation.sequence import velocity_jumps
+    from instrument.motion.bvh import Motion
+    from instrument.motion.kinematics import ChannelStream
+    from instrument.motion.kinematics import world_positions as positions_of
+
+    engine = Engine(model)
+    base = default_controls(model, {"masculine": 2.0})
+    moving, stand = Controls(base.weights, gait=WALK), Controls(base.weights, gait=STAND)
+    plan = [(moving, 135), (stand, 60), (moving, going_frames), (stand, 75)]
+    channels = ChannelStream(model.layout.skeleton)
+    rows, levels = [], []
+    for controls, frames in plan:
+        for _ in range(frames):
+            pose = engine.frame(len(rows) / engine.fps, controls)
+            rows.append(channels.next(pose.rotations[0], pose.translations[0]))
+            levels.append(float(engine.units.level[0]))
+    halted = 135 + 60 + going_frames
+    assert 0.0 < levels[halted - 1] < 1.0  # told to stand while it still set off
+    jumps = velocity_jumps(positions_of(Motion(model.layout.skeleton, np.array(rows), model.fps)))
+    assert jumps[halted - 1:].max() <= 1.1 * jumps[15:135].max()

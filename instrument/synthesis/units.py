@@ -105,6 +105,13 @@ def smootherstep(x: np.ndarray) -> np.ndarray:
     return x * x * x * (x * (x * 6.0 - 15.0) + 10.0)
 
 
+def smoothstep_of(y: np.ndarray) -> np.ndarray:
+    """The x whose smoothstep (3x^2 - 2x^3) is y, for y in [0, 1]: where a level eased by a
+    smootherstep stands on the smoothstep's curve, so a body that stops while it still sets off
+    brakes from the travel and stride it had, not from a jump to its level's smoothstep."""
+    return 0.5 - np.sin(np.arcsin(np.clip(1.0 - 2.0 * y, -1.0, 1.0)) / 3.0)
+
+
 class UnitChooser:
     """Per character: the unit of the coming steps and the yaw rate the drive adds."""
 
@@ -193,6 +200,10 @@ class UnitChooser:
         # a body standing still told to move holds the pose it stood in until its first step
         # begins, and takes that step drawn from it (its stride) as its travel eases in
         still = (coming != self.stand) & (self.level == 0.0)
+        halted = self.starting & (coming == self.stand) & (self.level > 0.0)
+        if halted.any():  # stopped while setting off: its levels moved onto the smoothstep braking eases by
+            self.level[halted] = smoothstep_of(smootherstep(self.level[halted]))
+            self.stride_level[halted] = smoothstep_of(smootherstep(self.stride_level[halted]))
         self.set_off = still & ~self.starting
         self.setting_off = bool(self.set_off.any())
         self.starting = (self.starting | still) & (coming != self.stand)
