@@ -11,7 +11,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ..errors import UserError, located
+from ..errors import UserError, located, quoted
 from ..motion.bvh import Motion, Skeleton, read_bvh
 from ..motion.features import FeatureLayout, choose_layout, extract, resample, with_deltas
 from ..motion.kinematics import local_transforms
@@ -137,8 +137,12 @@ def _listed_file(base: Path, name: str, where: str) -> Path:
     """A manifest's take file (relative to the manifest's folder), refused at the line naming it
     when it is not there: a typo is found before any take is read, where it was written."""
     file = base / name
-    if not file.is_file():
-        raise UserError(f"{where}: {name}: " + ("a folder, not a BVH file" if file.is_dir() else "no such file"))
+    try:
+        there, folder = file.is_file(), file.is_dir()
+    except (OSError, ValueError) as e:  # a name too long for the file system, a NUL byte
+        raise UserError(f"{where}: {quoted(name)}: cannot read ({getattr(e, 'strerror', None) or e})") from None
+    if not there:
+        raise UserError(f"{where}: {quoted(name)}: " + ("a folder, not a BVH file" if folder else "no such file"))
     return file
 
 
