@@ -29,9 +29,15 @@ def features(model, controls: Controls, frames: int, method: str = "stream", loo
 
 def finer(model, rate: int):
     """`model` at `rate` times its frame rate, every state lasting `rate` times as many frames: the
-    same steps in seconds (what settings meaning a time must not tell from the model itself)."""
+    same steps in seconds (what settings meaning a time must not tell from the model itself). The
+    static features are per second already; the delta and delta-delta streams are per frame, so
+    their means shrink by `rate` and `rate`^2 and their variances by the squares."""
+    dimension = model.layout.dimension
+    per_frame = np.repeat([1.0, 1.0 / rate, 1.0 / rate**2], dimension)  # static, delta, delta-delta
+
     def longer(hsmm: HSMM) -> HSMM:
-        return HSMM(hsmm.means, hsmm.variances, hsmm.duration_means * rate, hsmm.duration_variances * rate**2)
+        return HSMM(hsmm.means * per_frame, hsmm.variances * per_frame**2, hsmm.duration_means * rate,
+                    hsmm.duration_variances * rate**2)
 
     return replace(model, metadata={**model.metadata, "fps": rate * model.fps}, average=longer(model.average),
                    styles=longer(model.styles))
