@@ -510,7 +510,7 @@ def test_a_run_lands_from_flight_onto_a_foot_that_stops_at_once(model):
 
 @pytest.mark.parametrize("style", ["normal", "active"])
 def test_the_lock_at_120_fps_adds_little_jitter_to_the_walk_it_is_given(model, style):
-    """The lock's changes take the same time at any rate (contact.REFERENCE_FPS): the shipped
+    """The lock's changes take the same time at any rate (features.REFERENCE_FPS): the shipped
     model's walk made unlocked at its 30 fps, resampled to 120 fps (cubic) and locked at 120 fps
     with its states' contact shares has at most 3x the unlocked walk's jitter (the mean third
     difference of the joints' positions, as `evaluate` reads it): normal 2.6x, active 1.4x (at

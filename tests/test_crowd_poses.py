@@ -62,7 +62,7 @@ def _reference_run(model, static, shares, position=None, heading=0.0, locked=Tru
 def test_at_another_rate_the_lock_makes_the_reference_poses(model, space, fps):
     """Posed at another rate than 30 fps (the same frames: a walk slower or faster, but the lock's
     rule is what is compared), the lock's blend, the body's drop, the swing lift and the hold on
-    the floor move by their share of a time a frame (contact.REFERENCE_FPS), not by a 30 fps
+    the floor move by their share of a time a frame (features.REFERENCE_FPS), not by a 30 fps
     frame's: the compiled lock and the reference make the same poses, and at 120 fps a foot's
     hold passes through values between 0 and 1."""
     static, shares = _features(model, space, [_performance(model, 200, 1)])

@@ -25,8 +25,9 @@ frame at a time, on the pose the features give:
   hinge; then the hip swings the leg), the foot keeping its generated world orientation, towards: the lock
   horizontally, its lowest joint on the floor vertically; the lock blends in and out over
   BLEND_FRAMES frames at 30 fps (REFERENCE_FPS; the same time at any rate), so nothing pops, but
-  for a foot landing from flight (the other foot neither planted nor held: a run's), which the body comes down on alone and which stops as
-  real feet so landed do, within two frames (footlock.LANDING_PACE);
+  for a foot landing from flight (the other foot neither planted nor held: a run's), which the
+  body comes down on alone and which stops as real feet so landed do, within two frames
+  (footlock.LANDING_PACE);
 - where that would stretch a planted leg past its generated length (hip to ankle), the heel
   rises instead: the foot pitches up about its front-most joint, up to MAX_HEEL_RISE from
   standing flat (a cap that wins) and otherwise changing no faster than HEEL_RISE_SPEED,
@@ -67,15 +68,15 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..motion.features import REFERENCE_FPS
 from ..motion.limbs import find_limbs
 from .interpolation import part_weights_per_group
 from .parameters import GROUPS
 
 CONTACT_CM = 2.0
 CONTACT_SPEED_CM_S = 30.0
-# the lock's times are counted in frames at this rate (the shipped model's) and taken as the same
-# time at any other: `per_frame` (docs/evaluate.md, "The lock the same in seconds at any rate")
-REFERENCE_FPS = 30.0
+# the lock's times are counted in frames at REFERENCE_FPS (the shipped model's rate) and taken as
+# the same time at any other: `per_frame` (docs/evaluate.md, "The lock the same in seconds at any rate")
 BLEND_FRAMES = 4  # frames at REFERENCE_FPS a foot's lock takes to blend in or out (133 ms)
 SWING_CM = 2.0  # a foot in the air keeps its lowest joint this far above its clearance
 # frames at REFERENCE_FPS the swing lift takes to go as a foot is planted and the hold on its lowest

@@ -32,7 +32,7 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 - `lock_frame`: one character's frame, in the order above (`_targets` gathers `lock_target` and
   `heel_rise` for both legs); `lock_crowd`: every character's.
 
-Times, not frames: the lock's paces are counted in frames at `contact.REFERENCE_FPS` (30, the
+Times, not frames: the lock's paces are counted in frames at `motion.features.REFERENCE_FPS` (30, the
 shipped model's rate) and taken as that time at any rate (`contact.per_frame`): its blend in and
 out (BLEND_FRAMES; LANDING_PACE is a multiple of it), the body's drop (eased
 1 / BLEND_FRAMES of the way in a 30 fps frame's time), as HEEL_RISE_SPEED and SETTLE_SECONDS were

@@ -29,7 +29,7 @@ def default_lookahead(fps: float) -> int:
     """The look-ahead in frames of a model at `fps`: DEFAULT_LOOKAHEAD's 1.07 s. Counted in frames,
     a 120 fps walk looked 0.27 s ahead and strayed from the whole walk's MLPG as a 30 fps one with
     8 frames does (the worst feature 3.7% of its spread against 0.007%; docs/evaluate.md)."""
-    return max(1, round(DEFAULT_LOOKAHEAD * fps / 30.0))
+    return max(1, round(DEFAULT_LOOKAHEAD * fps / 30.0))  # motion.features.REFERENCE_FPS (not imported: no numpy here)
 
 # a crowd (synthesis/engine.py): metres between neighbours on the floor, and how many characters a
 # VMC target sends unless asked (a VMC stream costs several times a character's walk)
