@@ -146,8 +146,13 @@ def test_the_demo_plays_in_any_models_styles(model):
     seen = np.array(seen)
     assert (seen.max(axis=0) >= 1.0).all() and seen.max() == 2.0 and seen.min() == -1.0
     assert (seen[-1] == 0.0).all()  # back to the average, so the loop joins
-    with pytest.raises(UserError, match="demo.toml: the demo fades from style to style, and this model has one"):
-        load_demo(ControlState(["proud"], model.states))
+    alone = ControlState(["proud"], model.states)  # one style: faded in, exaggerated, inverted, back
+    player, seen = ScorePlayer(load_demo(alone), alone), []
+    for k in range(60 * 30):
+        for event in player.due(k / 30):
+            assert alone.set(event.control, event.value)
+        seen.append(alone.get("style/proud"))
+    assert max(seen) == 2.0 and min(seen) == -1.0 and seen[-1] == 0.0
 
 
 def test_score_and_its_recorded_log_give_the_same_bvh_byte_for_byte(tmp_path):

@@ -99,6 +99,7 @@ def load_score(path: str | Path, state: ControlState, presets: dict[str, dict[st
 
 
 DEMO_STYLE = re.compile(r'"style/([^"]+)"')
+INLINE_TABLE = re.compile(r"\{[^{}]*\}")
 
 
 def load_demo(state: ControlState, presets: dict[str, dict[str, float]] | None = None) -> Score:
@@ -107,19 +108,29 @@ def load_demo(state: ControlState, presets: dict[str, dict[str, float]] | None =
     turn (the demo's first style by the model's first, its second by the second, round again),
     so a model trained on one's own takes performs the same minute of fades, exaggeration,
     inversion, pace and turn. A cue fades from one style to the next named, which falls on
-    another of the model's whenever it has two. A UserError for a model of one style: nothing to
-    fade between."""
+    another of the model's whenever it has two; with one, the style faded in is kept (the fade
+    out falling on the same style is dropped), so it still goes to 2, to -1 and back."""
     path = demo_score_path()
     text = read_text(path)
     mine = state.style_names
     named = list(dict.fromkeys(DEMO_STYLE.findall(text)))
-    if all(name in mine for name in named):
-        return load_score(path, state, presets, loop=True, text=text)
-    if len(mine) < 2:
-        raise UserError(f"{path}: the demo fades from style to style, and this model has one ({', '.join(mine)})")
-    played_by = {name: mine[k % len(mine)] for k, name in enumerate(named)}
-    text = DEMO_STYLE.sub(lambda m: f'"style/{played_by[m.group(1)]}"', text)
+    if not all(name in mine for name in named):
+        played_by = {name: mine[k % len(mine)] for k, name in enumerate(named)}
+        text = INLINE_TABLE.sub(lambda table: _played_by(table.group(0), played_by), text)
     return load_score(path, state, presets, loop=True, text=text)
+
+
+def _played_by(table: str, played_by: dict[str, str]) -> str:
+    """An inline table of the demo (`{ "style/a" = 0.0, "style/b" = 1.0, speed = 1.4 }`) with its
+    styles renamed; of two entries that fall on one style, the one that is not 0 (else the later)."""
+    entries: dict[str, str] = {}
+    for entry in filter(None, (part.strip() for part in table.strip("{} ").split(","))):
+        key, _, value = (part.strip() for part in entry.partition("="))
+        style = DEMO_STYLE.fullmatch(key)
+        key = f'"style/{played_by[style.group(1)]}"' if style else key
+        if key not in entries or value.lstrip("+-") not in ("0", "0.0"):
+            entries[key] = value
+    return "{ " + ", ".join(f"{key} = {value}" for key, value in entries.items()) + " }"
 
 
 def _lasts(cues: list[Cue], since: float = 0.0) -> bool:
