@@ -158,6 +158,25 @@ def test_a_process_left_holding_a_dead_jack_client_ends_without_the_teardown():
         assert ended_at_once == (case == "abandoned"), (case, result.stdout[-200:])
 
 
+def test_past_a_jack_restart_no_port_is_taken_apart():
+    """A show that survived a JACK restart crashed (CI, once) closing its MIDI input as it ended:
+    libjack still held the dead server's client. Once a port was left to a dead server, a device's
+    close leaves its port too (kept alive for the process's end); before, it is closed."""
+    script = ("import sys\n"
+              "from instrument.control import jackwatch\n"
+              "class Port:\n"
+              "    pass\n"
+              "closed, port = [], Port()\n"
+              "if sys.argv[1] == 'abandoned':\n"
+              "    jackwatch.ABANDONED.set()\n"
+              "before = sys.getrefcount(port)\n"
+              "jackwatch.release(port, lambda: closed.append(1))\n"
+              "print('closed' if closed else 'left', sys.getrefcount(port) - before)\n")
+    for case, said in (("abandoned", "left 1"), ("steady", "closed 0")):
+        result = subprocess.run([sys.executable, "-c", script, case], capture_output=True, text=True, timeout=120)
+        assert result.returncode == 0 and result.stdout.split() == said.split(), (case, result.stdout, result.stderr)
+
+
 def test_a_bug_after_a_jack_restart_prints_its_traceback_and_ends_at_once():
     script = ("import atexit, sys\n"
               "from instrument.control import jackwatch\n"

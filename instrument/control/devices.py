@@ -21,7 +21,7 @@ from ..terminal import Console
 from . import oscparse
 from .checks import value_refusal
 from .events import RawEvent, Source
-from .jackwatch import Remaker
+from .jackwatch import Remaker, release
 from .spec import TABLE, Row
 
 RETRY_SECONDS = 1.0
@@ -202,7 +202,7 @@ class MidiInput:
         self.port_name = ""
         self.next_attempt = 0.0
         self.received = 0
-        self.remaker = Remaker(self._remake, lambda port: port.delete()) if api == "jack" else None
+        self.remaker = Remaker(self._remake, lambda port: release(port, port.delete)) if api == "jack" else None
         self._open(first=True)
 
     def _new_port(self):
@@ -301,10 +301,13 @@ class MidiInput:
         if self.remaker is not None:
             self.remaker.close()
         if self.port is not None:
-            if self.open:
-                self.port.close_port()
-            self.port.delete()
+            release(self.port, self._close_port)
         self.open = False
+
+    def _close_port(self) -> None:
+        if self.open:
+            self.port.close_port()
+        self.port.delete()
 
 
 class OscInput:

@@ -14,7 +14,7 @@ import re
 
 from ..terminal import Console
 from .devices import midi_backend, midi_system
-from .jackwatch import Remaker
+from .jackwatch import Remaker, release
 from .mapping import ControlSpec, Mapper
 from .spec import TABLE
 from .state import ControlState
@@ -61,7 +61,7 @@ class MidiFeedback:
             self.port = self._open_port()
         if self.port is None:
             console.warn(self.name, f"no MIDI output matches {pattern!r}: no feedback to the controller")
-        self.remaker = Remaker(self._open_port, lambda port: port.close()) if api == "jack" else None
+        self.remaker = Remaker(self._open_port, lambda port: release(port, port.close)) if api == "jack" else None
         self.sent: dict[ControlSpec, float] = {c: state.get(c.target) for c in self.controls}
 
     def _open_port(self):
@@ -107,5 +107,5 @@ class MidiFeedback:
         if self.remaker is not None:
             self.remaker.close()
         if self.port is not None:
-            self.port.close()
+            release(self.port, self.port.close)
             self.port = None

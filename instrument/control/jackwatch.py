@@ -127,6 +127,18 @@ def abandon(port: object) -> None:
     ABANDONED.set()
 
 
+def release(port: object, close: Callable[[], None]) -> None:
+    """Take a device's port apart with `close`, unless a JACK server died under this process: then
+    libjack still holds the dead client, and taking any port apart can crash it (a show that
+    survived a restart crashed closing its MIDI input as it ended, in CI), so the port is left,
+    as the dead one was, to the process's end (cli.main ends such a process at once; the OS and
+    the JACK server reclaim its clients). Everything recorded is closed before the devices."""
+    if ABANDONED.is_set():
+        abandon(port)
+    else:
+        close()
+
+
 class Remaker:
     """Makes a device's JACK port again after a server restart, in a background thread.
 

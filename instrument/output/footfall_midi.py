@@ -9,6 +9,7 @@ the next frame. A port that cannot send is said on the console (the walk goes on
 from __future__ import annotations
 
 from ..control.devices import midi_backend, midi_system
+from ..control.jackwatch import release
 from ..synthesis.posing import Frame
 
 LEFT_NOTE, RIGHT_NOTE = 36, 38
@@ -51,4 +52,4 @@ class FootfallMidi:
     def close(self) -> None:
         for note in self.sounding:
             self.port.send(self.mido.Message("note_off", channel=CHANNEL, note=note))
-        self.port.close()
+        release(self.port, self.port.close)
