@@ -130,6 +130,14 @@ def per_frame(frames: float, fps: float) -> float:
     return REFERENCE_FPS / (frames * fps)
 
 
+@njit(cache=True)
+def eased_per_frame(share: float, fps: float) -> float:
+    """The share of the way an exponential ease that moves `share` of the way in a frame at
+    REFERENCE_FPS moves in one frame at `fps`: as far in a second at any rate (exactly `share`
+    at 30 fps). The lock's body drop and the range stage ease so."""
+    return 1.0 - (1.0 - share) ** (REFERENCE_FPS / fps)
+
+
 def contact_space(model) -> ContactSpace | None:
     """None for a model trained without contact statistics (it then runs as before)."""
 

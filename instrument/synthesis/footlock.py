@@ -69,7 +69,7 @@ from ..motion.features import FeatureLayout
 from ..motion.kinematics import _compose, forward_kinematics
 from ..motion.limbs import centimetres_per_unit, find_limbs
 from .contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, HOLD_FRAMES, NEARLY_STRAIGHT, PLANTED, POSSIBLE, SWING_BENT,
-                      SWING_CM, per_frame)
+                      SWING_CM, eased_per_frame, per_frame)
 from .follow import ease
 
 MAX_HEEL_RISE = np.radians(50.0)  # the most a planted foot pitches up about its toes, from standing flat
@@ -579,8 +579,8 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     _targets(world_rot, world_pos, joints, feet, across, ground, weights, points, planted, landed, held, hold_step, swing_lift,
              on_floor, extension, rises, rise_step, targets, turns, angles, holding)
     # eased towards what it needs by 1 / BLEND_FRAMES of the way a frame at REFERENCE_FPS: the same time at any rate
-    drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) * (
-        1.0 - (1.0 - 1.0 / BLEND_FRAMES) ** per_frame(1.0, fps))
+    drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) * eased_per_frame(
+        1.0 / BLEND_FRAMES, fps)
     if drop[0] > 1e-9:
         for a in range(3):  # [0, drop, 0] @ parent_rot, element by element (no temporary array)
             translations[root, a] -= drop[0] * parent_rot[1, a]

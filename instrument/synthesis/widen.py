@@ -31,6 +31,7 @@ import numpy as np
 from numba import njit
 
 from ..motion.features import REFERENCE_FPS, ROOT_FEATURES
+from .contact import eased_per_frame
 from .interpolation import body_groups, part_weights_per_group
 from .mlpg import _part, _prefetch_row
 from .stream import numpy_sum
@@ -180,7 +181,7 @@ bounds each feature's factors, within this: a blend of them stays inside). The n
 def ease_per_frame(fps: float) -> float:
     """The share of the way to its targets the range stage moves a frame at `fps`: EASE at
     REFERENCE_FPS, and at any rate as far in a second (1 - (1 - EASE) ** (REFERENCE_FPS / fps))."""
-    return 1.0 - (1.0 - EASE) ** (REFERENCE_FPS / fps)
+    return eased_per_frame(EASE, fps)
 
 
 class RangeFilter:
