@@ -495,3 +495,32 @@ def test_a_body_stopped_while_it_sets_off_brakes_without_a_jolt(model, going_fra
     assert 0.0 < levels[halted - 1] < 1.0  # told to stand while it still set off
     jumps = velocity_jumps(positions_of(Motion(model.layout.skeleton, np.array(rows), model.fps)))
     assert jumps[halted - 1:].max() <= 1.1 * jumps[15:135].max()
+
+
+def _step_state_frames(labels: np.ndarray, states: np.ndarray) -> list[tuple[int, tuple[int, ...]]]:
+    """Each whole step of a character's frames: (label, frames of each of its states)."""
+    steps, first = [], 0
+    for end in np.flatnonzero(np.diff(labels) != 0) + 1:
+        if first > 0:  # the first run of frames may be a step begun before the window
+            part = states[first:end]
+            steps.append((int(labels[first]), tuple(np.bincount(part, minlength=int(part.max()) + 1).tolist())))
+        first = end
+    return steps
+
+
+@pytest.mark.parametrize("gait, weights, moving_frames", [
+    (RUN, {"active": 2.0}, 138), (WALK, {"active": 1.0}, 100), (WALK, {"masculine": 1.0}, 100)])
+def test_a_gait_set_off_again_pairs_its_right_and_left_steps_as_from_rest(model, gait, weights, moving_frames):
+    """After a stop and a restart, each leading step and the following step after it take the
+    same frames state by state, as from rest (stream._plan: the pair's mirror models then cancel
+    each other's turn). Each label kept its own fraction of a frame across the stand, so a gait
+    left after an odd number of steps came back with its two feet's fractions apart for good:
+    active x2's run went on 14 and 15 frames a step, the walk curved 4 degrees a minute."""
+    _, _, _, labels, states, _ = _engine_frames(model, [(gait, moving_frames), (STAND, 90), (gait, 240)],
+                                                weights=weights)
+    stand = 2 * model.units.index("stand")
+    steps = [step for step in _step_state_frames(labels[moving_frames:, 0], states[moving_frames:, 0])]
+    again = [k for k, (label, _) in enumerate(steps) if label >= stand][-1] + 1  # the first step set off again
+    pairs = list(zip(steps[again:-1:2], steps[again + 1::2]))  # (leading step, the step after it)
+    assert len(pairs) >= 4 and all(a[0] // 2 == b[0] // 2 != stand // 2 and a[0] != b[0] for a, b in pairs)
+    assert all(a[1] == b[1] for a, b in pairs), pairs

@@ -349,7 +349,7 @@ def _plan(base, sigma, counter, carry, pool, ids, counts, carries):  # pragma: n
     straight at turn = 0 (one carry passed on across labels gives the odd frame of a step 16.5
     frames long always to the same label: the walk curves). With liveliness, a following step's
     state (`FOLLOWER`'s label: the left one, unless `Crowd.start_at` began the walk on a left
-    step) takes the draw of the same state of the leading step before it (the one `states`
+    step or the unit was entered on one, `_enter`) takes the draw of the same state of the leading step before it (the one `states`
     instances back, kept in the pool), so the two steps of a stride still match and the walk goes
     straight while its strides vary (each step drawing its own turned it 38 degrees a minute,
     one way or the other); the states of the first following step that no leading step came
@@ -361,6 +361,7 @@ def _plan(base, sigma, counter, carry, pool, ids, counts, carries):  # pragma: n
     filled, k = 0, 0
     first_boundary = True
     remainders = carry.copy()  # (labels,), as the plan moves on
+    follower = counter[FOLLOWER]
     while filled < frames:
         duration = base[label, state]
         spread = sigma[label, state]
@@ -368,7 +369,7 @@ def _plan(base, sigma, counter, carry, pool, ids, counts, carries):  # pragma: n
             if head + k >= tail:
                 tail = head + k + 1
             draw = pool[head + k]
-            if label % 2 == counter[FOLLOWER]:  # the leading step's draw; none before the first leading step
+            if label % 2 == follower:  # the leading step's draw; none before the first leading step
                 draw = pool[head + k - states] if head + k >= states else 0.0
             duration = max(MIN_FRAMES, duration + spread * draw)
         count = max(1, int(np.floor(duration + remainders[label])))
@@ -381,8 +382,11 @@ def _plan(base, sigma, counter, carry, pool, ids, counts, carries):  # pragma: n
         elapsed, k = 0, k + 1
         state += 1
         if state == states:  # the other foot's step, of the unit the engine chose
+            left = label // 2
             state, label = 0, 2 * (_next_unit(counter) if first_boundary else counter[UNIT]) + 1 - label % 2
             first_boundary = False
+            if label // 2 != left:
+                follower = _enter(remainders, label)
     return k, tail
 
 
@@ -452,6 +456,19 @@ def _next_unit(counter):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
+def _enter(carry, label):  # pragma: no cover - compiled
+    """A unit entered on `label` (the first step after another unit's): that step leads a pair, as
+    a walk's first step from rest does. The other foot's label of the unit takes the carry this
+    one begins with, so the two steps get the same frames state by state, and the follower's
+    draws are this step's; returns the following foot (`FOLLOWER`). Each label kept its own
+    carry while the unit was left, and a gait left after an odd number of steps came back with
+    its two feet a fraction of a frame apart for good: active x2's run, stopped and set off again,
+    went on at 14 and 15 frames a step, the walk curved 4 degrees a minute."""
+    carry[label ^ 1] = carry[label]
+    return 1 - label % 2
+
+
+@njit(cache=True, nogil=True)
 def _finish(counter, carry, n, carry_out, states):  # pragma: no cover - compiled
     carry[n, counter[LABEL]] = carry_out
     counter[ELAPSED] = 0
@@ -459,8 +476,11 @@ def _finish(counter, carry, n, carry_out, states):  # pragma: no cover - compile
         counter[HEAD] += 1
     counter[STATE] += 1
     if counter[STATE] == states:
+        left = counter[LABEL] // 2
         counter[STATE], counter[LABEL] = 0, 2 * _next_unit(counter) + 1 - counter[LABEL] % 2
         counter[NEXT] = 0
+        if counter[LABEL] // 2 != left:
+            counter[FOLLOWER] = _enter(carry[n], counter[LABEL])
 
 
 @njit(cache=True, nogil=True)
