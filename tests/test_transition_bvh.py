@@ -109,3 +109,37 @@ def test_a_recorded_walk_stops_without_flinging_a_foot_forward_and_back(tmp_path
     speed = np.linalg.norm(np.diff(hips, axis=0), axis=1) * fps
     assert speed[walk_frames - 30:walk_frames].mean() > 60.0 and speed[-30:].mean() < 2.0  # walked, then stood still
     assert jumps[walk_frames:walk_frames + 60].max() <= 1.25 * jumps[15:walk_frames].max()
+
+
+@pytest.mark.parametrize("called_off", [0.5, 0.8])  # s after the walk cue: in the start's first step and its second
+def test_a_recorded_start_called_off_brakes_without_a_jolt(tmp_path, called_off):
+    """What a user gets of a start called off: a score that walks (feminine, whose stop popped
+    hardest), stands, sets off and is told to stand again while it sets off, recorded by
+    `instrument run --fast --bvh` and read back by the independent reader. The body brakes from
+    the travel and stride it had reached (units.smoothstep_of): from the walk cue to the end no
+    joint's velocity changes more in a frame than 1.25 times it does in the steady walk at the
+    score's start, and it ends standing still. (Told to stand before its first step begins, at
+    the stand's next step boundary, 0.3 s after the cue here, it never sets off.)"""
+    fps = 30.0
+    walk_cue = 6.0
+    (tmp_path / "abort.toml").write_text(
+        f'[[cue]]\nat = 0\nramp = {{ "style/feminine" = 1.0, gait = "walk" }}\n\n'
+        f'[[cue]]\nat = 3.0\nramp = {{ gait = "stand" }}\n\n'
+        f'[[cue]]\nat = {walk_cue!r}\nramp = {{ gait = "walk" }}\n\n'
+        f'[[cue]]\nat = {walk_cue + called_off!r}\nramp = {{ gait = "stand" }}\n')
+    frames = int(round((walk_cue + 2.5) * fps))
+    done = subprocess.run([sys.executable, "-m", "instrument", "run", "--score", "abort.toml", "--fast", "--no-osc",
+                           "--quiet", "--fps", repr(fps), "--seconds", repr(frames / fps), "--bvh", "abort.bvh"],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=900)
+    assert done.returncode == 0, done.stderr
+    names, recorded, recorded_fps = world_positions(tmp_path / "abort.bvh")
+    assert abs(recorded_fps - fps) < 1e-3 and len(recorded) == frames
+    jumps = velocity_jumps(recorded)
+    layout = load_model(REPO / "models" / "default.npz").layout
+    hips = recorded[:, names.index(layout.skeleton.names[layout.root])][:, [0, 2]]
+    speed = np.linalg.norm(np.diff(hips, axis=0), axis=1) * fps
+    cue = int(round(walk_cue * fps))
+    assert speed[30:90].mean() > 60.0 and speed[cue - 30:cue].mean() < 2.0  # walked, then stood still before the cue
+    assert speed[cue:].max() > 5.0  # it did set off
+    assert speed[-15:].mean() < 2.0  # and ends standing still
+    assert jumps[cue:].max() <= 1.25 * jumps[15:90].max()
