@@ -31,7 +31,7 @@ from instrument.models.gestures import gesture_labels
 from instrument.models.hsmm import HSMM
 from instrument.models.modelfile import load_model, save_model
 from instrument.motion.bvh import read_bvh
-from instrument.motion.features import resample
+from instrument.motion.features import choose_layout, resample
 from instrument.motion.gestures import PHASES, gesture_phases, hand_tracks, turning_points
 from instrument.synthesis.engine import Engine, default_controls
 from instrument.synthesis.interpolation import body_groups
@@ -94,6 +94,30 @@ def test_a_wave_sways_in_half_cycles_a_raise_holds(model):
                           model.layout, model.states)
     halves = [s.frames for s in wave if s.label.startswith("repeat")]
     assert len(halves) >= 8 and 8 <= np.median(halves) <= 20  # a sway each 0.3 to 0.7 s
+
+
+@needs_motions
+@pytest.mark.parametrize("name", [
+    # a hold of 2.4 s: six pieces of 0.4 s at 30 fps; counted in frames, five at 120
+    "dataset-2_raise-up-both-hands_elderly_002",
+    # a wave: a 0.12 s wobble after the raise was a half cycle at 120 fps (5 frames were 0.04 s there)
+    "dataset-2_wave-both-hands_youthful_001",
+])
+def test_a_takes_phases_are_the_same_motion_at_100_and_120_fps(name):
+    """The take at its own 30 fps and resampled (as `train --fps` reads it): the same phases, each
+    cut between two frames within a 30 fps frame's time of the 30 fps cut. A frame k at `fps`
+    stands for the time from (k - 0.5) / fps to (k + 0.5) / fps, so a cut before frame k is at
+    (k - 0.5) / fps, at either rate. The layout is the take's own (any layout of its skeleton)."""
+    take = read_bvh(MOTIONS / f"{name}.bvh")
+    layout = choose_layout([take])
+    reference = gesture_phases(take, layout)
+    assert take.fps == 30 and len(reference) >= 4
+    for fps in (100.0, 120.0):
+        phases = gesture_phases(resample(take, fps), layout)
+        assert [s.label for s in phases] == [s.label for s in reference], fps
+        for ours, theirs in zip(phases, reference):
+            for k, k30 in ((ours.start, theirs.start), (ours.end, theirs.end)):
+                assert abs((k - 0.5) / fps - (k30 - 0.5) / take.fps) <= 1 / take.fps + 1e-9, (fps, ours, theirs)
 
 
 # ---- the shipped model ------------------------------------------------------------------------
