@@ -37,13 +37,20 @@ from __future__ import annotations
 import numpy as np
 
 
-def tangent(frame: np.ndarray, previous: np.ndarray | None, forward: np.ndarray) -> np.ndarray:
-    """The tangent (per model frame) at `frame` (N, D): the mean of its backward difference from
-    `previous` (None at the first frame: the forward one alone) and `forward`, the provisional next
-    frame's difference from it."""
-    if previous is None:
-        return forward
-    return 0.5 * ((frame - previous) + forward)
+def tangent(frame: np.ndarray, past: list[np.ndarray], forward: np.ndarray) -> np.ndarray:
+    """The tangent (per model frame) at `frame` (N, D), from the frames before it (`past`, oldest
+    first) and `forward` (N, A, D), the provisional next A frames' differences from it: the
+    five-point central difference where two frames are known on each side, else the three-point
+    one (Catmull-Rom's), else the one-sided difference there is."""
+    behind = [frame - p for p in past[::-1]]  # frame - p[k-1], frame - p[k-2]
+    ahead = [forward[:, j] for j in range(forward.shape[1])]  # p[k+1] - frame, p[k+2] - frame
+    if len(behind) >= 2 and len(ahead) >= 2:
+        return (8.0 * (ahead[0] + behind[0]) - (ahead[1] + behind[1])) / 12.0
+    if behind and ahead:
+        return 0.5 * (ahead[0] + behind[0])
+    if behind or ahead:
+        return (behind or ahead)[0]
+    return np.zeros(frame.shape)
 
 
 def hermite(p0: np.ndarray, m0: np.ndarray, p1: np.ndarray, m1: np.ndarray, t: float) -> np.ndarray:
@@ -53,21 +60,22 @@ def hermite(p0: np.ndarray, m0: np.ndarray, p1: np.ndarray, m1: np.ndarray, t: f
 
 
 class Knots:
-    """The engine's two newest model frames (N, D) and their tangents: what a sample between them
-    is made of."""
+    """The engine's newest model frames (N, D) and the two newest's tangents: what a sample
+    between them is made of."""
 
     def __init__(self) -> None:
-        self.frames: list[np.ndarray] = []  # the last two model frames, oldest first
-        self.tangents: list[np.ndarray | None] = []  # theirs (None: made at the model's rate, never sampled between)
+        self.frames: list[np.ndarray] = []  # the last three model frames, oldest first
+        self.tangents: list[np.ndarray | None] = []  # the last two's (None: made at the model's rate, never sampled between)
 
     def add(self, frame: np.ndarray, forward: np.ndarray | None) -> None:
-        """The newest model frame, with its forward difference (None: the engine runs at the model's rate)."""
-        made = None if forward is None else tangent(frame, self.frames[-1] if self.frames else None, forward)
-        self.frames = (self.frames + [frame])[-2:]
+        """The newest model frame, with its provisional next frames' differences from it (N, A, D;
+        None: the engine runs at the model's rate)."""
+        made = None if forward is None else tangent(frame, self.frames[-2:], forward)
+        self.frames = (self.frames + [frame])[-3:]
         self.tangents = (self.tangents + [made])[-2:]
 
     def at(self, fraction: float) -> np.ndarray:
         """The features a `fraction` of a model frame past the older frame (1: the newest, exactly)."""
         if fraction >= 1.0 - 1e-9 or len(self.frames) == 1:
             return self.frames[-1]
-        return hermite(self.frames[0], self.tangents[0], self.frames[1], self.tangents[1], fraction)
+        return hermite(self.frames[-2], self.tangents[0], self.frames[-1], self.tangents[1], fraction)

@@ -401,8 +401,8 @@ class Engine:
         self._style: tuple | None = None  # what the style features' tables were made for (weights, parts, spread)
         self._pace: tuple | None = None  # and the durations (speed, phase stretch, liveliness)
         self.knots = Knots()  # the last two model frames (N, D), driven, and their tangents: what `sample` plays
-        # (N, D) the newest model frame's forward difference (its provisional next frame's difference from
-        # it, through the stages' gains: `_forward`), made only when the output's rate is not the model's
+        # (N, A, D) the newest model frame's forward differences (its provisional next frames' differences
+        # from it, through the stages' gains: `_forward`), made only when the output's rate is not the model's
         self.forward: np.ndarray | None = None
         self.made = 0  # model frames made
         self._unit_span = 2 * model.states  # states a unit's two labels hold
@@ -511,7 +511,7 @@ class Engine:
             frames = self.gestures.after(frames, ids)
             self._timed("gestures")
         if self.fps != self.model.fps:  # sampled between model frames: the tangent's forward difference
-            self.forward = self._forward(ahead - solved)
+            self.forward = self._forward(ahead - solved[:, None])
             self._timed("between")
         self.frame_ids = ids
         if self.contact is not None:
@@ -526,8 +526,8 @@ class Engine:
         return frames
 
     def _forward(self, ahead: np.ndarray) -> np.ndarray:
-        """(N, D) the frame's forward difference: `ahead`, the stream's provisional next frame's
-        difference from the frame it solved, through the gains the frame's stages gave it (the
+        """(N, A, D) the frame's forward differences: `ahead`, the stream's provisional next frames'
+        differences from the frame it solved, through the gains the frame's stages gave it (the
         range filter's eased factors, a braking or starting body's stride, the drive's cadence
         and travel on the root's rates; the drive's added yaw and the range's and stride's centres
         do not move a difference), and the upper body where a gesture has it as the gesture's
@@ -541,7 +541,7 @@ class Engine:
             gain[:, : rates.start] *= stride
             gain[:, rates.stop:] *= stride
         gain[:, rates] *= (self.stream.cadence * self.units.travel)[:, None]
-        forward = gain * ahead
+        forward = gain[:, None] * ahead
         if self.gestures.crowd is not None:
             self.gestures.forward(forward)
         return forward
@@ -558,15 +558,15 @@ class Engine:
 
     def _next_of_whole(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Method "full": the walk's frames solved at once at the first call (with the tables as
-        the first controls set them), then handed out one by one, each with the next (the
-        stream's `ahead`; the last frame its own)."""
+        the first controls set them), then handed out one by one, each with the next two (the
+        stream's `ahead`; past the last frame, the last)."""
         if self._whole is None:
             ids = self.stream.state_plan(self.total_frames)
             stream = self.stream
             self._whole = mlpg(stream.means[0][ids], 1.0 / stream.precisions[0][ids]), ids
         static, ids = self._whole
         k = min(self.made, len(ids) - 1)
-        return static[k][None], ids[k:k + 1], static[min(k + 1, len(ids) - 1)][None]
+        return static[k][None], ids[k:k + 1], static[np.minimum([k + 1, k + 2], len(ids) - 1)][None]
 
     def sample(self, time_s: float, controls: Controls, spread: float = 0.0) -> np.ndarray:
         """Static features (N, D) at performance time `time_s`, making model frames as needed.

@@ -71,6 +71,7 @@ _NO_PAIRS = {"pair_keys": np.zeros(3, dtype=np.int64), "pair_rows": np.zeros((2,
 # or raise over the shipped model's walk passes through about 105 pairs of states; another model's
 # more pairs only empty it more often
 PAIR_SLOTS = 512
+AHEAD = 2  # the provisional frames after the one sent that a step keeps (`Crowd.ahead`: the tangent's, between.py)
 
 
 class WindowWork(NamedTuple):
@@ -174,10 +175,10 @@ class Crowd:
         self._made: tuple | None = None  # (what it was made from, the StreamTables record): `_record`
         self._advance = DirectCall(_advance)  # one core's frame: no dispatch a call (direct.py)
         self._parts_work: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}  # (fixed, k): part k's solver work
-        # (N, D) each character's provisional next frame: the second row of the window the last step
-        # solved (its look-ahead's first frame, before the rate limit; the frame itself without a
-        # look-ahead). What the engine reads the newest frame's tangent from (between.py), at no solve of its own
-        self.ahead = np.zeros((count, dimension))
+        # (N, AHEAD, D) each character's provisional next frames: the rows after the first of the window
+        # the last step solved (its look-ahead's first frames, before the rate limit; fewer with a
+        # shorter look-ahead). What the engine reads the newest frame's tangent from (between.py), at no solve of its own
+        self.ahead = np.zeros((count, min(AHEAD, lookahead), dimension))
 
     def start_at(self, phases: np.ndarray) -> None:
         """Each character begins at its own (label, state) of the step cycle, before its first
@@ -493,8 +494,8 @@ def _advance(tables, work, fixed, frames, ahead, limit_any):  # pragma: no cover
     """Plan, solve, rate-limit and commit one frame for every character of `tables` (a crowd or a
     part of one), in place. The solver reads each window's means and precisions from the
     character's lambda* tables (`rows`). `limit_any`: whether any character of the crowd has a
-    rate limit (then every frame goes through the limit's arithmetic). `ahead` (N, D) takes each
-    window's provisional next frame (`Crowd.ahead`)."""
+    rate limit (then every frame goes through the limit's arithmetic). `ahead` (N, A, D) takes each
+    window's provisional next A frames (`Crowd.ahead`)."""
     mean_own, mean_shared, precision_own, precision_shared = (tables.mean_own, tables.mean_shared, tables.precision_own,
                                                               tables.precision_shared)
     base, sigma, counters, carry, pool = tables.base, tables.sigma, tables.counters, tables.carry, tables.pool
@@ -540,7 +541,8 @@ def _advance(tables, work, fixed, frames, ahead, limit_any):  # pragma: no cover
             _gather(tables, n, rows[n], guest_rows[n], lo + a, lo + b, local[0], means[0], precisions[0])
             _solve(means, precisions, local, False, known[n : n + 1], fixed, solved, work1, work2, lo)
         frames[n] = solved[0, 0]
-        ahead[n] = solved[0, 1] if solved.shape[1] > 1 else solved[0, 0]
+        for j in range(ahead.shape[1]):
+            ahead[n, j] = solved[0, 1 + j]
     for n in range(count):
         for d in range(dimension):
             value = frames[n, d]
