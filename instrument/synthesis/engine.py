@@ -44,7 +44,7 @@ from ..motion.bvh import Motion
 from ..motion.features import FeatureLayout, forward_direction
 from ..motion.kinematics import ChannelStream, forward_kinematics, local_transforms
 from ..motion.limbs import units_to_metres
-from .between import Knots
+from .between import Knots, through_gains
 from .contact import ContactSpace, contact_space
 from .direct import DirectCall
 from .follow import strength as follow_strength
@@ -404,6 +404,8 @@ class Engine:
         # (N, A, D) the newest model frame's forward differences (its provisional next frames' differences
         # from it, through the stages' gains: `_forward`), made only when the output's rate is not the model's
         self.forward: np.ndarray | None = None
+        self._no_stride = np.ones(characters)  # the stride of a body neither braking nor starting
+        self._no_factor = np.ones((0, 0))  # the range factors of a model without the range stage (none read)
         self.made = 0  # model frames made
         self._unit_span = 2 * model.states  # states a unit's two labels hold
         self._stand_means: np.ndarray | None = None  # (N, D) `_stand_pose` as of the last retune (None: not made)
@@ -511,7 +513,7 @@ class Engine:
             frames = self.gestures.after(frames, ids)
             self._timed("gestures")
         if self.fps != self.model.fps:  # sampled between model frames: the tangent's forward difference
-            self.forward = self._forward(ahead - solved[:, None])
+            self.forward = self._forward(ahead, solved)
             self._timed("between")
         self.frame_ids = ids
         if self.contact is not None:
@@ -525,23 +527,19 @@ class Engine:
         self.made += 1
         return frames
 
-    def _forward(self, ahead: np.ndarray) -> np.ndarray:
-        """(N, A, D) the frame's forward differences: `ahead`, the stream's provisional next frames'
-        differences from the frame it solved, through the gains the frame's stages gave it (the
+    def _forward(self, ahead: np.ndarray, solved: np.ndarray) -> np.ndarray:
+        """(N, A, D) the frame's forward differences: `ahead`, the stream's provisional next frames,
+        less the frame it solved (`solved`), through the gains the frame's stages gave it (the
         range filter's eased factors, a braking or starting body's stride, the drive's cadence
         and travel on the root's rates; the drive's added yaw and the range's and stride's centres
         do not move a difference), and the upper body where a gesture has it as the gesture's
         (`GestureLayer.forward`). The stages' parameters as this frame has them: the next frame's
         ease on from there, which the tangent does not need to know of."""
-        gain = np.ones(ahead.shape) if self.range_filter is None else self.range_filter.factor.copy()
-        gain[:, KEPT_FROM:KEPT_TO] = 1.0  # the range filter keeps the root's rates as made
-        rates = slice(*ROOT_RATES)
-        if self.units.shortening:
-            stride = self.units.stride[:, None]
-            gain[:, : rates.start] *= stride
-            gain[:, rates.stop:] *= stride
-        gain[:, rates] *= (self.stream.cadence * self.units.travel)[:, None]
-        forward = gain[:, None] * ahead
+        ranged = self.range_filter is not None
+        stride = self.units.stride if self.units.shortening else self._no_stride
+        forward = np.empty(ahead.shape)
+        through_gains(ahead, solved, self.range_filter.factor if ranged else self._no_factor, ranged, KEPT_FROM,
+                      KEPT_TO, stride, *ROOT_RATES, self.stream.cadence * self.units.travel, forward)
         if self.gestures.crowd is not None:
             self.gestures.forward(forward)
         return forward
