@@ -356,7 +356,8 @@ def shortened(frames: np.ndarray, stand: np.ndarray, stride: np.ndarray) -> np.n
 
 class Engine:
     """N characters walking from one performance's controls, sampled at `fps` (the model's rate
-    unless given; other rates interpolate the model's frames), posed with planted feet.
+    unless given; other rates sample a cubic curve through the model's frames, between.py), posed
+    with planted feet.
 
     `method="full"` (offline only: one character, constant controls, `frames` known) solves one
     MLPG over the whole walk in place of the stream; every other stage is the same. `lookahead`:
