@@ -62,24 +62,24 @@ def through_gains(ahead, solved, factor, ranged, kept_from, kept_to, stride, rat
 
 
 @njit(cache=True, nogil=True)
-def tangent(frame, past, known, forward, out):  # pragma: no cover - compiled
+def tangent(frame, previous, before, known, forward, out):  # pragma: no cover - compiled
     """out (N, D): the tangent (per model frame) at `frame` (N, D), from the `known` frames before
-    it (`past` (2, N, D): p[k-1], p[k-2]; 0 to 2 of them) and `forward` (N, A, D), the provisional
-    next A frames' differences from it: the five-point central difference where two frames are
-    known on each side, else the three-point one (Catmull-Rom's), else the one-sided difference
-    there is (0 with none)."""
+    it (0 to 2 of `previous`, p[k-1], and `before`, p[k-2]; each (N, D), read only when known) and
+    `forward` (N, A, D), the provisional next A frames' differences from it: the five-point central
+    difference where two frames are known on each side, else the three-point one (Catmull-Rom's),
+    else the one-sided difference there is (0 with none)."""
     ahead = forward.shape[1]
     for n in range(frame.shape[0]):
         for d in range(frame.shape[1]):
             p = frame[n, d]
             if known >= 2 and ahead >= 2:
-                out[n, d] = (8.0 * (forward[n, 0, d] + (p - past[0, n, d])) - (forward[n, 1, d] + (p - past[1, n, d]))) / 12.0
+                out[n, d] = (8.0 * (forward[n, 0, d] + (p - previous[n, d])) - (forward[n, 1, d] + (p - before[n, d]))) / 12.0
             elif known >= 1 and ahead >= 1:
-                out[n, d] = 0.5 * (forward[n, 0, d] + (p - past[0, n, d]))
+                out[n, d] = 0.5 * (forward[n, 0, d] + (p - previous[n, d]))
             elif ahead >= 1:
                 out[n, d] = forward[n, 0, d]
             elif known >= 1:
-                out[n, d] = p - past[0, n, d]
+                out[n, d] = p - previous[n, d]
             else:
                 out[n, d] = 0.0
 
@@ -109,8 +109,8 @@ class Knots:
         made = None
         if forward is not None:
             made = np.empty(frame.shape)
-            past = self.frames[::-1][:2]
-            tangent(frame, np.array(past) if past else np.empty((0,) + frame.shape), len(past), forward, made)
+            past = (self.frames[::-1] + [frame, frame])[:2]  # p[k-1], p[k-2] (the frame itself where not known: unread)
+            tangent(frame, past[0], past[1], min(len(self.frames), 2), forward, made)
         self.frames = (self.frames + [frame])[-3:]
         self.tangents = (self.tangents + [made])[-2:]
 
