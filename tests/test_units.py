@@ -170,7 +170,7 @@ def _engine_frames(model, plan: list[tuple[int, int]], characters: int = 1, turn
             coming.append(engine.stream.counters[:, UNIT].copy())
             labels.append(engine.frame_ids // model.states)  # the label of the frame made
             states.append(engine.stream.counters[:, STATE].copy())
-            speeds.append(np.hypot(engine.frames[-1][:, 1], engine.frames[-1][:, 2]))
+            speeds.append(np.hypot(engine.knots.frames[-1][:, 1], engine.knots.frames[-1][:, 2]))
     return engine, np.array(units), np.array(coming), np.array(labels), np.array(states), np.array(speeds)
 
 

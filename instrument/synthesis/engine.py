@@ -44,6 +44,7 @@ from ..motion.bvh import Motion
 from ..motion.features import FeatureLayout, forward_direction
 from ..motion.kinematics import ChannelStream, forward_kinematics, local_transforms
 from ..motion.limbs import units_to_metres
+from .between import Knots, through_gains
 from .contact import ContactSpace, contact_space
 from .direct import DirectCall
 from .follow import strength as follow_strength
@@ -56,7 +57,7 @@ from .posing import CrowdPose, CrowdPoses
 from .stream import Controls, Crowd
 from .units import UnitChooser
 from .cores import over_cores, parts
-from .widen import RangeFilter, RangeSpace, range_part, range_space, stride_means, unit_targets
+from .widen import KEPT_FROM, KEPT_TO, RangeFilter, RangeSpace, range_part, range_space, stride_means, unit_targets
 
 ROOT_RATES = (1, 4)  # [first, last) of root.vx, root.vz, root.yaw_rate in the static features
 # a crowd of up to this many characters takes its range targets and contact shares from tables
@@ -355,7 +356,8 @@ def shortened(frames: np.ndarray, stand: np.ndarray, stride: np.ndarray) -> np.n
 
 class Engine:
     """N characters walking from one performance's controls, sampled at `fps` (the model's rate
-    unless given; other rates interpolate the model's frames), posed with planted feet.
+    unless given; other rates sample a cubic curve through the model's frames, between.py), posed
+    with planted feet.
 
     `method="full"` (offline only: one character, constant controls, `frames` known) solves one
     MLPG over the whole walk in place of the stream; every other stage is the same. `lookahead`:
@@ -399,7 +401,12 @@ class Engine:
         self.mix: Mix | None = None  # every character's weights, as last retuned
         self._style: tuple | None = None  # what the style features' tables were made for (weights, parts, spread)
         self._pace: tuple | None = None  # and the durations (speed, phase stretch, liveliness)
-        self.frames: list[np.ndarray] = []  # the last two model frames (N, D), driven
+        self.knots = Knots()  # the last two model frames (N, D), driven, and their tangents: what `sample` plays
+        # (N, A, D) the newest model frame's forward differences (its provisional next frames' differences
+        # from it, through the stages' gains: `_forward`), made only when the output's rate is not the model's
+        self.forward: np.ndarray | None = None
+        self._no_stride = np.ones(characters)  # the stride of a body neither braking nor starting
+        self._no_factor = np.ones((0, 0))  # the range factors of a model without the range stage (none read)
         self.made = 0  # model frames made
         self._unit_span = 2 * model.states  # states a unit's two labels hold
         self._stand_means: np.ndarray | None = None  # (N, D) `_stand_pose` as of the last retune (None: not made)
@@ -476,10 +483,12 @@ class Engine:
             self.gestures.begin(controls.gestures, gait)
             self._timed("gestures")
         if self.method == "full":
-            frames, ids = self._next_of_whole()
+            frames, ids, ahead = self._next_of_whole()
         else:
             frames = self.stream.step()
             ids = self.stream.history_ids[:, 1]
+            ahead = self.stream.ahead
+        solved = frames
         self._timed("stream")
         span = self._unit_span  # each frame's unit (one character's by Python's division: numpy's cost 1 us)
         units = [int(ids[0]) // span] if self.count == 1 else ids // span
@@ -504,6 +513,9 @@ class Engine:
         if self.gestures.crowd is not None:
             frames = self.gestures.after(frames, ids)
             self._timed("gestures")
+        if self.fps != self.model.fps:  # sampled between model frames: the tangent's forward difference
+            self.forward = self._forward(ahead, solved)
+            self._timed("between")
         self.frame_ids = ids
         if self.contact is not None:
             self.contact_shares = self.contact.at(ids)
@@ -516,6 +528,23 @@ class Engine:
         self.made += 1
         return frames
 
+    def _forward(self, ahead: np.ndarray, solved: np.ndarray) -> np.ndarray:
+        """(N, A, D) the frame's forward differences: `ahead`, the stream's provisional next frames,
+        less the frame it solved (`solved`), through the gains the frame's stages gave it (the
+        range filter's eased factors, a braking or starting body's stride, the drive's cadence
+        and travel on the root's rates; the drive's added yaw and the range's and stride's centres
+        do not move a difference), and the upper body where a gesture has it as the gesture's
+        (`GestureLayer.forward`). The stages' parameters as this frame has them: the next frame's
+        ease on from there, which the tangent does not need to know of."""
+        ranged = self.range_filter is not None
+        stride = self.units.stride if self.units.shortening else self._no_stride
+        forward = np.empty(ahead.shape)
+        through_gains(ahead, solved, self.range_filter.factor if ranged else self._no_factor, ranged, KEPT_FROM,
+                      KEPT_TO, stride, *ROOT_RATES, self.stream.cadence * self.units.travel, forward)
+        if self.gestures.crowd is not None:
+            self.gestures.forward(forward)
+        return forward
+
     def _stand_pose(self) -> np.ndarray:
         """(N, D) what each character's stand averages over its two pieces (its stride mean), as
         the tables stand since the last retune: where a braking body's steps are drawn to."""
@@ -526,30 +555,30 @@ class Engine:
                                              tables.mean_shared[rows])
         return self._stand_means
 
-    def _next_of_whole(self) -> tuple[np.ndarray, np.ndarray]:
+    def _next_of_whole(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Method "full": the walk's frames solved at once at the first call (with the tables as
-        the first controls set them), then handed out one by one."""
+        the first controls set them), then handed out one by one, each with the next two (the
+        stream's `ahead`; past the last frame, the last)."""
         if self._whole is None:
             ids = self.stream.state_plan(self.total_frames)
             stream = self.stream
             self._whole = mlpg(stream.means[0][ids], 1.0 / stream.precisions[0][ids]), ids
         static, ids = self._whole
         k = min(self.made, len(ids) - 1)
-        return static[k][None], ids[k:k + 1]
+        return static[k][None], ids[k:k + 1], static[np.minimum([k + 1, k + 2], len(ids) - 1)][None]
 
     def sample(self, time_s: float, controls: Controls, spread: float = 0.0) -> np.ndarray:
         """Static features (N, D) at performance time `time_s`, making model frames as needed.
 
         At the model's own rate this is exactly the newest frame (no added latency); between
-        model frames it interpolates the two around `time_s`."""
+        model frames it is on the cubic Hermite curve through the two around `time_s`, the
+        newest's tangent from the stream's provisional next frame (between.py: continuous
+        velocity, no frame of latency added)."""
         position = time_s * self.model.fps
         newest = self._newest(time_s)
         while self.made <= newest:
-            self.frames = (self.frames + [self.next_features(controls, spread)])[-2:]
-        fraction = position - (newest - 1)
-        if fraction >= 1.0 - 1e-9 or len(self.frames) == 1:
-            return self.frames[-1]
-        return self.frames[0] + (self.frames[1] - self.frames[0]) * fraction
+            self.knots.add(self.next_features(controls, spread), self.forward)
+        return self.knots.at(position - (newest - 1))
 
     def _newest(self, time_s: float) -> int:
         """The model frame the pose at performance time `time_s` needs last."""

@@ -208,6 +208,19 @@ class GestureLayer:
         self.seen = min(self.seen + 1, 2)
         return frames
 
+    def forward(self, forward: np.ndarray) -> None:
+        """The frame's forward differences (N, A, D: the provisional next frames' differences from
+        the frame, between.py) with the upper body moved each character's weight towards the gesture's,
+        as `after` layered the frame (in place; call after it): the gesture stream's provisional next
+        frame, its own window's or, while the gait's solve makes its frame, the gait's."""
+        if not self.blending:
+            return
+        crowd, solved = self.crowd, self.solved
+        ahead = crowd.ahead if self.host is None else self.host.ahead[:, :, solved]
+        gesture = ahead - crowd.history[:, 1:]  # from the gesture's frame as shown: its stream's newest
+        columns = self.columns
+        forward[:, :, columns] += self.weights[:, None, None] * (gesture[:, :, columns - solved.start] - forward[:, :, columns])
+
     def _start(self, name: str) -> None:
         crowd = self.crowd
         first = self.labels[name][0]

@@ -71,6 +71,7 @@ _NO_PAIRS = {"pair_keys": np.zeros(3, dtype=np.int64), "pair_rows": np.zeros((2,
 # or raise over the shipped model's walk passes through about 105 pairs of states; another model's
 # more pairs only empty it more often
 PAIR_SLOTS = 512
+AHEAD = 2  # the provisional frames after the one sent that a step keeps (`Crowd.ahead`: the tangent's, between.py)
 
 
 class WindowWork(NamedTuple):
@@ -174,6 +175,10 @@ class Crowd:
         self._made: tuple | None = None  # (what it was made from, the StreamTables record): `_record`
         self._advance = DirectCall(_advance)  # one core's frame: no dispatch a call (direct.py)
         self._parts_work: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}  # (fixed, k): part k's solver work
+        # (N, AHEAD, D) each character's provisional next frames: the rows after the first of the window
+        # the last step solved (its look-ahead's first frames, before the rate limit; fewer with a
+        # shorter look-ahead). What the engine reads the newest frame's tangent from (between.py), at no solve of its own
+        self.ahead = np.zeros((count, min(AHEAD, lookahead), dimension))
 
     def start_at(self, phases: np.ndarray) -> None:
         """Each character begins at its own (label, state) of the step cycle, before its first
@@ -311,14 +316,15 @@ class Crowd:
         limited = bool(ratios[0] > 0) if self.count == 1 else bool((ratios > 0).any())
         cut = parts(self.count)
         if len(cut) == 1:  # one core's worth (one character): no parts to cut
-            self._advance((tables, buffers), tables, buffers, fixed, frames, limited)
+            self._advance((tables, buffers), tables, buffers, fixed, frames, self.ahead, limited)
             self.sent += 1
             return frames
         for k in range(1, len(cut)):  # each part's own solver work (the first's is the buffers')
             if (fixed, k) not in self._parts_work:
                 self._parts_work[fixed, k] = np.zeros_like(buffers.work1), np.zeros_like(buffers.work2)
         over_cores(_advance, [(tables.part(start, stop), buffers.part(start, stop, self._parts_work.get((fixed, k))),
-                               fixed, frames[start:stop], limited) for k, (start, stop) in enumerate(cut)])
+                               fixed, frames[start:stop], self.ahead[start:stop], limited)
+                              for k, (start, stop) in enumerate(cut)])
         self.sent += 1
         return frames
 
@@ -484,11 +490,12 @@ def _finish(counter, carry, n, carry_out, states):  # pragma: no cover - compile
 
 
 @njit(cache=True, nogil=True)
-def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - compiled
+def _advance(tables, work, fixed, frames, ahead, limit_any):  # pragma: no cover - compiled
     """Plan, solve, rate-limit and commit one frame for every character of `tables` (a crowd or a
     part of one), in place. The solver reads each window's means and precisions from the
     character's lambda* tables (`rows`). `limit_any`: whether any character of the crowd has a
-    rate limit (then every frame goes through the limit's arithmetic)."""
+    rate limit (then every frame goes through the limit's arithmetic). `ahead` (N, A, D) takes each
+    window's provisional next A frames (`Crowd.ahead`)."""
     mean_own, mean_shared, precision_own, precision_shared = (tables.mean_own, tables.mean_shared, tables.precision_own,
                                                               tables.precision_shared)
     base, sigma, counters, carry, pool = tables.base, tables.sigma, tables.counters, tables.carry, tables.pool
@@ -534,6 +541,8 @@ def _advance(tables, work, fixed, frames, limit_any):  # pragma: no cover - comp
             _gather(tables, n, rows[n], guest_rows[n], lo + a, lo + b, local[0], means[0], precisions[0])
             _solve(means, precisions, local, False, known[n : n + 1], fixed, solved, work1, work2, lo)
         frames[n] = solved[0, 0]
+        for j in range(ahead.shape[1]):
+            ahead[n, j] = solved[0, 1 + j]
     for n in range(count):
         for d in range(dimension):
             value = frames[n, d]
