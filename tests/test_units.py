@@ -67,6 +67,26 @@ def test_a_manifest_says_each_takes_unit_and_a_bad_one_names_its_line(tmp_path):
     assert [t.unit for t in read_manifest(tmp_path / "m.toml")] == ["turn-left", "walk"]
 
 
+@pytest.mark.parametrize("name, text, where", [
+    ("units.csv", "file,style,units\na.bvh,calm,walk\nb.bvh,calm,run\n", ":1: a CSV manifest starts with the header"),
+    ("two.csv", "file,style\na.bvh,calm\nb.bvh,calm,run\n", ":3: 3 fields, but the header 'file,style' names 2"),
+    ("four.csv", "file,style,unit\na.bvh,calm,walk\nb.bvh,calm,run,fast\n", ":3: 4 fields"),
+    ("units.toml", '[[take]]\nfile = "a.bvh"\nstyle = "calm"\n[[take]]\nfile = "b.bvh"\nstyle = "calm"\nunits = "run"\n',
+     ": take 2: unknown key 'units'"),
+])
+def test_a_manifest_column_or_key_it_does_not_read_is_refused_at_its_line(tmp_path, name, text, where):
+    """A unit column misspelt (`units`), a row with a unit under a header without one, or a
+    [[take]] key misspelt was dropped unread: the run trained as a walk, silently."""
+    for take in ("a.bvh", "b.bvh"):
+        (tmp_path / take).touch()
+    (tmp_path / name).write_text(text)
+    with pytest.raises(UserError) as refused:
+        read_manifest(tmp_path / name)
+    assert str(refused.value).startswith(f"{tmp_path / name}{where}"), refused.value
+    (tmp_path / "spreadsheet.csv").write_text("file,style,unit,\na.bvh,calm,run,\nb.bvh,calm,,\n")  # empty trailing columns
+    assert [t.unit for t in read_manifest(tmp_path / "spreadsheet.csv")] == ["run", "walk"]
+
+
 @needs_motions
 def test_styled_takes_of_the_motions_folder_hold_every_unit():
     units = {t.unit for t in styled_takes([MOTIONS])}
