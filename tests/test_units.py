@@ -8,6 +8,7 @@ with an independent BVH reader.
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -85,6 +86,26 @@ def test_a_manifest_column_or_key_it_does_not_read_is_refused_at_its_line(tmp_pa
     assert str(refused.value).startswith(f"{tmp_path / name}{where}"), refused.value
     (tmp_path / "spreadsheet.csv").write_text("file,style,unit,\na.bvh,calm,run,\nb.bvh,calm,,\n")  # empty trailing columns
     assert [t.unit for t in read_manifest(tmp_path / "spreadsheet.csv")] == ["run", "walk"]
+
+
+@pytest.mark.parametrize("style", ["old/man", "Old Man", "old.man", "a=b", "calm#1"])
+def test_a_style_the_controls_cannot_name_is_refused_at_its_line(tmp_path, style):
+    """A style is a control target's part (`style/<name>`, `part/<name>/legs`), an OSC address's
+    and synth's `--style NAME.PART=W`: a manifest's `old/man` trained a model `run` crashed on
+    (KeyError 'old' as the state read style/old/man), `Old Man` one no OSC surface could set."""
+    (tmp_path / "a.bvh").touch()
+    (tmp_path / "m.csv").write_text(f"file,style\na.bvh,{style}\n")
+    with pytest.raises(UserError, match=rf"^{re.escape(str(tmp_path / 'm.csv'))}:2: style .* is not a name of letters"):
+        read_manifest(tmp_path / "m.csv")
+    (tmp_path / "m.toml").write_text(f'[[take]]\nfile = "a.bvh"\nstyle = "{style}"\n')
+    with pytest.raises(UserError, match=r": take 1: style .* is not a name of letters"):
+        read_manifest(tmp_path / "m.toml")
+    (tmp_path / "old man.5_1.bvh").touch()  # --style-from's group finds 'old man.5'
+    with pytest.raises(UserError, match=r"old man\.5_1\.bvh: --style-from: style 'old man\.5' is not a name"):
+        styled_takes([tmp_path / "old man.5_1.bvh"], r"^(.*)_\d+$")
+    for fine in ("not-confident", "old_man", "Proud2", "älter"):
+        (tmp_path / "m.csv").write_text(f"file,style\na.bvh,{fine}\n")
+        assert read_manifest(tmp_path / "m.csv")[0].style == fine
 
 
 @needs_motions

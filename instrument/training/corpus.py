@@ -19,6 +19,7 @@ from ..motion.gestures import gesture_phases
 from ..motion.standing import standing_steps
 from ..motion.steps import LABELS, segment_steps
 from ..motion.upright import upright
+from ..models.modelfile import style_name_problem
 from ..models.units import UNITS
 from ..textfile import read_text
 from ..tomlfile import read_toml
@@ -67,7 +68,16 @@ def style_from_name(path: Path, pattern: str) -> str:
     match = re.search(pattern, path.stem)
     if not match or not match.groups() or not match.group(1):
         raise UserError(f"{path}: cannot read a style from the name with the pattern {pattern!r} (give --style-from or a manifest)")
-    return match.group(1).lower()
+    return checked_style(f"{path}: --style-from", match.group(1).lower())
+
+
+def checked_style(where: str, style: str) -> str:
+    """A style read from a name or a manifest, or an error naming where: a style the live controls
+    could not address (`old/man`, `Old Man`) is refused before any take is read."""
+    problem = style_name_problem(style)
+    if problem:
+        raise UserError(f"{where}: {problem}")
+    return style
 
 
 def bvh_files(paths: list[str] | list[Path]) -> list[Path]:
@@ -115,7 +125,8 @@ def read_manifest(path: Path) -> list[TakeFile]:
             unit = take.get("unit", "walk")
             if not isinstance(unit, str):
                 raise UserError(f"{path}: take {k}: 'unit' is a string ({', '.join(UNITS)})")
-            pairs.append(TakeFile(_listed_file(base, take["file"], f"{path}: take {k}"), take["style"],
+            pairs.append(TakeFile(_listed_file(base, take["file"], f"{path}: take {k}"),
+                                  checked_style(f"{path}: take {k}", take["style"]),
                                   checked_unit(f"{path}: take {k}", unit)))
         return pairs
     text = read_text(path)
@@ -140,7 +151,8 @@ def read_manifest(path: Path) -> list[TakeFile]:
         if len(row) > len(header) and "".join(row[len(header):]).strip():
             raise located(path, f"{len(row)} fields, but the header {quoted(','.join(rows[0]))} names {len(header)}", number)
         unit = row[2].strip() if with_units and len(row) > 2 and row[2].strip() else "walk"
-        pairs.append(TakeFile(_listed_file(base, row[0].strip(), f"{path}:{number}"), row[1].strip(),
+        pairs.append(TakeFile(_listed_file(base, row[0].strip(), f"{path}:{number}"),
+                              checked_style(f"{path}:{number}", row[1].strip()),
                               checked_unit(f"{path}:{number}", unit)))
     return pairs
 
