@@ -44,6 +44,11 @@ needs_motions = pytest.mark.skipif(not MOTIONS.is_dir(), reason=f"runs, turns an
     ("walk_not-confident_001", "walk"),
     ("style2_take3", "walk"),  # a name that says nothing is a walk, as every corpus before units
     ("01_01", "walk"),
+    ("me_WalkTurnLeft_proud_1", "turn-left"),  # a word starts at a capital
+    ("me_Running_proud_1", "run"),
+    ("me_forest-walk_proud_1", "walk"),  # "rest" inside a word is none: it was a stand
+    ("me_walk-brunch_proud_1", "walk"),  # "run" inside a word: it was a run
+    ("me_praise-walk_proud_1", "walk"),  # "raise" inside a word: it was a stand
 ])
 def test_the_unit_is_read_from_the_file_name(name, unit):
     assert unit_from_name(Path(name + ".bvh")) == unit
