@@ -43,7 +43,7 @@ BROKEN = {  # what is broken: (the change, what the one line says)
     "styles repeated": (set_entry("styles", ["a"] * 7), "metadata 'styles'"),
     # a style the live controls cannot address: `run` crashed on style/old/man (KeyError 'old')
     "style with a slash": (set_entry("styles", ["active", "old/man", "exhausted", "feminine", "masculine", "normal", "youthful"]),
-                           "metadata 'styles': style 'old/man' is not a name"),
+                           "metadata 'styles': expected names without '/'"),
     "skeleton empty": (set_entry("skeleton", {}), "metadata 'skeleton' or 'features'"),
     "skeleton missing": (drop_entry("skeleton"), "metadata lacks 'skeleton'"),
     "joint parent past the end": (lambda m: m["skeleton"]["joints"][3].__setitem__("parent", 99), "joint 3"),

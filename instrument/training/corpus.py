@@ -19,7 +19,6 @@ from ..motion.gestures import gesture_phases
 from ..motion.standing import standing_steps
 from ..motion.steps import LABELS, segment_steps
 from ..motion.upright import upright
-from ..models.modelfile import style_name_problem
 from ..models.units import UNITS
 from ..textfile import read_text
 from ..tomlfile import read_toml
@@ -28,6 +27,10 @@ from .units import checked_unit, gesture_from_name, turn_as_taken, unit_from_nam
 # the last but one "_"-separated part, starting with a letter: dataset-2_walk_elderly_003 -> elderly,
 # walk_not-confident_001 -> not-confident, style2_take3 -> style2
 DEFAULT_STYLE_PATTERN = r"(?:^|_)([A-Za-z][A-Za-z0-9-]*)_[^_]*$"
+# a style's name is part of control targets (`style/<name>`, `part/<name>/legs`), of OSC addresses
+# (`/walk/style/<name>`) and of synth's `--style NAME.PART=W`: a '/', '.', '=', space or OSC's
+# pattern characters in it would make them name something else
+STYLE_NAME = re.compile(r"[\w-]+")
 # a manifest's columns (CSV) or a [[take]]'s keys (TOML); 'unit' may be left out (a walk)
 MANIFEST_COLUMNS = ("file", "style", "unit")
 
@@ -74,9 +77,9 @@ def style_from_name(path: Path, pattern: str) -> str:
 def checked_style(where: str, style: str) -> str:
     """A style read from a name or a manifest, or an error naming where: a style the live controls
     could not address (`old/man`, `Old Man`) is refused before any take is read."""
-    problem = style_name_problem(style)
-    if problem:
-        raise UserError(f"{where}: {problem}")
+    if not STYLE_NAME.fullmatch(style):
+        raise UserError(f"{where}: style {quoted(style)} is not a name of letters, digits, '-' and '_' "
+                        "(it names the control target style/<name>)")
     return style
 
 
