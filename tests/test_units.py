@@ -513,6 +513,24 @@ def test_synth_says_when_a_model_has_no_unit_for_the_gait_and_writes_its_walk(mo
     assert len(world_positions(tmp_path / "run.bvh")[1]) == 2 * model.fps  # the walk, written whole
     done = _synth(tmp_path, "--model", "walks.npz", "--gait", "walk", "--seconds", "2", "--out", "walk.bvh")
     assert "unit" not in done.stderr, done.stderr
+    # steered, a walk of a model without turning steps turns by yaw rate alone: said, as the gait is
+    done = _synth(tmp_path, "--model", "walks.npz", "--turn", "1", "--seconds", "2", "--out", "turn.bvh")
+    assert done.returncode == 0, done.stderr
+    assert "--turn 1: this model has no turn-left unit (it has walk); its walk is steered without turning steps" \
+        in done.stderr
+    names, positions, _ = world_positions(tmp_path / "turn.bvh")
+    heading = np.diff(positions[[30, -1]][:, names.index("Hips"), [0, 2]], axis=0)[0]
+    assert abs(np.degrees(np.arctan2(heading[1], heading[0])) - np.degrees(np.arctan2(1.0, 0.0))) > 10  # it turned
+    done = _synth(tmp_path, "--turn", "1", "--seconds", "2", "--out", "shipped.bvh")  # the shipped model has them
+    assert "turn" not in done.stderr, done.stderr
+    # and live, once, on the console, the show going on: a score steering the walk right
+    (tmp_path / "steer.toml").write_text("[[cue]]\nat = 0.5\nramp = { turn = -1 }\n[[cue]]\nhold = 1\n")
+    done = subprocess.run([sys.executable, "-m", "instrument", "run", "--model", "walks.npz", "--score", "steer.toml",
+                           "--fast", "--no-osc"], capture_output=True, text=True, cwd=tmp_path, timeout=900)
+    assert done.returncode == 0, done.stderr
+    said = [line for line in (done.stdout + done.stderr).splitlines() if "turn-right" in line]
+    assert said == ["warning: turn: this model has no turn-right unit (it has walk); its walk is steered without "
+                    "turning steps"], done.stdout + done.stderr
 
 
 @pytest.mark.parametrize("going_frames", [25, 35])  # its first step begins 19 frames on: stopped at levels 0.29 and 0.78
