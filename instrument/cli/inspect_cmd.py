@@ -70,7 +70,8 @@ def _text(info: dict) -> str:
         f"  frames   {info['frames']} at {info['fps']:g} fps, {info['duration']:.2f} s",
         f"  unit     {info['unit']}, style {info['style'] or '(none in the name: give train --style-from or a manifest)'}"
         " (read from the name, as train does by default)",
-        f"  {'stills' if info['unit'] == 'stand' else 'steps '}   {len(steps)}, mean {mean:.1f} frames ({mean / info['fps']:.2f} s)"
+        f"  {'stills' if info['unit'] == 'stand' else 'steps '}   {len(steps)}, mean {mean:.1f} frames "
+        f"({mean / info['fps']:.2f} s)"
         + ("; pieces of still standing with the arms down" if info["unit"] == "stand" else
            f"; feet {' / '.join(info['feet']) or 'not found'}"),
     ]
