@@ -338,7 +338,9 @@ class FootLock:
         f = stepping[0]
         before = EASE(self.settling[f])
         self.settling[f] = min(self.settling[f] + 1.0 / (SETTLE_SECONDS * self.fps), 1.0)
-        keep = (1.0 - EASE(self.settling[f])) / (1.0 - before)
+        if self.settling[f] > 1.0 - 1e-9:  # n steps of 1 / n summing a hair under 1 end the step
+            self.settling[f] = 1.0
+        keep = (1.0 - EASE(self.settling[f])) / (1.0 - before) if before < 1.0 else 0.0
         goal = world_pos[self.pivot[f]]
         self.lock[f][[0, 2]] = goal[[0, 2]] + (self.lock[f] - goal)[[0, 2]] * keep
         turn = (self.heading[f] - _heading(world_rot, self.limbs.legs[f], self.across[f]) + np.pi) % (2 * np.pi) - np.pi

@@ -1,6 +1,7 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 from samples import cmu_style_walk
 
@@ -193,3 +194,26 @@ def test_a_bug_after_a_jack_restart_prints_its_traceback_and_ends_at_once():
     assert result.returncode == 1
     assert "RuntimeError: a bug" in result.stderr and "buggy_command" in result.stderr
     assert "teardown" not in result.stdout
+
+
+def test_inspect_says_each_takes_unit_and_style_and_cuts_a_stand_as_training_does(tmp_path):
+    """The README's `inspect` "says what it found (steps, units, problems)": it said no unit, and
+    called every standing take "not a walk" (its feet never pass) though training reads it as a
+    stand, cut into pieces of still standing."""
+    from conftest import REPO
+    motions = REPO.parent / "shared" / "data" / "bandai-motions"
+    if not motions.is_dir():
+        import pytest
+        pytest.skip(f"standing takes not found in {motions}")
+    stand = tmp_path / "me_idle_proud_001.bvh"  # a standing take under a name of the user's
+    stand.write_text((motions / "dataset-2_wave-both-hands_active_001.bvh").read_text())
+    text, _ = cmu_style_walk(fps=30)
+    (tmp_path / "walk7.bvh").write_text(text)  # no style in the name: said so, not an error
+    result = run("inspect", "--json", str(tmp_path))
+    assert result.returncode == 0, result.stderr
+    found = {Path(info["file"]).name: info for info in json.loads(result.stdout)}
+    assert found["me_idle_proud_001.bvh"]["unit"] == "stand" and found["me_idle_proud_001.bvh"]["style"] == "proud"
+    assert found["me_idle_proud_001.bvh"]["steps"] and not found["me_idle_proud_001.bvh"]["warnings"]
+    assert found["walk7.bvh"]["unit"] == "walk" and found["walk7.bvh"]["style"] is None
+    text = run("inspect", str(tmp_path)).stdout
+    assert "unit     stand, style proud" in text and "not a walk" not in text and "style (none in the name" in text

@@ -330,3 +330,27 @@ def test_a_bad_number_is_told_the_range_of_its_message(tmp_path, message, number
     with pytest.raises(UserError) as error:
         load_mapping(path, state())
     assert str(error.value) == f"{path}:5: number: expected a whole number from 0 to {limit}"
+
+
+@pytest.mark.parametrize("file, control", [("generic-8-faders.toml", "cc/1/16"), ("behringer-x-touch-mini.toml", "cc/11/10"),
+                                           ("novation-launch-control-xl.toml", "cc/9/20")])
+def test_a_fader_on_the_gait_stands_walks_and_runs_in_its_thirds(file, control):
+    """The docs and the shipped mappings give the gait a fader's thirds; a linear [0, 2] read
+    by the nearest whole value gave a quarter, a half and a quarter (CC 40 of 127, past the first
+    third, stood; CC 90, past the second, walked). Its feedback stands it in the zone it set."""
+    from instrument.control.feedback import raw_values
+
+    state = ControlState(["active", "elderly"], 5)
+    mapper = Mapper(load_mapping(REPO / "mappings" / file, state))
+    spec = next(s for s in mapper.mapping.controls if s.target == "gait")
+    channel, number = int(control.split("/")[1]), int(control.split("/")[2])
+    assert (spec.channel, spec.number) == (channel, number)
+    play_mapped(mapper, state, ControlEvent(0.0, "midi:x", control, 64))  # pick-up learns where it is: at walk
+    for k, cc in enumerate(range(64, -1, -1), 1):  # slowly down to the bottom, then up to the top
+        play_mapped(mapper, state, ControlEvent(k, "midi:x", control, cc))
+        assert state.snapshot().gait == min(cc * 3 // 127, 2), cc
+    for k, cc in enumerate(range(128), 100):
+        play_mapped(mapper, state, ControlEvent(k, "midi:x", control, cc))
+        assert state.snapshot().gait == min(cc * 3 // 127, 2), cc
+        sent = raw_values(spec, state.get("gait"))[0][2]  # what its feedback would send back
+        assert min(sent * 3 // 127, 2) == state.snapshot().gait, (cc, sent)

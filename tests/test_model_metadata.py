@@ -41,6 +41,9 @@ BROKEN = {  # what is broken: (the change, what the one line says)
     "states a fraction": (set_entry("states", 5.5), "metadata 'states'"),
     "labels numbers": (set_entry("labels", [1, 2]), "metadata 'labels'"),
     "styles repeated": (set_entry("styles", ["a"] * 7), "metadata 'styles'"),
+    # a style the live controls cannot address: `run` crashed on style/old/man (KeyError 'old')
+    "style with a slash": (set_entry("styles", ["active", "old/man", "exhausted", "feminine", "masculine", "normal", "youthful"]),
+                           "metadata 'styles': expected names without '/'"),
     "skeleton empty": (set_entry("skeleton", {}), "metadata 'skeleton' or 'features'"),
     "skeleton missing": (drop_entry("skeleton"), "metadata lacks 'skeleton'"),
     "joint parent past the end": (lambda m: m["skeleton"]["joints"][3].__setitem__("parent", 99), "joint 3"),

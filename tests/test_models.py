@@ -182,6 +182,40 @@ def test_manifest_names_styles_and_other_conventions_train(tmp_path, kind):
         assert chosen["min_duration"] == pytest.approx(model.style(style).duration_means.min())
 
 
+def test_a_unit_with_one_foots_steps_and_a_style_without_walks_train_a_model_that_plays(tmp_path):
+    """Two takes a user's corpus may well hold: a run with one step long enough (a right, no
+    left) died in a traceback (IndexError: the average of a label no take had a segment of), and
+    a style with runs but no walk wrote a model no command loaded (its walk's mean step NaN)."""
+    for k in range(2):
+        text, _ = cmu_style_walk(fps=30, seconds=4.4 + k * 0.3)
+        (tmp_path / f"walk{k}.bvh").write_text(text)
+    (tmp_path / "short.bvh").write_text(cmu_style_walk(fps=30, seconds=1.2)[0])  # one right step
+    (tmp_path / "runs.bvh").write_text(cmu_style_walk(fps=30, seconds=4.0)[0])
+    (tmp_path / "short.csv").write_text("file,style,unit\nwalk0.bvh,calm,walk\nwalk1.bvh,calm,walk\nshort.bvh,calm,run\n")
+    result = cli("train", "--manifest", str(tmp_path / "short.csv"), "--out", str(tmp_path / "s.npz"), "--states", "3")
+    assert result.returncode == 0 and "Traceback" not in result.stderr, result.stderr
+    assert "unit 'run': no left step long enough for 3 states in any take: left out" in result.stderr
+    assert load_model(tmp_path / "s.npz").units == ["walk"]  # its runs play the walk, and say so
+    (tmp_path / "takes.csv").write_text("file,style,unit\nwalk0.bvh,calm,walk\nwalk1.bvh,calm,walk\nruns.bvh,brisk,run\n")
+    out = tmp_path / "m.npz"
+    result = cli("train", "--manifest", str(tmp_path / "takes.csv"), "--out", str(out), "--states", "3", "--quiet")
+    assert result.returncode == 0 and "Traceback" not in result.stderr, result.stderr
+    model = load_model(out)  # it loads
+    assert model.units == ["walk", "run"] and model.style_names == ["brisk", "calm"]
+    assert set(model.metadata["mean_step_frames"]) == {"calm"}  # brisk has no walking step to measure
+    for style in model.style_names:
+        done = cli("synth", "--model", str(out), "--style", f"{style}=1", "--gait", "run", "--turn", "0.5",
+                   "--seconds", "2", "--out", str(tmp_path / f"{style}.bvh"))
+        assert done.returncode == 0, done.stderr
+        assert np.isfinite(np.loadtxt(tmp_path / f"{style}.bvh", skiprows=(tmp_path / f"{style}.bvh").read_text()
+                                      .splitlines().index("MOTION") + 3)).all()
+    (tmp_path / "one.csv").write_text("file,style\nshort.bvh,calm\n")  # a walk of one foot: one line, not a traceback
+    result = cli("train", "--manifest", str(tmp_path / "one.csv"), "--out", str(tmp_path / "n.npz"), "--states", "3",
+                 "--quiet")
+    assert result.returncode == 1 and len(result.stderr.strip().splitlines()) == 1, result.stderr
+    assert "the walking takes hold no left step long enough for 3 states" in result.stderr
+
+
 def test_bad_manifest_names_file_and_line(tmp_path):
     manifest = tmp_path / "takes.csv"
     manifest.write_text("file,style\na.bvh,slow\nb.bvh\n")

@@ -143,3 +143,25 @@ def test_a_recorded_start_called_off_brakes_without_a_jolt(tmp_path, called_off)
     assert speed[cue:].max() > 5.0  # it did set off
     assert speed[-15:].mean() < 2.0  # and ends standing still
     assert jumps[cue:].max() <= 1.25 * jumps[15:90].max()
+
+
+@pytest.mark.parametrize("fps", [25, 60])
+def test_a_stop_recorded_at_25_or_60_fps_closes_its_feet_and_stays_finite(tmp_path, fps):
+    """A stand's closing step advances 1 / (0.4 s x fps) a frame; at 25 and 60 fps those sum to a
+    hair under 1, and the frame after divided 0 by 0: the foot's held heading became NaN, and every
+    frame after it (`run --fps 60 --bvh` wrote 567 of 751 frames, then failed 184; the OSC stream
+    carried NaN; `evaluate --units` on a model trained at 60 fps died with a traceback)."""
+    (tmp_path / "stop.toml").write_text(
+        '[[cue]]\nat = 0\nramp = { "style/normal" = 1.0, gait = "walk" }\n\n'
+        '[[cue]]\nat = 4.5\nramp = { gait = "stand" }\n\n[[cue]]\nat = 8.5\nramp = { gait = "walk" }\n\n[[cue]]\nhold = 3\n')
+    done = subprocess.run([sys.executable, "-m", "instrument", "run", "--score", "stop.toml", "--fast", "--no-osc",
+                           "--quiet", "--fps", str(fps), "--bvh", "stop.bvh"],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=900)
+    assert done.returncode == 0 and "output errors" not in done.stdout + done.stderr, done.stdout + done.stderr
+    names, positions, recorded_fps = world_positions(tmp_path / "stop.bvh")
+    assert len(positions) == int(round(11.5 * fps)) + 1 and np.isfinite(positions).all()
+    hips = positions[:, names.index("Hips")]
+    standing = slice(int(7.0 * fps), int(8.5 * fps))  # stood still, the closing step taken
+    assert np.abs(np.diff(hips[standing][:, [0, 2]], axis=0)).max() * fps < 6.0  # cm/s: still
+    moving = np.linalg.norm(hips[-1, [0, 2]] - hips[int(8.5 * fps), [0, 2]]) / 3.0
+    assert moving > 50.0  # cm/s: and it walks on, not NaN, not stuck

@@ -8,6 +8,7 @@ with an independent BVH reader.
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -43,6 +44,11 @@ needs_motions = pytest.mark.skipif(not MOTIONS.is_dir(), reason=f"runs, turns an
     ("walk_not-confident_001", "walk"),
     ("style2_take3", "walk"),  # a name that says nothing is a walk, as every corpus before units
     ("01_01", "walk"),
+    ("me_WalkTurnLeft_proud_1", "turn-left"),  # a word starts at a capital
+    ("me_Running_proud_1", "run"),
+    ("me_forest-walk_proud_1", "walk"),  # "rest" inside a word is none: it was a stand
+    ("me_walk-brunch_proud_1", "walk"),  # "run" inside a word: it was a run
+    ("me_praise-walk_proud_1", "walk"),  # "raise" inside a word: it was a stand
 ])
 def test_the_unit_is_read_from_the_file_name(name, unit):
     assert unit_from_name(Path(name + ".bvh")) == unit
@@ -65,6 +71,46 @@ def test_a_manifest_says_each_takes_unit_and_a_bad_one_names_its_line(tmp_path):
     (tmp_path / "m.toml").write_text('[[take]]\nfile = "a.bvh"\nstyle = "calm"\nunit = "turn-left"\n'
                                      '[[take]]\nfile = "b.bvh"\nstyle = "calm"\n')
     assert [t.unit for t in read_manifest(tmp_path / "m.toml")] == ["turn-left", "walk"]
+
+
+@pytest.mark.parametrize("name, text, where", [
+    ("units.csv", "file,style,units\na.bvh,calm,walk\nb.bvh,calm,run\n", ":1: a CSV manifest starts with the header"),
+    ("two.csv", "file,style\na.bvh,calm\nb.bvh,calm,run\n", ":3: 3 fields, but the header 'file,style' names 2"),
+    ("four.csv", "file,style,unit\na.bvh,calm,walk\nb.bvh,calm,run,fast\n", ":3: 4 fields"),
+    ("units.toml", '[[take]]\nfile = "a.bvh"\nstyle = "calm"\n[[take]]\nfile = "b.bvh"\nstyle = "calm"\nunits = "run"\n',
+     ": take 2: unknown key 'units'"),
+])
+def test_a_manifest_column_or_key_it_does_not_read_is_refused_at_its_line(tmp_path, name, text, where):
+    """A unit column misspelt (`units`), a row with a unit under a header without one, or a
+    [[take]] key misspelt was dropped unread: the run trained as a walk, silently."""
+    for take in ("a.bvh", "b.bvh"):
+        (tmp_path / take).touch()
+    (tmp_path / name).write_text(text)
+    with pytest.raises(UserError) as refused:
+        read_manifest(tmp_path / name)
+    assert str(refused.value).startswith(f"{tmp_path / name}{where}"), refused.value
+    (tmp_path / "spreadsheet.csv").write_text("file,style,unit,\na.bvh,calm,run,\nb.bvh,calm,,\n")  # empty trailing columns
+    assert [t.unit for t in read_manifest(tmp_path / "spreadsheet.csv")] == ["run", "walk"]
+
+
+@pytest.mark.parametrize("style", ["old/man", "Old Man", "old.man", "a=b", "calm#1"])
+def test_a_style_the_controls_cannot_name_is_refused_at_its_line(tmp_path, style):
+    """A style is a control target's part (`style/<name>`, `part/<name>/legs`), an OSC address's
+    and synth's `--style NAME.PART=W`: a manifest's `old/man` trained a model `run` crashed on
+    (KeyError 'old' as the state read style/old/man), `Old Man` one no OSC surface could set."""
+    (tmp_path / "a.bvh").touch()
+    (tmp_path / "m.csv").write_text(f"file,style\na.bvh,{style}\n")
+    with pytest.raises(UserError, match=rf"^{re.escape(str(tmp_path / 'm.csv'))}:2: style .* is not a name of letters"):
+        read_manifest(tmp_path / "m.csv")
+    (tmp_path / "m.toml").write_text(f'[[take]]\nfile = "a.bvh"\nstyle = "{style}"\n')
+    with pytest.raises(UserError, match=r": take 1: style .* is not a name of letters"):
+        read_manifest(tmp_path / "m.toml")
+    (tmp_path / "old man.5_1.bvh").touch()  # --style-from's group finds 'old man.5'
+    with pytest.raises(UserError, match=r"old man\.5_1\.bvh: --style-from: style 'old man\.5' is not a name"):
+        styled_takes([tmp_path / "old man.5_1.bvh"], r"^(.*)_\d+$")
+    for fine in ("not-confident", "old_man", "Proud2", "älter"):
+        (tmp_path / "m.csv").write_text(f"file,style\na.bvh,{fine}\n")
+        assert read_manifest(tmp_path / "m.csv")[0].style == fine
 
 
 @needs_motions
@@ -467,6 +513,24 @@ def test_synth_says_when_a_model_has_no_unit_for_the_gait_and_writes_its_walk(mo
     assert len(world_positions(tmp_path / "run.bvh")[1]) == 2 * model.fps  # the walk, written whole
     done = _synth(tmp_path, "--model", "walks.npz", "--gait", "walk", "--seconds", "2", "--out", "walk.bvh")
     assert "unit" not in done.stderr, done.stderr
+    # steered, a walk of a model without turning steps turns by yaw rate alone: said, as the gait is
+    done = _synth(tmp_path, "--model", "walks.npz", "--turn", "1", "--seconds", "2", "--out", "turn.bvh")
+    assert done.returncode == 0, done.stderr
+    assert "--turn 1: this model has no turn-left unit (it has walk); its walk is steered without turning steps" \
+        in done.stderr
+    names, positions, _ = world_positions(tmp_path / "turn.bvh")
+    heading = np.diff(positions[[30, -1]][:, names.index("Hips"), [0, 2]], axis=0)[0]
+    assert abs(np.degrees(np.arctan2(heading[1], heading[0])) - np.degrees(np.arctan2(1.0, 0.0))) > 10  # it turned
+    done = _synth(tmp_path, "--turn", "1", "--seconds", "2", "--out", "shipped.bvh")  # the shipped model has them
+    assert "turn" not in done.stderr, done.stderr
+    # and live, once, on the console, the show going on: a score steering the walk right
+    (tmp_path / "steer.toml").write_text("[[cue]]\nat = 0.5\nramp = { turn = -1 }\n[[cue]]\nhold = 1\n")
+    done = subprocess.run([sys.executable, "-m", "instrument", "run", "--model", "walks.npz", "--score", "steer.toml",
+                           "--fast", "--no-osc"], capture_output=True, text=True, cwd=tmp_path, timeout=900)
+    assert done.returncode == 0, done.stderr
+    said = [line for line in (done.stdout + done.stderr).splitlines() if "turn-right" in line]
+    assert said == ["warning: turn: this model has no turn-right unit (it has walk); its walk is steered without "
+                    "turning steps"], done.stdout + done.stderr
 
 
 @pytest.mark.parametrize("going_frames", [25, 35])  # its first step begins 19 frames on: stopped at levels 0.29 and 0.78

@@ -20,17 +20,27 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def describe(path: Path) -> dict:
     # numpy, and scipy and numba for finding the steps: loaded when run, not for --help (nor for `train`'s)
     from ..motion.bvh import read_bvh
+    from ..motion.features import choose_layout
+    from ..motion.standing import standing_steps
     from ..motion.steps import contiguous_runs, segment_steps
     from ..motion.upright import upright
+    from ..training.corpus import DEFAULT_STYLE_PATTERN, style_from_name
+    from ..training.units import unit_from_name
 
     motion, up = upright(read_bvh(path))
-    segmentation = segment_steps(motion)
+    unit = unit_from_name(path)  # what `train` reads from the name without --unit-from or a manifest
+    try:
+        style = style_from_name(path, DEFAULT_STYLE_PATTERN)
+    except UserError:
+        style = None
+    # a standing take's "steps" are its pieces of still standing, as training cuts them
+    segmentation = standing_steps(motion, choose_layout([motion])) if unit == "stand" else segment_steps(motion)
     steps = segmentation.steps
     warnings = list(segmentation.warnings)
     if up != "+Y":
         warnings.append(f"{up} is up in this capture: read turned Y up (the models trained on it and their walks are Y up)")
     runs = contiguous_runs(steps)
-    if len(runs) > 1:
+    if len(runs) > 1 and unit != "stand":
         warnings.append(f"steps fall into {len(runs)} separate runs")
     skeleton = motion.skeleton
     return {
@@ -39,6 +49,8 @@ def describe(path: Path) -> dict:
         "fps": motion.fps,
         "up": up,
         "duration": motion.duration,
+        "style": style,
+        "unit": unit,
         "joints": [{"name": j.name, "channels": list(j.channels)} for j in skeleton.joints],
         "channels": skeleton.channel_count,
         "feet": [foot for foot in segmentation.feet if foot],  # none found: [], not ["", ""]
@@ -56,7 +68,12 @@ def _text(info: dict) -> str:
         f"  joints   {len(info['joints'])} ({', '.join(j['name'] for j in info['joints'])})",
         f"  channels {info['channels']} (rotation orders {', '.join(rotation_orders)})",
         f"  frames   {info['frames']} at {info['fps']:g} fps, {info['duration']:.2f} s",
-        f"  steps    {len(steps)}, mean {mean:.1f} frames ({mean / info['fps']:.2f} s); feet {' / '.join(info['feet']) or 'not found'}",
+        f"  unit     {info['unit']}, style {info['style'] or '(none in the name: give train --style-from or a manifest)'}"
+        " (read from the name, as train does by default)",
+        f"  {'stills' if info['unit'] == 'stand' else 'steps '}   {len(steps)}, mean {mean:.1f} frames "
+        f"({mean / info['fps']:.2f} s)"
+        + ("; pieces of still standing with the arms down" if info["unit"] == "stand" else
+           f"; feet {' / '.join(info['feet']) or 'not found'}"),
     ]
     lines += [f"  warning: {w}" for w in info["warnings"]]
     return "\n".join(lines)

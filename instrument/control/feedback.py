@@ -27,7 +27,7 @@ def raw_values(spec: ControlSpec, value: float) -> list[tuple[str, int, int]]:
         named = bool(TABLE[spec.target.split("/")[0]].choices)  # a named value stands for the nearest whole one
         lit = 127 if (math.floor(value + 0.5) if named else value) == spec.value else 0
         return [("control_change" if spec.message == "cc" else "note_on", spec.number, lit)]
-    low, high = spec.range
+    low, high = spec.travel
     unit = min(max((value - low) / (high - low), 0.0), 1.0)
     if spec.curve == "exp":
         unit = unit ** 0.5

@@ -73,6 +73,20 @@ class ControlSpec:
     def key(self) -> str:
         return self.input if self.message == "hid" else f"{self.message}/{self.channel}/{self.number}"
 
+    @property
+    def travel(self) -> tuple[float, float]:
+        """The values the two ends of the control's travel stand for: its range, but for a target
+        of named values (gait) half a value further out at each end (and held to the range), so
+        that the nearest whole value, which such a target takes, cuts the travel into equal
+        zones, one per name: a fader on gait [0, 2] stands, walks and runs in its thirds (a
+        quarter, a half and a quarter of it before)."""
+        low, high = self.range
+        row = TABLE.get(self.target.split("/")[0])
+        if row is None or not row.choices:
+            return low, high
+        half = 0.5 if high > low else -0.5
+        return low - half, high + half
+
 
 @dataclass(frozen=True)
 class Mapping:
@@ -324,8 +338,8 @@ class Mapper:
             unit = 1.0 - unit
         if spec.curve == "exp":
             unit = unit * unit
-        low, high = spec.range
-        return between(low + (high - low) * unit, low, high)
+        low, high = spec.travel
+        return between(low + (high - low) * unit, *spec.range)
 
     def _relative(self, state: ControlState, spec: ControlSpec, ticks: int) -> float:
         low, high = sorted(spec.range)

@@ -160,6 +160,8 @@ def _check_metadata(path: Path, metadata: dict) -> None:
         names = metadata[key]
         if not isinstance(names, list) or not names or not all(isinstance(n, str) and n for n in names) or len(set(names)) < len(names):
             raise broken(key, "a list of different names")
+    if any("/" in name for name in metadata["styles"]):  # style/old/man would be no style's target (training refuses more)
+        raise broken("styles", "names without '/' (each is the control target style/<name>)")
     try:
         skeleton = Skeleton.from_dict(metadata["skeleton"])
         layout = FeatureLayout.from_dict(skeleton, metadata["features"])

@@ -15,6 +15,19 @@ GESTURES = ("wave", "raise")
 
 def named_by_words(content: str, table: tuple[tuple[tuple[str, ...], str], ...]) -> str | None:
     """The name a file's content part says by the first (words, name) row of `table` one of whose
-    words it holds, in any case (`walk-turn-left` -> turn-left, `wave-both-hands` -> wave), or None."""
+    words starts a word of it, in any case (`walk-turn-left` -> turn-left, `WalkTurnLeft` ->
+    turn-left, `Running` -> run, `wave-both-hands` -> wave), or None. Inside a word a unit's word
+    is not one: `forest-walk` holds "rest" and was read as a stand, `brunch` a run."""
     lowered = content.lower()
-    return next((name for words, name in table if any(word in lowered for word in words)), None)
+    return next((name for words, name in table if any(_starts_a_word(content, lowered, word) for word in words)), None)
+
+
+def _starts_a_word(content: str, lowered: str, word: str) -> bool:
+    """Whether `word` is found in `lowered` (`content` lower-cased) where a word of `content`
+    starts: at its start, after a character that is no letter, or at a capital after a small letter."""
+    at = lowered.find(word)
+    while at >= 0:
+        if at == 0 or not content[at - 1].isalpha() or (content[at].isupper() and content[at - 1].islower()):
+            return True
+        at = lowered.find(word, at + 1)
+    return False

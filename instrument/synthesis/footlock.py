@@ -645,8 +645,11 @@ def settle_feet(still, planted, weights, points, headings, settling, world_rot, 
             return
     f = moving
     before = ease(settling[f])
-    settling[f] = min(settling[f] + step, 1.0)
-    keep = (1.0 - ease(settling[f])) / (1.0 - before)  # the share of the way still to go that stays to go
+    # n steps of 1 / n may sum to a hair under 1 (at 25 and 60 fps: 0.9999999999999999), whose
+    # ease is 1: the step ends there, not in a frame after it that divides 0 by 0
+    settling[f] = 1.0 if settling[f] + step > 1.0 - 1e-9 else settling[f] + step
+    # the share of the way still to go that stays to go (none once the way was all gone)
+    keep = (1.0 - ease(settling[f])) / (1.0 - before) if before < 1.0 else 0.0
     pivot = world_pos[feet[f, -1]]
     for i in (0, 2):
         points[f, i] = pivot[i] + (points[f, i] - pivot[i]) * keep

@@ -100,6 +100,16 @@ START_SECONDS = 0.5  # a body moving again before its stop stood still reaches i
 STOP_SECONDS = 0.4
 
 
+def unsteered_turn(units: list[str], gait: int, turn: float) -> str | None:
+    """The turning unit a walk steered by `turn` would take its turning steps from, when the model
+    lacks it (`units`): its walk is then steered by yaw rate alone, which `run` and `synth` say
+    as they say a gait the model lacks. None when it has it, or the walk is not steered."""
+    if GAITS[gait] != "walk" or turn == 0.0:
+        return None
+    unit = "turn-left" if turn > 0.0 else "turn-right"
+    return None if unit in units else unit
+
+
 def smootherstep(x: np.ndarray) -> np.ndarray:
     """6x^5 - 15x^4 + 10x^3: from 0 to 1 with no jump in rate nor in its change at either end."""
     return x * x * x * (x * (x * 6.0 - 15.0) + 10.0)

@@ -11,6 +11,7 @@ from typing import Callable
 import numpy as np
 
 from .. import __version__
+from ..errors import UserError
 from ..models.modelfile import Model
 from ..motion.features import ROOT_FEATURES, WINDOWS
 from ..motion.gestures import PHASES
@@ -57,14 +58,25 @@ def build_model(
         return segments_by_label(chosen, states, units) + gesture_segments(chosen, states, gestures)
 
     segments = labelled(takes)
-    report.warnings += [f"unit {unit!r}: no {foot} step long enough for {states} states; it keeps the average's"
-                        for k, unit in enumerate(units) for f, foot in enumerate(LABELS) if not segments[2 * k + f]]
+    # a label no take has a segment of has no average to train (nor to keep): its unit or gesture
+    # is left out, and the gait plays the walk as on a model trained without it
+    lacking = {unit: foot for k, unit in enumerate(units) for f, foot in enumerate(LABELS) if not segments[2 * k + f]}
+    if "walk" in lacking:
+        raise UserError(f"the walking takes hold no {lacking['walk']} step long enough for {states} states: "
+                        "a model needs both feet's steps (longer or more walks)")
+    lacking_phase = {g: phase for k, g in enumerate(gestures) for p, phase in enumerate(PHASES)
+                     if not segments[2 * len(units) + len(PHASES) * k + p]}
+    if lacking or lacking_phase:
+        report.warnings += [f"unit {unit!r}: no {foot} step long enough for {states} states in any take: left out "
+                            "(its gait plays the walk)" for unit, foot in lacking.items()]
+        report.warnings += [f"gesture {g!r}: no {phase} long enough for {states} states in any take: left out"
+                            for g, phase in lacking_phase.items()]
+        units = [u for u in units if u not in lacking]
+        gestures = [g for g in gestures if g not in lacking_phase]
+        segments = labelled(takes)
     floors = variance_floors(segments)
     average = train_average(segments, states, floors, report=report, on_iteration=on_iteration)
     style_names = sorted({t.style for t in takes})
-    report.warnings += [f"gesture {g!r}: no {phase} long enough for {states} states; it keeps the average's"
-                        for k, g in enumerate(gestures) for p, phase in enumerate(PHASES)
-                        if not segments[2 * len(units) + len(PHASES) * k + p]]
     per_style = {s: [labelled([t]) for t in takes if t.style == s] for s in style_names}
     styles, adapted = adapt_styles(average, per_style, floors, report.warnings, adaptation, fps)
     data_weights = {}
@@ -120,8 +132,10 @@ def build_model(
             {"file": t.path.name, "style": t.style, "unit": t.unit, "frames": t.frames, "steps": len(t.steps),
              "sha256": t.sha256} for t in takes
         ],
-        "mean_step_frames": {  # of the walk (the beat lock and the model card read it)
-            s: float(np.mean([st.frames for t in walks if t.style == s for st in t.steps] or [np.nan])) for s in style_names
+        "mean_step_frames": {  # of the walk (the model card reads it); a style with no walking step has none
+            # (its walk comes from its other units through the shared transform): not NaN, which no model loads
+            s: float(np.mean(frames)) for s in style_names
+            if (frames := [st.frames for t in walks if t.style == s for st in t.steps])
         },
         "warnings": report.warnings,
     }

@@ -27,6 +27,12 @@ from .units import checked_unit, gesture_from_name, turn_as_taken, unit_from_nam
 # the last but one "_"-separated part, starting with a letter: dataset-2_walk_elderly_003 -> elderly,
 # walk_not-confident_001 -> not-confident, style2_take3 -> style2
 DEFAULT_STYLE_PATTERN = r"(?:^|_)([A-Za-z][A-Za-z0-9-]*)_[^_]*$"
+# a style's name is part of control targets (`style/<name>`, `part/<name>/legs`), of OSC addresses
+# (`/walk/style/<name>`) and of synth's `--style NAME.PART=W`: a '/', '.', '=', space or OSC's
+# pattern characters in it would make them name something else
+STYLE_NAME = re.compile(r"[\w-]+")
+# a manifest's columns (CSV) or a [[take]]'s keys (TOML); 'unit' may be left out (a walk)
+MANIFEST_COLUMNS = ("file", "style", "unit")
 
 
 class TakeFile(NamedTuple):
@@ -65,7 +71,16 @@ def style_from_name(path: Path, pattern: str) -> str:
     match = re.search(pattern, path.stem)
     if not match or not match.groups() or not match.group(1):
         raise UserError(f"{path}: cannot read a style from the name with the pattern {pattern!r} (give --style-from or a manifest)")
-    return match.group(1).lower()
+    return checked_style(f"{path}: --style-from", match.group(1).lower())
+
+
+def checked_style(where: str, style: str) -> str:
+    """A style read from a name or a manifest, or an error naming where: a style the live controls
+    could not address (`old/man`, `Old Man`) is refused before any take is read."""
+    if not STYLE_NAME.fullmatch(style):
+        raise UserError(f"{where}: style {quoted(style)} is not a name of letters, digits, '-' and '_' "
+                        "(it names the control target style/<name>)")
+    return style
 
 
 def bvh_files(paths: list[str] | list[Path]) -> list[Path]:
@@ -107,10 +122,14 @@ def read_manifest(path: Path) -> list[TakeFile]:
             if not isinstance(take, dict) or not isinstance(take.get("file"), str) or not isinstance(take.get("style"), str) \
                     or not take["file"].strip() or not take["style"].strip():
                 raise UserError(f"{path}: take {k}: needs string keys 'file' and 'style', neither empty")
+            unknown = sorted(set(take) - set(MANIFEST_COLUMNS))  # a misspelt 'unit' would train a run as a walk
+            if unknown:
+                raise UserError(f"{path}: take {k}: unknown key {unknown[0]!r} (a take has {', '.join(MANIFEST_COLUMNS)})")
             unit = take.get("unit", "walk")
             if not isinstance(unit, str):
                 raise UserError(f"{path}: take {k}: 'unit' is a string ({', '.join(UNITS)})")
-            pairs.append(TakeFile(_listed_file(base, take["file"], f"{path}: take {k}"), take["style"],
+            pairs.append(TakeFile(_listed_file(base, take["file"], f"{path}: take {k}"),
+                                  checked_style(f"{path}: take {k}", take["style"]),
                                   checked_unit(f"{path}: take {k}", unit)))
         return pairs
     text = read_text(path)
@@ -119,16 +138,24 @@ def read_manifest(path: Path) -> list[TakeFile]:
         rows = list(reader)
     except csv.Error as e:  # a field longer than csv's limit (128 kB), a NUL byte
         raise located(path, f"not a CSV manifest: {e}", reader.line_num) from None
-    if not rows or [c.strip().lower() for c in rows[0][:2]] != ["file", "style"]:
-        raise located(path, "a CSV manifest starts with the header 'file,style' (or 'file,style,unit')", 1)
-    with_units = len(rows[0]) > 2 and rows[0][2].strip().lower() == "unit"
+    header = [c.strip().lower() for c in rows[0]] if rows else []
+    while header and not header[-1]:  # a spreadsheet's trailing empty columns
+        header.pop()
+    if header not in (list(MANIFEST_COLUMNS[:2]), list(MANIFEST_COLUMNS)):
+        # another column (`units`, a note) would be dropped unread: a run trained as a walk
+        raise located(path, "a CSV manifest starts with the header 'file,style' (or 'file,style,unit'), "
+                            f"not {quoted(','.join(rows[0]) if rows else '')}", 1)
+    with_units = len(header) == 3
     for number, row in enumerate(rows[1:], 2):
         if not row or not "".join(row).strip():
             continue
         if len(row) < 2 or not row[0].strip() or not row[1].strip():
             raise located(path, "expected 'file,style'", number)
+        if len(row) > len(header) and "".join(row[len(header):]).strip():
+            raise located(path, f"{len(row)} fields, but the header {quoted(','.join(rows[0]))} names {len(header)}", number)
         unit = row[2].strip() if with_units and len(row) > 2 and row[2].strip() else "walk"
-        pairs.append(TakeFile(_listed_file(base, row[0].strip(), f"{path}:{number}"), row[1].strip(),
+        pairs.append(TakeFile(_listed_file(base, row[0].strip(), f"{path}:{number}"),
+                              checked_style(f"{path}:{number}", row[1].strip()),
                               checked_unit(f"{path}:{number}", unit)))
     return pairs
 
