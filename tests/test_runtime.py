@@ -534,3 +534,39 @@ def test_the_garbage_collector_runs_between_frames_never_inside_one(model):
     assert not any(during for _, during in phases.collections), phases.collections
     assert phases.enabled_during[0] and not any(phases.enabled_during[1:])  # off once the first frame warmed up
     assert gc.isenabled()  # and on again after the show
+
+
+def test_a_pose_that_is_not_a_number_is_held_not_sent(model, monkeypatch, capsys):
+    """A bug that makes a character's pose NaN (as a stand's closing step did at 25 and 60 fps)
+    does not reach the wire: the character holds its last finite pose, every frame is still sent,
+    the console says so once, and the show goes on (read off real UDP by the test's own parser)."""
+    from instrument.output.outputs import OscOutput, make_profile
+    from instrument.output.osc import parse_target
+    from instrument.synthesis.posing import CrowdPoses
+
+    made = CrowdPoses.next
+
+    def broken(self, *args, **kwargs):  # frames 10 to 14 come out NaN, as from a bug in posing
+        pose = made(self, *args, **kwargs)
+        if 10 <= pose.index <= 14:
+            pose.rotations[0, 3] = np.nan
+            pose.world_positions[0] = np.nan
+        return pose
+
+    monkeypatch.setattr(CrowdPoses, "next", broken)
+    receiver = Receiver()
+    try:
+        console = Console()
+        output = OscOutput(parse_target(f"127.0.0.1:{receiver.port}/flat"), make_profile("flat", model), console)
+        summary = perform(Show(model, [output], fps=30, seconds=1.0, fast=True), console)
+        wait_until(lambda: frame_count(receiver) >= 30, "30 frames")
+    finally:
+        receiver.close()
+    assert summary.frames == 30 and summary.held == 5
+    messages = receiver.messages()
+    assert [p[0] for a, p in messages if a == "/walk/frame"] == list(range(30))
+    floats = [v for _, p in messages for v in p if isinstance(v, float)]
+    assert floats and np.isfinite(floats).all()
+    roots = np.array([p for a, p in messages if a == "/walk/root/pos"])
+    assert (roots[10:15] == roots[9]).all() and (roots[15] != roots[9]).any()  # held, then on again
+    assert capsys.readouterr().err.count("not a number") == 1

@@ -146,6 +146,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
         console.say(f"stopped after {summary.frames} frames; late {summary.late}, dropped {summary.dropped}"
                     + (f"; output errors {summary.output_errors}" if summary.output_errors else "")
                     + (f"; input errors {summary.input_errors}" if summary.input_errors else "")
+                    + (f"; poses held (not a number) {summary.held}" if summary.held else "")
                     + (f"; refused {refused}" if refused else ""))
         console.flush()
     return 0

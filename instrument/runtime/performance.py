@@ -28,6 +28,7 @@ from ..synthesis.posing import Frame
 from ..synthesis.stream import gait_index
 from ..synthesis.units import unsteered_turn
 from .clock import IDLE_UNTIL, FrameClock
+from .finite import FinitePoses
 from ..terminal import Console
 from .stopping import StopFlag
 from .tempo import BeatLock, locked_speed, snap_ratio, step_seconds
@@ -66,6 +67,7 @@ class Summary:
     dropped: int = 0
     output_errors: dict[str, int] = field(default_factory=dict)
     input_errors: dict[str, int] = field(default_factory=dict)  # a device's poll or an event's apply that raised
+    held: int = 0  # character frames whose pose was not finite: each held its last one (finite.py)
     seconds: float = 0.0
 
 
@@ -139,6 +141,7 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
     engine = Engine(model, show.characters, fps, show.lookahead, spacing=show.spacing)
     clock = FrameClock(fps, realtime=not show.fast)
     feet = Footfalls(engine.poses)
+    finite = FinitePoses()  # a pose that is not a number is not sent
     beat_lock = show.beat_lock
     landed: dict[int, float] = {}  # when each character's foot landed in the frame before (the beat lock's cue)
     for output in outputs:
@@ -228,7 +231,12 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
                 state.lock_speeds.clear()  # turned on again, the lock starts afresh
             elif state.lock_speeds:  # the lock's (live, or a replayed log's)
                 controls = replace(controls, speed=locked_speed(state.lock_speeds, controls.speed, show.characters))
-            crowd = engine.frame(now, controls, state.spread)  # its retune, if any, timed by the engine
+            crowd, held = finite(engine.frame(now, controls, state.spread))  # its retune, if any, timed by the engine
+            if len(held):
+                summary.held += len(held)
+                console.warn("pose", f"frame {index}: the engine made a pose that is not a number for character"
+                             f"{'s' if len(held) > 1 else ''} {', '.join(map(str, held[:8]))}{' ...' if len(held) > 8 else ''}; "
+                             "held the last pose (the walk goes on)")
             if GAITS[controls.gait] in engine.units.missing:  # said, not refused: the walk goes on
                 console.warn(f"gait {GAITS[controls.gait]}", f"gait {GAITS[controls.gait]}: this model has no "
                              f"{GAITS[controls.gait]} unit (it has {', '.join(engine.model.units)}); it walks")
