@@ -281,3 +281,17 @@ def test_a_toy_sink_from_a_test_file_gets_every_frame(model, tmp_path):
     assert speeds[0] == 1.0 and speeds[-1] == pytest.approx(1.5) and 1.0 < speeds[22] < 1.5
     travelled = np.linalg.norm(sink.got[-1][1][[0, 2]] - sink.got[0][1][[0, 2]])
     assert travelled > 30  # centimetres in 1.5 s: the character walks
+
+
+def test_an_engine_at_the_models_rate_asked_between_its_frames_lerps(model):
+    """`Engine.sample` takes any performance time: at the model's own rate no tangents are made
+    (no curve is ever sampled there), so a time between two frames is the straight line between
+    them (it raised a numba TypingError, the tangents being None)."""
+    from instrument.synthesis.engine import Engine, default_controls
+
+    engine, controls = Engine(model), default_controls(model, {"normal": 1.0})
+    first, second = engine.sample(0.0, controls).copy(), engine.sample(1 / model.fps, controls).copy()
+    between = Engine(model)
+    between.sample(0.0, controls)
+    half = between.sample(0.5 / model.fps, controls)
+    assert np.isfinite(half).all() and np.allclose(half, (first + second) / 2)

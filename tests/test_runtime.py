@@ -570,3 +570,25 @@ def test_a_pose_that_is_not_a_number_is_held_not_sent(model, monkeypatch, capsys
     roots = np.array([p for a, p in messages if a == "/walk/root/pos"])
     assert (roots[10:15] == roots[9]).all() and (roots[15] != roots[9]).any()  # held, then on again
     assert capsys.readouterr().err.count("not a number") == 1
+
+
+def test_a_crowd_member_not_finite_from_its_first_frame_stands_at_the_origin_and_the_others_go_on():
+    """FinitePoses on two characters: one NaN (then infinite) from the first frame, with nothing
+    sent before, is held at the origin unrotated; the other is passed as made, frame by frame."""
+    from instrument.runtime.finite import FinitePoses
+    from instrument.synthesis.posing import CrowdPose
+
+    rng = np.random.default_rng(1)
+    guard = FinitePoses()
+    for index, bad in enumerate((np.nan, np.inf, -np.inf)):
+        arrays = [rng.random((2, 4, 3, 3)), rng.random((2, 4, 3)), rng.random((2, 4, 3, 3)), rng.random((2, 4, 3))]
+        arrays[1][0, 2, 1] = bad
+        sent, held = guard(CrowdPose(index, index / 30, *arrays))
+        assert held.tolist() == [0]
+        assert (sent.translations[0] == 0.0).all() and (sent.world_positions[0] == 0.0).all()
+        assert (sent.rotations[0] == np.eye(3)).all() and (sent.world_rotations[0] == np.eye(3)).all()
+        assert (sent.rotations[1] == arrays[0][1]).all() and (sent.world_positions[1] == arrays[3][1]).all()
+    assert guard.held == 3
+    fine = [rng.random((2, 4, 3, 3)), rng.random((2, 4, 3)), rng.random((2, 4, 3, 3)), rng.random((2, 4, 3))]
+    sent, held = guard(CrowdPose(3, 0.1, *fine))
+    assert len(held) == 0 and sent.world_positions is fine[3]  # finite: passed on as it is

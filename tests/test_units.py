@@ -49,9 +49,22 @@ needs_motions = pytest.mark.skipif(not MOTIONS.is_dir(), reason=f"runs, turns an
     ("me_forest-walk_proud_1", "walk"),  # "rest" inside a word is none: it was a stand
     ("me_walk-brunch_proud_1", "walk"),  # "run" inside a word: it was a run
     ("me_praise-walk_proud_1", "walk"),  # "raise" inside a word: it was a stand
+    ("me_WALKTURNLEFT_proud_1", "turn-left"),  # one case throughout shows no word's start: a joined
+    ("me_walkturnright_proud_1", "turn-right"),  # turn's words are found anywhere (they read as walks)
 ])
 def test_the_unit_is_read_from_the_file_name(name, unit):
     assert unit_from_name(Path(name + ".bvh")) == unit
+
+
+def test_a_name_whose_letters_lower_to_two_is_read_where_its_words_are():
+    """`İ` lower-cases to two characters: positions found in the lowered name were read back in
+    the name a character off, and a name of several (through `train --unit-from`) raised IndexError."""
+    from instrument.models.units import named_by_words
+    from instrument.training.units import UNIT_WORDS
+
+    assert named_by_words("İİİİ_walk", UNIT_WORDS) == "walk"
+    assert named_by_words("İİİİxwalk", UNIT_WORDS) is None
+    assert named_by_words("İstanbul-Run", UNIT_WORDS) == "run"
 
 
 def test_unit_from_a_pattern_that_finds_no_unit_names_the_file():

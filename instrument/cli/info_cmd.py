@@ -61,7 +61,8 @@ def run(args: argparse.Namespace) -> int:
           f"{info['observation_dimension']} with deltas")
     print("  step       mean frames per step (data / model), shortest state of the model:")
     for name in info["styles"]:
-        print(f"    {name:<12} {info['mean_step_frames'].get(name, float('nan')):5.1f} / {info['model_step_frames'][name]:5.1f}"
+        data = info["mean_step_frames"].get(name)  # none for a style trained without walks
+        print(f"    {name:<12} {'no walk' if data is None else f'{data:5.1f}':>7} / {info['model_step_frames'][name]:5.1f}"
               f"   {info['shortest_state_frames'][name]:4.1f}")
     print(f"  data       {info['takes']} takes, {info['frames']} frames")
     print(f"  trained    {info['training'].get('command', '')!s} ({info['training'].get('seconds', '?')} s)")

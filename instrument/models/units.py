@@ -11,15 +11,22 @@ UNITS = ("walk", "run", "turn-left", "turn-right", "stand")
 # (models/gestures.py: where; the `gesture/<name>` targets). Here, in a module that imports
 # nothing, so the control table can name them without loading the numerical code.
 GESTURES = ("wave", "raise")
+JOINED = 8  # a unit word this long is two joined (turnleft): found anywhere in a name (`named_by_words`)
 
 
 def named_by_words(content: str, table: tuple[tuple[tuple[str, ...], str], ...]) -> str | None:
     """The name a file's content part says by the first (words, name) row of `table` one of whose
     words starts a word of it, in any case (`walk-turn-left` -> turn-left, `WalkTurnLeft` ->
     turn-left, `Running` -> run, `wave-both-hands` -> wave), or None. Inside a word a unit's word
-    is not one: `forest-walk` holds "rest" and was read as a stand, `brunch` a run."""
-    lowered = content.lower()
-    return next((name for words, name in table if any(_starts_a_word(content, lowered, word) for word in words)), None)
+    is not one: `forest-walk` holds "rest" and was read as a stand, `brunch` a run. A word of
+    JOINED letters or more (turn-left's and turn-right's, two words in one: `turnleft`) is one
+    anywhere, as no word of a name hides one: `WALKTURNLEFT` and `walkturnleft` show no word's
+    start. Each character is lower-cased alone, so positions stay those of `content` (`İ` lowers
+    to two characters)."""
+    lowered = "".join(ch.lower()[0] for ch in content)
+    return next((name for words, name in table
+                 if any(word in lowered if len(word) >= JOINED else _starts_a_word(content, lowered, word) for word in words)),
+                None)
 
 
 def _starts_a_word(content: str, lowered: str, word: str) -> bool:

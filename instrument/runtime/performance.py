@@ -3,7 +3,8 @@
 Performance time is the frame index divided by the frame rate. Events are applied at frame
 boundaries by that time, so a replayed log gives the same frames whether it runs in realtime
 or as fast as the CPU allows. The engine works at the model's frame rate; other output rates
-are interpolated from its frames.
+sample a cubic curve through its frames (synthesis/between.py). A pose that is not a number is
+held, not sent (finite.py).
 """
 
 from __future__ import annotations

@@ -118,6 +118,8 @@ class Knots:
         """The features a `fraction` of a model frame past the older frame (1: the newest, exactly)."""
         if fraction >= 1.0 - 1e-9 or len(self.frames) == 1:
             return self.frames[-1]
+        if self.tangents[0] is None or self.tangents[1] is None:  # an engine at the model's rate asked off its grid
+            return self.frames[-2] + (self.frames[-1] - self.frames[-2]) * fraction
         out = np.empty(self.frames[-1].shape)
         hermite(self.frames[-2], self.tangents[0], self.frames[-1], self.tangents[1], float(fraction), out)
         return out

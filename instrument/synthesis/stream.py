@@ -469,7 +469,10 @@ def _enter(carry, label):  # pragma: no cover - compiled
     draws are this step's; returns the following foot (`FOLLOWER`). Each label kept its own
     carry while the unit was left, and a gait left after an odd number of steps came back with
     its two feet a fraction of a frame apart for good: active x2's run, stopped and set off again,
-    went on at 14 and 15 frames a step, the walk curved 4 degrees a minute."""
+    went on at 14 and 15 frames a step, the walk curved 4 degrees a minute. A gesture's stream
+    passes through it too (raise -> its repeat's a, b -> lower): a repeat's b takes its a's carry
+    and follows its draws, so the two halves of a wave's swing get the same frames state by state
+    (a wave moved by up to 0.0066 rad from its lower on)."""
     carry[label ^ 1] = carry[label]
     return 1 - label % 2
 
