@@ -531,6 +531,13 @@ def test_synth_says_when_a_model_has_no_unit_for_the_gait_and_writes_its_walk(mo
     assert done.returncode == 0, done.stderr
     assert "--turn 1: this model has no turn-left unit (it has walk); its walk is steered without turning steps" \
         in done.stderr
+    # a score's gait the model has no unit for: `run --check` says so at the cue's line, before the show
+    (tmp_path / "run.toml").write_text('[[cue]]\nat = 0\nramp = { gait = "walk" }\n\n[[cue]]\nat = 2\n'
+                                       'ramp = { gait = "run" }\n\n[[cue]]\nat = 4\nramp = { gait = "run" }\n')
+    done = subprocess.run([sys.executable, "-m", "instrument", "run", "--model", "walks.npz", "--score", "run.toml",
+                           "--check"], capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.count("run.toml:5: gait run: this model has no run unit (it has walk); it walks") == 1, done.stderr
     names, positions, _ = world_positions(tmp_path / "turn.bvh")
     heading = np.diff(positions[[30, -1]][:, names.index("Hips"), [0, 2]], axis=0)[0]
     assert abs(np.degrees(np.arctan2(heading[1], heading[0])) - np.degrees(np.arctan2(1.0, 0.0))) > 10  # it turned

@@ -254,7 +254,11 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
             score_path = None
     elif score_path:  # checked against the model and every preset the hub knows
         with origins.blame("score"):
-            replay = ScorePlayer(load_score(score_path, state, hub.presets, loop=True if args.loop else None), state)
+            score = load_score(score_path, state, hub.presets, loop=True if args.loop else None)
+            replay = ScorePlayer(score, state)
+        for line, gait in missing_gaits(score, model.units):  # said, not refused (as when it is played): it walks
+            console.warn(f"gait {gait}", f"{score_path}:{line}: gait {gait}: this model has no {gait} unit "
+                         f"(it has {', '.join(model.units)}); it walks")
     if args.fast and seconds is None and (replay is None or replay.loop or not replay.events):
         raise UserError(f"{origins.prefix('fast')}--fast needs an end: give --seconds, or a --replay log or a --score "
                         "(played once)")
@@ -318,3 +322,18 @@ def crowd_options(args: argparse.Namespace) -> tuple[int, float, int, int]:
         raise UserError(f"--bvh-character: expected a character of the crowd, 0 to {characters - 1}, not {chosen}")
     vmc = DEFAULT_VMC_CHARACTERS if args.vmc_characters is None else option_value("run --vmc-characters", args.vmc_characters)
     return characters, spacing, chosen, min(vmc, characters)
+
+
+def missing_gaits(score, units: list[str]) -> list[tuple[int, str]]:
+    """(line, gait) of each gait a score's cues set that the model has no unit for (the first cue
+    of each): `run --check` says so before the show, as the show does when it plays them."""
+    from ..synthesis.parameters import GAITS
+    from ..synthesis.stream import gait_index
+
+    said: dict[str, int] = {}
+    for cue in score.cues:
+        if "gait" in cue.ramp:
+            gait = GAITS[gait_index(cue.ramp["gait"])]
+            if gait not in units and gait not in said:
+                said[gait] = cue.line
+    return [(line, gait) for gait, line in said.items()]
