@@ -488,3 +488,16 @@ def test_both_arms_of_the_shared_skeleton_in_every_pose_of_the_takes():
         found |= {tuple(sorted((names[s], names[e]) for s, e in find_limbs(motion.skeleton, root, frame).arms))
                   for frame in motion.channels[::10]}
     assert found == {(("UpperArm_L", "LowerArm_L"), ("UpperArm_R", "LowerArm_R"))}
+
+
+def test_styles_that_differ_only_in_case_are_said_to_be_two(real_walks):
+    """A manifest keeps its styles' case and a file name's is read lower-cased, so `Normal` in a
+    manifest and `normal` from a name train two styles: training says so."""
+    from instrument.training.corpus import load_corpus
+
+    normal = [p for p in real_walks if "_normal_" in p.name][:2]
+    _, takes, warnings = load_corpus([(normal[0], "Normal"), (normal[1], "normal")], 30.0)
+    assert {t.style for t in takes} == {"Normal", "normal"}
+    assert "styles 'Normal' and 'normal' differ only in case: the model has them as 2 styles" in warnings
+    _, _, warnings = load_corpus([(normal[0], "normal"), (normal[1], "normal")], 30.0)
+    assert not any("differ only in case" in w for w in warnings)

@@ -295,6 +295,11 @@ def load_corpus(pairs: Sequence[tuple], fps: float, progress=None, states: int =
     kept = {t.style for t in takes}
     warnings += [f"style {style!r}: none of its takes has steps, so the model has no such style"
                  for style in sorted({p.style for p in pairs} - kept)]
+    by_case: dict[str, list[str]] = {}
+    for style in sorted(kept):  # a manifest keeps its styles' case, a file name's is read lower-cased
+        by_case.setdefault(style.lower(), []).append(style)
+    warnings += [f"styles {' and '.join(map(repr, same))} differ only in case: the model has them as "
+                 f"{len(same)} styles" for same in by_case.values() if len(same) > 1]
     return layout, takes, warnings
 
 
