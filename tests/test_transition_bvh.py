@@ -35,6 +35,24 @@ def _feet_apart(positions: np.ndarray, hips: list[int], pivots: list[int], frame
     return np.array([apart @ forward, apart @ side])
 
 
+def _recorded(tmp_path, cues: str, *options: str) -> tuple[str, list[str], np.ndarray, float]:
+    """A score (`cues`, its TOML) played by `instrument run --score --fast --no-osc --bvh` with
+    `options`, and the file read back by the independent reader: (what the command said, the
+    joints' names, their world positions, the file's rate)."""
+    (tmp_path / "score.toml").write_text(cues)
+    done = subprocess.run([sys.executable, "-m", "instrument", "run", "--score", "score.toml", "--fast", "--no-osc",
+                           *options, "--bvh", "take.bvh"], capture_output=True, text=True, cwd=tmp_path, timeout=900)
+    assert done.returncode == 0, done.stderr
+    return (done.stdout + done.stderr, *world_positions(tmp_path / "take.bvh"))
+
+
+def _hips_speed(names: list[str], recorded: np.ndarray, fps: float) -> np.ndarray:
+    """(frames - 1,) the shipped model's root joint's horizontal speed in a recording (cm/s)."""
+    layout = load_model(REPO / "models" / "default.npz").layout
+    hips = recorded[:, names.index(layout.skeleton.names[layout.root])][:, [0, 2]]
+    return np.linalg.norm(np.diff(hips, axis=0), axis=1) * fps
+
+
 def test_the_evaluations_stop_and_start_is_the_bvh_a_score_records(tmp_path):
     model = load_model(REPO / "models" / "default.npz")
     sequence = transition_sequence(model, "walk", {"feminine": 1.0})
@@ -42,15 +60,11 @@ def test_the_evaluations_stop_and_start_is_the_bvh_a_score_records(tmp_path):
     fps = model.fps
     frames = len(sequence.labels)
     # the same cues as a score: the style and the walk from the start, a stand, the walk again
-    (tmp_path / "stop.toml").write_text(
-        f'[[cue]]\nat = 0\nramp = {{ "style/feminine" = 1.0, gait = "walk" }}\n\n'
-        f'[[cue]]\nat = {stop_at / fps!r}\nramp = {{ gait = "stand" }}\n\n'
-        f'[[cue]]\nat = {start_at / fps!r}\nramp = {{ gait = "walk" }}\n')
-    done = subprocess.run([sys.executable, "-m", "instrument", "run", "--score", "stop.toml", "--fast", "--no-osc",
-                           "--quiet", "--fps", repr(fps), "--seconds", repr(frames / fps), "--bvh", "stop.bvh"],
-                          capture_output=True, text=True, cwd=tmp_path, timeout=900)
-    assert done.returncode == 0, done.stderr
-    names, recorded, recorded_fps = world_positions(tmp_path / "stop.bvh")
+    _, names, recorded, recorded_fps = _recorded(
+        tmp_path, f'[[cue]]\nat = 0\nramp = {{ "style/feminine" = 1.0, gait = "walk" }}\n\n'
+                  f'[[cue]]\nat = {stop_at / fps!r}\nramp = {{ gait = "stand" }}\n\n'
+                  f'[[cue]]\nat = {start_at / fps!r}\nramp = {{ gait = "walk" }}\n',
+        "--quiet", "--fps", repr(fps), "--seconds", repr(frames / fps))
     assert abs(recorded_fps - fps) < 1e-3 and len(recorded) == frames  # Frame Time is written to 6 places
     own = own_world_positions(sequence.motion)
     order = [sequence.motion.skeleton.names.index(n) for n in names]
@@ -92,21 +106,15 @@ def test_a_recorded_walk_stops_without_flinging_a_foot_forward_and_back(tmp_path
     was pulled back under the hips, stopped dead as the stand began: 12.3-12.4 cm/frame^2
     against the walk's 4.9 (docs/evaluate.md, "A braking body shortens its steps")."""
     fps = 30.0
-    (tmp_path / "stop.toml").write_text(
-        f'[[cue]]\nat = 0\nramp = {{ "style/feminine" = 1.0, gait = "walk" }}\n\n'
-        f'[[cue]]\nat = {walk_frames / fps!r}\nramp = {{ gait = "stand" }}\n')
     frames = walk_frames + 90
-    done = subprocess.run([sys.executable, "-m", "instrument", "run", "--score", "stop.toml", "--fast", "--no-osc",
-                           "--quiet", "--fps", repr(fps), "--seconds", repr(frames / fps), "--bvh", "stop.bvh"],
-                          capture_output=True, text=True, cwd=tmp_path, timeout=900)
-    assert done.returncode == 0, done.stderr
-    names, recorded, recorded_fps = world_positions(tmp_path / "stop.bvh")
+    _, names, recorded, recorded_fps = _recorded(
+        tmp_path, f'[[cue]]\nat = 0\nramp = {{ "style/feminine" = 1.0, gait = "walk" }}\n\n'
+                  f'[[cue]]\nat = {walk_frames / fps!r}\nramp = {{ gait = "stand" }}\n',
+        "--quiet", "--fps", repr(fps), "--seconds", repr(frames / fps))
     assert abs(recorded_fps - fps) < 1e-3 and len(recorded) == frames
     jumps = np.zeros(frames)  # each frame's largest joint velocity change, from the file alone
     jumps[2:] = np.linalg.norm(np.diff(recorded, 2, axis=0), axis=-1).max(axis=1)
-    layout = load_model(REPO / "models" / "default.npz").layout
-    hips = recorded[:, names.index(layout.skeleton.names[layout.root])][:, [0, 2]]
-    speed = np.linalg.norm(np.diff(hips, axis=0), axis=1) * fps
+    speed = _hips_speed(names, recorded, fps)
     assert speed[walk_frames - 30:walk_frames].mean() > 60.0 and speed[-30:].mean() < 2.0  # walked, then stood still
     assert jumps[walk_frames:walk_frames + 60].max() <= 1.25 * jumps[15:walk_frames].max()
 
@@ -122,22 +130,16 @@ def test_a_recorded_start_called_off_brakes_without_a_jolt(tmp_path, called_off)
     the stand's next step boundary, 0.3 s after the cue here, it never sets off.)"""
     fps = 30.0
     walk_cue = 6.0
-    (tmp_path / "abort.toml").write_text(
-        f'[[cue]]\nat = 0\nramp = {{ "style/feminine" = 1.0, gait = "walk" }}\n\n'
-        f'[[cue]]\nat = 3.0\nramp = {{ gait = "stand" }}\n\n'
-        f'[[cue]]\nat = {walk_cue!r}\nramp = {{ gait = "walk" }}\n\n'
-        f'[[cue]]\nat = {walk_cue + called_off!r}\nramp = {{ gait = "stand" }}\n')
     frames = int(round((walk_cue + 2.5) * fps))
-    done = subprocess.run([sys.executable, "-m", "instrument", "run", "--score", "abort.toml", "--fast", "--no-osc",
-                           "--quiet", "--fps", repr(fps), "--seconds", repr(frames / fps), "--bvh", "abort.bvh"],
-                          capture_output=True, text=True, cwd=tmp_path, timeout=900)
-    assert done.returncode == 0, done.stderr
-    names, recorded, recorded_fps = world_positions(tmp_path / "abort.bvh")
+    _, names, recorded, recorded_fps = _recorded(
+        tmp_path, f'[[cue]]\nat = 0\nramp = {{ "style/feminine" = 1.0, gait = "walk" }}\n\n'
+                  f'[[cue]]\nat = 3.0\nramp = {{ gait = "stand" }}\n\n'
+                  f'[[cue]]\nat = {walk_cue!r}\nramp = {{ gait = "walk" }}\n\n'
+                  f'[[cue]]\nat = {walk_cue + called_off!r}\nramp = {{ gait = "stand" }}\n',
+        "--quiet", "--fps", repr(fps), "--seconds", repr(frames / fps))
     assert abs(recorded_fps - fps) < 1e-3 and len(recorded) == frames
     jumps = velocity_jumps(recorded)
-    layout = load_model(REPO / "models" / "default.npz").layout
-    hips = recorded[:, names.index(layout.skeleton.names[layout.root])][:, [0, 2]]
-    speed = np.linalg.norm(np.diff(hips, axis=0), axis=1) * fps
+    speed = _hips_speed(names, recorded, fps)
     cue = int(round(walk_cue * fps))
     assert speed[30:90].mean() > 60.0 and speed[cue - 30:cue].mean() < 2.0  # walked, then stood still before the cue
     assert speed[cue:].max() > 5.0  # it did set off
@@ -151,15 +153,12 @@ def test_a_stop_recorded_at_25_or_60_fps_closes_its_feet_and_stays_finite(tmp_pa
     hair under 1, and the frame after divided 0 by 0: the foot's held heading became NaN, and every
     frame after it (`run --fps 60 --bvh` wrote 567 of 751 frames, then failed 184; the OSC stream
     carried NaN; `evaluate --units` on a model trained at 60 fps died with a traceback)."""
-    (tmp_path / "stop.toml").write_text(
-        '[[cue]]\nat = 0\nramp = { "style/normal" = 1.0, gait = "walk" }\n\n'
-        '[[cue]]\nat = 4.5\nramp = { gait = "stand" }\n\n[[cue]]\nat = 8.5\nramp = { gait = "walk" }\n\n[[cue]]\nhold = 3\n')
-    done = subprocess.run([sys.executable, "-m", "instrument", "run", "--score", "stop.toml", "--fast", "--no-osc",
-                           "--fps", str(fps), "--bvh", "stop.bvh"],
-                          capture_output=True, text=True, cwd=tmp_path, timeout=900)
-    said = done.stdout + done.stderr  # (a pose not finite is held, not written: runtime/finite.py says so)
-    assert done.returncode == 0 and "output errors" not in said and "poses held" not in said and "stopped after" in said, said
-    names, positions, recorded_fps = world_positions(tmp_path / "stop.bvh")
+    said, names, positions, recorded_fps = _recorded(
+        tmp_path, '[[cue]]\nat = 0\nramp = { "style/normal" = 1.0, gait = "walk" }\n\n'
+                  '[[cue]]\nat = 4.5\nramp = { gait = "stand" }\n\n[[cue]]\nat = 8.5\nramp = { gait = "walk" }\n\n'
+                  '[[cue]]\nhold = 3\n', "--fps", str(fps))
+    # (a pose not finite is held, not written: runtime/finite.py says so)
+    assert "output errors" not in said and "poses held" not in said and "stopped after" in said, said
     assert len(positions) == int(round(11.5 * fps)) + 1 and np.isfinite(positions).all()
     hips = positions[:, names.index("Hips")]
     standing = slice(int(7.0 * fps), int(8.5 * fps))  # stood still, the closing step taken
