@@ -94,6 +94,36 @@ def test_the_evaluations_stop_and_start_is_the_bvh_a_score_records(tmp_path):
     assert jumps[start_at:start_at + 2 * int(fps)].max() < 1.5 * jumps[stop_at - 90:stop_at].max()
 
 
+def test_a_recorded_run_from_a_stand_lifts_its_rear_foot_without_sweeping_it_back(tmp_path):
+    """What a user gets of a run's first step: a score that runs (normal x2, whose start swept
+    worst), stands and runs again, recorded by `instrument run --fast --bvh` and read back by the
+    independent reader. A running foot's toes never go back along the way the body travels by
+    much more than they do in the steady run: the start eases the stance leg's swing and the
+    travel in up to its toe-off, so the sweep has stopped as the foot lifts. Eased over the whole
+    step, the rear toes were swept back 7.8 cm in a frame as they rose (the steady run's most is
+    1.1), and the swing brought them forward again (units.py, "A run's first step pushes off")."""
+    fps = 30.0
+    run_cue = 7.0
+    frames = int(round((run_cue + 1.5) * fps))
+    _, names, recorded, _ = _recorded(
+        tmp_path, '[[cue]]\nat = 0\nramp = { "style/normal" = 2.0, gait = "run" }\n\n'
+                  '[[cue]]\nat = 4.0\nramp = { gait = "stand" }\n\n'
+                  f'[[cue]]\nat = {run_cue!r}\nramp = {{ gait = "run" }}\n',
+        "--quiet", "--fps", repr(fps), "--seconds", repr(frames / fps))
+    layout = load_model(REPO / "models" / "default.npz").layout
+    legs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template)).legs
+    hips = recorded[:, names.index(layout.skeleton.names[layout.root])][:, [0, 2]]
+    travel = np.diff(hips, axis=0)
+    way = travel / np.maximum(np.linalg.norm(travel, axis=1, keepdims=True), 1e-9)  # the body's way, frame by frame
+    toes = [recorded[:, names.index(layout.skeleton.names[leg.pivot])][:, [0, 2]] for leg in legs]
+    back = np.max([-(np.diff(toe, axis=0) * way).sum(axis=1) for toe in toes], axis=0)  # cm a frame, the worse foot
+    cue = int(round(run_cue * fps))
+    speed = np.linalg.norm(travel, axis=1) * fps
+    assert speed[cue - 30:cue].mean() < 2.0 and speed[-10:].mean() > 300.0  # stood, then ran
+    steady = back[30:120].max()
+    assert back[cue:].max() <= 2.5 * max(steady, 0.5), (back[cue:].max(), steady)
+
+
 @pytest.mark.parametrize("walk_frames", [60, 64, 68])  # the stop told early, half way and late in a step
 def test_a_recorded_walk_stops_without_flinging_a_foot_forward_and_back(tmp_path, walk_frames):
     """What a user gets of a stop: a score that walks (feminine at weight 1, whose stop popped

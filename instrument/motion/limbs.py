@@ -135,6 +135,21 @@ def _arm(parents: np.ndarray, lengths: np.ndarray, branch: int) -> tuple[int, in
     return bones[pairs[-1]][0], bones[pairs[-1]][1]
 
 
+def leg_columns(layout: FeatureLayout) -> np.ndarray:
+    """(2, D) bool: the features of each leg's joints (its hip and every joint below), in the
+    legs' order (the contact tables' feet); none for a skeleton without two legs."""
+    out = np.zeros((2, layout.dimension), dtype=bool)
+    limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
+    if limbs is None:
+        return out
+    first = layout.dimension - 3 * len(layout.joints)  # the joints' features follow the root's
+    for f, leg in enumerate(limbs.legs):
+        below = set(_descendants(layout.skeleton.parents, leg.hip))
+        for k, joint in enumerate(layout.joints):
+            out[f, first + 3 * k:first + 3 * k + 3] = joint in below
+    return out
+
+
 def find_limbs(skeleton: Skeleton, root: int, template: np.ndarray) -> Limbs | None:
     """Legs and arms from one frame of channel values (the template pose); None when the
     skeleton has no two legs below the root (then nothing about feet can be measured or fixed)."""

@@ -51,12 +51,12 @@ def through_gains(ahead, solved, factor, ranged, kept_from, kept_to, stride, rat
     """out (N, A, D) = the stream's provisional frames `ahead` (N, A, D) less the frame it solved,
     `solved` (N, D), each feature times the gain the frame's stages gave it: the range filter's
     eased factor `factor` (N, D; when `ranged`, but for columns kept_from to kept_to, which it keeps
-    as made), a braking or starting body's `stride` (N,) but for the root's rates (columns
+    as made), a braking or starting body's `stride` (N, D) but for the root's rates (columns
     rates_from to rates_to), which the drive scales by `scale` (N,: cadence times travel)."""
     for n in range(ahead.shape[0]):
         for d in range(ahead.shape[2]):
             gain = factor[n, d] if ranged and not kept_from <= d < kept_to else 1.0
-            gain *= scale[n] if rates_from <= d < rates_to else stride[n]
+            gain *= scale[n] if rates_from <= d < rates_to else stride[n, d]
             for j in range(ahead.shape[1]):
                 out[n, j, d] = gain * (ahead[n, j, d] - solved[n, d])
 

@@ -344,10 +344,10 @@ def drive(static: np.ndarray, cadence: np.ndarray, travel: np.ndarray, turn: np.
 
 def shortened(frames: np.ndarray, stand: np.ndarray, stride: np.ndarray) -> np.ndarray:
     """Frames (N, D) with every feature but the root's rates (which the drive scales by the
-    travel) drawn towards a standing pose `stand` (N, D) to the share `stride` (N,) of their
+    travel) drawn towards a standing pose `stand` (N, D) to the share `stride` (N, D) of their
     distance from it: a braking body's steps shortened as its travel eases out, a body's first
     step from a standstill as its travel eases in (units.py)."""
-    out = stand + stride[:, None] * (frames - stand)
+    out = stand + stride * (frames - stand)
     out[:, ROOT_RATES[0]:ROOT_RATES[1]] = frames[:, ROOT_RATES[0]:ROOT_RATES[1]]
     return out
 
@@ -405,7 +405,8 @@ class Engine:
         # (N, A, D) the newest model frame's forward differences (its provisional next frames' differences
         # from it, through the stages' gains: `_forward`), made only when the output's rate is not the model's
         self.forward: np.ndarray | None = None
-        self._no_stride = np.ones(characters)  # the stride of a body neither braking nor starting
+        self._no_stride = np.ones((characters, model.layout.dimension))  # the stride of a body neither braking nor starting
+        self._stride = self._no_stride  # this frame's (UnitChooser.strides)
         self._no_factor = np.ones((0, 0))  # the range factors of a model without the range stage (none read)
         self.made = 0  # model frames made
         self._unit_span = 2 * model.states  # states a unit's two labels hold
@@ -504,7 +505,8 @@ class Engine:
             towards = self._stand_pose()
             if self.units.starting.any():
                 towards = np.where(self.units.starting[:, None], self._stood, towards)
-            frames = shortened(frames, towards, self.units.stride)
+            self._stride = self.units.strides()
+            frames = shortened(frames, towards, self._stride)
         driven = np.empty(frames.shape)
         drive(frames, self.stream.cadence, self.units.travel, self.units.added_yaw, driven)
         frames = driven
@@ -537,7 +539,7 @@ class Engine:
         (`GestureLayer.forward`). The stages' parameters as this frame has them: the next frame's
         ease on from there, which the tangent does not need to know of."""
         ranged = self.range_filter is not None
-        stride = self.units.stride if self.units.shortening else self._no_stride
+        stride = self._stride if self.units.shortening else self._no_stride
         forward = np.empty(ahead.shape)
         through_gains(ahead, solved, self.range_filter.factor if ranged else self._no_factor, ranged, KEPT_FROM,
                       KEPT_TO, stride, *ROOT_RATES, self.stream.cadence * self.units.travel, forward)

@@ -80,6 +80,21 @@ late one wait): braked within the rest of the step, the foot about to land was p
 landed; with one more step, the other foot comes up beside it, a closing step as people stop.
 Once the body stands still (its travel 0), the stride eases back to 1 over STOP_SECONDS, where
 the stand's pose and its stride mean differ only by its sway.
+
+A run's first step pushes off only while its stance foot is down: a walk's stance foot is planted
+through the whole step, a run's lifts about two thirds of the way (its toe-off; then both feet are
+in the air). Eased over the whole step, the stride was still at its steepest when a run's stance
+foot lifted, and swept that foot back as it rose: normal x2's rear toe went 19 cm back in world
+space, then forward with the swing (Toes_L jumped 13.45 cm/frame^2 against 13.35 in its steady
+run). So a body setting off eases its travel and its stance leg's stride (`stance_stride`, the
+leg's features: limbs.leg_columns) in up to the end of the last state the model plants that foot
+in (`pushing_states`: all five of a walk's, three of a run's), and the rest of its pose over the
+step as before: the stance foot's sweep has stopped as it lifts, and the body is at its gait's
+speed from the toe-off, as a body in flight can no longer speed up. Easing the whole pose so
+(the swinging foot too) swept the swinging leg, its share rising faster from the stood pose, and
+its toes jumped up to 27 cm/frame^2; the stance leg alone with the travel over the whole step let
+the lock hold a foot swept back against the body (docs/evaluate.md, "A run pushes off until its
+toe-off").
 """
 
 from __future__ import annotations
@@ -88,6 +103,7 @@ import numpy as np
 
 from ..models.modelfile import Model
 from ..motion.features import ROOT_FEATURES
+from ..motion.limbs import leg_columns
 from .parameters import GAITS
 from .stream import ELAPSED, LABEL, NEXT, STATE, UNIT, Crowd
 
@@ -108,6 +124,22 @@ def unsteered_turn(units: list[str], gait: int, turn: float) -> str | None:
         return None
     unit = "turn-left" if turn > 0.0 else "turn-right"
     return None if unit in units else unit
+
+
+def pushing_states(model: Model) -> tuple[np.ndarray, np.ndarray]:
+    """Per label (labels,): how many of its first states its stance foot is down through (up to
+    the last state whose contact share in the average model is at least a half: all of a walk's,
+    a run's up to its toe-off), and which foot that is (the one more often down over the step:
+    0 or 1, the legs' order). A model without contact statistics: every state, foot 0."""
+    shares = (getattr(model, "extras", {}) or {}).get("contact_average")
+    labels, states = len(model.labels), model.states
+    if shares is None or np.shape(shares) != (labels, states, 2):
+        return np.full(labels, states), np.zeros(labels, dtype=np.int64)
+    shares = np.asarray(shares, dtype=np.float64)
+    foot = shares.sum(axis=1).argmax(axis=1)
+    down = shares[np.arange(labels), :, foot] >= 0.5  # (labels, states)
+    last = states - 1 - down[:, ::-1].argmax(axis=1)
+    return np.where(down.any(axis=1), last + 1, states), foot
 
 
 def smootherstep(x: np.ndarray) -> np.ndarray:
@@ -168,6 +200,12 @@ class UnitChooser:
         self.setting_off = False  # some body was (a Python bool: the engine reads it every frame)
         self.starting = np.zeros(count, dtype=np.bool_)  # since then: its stride is its level, drawn from that pose
         self._settled: tuple[int, float] | None = None  # (gait, turn) that left nothing to do frame by frame
+        self.pushing, self.stance_foot = pushing_states(model)  # per label: the states its stance foot is down; which
+        self.legs = leg_columns(model.layout)  # (2, D) each leg's features
+        self.start_foot = np.zeros(count, dtype=np.int64)  # the stance foot of a starting body's first step
+        self.stance_level = np.ones(count)  # how far a starting body's travel and stance leg are eased in
+        self.stance_rate = np.full(count, 1.0 / self.start_frames)  # how much of it they gain a frame
+        self.stance_stride = np.ones(count)  # its smootherstep: the share of its swing that leg takes
 
     def __call__(self, gait: int, turn: float, stream: Crowd) -> None:
         """Set every character's coming unit for this frame's controls (before the stream's step).
@@ -212,14 +250,17 @@ class UnitChooser:
         still = (coming != self.stand) & (self.level == 0.0)
         halted = self.starting & (coming == self.stand) & (self.level > 0.0)
         if halted.any():  # stopped while setting off: its levels moved onto the smoothstep braking eases by
-            self.level[halted] = smoothstep_of(smootherstep(self.level[halted]))
+            self.level[halted] = smoothstep_of(smootherstep(self.stance_level[halted]))  # (its travel's)
             self.stride_level[halted] = smoothstep_of(smootherstep(self.stride_level[halted]))
         self.set_off = still & ~self.starting
         self.setting_off = bool(self.set_off.any())
         self.starting = (self.starting | still) & (coming != self.stand)
         first = still & ~standing
-        if first.any():  # its first step has begun: its travel eases in over the step, a half step
+        if first.any():  # its first step has begun: its pose eases in over the step, its travel and
+            # stance leg up to the stance foot's toe-off
             self.start_rate[first] = 1.0 / np.maximum(self._frames_left(stream)[first], 1.0)
+            self.stance_rate[first] = 1.0 / np.maximum(self._frames_left(stream, self.pushing)[first], 1.0)
+            self.start_foot[first] = self.stance_foot[counters[first, LABEL]]
         self._ease(standing, stopping, self._frames_to_stand(stream, stopping) if stopping.any() else None)
         rest = turn - side * share * self.turn_rates.get(side, 0.0)  # what turning steps do not give
         self.added_yaw[:] = np.where(standing, 0.0, rest)
@@ -247,9 +288,11 @@ class UnitChooser:
         self.level = level
         starting = bool(self.starting.any())  # some body sets off from a standstill: its ease is a smootherstep
         self.travel = level * level * (3.0 - 2.0 * level)
-        if starting:  # (its stride is its level: the same curve for both)
+        if starting:  # (its stride is its level: the same curve for both; its travel its stance leg's)
             eased = smootherstep(level)
-            self.travel = np.where(self.starting, eased, self.travel)
+            self.stance_level = np.where(moving & self.starting, np.minimum(self.stance_level + self.stance_rate, 1.0), level)
+            self.stance_stride = smootherstep(self.stance_level)
+            self.travel = np.where(self.starting, self.stance_stride, self.travel)
         braking = stopping | (standing & (level > 0.0))
         stride = np.where(braking, np.minimum(self.stride_level, level),
                           np.where(self.starting, level, np.minimum(self.stride_level + 1.0 / self.stop_frames, 1.0)))
@@ -259,6 +302,14 @@ class UnitChooser:
             self.stride = np.where(self.starting, eased, self.stride)
             self.starting &= level < 1.0
         self.shortening = bool(stride.min() < 1.0)
+
+    def strides(self) -> np.ndarray:
+        """(N, D) the share of its swing each character's every feature takes (`stride`), but a
+        starting body's stance leg's, which takes `stance_stride`."""
+        out = np.repeat(self.stride[:, None], self.legs.shape[1], axis=1)
+        if self.starting.any():
+            out = np.where(self.legs[self.start_foot] & self.starting[:, None], self.stance_stride[:, None], out)
+        return out
 
     def _frames_to_stand(self, stream: Crowd, stopping: np.ndarray) -> np.ndarray:
         """(N,) the frames each body still moves before its stand begins, after this one: the rest
@@ -271,9 +322,12 @@ class UnitChooser:
         return np.maximum(left, 0.0)
 
     @staticmethod
-    def _frames_left(stream: Crowd) -> np.ndarray:
-        """(N,) the frames of each character's step under way still to come, at mean durations."""
+    def _frames_left(stream: Crowd, states: np.ndarray | None = None) -> np.ndarray:
+        """(N,) the frames of each character's step under way still to come, at mean durations:
+        to its end, or to the end of its label's first `states[label]` states."""
         counters = stream.counters
         base = stream.base[np.arange(stream.count), counters[:, LABEL]]  # (N, states)
         ahead = np.arange(base.shape[1]) >= counters[:, STATE, None]
+        if states is not None:
+            ahead &= np.arange(base.shape[1]) < states[counters[:, LABEL], None]
         return (base * ahead).sum(axis=1) - counters[:, ELAPSED]
