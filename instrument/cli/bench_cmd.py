@@ -112,7 +112,8 @@ def _print_crowd(f: dict) -> None:
 
     print(f"live crowd of {f['crowd_size_for_cost']}, per character:     {f['stream_us_per_character']:8.1f} us/frame "
           f"(x{f['stream_per_character_to_window_solve']:.2f} the window solve: engine {f['crowd_engine_us_per_character']:.1f}, "
-          f"pose {f['crowd_pose_us_per_character']:.1f}, flat OSC {f['crowd_flat_us_per_character']:.1f})")
+          f"pose {f['crowd_pose_us_per_character']:.1f}, finite check {f['crowd_finite_us_per_character']:.1f}, "
+          f"flat OSC {f['crowd_flat_us_per_character']:.1f})")
     print("  its stages, per character (x the window solve): " + ", ".join(
         f"{stage} {f[f'crowd_{stage}_us_per_character']:.1f} (x{f[f'crowd_{stage}_to_window_solve']:.2f})" for stage in STAGES))
     print(f"largest live crowd at 30 fps:           {f['largest_crowd_30fps']:8d} characters (p99 lateness under "

@@ -23,12 +23,12 @@ COST_FRAMES = 30
 
 # the engine's stages in the order it runs them (`Engine.stage_seconds`), then the pose and the output's
 ENGINE_STAGES = ("cast", "interpolation", "durations", "units", "stream", "range", "drive", "gestures", "between", "contact")
-STAGES = ENGINE_STAGES + ("posing", "encoding", "sending")
+STAGES = ENGINE_STAGES + ("posing", "finite", "encoding", "sending")
 
 
 def live_path(model: Model, count: int, spread: float = 0.5):
-    """A frame of the live crowd path without the clock: the engine (its stages timed), the
-    flat profile's datagrams for `count` characters written and sent to a local UDP socket, with
+    """A frame of the live crowd path without the clock: the engine (its stages timed), the check
+    that every pose is finite (runtime/finite.py), the flat profile's datagrams for `count` characters written and sent to a local UDP socket, with
     the demo's controls moving from its first ramp on (the weights change every frame). Returns
     the frame function, the seconds per stage (added up over the frames made) and a closer."""
     from ..control.hub import ControlHub
@@ -36,6 +36,7 @@ def live_path(model: Model, count: int, spread: float = 0.5):
     from ..control.state import ControlState
     from ..output.osc import OscTarget, UdpOut
     from ..output.outputs import make_profile
+    from ..runtime.finite import FinitePoses
     from ..terminal import Console
     from ..synthesis.engine import Engine
 
@@ -50,6 +51,7 @@ def live_path(model: Model, count: int, spread: float = 0.5):
     sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sink.bind(("127.0.0.1", 0))
     out = UdpOut(OscTarget("127.0.0.1", sink.getsockname()[1], "flat"), console)
+    finite = FinitePoses()  # as the live loop, a pose that is not a number is held, not sent
 
     def frame(index: int) -> None:
         now = index / CROWD_FPS
@@ -58,10 +60,13 @@ def live_path(model: Model, count: int, spread: float = 0.5):
         state.advance(now)
         crowd = engine.frame(now, state.snapshot(), state.spread)
         started = time.perf_counter()
+        crowd = finite(crowd)[0]
+        checked = time.perf_counter()
+        seconds["finite"] = seconds.get("finite", 0.0) + checked - started
         datagrams = profile.encode(crowd, state.echo())
         encoded = time.perf_counter()
         out.send(datagrams)
-        seconds["encoding"] = seconds.get("encoding", 0.0) + encoded - started
+        seconds["encoding"] = seconds.get("encoding", 0.0) + encoded - checked
         seconds["sending"] = seconds.get("sending", 0.0) + time.perf_counter() - encoded
         drain(sink)
 
