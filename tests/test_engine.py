@@ -108,16 +108,28 @@ def test_samples_between_model_frames_pass_through_them_with_no_jump_in_velocity
     """At 120 fps a crowd's samples (spread, a wave played) are the model's frames to the bit at
     every fourth output frame (the frames a 30 fps engine makes), and in between their velocity
     changes at a model frame by about what it changes elsewhere: lerped, it changed at the model's
-    frames only (the second difference 0 between them)."""
+    frames only (the second difference 0 between them). The feet's contact shares likewise: the
+    model frames' at every fourth, on the line between two elsewhere (`Engine.shares_at`)."""
     def pressed(t):  # a wave held from 1 s to 1.5 s, pressed at a frame that makes a model frame at both rates
         return replace(controls, gestures=("wave",)) if 0.97 <= t <= 1.5 else controls
 
     controls = default_controls(model, {"active": 1.0})
     slow, fast = Engine(model, 3), Engine(model, 3, 4 * model.fps)
-    made = np.array([slow.sample(k / slow.fps, pressed(k / slow.fps), 0.5) for k in range(90)])
-    played = np.array([fast.sample(k / fast.fps, pressed(k / fast.fps), 0.5) for k in range(360)])
+    made, planted = [], []
+    for k in range(90):
+        made.append(slow.sample(k / slow.fps, pressed(k / slow.fps), 0.5))
+        planted.append(slow.shares_at(k / slow.fps))
+    played, shares = [], []
+    for k in range(360):
+        played.append(fast.sample(k / fast.fps, pressed(k / fast.fps), 0.5))
+        shares.append(fast.shares_at(k / fast.fps))
+    made, planted, played, shares = map(np.array, (made, planted, played, shares))
     assert fast.gestures.started == 1
     assert np.array_equal(played[::4], made)
+    # the feet's contact shares too: the model's frames' to the bit, and halfway between two the
+    # mean of theirs (held at the newest's, the lock took a state's step three frames early)
+    assert np.array_equal(shares[::4], planted)
+    assert np.allclose(shares[6:-4:4], (planted[1:-1] + planted[2:]) / 2.0)
     second = np.abs(np.diff(played[8:], 2, axis=0))  # row 4k + 3 is centred on model frame k + 3
     at_frames = second[3::4].mean()
     between = np.delete(second, np.s_[3::4], axis=0).mean()
