@@ -31,9 +31,10 @@ the ground a model frame covers differs from the lerp's by a multiple of m[k-1] 
 telescopes over frames (no drift); the root's tilt and every joint's rotation, exponential maps
 relative to the template pose (made continuous over time and far from pi: motion/features.py),
 the space the streaming MLPG makes its trajectories smooth in, so a cubic in it is a rotation
-path with continuous angular velocity. The contact shares are not interpolated: a share belongs
-to a frame's HSMM state (one value until the next state), and the lock reads it against
-thresholds with its own blends in seconds (footlock.py).
+path with continuous angular velocity. The contact shares are not features: the engine draws
+them on a line between the two frames' (`Engine.shares_at`), so the lock, which reads them
+against thresholds with its own blends in seconds (footlock.py), takes a state's step where the
+line crosses its threshold rather than at the first sample after the older frame.
 
 The forward differences, the tangent and each sample are one compiled pass each: numpy's array
 operations for them cost a character 1.4 window solves a model frame, these 0.3.
