@@ -22,7 +22,7 @@ from functools import lru_cache
 import numpy as np
 
 from .bvh import Motion, Skeleton
-from .features import FeatureLayout
+from .features import ROOT_FEATURES, FeatureLayout
 from .kinematics import forward_kinematics, local_transforms
 
 UP = np.array([0.0, 1.0, 0.0])
@@ -142,7 +142,7 @@ def leg_columns(layout: FeatureLayout) -> np.ndarray:
     limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
     if limbs is None:
         return out
-    first = layout.dimension - 3 * len(layout.joints)  # the joints' features follow the root's
+    first = len(ROOT_FEATURES)  # the joints' features follow the root's
     for f, leg in enumerate(limbs.legs):
         below = set(_descendants(layout.skeleton.parents, leg.hip))
         for k, joint in enumerate(layout.joints):

@@ -82,19 +82,17 @@ Once the body stands still (its travel 0), the stride eases back to 1 over STOP_
 the stand's pose and its stride mean differ only by its sway.
 
 A run's first step pushes off only while its stance foot is down: a walk's stance foot is planted
-through the whole step, a run's lifts about two thirds of the way (its toe-off; then both feet are
-in the air). Eased over the whole step, the stride was still at its steepest when a run's stance
-foot lifted, and swept that foot back as it rose: normal x2's rear toe went 19 cm back in world
-space, then forward with the swing (Toes_L jumped 13.45 cm/frame^2 against 13.35 in its steady
-run). So a body setting off eases its travel and its stance leg's stride (`stance_stride`, the
-leg's features: limbs.leg_columns) in up to the end of the last state the model plants that foot
-in (`pushing_states`: all five of a walk's, three of a run's), and the rest of its pose over the
-step as before: the stance foot's sweep has stopped as it lifts, and the body is at its gait's
-speed from the toe-off, as a body in flight can no longer speed up. Easing the whole pose so
-(the swinging foot too) swept the swinging leg, its share rising faster from the stood pose, and
-its toes jumped up to 27 cm/frame^2; the stance leg alone with the travel over the whole step let
-the lock hold a foot swept back against the body (docs/evaluate.md, "A run pushes off until its
-toe-off").
+through the whole step, a run's lifts part of the way (its toe-off; then both feet are in the
+air). Eased over the whole step, the stride was still at its steepest when a run's stance foot
+lifted, and swept that foot back as it rose. So a body setting off eases its travel and its
+stance leg's stride (`stance_stride`, the leg's features: limbs.leg_columns) in up to the first
+state of flight after that foot is down (`pushing_states`: every state of a walk's step), and
+the rest of its pose over the step as before: the stance foot's sweep has stopped as it lifts,
+and the body is at its gait's speed from the toe-off, as a body in flight can no longer speed
+up. The whole pose so eased swept the swinging leg instead; the stance leg alone with the travel
+over the whole step left the lock holding a foot swept back against the body. A start stopped
+before it is done brakes the stance leg with its travel (`halting`) until the rest of the pose
+is drawn in as far (docs/evaluate.md, "A run pushes off until its toe-off").
 """
 
 from __future__ import annotations
@@ -104,6 +102,7 @@ import numpy as np
 from ..models.modelfile import Model
 from ..motion.features import ROOT_FEATURES
 from ..motion.limbs import leg_columns
+from .contact import PLANTED, flight_states
 from .parameters import GAITS
 from .stream import ELAPSED, LABEL, NEXT, STATE, UNIT, Crowd
 
@@ -127,19 +126,23 @@ def unsteered_turn(units: list[str], gait: int, turn: float) -> str | None:
 
 
 def pushing_states(model: Model) -> tuple[np.ndarray, np.ndarray]:
-    """Per label (labels,): how many of its first states its stance foot is down through (up to
-    the last state whose contact share in the average model is at least a half: all of a walk's,
-    a run's up to its toe-off), and which foot that is (the one more often down over the step:
-    0 or 1, the legs' order). A model without contact statistics: every state, foot 0."""
+    """Per label (labels,): how many of its first states its stance foot pushes in (up to the
+    first state of flight after the foot is down: a run's toe-off; every state of a unit without
+    flight, a walk's), and which foot that is (the one more often down over the step in the
+    average model: 0 or 1, the legs' order). Flight is contact.flight_states' (a state of a unit
+    more often in the air than on both feet, planting neither foot), so no threshold of its own is
+    asked of a capture. A model without contact statistics: every state, foot 0."""
     shares = (getattr(model, "extras", {}) or {}).get("contact_average")
     labels, states = len(model.labels), model.states
     if shares is None or np.shape(shares) != (labels, states, 2):
         return np.full(labels, states), np.zeros(labels, dtype=np.int64)
     shares = np.asarray(shares, dtype=np.float64)
+    flight = flight_states(shares.reshape(-1, 2), (model.metadata.get("contact") or {}).get("air"), states,
+                           len(model.units)).reshape(labels, states)
     foot = shares.sum(axis=1).argmax(axis=1)
-    down = shares[np.arange(labels), :, foot] >= 0.5  # (labels, states)
-    last = states - 1 - down[:, ::-1].argmax(axis=1)
-    return np.where(down.any(axis=1), last + 1, states), foot
+    down = np.cumsum(shares[np.arange(labels), :, foot] >= PLANTED, axis=1) > 0  # from the state it is down
+    lifted = flight & down
+    return np.where(lifted.any(axis=1), lifted.argmax(axis=1), states), foot
 
 
 def smootherstep(x: np.ndarray) -> np.ndarray:
@@ -206,6 +209,10 @@ class UnitChooser:
         self.stance_level = np.ones(count)  # how far a starting body's travel and stance leg are eased in
         self.stance_rate = np.full(count, 1.0 / self.start_frames)  # how much of it they gain a frame
         self.stance_stride = np.ones(count)  # its smootherstep: the share of its swing that leg takes
+        # stopped while setting off: its stance leg brakes with its travel until the rest of its pose
+        # is drawn in as far (the leg ahead of the rest: made to follow the rest at once, it jumped)
+        self.halting = np.zeros(count, dtype=np.bool_)
+        self._strides = np.ones((count, self.legs.shape[1]))  # `strides`' array, filled each frame
 
     def __call__(self, gait: int, turn: float, stream: Crowd) -> None:
         """Set every character's coming unit for this frame's controls (before the stream's step).
@@ -252,6 +259,7 @@ class UnitChooser:
         if halted.any():  # stopped while setting off: its levels moved onto the smoothstep braking eases by
             self.level[halted] = smoothstep_of(smootherstep(self.stance_level[halted]))  # (its travel's)
             self.stride_level[halted] = smoothstep_of(smootherstep(self.stride_level[halted]))
+            self.halting |= halted
         self.set_off = still & ~self.starting
         self.setting_off = bool(self.set_off.any())
         self.starting = (self.starting | still) & (coming != self.stand)
@@ -274,7 +282,7 @@ class UnitChooser:
         linearly in its level over the `left` frames before the stand begins (at least
         STOP_SECONDS' frames, the rest in the stand), so the level is 0 as it does; none while it
         stands. The travel is the level's smoothstep (a body setting off from a standstill: its
-        smootherstep, as its stride): no jump in speed nor in acceleration at either end. The
+        stance level's smootherstep, its stride the level's): no jump in speed nor in acceleration at either end. The
         stride follows the level down while the body brakes, and up while it sets off from a
         standstill (0 from the command, drawn from the pose it stood in); otherwise (a stop called
         off just after a stand, a stand still) it comes back up over STOP_SECONDS."""
@@ -301,14 +309,20 @@ class UnitChooser:
         if starting:
             self.stride = np.where(self.starting, eased, self.stride)
             self.starting &= level < 1.0
+        if self.halting.any():  # its stance leg's level is its travel's (the same at the halt): eased down with it
+            self.halting &= ~self.starting & (level > stride)
+            self.stance_stride = np.where(self.halting, self.travel, self.stance_stride)
         self.shortening = bool(stride.min() < 1.0)
 
     def strides(self) -> np.ndarray:
         """(N, D) the share of its swing each character's every feature takes (`stride`), but a
-        starting body's stance leg's, which takes `stance_stride`."""
-        out = np.repeat(self.stride[:, None], self.legs.shape[1], axis=1)
-        if self.starting.any():
-            out = np.where(self.legs[self.start_foot] & self.starting[:, None], self.stance_stride[:, None], out)
+        starting (or halting) body's stance leg's, which takes `stance_stride`. The same array
+        each frame, overwritten."""
+        out = self._strides
+        out[:] = self.stride[:, None]
+        own = np.flatnonzero(self.starting | self.halting)
+        if len(own):
+            out[own] = np.where(self.legs[self.start_foot[own]], self.stance_stride[own, None], self.stride[own, None])
         return out
 
     def _frames_to_stand(self, stream: Crowd, stopping: np.ndarray) -> np.ndarray:
