@@ -503,10 +503,12 @@ def test_synth_gait_writes_a_stand_and_a_run(tmp_path):
     assert hips_speed("run.bvh").mean() > 1.3 * hips_speed("walk.bvh").mean()
 
 
-def test_synth_refuses_an_unknown_gait_in_one_line(tmp_path):
-    done = _synth(tmp_path, "--gait", "hop", "--out", "x.bvh")
+@pytest.mark.parametrize("gait", ["hop", "Run"])  # names as written, as style names are
+def test_synth_refuses_an_unknown_gait_in_one_line(tmp_path, gait):
+    done = _synth(tmp_path, "--gait", gait, "--out", "x.bvh")
     assert done.returncode != 0
-    assert done.stderr.strip().count("\n") == 0 and "--gait" in done.stderr and "hop" in done.stderr
+    assert done.stderr.strip().count("\n") == 0 and "--gait" in done.stderr and repr(gait) in done.stderr
+    assert "stand, walk, run" in done.stderr
     assert not (tmp_path / "x.bvh").exists()
 
 
