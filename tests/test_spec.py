@@ -49,7 +49,6 @@ BAD = [
     ("turn", "left", NOT_A_NUMBER),
     ("gait", "sprint", NOT_A_NUMBER),  # a name the row lacks (stand, walk, run)
     ("gait", "Run", NOT_A_NUMBER),  # names as written, as a style's are (two styles may differ only in case)
-    ("gait", "STAND", NOT_A_NUMBER),
     ("gait", 3, OUT_OF_RANGE),
     ("speed", True, NOT_A_NUMBER),
     ("speed", math.nan, NOT_A_NUMBER),
