@@ -283,7 +283,9 @@ def test_osc_surface_controls_and_presets(tmp_path):
 
 def test_an_osc_surface_sets_the_gait_by_number_or_by_name_and_a_bad_name_is_refused(tmp_path):
     """`/walk/gait f 2` and `/walk/gait s "stand"` reach the echo; `s "sprint"` is refused by the one
-    check, warned about and counted, and the show goes on; the log holds the numbers and replays them."""
+    check, warned about and counted, and the show goes on; a message with more than one argument
+    (gait's or any address's) is taken by its first, the rest said in one line; the log holds the
+    numbers and replays them."""
     from pythonosc.udp_client import SimpleUDPClient
 
     control_port, receiver = free_port(), Receiver()
@@ -296,8 +298,10 @@ def test_an_osc_surface_sets_the_gait_by_number_or_by_name_and_a_bad_name_is_ref
         client.send_message("/walk/gait", 2.0)
         wait_until(lambda: gait_sequence(receiver)[-1:] == [2.0], "run (2) echoed")
         client.send_message("/walk/gait", "sprint")  # no such gait: refused, nothing changes
-        client.send_message("/walk/gait", "stand")
+        client.send_message("/walk/gait", ["stand", "run"])  # two arguments: taken by the first, the rest said
         wait_until(lambda: gait_sequence(receiver)[-1:] == [0.0], "stand (0) echoed")
+        client.send_message("/walk/speed", [1.5, 3.0])  # any address alike (said once a minute: not again)
+        wait_until(lambda: frames_and_echo(receiver, "/walk/speed")[-1][1] == 1.5, "speed 1.5 echoed")
         client.send_message("/walk/gait", "walk")
         wait_until(lambda: gait_sequence(receiver)[-1:] == [1.0], "walk (1) echoed")
     finally:
@@ -307,6 +311,9 @@ def test_an_osc_surface_sets_the_gait_by_number_or_by_name_and_a_bad_name_is_ref
     assert process.returncode == 0, stderr
     assert gait_sequence(receiver) == [1.0, 2.0, 0.0, 1.0]
     assert "gait: not a finite number or one of stand, walk, run, not 'sprint'" in stderr
+    left = [line for line in stderr.splitlines() if "more (type tags" in line]
+    assert left == [f"warning: took /walk/gait on 127.0.0.1:{control_port} by its first argument and left 1 more "
+                    "(type tags 's'): a control takes one value (such messages are taken so; the next is shown in a minute)"]
     assert "refused {'not a finite number': 1}" in stderr
     recorded = [line for line in log.read_text().splitlines()[1:] if '"gait"' in line]
     assert [json.loads(line)["value"] for line in recorded] == [2.0, 0.0, 1.0]  # names recorded as their numbers

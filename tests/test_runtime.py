@@ -588,7 +588,6 @@ def test_a_crowd_member_not_finite_from_its_first_frame_stands_at_the_origin_and
         assert (sent.translations[0] == 0.0).all() and (sent.world_positions[0] == 0.0).all()
         assert (sent.rotations[0] == np.eye(3)).all() and (sent.world_rotations[0] == np.eye(3)).all()
         assert (sent.rotations[1] == arrays[0][1]).all() and (sent.world_positions[1] == arrays[3][1]).all()
-    assert guard.held == 3
     fine = [rng.random((2, 4, 3, 3)), rng.random((2, 4, 3)), rng.random((2, 4, 3, 3)), rng.random((2, 4, 3))]
     sent, held = guard(CrowdPose(3, 0.1, *fine))
     assert len(held) == 0 and sent.world_positions is fine[3]  # finite: passed on as it is

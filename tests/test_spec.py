@@ -48,6 +48,7 @@ BAD = [
     ("sped", 1.0, UNKNOWN),
     ("turn", "left", NOT_A_NUMBER),
     ("gait", "sprint", NOT_A_NUMBER),  # a name the row lacks (stand, walk, run)
+    ("gait", "Run", NOT_A_NUMBER),  # names as written, as a style's are (two styles may differ only in case)
     ("gait", 3, OUT_OF_RANGE),
     ("speed", True, NOT_A_NUMBER),
     ("speed", math.nan, NOT_A_NUMBER),
@@ -240,6 +241,17 @@ def test_the_console_page_refuses_alike(state_of, target, value, kind):
     with pytest.raises(Refused) as refused:
         parse(json.dumps({"set": target, "value": value}), frozenset(state.targets()))
     assert str(refused.value) == expected.text
+
+
+@pytest.mark.parametrize("name", ["Run", "STAND", "Walk"])
+def test_a_gait_name_in_another_case_is_refused_in_one_line_naming_the_control_and_its_names(state_of, name):
+    """Enumerated values are taken as written, as style names are (`style/Elderly` is unknown): the
+    refusal every input gives (the table above runs it through each) names gait and lists its names."""
+    state = state_of()
+    assert refusal("style/" + state.style_names[0].upper(), 1.0, state.style_index, state.states).kind == UNKNOWN
+    refused = refusal("gait", name, state.style_index, state.states)
+    assert refused.kind == NOT_A_NUMBER and "\n" not in refused.text
+    assert refused.text.startswith("gait: ") and "stand, walk, run" in refused.text and repr(name) in refused.text
 
 
 @pytest.mark.parametrize("value", ["run", 2, 2.0])

@@ -455,6 +455,21 @@ def _walk_only(model):
                    extras={k: (v[..., :2, :, :] if k.startswith("contact") else v) for k, v in model.extras.items()})
 
 
+def test_the_turning_unit_a_steered_walk_lacks_is_read_from_the_chooser_the_walk_uses(model):
+    """`UnitChooser.unsteered` answers from the tables the chooser steers by: a walk-only model
+    plays every gait as its walk, so a steered run or stand lacks its turning steps as the walk does
+    (the function it replaced asked the gait's name and said nothing of a run played as a walk);
+    the shipped model has both sides, and its run and stand take no turning steps by design."""
+    from instrument.synthesis.units import UnitChooser
+
+    walks = UnitChooser(_walk_only(model), 1)
+    assert [walks.unsteered(gait, 1.0) for gait in range(3)] == ["turn-left"] * 3
+    assert [walks.unsteered(gait, -0.2) for gait in range(3)] == ["turn-right"] * 3
+    assert walks.unsteered(1, 0.0) is None
+    shipped = UnitChooser(model, 1)
+    assert [shipped.unsteered(gait, turn) for gait in range(3) for turn in (-1.0, 1.0)] == [None] * 6
+
+
 def test_a_walk_only_model_plays_every_gait_as_its_walk(model):
     walk_only = _walk_only(model)
     engine = Engine(walk_only)
@@ -488,10 +503,12 @@ def test_synth_gait_writes_a_stand_and_a_run(tmp_path):
     assert hips_speed("run.bvh").mean() > 1.3 * hips_speed("walk.bvh").mean()
 
 
-def test_synth_refuses_an_unknown_gait_in_one_line(tmp_path):
-    done = _synth(tmp_path, "--gait", "hop", "--out", "x.bvh")
+@pytest.mark.parametrize("gait", ["hop", "Run"])  # names as written, as style names are
+def test_synth_refuses_an_unknown_gait_in_one_line(tmp_path, gait):
+    done = _synth(tmp_path, "--gait", gait, "--out", "x.bvh")
     assert done.returncode != 0
-    assert done.stderr.strip().count("\n") == 0 and "--gait" in done.stderr and "hop" in done.stderr
+    assert done.stderr.strip().count("\n") == 0 and "--gait" in done.stderr and repr(gait) in done.stderr
+    assert "stand, walk, run" in done.stderr
     assert not (tmp_path / "x.bvh").exists()
 
 

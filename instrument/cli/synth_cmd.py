@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     from ..synthesis.engine import default_controls, render
     from ..synthesis.parameters import GAITS
     from ..synthesis.stream import gait_index
-    from ..synthesis.units import unsteered_turn
+    from ..synthesis.units import UnitChooser
 
     motion_format(args.out)  # an extension it cannot write is refused before any work
     check_output(args.out, args.force)
@@ -105,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     if GAITS[gait] not in model.units:  # said, not refused, as `run` says it: the walk is written
         print(f"--gait {GAITS[gait]}: this model has no {GAITS[gait]} unit (it has {', '.join(model.units)}); "
               "it walks", file=sys.stderr)
-    missing_turn = unsteered_turn(model.units, gait, turn)
+    missing_turn = UnitChooser(model, 1).unsteered(gait, turn)
     if missing_turn:  # said, as a gait it lacks is: the walk is steered all the same
         print(f"--turn {turn:g}: this model has no {missing_turn} unit (it has {', '.join(model.units)}); "
               "its walk is steered without turning steps", file=sys.stderr)

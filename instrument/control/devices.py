@@ -16,7 +16,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from ..errors import UserError
+from ..errors import UserError, printable
 from ..terminal import Console
 from . import oscparse
 from .checks import value_refusal
@@ -314,7 +314,8 @@ class OscInput:
     """Control surfaces (TouchOSC, Open Stage Control) sending the flat profile's control
     addresses: /walk/style/<name>, /walk/speed, /walk/gait, /walk/turn, /walk/liveliness,
     /walk/preset/<name>. A number is the value; a target with named values (gait) also takes
-    the name as a string (`/walk/gait s "run"`)."""
+    the name as a string (`/walk/gait s "run"`). The first argument is the value: more are left
+    and said (`_left_over`)."""
 
     source = Source.of("osc")
 
@@ -371,6 +372,7 @@ class OscInput:
                          + (f"its argument (type {tag!r}) is not a number" if tag else "it has no argument (a number is needed)"))
         else:
             events.append(RawEvent(now, self.source, address[len("/walk/"):], value))
+            self._left_over(message, address)
 
     def _take_name(self, message: bytes, row: Row, now: float, events: list[RawEvent]) -> None:
         """A named value (`/walk/gait s "run"`) as its number, so the event, the log and the echo
@@ -386,6 +388,17 @@ class OscInput:
             self._refuse(why.kind, f"ignored /walk/{row.kind} on {self.address}: {why.text}")
         else:
             events.append(RawEvent(now, self.source, row.kind, float(value)))
+            self._left_over(message, f"/walk/{row.kind}")
+
+    def _left_over(self, message: bytes, address: str) -> None:
+        """A control takes one value: a message taken by its first argument that carries more
+        (an XY pad's two) is said, once a minute, whatever its address; the first stands. Refused,
+        a surface sending two would control nothing, and the show would say why only by counts."""
+        extra = oscparse.extra_tags(message)
+        if extra:
+            self.console.warn("osc-in extra", f"took {printable(address)} on {self.address} by its first argument and left "
+                              f"{len(extra)} more (type tags {extra[:16]!r}): a control takes one value "
+                              "(such messages are taken so; the next is shown in a minute)")
 
     def _refuse(self, kind: str, message: str) -> None:
         self.refused[kind] = self.refused.get(kind, 0) + 1

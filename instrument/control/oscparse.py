@@ -6,7 +6,8 @@ frames; `first_number` reads a message's address and its first argument. Anythin
 ends the walk of that packet with `Malformed`, which the input counts and warns about once.
 Values are numbers, or a string (`first_string`) a target with named values takes for its
 number (`/walk/gait s "run"`, control/spec.py `Row.number`); a blob, nil, boolean or missing
-argument is refused rather than read as 1.0.
+argument is refused rather than read as 1.0. A control takes one value: arguments after the
+first (`extra_tags`) are left, and the input says so.
 """
 
 from __future__ import annotations
@@ -59,7 +60,7 @@ def _string(data: bytes, at: int) -> tuple[str, int]:
 
 
 def _head(message: bytes) -> tuple[str, str, int]:
-    """(address, first argument's type tag or '' if none, where the arguments start)."""
+    """(address, the arguments' type tags ('' if none), where the arguments start)."""
     if not message.startswith(b"/"):
         raise Malformed("address does not start with /")
     address, at = _string(message, 0)
@@ -68,12 +69,13 @@ def _head(message: bytes) -> tuple[str, str, int]:
     tags, at = _string(message, at)
     if not tags.startswith(","):
         raise Malformed("type tags do not start with ,")
-    return address, tags[1:2], at
+    return address, tags[1:], at
 
 
 def first_number(message: bytes) -> tuple[str, float | None, str]:
     """(address, first argument if it is a number else None, its type tag or '' if none)."""
-    address, tag, at = _head(message)
+    address, tags, at = _head(message)
+    tag = tags[:1]
     if not tag:
         return address, None, ""
     spec = NUMBERS.get(ord(tag))
@@ -87,7 +89,12 @@ def first_number(message: bytes) -> tuple[str, float | None, str]:
 
 def first_string(message: bytes) -> str:
     """The first argument of a message whose type tag is 's' (`first_number` said so)."""
-    _, tag, at = _head(message)
-    if tag != "s":
+    _, tags, at = _head(message)
+    if tags[:1] != "s":
         raise Malformed("the first argument is not a string")
     return _string(message, at)[0]
+
+
+def extra_tags(message: bytes) -> str:
+    """The type tags of the arguments after the first ('' when there are none)."""
+    return _head(message)[1][1:]

@@ -18,11 +18,11 @@ from ..synthesis.posing import CrowdPose
 
 
 class FinitePoses:
-    """Each frame's poses with any character's non-finite pose replaced by its last finite one."""
+    """Each frame's poses with any character's non-finite pose replaced by its last finite one.
+    It keeps no count: the characters it held are returned, and the show's Summary counts them."""
 
     def __init__(self) -> None:
         self.last: CrowdPose | None = None  # the last frame as sent (its arrays are the engine's own, never reused)
-        self.held = 0  # character frames held so far
         self._none = np.empty(0, dtype=np.int64)  # no character held
 
     def __call__(self, crowd: CrowdPose) -> tuple[CrowdPose, np.ndarray]:
@@ -44,7 +44,6 @@ class FinitePoses:
             for k, array in enumerate(mended):
                 array[held] = np.eye(3) if k in (0, 2) else 0.0
         self.last = CrowdPose(crowd.index, crowd.time, *mended)
-        self.held += len(held)
         return self.last, held
 
 

@@ -27,7 +27,6 @@ from ..control.values import all_values
 from ..synthesis.footfalls import Footfalls, pacing
 from ..synthesis.posing import Frame
 from ..synthesis.stream import gait_index
-from ..synthesis.units import unsteered_turn
 from .clock import IDLE_UNTIL, FrameClock
 from .finite import FinitePoses
 from ..terminal import Console
@@ -241,7 +240,7 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
             if GAITS[controls.gait] in engine.units.missing:  # said, not refused: the walk goes on
                 console.warn(f"gait {GAITS[controls.gait]}", f"gait {GAITS[controls.gait]}: this model has no "
                              f"{GAITS[controls.gait]} unit (it has {', '.join(engine.model.units)}); it walks")
-            missing_turn = unsteered_turn(engine.model.units, controls.gait, controls.turn)
+            missing_turn = engine.units.unsteered(controls.gait, controls.turn)
             if missing_turn:  # said once, not refused: the walk is steered without turning steps
                 console.warn(f"turn {missing_turn}", f"turn: this model has no {missing_turn} unit (it has "
                              f"{', '.join(engine.model.units)}); its walk is steered without turning steps")

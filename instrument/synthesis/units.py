@@ -113,16 +113,7 @@ START_SECONDS = 0.5  # a body moving again before its stop stood still reaches i
 # comes, a run at 4.2 m/s (active x2) would change its speed by up to 105 cm/s in a frame (the
 # smoothstep's steepest is 1.5 times its mean), against 62 in its steady run
 STOP_SECONDS = 0.4
-
-
-def unsteered_turn(units: list[str], gait: int, turn: float) -> str | None:
-    """The turning unit a walk steered by `turn` would take its turning steps from, when the model
-    lacks it (`units`): its walk is then steered by yaw rate alone, which `run` and `synth` say
-    as they say a gait the model lacks. None when it has it, or the walk is not steered."""
-    if GAITS[gait] != "walk" or turn == 0.0:
-        return None
-    unit = "turn-left" if turn > 0.0 else "turn-right"
-    return None if unit in units else unit
+TURNING = {1: "turn-left", -1: "turn-right"}  # the turning unit of each side (+1 steers left)
 
 
 def pushing_states(model: Model) -> tuple[np.ndarray, np.ndarray]:
@@ -179,8 +170,7 @@ class UnitChooser:
             rows = slice(2 * k, 2 * k + 2)
             return float((means[rows] * durations[rows]).sum() / durations[rows].sum())
 
-        self.turn_units = {side: self.units.index(unit) for side, unit in ((1, "turn-left"), (-1, "turn-right"))
-                           if unit in self.units}
+        self.turn_units = {side: self.units.index(unit) for side, unit in TURNING.items() if unit in self.units}
         self.turn_rates = {side: abs(rate(self.units[k])) for side, k in self.turn_units.items()}  # rad/s
         self.sum = np.zeros(count)  # the error diffusion's running sum, per character
         self.turning = np.zeros(count, dtype=np.int64)  # +1 / -1: the coming step turns left / right; 0 straight
@@ -213,6 +203,17 @@ class UnitChooser:
         # is drawn in as far (the leg ahead of the rest: made to follow the rest at once, it jumped)
         self.halting = np.zeros(count, dtype=np.bool_)
         self._strides = np.ones((count, self.legs.shape[1]))  # `strides`' array, filled each frame
+
+    def unsteered(self, gait: int, turn: float) -> str | None:
+        """The turning unit this model lacks that steps steered by `turn` would be taken from:
+        the gait plays the walk (`gait_units`: a gait the model lacks plays it too) and no
+        `turn_units` entry answers the side, so the walk is steered by yaw rate alone, which `run`
+        and `synth` say as they say a gait the model lacks. None when the model has it, the walk
+        is not steered, or the gait's own unit is not the walk (a run steers by yaw rate by design)."""
+        if turn == 0.0 or self.gait_units[gait] != self.walk:
+            return None
+        side = 1 if turn > 0 else -1
+        return None if side in self.turn_units else TURNING[side]
 
     def __call__(self, gait: int, turn: float, stream: Crowd) -> None:
         """Set every character's coming unit for this frame's controls (before the stream's step).
