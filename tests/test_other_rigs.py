@@ -20,6 +20,8 @@ from instrument.motion.kinematics import channels_from_local, forward_kinematics
 from instrument.motion.features import ROOT_FEATURES, choose_layout, extract, heading_angle, resample
 from instrument.motion.limbs import Leg, Limbs, find_limbs, hip_height, units_to_metres
 from instrument.motion.quality import limb_ranges
+from instrument.motion.gestures import gesture_phases
+from instrument.motion.standing import still_frames
 from instrument.motion.steps import segment_steps
 from instrument.motion.upright import TO_Y_UP, up_axis, upright
 from instrument.training.corpus import read_motions
@@ -28,6 +30,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
 from other_rigs import SETS, Rig, build_set, chosen_takes, rerig, rest_turns  # noqa: E402
 
 CMU = Path(__file__).parent / "data" / "cmu-131"
+MOTIONS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bandai-motions"
+needs_motions = pytest.mark.skipif(not MOTIONS.is_dir(), reason=f"runs, turns and standing takes not found in {MOTIONS}")
 
 
 @pytest.fixture(scope="module")
@@ -246,3 +250,24 @@ def test_a_model_of_a_re_rigged_set_keeps_the_issues_figures(real_walks, tmp_pat
         for key in ("knee_deg", "hip_deg", "shoulder_deg"):
             assert abs(made[key] / real[key] - 1.0) <= 0.10, (style, key, made[key], real[key])
         assert made["skate_cm_s"] <= 1.2 * real["skate_cm_s"], (style, made["skate_cm_s"], real["skate_cm_s"])
+
+
+@needs_motions
+@pytest.mark.parametrize("name", ["dataset-2_wave-both-hands_elderly_001", "dataset-2_raise-up-both-hands_active_002"])
+def test_a_rig_with_twist_joints_stands_and_gestures_as_its_take(name):
+    """A standing take on a rig with a twist joint half way down each upper arm, forearm and
+    thigh (as Unreal's rigs have; Mixamo's names, millimetres, siblings in reverse order) stands
+    still in the same frames and cuts the same gesture phases as the take itself. The twist
+    joints end branches of the upper body and were taken for hands: a hanging upper arm's
+    "hand" stood above the hips, no frame of any standing take was still, and a model trained on
+    such a rig had no stand unit (its gait played the walk)."""
+    take = read_bvh(MOTIONS / f"{name}.bvh")
+    twisted = rerig(take, replace(SETS["twist-60-mm"], fps=take.fps))
+    assert sum(n.endswith("Twist") for n in twisted.skeleton.names) == 6
+    found = []
+    for motion in (take, twisted):
+        layout = choose_layout([motion])
+        found.append((still_frames(motion, layout), [(p.label, p.start, p.end) for p in gesture_phases(motion, layout)]))
+    (still, phases), (twisted_still, twisted_phases) = found
+    assert still.sum() >= 5 and np.array_equal(twisted_still, still)
+    assert phases and twisted_phases == phases
