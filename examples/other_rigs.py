@@ -4,6 +4,7 @@ and the figures a model trained on each gets (issue 30).
     python examples/other_rigs.py ../shared/data/bandai-walk [--out /tmp/rigs] [--sets mixamo-60,cmu31-120]
                                   [--styles elderly,active,feminine] [--takes 6] [--seconds 12]
                                   [--public tests/data/cmu-131] [--curving N [--turns DIR]]
+                                  [--units N [--manifest]]
 
 Every set is the same takes re-rigged (`rerig`): joints renamed to another convention (Mixamo's
 "mixamorig:Hips"..., CMU's 31 joints with its zero-length hip, lower-back and finger joints),
@@ -18,6 +19,10 @@ than 1.2x the takes', both feet off the floor (float, the stricter way) in no mo
 takes. `--public DIR` adds a set of public captures as they are (no re-rig).
 `--curving N` adds N left and N right turning walks of each style to every set, named as walks:
 a capture whose walks curve, as an actor's do walking round a room.
+`--units N [--manifest]` builds the motion vocabulary instead (issue 25: N walks, runs, turns each
+way and standing takes of each style, `unit_takes`), under their own names or neutral names and
+a manifest (`build_unit_set`), trains it and prints, per set, how many of `instrument evaluate
+--units`'s target rows pass.
 """
 
 from __future__ import annotations
@@ -179,6 +184,7 @@ class Rig:
     lift: float = 0.0  # the whole take raised by this much (the take's units; negative: the floor below the origin)
     reorder: bool = False  # siblings written in reverse order (legs before the spine, right before left)
     twist: bool = False  # a leaf twist joint half way down each thigh, upper arm and forearm (as Unreal's rigs have)
+    eyes: bool = False  # two leaf joints in the head, 8 cm above its joint and 3 cm to either side (as VRoid's rigs have)
 
 
 SETS = {
@@ -187,7 +193,7 @@ SETS = {
     "cmu31-120": Rig(120.0, 0.01, "ZYX", "cmu", keep_root=False),
     "bandai-24-m": Rig(24.0, 0.01, "ZXY"),
     "rest-posed-30-in": Rig(30.0, 1 / 2.54, "XYZ", rest_turn_deg=40.0, keep_root=False),
-    "twist-60-mm": Rig(60.0, 10.0, "XZY", "mixamo", keep_root=False, reorder=True, twist=True),
+    "twist-60-mm": Rig(60.0, 10.0, "XZY", "mixamo", keep_root=False, reorder=True, twist=True, eyes=True),
 }
 
 
@@ -242,6 +248,12 @@ def rerig(motion: Motion, rig: Rig, rest: np.ndarray | None = None) -> Motion:
                 if bone + side in names:
                     twists[rename(bone + side) + "Twist"] = (names.index(bone + side), names.index(end + side))
                     rows.append((rename(bone + side) + "Twist", -1, rename(bone + side), 0.5))
+    eyes = {}  # an inserted eye: where it sits from the head, in the head's frame (the take's units)
+    if rig.eyes:
+        head = names.index("Head")
+        for side, across in (("Left", 3.0), ("Right", -3.0)):
+            eyes[rename("Head").replace("Head", f"{side}Eye")] = world_rot[0, head].T @ np.array([across, 8.0, 0.0])
+            rows.append((rename("Head").replace("Head", f"{side}Eye"), -1, rename("Head"), 0.0))
     rows = _depth_first(rows, rig.reorder)
     new_names = [r[0] for r in rows]
     frames, count = motion.frames, len(rows)
@@ -269,6 +281,11 @@ def rerig(motion: Motion, rig: Rig, rest: np.ndarray | None = None) -> Motion:
             w_rot[:, k] = w_rot[:, p]
             w_pos[:, k] = w_pos[:, p] + share * (world_pos[:, end] - world_pos[:, bone]) * rig.scale
             end_sites.append(tuple(0.1 * turn[p].T @ np.asarray(source.joints[end].offset) * rig.scale))
+        elif name in eyes:  # fixed in the head
+            p = new_names.index(parent)
+            w_rot[:, k] = w_rot[:, p]
+            w_pos[:, k] = w_pos[:, p] + world_rot[:, names.index("Head")] @ eyes[name] * rig.scale
+            end_sites.append(tuple(turn[p].T @ eyes[name] * 0.1 * rig.scale))
         else:  # an inserted joint sits on its parent (a finger: further along the forearm's line) unrotated
             p = new_names.index(parent)
             hand = rows[p][1] if rows[p][1] >= 0 else rows[new_names.index(rows[p][2])][1]
@@ -417,6 +434,37 @@ def table(name: str, rows: dict[str, dict]) -> str:
     return "\n".join(lines)
 
 
+def unit_targets(folder: Path, training: Path, model: Path, seconds: float) -> list[dict]:
+    """Train on `training` (a folder or a manifest) and return `evaluate --units`'s target rows."""
+    cli("train", *(["--manifest"] if training.suffix == ".csv" else []), str(training), "--out", str(model), "--force",
+        "--quiet")
+    report = json.loads(cli("evaluate", str(model), "--real", str(folder), "--units", "--variants", "one", "--seconds",
+                            str(seconds), "--json").stdout)
+    return report["units"]["targets"]
+
+
+def vocabulary(args: argparse.Namespace) -> None:
+    """--units: per set, issue 25's targets passed (evaluate --units), one column a set, a row a target."""
+    sets = [s.strip() for s in args.sets.split(",") if s.strip()]
+    unknown = [s for s in sets if s not in SETS]
+    if unknown or not sets:
+        raise UserError(f"--sets: no set {unknown[0] if unknown else ''!r} (there are {', '.join(SETS)})")
+    motions = Path(args.turns) if args.turns else Path(args.data).parent / "bandai-motions"
+    takes = unit_takes([Path(args.data), motions], [s.strip() for s in args.styles.split(",") if s.strip()], args.units)
+    out = Path(args.out)
+    rows: dict[str, dict[str, list[bool]]] = {}
+    for name in sets:
+        print(f"{name}: training and measuring", file=sys.stderr)
+        training = build_unit_set(takes, SETS[name], out / f"units-{name}", args.manifest)
+        for row in unit_targets(out / f"units-{name}", training, out / f"units-{name}.npz", args.seconds):
+            rows.setdefault(row["target"], {}).setdefault(name, []).append(row["passed"])
+    print("| target | " + " | ".join(sets) + " |\n" + "|---" * (len(sets) + 1) + "|")
+    for target, by_set in rows.items():
+        print(f"| {target} | " + " | ".join(f"{sum(by_set.get(n, []))}/{len(by_set.get(n, []))}" for n in sets) + " |")
+    print("| all | " + " | ".join(f"{sum(sum(r.get(n, [])) for r in rows.values())}/"
+                                 f"{sum(len(r.get(n, [])) for r in rows.values())}" for n in sets) + " |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("data", help="folder of walks to re-rig (named like dataset-2_walk_<style>_NNN.bvh)")
@@ -430,7 +478,14 @@ def main() -> None:
     parser.add_argument("--turns", default=None, help="folder of turning walks (default: bandai-motions beside DATA)")
     parser.add_argument("--public", action="append", default=[], metavar="DIR",
                         help="also a folder of public captures, trained and measured as they are")
+    parser.add_argument("--units", type=int, default=0, metavar="N",
+                        help="the motion vocabulary instead: N takes of each unit and style (walks from DATA, the rest "
+                             "from --turns), measured by evaluate --units")
+    parser.add_argument("--manifest", action="store_true", help="with --units: neutral file names and a manifest")
     args = parser.parse_args()
+    if args.units:
+        vocabulary(args)
+        return
     sets = [s.strip() for s in args.sets.split(",") if s.strip()]
     unknown = [s for s in sets if s not in SETS]
     if unknown or not sets:

@@ -259,14 +259,16 @@ def test_a_model_of_a_re_rigged_set_keeps_the_issues_figures(real_walks, tmp_pat
 @pytest.mark.parametrize("name", ["dataset-2_wave-both-hands_elderly_001", "dataset-2_raise-up-both-hands_active_002"])
 def test_a_rig_with_twist_joints_stands_and_gestures_as_its_take(name):
     """A standing take on a rig with a twist joint half way down each upper arm, forearm and
-    thigh (as Unreal's rigs have; Mixamo's names, millimetres, siblings in reverse order) stands
-    still in the same frames and cuts the same gesture phases as the take itself. The twist
-    joints end branches of the upper body and were taken for hands: a hanging upper arm's
-    "hand" stood above the hips, no frame of any standing take was still, and a model trained on
-    such a rig had no stand unit (its gait played the walk)."""
+    thigh (as Unreal's rigs have) and two eyes in the head (as VRoid's have; Mixamo's names,
+    millimetres, siblings in reverse order) stands still in the same frames and cuts the same
+    gesture phases as the take itself. The twist joints and the eyes end branches of the upper
+    body and were taken for hands: a hanging upper arm's "hand" stood above the hips, no frame of
+    any standing take was still, and a model trained on such a rig had no stand unit (its gait
+    played the walk)."""
     take = read_bvh(MOTIONS / f"{name}.bvh")
     twisted = rerig(take, replace(SETS["twist-60-mm"], fps=take.fps))
     assert sum(n.endswith("Twist") for n in twisted.skeleton.names) == 6
+    assert {"mixamorig:LeftEye", "mixamorig:RightEye"} <= set(twisted.skeleton.names)
     found = []
     for motion in (take, twisted):
         layout = choose_layout([motion])
@@ -276,7 +278,7 @@ def test_a_rig_with_twist_joints_stands_and_gestures_as_its_take(name):
     assert phases and twisted_phases == phases
 
 
-# the vocabulary's re-rigged set: Mixamo's names, millimetres, XZY, 60 fps, siblings reversed, twist joints
+# the vocabulary's re-rigged set: Mixamo's names, millimetres, XZY, 60 fps, siblings reversed, twist joints, eyes
 VOCABULARY_RIG = "twist-60-mm"
 MM_PER_CM = 10.0
 
