@@ -362,8 +362,8 @@ def unit_takes(folders: list[Path], styles: list[str], count: int) -> list[TakeF
 def build_unit_set(takes: list[TakeFile], rig: Rig, folder: Path, manifest: bool = False) -> Path:
     """The takes re-rigged into `folder`: under their own names (their units and styles read from
     them, as `instrument train FOLDER` reads them), or with `manifest` under names that say
-    neither (`take007.bvh`: its standing takes train no gesture) and a `manifest.csv` (file,style,unit) that says both. Returns what to train on: the folder or
-    the manifest."""
+    neither (`take007.bvh`: its standing takes train no gesture) and a `manifest.csv`
+    (file,style,unit) that says both. Returns what to train on: the folder or the manifest."""
     names = [f"take{k:03d}.bvh" if manifest else take.path.name for k, take in enumerate(takes)]
     build_set([t.path for t in takes], rig, folder, names)
     if not manifest:
