@@ -4,6 +4,7 @@ and the figures a model trained on each gets (issue 30).
     python examples/other_rigs.py ../shared/data/bandai-walk [--out /tmp/rigs] [--sets mixamo-60,cmu31-120]
                                   [--styles elderly,active,feminine] [--takes 6] [--seconds 12]
                                   [--public tests/data/cmu-131] [--curving N [--turns DIR]]
+                                  [--units N [--manifest]]
 
 Every set is the same takes re-rigged (`rerig`): joints renamed to another convention (Mixamo's
 "mixamorig:Hips"..., CMU's 31 joints with its zero-length hip, lower-back and finger joints),
@@ -18,6 +19,10 @@ than 1.2x the takes', both feet off the floor (float, the stricter way) in no mo
 takes. `--public DIR` adds a set of public captures as they are (no re-rig).
 `--curving N` adds N left and N right turning walks of each style to every set, named as walks:
 a capture whose walks curve, as an actor's do walking round a room.
+`--units N [--manifest]` builds the motion vocabulary instead (issue 25: N walks, runs, turns each
+way and standing takes of each style, `unit_takes`), under their own names or neutral names and
+a manifest (`build_unit_set`), trains it and prints, per set, how many of `instrument evaluate
+--units`'s target rows pass.
 """
 
 from __future__ import annotations
@@ -37,7 +42,7 @@ from instrument.motion.bvh import Joint, Motion, Skeleton, read_bvh, write_bvh
 from instrument.motion.features import resample
 from instrument.motion.kinematics import channels_from_local, forward_kinematics, local_transforms
 from instrument.motion.rotations import expmap_to_matrix, matrix_to_expmap
-from instrument.training.corpus import styled_takes
+from instrument.training.corpus import TakeFile, styled_takes
 
 SIDES = {"_L": "Left", "_R": "Right"}
 BANDAI_BODY = ("Hips", "Spine", "Chest", "Neck", "Head")
@@ -141,6 +146,25 @@ CMU_BELOW = (("LeftFingerBase", "LeftHand", 0.0), ("LeftHandIndex1", "LeftFinger
              ("RightFingerBase", "RightHand", 0.0), ("RightHandIndex1", "RightFingerBase", 1.0), ("RThumb", "RightHand", 0.5))
 
 
+# the bones a twist joint is inserted half way down (`Rig.twist`): (the bone's joint, the joint it ends at), per side
+TWIST_BONES = (("UpperLeg", "LowerLeg"), ("UpperArm", "LowerArm"), ("LowerArm", "Hand"))
+
+
+def _depth_first(rows: list[tuple], reverse: bool) -> list[tuple]:
+    """`rows` (name, ..., parent name, ...) in the order a BVH file writes them: each joint before
+    its children, the children in their order among `rows` (or the reverse)."""
+    out = []
+
+    def visit(parent: str | None) -> None:
+        children = [r for r in rows if r[2] == parent]
+        for row in reversed(children) if reverse else children:
+            out.append(row)
+            visit(row[0])
+
+    visit(None)
+    return out
+
+
 @dataclass(frozen=True)
 class Rig:
     """How a set differs from the takes it is made of."""
@@ -158,6 +182,9 @@ class Rig:
     rest_pose: bool = False  # every joint's rest orientation that of the first take's first frame (world axes)
     frames: int = 0  # keep only this many frames of each take (0: all)
     lift: float = 0.0  # the whole take raised by this much (the take's units; negative: the floor below the origin)
+    reorder: bool = False  # siblings written in reverse order (legs before the spine, right before left)
+    twist: bool = False  # a leaf twist joint half way down each thigh, upper arm and forearm (as Unreal's rigs have)
+    eyes: bool = False  # two leaf joints in the head, 8 cm above its joint and 3 cm to either side (as VRoid's rigs have)
 
 
 SETS = {
@@ -166,6 +193,7 @@ SETS = {
     "cmu31-120": Rig(120.0, 0.01, "ZYX", "cmu", keep_root=False),
     "bandai-24-m": Rig(24.0, 0.01, "ZXY"),
     "rest-posed-30-in": Rig(30.0, 1 / 2.54, "XYZ", rest_turn_deg=40.0, keep_root=False),
+    "twist-60-mm": Rig(60.0, 10.0, "XZY", "mixamo", keep_root=False, reorder=True, twist=True, eyes=True),
 }
 
 
@@ -213,6 +241,20 @@ def rerig(motion: Motion, rig: Rig, rest: np.ndarray | None = None) -> Motion:
         for name, parent, share in CMU_BELOW:
             k = max(i for i, r in enumerate(rows) if r[0] == parent or r[2] == parent)
             rows.insert(k + 1, (name, -1, parent, share))
+    twists = {}  # an inserted twist joint: (the source joint whose bone it is on, that bone's end)
+    if rig.twist:
+        for bone, end in TWIST_BONES:
+            for side in SIDES:
+                if bone + side in names:
+                    twists[rename(bone + side) + "Twist"] = (names.index(bone + side), names.index(end + side))
+                    rows.append((rename(bone + side) + "Twist", -1, rename(bone + side), 0.5))
+    eyes = {}  # an inserted eye: where it sits from the head, in the head's frame (the take's units)
+    if rig.eyes:
+        head = names.index("Head")
+        for side, across in (("Left", 3.0), ("Right", -3.0)):
+            eyes[rename("Head").replace("Head", f"{side}Eye")] = world_rot[0, head].T @ np.array([across, 8.0, 0.0])
+            rows.append((rename("Head").replace("Head", f"{side}Eye"), -1, rename("Head"), 0.0))
+    rows = _depth_first(rows, rig.reorder)
     new_names = [r[0] for r in rows]
     frames, count = motion.frames, len(rows)
     turns = np.random.default_rng(30).normal(size=(count, 3))
@@ -233,6 +275,17 @@ def rerig(motion: Motion, rig: Rig, rest: np.ndarray | None = None) -> Motion:
                 end = source.joints[dropped[0]].offset
             has_children = any(r[2] == name for r in rows)
             end_sites.append(None if end is None or has_children else tuple(turn[k].T @ np.asarray(end) * rig.scale))
+        elif name in twists:  # half way down its bone, turning with it
+            bone, end = twists[name]
+            p = new_names.index(parent)
+            w_rot[:, k] = w_rot[:, p]
+            w_pos[:, k] = w_pos[:, p] + share * (world_pos[:, end] - world_pos[:, bone]) * rig.scale
+            end_sites.append(tuple(0.1 * turn[p].T @ np.asarray(source.joints[end].offset) * rig.scale))
+        elif name in eyes:  # fixed in the head
+            p = new_names.index(parent)
+            w_rot[:, k] = w_rot[:, p]
+            w_pos[:, k] = w_pos[:, p] + world_rot[:, names.index("Head")] @ eyes[name] * rig.scale
+            end_sites.append(tuple(turn[p].T @ eyes[name] * 0.1 * rig.scale))
         else:  # an inserted joint sits on its parent (a finger: further along the forearm's line) unrotated
             p = new_names.index(parent)
             hand = rows[p][1] if rows[p][1] >= 0 else rows[new_names.index(rows[p][2])][1]
@@ -283,6 +336,41 @@ def chosen_takes(data: Path, styles: list[str], count: int) -> list[Path]:
             raise UserError(f"{data}: no walks of style {style!r}")
         chosen += mine
     return chosen
+
+
+UNITS = ("walk", "run", "turn-left", "turn-right", "stand")
+
+
+def unit_takes(folders: list[Path], styles: list[str], count: int) -> list[TakeFile]:
+    """The first `count` takes of each unit (`UNITS`) and style in `folders`, in name order; a
+    stand's taken in turn from each kind of standing take (raise, wave), so both gestures train."""
+    takes = styled_takes(folders)
+    chosen = []
+    for style in styles:
+        for unit in UNITS:
+            mine = [t for t in takes if t.style == style and t.unit == unit]
+            kinds: dict[str, list[TakeFile]] = {}
+            for take in mine:
+                kinds.setdefault(take.path.stem.rsplit("_", 2)[0], []).append(take)
+            mine = [t for group in zip(*kinds.values()) for t in group] if unit == "stand" else mine
+            if not mine:
+                raise UserError(f"{', '.join(map(str, folders))}: no {unit} takes of style {style!r}")
+            chosen += mine[:count]
+    return chosen
+
+
+def build_unit_set(takes: list[TakeFile], rig: Rig, folder: Path, manifest: bool = False) -> Path:
+    """The takes re-rigged into `folder`: under their own names (their units and styles read from
+    them, as `instrument train FOLDER` reads them), or with `manifest` under names that say
+    neither (`take007.bvh`: its standing takes train no gesture) and a `manifest.csv`
+    (file,style,unit) that says both. Returns what to train on: the folder or the manifest."""
+    names = [f"take{k:03d}.bvh" if manifest else take.path.name for k, take in enumerate(takes)]
+    build_set([t.path for t in takes], rig, folder, names)
+    if not manifest:
+        return folder
+    rows = ["file,style,unit"] + [f"{name},{t.style},{t.unit}" for name, t in zip(names, takes)]
+    (folder / "manifest.csv").write_text("\n".join(rows) + "\n")
+    return folder / "manifest.csv"
 
 
 def curving_takes(folder: Path, styles: list[str], count: int) -> tuple[list[Path], list[str]]:
@@ -346,6 +434,37 @@ def table(name: str, rows: dict[str, dict]) -> str:
     return "\n".join(lines)
 
 
+def unit_targets(folder: Path, training: Path, model: Path, seconds: float) -> list[dict]:
+    """Train on `training` (a folder or a manifest) and return `evaluate --units`'s target rows."""
+    cli("train", *(["--manifest"] if training.suffix == ".csv" else []), str(training), "--out", str(model), "--force",
+        "--quiet")
+    report = json.loads(cli("evaluate", str(model), "--real", str(folder), "--units", "--variants", "one", "--seconds",
+                            str(seconds), "--json").stdout)
+    return report["units"]["targets"]
+
+
+def vocabulary(args: argparse.Namespace) -> None:
+    """--units: per set, issue 25's targets passed (evaluate --units), one column a set, a row a target."""
+    sets = [s.strip() for s in args.sets.split(",") if s.strip()]
+    unknown = [s for s in sets if s not in SETS]
+    if unknown or not sets:
+        raise UserError(f"--sets: no set {unknown[0] if unknown else ''!r} (there are {', '.join(SETS)})")
+    motions = Path(args.turns) if args.turns else Path(args.data).parent / "bandai-motions"
+    takes = unit_takes([Path(args.data), motions], [s.strip() for s in args.styles.split(",") if s.strip()], args.units)
+    out = Path(args.out)
+    rows: dict[str, dict[str, list[bool]]] = {}
+    for name in sets:
+        print(f"{name}: training and measuring", file=sys.stderr)
+        training = build_unit_set(takes, SETS[name], out / f"units-{name}", args.manifest)
+        for row in unit_targets(out / f"units-{name}", training, out / f"units-{name}.npz", args.seconds):
+            rows.setdefault(row["target"], {}).setdefault(name, []).append(row["passed"])
+    print("| target | " + " | ".join(sets) + " |\n" + "|---" * (len(sets) + 1) + "|")
+    for target, by_set in rows.items():
+        print(f"| {target} | " + " | ".join(f"{sum(by_set.get(n, []))}/{len(by_set.get(n, []))}" for n in sets) + " |")
+    print("| all | " + " | ".join(f"{sum(sum(r.get(n, [])) for r in rows.values())}/"
+                                 f"{sum(len(r.get(n, [])) for r in rows.values())}" for n in sets) + " |")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("data", help="folder of walks to re-rig (named like dataset-2_walk_<style>_NNN.bvh)")
@@ -359,7 +478,14 @@ def main() -> None:
     parser.add_argument("--turns", default=None, help="folder of turning walks (default: bandai-motions beside DATA)")
     parser.add_argument("--public", action="append", default=[], metavar="DIR",
                         help="also a folder of public captures, trained and measured as they are")
+    parser.add_argument("--units", type=int, default=0, metavar="N",
+                        help="the motion vocabulary instead: N takes of each unit and style (walks from DATA, the rest "
+                             "from --turns), measured by evaluate --units")
+    parser.add_argument("--manifest", action="store_true", help="with --units: neutral file names and a manifest")
     args = parser.parse_args()
+    if args.units:
+        vocabulary(args)
+        return
     sets = [s.strip() for s in args.sets.split(",") if s.strip()]
     unknown = [s for s in sets if s not in SETS]
     if unknown or not sets:

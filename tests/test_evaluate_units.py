@@ -124,3 +124,19 @@ def test_a_transition_past_the_styles_is_held_to_its_gait_at_those_weights():
     swing = jump_row("walk->stand active x2", 2.0, 13.0, 13.5)
     assert swing.passed and "walk's own" in swing.bound  # the x2 walk swings 13.5 itself
     assert jump_row("walk->stand active x2", 2.0, 14.0, 13.5).passed is False  # a pop beyond it
+
+
+def test_the_target_rows_are_plain_values_a_json_report_writes():
+    """A turn's rate is a numpy float, so its row's comparison was numpy's bool: `evaluate --units
+    --json` on a model with turns stopped at json.dumps with a TypeError traceback."""
+    import json
+
+    from instrument.evaluation.targets import check
+    from instrument.evaluation.units import UnitAssessment
+
+    turn = {"turn_deg_s": np.float64(20.9), "skate_cm_s": np.float64(1.0)}
+    result = UnitAssessment(weights={"feminine left": {"feminine": 1.0}}, synth={"turn": {"feminine left": turn}},
+                            real={"turn": {"feminine left": {"turn_deg_s": np.float64(21.2), "skate_cm_s": np.float64(1.1)}}})
+    rows = check(result)
+    assert [r.passed for r in rows] == [True, True]
+    assert json.loads(json.dumps([vars(r) for r in rows]))[0]["passed"] is True

@@ -1,5 +1,7 @@
 """Other skeletons, names, rates, units and rest poses (issue 30): what is learnt from a walk does
-not depend on how its rig is built, and models trained on re-rigged walks keep the issue's figures.
+not depend on how its rig is built, and models trained on re-rigged walks keep the issue's figures;
+and the motion vocabulary (issue 25: walk, run, turns, stand) trained on another rig stands, runs,
+turns and stops as it does on the Bandai skeleton.
 
 The sets are built by examples/other_rigs.py (`rerig`) from the public CMU takes in
 tests/data/cmu-131 and, where they are here, the shared Bandai walks."""
@@ -20,14 +22,19 @@ from instrument.motion.kinematics import channels_from_local, forward_kinematics
 from instrument.motion.features import ROOT_FEATURES, choose_layout, extract, heading_angle, resample
 from instrument.motion.limbs import Leg, Limbs, find_limbs, hip_height, units_to_metres
 from instrument.motion.quality import limb_ranges
+from instrument.motion.gestures import gesture_phases
+from instrument.motion.standing import still_frames
 from instrument.motion.steps import segment_steps
 from instrument.motion.upright import TO_Y_UP, up_axis, upright
 from instrument.training.corpus import read_motions
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
-from other_rigs import SETS, Rig, build_set, chosen_takes, rerig, rest_turns  # noqa: E402
+from other_rigs import SETS, Rig, build_set, build_unit_set, chosen_takes, rerig, rest_turns, unit_takes  # noqa: E402
+import bvh_independent  # noqa: E402
 
 CMU = Path(__file__).parent / "data" / "cmu-131"
+MOTIONS = Path(__file__).resolve().parents[2] / "shared" / "data" / "bandai-motions"
+needs_motions = pytest.mark.skipif(not MOTIONS.is_dir(), reason=f"runs, turns and standing takes not found in {MOTIONS}")
 
 
 @pytest.fixture(scope="module")
@@ -246,3 +253,142 @@ def test_a_model_of_a_re_rigged_set_keeps_the_issues_figures(real_walks, tmp_pat
         for key in ("knee_deg", "hip_deg", "shoulder_deg"):
             assert abs(made[key] / real[key] - 1.0) <= 0.10, (style, key, made[key], real[key])
         assert made["skate_cm_s"] <= 1.2 * real["skate_cm_s"], (style, made["skate_cm_s"], real["skate_cm_s"])
+
+
+@needs_motions
+@pytest.mark.parametrize("name", ["dataset-2_wave-both-hands_elderly_001", "dataset-2_raise-up-both-hands_active_002"])
+def test_a_rig_with_twist_joints_stands_and_gestures_as_its_take(name):
+    """A standing take on a rig with a twist joint half way down each upper arm, forearm and
+    thigh (as Unreal's rigs have) and two eyes in the head (as VRoid's have; Mixamo's names,
+    millimetres, siblings in reverse order) stands still in the same frames and cuts the same
+    gesture phases as the take itself. The twist joints and the eyes end branches of the upper
+    body and were taken for hands: a hanging upper arm's "hand" stood above the hips, no frame of
+    any standing take was still, and a model trained on such a rig had no stand unit (its gait
+    played the walk)."""
+    take = read_bvh(MOTIONS / f"{name}.bvh")
+    twisted = rerig(take, replace(SETS["twist-60-mm"], fps=take.fps))
+    assert sum(n.endswith("Twist") for n in twisted.skeleton.names) == 6
+    assert {"mixamorig:LeftEye", "mixamorig:RightEye"} <= set(twisted.skeleton.names)
+    found = []
+    for motion in (take, twisted):
+        layout = choose_layout([motion])
+        found.append((still_frames(motion, layout), [(p.label, p.start, p.end) for p in gesture_phases(motion, layout)]))
+    (still, phases), (twisted_still, twisted_phases) = found
+    assert still.sum() >= 5 and np.array_equal(twisted_still, still)
+    assert phases and twisted_phases == phases
+
+
+# the vocabulary's re-rigged set: Mixamo's names, millimetres, XZY, 60 fps, siblings reversed, twist joints, eyes
+VOCABULARY_RIG = "twist-60-mm"
+MM_PER_CM = 10.0
+
+
+@pytest.fixture(scope="module")
+def vocabulary(real_walks, tmp_path_factory):
+    """(the set's folder, the model): one take of each unit (walk, run, turn each way, a standing
+    take) of two styles, re-rigged (`VOCABULARY_RIG`) under names that say nothing and trained
+    from a manifest that says each take's style and unit."""
+    if not MOTIONS.is_dir():
+        pytest.skip(f"runs, turns and standing takes not found in {MOTIONS}")
+    folder = tmp_path_factory.mktemp("vocabulary")
+    takes = unit_takes([real_walks[0].parent, MOTIONS], ["elderly", "feminine"], 1)
+    manifest = build_unit_set(takes, SETS[VOCABULARY_RIG], folder / "set", manifest=True)
+    model = folder / "model.npz"
+    trained = cli("train", "--manifest", str(manifest), "--out", str(model), "--quiet")
+    assert trained.returncode == 0, trained.stderr
+    assert "warning" not in trained.stderr, trained.stderr
+    return folder / "set", model
+
+
+def _hips_and_toes(names: list[str], positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The set's hips (frames, 3) and toe joints (frames, 2, 3), in cm."""
+    toes = [names.index(f"mixamorig:{side}ToeBase") for side in ("Left", "Right")]
+    return positions[:, names.index("mixamorig:Hips")] / MM_PER_CM, positions[:, toes] / MM_PER_CM
+
+
+def _speed(track: np.ndarray, fps: float) -> np.ndarray:
+    """Horizontal speed (cm/s) per frame step of a (frames, ..., 3) track."""
+    return np.linalg.norm(np.diff(track[..., [0, 2]], axis=0), axis=-1) * fps
+
+
+def test_the_vocabulary_on_another_rig_stands_walks_runs_and_turns(vocabulary, tmp_path):
+    """`synth --gait stand|walk|run` and `--turn` on the re-rigged model, read back by the
+    independent reader: the set's joint names in its order, millimetres, the model's rate, no
+    NaN; the stand still (hips under 6 cm/s and feet under 2: issue 25), the run 1.3x the walk's
+    speed or more, a turn turning each way (the Bandai skeleton's model turns 52-61 deg/s at
+    `--turn 1`), the feet planted in contact (the Bandai model's walks skate 0-0.5 cm/s, its
+    runs 0.1-2.4; measured as bvh_independent.foot_skate does)."""
+    folder, model = vocabulary
+    names_in_set = bvh_independent.world_positions(next(folder.glob("*.bvh")))[0]
+    made = {}
+    for name, options in (("stand", ["--gait", "stand"]), ("walk", []), ("run", ["--gait", "run"]),
+                          ("left", ["--turn", "1.0"]), ("right", ["--turn", "-1.0"])):
+        out = tmp_path / f"{name}.bvh"
+        done = cli("synth", "--model", str(model), *options, "--style", "feminine=1", "--seconds", "6", "--out", str(out))
+        assert done.returncode == 0, done.stderr
+        assert "plays the walk" not in done.stderr + done.stdout and "no unit" not in done.stderr + done.stdout
+        names, positions, fps = bvh_independent.world_positions(out)
+        assert names == names_in_set and abs(fps - 30.0) < 1e-3 and np.isfinite(positions).all()
+        hips, toes = _hips_and_toes(names, positions[15:])  # the first half second left out, as evaluate does
+        assert 50.0 < hips[:, 1].mean() < 130.0  # hips 0.5 to 1.3 m up: the file is in millimetres
+        made[name] = hips, toes, fps
+    hips, toes, fps = made["stand"]
+    assert _speed(hips, fps).mean() < 6.0 and _speed(toes, fps).mean() < 2.0
+    walk, run = (_speed(made[g][0], fps).mean() for g in ("walk", "run"))
+    assert run > 1.3 * walk > 1.3 * 50.0
+    for name, sign in (("left", 1.0), ("right", -1.0)):
+        travel = np.diff(made[name][0][::15, [0, 2]], axis=0)  # over half seconds
+        heading = np.unwrap(np.arctan2(travel[:, 0], travel[:, 1]))
+        assert sign * np.degrees(heading[-1] - heading[0]) / (len(travel) / 2.0) > 30.0, name
+    for name, bound in (("walk", 1.0), ("left", 1.0), ("right", 1.0), ("run", 3.0)):
+        _, toes, _ = made[name]
+        skate = []
+        for k in range(2):
+            contact = toes[:, k, 1] <= np.percentile(toes[:, k, 1], 20)
+            skate.append(_speed(toes[:, k], fps)[contact[1:] & contact[:-1]])
+        assert np.concatenate(skate).mean() <= bound, (name, np.concatenate(skate).mean())
+
+
+def test_a_score_stands_walks_runs_and_stops_a_crowd_on_another_rig(vocabulary, tmp_path):
+    """A score that stands, sets off, breaks into a run and stops, played by `run --score --fast
+    --bvh` for a crowd of three at 60 fps on the re-rigged model, one character's file read back:
+    at 60 fps, the set's names, finite; still in the stands, the run faster than the walk."""
+    folder, model = vocabulary
+    (tmp_path / "score.toml").write_text(
+        '[[cue]]\nat = 0\nramp = { "style/feminine" = 1.0, gait = "stand" }\n\n'
+        '[[cue]]\nat = 1.5\nramp = { gait = "walk" }\n\n'
+        '[[cue]]\nat = 4.5\nramp = { gait = "run" }\n\n'
+        '[[cue]]\nat = 7.5\nramp = { gait = "stand" }\n')
+    done = subprocess.run([sys.executable, "-m", "instrument", "run", "--model", str(model), "--score", "score.toml",
+                           "--fast", "--no-osc", "--quiet", "--fps", "60", "--seconds", "10.5", "--characters", "3",
+                           "--bvh", "crowd.bvh", "--bvh-character", "1"], capture_output=True, text=True, cwd=tmp_path,
+                          timeout=900)
+    assert done.returncode == 0, done.stderr
+    names, positions, fps = bvh_independent.world_positions(tmp_path / "crowd.bvh")
+    assert abs(fps - 60.0) < 1e-3 and names == bvh_independent.world_positions(next(folder.glob("*.bvh")))[0]
+    assert np.isfinite(positions).all() and len(positions) == 630
+    hips, toes = _hips_and_toes(names, positions)
+    speed = _speed(hips, fps)
+
+    def during(a: float, b: float) -> float:
+        return float(speed[int(a * fps):int(b * fps)].mean())
+
+    assert during(0.5, 1.5) < 6.0 and during(9.5, 10.5) < 6.0  # stands, and stopped within two seconds
+    assert during(6.0, 7.5) > 1.3 * during(3.0, 4.5) > 1.3 * 50.0
+    assert _speed(toes, fps)[int(9.5 * fps):].mean() < 2.0
+
+
+def test_evaluate_units_measures_a_re_rigged_vocabulary(vocabulary):
+    """`instrument evaluate --units --json` on the re-rigged model against its own takes: one
+    JSON report (a turn's numpy rate made it a traceback), the stand's targets met, every
+    stop within two steps."""
+    folder, model = vocabulary
+    done = cli("evaluate", str(model), "--real", str(folder), "--units", "--variants", "one", "--styles", "feminine",
+               "--seconds", "3", "--json")
+    assert done.returncode == 0, done.stderr
+    targets = json.loads(done.stdout)["units"]["targets"]
+    rows = {(t["target"], t["walk"]): t for t in targets}
+    assert rows[("stand hips cm/s", "feminine")]["passed"] and rows[("stand feet cm/s", "feminine")]["passed"]
+    assert {"feminine left", "feminine right"} <= {t["walk"] for t in targets if t["target"] == "turn mean rate deg/s"}
+    stops = [t for t in targets if t["target"] == "stop steps"]
+    assert len(stops) == 6 and all(t["passed"] for t in stops), stops

@@ -43,6 +43,11 @@ class Target:
     passed: bool
     by: str = ""  # how far outside (a failed row) or inside
 
+    def __post_init__(self) -> None:
+        # a comparison of numpy figures is numpy's bool, which `evaluate --units --json` cannot
+        # write: a turn's rate (a numpy float) made the whole report a TypeError traceback
+        self.passed = bool(self.passed)
+
 
 def _nan(x: float) -> bool:
     return x is None or (isinstance(x, float) and math.isnan(x))

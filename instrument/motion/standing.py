@@ -50,11 +50,30 @@ def still_frames(motion: Motion, layout: FeatureLayout) -> np.ndarray:
     return still
 
 
+HAND_REACH = 0.75  # share of the farthest end joint's distance below the elbow: an end joint nearer is no hand
+
+
 def hand_joints(parents: np.ndarray, limbs, pose: np.ndarray) -> list[int]:
-    """The upper body's end joints but the highest one (the head): hands, fingers, thumbs.
-    (Limbs.arms names an arm's shoulder and elbow, not its end joints.)"""
+    """The arms' end joints: hands, fingers, thumbs. (Limbs.arms names an arm's shoulder and
+    elbow, not its end joints.) Per arm, the end joints below its elbow at least HAND_REACH as far
+    from it as the farthest in `pose`: a twist joint half way down a rig's upper arm or forearm
+    (Unreal's `upperarm_twist_01_l`) ends a branch too, and taken for a hand it stood a hanging
+    arm's "hand" above the hips: no frame of a standing take was still. Without arms found, the
+    upper body's end joints but the highest one (the head)."""
+    children = [np.flatnonzero(parents == j) for j in range(len(parents))]
+    hands: list[int] = []
+    for _, elbow in limbs.arms:
+        below, leaves = [elbow], []
+        while below:
+            joint = below.pop()
+            below += list(children[joint])
+            leaves += [] if len(children[joint]) else [joint]
+        reach = np.linalg.norm(pose[leaves] - pose[elbow], axis=1)
+        hands += [j for j, r in zip(leaves, reach) if r >= HAND_REACH * reach.max()]
+    if hands:
+        return sorted(hands)
     legs = {j for foot in limbs.feet for j in foot} | {leg.hip for leg in limbs.legs} | {leg.knee for leg in limbs.legs}
-    leaves = [j for j in range(len(parents)) if j != limbs.root and not (parents == j).any() and j not in legs]
+    leaves = [j for j in range(len(parents)) if j != limbs.root and not len(children[j]) and j not in legs]
     return sorted(leaves, key=lambda j: pose[j, 1])[:-1] if len(leaves) > 1 else []
 
 
