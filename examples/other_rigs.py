@@ -43,6 +43,7 @@ from instrument.motion.features import resample
 from instrument.motion.kinematics import channels_from_local, forward_kinematics, local_transforms
 from instrument.motion.rotations import expmap_to_matrix, matrix_to_expmap
 from instrument.training.corpus import TakeFile, styled_takes
+from instrument.training.units import gesture_from_name
 
 SIDES = {"_L": "Left", "_R": "Right"}
 BANDAI_BODY = ("Hips", "Spine", "Chest", "Neck", "Head")
@@ -362,13 +363,15 @@ def unit_takes(folders: list[Path], styles: list[str], count: int) -> list[TakeF
 def build_unit_set(takes: list[TakeFile], rig: Rig, folder: Path, manifest: bool = False) -> Path:
     """The takes re-rigged into `folder`: under their own names (their units and styles read from
     them, as `instrument train FOLDER` reads them), or with `manifest` under names that say
-    neither (`take007.bvh`: its standing takes train no gesture) and a `manifest.csv`
-    (file,style,unit) that says both. Returns what to train on: the folder or the manifest."""
+    nothing (`take007.bvh`) and a `manifest.csv` (file,style,unit,gesture) that says each
+    take's style and unit, and a standing take's gesture. Returns what to train on: the folder or
+    the manifest."""
     names = [f"take{k:03d}.bvh" if manifest else take.path.name for k, take in enumerate(takes)]
     build_set([t.path for t in takes], rig, folder, names)
     if not manifest:
         return folder
-    rows = ["file,style,unit"] + [f"{name},{t.style},{t.unit}" for name, t in zip(names, takes)]
+    rows = ["file,style,unit,gesture"] + [f"{name},{t.style},{t.unit},{(t.unit == 'stand' and gesture_from_name(t.path)) or ''}"
+                                          for name, t in zip(names, takes)]
     (folder / "manifest.csv").write_text("\n".join(rows) + "\n")
     return folder / "manifest.csv"
 

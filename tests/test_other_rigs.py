@@ -26,7 +26,9 @@ from instrument.motion.gestures import gesture_phases
 from instrument.motion.standing import still_frames
 from instrument.motion.steps import segment_steps
 from instrument.motion.upright import TO_Y_UP, up_axis, upright
+from instrument.models.modelfile import load_model
 from instrument.training.corpus import read_motions
+from instrument.training.units import gesture_from_name
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
 from other_rigs import SETS, Rig, build_set, build_unit_set, chosen_takes, rerig, rest_turns, unit_takes  # noqa: E402
@@ -297,6 +299,9 @@ def vocabulary(real_walks, tmp_path_factory):
     trained = cli("train", "--manifest", str(manifest), "--out", str(model), "--quiet")
     assert trained.returncode == 0, trained.stderr
     assert "warning" not in trained.stderr, trained.stderr
+    # the standing takes' gestures, which their names no longer say, from the manifest's fourth column
+    said = {gesture_from_name(t.path) for t in takes if t.unit == "stand"} - {None}
+    assert said and set(load_model(model).metadata.get("gestures", {})) == said
     return folder / "set", model
 
 

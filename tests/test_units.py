@@ -86,6 +86,23 @@ def test_a_manifest_says_each_takes_unit_and_a_bad_one_names_its_line(tmp_path):
     assert [t.unit for t in read_manifest(tmp_path / "m.toml")] == ["turn-left", "walk"]
 
 
+def test_a_manifest_says_a_standing_takes_gesture_and_a_bad_one_names_its_line(tmp_path):
+    """A take whose name says nothing (`take007.bvh`) trained its stand but no gesture: the
+    manifest's fourth column (a [[take]]'s `gesture`) says it; left empty, the name says it."""
+    for take in ("a.bvh", "b.bvh", "c.bvh"):
+        (tmp_path / take).touch()
+    (tmp_path / "m.csv").write_text("file,style,unit,gesture\na.bvh,calm,stand,wave\nb.bvh,calm,stand,\nc.bvh,calm,run,\n")
+    assert [(t.unit, t.gesture) for t in read_manifest(tmp_path / "m.csv")] == [("stand", "wave"), ("stand", ""), ("run", "")]
+    (tmp_path / "m.toml").write_text('[[take]]\nfile = "a.bvh"\nstyle = "calm"\nunit = "stand"\ngesture = "hands-up"\n')
+    assert read_manifest(tmp_path / "m.toml")[0].gesture == "raise"
+    for text, said in (("a.bvh,calm,stand,hop\n", ":2: gesture 'hop' is not one of wave, raise"),
+                       ("b.bvh,calm,stand,wave\na.bvh,calm,run,wave\n", ":3: gesture 'wave' given to a run take")):
+        (tmp_path / "bad.csv").write_text("file,style,unit,gesture\n" + text)
+        with pytest.raises(UserError) as refused:
+            read_manifest(tmp_path / "bad.csv")
+        assert str(refused.value).startswith(f"{tmp_path / 'bad.csv'}{said}"), refused.value
+
+
 @pytest.mark.parametrize("name, text, where", [
     ("units.csv", "file,style,units\na.bvh,calm,walk\nb.bvh,calm,run\n", ":1: a CSV manifest starts with the header"),
     ("two.csv", "file,style\na.bvh,calm\nb.bvh,calm,run\n", ":3: 3 fields, but the header 'file,style' names 2"),

@@ -68,9 +68,10 @@ def real_pairs(model: Model, folders: Path | list[Path], units: tuple[str, ...] 
         if not folder.is_dir():
             raise UserError(f"{folder}: no such folder")
         on_disk |= {p.name: p for p in sorted(folder.rglob("*.bvh"))}
-    listed = [TakeFile(Path(d["file"]), d["style"], d.get("unit", "walk")) for d in model.metadata.get("data", [])]
+    listed = [TakeFile(Path(d["file"]), d["style"], d.get("unit", "walk"), d.get("gesture", ""))
+              for d in model.metadata.get("data", [])]
     listed = [t for t in listed if units is None or t.unit in units]
-    pairs = [TakeFile(on_disk[t.path.name], t.style, t.unit) for t in listed if t.path.name in on_disk]
+    pairs = [t._replace(path=on_disk[t.path.name]) for t in listed if t.path.name in on_disk]
     if not pairs:
         where = ", ".join(str(f) for f in folders)
         raise UserError(f"{where}: none of the {len(listed)} takes the model was trained on is there")

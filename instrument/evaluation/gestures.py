@@ -117,9 +117,9 @@ def assess_gestures(model: Model, seconds: float = 12.0, real: Path | list[Path]
     gestures = gesture_labels(model.metadata)
     classifiers: dict[str, LinearDiscriminant] = {}
     if real is not None and gestures:
-        pairs = [(t.path, t.style) for t in real_pairs(model, real, units=("stand",))]
+        pairs = real_pairs(model, real, units=("stand",))
         motions = read_motions(pairs, model.fps)
-        takes, _ = make_takes([(p, s, "stand") for p, s in pairs], motions, body.layout, states=model.states)
+        takes, _ = make_takes(pairs, motions, body.layout, states=model.states)
         for gesture in gestures:
             mine = [(t, m) for t, m in zip(takes, motions) if t.gesture == gesture and t.phases]
             features = [step_features(t.observations[:, body.upper], [s for s in t.phases if s.label.startswith("repeat")])

@@ -186,9 +186,9 @@ def _check_metadata(path: Path, metadata: dict) -> None:
         raise broken("labels", "a right and a left step (a model of more labels names its units)")
     optional = {  # entries `info` and the synthesis read when they are there
         "data": (lambda v: isinstance(v, list) and all(isinstance(d, dict) and isinstance(d.get("frames"), int)
-                                                         and isinstance(d.get("file", ""), str) and isinstance(d.get("style", ""), str)
+                                                         and all(isinstance(d.get(key, ""), str) for key in ("file", "style", "unit", "gesture"))
                                                          for d in v),
-                 "a list of takes, each with its file, style and frames"),
+                 "a list of takes, each with its file, style and frames (and its unit and gesture, as text)"),
         "mean_step_frames": (lambda v: isinstance(v, dict) and all(map(number, v.values())), "a table of numbers"),
         "training": (lambda v: isinstance(v, dict), "a table"),
         "contact": (lambda v: isinstance(v, dict) and _numbers_2d(v.get("clearance", [[0.0]])), "a table whose clearance is rows of numbers"),

@@ -130,7 +130,7 @@ def build_model(
         },
         "data": [
             {"file": t.path.name, "style": t.style, "unit": t.unit, "frames": t.frames, "steps": len(t.steps),
-             "sha256": t.sha256} for t in takes
+             "sha256": t.sha256} | ({"gesture": t.gesture} if t.gesture else {}) for t in takes
         ],
         "mean_step_frames": {  # of the walk (the model card reads it); a style with no walking step has none
             # (its walk comes from its other units through the shared transform): not NaN, which no model loads

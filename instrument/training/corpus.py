@@ -19,10 +19,10 @@ from ..motion.gestures import gesture_phases
 from ..motion.standing import standing_steps
 from ..motion.steps import LABELS, segment_steps
 from ..motion.upright import upright
-from ..models.units import UNITS
+from ..models.units import GESTURES, UNITS
 from ..textfile import read_text
 from ..tomlfile import read_toml
-from .units import checked_unit, gesture_from_name, turn_as_taken, unit_from_name
+from .units import checked_gesture, checked_unit, gesture_from_name, turn_as_taken, unit_from_name
 
 # the last but one "_"-separated part, starting with a letter: dataset-2_walk_elderly_003 -> elderly,
 # walk_not-confident_001 -> not-confident, style2_take3 -> style2
@@ -31,16 +31,19 @@ DEFAULT_STYLE_PATTERN = r"(?:^|_)([A-Za-z][A-Za-z0-9-]*)_[^_]*$"
 # (`/walk/style/<name>`) and of synth's `--style NAME.PART=W`: a '/', '.', '=', space or OSC's
 # pattern characters in it would make them name something else
 STYLE_NAME = re.compile(r"[\w-]+")
-# a manifest's columns (CSV) or a [[take]]'s keys (TOML); 'unit' may be left out (a walk)
-MANIFEST_COLUMNS = ("file", "style", "unit")
+# a manifest's columns (CSV) or a [[take]]'s keys (TOML); 'unit' may be left out (a walk), and
+# 'gesture' (a standing take's: wave, raise) too (read from the file's name)
+MANIFEST_COLUMNS = ("file", "style", "unit", "gesture")
 
 
 class TakeFile(NamedTuple):
-    """A take to read: its file, its style and the motion unit it holds (walk, run, turn-left, ...)."""
+    """A take to read: its file, its style, the motion unit it holds (walk, run, turn-left, ...)
+    and a standing take's gesture ("": the one its file's name says, if any)."""
 
     path: Path
     style: str
     unit: str = "walk"
+    gesture: str = ""
 
 
 def take_files(pairs: Sequence[tuple]) -> list[TakeFile]:
@@ -109,8 +112,9 @@ def styled_takes(paths: list[str] | list[Path], pattern: str = DEFAULT_STYLE_PAT
 
 
 def read_manifest(path: Path) -> list[TakeFile]:
-    """Takes from a CSV (header `file,style` and optionally `,unit`) or TOML ([[take]] file = ...,
-    style = ..., optionally unit = ...); a take without a unit is a walk."""
+    """Takes from a CSV (header `file,style`, optionally `,unit` and then `,gesture`) or TOML
+    ([[take]] file = ..., style = ..., optionally unit = ..., gesture = ...); a take without a
+    unit is a walk, a standing take without a gesture the one its file's name says (if any)."""
     base = path.parent
     pairs: list[TakeFile] = []
     if path.suffix.lower() == ".toml":
@@ -125,12 +129,15 @@ def read_manifest(path: Path) -> list[TakeFile]:
             unknown = sorted(set(take) - set(MANIFEST_COLUMNS))  # a misspelt 'unit' would train a run as a walk
             if unknown:
                 raise UserError(f"{path}: take {k}: unknown key {unknown[0]!r} (a take has {', '.join(MANIFEST_COLUMNS)})")
-            unit = take.get("unit", "walk")
+            unit, gesture = take.get("unit", "walk"), take.get("gesture", "")
             if not isinstance(unit, str):
                 raise UserError(f"{path}: take {k}: 'unit' is a string ({', '.join(UNITS)})")
+            if not isinstance(gesture, str):
+                raise UserError(f"{path}: take {k}: 'gesture' is a string ({', '.join(GESTURES)})")
+            unit = checked_unit(f"{path}: take {k}", unit)
             pairs.append(TakeFile(_listed_file(base, take["file"], f"{path}: take {k}"),
-                                  checked_style(f"{path}: take {k}", take["style"]),
-                                  checked_unit(f"{path}: take {k}", unit)))
+                                  checked_style(f"{path}: take {k}", take["style"]), unit,
+                                  checked_gesture(f"{path}: take {k}", gesture, unit)))
         return pairs
     text = read_text(path)
     reader = csv.reader(text.splitlines())
@@ -141,11 +148,11 @@ def read_manifest(path: Path) -> list[TakeFile]:
     header = [c.strip().lower() for c in rows[0]] if rows else []
     while header and not header[-1]:  # a spreadsheet's trailing empty columns
         header.pop()
-    if header not in (list(MANIFEST_COLUMNS[:2]), list(MANIFEST_COLUMNS)):
+    if header not in [list(MANIFEST_COLUMNS[:n]) for n in (2, 3, 4)]:
         # another column (`units`, a note) would be dropped unread: a run trained as a walk
-        raise located(path, "a CSV manifest starts with the header 'file,style' (or 'file,style,unit'), "
-                            f"not {quoted(','.join(rows[0]) if rows else '')}", 1)
-    with_units = len(header) == 3
+        raise located(path, "a CSV manifest starts with the header 'file,style' (or 'file,style,unit', "
+                            f"'file,style,unit,gesture'), not {quoted(','.join(rows[0]) if rows else '')}", 1)
+    with_units, with_gestures = len(header) >= 3, len(header) == 4
     for number, row in enumerate(rows[1:], 2):
         if not row or not "".join(row).strip():
             continue
@@ -153,10 +160,11 @@ def read_manifest(path: Path) -> list[TakeFile]:
             raise located(path, "expected 'file,style'", number)
         if len(row) > len(header) and "".join(row[len(header):]).strip():
             raise located(path, f"{len(row)} fields, but the header {quoted(','.join(rows[0]))} names {len(header)}", number)
-        unit = row[2].strip() if with_units and len(row) > 2 and row[2].strip() else "walk"
+        unit = checked_unit(f"{path}:{number}", row[2].strip() if with_units and len(row) > 2 and row[2].strip() else "walk")
+        gesture = row[3].strip() if with_gestures and len(row) > 3 else ""
         pairs.append(TakeFile(_listed_file(base, row[0].strip(), f"{path}:{number}"),
-                              checked_style(f"{path}:{number}", row[1].strip()),
-                              checked_unit(f"{path}:{number}", unit)))
+                              checked_style(f"{path}:{number}", row[1].strip()), unit,
+                              checked_gesture(f"{path}:{number}", gesture, unit)))
     return pairs
 
 
@@ -246,7 +254,7 @@ def make_takes(pairs: Sequence[tuple], motions: list[Motion], layout: FeatureLay
     takes without steps are left out with a warning."""
     takes: list[Take] = []
     warnings: list[str] = []
-    for k, ((path, style, unit), motion) in enumerate(zip(take_files(pairs), motions)):
+    for k, ((path, style, unit, named), motion) in enumerate(zip(take_files(pairs), motions)):
         if not motion.skeleton.same_layout(layout.skeleton):
             raise UserError(f"{path}: the model was trained on another skeleton: this file's "
                             f"{skeleton_difference(layout.skeleton, motion.skeleton)}")
@@ -257,7 +265,7 @@ def make_takes(pairs: Sequence[tuple], motions: list[Motion], layout: FeatureLay
                             "take's; in other units? metres against centimetres)")
         static, _, _ = extract(motion, layout)
         segmentation = standing_steps(motion, layout, states) if unit == "stand" else segment_steps(motion, layout)
-        gesture = gesture_from_name(path) if unit == "stand" else None
+        gesture = (named or gesture_from_name(path)) if unit == "stand" else None
         phases = gesture_phases(motion, layout, states) if gesture else []
         warnings += [f"{path}: {w}" for w in segmentation.warnings]
         if not segmentation.steps and not phases:

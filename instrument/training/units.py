@@ -17,7 +17,7 @@ import numpy as np
 from ..errors import UserError
 from ..models.gestures import gesture_of_words
 from ..models.hsmm import HSMM
-from ..models.units import UNITS, named_by_words
+from ..models.units import GESTURES, UNITS, named_by_words
 
 # the part before the style, starting with a letter: dataset-2_run_elderly_003 -> run
 DEFAULT_UNIT_PATTERN = r"(?:^|_)([A-Za-z][A-Za-z0-9-]*)_[A-Za-z][A-Za-z0-9-]*_[^_]*$"
@@ -81,6 +81,19 @@ def checked_unit(where: str, unit: str) -> str:
     found = unit_of_words(unit)
     if found is None:
         raise UserError(f"{where}: unit {unit!r} is not one of {', '.join(UNITS)}")
+    return found
+
+
+def checked_gesture(where: str, gesture: str, unit: str) -> str:
+    """A manifest's gesture ("" for none said), as a gesture name, or an error naming where it is:
+    one the model knows (wave, raise), of a standing take (gestures are made standing)."""
+    if not gesture:
+        return ""
+    found = gesture_of_words(gesture)
+    if found is None:
+        raise UserError(f"{where}: gesture {gesture!r} is not one of {', '.join(GESTURES)}")
+    if unit != "stand":
+        raise UserError(f"{where}: gesture {gesture!r} given to a {unit} take: a gesture is a standing take's (unit stand)")
     return found
 
 
