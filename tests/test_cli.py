@@ -217,3 +217,28 @@ def test_inspect_says_each_takes_unit_and_style_and_cuts_a_stand_as_training_doe
     assert found["walk7.bvh"]["unit"] == "walk" and found["walk7.bvh"]["style"] is None
     text = run("inspect", str(tmp_path)).stdout
     assert "unit     stand, style proud" in text and "not a walk" not in text and "style (none in the name" in text
+
+
+def test_inspect_reads_a_manifest_as_train_does(tmp_path):
+    """`inspect --manifest` says each take's style, unit and gesture as the manifest gives them
+    (train's reading), where the takes' names say nothing; a bad row is one line at its line."""
+    from conftest import REPO
+    motions = REPO.parent / "shared" / "data" / "bandai-motions"
+    if not motions.is_dir():
+        import pytest
+        pytest.skip(f"standing takes not found in {motions}")
+    (tmp_path / "take1.bvh").write_text((motions / "dataset-2_wave-both-hands_active_001.bvh").read_text())
+    text, _ = cmu_style_walk(fps=30)
+    (tmp_path / "take2.bvh").write_text(text)
+    (tmp_path / "m.csv").write_text("file,style,unit,gesture\ntake1.bvh,proud,stand,wave\ntake2.bvh,calm,,\n")
+    result = run("inspect", "--json", "--manifest", str(tmp_path / "m.csv"))
+    assert result.returncode == 0, result.stderr
+    found = {Path(info["file"]).name: info for info in json.loads(result.stdout)}
+    assert (found["take1.bvh"]["unit"], found["take1.bvh"]["style"], found["take1.bvh"]["gesture"]) == ("stand", "proud", "wave")
+    assert (found["take2.bvh"]["unit"], found["take2.bvh"]["style"], found["take2.bvh"]["gesture"]) == ("walk", "calm", None)
+    assert "unit     stand (wave), style proud (as the manifest gives them)" in run("inspect", "--manifest", str(tmp_path / "m.csv")).stdout
+    (tmp_path / "bad.csv").write_text("file,style,unit,gesture\ntake2.bvh,calm,walk,wave\n")
+    result = run("inspect", "--manifest", str(tmp_path / "bad.csv"))
+    assert result.returncode != 0 and "Traceback" not in result.stderr
+    assert result.stderr.strip().splitlines() == [f"instrument inspect: error: {tmp_path / 'bad.csv'}:2: gesture 'wave' given to a walk take: "
+                                                  "a gesture is a standing take's (unit stand)"]

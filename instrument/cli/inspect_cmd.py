@@ -12,12 +12,16 @@ from ..errors import UserError
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("inspect", help="check BVH files: skeleton, frames, steps found, warnings")
-    p.add_argument("paths", nargs="+", metavar="FILE_OR_DIR", help="BVH files or folders holding them")
+    p.add_argument("paths", nargs="*", metavar="FILE_OR_DIR", help="BVH files or folders holding them")
+    p.add_argument("--manifest", metavar="FILE", help="the takes a training manifest names, with the style, unit and "
+                   "gesture it gives each (as train --manifest reads them)")
     p.add_argument("--json", action="store_true", help="print one JSON document instead of text")
     p.set_defaults(run=run)
 
 
-def describe(path: Path) -> dict:
+def describe(path: Path, listed=None) -> dict:
+    """What a take holds; its style, unit and gesture as a manifest's row `listed` (a TakeFile)
+    gives them, else as `train` reads them from the name by default."""
     # numpy, and scipy and numba for finding the steps: loaded when run, not for --help (nor for `train`'s)
     from ..motion.bvh import read_bvh
     from ..motion.features import choose_layout
@@ -25,14 +29,18 @@ def describe(path: Path) -> dict:
     from ..motion.steps import contiguous_runs, segment_steps
     from ..motion.upright import upright
     from ..training.corpus import DEFAULT_STYLE_PATTERN, style_from_name
-    from ..training.units import unit_from_name
+    from ..training.units import gesture_from_name, unit_from_name
 
     motion, up = upright(read_bvh(path))
-    unit = unit_from_name(path)  # what `train` reads from the name without --unit-from or a manifest
-    try:
-        style = style_from_name(path, DEFAULT_STYLE_PATTERN)
-    except UserError:
-        style = None
+    if listed is not None:
+        unit, style = listed.unit, listed.style
+    else:
+        unit = unit_from_name(path)  # what `train` reads from the name without --unit-from or a manifest
+        try:
+            style = style_from_name(path, DEFAULT_STYLE_PATTERN)
+        except UserError:
+            style = None
+    gesture = ((listed.gesture if listed is not None else "") or gesture_from_name(path)) if unit == "stand" else None
     # a standing take's "steps" are its pieces of still standing, as training cuts them
     segmentation = standing_steps(motion, choose_layout([motion])) if unit == "stand" else segment_steps(motion)
     steps = segmentation.steps
@@ -51,6 +59,8 @@ def describe(path: Path) -> dict:
         "duration": motion.duration,
         "style": style,
         "unit": unit,
+        "gesture": gesture,
+        "said_by": "manifest" if listed is not None else "name",
         "joints": [{"name": j.name, "channels": list(j.channels)} for j in skeleton.joints],
         "channels": skeleton.channel_count,
         "feet": [foot for foot in segmentation.feet if foot],  # none found: [], not ["", ""]
@@ -68,8 +78,9 @@ def _text(info: dict) -> str:
         f"  joints   {len(info['joints'])} ({', '.join(j['name'] for j in info['joints'])})",
         f"  channels {info['channels']} (rotation orders {', '.join(rotation_orders)})",
         f"  frames   {info['frames']} at {info['fps']:g} fps, {info['duration']:.2f} s",
-        f"  unit     {info['unit']}, style {info['style'] or '(none in the name: give train --style-from or a manifest)'}"
-        " (read from the name, as train does by default)",
+        f"  unit     {info['unit']}" + (f" ({info['gesture']})" if info.get("gesture") else "")
+        + f", style {info['style'] or '(none in the name: give train --style-from or a manifest)'}"
+        + (" (as the manifest gives them)" if info.get("said_by") == "manifest" else " (read from the name, as train does by default)"),
         f"  {'stills' if info['unit'] == 'stand' else 'steps '}   {len(steps)}, mean {mean:.1f} frames "
         f"({mean / info['fps']:.2f} s)"
         + ("; pieces of still standing with the arms down" if info["unit"] == "stand" else
@@ -80,12 +91,17 @@ def _text(info: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..training.corpus import bvh_files
+    from ..training.corpus import bvh_files, read_manifest
 
+    if not args.paths and not args.manifest:
+        raise UserError("give BVH files or folders, or --manifest FILE")
+    takes = [(path, None) for path in bvh_files(args.paths)] if args.paths else []
+    if args.manifest:
+        takes += [(take.path, take) for take in read_manifest(Path(args.manifest))]
     results, failed = [], 0
-    for path in bvh_files(args.paths):
+    for path, listed in takes:
         try:
-            info = describe(path)
+            info = describe(path, listed)
         except UserError as error:
             failed += 1
             message = str(error) if str(error).startswith(str(path)) else f"{path}: {error}"  # which file, always

@@ -28,7 +28,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "run, turn-left, turn-right or stand); default: the part before the style, so "
                         "dataset-2_walk-turn-left_active_001.bvh is turn-left, and a name that says nothing is a walk")
     p.add_argument("--manifest", metavar="FILE",
-                   help="CSV (file,style[,unit]) or TOML ([[take]] file, style[, unit]) naming takes, styles and units")
+                   help="CSV (file,style[,unit[,gesture]]) or TOML ([[take]] file, style[, unit, gesture]) naming takes, "
+                        "styles, units and standing takes' gestures")
     p.add_argument("--fps", type=checked("train --fps"), default=30.0, help="frame rate the model works at (default 30)")
     p.add_argument("--states", type=checked("train --states"), default=5, help="states per step model (default 5)")
     p.add_argument("--licence", help="licence of the model (that of the training data; default: says it is unspecified)")
