@@ -85,14 +85,25 @@ A run's first step pushes off only while its stance foot is down: a walk's stanc
 through the whole step, a run's lifts part of the way (its toe-off; then both feet are in the
 air). Eased over the whole step, the stride was still at its steepest when a run's stance foot
 lifted, and swept that foot back as it rose. So a body setting off eases its travel and its
-stance leg's stride (`stance_stride`, the leg's features: limbs.leg_columns) in up to the first
+stance leg's stride (`leg_shares`, the leg's features: limbs.leg_columns) in up to the first
 state of flight after that foot is down (`pushing_states`: every state of a walk's step), and
 the rest of its pose over the step as before: the stance foot's sweep has stopped as it lifts,
 and the body is at its gait's speed from the toe-off, as a body in flight can no longer speed
 up. The whole pose so eased swept the swinging leg instead; the stance leg alone with the travel
 over the whole step left the lock holding a foot swept back against the body. A start stopped
-before it is done brakes the stance leg with its travel (`halting`) until the rest of the pose
-is drawn in as far (docs/evaluate.md, "A run pushes off until its toe-off").
+before it is done brakes its legs with its travel (`halting`) until the rest of the pose is
+drawn in as far (docs/evaluate.md, "A run pushes off until its toe-off").
+
+A unit with flight (a run) sets off over two pushes, as a body speeds up only while a foot is
+down: at full speed by its first toe-off, the hips' speed rose at 19-28 m/s^2 (normal x2,
+active and its x2, feminine and masculine x2; the steady runs peak at 4-10). Its travel rises
+over the first step's push to that push's share of the two pushes' frames (`first_share`: about
+a half, as under an even force), holds through the flight, and rises to 1 over the second step's
+push; each leg follows the travel while it is the stance leg and eases over its step while it
+swings (the first step's swinging leg reaches the share as it lands, the first stance leg goes
+on from it to 1 over the second step, its swing), each by a smootherstep; the rest of the pose
+eases over both steps. The peak fell to 10-14 m/s^2 (docs/evaluate.md, "A run sets off over two
+pushes"). A walk's start is as above, to the digit.
 """
 
 from __future__ import annotations
@@ -319,10 +330,11 @@ class UnitChooser:
         linearly in its level over the `left` frames before the stand begins (at least
         STOP_SECONDS' frames, the rest in the stand), so the level is 0 as it does; none while it
         stands. The travel is the level's smoothstep (a body setting off from a standstill: its
-        stance level's smootherstep, its stride the level's): no jump in speed nor in acceleration at either end. The
-        stride follows the level down while the body brakes, and up while it sets off from a
-        standstill (0 from the command, drawn from the pose it stood in); otherwise (a stop called
-        off just after a stand, a stand still) it comes back up over STOP_SECONDS."""
+        push's smootherstep, over two pushes for a unit with flight; the rest of its pose the
+        level's): no jump in speed nor in acceleration at either end. The stride follows the
+        level down while the body brakes, and up while it sets off from a standstill (0 from the
+        command, drawn from the pose it stood in); otherwise (a stop called off just after a
+        stand, a stand still) it comes back up over STOP_SECONDS."""
         if left is not None:
             self.braking[stopping] = self.level[stopping] / (np.maximum(left[stopping], self.stop_frames) + 1.0)
         moving = ~standing & ~stopping
@@ -388,7 +400,7 @@ class UnitChooser:
 
     def strides(self) -> np.ndarray:
         """(N, D) the share of its swing each character's every feature takes (`stride`), but a
-        starting (or halting) body's stance leg's, which takes `stance_stride`. The same array
+        starting (or halting) body's legs', which take their own (`leg_shares`). The same array
         each frame, overwritten."""
         out = self._strides
         out[:] = self.stride[:, None]
