@@ -85,14 +85,25 @@ A run's first step pushes off only while its stance foot is down: a walk's stanc
 through the whole step, a run's lifts part of the way (its toe-off; then both feet are in the
 air). Eased over the whole step, the stride was still at its steepest when a run's stance foot
 lifted, and swept that foot back as it rose. So a body setting off eases its travel and its
-stance leg's stride (`stance_stride`, the leg's features: limbs.leg_columns) in up to the first
+stance leg's stride (`leg_shares`, the leg's features: limbs.leg_columns) in up to the first
 state of flight after that foot is down (`pushing_states`: every state of a walk's step), and
 the rest of its pose over the step as before: the stance foot's sweep has stopped as it lifts,
 and the body is at its gait's speed from the toe-off, as a body in flight can no longer speed
 up. The whole pose so eased swept the swinging leg instead; the stance leg alone with the travel
 over the whole step left the lock holding a foot swept back against the body. A start stopped
-before it is done brakes the stance leg with its travel (`halting`) until the rest of the pose
-is drawn in as far (docs/evaluate.md, "A run pushes off until its toe-off").
+before it is done brakes its legs with its travel (`halting`) until the rest of the pose is
+drawn in as far (docs/evaluate.md, "A run pushes off until its toe-off").
+
+A unit with flight (a run) sets off over two pushes, as a body speeds up only while a foot is
+down: at full speed by its first toe-off, the hips' speed rose at 19-28 m/s^2 (normal x2,
+active and its x2, feminine and masculine x2; the steady runs peak at 4-10). Its travel rises
+over the first step's push to that push's share of the two pushes' frames (`first_share`: about
+a half, as under an even force), holds through the flight, and rises to 1 over the second step's
+push; each leg follows the travel while it is the stance leg and eases over its step while it
+swings (the first step's swinging leg reaches the share as it lands, the first stance leg goes
+on from it to 1 over the second step, its swing), each by a smootherstep; the rest of the pose
+eases over both steps. The peak fell to 10-14 m/s^2 (docs/evaluate.md, "A run sets off over two
+pushes"). A walk's start is as above, to the digit.
 """
 
 from __future__ import annotations
@@ -196,11 +207,18 @@ class UnitChooser:
         self.pushing, self.stance_foot = pushing_states(model)  # per label: the states its stance foot is down; which
         self.legs = leg_columns(model.layout)  # (2, D) each leg's features
         self.start_foot = np.zeros(count, dtype=np.int64)  # the stance foot of a starting body's first step
-        self.stance_level = np.ones(count)  # how far a starting body's travel and stance leg are eased in
-        self.stance_rate = np.full(count, 1.0 / self.start_frames)  # how much of it they gain a frame
-        self.stance_stride = np.ones(count)  # its smootherstep: the share of its swing that leg takes
-        # stopped while setting off: its stance leg brakes with its travel until the rest of its pose
-        # is drawn in as far (the leg ahead of the rest: made to follow the rest at once, it jumped)
+        self.start_label = np.full(count, -1)  # the label of that first step
+        self.second = np.zeros(count, dtype=np.bool_)  # a two-push start is in its second step
+        # the travel a starting body has at its first push's end: 1 for a unit without flight (one
+        # push), else that push's share of the two pushes' frames (an even force while a foot is down)
+        self.first_share = np.ones(count)
+        self.push = np.ones(count)  # how far through its step's push a starting body is, 0 to 1
+        self.push_rate = np.full(count, 1.0 / self.start_frames)  # how much of it it gains a frame
+        self.swing = np.ones(count)  # how far through its step, 0 to 1 (its swinging leg's ease)
+        self.swing_rate = np.full(count, 1.0 / self.start_frames)
+        self.leg_shares = np.ones((count, 2))  # the share of its swing each leg of a starting body takes
+        # stopped while setting off: its legs brake with its travel until they are drawn in as far as
+        # the rest of its pose (a leg ahead of the rest: made to follow the rest at once, it jumped)
         self.halting = np.zeros(count, dtype=np.bool_)
         self._strides = np.ones((count, self.legs.shape[1]))  # `strides`' array, filled each frame
 
@@ -258,18 +276,26 @@ class UnitChooser:
         still = (coming != self.stand) & (self.level == 0.0)
         halted = self.starting & (coming == self.stand) & (self.level > 0.0)
         if halted.any():  # stopped while setting off: its levels moved onto the smoothstep braking eases by
-            self.level[halted] = smoothstep_of(smootherstep(self.stance_level[halted]))  # (its travel's)
-            self.stride_level[halted] = smoothstep_of(smootherstep(self.stride_level[halted]))
+            self.level[halted] = smoothstep_of(self.travel[halted])  # (its travel's)
+            self.stride_level[halted] = smoothstep_of(self.stride[halted])
             self.halting |= halted
         self.set_off = still & ~self.starting
         self.setting_off = bool(self.set_off.any())
         self.starting = (self.starting | still) & (coming != self.stand)
+        self.start_label[self.set_off] = -1
         first = still & ~standing
-        if first.any():  # its first step has begun: its pose eases in over the step, its travel and
-            # stance leg up to the stance foot's toe-off
-            self.start_rate[first] = 1.0 / np.maximum(self._frames_left(stream)[first], 1.0)
-            self.stance_rate[first] = 1.0 / np.maximum(self._frames_left(stream, self.pushing)[first], 1.0)
-            self.start_foot[first] = self.stance_foot[counters[first, LABEL]]
+        if first.any():  # its first step has begun: its pose eases in over its pushes' steps, its travel
+            # and stance leg up to the stance foot's toe-off
+            self._begin_start(stream, first)
+        second = (self.starting & ~first & ~self.second & (self.start_label >= 0) & (self.first_share < 1.0)
+                  & (counters[:, LABEL] != self.start_label))
+        if second.any():  # a two-push start's second step has begun: the rest of the way over it
+            frames = np.maximum(self._frames_left(stream)[second], 1.0)
+            self.start_rate[second] = (1.0 - self.level[second]) / frames
+            self.swing_rate[second] = 1.0 / frames
+            self.push_rate[second] = 1.0 / np.maximum(self._frames_left(stream, self.pushing)[second], 1.0)
+            self.push[second] = self.swing[second] = 0.0
+            self.second |= second
         self._ease(standing, stopping, self._frames_to_stand(stream, stopping) if stopping.any() else None)
         rest = turn - side * share * self.turn_rates.get(side, 0.0)  # what turning steps do not give
         self.added_yaw[:] = np.where(standing, 0.0, rest)
@@ -277,16 +303,38 @@ class UnitChooser:
                          and (self.level == np.where(standing, 0.0, 1.0)).all() and (self.stride_level == 1.0).all()
                          else None)  # no easing in or out
 
+    def _begin_start(self, stream: Crowd, first: np.ndarray) -> None:
+        """The rates of the bodies (`first`) whose first step from a standstill begins this frame:
+        a unit without flight pushes once (its travel and stance leg over the step's push, the
+        rest of its pose over the step); one with flight twice, its first push taking it to the
+        share of the two pushes' frames it lasts (as under an even force while a foot is down),
+        the rest of its pose over both steps (the next the other foot's of the same unit)."""
+        label = stream.counters[first, LABEL]
+        frames = self._frames_left(stream)[first]
+        pushing = self._frames_left(stream, self.pushing)[first]
+        two = self.pushing[label] < self.states
+        following = label ^ 1  # the other foot's step of the same unit
+        later = stream.base[np.flatnonzero(first), following]  # (n, states) its frames at mean durations
+        later_push = (later * (np.arange(self.states) < self.pushing[following][:, None])).sum(axis=1)
+        self.first_share[first] = np.where(two, pushing / np.maximum(pushing + later_push, 1e-9), 1.0)
+        self.start_rate[first] = 1.0 / np.maximum(frames + np.where(two, later.sum(axis=1), 0.0), 1.0)
+        self.push_rate[first] = 1.0 / np.maximum(pushing, 1.0)
+        self.swing_rate[first] = 1.0 / np.maximum(frames, 1.0)
+        self.start_foot[first] = self.stance_foot[label]
+        self.start_label[first] = label
+        self.second[first] = False
+
     def _ease(self, standing: np.ndarray, stopping: np.ndarray, left: np.ndarray | None) -> None:
         """Each body's travel: eased in once it moves (over its first step from a standstill,
         `start_rate`; over START_SECONDS from a stop called off), and eased out while it stops,
         linearly in its level over the `left` frames before the stand begins (at least
         STOP_SECONDS' frames, the rest in the stand), so the level is 0 as it does; none while it
         stands. The travel is the level's smoothstep (a body setting off from a standstill: its
-        stance level's smootherstep, its stride the level's): no jump in speed nor in acceleration at either end. The
-        stride follows the level down while the body brakes, and up while it sets off from a
-        standstill (0 from the command, drawn from the pose it stood in); otherwise (a stop called
-        off just after a stand, a stand still) it comes back up over STOP_SECONDS."""
+        push's smootherstep, over two pushes for a unit with flight; the rest of its pose the
+        level's): no jump in speed nor in acceleration at either end. The stride follows the
+        level down while the body brakes, and up while it sets off from a standstill (0 from the
+        command, drawn from the pose it stood in); otherwise (a stop called off just after a
+        stand, a stand still) it comes back up over STOP_SECONDS."""
         if left is not None:
             self.braking[stopping] = self.level[stopping] / (np.maximum(left[stopping], self.stop_frames) + 1.0)
         moving = ~standing & ~stopping
@@ -296,12 +344,25 @@ class UnitChooser:
                          np.maximum(self.level - self.braking, 0.0))
         self.level = level
         starting = bool(self.starting.any())  # some body sets off from a standstill: its ease is a smootherstep
+        before, before_stride = self.travel, self.stride  # the last frame's (a halting body's legs brake from them)
         self.travel = level * level * (3.0 - 2.0 * level)
-        if starting:  # (its stride is its level: the same curve for both; its travel its stance leg's)
+        if starting:  # (the rest of its pose: its level's; its travel: its push's)
             eased = smootherstep(level)
-            self.stance_level = np.where(moving & self.starting, np.minimum(self.stance_level + self.stance_rate, 1.0), level)
-            self.stance_stride = smootherstep(self.stance_level)
-            self.travel = np.where(self.starting, self.stance_stride, self.travel)
+            going = moving & self.starting
+            self.push = np.where(going, np.minimum(self.push + self.push_rate, 1.0), level)
+            self.swing = np.where(going, np.minimum(self.swing + self.swing_rate, 1.0), level)
+            share = self.first_share
+            pushed, swung = smootherstep(self.push), smootherstep(self.swing)
+            travel = np.where(self.second, share + (1.0 - share) * pushed, share * pushed)
+            self.travel = np.where(self.starting, travel, self.travel)
+            # each leg follows the travel while it is the stance leg, and eases over its step while it
+            # swings: the first stance leg from the first push's share to 1 over the second step, the
+            # other from 0 to that share over the first; a one-push start's swinging leg is the rest
+            stance = np.where(self.second, share + (1.0 - share) * swung, travel)
+            swinging = np.where(self.second, travel, np.where(share < 1.0, share * swung, eased))
+            first_leg = self.start_foot[:, None] == np.arange(2)
+            self.leg_shares = np.where(self.starting[:, None], np.where(first_leg, stance[:, None], swinging[:, None]),
+                                       self.leg_shares)
         braking = stopping | (standing & (level > 0.0))
         stride = np.where(braking, np.minimum(self.stride_level, level),
                           np.where(self.starting, level, np.minimum(self.stride_level + 1.0 / self.stop_frames, 1.0)))
@@ -310,20 +371,43 @@ class UnitChooser:
         if starting:
             self.stride = np.where(self.starting, eased, self.stride)
             self.starting &= level < 1.0
-        if self.halting.any():  # its stance leg's level is its travel's (the same at the halt): eased down with it
-            self.halting &= ~self.starting & (level > stride)
-            self.stance_stride = np.where(self.halting, self.travel, self.stance_stride)
+        if self.halting.any():
+            self._halt(moving, before, before_stride)
         self.shortening = bool(stride.min() < 1.0)
+
+    def _halt(self, moving: np.ndarray, before: np.ndarray, before_stride: np.ndarray) -> None:
+        """A body stopped while it set off: each leg's share of its swing, and the rest's, goes
+        down with its travel from where it was (`before`, `before_stride`: the last frame's travel
+        and rest), as a braking body's stride does: one at or under the travel holds until the
+        travel comes down to it, one above it (a start's rest ahead of its travel) goes down in
+        proportion; moved again before it stands, each leg closes its gap to the rest as the
+        rest comes up to 1. It is done once both legs are where the rest is."""
+        halting = self.halting & ~self.starting
+        brake = halting & ~moving
+        travel = self.travel[:, None]
+        last = np.maximum(before, 1e-12)[:, None]
+        legs = self.leg_shares
+        braked = np.minimum(legs, travel * np.maximum(1.0, legs / last))
+        ahead = brake & (before_stride > before)  # the rest ahead of the travel: drawn down with it
+        if ahead.any():
+            rest = np.minimum(before_stride, self.travel * before_stride / np.maximum(before, 1e-12))
+            self.stride = np.where(ahead, rest, self.stride)
+            self.stride_level = np.where(ahead, smoothstep_of(self.stride), self.stride_level)
+        gap = (1.0 - self.stride) / np.maximum(1.0 - before_stride, 1e-12)
+        closing = self.stride[:, None] + (legs - before_stride[:, None]) * np.minimum(gap, 1.0)[:, None]
+        self.leg_shares = np.where(brake[:, None], braked, np.where(halting[:, None], closing, legs))
+        self.halting = halting & (np.abs(self.leg_shares - self.stride[:, None]).max(axis=1) > 1e-12)
 
     def strides(self) -> np.ndarray:
         """(N, D) the share of its swing each character's every feature takes (`stride`), but a
-        starting (or halting) body's stance leg's, which takes `stance_stride`. The same array
+        starting (or halting) body's legs', which take their own (`leg_shares`). The same array
         each frame, overwritten."""
         out = self._strides
         out[:] = self.stride[:, None]
         own = np.flatnonzero(self.starting | self.halting)
         if len(own):
-            out[own] = np.where(self.legs[self.start_foot[own]], self.stance_stride[own, None], self.stride[own, None])
+            shares = self.leg_shares[own]
+            out[own] = np.where(self.legs[0], shares[:, :1], np.where(self.legs[1], shares[:, 1:], self.stride[own, None]))
         return out
 
     def _frames_to_stand(self, stream: Crowd, stopping: np.ndarray) -> np.ndarray:
