@@ -88,8 +88,7 @@ lifted, and swept that foot back as it rose. So a body setting off eases its tra
 stance leg's stride (`leg_shares`, the leg's features: limbs.leg_columns) in up to the first
 state of flight after that foot is down (`pushing_states`: every state of a walk's step), and
 the rest of its pose over the step as before: the stance foot's sweep has stopped as it lifts,
-and the body is at its gait's speed from the toe-off, as a body in flight can no longer speed
-up. The whole pose so eased swept the swinging leg instead; the stance leg alone with the travel
+and a body in flight no longer speeds up (a run's travel holds there: below). The whole pose so eased swept the swinging leg instead; the stance leg alone with the travel
 over the whole step left the lock holding a foot swept back against the body. A start stopped
 before it is done brakes its legs with its travel (`halting`) until the rest of the pose is
 drawn in as far (docs/evaluate.md, "A run pushes off until its toe-off").
