@@ -23,7 +23,7 @@ from instrument.errors import UserError
 from instrument.motion.bvh import read_bvh
 from instrument.motion.standing import standing_steps, still_frames
 from instrument.synthesis.engine import Engine, default_controls
-from instrument.synthesis.stream import STATE, UNIT, Controls
+from instrument.synthesis.stream import LABEL, STATE, UNIT, Controls
 from instrument.synthesis.units import STOP_SECONDS
 from instrument.training.corpus import TakeFile, load_corpus, read_manifest, styled_takes
 from instrument.training.units import unit_from_name
@@ -640,6 +640,48 @@ def test_a_run_stopped_while_it_sets_off_brakes_its_legs_with_its_travel(model, 
     assert change[cue:halted - 1].max() > 0.05  # it did set off: the legs eased in
     assert shares[cue:halted].min() < 1.0 and (shares[-1] == 1.0).all()  # and stood still again at the end
     assert change[halted - 2:].max() <= change[cue:halted - 1].max() + 1e-9
+
+
+@pytest.mark.parametrize("slowed_at", [14, 16, 18])  # frames after the run cue: in the first step
+def test_a_run_start_slowed_in_its_first_step_still_reaches_its_speed(model, slowed_at):
+    """A two-push start's pose eases over both steps at the plan's pace when it began; slowed in
+    its first step (speed 0.5), that level reached 1 before the second push began, the start
+    ended with the travel at the first push's share, and the body ran on at half its travel (its
+    feet at full stride, skating) for good (a reviewer's find). It ends only once the travel and
+    both legs are there too."""
+    engine = Engine(model)
+    base = default_controls(model, {"normal": 2.0})
+    plan = [(Controls(base.weights, gait=RUN), 100), (Controls(base.weights, gait=STAND), 60),
+            (Controls(base.weights, gait=RUN), slowed_at), (Controls(base.weights, gait=RUN, speed=0.5), 200)]
+    frame = 0
+    for controls, frames in plan:
+        for _ in range(frames):
+            engine.frame(frame / engine.fps, controls)
+            frame += 1
+    units = engine.units
+    assert units.travel[0] == 1.0 and not units.starting[0] and not units.shortening
+
+
+@pytest.mark.parametrize("then", [RUN, WALK])
+def test_a_second_start_stands_still_until_its_first_step(model, then):
+    """A body that set off over two pushes kept its second push's flag: told to move again, it
+    took the first push's share of its travel (0.5) while it still stood, its hips drifting and a
+    walk's start no longer the walk's (a reviewer's find). Its travel is 0 until its first step."""
+    engine = Engine(model)
+    base = default_controls(model, {"normal": 1.0})
+    plan = [(RUN, 100), (STAND, 90), (RUN, 60), (STAND, 90), (then, 40)]
+    frame, travel, standing = 0, [], []
+    for gait, frames in plan:
+        for _ in range(frames):
+            engine.frame(frame / engine.fps, Controls(base.weights, gait=gait))
+            frame += 1
+            travel.append(float(engine.units.travel[0]))
+            standing.append(int(engine.stream.counters[0, LABEL]) // 2 == engine.units.stand)
+    cue = 100 + 90 + 60 + 90
+    first_step = cue + standing[cue:].index(False)
+    assert standing[cue - 1] and first_step > cue  # it stood still when told, and stood on a while
+    assert max(travel[cue:first_step]) == 0.0
+    assert max(travel[first_step:]) > 0.5  # and then it set off
 
 
 def _step_state_frames(labels: np.ndarray, states: np.ndarray) -> list[tuple[int, tuple[int, ...]]]:

@@ -6,8 +6,12 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import UserError
+
+if TYPE_CHECKING:  # (the training's modules load numpy: not for --help)
+    from ..training.corpus import TakeFile
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -19,7 +23,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def describe(path: Path, listed=None) -> dict:
+def describe(path: Path, listed: TakeFile | None = None) -> dict:
     """What a take holds; its style, unit and gesture as a manifest's row `listed` (a TakeFile)
     gives them, else as `train` reads them from the name by default."""
     # numpy, and scipy and numba for finding the steps: loaded when run, not for --help (nor for `train`'s)

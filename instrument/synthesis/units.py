@@ -211,6 +211,10 @@ class UnitChooser:
         # the travel a starting body has at its first push's end: 1 for a unit without flight (one
         # push), else that push's share of the two pushes' frames (an even force while a foot is down)
         self.first_share = np.ones(count)
+        # where its travel and legs (N, 2) were as its second step began: the second push eases on
+        # from there (the first push's share, or short of it where the first step was cut short)
+        self.second_from = np.ones(count)
+        self.second_legs_from = np.ones((count, 2))
         self.push = np.ones(count)  # how far through its step's push a starting body is, 0 to 1
         self.push_rate = np.full(count, 1.0 / self.start_frames)  # how much of it it gains a frame
         self.swing = np.ones(count)  # how far through its step, 0 to 1 (its swinging leg's ease)
@@ -282,6 +286,8 @@ class UnitChooser:
         self.setting_off = bool(self.set_off.any())
         self.starting = (self.starting | still) & (coming != self.stand)
         self.start_label[self.set_off] = -1
+        self.second[self.set_off] = False  # (a start before this one may have ended in its second push)
+        self.first_share[self.set_off] = 1.0
         first = still & ~standing
         if first.any():  # its first step has begun: its pose eases in over its pushes' steps, its travel
             # and stance leg up to the stance foot's toe-off
@@ -294,11 +300,13 @@ class UnitChooser:
             self.swing_rate[second] = 1.0 / frames
             self.push_rate[second] = 1.0 / np.maximum(self._frames_left(stream, self.pushing)[second], 1.0)
             self.push[second] = self.swing[second] = 0.0
+            self.second_from[second] = self.travel[second]
+            self.second_legs_from[second] = self.leg_shares[second]
             self.second |= second
         self._ease(standing, stopping, self._frames_to_stand(stream, stopping) if stopping.any() else None)
         rest = turn - side * share * self.turn_rates.get(side, 0.0)  # what turning steps do not give
         self.added_yaw[:] = np.where(standing, 0.0, rest)
-        self._settled = ((gait, turn) if share == 0.0 and stream.sent > 0 and (current == unit).all()
+        self._settled = ((gait, turn) if share == 0.0 and stream.sent > 0 and (current == unit).all() and not self.starting.any()
                          and (self.level == np.where(standing, 0.0, 1.0)).all() and (self.stride_level == 1.0).all()
                          else None)  # no easing in or out
 
@@ -343,7 +351,9 @@ class UnitChooser:
                          np.maximum(self.level - self.braking, 0.0))
         self.level = level
         starting = bool(self.starting.any())  # some body sets off from a standstill: its ease is a smootherstep
-        before, before_stride = self.travel, self.stride  # the last frame's (a halting body's legs brake from them)
+        # the last frame's (a halting body's legs brake from them): the arrays themselves, which this
+        # frame rebinds (never writes into)
+        before, before_stride = self.travel, self.stride
         self.travel = level * level * (3.0 - 2.0 * level)
         if starting:  # (the rest of its pose: its level's; its travel: its push's)
             eased = smootherstep(level)
@@ -352,14 +362,21 @@ class UnitChooser:
             self.swing = np.where(going, np.minimum(self.swing + self.swing_rate, 1.0), level)
             share = self.first_share
             pushed, swung = smootherstep(self.push), smootherstep(self.swing)
-            travel = np.where(self.second, share + (1.0 - share) * pushed, share * pushed)
+            was = self.second_from  # the travel as the second step began (the first push's share)
+            travel = np.where(self.second, was + (1.0 - was) * pushed, share * pushed)
             self.travel = np.where(self.starting, travel, self.travel)
             # each leg follows the travel while it is the stance leg, and eases over its step while it
-            # swings: the first stance leg from the first push's share to 1 over the second step, the
-            # other from 0 to that share over the first; a one-push start's swinging leg is the rest
-            stance = np.where(self.second, share + (1.0 - share) * swung, travel)
-            swinging = np.where(self.second, travel, np.where(share < 1.0, share * swung, eased))
+            # swings: the first stance leg from where it was (the first push's share) to 1 over the
+            # second step, the other from 0 to that share over the first; a one-push start's swinging
+            # leg is the rest. A leg apart from the travel as the second step began (the first step
+            # cut short by a speed-up) closes the gap over the push, with no jump
             first_leg = self.start_foot[:, None] == np.arange(2)
+            legs_from = self.second_legs_from
+            stance_from = np.where(first_leg, legs_from, 0.0).sum(axis=1)
+            swinging_from = np.where(first_leg, 0.0, legs_from).sum(axis=1)
+            stance = np.where(self.second, stance_from + (1.0 - stance_from) * swung, travel)
+            swinging = np.where(self.second, travel + (swinging_from - was) * (1.0 - pushed),
+                                np.where(share < 1.0, share * swung, eased))
             self.leg_shares = np.where(self.starting[:, None], np.where(first_leg, stance[:, None], swinging[:, None]),
                                        self.leg_shares)
         braking = stopping | (standing & (level > 0.0))
@@ -367,12 +384,14 @@ class UnitChooser:
                           np.where(self.starting, level, np.minimum(self.stride_level + 1.0 / self.stop_frames, 1.0)))
         self.stride_level = stride
         self.stride = stride * stride * (3.0 - 2.0 * stride)
-        if starting:
+        if starting:  # done once its pose, travel and legs are all there (a first step slowed down
+            # may bring its level to 1 before the second push has begun: its travel still the share)
             self.stride = np.where(self.starting, eased, self.stride)
-            self.starting &= level < 1.0
+            self.starting &= ~((level >= 1.0) & (self.travel >= 1.0) & (self.leg_shares >= 1.0).all(axis=1))
         if self.halting.any():
             self._halt(moving, before, before_stride)
-        self.shortening = bool(stride.min() < 1.0)
+        own = self.starting | self.halting  # (a leg's own share may be short of the rest's 1)
+        self.shortening = bool(stride.min() < 1.0) or bool(own.any() and (self.leg_shares[own] < 1.0).any())
 
     def _halt(self, moving: np.ndarray, before: np.ndarray, before_stride: np.ndarray) -> None:
         """A body stopped while it set off: each leg's share of its swing, and the rest's, goes
@@ -392,8 +411,8 @@ class UnitChooser:
             rest = np.minimum(before_stride, self.travel * before_stride / np.maximum(before, 1e-12))
             self.stride = np.where(ahead, rest, self.stride)
             self.stride_level = np.where(ahead, smoothstep_of(self.stride), self.stride_level)
-        gap = (1.0 - self.stride) / np.maximum(1.0 - before_stride, 1e-12)
-        closing = self.stride[:, None] + (legs - before_stride[:, None]) * np.minimum(gap, 1.0)[:, None]
+        remaining = (1.0 - self.stride) / np.maximum(1.0 - before_stride, 1e-12)  # the share of the rest's way still to go
+        closing = self.stride[:, None] + (legs - before_stride[:, None]) * np.minimum(remaining, 1.0)[:, None]
         self.leg_shares = np.where(brake[:, None], braked, np.where(halting[:, None], closing, legs))
         self.halting = halting & (np.abs(self.leg_shares - self.stride[:, None]).max(axis=1) > 1e-12)
 

@@ -47,7 +47,7 @@ class TakeFile(NamedTuple):
 
 
 def take_files(pairs: Sequence[tuple]) -> list[TakeFile]:
-    """(file, style) or (file, style, unit) tuples as TakeFiles (a pair is a walk)."""
+    """(file, style), (file, style, unit) or (file, style, unit, gesture) tuples as TakeFiles (a pair is a walk)."""
     return [p if isinstance(p, TakeFile) else TakeFile(Path(p[0]), *p[1:]) for p in pairs]
 
 
