@@ -684,6 +684,27 @@ def test_a_second_start_stands_still_until_its_first_step(model, then):
     assert max(travel[first_step:]) > 0.5  # and then it set off
 
 
+@pytest.mark.parametrize("gait, style, going, stopped", [(RUN, "active", 30, 8), (WALK, "feminine", 30, 8)])
+def test_a_stop_called_off_late_goes_on_without_standing_a_step(model, gait, style, going, stopped):
+    """A stop called off within a step's notice of its stand made the change wait a step: the
+    stand came anyway, for one step, and the body's travel fell from where its braking had got to
+    (0.55 of its gait's, active's run) to 0 in one frame (a reviewer's find). Called off, it goes
+    on: its travel changes in a frame no more than a braking smoothstep over STOP_SECONDS does."""
+    engine = Engine(model)
+    base = default_controls(model, {style: 1.0})
+    plan = [(gait, 135), (STAND, 60), (gait, going), (STAND, stopped), (gait, 60)]
+    frame, travel, units = 0, [], []
+    for g, frames in plan:
+        for _ in range(frames):
+            engine.frame(frame / engine.fps, Controls(base.weights, gait=g))
+            frame += 1
+            travel.append(float(engine.units.travel[0]))
+            units.append(int(engine.stream.counters[0, LABEL]) // 2)
+    called_off = 135 + 60 + going + stopped
+    assert engine.units.stand not in units[called_off:]  # it never stood again
+    assert np.abs(np.diff(travel[called_off - stopped:])).max() <= 1.5 / (STOP_SECONDS * model.fps) + 1e-9
+
+
 def _step_state_frames(labels: np.ndarray, states: np.ndarray) -> list[tuple[int, tuple[int, ...]]]:
     """Each whole step of a character's frames: (label, frames of each of its states)."""
     steps, first = [], 0
