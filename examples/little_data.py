@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from instrument.errors import UserError, run_script
-from instrument.evaluation.assessment import SETTLE_SECONDS, _limbs
+from instrument.evaluation.assessment import SETTLE_SECONDS, model_limbs
 from instrument.evaluation.recognition import LinearDiscriminant, step_features
 from instrument.motion.bvh import Motion
 from instrument.motion.features import extract
@@ -87,7 +87,7 @@ class HeldOut:
     figures per style, a classifier trained on their steps, and the training takes' own steps."""
 
     def __init__(self, model, held: list[TakeFile], train: list[TakeFile]):
-        self.limbs, self.cm, _ = _limbs(model)
+        self.limbs, self.cm, _ = model_limbs(model)
         layout, dimension = model.layout, model.layout.dimension
         motions = read_motions(held, model.fps)
         takes, _ = make_takes(held, motions, layout)

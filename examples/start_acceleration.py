@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from instrument.evaluation.sequence import velocity_jumps
 from instrument.evaluation.transitions import transition_sequence
-from instrument.evaluation.units import _limbs
+from instrument.evaluation.units import model_limbs
 from instrument.models.modelfile import default_model_path, load_model
 from instrument.motion.kinematics import world_positions
 
@@ -34,7 +34,7 @@ def main() -> int:
     args = sys.argv[1:]
     model = load_model(args.pop(0) if args and ":" not in args[0] else str(default_model_path()))
     weightings = [(style, float(weight)) for style, weight in (a.split(":") for a in args)] or WEIGHTINGS
-    _, cm, _ = _limbs(model)
+    _, cm, _ = model_limbs(model)
     fps = model.fps
     print("| stand->run | hips' peak m/s^2 start / steady | largest jump cm/frame^2 start / steady |")
     print("|---|---|---|")

@@ -470,11 +470,11 @@ def test_a_steady_run_jumps_no_more_than_the_real_runs(model, style):
     than made): the steady run's largest joint velocity jump
     stays under the real runs' of the style (11.9 and 12.2 cm/frame^2); it was 19.1 and 18.1,
     a knee going from 31 degrees of bend to 2 and back to 20 in two frames."""
-    from instrument.evaluation.assessment import _limbs
+    from instrument.evaluation.assessment import model_limbs
     from instrument.evaluation.sequence import velocity_jumps
     from instrument.synthesis.parameters import GAITS
 
-    _, cm, _ = _limbs(model)
+    _, cm, _ = model_limbs(model)
     motion = render(model, default_controls(model, {style: 1.0}, gait=GAITS.index("run")), 165)
     jumps = velocity_jumps(world_positions(motion)[15:] * cm)
     assert jumps.max() < 11.9

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from conftest import SHARED_WALKS
 
-from instrument.evaluation.assessment import _limbs
+from instrument.evaluation.assessment import model_limbs
 from instrument.evaluation.sequence import velocity_jumps
 from instrument.evaluation.transitions import settled, transition_figures
 from instrument.evaluation.units import _Measure, _model_ground, assess_units
@@ -30,7 +30,7 @@ def cli(*args: str) -> subprocess.CompletedProcess:
 
 @pytest.fixture(scope="module")
 def measure(model):
-    limbs, cm, template = _limbs(model)
+    limbs, cm, template = model_limbs(model)
     return _Measure(model, limbs, cm, _model_ground(model, limbs, template))
 
 
@@ -73,7 +73,7 @@ def test_the_jump_measure_finds_a_pop_injected_into_a_real_take(model):
     """A knee snapped 25 degrees for one frame of a real walk (a pop) is a jump far above the take's own largest."""
     take = read_bvh(sorted(SHARED_WALKS.glob("*_normal_*.bvh"))[0])
     clean = velocity_jumps(world_positions(take))
-    knee = _limbs(model)[0].legs[0].knee  # the shipped model's skeleton is the takes'
+    knee = model_limbs(model)[0].legs[0].knee  # the shipped model's skeleton is the takes'
     channels = take.channels.copy()
     first = int(take.skeleton.channel_start()[knee]) + take.skeleton.joints[knee].channels.index("Xrotation")
     channels[60, first] += 25.0

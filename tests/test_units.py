@@ -96,7 +96,8 @@ def test_a_manifest_says_a_standing_takes_gesture_and_a_bad_one_names_its_line(t
     (tmp_path / "m.toml").write_text('[[take]]\nfile = "a.bvh"\nstyle = "calm"\nunit = "stand"\ngesture = "hands-up"\n')
     assert read_manifest(tmp_path / "m.toml")[0].gesture == "raise"
     for text, said in (("a.bvh,calm,stand,hop\n", ":2: gesture 'hop' is not one of wave, raise"),
-                       ("b.bvh,calm,stand,wave\na.bvh,calm,run,wave\n", ":3: gesture 'wave' given to a run take")):
+                       ("b.bvh,calm,stand,wave\na.bvh,calm,run,wave\n", ":3: gesture 'wave' given to a run take:"),
+                       ("a.bvh,calm,,wave\n", ":2: gesture 'wave' given to a walk take (no unit given: a walk):")):
         (tmp_path / "bad.csv").write_text("file,style,unit,gesture\n" + text)
         with pytest.raises(UserError) as refused:
             read_manifest(tmp_path / "bad.csv")

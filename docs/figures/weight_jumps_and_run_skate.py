@@ -24,7 +24,7 @@ sys.path.insert(0, str(REPO / "tests"))
 from bvh_independent import world_positions  # noqa: E402
 
 from instrument.evaluation import units as U  # noqa: E402
-from instrument.evaluation.assessment import _limbs, _model_ground  # noqa: E402
+from instrument.evaluation.assessment import model_limbs, _model_ground  # noqa: E402
 from instrument.models.modelfile import default_model_path, load_model  # noqa: E402
 from instrument.synthesis.contact import PLANTED  # noqa: E402
 from instrument.synthesis.engine import Engine, default_controls  # noqa: E402
@@ -103,7 +103,7 @@ def jumps(folder: Path) -> None:
 
 def skate() -> None:
     model = load_model(default_model_path())
-    limbs, cm, template = _limbs(model)
+    limbs, cm, template = model_limbs(model)
     measure = U._Measure(model, limbs, cm, _model_ground(model, limbs, template))
     work = U._Assessor(model, measure, {}, model.style_names, U.UNIT_SECONDS, None)
     for style in model.style_names:

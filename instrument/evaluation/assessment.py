@@ -50,7 +50,9 @@ def variants(styles: list[str], kinds: tuple[str, ...] = VARIANT_KINDS) -> dict[
     return out
 
 
-def _limbs(model: Model) -> tuple[Limbs, float, np.ndarray]:
+def model_limbs(model: Model) -> tuple[Limbs, float, np.ndarray]:
+    """The model's legs and arms, centimetres per unit of its skeleton, and its template pose's
+    joint positions: what every measure of its motion reads feet, scale and ground from."""
     layout = model.layout
     limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
     if limbs is None:
@@ -87,7 +89,7 @@ def assess(
     progress=None,
 ) -> Assessment:
     styles = styles or model.style_names
-    limbs, cm, template = _limbs(model)
+    limbs, cm, template = model_limbs(model)
     layout = model.layout
     result = Assessment(weights=variants(styles, kinds))
     classifier = None

@@ -41,7 +41,7 @@ from ..synthesis.engine import Engine, default_controls
 from ..synthesis.interpolation import body_groups
 from ..synthesis.parameters import GROUPS
 from ..training.corpus import make_takes, read_motions
-from .assessment import _limbs, real_pairs
+from .assessment import model_limbs, real_pairs
 from .recognition import LinearDiscriminant, step_features
 
 START_SECONDS = 2.0
@@ -58,7 +58,7 @@ class Body:
 
     def __init__(self, model: Model):
         self.layout = model.layout
-        self.limbs, self.cm, template = _limbs(model)
+        self.limbs, self.cm, template = model_limbs(model)
         parents = self.layout.skeleton.parents
         self.hands = hand_joints(parents, self.limbs, template)
         leaves = [j for j in range(len(parents)) if not (parents == j).any()]

@@ -32,7 +32,7 @@ from ..motion.steps import Step, segment_steps
 from ..synthesis.engine import Engine, default_controls, render
 from ..synthesis.parameters import GAITS
 from ..training.corpus import Take, TakeFile, make_takes, read_motions
-from .assessment import SETTLE_SECONDS, _cross_validated, _limbs, _model_ground, real_pairs
+from .assessment import SETTLE_SECONDS, _cross_validated, model_limbs, _model_ground, real_pairs
 from .recognition import LinearDiscriminant, step_features
 from .sequence import horizontal_speed, velocity_jumps
 from .transitions import transition_figures
@@ -97,7 +97,7 @@ def assess_units(model: Model, real: list[Path] | None = None, styles: list[str]
                  seconds: float = UNIT_SECONDS, progress=None, sections: tuple[str, ...] = SECTIONS) -> UnitAssessment:
     """The figures of every unit the model has beyond the walk, and of its transitions (see the
     module's text), of the `sections` asked for; with `real`, the same of the real takes beside them."""
-    limbs, cm, template = _limbs(model)
+    limbs, cm, template = model_limbs(model)
     reals = load_real_units(model, real, cm) if real else {}
     walks = reals.get("walk")
     ground = clearance([p / cm for p in walks.positions], limbs) if walks else _model_ground(model, limbs, template)

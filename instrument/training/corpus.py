@@ -129,7 +129,8 @@ def read_manifest(path: Path) -> list[TakeFile]:
             unknown = sorted(set(take) - set(MANIFEST_COLUMNS))  # a misspelt 'unit' would train a run as a walk
             if unknown:
                 raise UserError(f"{path}: take {k}: unknown key {unknown[0]!r} (a take has {', '.join(MANIFEST_COLUMNS)})")
-            unit, gesture = take.get("unit", "walk"), take.get("gesture", "")
+            said, gesture = "unit" in take, take.get("gesture", "")
+            unit = take.get("unit", "walk")
             if not isinstance(unit, str):
                 raise UserError(f"{path}: take {k}: 'unit' is a string ({', '.join(UNITS)})")
             if not isinstance(gesture, str):
@@ -137,7 +138,7 @@ def read_manifest(path: Path) -> list[TakeFile]:
             unit = checked_unit(f"{path}: take {k}", unit)
             pairs.append(TakeFile(_listed_file(base, take["file"], f"{path}: take {k}"),
                                   checked_style(f"{path}: take {k}", take["style"]), unit,
-                                  checked_gesture(f"{path}: take {k}", gesture, unit)))
+                                  checked_gesture(f"{path}: take {k}", gesture, unit, said)))
         return pairs
     text = read_text(path)
     reader = csv.reader(text.splitlines())
@@ -160,11 +161,12 @@ def read_manifest(path: Path) -> list[TakeFile]:
             raise located(path, "expected 'file,style'", number)
         if len(row) > len(header) and "".join(row[len(header):]).strip():
             raise located(path, f"{len(row)} fields, but the header {quoted(','.join(rows[0]))} names {len(header)}", number)
-        unit = checked_unit(f"{path}:{number}", row[2].strip() if with_units and len(row) > 2 and row[2].strip() else "walk")
+        said = row[2].strip() if with_units and len(row) > 2 else ""
+        unit = checked_unit(f"{path}:{number}", said or "walk")
         gesture = row[3].strip() if with_gestures and len(row) > 3 else ""
         pairs.append(TakeFile(_listed_file(base, row[0].strip(), f"{path}:{number}"),
                               checked_style(f"{path}:{number}", row[1].strip()), unit,
-                              checked_gesture(f"{path}:{number}", gesture, unit)))
+                              checked_gesture(f"{path}:{number}", gesture, unit, bool(said))))
     return pairs
 
 

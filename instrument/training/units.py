@@ -84,16 +84,18 @@ def checked_unit(where: str, unit: str) -> str:
     return found
 
 
-def checked_gesture(where: str, gesture: str, unit: str) -> str:
+def checked_gesture(where: str, gesture: str, unit: str, unit_said: bool = True) -> str:
     """A manifest's gesture ("" for none said), as a gesture name, or an error naming where it is:
-    one the model knows (wave, raise), of a standing take (gestures are made standing)."""
+    one the model knows (wave, raise), of a standing take (gestures are made standing; a take
+    whose unit was left empty, `unit_said` False, is a walk, and the error says so)."""
     if not gesture:
         return ""
     found = gesture_of_words(gesture)
     if found is None:
         raise UserError(f"{where}: gesture {gesture!r} is not one of {', '.join(GESTURES)}")
     if unit != "stand":
-        raise UserError(f"{where}: gesture {gesture!r} given to a {unit} take: a gesture is a standing take's (unit stand)")
+        raise UserError(f"{where}: gesture {gesture!r} given to a {unit} take{'' if unit_said else ' (no unit given: a walk)'}: "
+                        "a gesture is a standing take's (unit stand)")
     return found
 
 
