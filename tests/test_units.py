@@ -663,21 +663,27 @@ def test_a_run_start_slowed_in_its_first_step_still_reaches_its_speed(model, slo
     assert units.travel[0] == 1.0 and not units.starting[0] and not units.shortening
 
 
+def _travel_and_units(engine: Engine, weights: dict[str, float], plan: list[tuple[int, int]]) -> tuple[list[float], list[int]]:
+    """One character's travel share and the unit of its step under way, frame by frame, through a
+    plan of (gait, frames) at `weights`."""
+    base = default_controls(engine.model, weights)
+    travel, units = [], []
+    for gait, frames in plan:
+        for _ in range(frames):
+            engine.frame(len(travel) / engine.fps, Controls(base.weights, gait=gait))
+            travel.append(float(engine.units.travel[0]))
+            units.append(int(engine.stream.counters[0, LABEL]) // 2)
+    return travel, units
+
+
 @pytest.mark.parametrize("then", [RUN, WALK])
 def test_a_second_start_stands_still_until_its_first_step(model, then):
     """A body that set off over two pushes kept its second push's flag: told to move again, it
     took the first push's share of its travel (0.5) while it still stood, its hips drifting and a
     walk's start no longer the walk's (a reviewer's find). Its travel is 0 until its first step."""
     engine = Engine(model)
-    base = default_controls(model, {"normal": 1.0})
-    plan = [(RUN, 100), (STAND, 90), (RUN, 60), (STAND, 90), (then, 40)]
-    frame, travel, standing = 0, [], []
-    for gait, frames in plan:
-        for _ in range(frames):
-            engine.frame(frame / engine.fps, Controls(base.weights, gait=gait))
-            frame += 1
-            travel.append(float(engine.units.travel[0]))
-            standing.append(int(engine.stream.counters[0, LABEL]) // 2 == engine.units.stand)
+    travel, units = _travel_and_units(engine, {"normal": 1.0}, [(RUN, 100), (STAND, 90), (RUN, 60), (STAND, 90), (then, 40)])
+    standing = [unit == engine.units.stand for unit in units]
     cue = 100 + 90 + 60 + 90
     first_step = cue + standing[cue:].index(False)
     assert standing[cue - 1] and first_step > cue  # it stood still when told, and stood on a while
@@ -692,15 +698,7 @@ def test_a_stop_called_off_late_goes_on_without_standing_a_step(model, gait, sty
     (0.55 of its gait's, active's run) to 0 in one frame (a reviewer's find). Called off, it goes
     on: its travel changes in a frame no more than a braking smoothstep over STOP_SECONDS does."""
     engine = Engine(model)
-    base = default_controls(model, {style: 1.0})
-    plan = [(gait, 135), (STAND, 60), (gait, going), (STAND, stopped), (gait, 60)]
-    frame, travel, units = 0, [], []
-    for g, frames in plan:
-        for _ in range(frames):
-            engine.frame(frame / engine.fps, Controls(base.weights, gait=g))
-            frame += 1
-            travel.append(float(engine.units.travel[0]))
-            units.append(int(engine.stream.counters[0, LABEL]) // 2)
+    travel, units = _travel_and_units(engine, {style: 1.0}, [(gait, 135), (STAND, 60), (gait, going), (STAND, stopped), (gait, 60)])
     called_off = 135 + 60 + going + stopped
     assert engine.units.stand not in units[called_off:]  # it never stood again
     assert np.abs(np.diff(travel[called_off - stopped:])).max() <= 1.5 / (STOP_SECONDS * model.fps) + 1e-9
