@@ -43,7 +43,7 @@ from instrument.motion.features import resample
 from instrument.motion.kinematics import channels_from_local, forward_kinematics, local_transforms
 from instrument.motion.rotations import expmap_to_matrix, matrix_to_expmap
 from instrument.training.corpus import TakeFile, styled_takes
-from instrument.training.units import gesture_from_name
+from instrument.training.units import take_gesture
 
 SIDES = {"_L": "Left", "_R": "Right"}
 BANDAI_BODY = ("Hips", "Spine", "Chest", "Neck", "Head")
@@ -370,7 +370,7 @@ def build_unit_set(takes: list[TakeFile], rig: Rig, folder: Path, manifest: bool
     build_set([t.path for t in takes], rig, folder, names)
     if not manifest:
         return folder
-    rows = ["file,style,unit,gesture"] + [f"{name},{t.style},{t.unit},{(t.unit == 'stand' and gesture_from_name(t.path)) or ''}"
+    rows = ["file,style,unit,gesture"] + [f"{name},{t.style},{t.unit},{take_gesture(t.path, t.unit) or ''}"
                                           for name, t in zip(names, takes)]
     (folder / "manifest.csv").write_text("\n".join(rows) + "\n")
     return folder / "manifest.csv"

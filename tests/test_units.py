@@ -616,6 +616,17 @@ def test_a_body_stopped_while_it_sets_off_brakes_without_a_jolt(model, going_fra
     assert jumps[halted - 1:].max() <= 1.1 * jumps[15:135].max()
 
 
+def _play(engine: Engine, plan: list[tuple[Controls, int]], read=lambda engine: None) -> list:
+    """The engine's frames through a plan of (controls, frames), and what `read` reads of the
+    engine after each."""
+    seen = []
+    for controls, frames in plan:
+        for _ in range(frames):
+            engine.frame(len(seen) / engine.fps, controls)
+            seen.append(read(engine))
+    return seen
+
+
 @pytest.mark.parametrize("going_frames", [15, 16, 20, 24, 28])  # in a run's first step (before, at and after its
 def test_a_run_stopped_while_it_sets_off_brakes_its_legs_with_its_travel(model, going_frames):  # toe-off) and second
     """A run's start eases each leg apart from the rest of the pose (with the travel while it is the
@@ -623,20 +634,15 @@ def test_a_run_stopped_while_it_sets_off_brakes_its_legs_with_its_travel(model, 
     leg's share of its swing is drawn down from where it was, not snapped to the rest's (0.80 ->
     0.25 in a frame, masculine x2: a joint jumped 2.3 times the steady run's): across the stop it
     changes in a frame no more than it did in the start itself."""
-    engine = Engine(model)
+    def leg_shares(engine: Engine) -> list[float]:
+        units = engine.units
+        strides = units.strides()[0] if units.shortening else np.ones(model.layout.dimension)
+        return [float(strides[leg].mean()) for leg in units.legs]
+
     base = default_controls(model, {"masculine": 2.0})
     moving, stand = Controls(base.weights, gait=RUN), Controls(base.weights, gait=STAND)
-    plan = [(moving, 135), (stand, 60), (moving, going_frames), (stand, 60)]
-    shares, frame = [], 0
-    for controls, frames in plan:
-        for _ in range(frames):
-            engine.frame(frame / engine.fps, controls)
-            frame += 1
-            units = engine.units
-            strides = units.strides()[0] if units.shortening else np.ones(model.layout.dimension)
-            shares.append([float(strides[leg].mean()) for leg in units.legs])
+    shares = np.array(_play(Engine(model), [(moving, 135), (stand, 60), (moving, going_frames), (stand, 60)], leg_shares))
     cue, halted = 135 + 60, 135 + 60 + going_frames
-    shares = np.array(shares)
     change = np.abs(np.diff(shares, axis=0)).max(axis=1)
     assert change[cue:halted - 1].max() > 0.05  # it did set off: the legs eased in
     assert shares[cue:halted].min() < 1.0 and (shares[-1] == 1.0).all()  # and stood still again at the end
@@ -652,13 +658,8 @@ def test_a_run_start_slowed_in_its_first_step_still_reaches_its_speed(model, slo
     both legs are there too."""
     engine = Engine(model)
     base = default_controls(model, {"normal": 2.0})
-    plan = [(Controls(base.weights, gait=RUN), 100), (Controls(base.weights, gait=STAND), 60),
-            (Controls(base.weights, gait=RUN), slowed_at), (Controls(base.weights, gait=RUN, speed=0.5), 200)]
-    frame = 0
-    for controls, frames in plan:
-        for _ in range(frames):
-            engine.frame(frame / engine.fps, controls)
-            frame += 1
+    _play(engine, [(Controls(base.weights, gait=RUN), 100), (Controls(base.weights, gait=STAND), 60),
+                   (Controls(base.weights, gait=RUN), slowed_at), (Controls(base.weights, gait=RUN, speed=0.5), 200)])
     units = engine.units
     assert units.travel[0] == 1.0 and not units.starting[0] and not units.shortening
 
@@ -667,13 +668,9 @@ def _travel_and_units(engine: Engine, weights: dict[str, float], plan: list[tupl
     """One character's travel share and the unit of its step under way, frame by frame, through a
     plan of (gait, frames) at `weights`."""
     base = default_controls(engine.model, weights)
-    travel, units = [], []
-    for gait, frames in plan:
-        for _ in range(frames):
-            engine.frame(len(travel) / engine.fps, Controls(base.weights, gait=gait))
-            travel.append(float(engine.units.travel[0]))
-            units.append(int(engine.stream.counters[0, LABEL]) // 2)
-    return travel, units
+    read = _play(engine, [(Controls(base.weights, gait=gait), frames) for gait, frames in plan],
+                 lambda engine: (float(engine.units.travel[0]), int(engine.stream.counters[0, LABEL]) // 2))
+    return [travel for travel, _ in read], [unit for _, unit in read]
 
 
 @pytest.mark.parametrize("then", [RUN, WALK])

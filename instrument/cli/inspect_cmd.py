@@ -33,7 +33,7 @@ def describe(path: Path, listed: TakeFile | None = None) -> dict:
     from ..motion.steps import contiguous_runs, segment_steps
     from ..motion.upright import upright
     from ..training.corpus import DEFAULT_STYLE_PATTERN, style_from_name
-    from ..training.units import gesture_from_name, unit_from_name
+    from ..training.units import take_gesture, unit_from_name
 
     motion, up = upright(read_bvh(path))
     if listed is not None:
@@ -44,7 +44,7 @@ def describe(path: Path, listed: TakeFile | None = None) -> dict:
             style = style_from_name(path, DEFAULT_STYLE_PATTERN)
         except UserError:
             style = None
-    gesture = ((listed.gesture if listed is not None else "") or gesture_from_name(path)) if unit == "stand" else None
+    gesture = take_gesture(path, unit, listed.gesture if listed is not None else "")
     # a standing take's "steps" are its pieces of still standing, as training cuts them
     segmentation = standing_steps(motion, choose_layout([motion])) if unit == "stand" else segment_steps(motion)
     steps = segmentation.steps

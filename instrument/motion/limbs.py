@@ -60,7 +60,8 @@ def _chain(parents: np.ndarray, joint: int, top: int) -> list[int]:
     return out[::-1]
 
 
-def _descendants(parents: np.ndarray, joint: int) -> list[int]:
+def descendants(parents: np.ndarray, joint: int) -> list[int]:
+    """`joint` and every joint below it (a BVH lists a parent before its children)."""
     out = [joint]
     for j in range(joint + 1, len(parents)):  # a BVH lists parents before children
         if parents[j] in out:
@@ -106,7 +107,7 @@ def _arm_branches(parents: np.ndarray, lengths: np.ndarray, root: int, in_legs: 
     reach = {j: lengths[j] + _reach(parents, lengths, j)[0] for j in branches}
     chosen: list[int] = []
     for j in sorted(branches, key=lambda b: -reach[b]):
-        if all(j not in _descendants(parents, c) and c not in _descendants(parents, j) for c in chosen):
+        if all(j not in descendants(parents, c) and c not in descendants(parents, j) for c in chosen):
             chosen.append(j)
         if len(chosen) == 2:
             break
@@ -144,7 +145,7 @@ def leg_columns(layout: FeatureLayout) -> np.ndarray:
         return out
     first = len(ROOT_FEATURES)  # the joints' features follow the root's
     for f, leg in enumerate(limbs.legs):
-        below = set(_descendants(layout.skeleton.parents, leg.hip))
+        below = set(descendants(layout.skeleton.parents, leg.hip))
         for k, joint in enumerate(layout.joints):
             out[f, first + 3 * k:first + 3 * k + 3] = joint in below
     return out
@@ -165,7 +166,7 @@ def _find_limbs(skeleton: Skeleton, root: int, template: tuple[float, ...]) -> L
     height = positions[:, 1] - positions[:, 1].min()
     legs = []
     for child in [j for j in range(len(parents)) if parents[j] == root]:
-        below = _descendants(parents, child)
+        below = descendants(parents, child)
         lowest = below[int(np.argmin(height[below]))]
         if height[lowest] >= height[root] / 3.0:
             continue
@@ -173,12 +174,12 @@ def _find_limbs(skeleton: Skeleton, root: int, template: tuple[float, ...]) -> L
             hip, knee, ankle = _two_longest([root] + _chain(parents, lowest, root), lengths)
         except ValueError:
             continue
-        foot = _descendants(parents, ankle)
+        foot = descendants(parents, ankle)
         legs.append(Leg(hip, knee, ankle, tuple(foot), _front(positions, ankle, foot), float(lengths[knee]),
                         float(lengths[ankle])))
     if len(legs) != 2:
         return None
-    in_legs = {j for leg in legs for j in _descendants(parents, _chain(parents, leg.hip, root)[0])}
+    in_legs = {j for leg in legs for j in descendants(parents, _chain(parents, leg.hip, root)[0])}
     arms = [arm for branch in _arm_branches(parents, lengths, root, in_legs) if (arm := _arm(parents, lengths, branch))]
     leg_length = float(np.mean([leg.thigh + leg.shin for leg in legs]))
     return Limbs(root, tuple(legs), tuple(arms), leg_length)

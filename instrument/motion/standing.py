@@ -17,7 +17,7 @@ import numpy as np
 from .bvh import Motion
 from .features import REFERENCE_FPS, FeatureLayout
 from .kinematics import forward_kinematics, local_transforms
-from .limbs import find_limbs
+from .limbs import descendants, find_limbs
 from .steps import Segmentation, Step
 
 ROOT_SPEED = 0.07  # leg lengths per second: the root's horizontal speed at rest (about 6 cm/s for a 0.85 m leg)
@@ -60,20 +60,16 @@ def hand_joints(parents: np.ndarray, limbs, pose: np.ndarray) -> list[int]:
     (Unreal's `upperarm_twist_01_l`) ends a branch too, and taken for a hand it stood a hanging
     arm's "hand" above the hips: no frame of a standing take was still. Without arms found, the
     upper body's end joints but the highest one (the head)."""
-    children = [np.flatnonzero(parents == j) for j in range(len(parents))]
+    ends = {j for j in range(len(parents)) if not (parents == j).any()}
     hands: list[int] = []
     for _, elbow in limbs.arms:
-        below, leaves = [elbow], []
-        while below:
-            joint = below.pop()
-            below += list(children[joint])
-            leaves += [] if len(children[joint]) else [joint]
+        leaves = [j for j in descendants(parents, elbow) if j in ends]
         reach = np.linalg.norm(pose[leaves] - pose[elbow], axis=1)
         hands += [j for j, r in zip(leaves, reach) if r >= HAND_REACH * reach.max()]
     if hands:
         return sorted(hands)
     legs = {j for foot in limbs.feet for j in foot} | {leg.hip for leg in limbs.legs} | {leg.knee for leg in limbs.legs}
-    leaves = [j for j in range(len(parents)) if j != limbs.root and not len(children[j]) and j not in legs]
+    leaves = [j for j in sorted(ends) if j != limbs.root and j not in legs]
     return sorted(leaves, key=lambda j: pose[j, 1])[:-1] if len(leaves) > 1 else []
 
 

@@ -332,7 +332,6 @@ class UnitChooser:
         self.swing_rate[first] = 1.0 / np.maximum(frames, 1.0)
         self.start_foot[first] = self.stance_foot[label]
         self.start_label[first] = label
-        self.second[first] = False
 
     def _ease(self, standing: np.ndarray, stopping: np.ndarray, left: np.ndarray | None) -> None:
         """Each body's travel: eased in once it moves (over its first step from a standstill,
@@ -374,9 +373,8 @@ class UnitChooser:
             # leg is the rest. A leg apart from the travel as the second step began (the first step
             # cut short by a speed-up) closes the gap over the push, with no jump
             first_leg = self.start_foot[:, None] == np.arange(2)
-            legs_from = self.second_legs_from
-            stance_from = np.where(first_leg, legs_from, 0.0).sum(axis=1)
-            swinging_from = np.where(first_leg, 0.0, legs_from).sum(axis=1)
+            stance_from = np.take_along_axis(self.second_legs_from, self.start_foot[:, None], axis=1)[:, 0]
+            swinging_from = np.take_along_axis(self.second_legs_from, 1 - self.start_foot[:, None], axis=1)[:, 0]
             stance = np.where(self.second, stance_from + (1.0 - stance_from) * swung, travel)
             swinging = np.where(self.second, travel + (swinging_from - was) * (1.0 - pushed),
                                 np.where(share < 1.0, share * swung, eased))

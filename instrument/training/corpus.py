@@ -22,7 +22,7 @@ from ..motion.upright import upright
 from ..models.units import GESTURES, UNITS
 from ..textfile import read_text
 from ..tomlfile import read_toml
-from .units import checked_gesture, checked_unit, gesture_from_name, turn_as_taken, unit_from_name
+from .units import checked_gesture, checked_unit, take_gesture, turn_as_taken, unit_from_name
 
 # the last but one "_"-separated part, starting with a letter: dataset-2_walk_elderly_003 -> elderly,
 # walk_not-confident_001 -> not-confident, style2_take3 -> style2
@@ -267,7 +267,7 @@ def make_takes(pairs: Sequence[tuple], motions: list[Motion], layout: FeatureLay
                             "take's; in other units? metres against centimetres)")
         static, _, _ = extract(motion, layout)
         segmentation = standing_steps(motion, layout, states) if unit == "stand" else segment_steps(motion, layout)
-        gesture = (named or gesture_from_name(path)) if unit == "stand" else None
+        gesture = take_gesture(path, unit, named)
         phases = gesture_phases(motion, layout, states) if gesture else []
         warnings += [f"{path}: {w}" for w in segmentation.warnings]
         if not segmentation.steps and not phases:

@@ -54,6 +54,12 @@ def gesture_from_name(path: Path) -> str | None:
     return gesture_of_words(match.group(1)) if match and match.group(1) else None
 
 
+def take_gesture(path: Path, unit: str, said: str = "") -> str | None:
+    """The gesture a take is trained for: a standing take's as said (a manifest's), else as its
+    name says (None: none); other units make none (gestures are made standing)."""
+    return (said or gesture_from_name(path)) if unit == "stand" else None
+
+
 # a turning take is taken as a turn the way its root turns over its steps; below this it does not turn
 LEAST_TURN_DEG = 30.0
 
