@@ -22,7 +22,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from instrument.evaluation.targets import check, summary, table
-from instrument.evaluation.units import assess_units
+from instrument.evaluation.units import assess_units, partway_summary, partway_table
 from instrument.models.modelfile import default_model_path, load_model
 
 DATA = REPO.parent / "shared" / "data"
@@ -51,13 +51,15 @@ def main() -> int:
                                                                       file=sys.stderr))
     rows = check(result)
     print(table(rows))
+    print("\n" + partway_table(partway_summary(result)))
     failed = sum(not r.passed for r in rows)
     print(f"\n{len(rows) - failed} of {len(rows)} target rows pass; "
           f"{sum(ok == total for _, ok, total, _ in summary(rows))} of {len(summary(rows))} targets pass in full")
     if args.json:
         Path(args.json).write_text(json.dumps(_plain({
             "model": args.model, "weights": result.weights, "synth": result.synth, "real": result.real,
-            "transitions": result.transitions, "real_jumps": result.real_jumps, "targets": [vars(r) for r in rows]}), indent=1))
+            "transitions": result.transitions, "real_jumps": result.real_jumps, "partway": result.partway,
+            "partway_summary": partway_summary(result), "targets": [vars(r) for r in rows]}), indent=1))
     return 0
 
 

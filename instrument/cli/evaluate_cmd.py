@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     units = None
     if args.units:
         from ..evaluation.targets import check
-        from ..evaluation.units import assess_units
+        from ..evaluation.units import assess_units, partway_summary
 
         units = assess_units(model, real, styles, seconds, progress)
         targets = check(units)
@@ -96,6 +96,7 @@ def run(args: argparse.Namespace) -> int:
             report["units"] = {"weights": units.weights, "synth": {k: _clean(v) for k, v in units.synth.items()},
                                "real": {k: _clean(v) for k, v in units.real.items()},
                                "transitions": _clean(units.transitions), "real_jumps": units.real_jumps,
+                               "partway": _clean(units.partway), "partway_summary": _clean(partway_summary(units)),
                                "targets": [vars(t) | {"measured": _number(t.measured)} for t in targets]}
         if gestures is not None:
             report["gestures"] = {"synth": _clean(gestures.synth), "real": _clean(gestures.real)}
@@ -196,4 +197,8 @@ def unit_tables(units) -> str:
         if jumps:
             lines.append(f"\nLargest joint velocity jump of the real takes (cm/frame^2): {jumps}")
         parts.append("\n".join(lines))
+    if units.partway:
+        from ..evaluation.units import partway_summary, partway_table
+
+        parts.append(partway_table(partway_summary(units)))
     return "\n\n".join([""] + parts) if parts else ""

@@ -8,6 +8,7 @@ the steps taken after a change.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,19 +29,53 @@ class Sequence:
 
 def render_sequence(model: Model, segments: list[tuple[Controls, int]]) -> Sequence:
     """The motion of `segments` ((controls, frames) one after another) from rest, at the origin."""
+    return render_forks(model, segments, [])[0]
+
+
+def render_forks(model: Model, segments: list[tuple[Controls, int]],
+                 forks: list[tuple[int, Controls, int]]) -> tuple[Sequence, list[Sequence]]:
+    """`render_sequence` of `segments`, and for each fork (frame, controls, frames) the same
+    sequence up to that frame, then `controls` for `frames` frames: the engine (and the channels'
+    unwrapping) copied as it stood before that frame, so the frames before it are made once
+    however many forks leave from there (a sweep of when a second command comes costs only the
+    frames after it)."""
     engine = Engine(model)
     channels = ChannelStream(model.layout.skeleton)
-    rows, labels, changes = [], [], []
-    k = 0
-    for number, (controls, frames) in enumerate(segments):
-        if number:
-            changes.append(k)
+    rows: list[np.ndarray] = []
+    labels: list[int] = []
+    changes: list[int] = []
+    leaving = sorted(range(len(forks)), key=lambda n: forks[n][0])
+    out: list[Sequence | None] = [None] * len(forks)
+
+    def play(engine: Engine, channels: ChannelStream, controls: Controls, frames: int, rows: list, labels: list) -> None:
         for _ in range(frames):
-            pose = engine.frame(k / engine.fps, controls)
+            pose = engine.frame(len(rows) / engine.fps, controls)
             rows.append(channels.next(pose.rotations[0], pose.translations[0]))
             labels.append(int(engine.frame_ids[0]) // model.states)
-            k += 1
-    return Sequence(Motion(model.layout.skeleton, np.array(rows), model.fps), np.array(labels), changes)
+
+    def fork_at(frame: int) -> None:
+        while leaving and forks[leaving[0]][0] == frame:
+            n = leaving.pop(0)
+            _, controls, frames = forks[n]
+            # the model and skeleton are shared, not copied: only the engine's state is
+            memo = {id(model): model, id(model.layout.skeleton): model.layout.skeleton}
+            twin, twin_channels = copy.deepcopy((engine, channels), memo)
+            more_rows, more_labels = list(rows), list(labels)
+            play(twin, twin_channels, controls, frames, more_rows, more_labels)
+            out[n] = Sequence(Motion(model.layout.skeleton, np.array(more_rows), model.fps), np.array(more_labels),
+                              changes + [frame])
+
+    for number, (controls, frames) in enumerate(segments):
+        if number:
+            changes.append(len(rows))
+        for _ in range(frames):
+            fork_at(len(rows))
+            play(engine, channels, controls, 1, rows, labels)
+    fork_at(len(rows))
+    if leaving:
+        raise ValueError(f"render_forks: a fork at frame {forks[leaving[0]][0]}, past the sequence's {len(rows)} frames")
+    main = Sequence(Motion(model.layout.skeleton, np.array(rows), model.fps), np.array(labels), changes)
+    return main, [s for s in out if s is not None]  # (every one: none is left)
 
 
 def velocity_jumps(positions: np.ndarray, per_joint: bool = False) -> np.ndarray:

@@ -32,29 +32,48 @@ from __future__ import annotations
 import numpy as np
 
 from ..models.modelfile import Model
+from ..motion.bvh import Motion
 from ..motion.kinematics import world_positions
 from ..synthesis.engine import default_controls
 from ..synthesis.parameters import GAITS
 from .assessment import SETTLE_SECONDS
-from .sequence import Sequence, horizontal_speed, render_sequence, velocity_jumps
+from .sequence import Sequence, horizontal_speed, render_forks, render_sequence, velocity_jumps
 
 MOVE_SECONDS = 4.0
 STAND_SECONDS = 4.0
 FEET_STILL_CM_S = 10.0  # every foot joint slower than this: no foot is stepping
 SPEED_SHARE = 0.9  # "at speed": this share of the steady speed
 WINDOW_AFTER = 1.0  # s after a transition is done that its window still covers
+PARTWAY_STEPS = 2.0  # a change part-way comes up to this many of the gait's steps after the first command
+PARTWAY_EVERY = 3  # frames between the timings swept
+PARTWAY_AFTER = 2.0  # steps of the gait each change part-way is played for after its second command
 STEADY_SECONDS = 8.0  # the steady gait whose largest jump a transition past the styles is held to (as units.UNIT_SECONDS)
 
 
 def transition_sequence(model: Model, gait: str, weights: dict[str, float]) -> Sequence:
     """`gait`, stand, `gait` again, each for its seconds, from rest."""
+    return transition_forks(model, gait, weights)[0]
+
+
+def transition_forks(model: Model, gait: str, weights: dict[str, float],
+                     partway: bool = False) -> tuple[Sequence, list[Sequence]]:
+    """`transition_sequence`, and with `partway` the sweep of
+    changes part-way (`partway_timings`) forked from it: the stop called off (`gait` again) and
+    the start stopped (stand again) `delay` frames after the command, each played for
+    `partway_frames`."""
     fps = model.fps
     moving = default_controls(model, weights, gait=GAITS.index(gait))
     standing = default_controls(model, weights, gait=GAITS.index("stand"))
     settle = int(round(SETTLE_SECONDS * fps))
-    return render_sequence(model, [(moving, settle + int(round(MOVE_SECONDS * fps))),
-                                   (standing, int(round(STAND_SECONDS * fps))),
-                                   (moving, int(round(MOVE_SECONDS * fps)))])
+    stop_at = settle + int(round(MOVE_SECONDS * fps))
+    start_at = stop_at + int(round(STAND_SECONDS * fps))
+    forks = []
+    if partway:
+        length = partway_frames(model, gait)
+        forks = ([(stop_at + delay, moving, length) for delay in partway_timings(model, gait)]
+                 + [(start_at + delay, standing, length) for delay in partway_timings(model, gait)])
+    return render_forks(model, [(moving, stop_at), (standing, start_at - stop_at),
+                                (moving, int(round(MOVE_SECONDS * fps)))], forks)
 
 
 def step_frames(model: Model, unit: str) -> float:
@@ -63,10 +82,13 @@ def step_frames(model: Model, unit: str) -> float:
     return float(model.average.duration_means[2 * k:2 * k + 2].sum(axis=-1).mean())
 
 
-def transition_figures(model: Model, gait: str, weights: dict[str, float], measure) -> dict[str, dict[str, float]]:
+def transition_figures(model: Model, gait: str, weights: dict[str, float], measure,
+                       partway: bool = False) -> dict[str, dict[str, float]]:
     """{"<gait>->stand": figures, "stand-><gait>": figures} of one sequence (see the module's
-    text); `measure` is units._Measure (the limbs, scale and ground to measure with)."""
-    sequence = transition_sequence(model, gait, weights)
+    text); `measure` is units._Measure (the limbs, scale and ground to measure with). With
+    `partway`, also {"<gait> stop called off": figures, "<gait> start stopped": figures}, the
+    worst of the sweep of changes part-way (`partway_figures`)."""
+    sequence, forks = transition_forks(model, gait, weights, partway)
     fps = model.fps
     positions = world_positions(sequence.motion) * measure.cm
     root = positions[:, model.layout.root]
@@ -105,8 +127,53 @@ def transition_figures(model: Model, gait: str, weights: dict[str, float], measu
              "speed_s": float("nan") if reached is None else (reached - start_at) / fps,
              "speed_steps": float("nan") if reached is None else float(_steps(sequence.labels, moving, start_at, reached))}
     own = {"gait_jump_cm_f2": steady_jump(model, gait, weights, measure.cm)}
-    return {f"{gait}->stand": stop | window(stop_at, stopped, start_at) | own,
-            f"stand->{gait}": start | window(start_at, reached, len(positions)) | own}
+    out = {f"{gait}->stand": stop | window(stop_at, stopped, start_at) | own,
+           f"stand->{gait}": start | window(start_at, reached, len(positions)) | own}
+    if forks:
+        half = len(forks) // 2
+        out[f"{gait} stop called off"] = partway_figures(forks[:half], measure) | own
+        out[f"{gait} start stopped"] = partway_figures(forks[half:], measure) | own
+    return out
+
+
+def partway_timings(model: Model, gait: str) -> range:
+    """The frames after a command that the sweep of changes part-way brings the second one: from
+    2 to PARTWAY_STEPS of the gait's steps, every PARTWAY_EVERY (a start eases in over one or two
+    steps; a stop brakes over the rest of its step and at most one more)."""
+    return range(2, int(round(PARTWAY_STEPS * step_frames(model, gait))) + 1, PARTWAY_EVERY)
+
+
+def partway_frames(model: Model, gait: str) -> int:
+    """The frames each change part-way is played for after its second command."""
+    return int(round(PARTWAY_AFTER * step_frames(model, gait)))
+
+
+def partway_figures(forks: list[Sequence], measure) -> dict[str, float]:
+    """The worst of a sweep of changes part-way (each fork: its second command at its last
+    change), each measured from its second command to its end: `jump_cm_f2` the largest joint
+    velocity jump over every fork, with its joint (`jump_joint`), the fork's `delay_frames` (from
+    the first command to the second) and when after the second command (`jump_s`);
+    `slide_cm_s` the largest of the forks' stance skates (as a transition's window: the lowest
+    foot joint's mean speed over the frames a foot is down), with its `slide_delay_frames`; and
+    `air_frames`, the most frames with both feet in the air."""
+    out = {"jump_cm_f2": -1.0, "slide_cm_s": float("nan"), "air_frames": 0.0, "timings": float(len(forks))}
+    for fork in forks:
+        first, second = fork.changes[-2], fork.changes[-1]
+        tail = Motion(fork.motion.skeleton, fork.motion.channels[second - 2:], fork.motion.fps)
+        positions = world_positions(tail) * measure.cm
+        joint_jumps = velocity_jumps(positions, per_joint=True)[2:]
+        air = measure.air(positions)[2:]
+        skate = measure.skate(positions, tail.fps)[2:]
+        worst = int(np.argmax(joint_jumps.max(axis=1)))
+        jump = float(joint_jumps[worst].max())
+        if jump > out["jump_cm_f2"]:
+            out |= {"jump_cm_f2": jump, "jump_joint": tail.skeleton.names[int(joint_jumps[worst].argmax())],
+                    "delay_frames": float(second - first), "jump_s": worst / tail.fps}
+        slide = float(skate[~air].mean()) if (~air).any() else float("nan")
+        if not slide <= out["slide_cm_s"]:  # (the first, or a larger one)
+            out |= {"slide_cm_s": slide, "slide_delay_frames": float(second - first)}
+        out["air_frames"] = max(out["air_frames"], float(air.sum()))
+    return out
 
 
 def steady_jump(model: Model, gait: str, weights: dict[str, float], cm: float) -> float:

@@ -9,6 +9,10 @@
             (motion/standing.py): the hips' horizontal speed, the feet's, and the posture
             recognised by a classifier trained on those still frames
     transitions  walk and run -> stand -> walk and run, each style at 1, x2 and -1 (transitions.py)
+    part-way     for PARTWAY_STYLES of the styles at 1, x2 and -1, a stop called off and a start
+                 stopped, swept over when the second command comes (transitions.partway_figures),
+                 and per gait and weighting the worst against the steady gait and the real takes
+                 (`partway_summary`): figures, not targets (issue 25 sets none for them)
 
 Every motion comes from the engine as `synth` makes it; every figure is measured from the
 skeleton's geometry (motion/quality.py), in cm, s and degrees.
@@ -41,6 +45,7 @@ UNIT_SECONDS = 8.0  # length of each generated run, turn and stand (after the se
 WEIGHTINGS = (("", 1.0), (" x2", 2.0), (" -1", -1.0))  # the variants of a style: name suffix, weight
 SIDES = ((1, "left"), (-1, "right"))  # turn's sign, and the turning unit's side
 SECTIONS = ("run", "turn", "stand", "transitions")
+PARTWAY_STYLES = 3  # styles swept for changes part-way: spread evenly over those measured (the first, middle, last)
 
 
 @dataclass
@@ -71,6 +76,7 @@ class UnitAssessment:
     synth: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)  # section -> walk name -> figures
     real: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)  # section -> style (turn: "style left") -> figures
     transitions: dict[str, dict[str, float]] = field(default_factory=dict)  # "walk->stand active x2" -> figures
+    partway: dict[str, dict[str, float]] = field(default_factory=dict)  # "walk stop called off active x2" -> the sweep's worst
     real_jumps: dict[str, dict[str, float]] = field(default_factory=dict)  # unit -> style or "all" -> largest jump of its real takes, cm/frame^2
 
 
@@ -191,7 +197,9 @@ class _Assessor:
                 self.note(f"turn {name}")
 
     def transitions(self) -> None:
-        """walk -> stand -> walk and run -> stand -> run, each style at 1, x2 and -1."""
+        """walk -> stand -> walk and run -> stand -> run, each style at 1, x2 and -1; for
+        PARTWAY_STYLES of them, the sweep of changes part-way forked from the same sequence."""
+        swept = partway_styles(self.styles)
         for gait in ("walk", "run"):
             if gait not in self.model.units:
                 continue
@@ -199,13 +207,78 @@ class _Assessor:
                 for suffix, weight in WEIGHTINGS:
                     name = f"{style}{suffix}"
                     self.result.weights[name] = {style: weight}
-                    for kind, figures in transition_figures(self.model, gait, {style: weight}, self.measure).items():
-                        self.result.transitions[f"{kind} {name}"] = figures
+                    for kind, figures in transition_figures(self.model, gait, {style: weight}, self.measure,
+                                                            partway=style in swept).items():
+                        into = self.result.partway if kind.startswith(gait + " ") else self.result.transitions
+                        into[f"{kind} {name}"] = figures
                     self.note(f"{gait}->stand->{gait} {name}")
 
     def note(self, name: str) -> None:
         if self.progress:
             self.progress(name)
+
+
+def partway_styles(styles: list[str]) -> list[str]:
+    """PARTWAY_STYLES of `styles` spread evenly over them (all of them, when as few)."""
+    if len(styles) <= PARTWAY_STYLES:
+        return list(styles)
+    return [styles[round(k * (len(styles) - 1) / (PARTWAY_STYLES - 1))] for k in range(PARTWAY_STYLES)]
+
+
+def partway_summary(result: UnitAssessment) -> dict[str, dict[str, float | str]]:
+    """Per change, gait and weighting ("walk stop called off 1", "run start stopped x2"): the worst jump of the styles
+    swept (`jump_cm_f2`, with its style's name `walk`, joint and delay), as a multiple of that
+    style's steady gait at those weights (`x_steady`: transitions.steady_jump) and of the real
+    takes' largest (`x_real`: the style's own at weight 1, every style's at x2 and -1, as the
+    transition targets take it), and the worst slide (`slide_cm_s`) as a multiple of the real
+    takes' stance skate (`slide_x_real`: the style's at 1, the largest style's at x2 and -1)."""
+    out: dict[str, dict[str, float | str]] = {}
+    for name, made in result.partway.items():
+        gait, rest = name.split(" ", 1)
+        kind = "stop called off" if rest.startswith("stop called off") else "start stopped"
+        walk = rest[len(kind) + 1:]
+        style, weight = next(iter(result.weights[walk].items()))
+        suffix = next(s for s, w in WEIGHTINGS if w == weight)
+        jumps, reals = result.real_jumps.get(gait, {}), result.real.get(gait, {})
+        real_jump = jumps.get(style if weight == 1.0 else "all", float("nan"))
+        skates = [f["stance_skate_cm_s"] for f in reals.values()]
+        real_skate = (reals[style]["stance_skate_cm_s"] if weight == 1.0 and style in reals
+                      else max(skates) if skates else float("nan"))
+        row = {"jump_cm_f2": made["jump_cm_f2"], "x_steady": made["jump_cm_f2"] / made["gait_jump_cm_f2"],
+               "x_real": made["jump_cm_f2"] / real_jump, "walk": walk, "jump_joint": made.get("jump_joint", ""),
+               "delay_frames": made.get("delay_frames", float("nan")), "slide_cm_s": made["slide_cm_s"],
+               "slide_x_real": made["slide_cm_s"] / real_skate, "slide_walk": walk}
+        key = f"{gait} {kind} {suffix.strip() or '1'}"
+        if key not in out:
+            out[key] = row
+            continue
+        mine = out[key]
+        if not row["x_steady"] <= mine["x_steady"]:
+            mine |= {k: row[k] for k in ("jump_cm_f2", "x_steady", "x_real", "walk", "jump_joint", "delay_frames")}
+        if not row["slide_x_real"] <= mine["slide_x_real"] and not np.isnan(row["slide_x_real"]):
+            mine |= {"slide_cm_s": row["slide_cm_s"], "slide_x_real": row["slide_x_real"], "slide_walk": walk}
+    return out
+
+
+PARTWAY_COLUMNS = (  # (figure, heading, format)
+    ("jump_cm_f2", "worst jump cm/f^2", "{:.1f}"), ("x_steady", "x its steady gait's", "{:.2f}"),
+    ("x_real", "x real takes'", "{:.2f}"), ("walk", "of", "{}"), ("jump_joint", "joint", "{}"),
+    ("delay_frames", "2nd command after (frames)", "{:.0f}"), ("slide_cm_s", "worst slide cm/s", "{:.1f}"),
+    ("slide_x_real", "x real stance skate", "{:.2f}"), ("slide_walk", "of", "{}"),
+)
+
+
+def partway_table(summary: dict[str, dict[str, float | str]]) -> str:
+    """A Markdown table of `partway_summary`, under a line saying what it is."""
+    def cell(value, fmt: str) -> str:
+        return "-" if value is None or (isinstance(value, float) and np.isnan(value)) else fmt.format(value)
+
+    lines = ["Changes part-way (figures, not targets): a stop called off and a start stopped, the second command "
+             "swept over the first two steps after the first; per gait and weighting, the worst of the styles swept.", "",
+             "| change | " + " | ".join(h for _, h, _ in PARTWAY_COLUMNS) + " |", "|---" * (len(PARTWAY_COLUMNS) + 1) + "|"]
+    lines += ["| " + " | ".join([name] + [cell(row.get(key), fmt) for key, _, fmt in PARTWAY_COLUMNS]) + " |"
+              for name, row in summary.items()]
+    return "\n".join(lines)
 
 
 class _Measure:
