@@ -701,6 +701,36 @@ def test_a_stop_called_off_late_goes_on_without_standing_a_step(model, gait, sty
     assert np.abs(np.diff(travel[called_off - stopped:])).max() <= 1.5 / (STOP_SECONDS * model.fps) + 1e-9
 
 
+@pytest.mark.parametrize("gait, style", [(WALK, "normal"), (RUN, "active")])
+def test_a_start_called_off_before_its_first_step_stands_on(model, gait, style):
+    """Told to move in the last frames of a stand's step, the change waits a step (NOTICE_SECONDS);
+    told to stand again 2 frames later, the stop waited too (STOP_SECONDS' notice), so the body took
+    the first step of its gait in place, its pose drawn to the stand's means from the one it stood
+    in: a hand jumped 19.7 cm/frame^2, 3.6 times the steady walk's (active's run: 1.75 times its
+    run's; found by `evaluate --units`' sweep of changes part-way). It stands on at once: no step
+    of the gait, no joint jumping more than in the steady gait before the stop."""
+    from instrument.evaluation.sequence import velocity_jumps
+    from instrument.motion.bvh import Motion
+    from instrument.motion.kinematics import ChannelStream
+    from instrument.motion.kinematics import world_positions as positions_of
+
+    engine = Engine(model)
+    base = default_controls(model, {style: 1.0})
+    moving, stand = Controls(base.weights, gait=gait), Controls(base.weights, gait=STAND)
+    channels = ChannelStream(model.layout.skeleton)
+    rows, units = [], []
+    for controls, frames in [(moving, 135), (stand, 120), (moving, 2), (stand, 45)]:
+        for _ in range(frames):
+            pose = engine.frame(len(rows) / engine.fps, controls)
+            rows.append(channels.next(pose.rotations[0], pose.translations[0]))
+            units.append(int(engine.stream.counters[0, LABEL]) // 2)
+    told = 135 + 120
+    assert units[told - 1] == engine.units.stand  # it stood when told to move
+    assert set(units[told:]) == {engine.units.stand}  # and stood on
+    jumps = velocity_jumps(positions_of(Motion(model.layout.skeleton, np.array(rows), model.fps)))
+    assert jumps[told:].max() <= jumps[15:135].max()
+
+
 def _step_state_frames(labels: np.ndarray, states: np.ndarray) -> list[tuple[int, tuple[int, ...]]]:
     """Each whole step of a character's frames: (label, frames of each of its states)."""
     steps, first = [], 0

@@ -267,9 +267,13 @@ class UnitChooser:
         elif (changed := coming != self.coming).any():  # (the steps' frames left only asked for a change)
             # a stop brakes over at least STOP_SECONDS of its steps: told later, it takes one more
             notice = np.where(coming == self.stand, max(self.notice, self.stop_frames), self.notice)
-            # a stop called off before its stand began goes on at once: made to wait a step, the body
-            # stood for one, its travel cut from where its braking had got to in a frame
-            calling_off = (self.coming == self.stand) & (counters[:, LABEL] // 2 != self.stand)
+            # a change back to the unit under way goes on at once: a stop called off before its stand
+            # began (made to wait a step, the body stood for one, its travel cut from where its braking
+            # had got to in a frame), and a start called off before its first step began (made to wait,
+            # the body took that step in place, its pose drawn to the stand's means from the one it stood in)
+            current = counters[:, LABEL] // 2
+            calling_off = (((self.coming == self.stand) & (current != self.stand))
+                           | ((coming == self.stand) & (current == self.stand)))
             late = changed & ~calling_off & (counters[:, NEXT] == 0) & (self._frames_left(stream) < notice)
             counters[late, NEXT] = self.coming[late] + 1  # the step after this one as planned, then the change
         counters[:, UNIT] = coming
