@@ -103,6 +103,79 @@ def test_evaluate_units_prints_each_unit_beside_its_real_takes(tmp_path):
         assert any(line.startswith(row) for line in lines), row
     targets = [line for line in lines if line.startswith("| run speed cm/s | elderly |")]
     assert len(targets) == 1 and ("PASS" in targets[0] or "FAIL" in targets[0])
+    for row in ("| walk stop called off 1 |", "| run start stopped x2 |", "| run stop called off -1 |"):  # part-way
+        assert any(line.startswith(row) for line in lines), row
+    assert not any("called off" in line or "start stopped" in line for line in lines if line.startswith("| transition "))
+
+
+def test_a_fork_plays_as_the_same_plan_from_rest(model):
+    """A fork of the sweep of changes part-way (the engine copied at its frame) makes the frames a
+    fresh engine makes through the same plan, to the bit; the main sequence goes on as without it."""
+    from instrument.evaluation.sequence import render_forks, render_sequence
+    from instrument.synthesis.engine import default_controls
+    from instrument.synthesis.parameters import GAITS
+
+    walk, stand = (default_controls(model, {"active": 1.0}, gait=GAITS.index(g)) for g in ("walk", "stand"))
+    main, (fork,) = render_forks(model, [(walk, 40), (stand, 20)], [(47, walk, 15)])
+    again = render_sequence(model, [(walk, 40), (stand, 7), (walk, 15)])
+    assert fork.changes == again.changes == [40, 47]
+    assert np.array_equal(fork.motion.channels, again.motion.channels) and np.array_equal(fork.labels, again.labels)
+    assert np.array_equal(main.motion.channels, render_sequence(model, [(walk, 40), (stand, 20)]).motion.channels)
+
+
+def test_a_change_part_way_is_measured_from_its_second_command(model, measure):
+    """partway_figures: a pop in a fork after its second command is its worst jump (joint, delay
+    and time found); the same pop before the second command is not the change's."""
+    from instrument.evaluation.sequence import Sequence, render_forks
+    from instrument.evaluation.transitions import partway_figures
+    from instrument.motion.limbs import descendants
+    from instrument.synthesis.engine import default_controls
+    from instrument.synthesis.parameters import GAITS
+
+    walk, stand = (default_controls(model, {"normal": 1.0}, gait=GAITS.index(g)) for g in ("walk", "stand"))
+    _, (fork,) = render_forks(model, [(walk, 60), (stand, 30)], [(66, walk, 30)])  # a stop called off after 6 frames
+    first, second = fork.changes[-2], fork.changes[-1]
+    skeleton = fork.motion.skeleton
+    knee = model_limbs(model)[0].legs[0].knee
+    column = int(skeleton.channel_start()[knee]) + skeleton.joints[knee].channels.index("Xrotation")
+
+    def popped(frame: int) -> dict:
+        channels = fork.motion.channels.copy()
+        channels[frame, column] += 25.0
+        return partway_figures([Sequence(Motion(skeleton, channels, fork.motion.fps), fork.labels, fork.changes)], measure)
+
+    clean = partway_figures([fork], measure)
+    after = popped(second + 10)
+    assert after["jump_cm_f2"] > 2.0 * clean["jump_cm_f2"]
+    assert first == 60 and after["delay_frames"] == second - first == 6 and after["jump_s"] in ((9 / model.fps), (10 / model.fps), (11 / model.fps))
+    assert skeleton.names.index(after["jump_joint"]) in descendants(skeleton.parents, knee)
+    assert popped(second - 5)["jump_cm_f2"] == clean["jump_cm_f2"]  # before the change: not its
+    assert clean["timings"] == 1 and clean["slide_cm_s"] > 0.0
+
+
+def test_the_part_way_summary_takes_the_worst_style_against_its_own_bounds():
+    """Per gait, change and weighting, the worst of the styles swept, as a multiple of its steady
+    gait's jump and of the real takes' (the style's own at 1, all styles' at x2); the slide
+    against the real stance skate the same way."""
+    from instrument.evaluation.units import UnitAssessment, partway_summary
+
+    result = UnitAssessment(weights={"active": {"active": 1.0}, "normal": {"normal": 1.0}, "active x2": {"active": 2.0}},
+                            real_jumps={"walk": {"all": 10.0, "active": 8.0, "normal": 4.0}},
+                            real={"walk": {"active": {"stance_skate_cm_s": 5.0}, "normal": {"stance_skate_cm_s": 2.0}}})
+
+    def case(jump: float, steady: float, slide: float) -> dict:
+        return {"jump_cm_f2": jump, "gait_jump_cm_f2": steady, "jump_joint": "Toes_R", "delay_frames": 5.0, "slide_cm_s": slide}
+
+    result.partway["walk stop called off active"] = case(9.0, 6.0, 4.0)  # 1.5x its walk, 1.125x its takes; slide 0.8x
+    result.partway["walk stop called off normal"] = case(6.0, 3.0, 3.0)  # 2.0x, 1.5x; slide 1.5x
+    result.partway["walk stop called off active x2"] = case(12.0, 10.0, 1.0)  # 1.2x; x all styles' takes (10)
+    summary = partway_summary(result)
+    assert set(summary) == {"walk stop called off 1", "walk stop called off x2"}
+    one = summary["walk stop called off 1"]
+    assert one["walk"] == "normal" and one["x_steady"] == 6.0 / 3.0 and one["x_real"] == 6.0 / 4.0
+    assert one["slide_walk"] == "normal" and one["slide_x_real"] == 3.0 / 2.0
+    two = summary["walk stop called off x2"]
+    assert two["x_steady"] == 12.0 / 10.0 and two["x_real"] == 12.0 / 10.0 and two["slide_x_real"] == 1.0 / 5.0
 
 
 def test_a_transition_past_the_styles_is_held_to_its_gait_at_those_weights():
