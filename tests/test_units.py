@@ -701,6 +701,26 @@ def test_a_stop_called_off_late_goes_on_without_standing_a_step(model, gait, sty
     assert np.abs(np.diff(travel[called_off - stopped:])).max() <= 1.5 / (STOP_SECONDS * model.fps) + 1e-9
 
 
+@pytest.mark.parametrize("gait, stopped", [(WALK, 17), (RUN, 11)])
+def test_a_stop_called_off_takes_its_stride_back_with_its_travel(model, gait, stopped):
+    """Braking, a body's stride (the share of its steps' swing) follows its level down, so the
+    stance foot comes under the body no faster than it slows; called off before the stand, the
+    stride came back up over STOP_SECONDS on its own, ahead of the travel (0.33 against 0.31 the
+    first frame, youthful's walk), sweeping the stance foot back faster than the body sped up:
+    the lock held it 28 cm ahead of the pose's and it snapped back as it let go (a toe jumping
+    2.1 times the steady walk's). It comes back up no faster than the level."""
+    engine = Engine(model)
+    base = default_controls(model, {"youthful": 1.0})
+    read = _play(engine, [(Controls(base.weights, gait=gait), 135), (Controls(base.weights, gait=STAND), stopped),
+                          (Controls(base.weights, gait=gait), 45)],
+                 lambda engine: (float(engine.units.travel[0]), float(engine.units.stride[0])))
+    travel, stride = np.array(read).T
+    called_off = 135 + stopped
+    assert stride[called_off - 1] < 0.9  # it had braked
+    assert (stride[called_off:] <= travel[called_off:] + 1e-9).all()
+    assert stride[-1] == travel[-1] == 1.0  # and it is back at its gait
+
+
 @pytest.mark.parametrize("gait, style", [(WALK, "normal"), (RUN, "active")])
 def test_a_start_called_off_before_its_first_step_stands_on(model, gait, style):
     """Told to move in the last frames of a stand's step, the change waits a step (NOTICE_SECONDS);

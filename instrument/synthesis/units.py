@@ -79,7 +79,11 @@ before its step ends takes one more, braked, step (the change waits, as NOTICE_S
 late one wait): braked within the rest of the step, the foot about to land was pulled back as it
 landed; with one more step, the other foot comes up beside it, a closing step as people stop.
 Once the body stands still (its travel 0), the stride eases back to 1 over STOP_SECONDS, where
-the stand's pose and its stride mean differ only by its sway.
+the stand's pose and its stride mean differ only by its sway. A stop called off before its stand
+takes its stride back up no faster than its level, as it braked: over STOP_SECONDS on its own, the
+stride ran ahead of the travel and swept the stance foot back faster than the body sped up (the
+lock held it 28 cm ahead of the pose's, and it snapped back as it let go: youthful's walk, a toe
+2.1 times its steady jump; 1.9 now, docs/evaluate.md, "Changes part-way").
 
 A run's first step pushes off only while its stance foot is down: a walk's stance foot is planted
 through the whole step, a run's lifts part of the way (its toe-off; then both feet are in the
@@ -346,8 +350,8 @@ class UnitChooser:
         push's smootherstep, over two pushes for a unit with flight; the rest of its pose the
         level's): no jump in speed nor in acceleration at either end. The stride follows the
         level down while the body brakes, and up while it sets off from a standstill (0 from the
-        command, drawn from the pose it stood in); otherwise (a stop called off just after a
-        stand, a stand still) it comes back up over STOP_SECONDS."""
+        command, drawn from the pose it stood in); otherwise it comes back up over STOP_SECONDS,
+        no faster than the level while the body moves (a stop called off before its stand)."""
         if left is not None:
             self.braking[stopping] = self.level[stopping] / (np.maximum(left[stopping], self.stop_frames) + 1.0)
         moving = ~standing & ~stopping
@@ -385,8 +389,11 @@ class UnitChooser:
             self.leg_shares = np.where(self.starting[:, None], np.where(first_leg, stance[:, None], swinging[:, None]),
                                        self.leg_shares)
         braking = stopping | (standing & (level > 0.0))
-        stride = np.where(braking, np.minimum(self.stride_level, level),
-                          np.where(self.starting, level, np.minimum(self.stride_level + 1.0 / self.stop_frames, 1.0)))
+        # a moving body comes back up no faster than its level (a stop called off before its stand
+        # began: its stance foot moves back under the body as fast as the body speeds up again, as
+        # braking it did as the body slowed); one standing (still), over STOP_SECONDS
+        rising = np.minimum(self.stride_level + 1.0 / self.stop_frames, np.where(moving, np.maximum(level, self.stride_level), 1.0))
+        stride = np.where(braking, np.minimum(self.stride_level, level), np.where(self.starting, level, rising))
         self.stride_level = stride
         self.stride = stride * stride * (3.0 - 2.0 * stride)
         if starting:  # done once its pose, travel and legs are all there (a first step slowed down
