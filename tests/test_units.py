@@ -707,7 +707,7 @@ def test_a_stop_called_off_takes_its_stride_back_with_its_travel(model, gait, st
     stance foot comes under the body no faster than it slows; called off before the stand, the
     stride came back up over STOP_SECONDS on its own, ahead of the travel (0.33 against 0.31 the
     first frame, youthful's walk), sweeping the stance foot back faster than the body sped up:
-    the lock held it 28 cm ahead of the pose's and it snapped back as it let go (a toe jumping
+    the lock held it 30 cm ahead of the pose's and it snapped back as it let go (a toe jumping
     2.1 times the steady walk's). It comes back up no faster than the level."""
     engine = Engine(model)
     base = default_controls(model, {"youthful": 1.0})

@@ -82,7 +82,7 @@ Once the body stands still (its travel 0), the stride eases back to 1 over STOP_
 the stand's pose and its stride mean differ only by its sway. A stop called off before its stand
 takes its stride back up no faster than its level, as it braked: over STOP_SECONDS on its own, the
 stride ran ahead of the travel and swept the stance foot back faster than the body sped up (the
-lock held it 28 cm ahead of the pose's, and it snapped back as it let go: youthful's walk, a toe
+lock held it 30 cm ahead of the pose's, and it snapped back as it let go: youthful's walk, a toe
 2.1 times its steady jump; 1.9 now, docs/evaluate.md, "Changes part-way").
 
 A run's first step pushes off only while its stance foot is down: a walk's stance foot is planted
