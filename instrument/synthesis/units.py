@@ -392,7 +392,8 @@ class UnitChooser:
         # a moving body comes back up no faster than its level (a stop called off before its stand
         # began: its stance foot moves back under the body as fast as the body speeds up again, as
         # braking it did as the body slowed); one standing (still), over STOP_SECONDS
-        rising = np.minimum(self.stride_level + 1.0 / self.stop_frames, np.where(moving, np.maximum(level, self.stride_level), 1.0))
+        ceiling = np.where(moving, np.maximum(level, self.stride_level), 1.0)
+        rising = np.minimum(self.stride_level + 1.0 / self.stop_frames, ceiling)
         stride = np.where(braking, np.minimum(self.stride_level, level), np.where(self.starting, level, rising))
         self.stride_level = stride
         self.stride = stride * stride * (3.0 - 2.0 * stride)
