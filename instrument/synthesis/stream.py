@@ -277,8 +277,9 @@ class Crowd:
         """The record the compiled step reads, made again only when the interpolation stage has
         handed over new lambda* tables or the draws' pool has grown (the other arrays are written
         in place): a record a frame cost a one-character frame about 1 us."""
-        key = (self.tables, self.pool, self.max_step_ratio)
-        if self._made is None or any(a is not b for a, b in zip(key, self._made[0])):
+        made = self._made
+        if made is None or made[0][0] is not self.tables or made[0][1] is not self.pool or made[0][2] is not self.max_step_ratio:
+            key = (self.tables, self.pool, self.max_step_ratio)  # (compared one by one: a generator's any() cost a frame 0.4 us)
             if len(self._pairs[0]) > 3:  # the hosted rows' cache held rows of the tables before
                 self._pairs[0][:-3] = -1
                 self._pairs[0][-3] = 0
