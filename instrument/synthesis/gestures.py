@@ -163,7 +163,7 @@ class GestureLayer:
                               self._next_units)
                 self.gesture = crowd.step()
                 self._progress(crowd.history_ids[:, 1])
-        if guest is not (self.host is not None) or (guest and gait is not self.host):
+        if guest != (self.host is not None) or (guest and gait is not self.host):  # (a call only when it changes)
             self._host(guest, gait)
 
     def _plan_hosted(self, crowd: Crowd, gait: Crowd) -> bool:
@@ -184,10 +184,7 @@ class GestureLayer:
             crowd._draws_for(crowd.lookahead + 1)
             self._plan_arguments = None
             return self._plan_hosted(crowd, gait)
-        self.whole = whole  # (`_keep`)
-        if not playing:
-            self.playing = None
-        return whole
+        return self._keep(playing, whole)
 
     def _progress(self, now: np.ndarray) -> bool:
         """The weights for the frame of states `now`; whether every character's is 1."""
