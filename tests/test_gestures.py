@@ -34,8 +34,10 @@ from instrument.motion.bvh import read_bvh
 from instrument.motion.features import choose_layout, resample
 from instrument.motion.gestures import PHASES, gesture_phases, hand_tracks, turning_points
 from instrument.synthesis.engine import Engine, default_controls
+from instrument.synthesis.gestures import GestureLayer
 from instrument.synthesis.interpolation import body_groups
 from instrument.synthesis.parameters import GROUPS
+from instrument.synthesis.stream import UNIT
 
 MOTIONS = REPO.parent / "shared" / "data" / "bandai-motions"
 needs_motions = pytest.mark.skipif(not MOTIONS.is_dir(), reason=f"gesture takes not found in {MOTIONS}")
@@ -243,6 +245,86 @@ def test_the_hosted_rows_cache_makes_the_frames_the_rows_put_together_each_frame
         assert hosted > 150 and len(engine.stream._pairs[0]) == slots + 3
         made.append(np.array(frames))
     assert np.array_equal(made[0], made[1]) and np.array_equal(made[0], made[2])
+
+
+class PlainGestures(GestureLayer):
+    """The gesture stage restated plainly, the reference of the compiled one: the gesture's own
+    stream stepped every frame, the units, the half cycles and the ease in Python, the blend in
+    numpy. While the compiled stage has the gait's solve make the gesture's frame (every weight
+    1, none lowering: `hosted` here), the gait's last frames of the upper body are the gesture's,
+    so its upper body goes on from them when handed back: here they are put there after its step."""
+
+    hosted = False
+
+    def begin(self, held, gait):
+        held = set(held)
+        if self.playing in self.held - held:  # let go: during the raise it was a tap
+            self.tapped = self.label == self.first + 1
+        pressed, self.held = sorted((held - self.held) & set(self.labels)), held
+        if pressed and self.playing is None:
+            self._start(pressed[0])
+        self.blending, self.gait = self.playing is not None, gait
+        if not self.blending:
+            return
+        crowd, first = self.crowd, self.first
+        for n in range(crowd.count):  # the unit the plan goes on in: the repeat's while it repeats
+            going_on = self.playing in held or (self.tapped[n] and self.done[n] + 1 < self._repeats)
+            phase = min(max(self.label[n] - first, -1), 4) + 1
+            crowd.counters[n, UNIT] = self._next_units[0 if going_on else 1, phase]
+        could_host = self.whole and gait is not None and crowd.sent >= 2 and gait.sent >= 2
+        self.gesture = crowd.step()
+        playing, whole = False, True
+        for n in range(crowd.count):
+            here = crowd.history_ids[n, 1] // crowd.space.states
+            if here != self.label[n] and here in (first + 2, first + 3) and self.label[n] != first + 1:
+                self.done[n] += 1  # a repeat half finished
+            self.label[n] = here
+            inside = first <= here <= first + 3
+            self.ease[n] = min(max(self.ease[n] + (self.rise if inside else -self.fall), 0.0), 1.0)
+            self.weights[n] = self.ease[n] * self.ease[n] * (3.0 - 2.0 * self.ease[n])
+            playing = playing or inside or self.ease[n] > 0.0
+            whole = whole and self.weights[n] == 1.0 and here != first
+        self.whole, self.hosted = whole, could_host and whole
+        if not playing:
+            self.playing = None
+
+    def after(self, frames, ids):
+        if self.blending:
+            if self.hosted:
+                self.gait.history[:, 1, self.solved] = self.gesture
+            mine = frames[:, self.columns]
+            frames[:, self.columns] = mine + self.weights[:, None] * (self.gesture[:, self.columns - self.solved.start] - mine)
+        self.shown[:, 0], self.shown_ids[:, 0] = self.shown[:, 1], self.shown_ids[:, 1]
+        self.shown[:, 1], self.shown_ids[:, 1] = frames[:, self.solved], ids
+        self.seen = min(self.seen + 1, 2)
+        return frames
+
+
+@pytest.mark.parametrize("characters, spread, liveliness", [(1, 0.0, 0.0), (4, 0.6, 0.4)])
+def test_a_wave_poses_as_the_plain_restatement_of_the_gesture_stage_makes_them(model, characters, spread, liveliness):
+    """The engine's poses over whole gestures (a wave held, let go, lowered and eased out; a raise
+    tapped), one character and a crowd in its own style mixes, are those the gesture stage
+    restated plainly makes (`PlainGestures`), to rounding: the compiled stage, and the gait's solve
+    making the gesture's frame, change nothing the characters do."""
+    controls = default_controls(model, {"youthful": 1.0, "elderly": 0.5}, liveliness=liveliness)
+    runs = []
+    for plain in (False, True):
+        engine = Engine(model, characters)
+        if plain:
+            engine.gestures = engine.gesture_tables.layer = PlainGestures(model, engine.space, characters,
+                                                                         engine.stream.lookahead, engine.cast.seeds)
+        poses, hosted, playing = [], 0, 0
+        for k in range(330):
+            held = ("wave",) if 20 <= k < 110 else ("raise",) if k == 200 else ()
+            pose = engine.frame(k / model.fps, replace(controls, gestures=held), spread)
+            poses.append(np.concatenate([pose.world_positions.ravel(), pose.rotations.ravel()]))
+            hosted += engine.gestures.host is not None
+            playing += engine.gestures.playing is not None
+        assert engine.gestures.started == 2 and engine.gestures.playing is None  # both over by themselves
+        runs.append((np.array(poses), hosted, playing))
+    (made, hosted, playing), (restated, _, played) = runs
+    assert hosted > 60 and playing == played > 200  # the gait's solve made many of the gestures' frames
+    np.testing.assert_allclose(made, restated, rtol=0, atol=1e-12)
 
 
 def test_a_wave_while_walking_raises_the_hands_over_the_head_and_leaves_the_legs_alone(model):

@@ -40,7 +40,8 @@ from __future__ import annotations
 from typing import Collection
 
 import numpy as np
-from numba import njit
+from numba import njit, typeof
+from numba.types import Array, float64, int64
 
 from ..models.gestures import gesture_labels, gesture_repeats
 from ..models.modelfile import Model
@@ -48,7 +49,7 @@ from ..motion.features import REFERENCE_FPS
 from .direct import entry_point
 from .interpolation import StyleSpace, body_groups
 from .parameters import GROUPS
-from .stream import FOLLOWER, LABEL, UNIT, Crowd, _commit, _plan_window
+from .stream import FILLED, FOLLOWER, LABEL, TAIL, UNIT, Crowd, _commit, _plan_window
 
 EASE_IN = 6 / REFERENCE_FPS  # seconds the gesture's upper body takes to come in (its stream starts where the gait is)
 EASE_OUT = 12 / REFERENCE_FPS  # seconds it takes to hand the arms back to the gait after the lower
@@ -94,10 +95,16 @@ class GestureLayer:
         self.whole_range = len(self.columns) == width
         self.whole = False  # whether every character's weight was 1 at the last frame (then its ease is 1)
         self.host: Crowd | None = None  # the gait's stream, while its solve makes the gesture's frame (`begin`)
-        # `_plan_guest`'s compiled entry point (direct.py): its arguments are the layer's and the two
-        # streams' own arrays and numbers, each made by them of one type, so the dispatcher's typing
-        # of 16 arrays a frame (0.5 us) is spared
+        # `_plan_guest`'s and `_move_guest`'s compiled entry points (direct.py) and the arguments they
+        # are called with while the gait hosts, kept from frame to frame: the layer's and the two
+        # streams' own arrays and numbers, each made by them of one type, so neither the dispatcher's
+        # typing of 16 arrays a call nor the tuple's making is paid a frame (docs/mlpg.md)
         self._plan_call: object = None
+        self._plan_arguments: tuple | None = None  # made again at a press or a release, a new pool or another gait
+        self._move_call: object = None
+        self._move_arguments: tuple = ()  # made when the gait begins to host
+        # `_remember`'s, while no gesture plays
+        self._remember_call = _entry_with_frame(_remember, (self.shown, self.shown_ids, self.solved.start))
         self.started = 0  # gestures begun
 
     @property
@@ -132,6 +139,7 @@ class GestureLayer:
         gesture's: `guest`), so the frame pays one solve, not two; `after` takes it from there."""
         if held != self._as_given:  # a press or a release: sets compared only then
             self._as_given = held
+            self._plan_arguments = None  # its numbers (held, the gesture, its repeats) may change
             held = set(held)
             pressed = held - self.held
             if self.playing in self.held - held:  # let go: during the raise it was a tap (the takes' repeats), later a hold
@@ -147,15 +155,7 @@ class GestureLayer:
             crowd = self.crowd
             # the gait's solve may make this frame if it made the last or could have (`_progress`: every weight 1, none lowering)
             if self.whole and gait is not None and self.whole_range and gait.sent >= 2 and crowd.sent >= 2:
-                crowd._draws_for(crowd.lookahead + 1)
-                work = self._work
-                arguments = (crowd.counters, self.label, self.done, self.tapped, self._holding, self._repeats, self.first,
-                             self._next_units, crowd.base, crowd.sigma, crowd.carry, crowd.pool, crowd.history_ids, work.ids,
-                             work.counts, work.carries, gait.guest_rows, crowd.space.states, self.ease, self.weights,
-                             self.rise, self.fall)
-                if self._plan_call is None:
-                    self._plan_call = entry_point(_plan_guest, arguments)
-                guest = self._keep(*self._plan_call(*arguments))
+                guest = self._plan_hosted(crowd, gait)
                 if not guest:  # its own stream again (the same plan)
                     self.gesture = crowd.step()
             else:
@@ -163,7 +163,28 @@ class GestureLayer:
                               self._next_units)
                 self.gesture = crowd.step()
                 self._progress(crowd.history_ids[:, 1])
-        self._host(guest, gait)
+        if guest != (self.host is not None) or (guest and gait is not self.host):  # (a call only when it changes)
+            self._host(guest, gait)
+
+    def _plan_hosted(self, crowd: Crowd, gait: Crowd) -> bool:
+        """The gesture's frame planned for the gait's solve to make (`_plan_guest`, one compiled
+        call, its pool of draws topped up first when it runs short); whether every weight is 1."""
+        arguments = self._plan_arguments
+        if arguments is None or arguments[11] is not crowd.pool or arguments[16] is not gait.guest_rows:
+            work = self._work
+            arguments = self._plan_arguments = (
+                crowd.counters, self.label, self.done, self.tapped, self._holding, self._repeats, self.first,
+                self._next_units, crowd.base, crowd.sigma, crowd.carry, crowd.pool, crowd.history_ids, work.ids, work.counts,
+                work.carries, gait.guest_rows, crowd.space.states, self.ease, self.weights, self.rise, self.fall,
+                crowd.lookahead + 4)  # the draws a plan over the window's frames may take (`Crowd._draws_for`)
+            if self._plan_call is None:
+                self._plan_call = entry_point(_plan_guest, arguments)
+        short, playing, whole = self._plan_call(*arguments)
+        if short:  # (planned nothing): its draws topped up, as its own step would have
+            crowd._draws_for(crowd.lookahead + 1)
+            self._plan_arguments = None
+            return self._plan_hosted(crowd, gait)
+        return self._keep(playing, whole)
 
     def _progress(self, now: np.ndarray) -> bool:
         """The weights for the frame of states `now`; whether every character's is 1."""
@@ -180,32 +201,42 @@ class GestureLayer:
 
     def _host(self, guest: bool, gait: Crowd | None) -> None:
         """The gait's solve takes the gesture's upper body (its fixed frames the gesture's), or gives it back."""
-        if guest and self.host is None:
-            gait.history[:, :, self.solved] = self.crowd.history
-            gait.host(self.solved.start, self.solved.stop)
-        elif self.host is not None and not guest:
+        if self.host is not None and (not guest or gait is not self.host):
             self.host.host(0, 0)
-        self.host = gait if guest else None
+            self.host = None
+        if guest and self.host is None:
+            crowd, work = self.crowd, self._work
+            gait.history[:, :, self.solved] = crowd.history
+            gait.host(self.solved.start, self.solved.stop)
+            self.host = gait
+            self._move_arguments = (gait.history, self.solved.start, crowd.history, crowd.history_ids, crowd.counters,
+                                    crowd.carry, work.ids, work.counts, work.carries, crowd.space.states, self.weights,
+                                    self.columns, self.shown, self.shown_ids)
+            self._move_call = _entry_with_frame(_move_guest, self._move_arguments)
 
     def after(self, frames: np.ndarray, ids: np.ndarray) -> np.ndarray:
         """The frame (N, D) with the gesture's upper body layered on at this frame's weights
         (`begin`; in place: the engine's frame is its own), and remembered with its states `ids`
         (where a gesture starts from). When the gait's solve made the gesture's frame (the host's
         last), the gesture's stream moves on by it, in the same compiled call."""
-        if not self.blending:
-            _remember(self.shown, self.shown_ids, frames, ids, self.solved.start)
-        else:
+        if type(frames) is not np.ndarray or frames.dtype is not _FLOAT64:
             frames = np.asarray(frames, dtype=np.float64)
-            crowd = self.crowd
-            if self.host is not None:
-                work = self._work
-                _move_guest(self.host.history, self.solved.start, crowd.history, crowd.history_ids, crowd.counters, crowd.carry,
-                            work.ids, work.counts, work.carries, crowd.space.states, self.weights, frames, self.columns,
-                            self.shown, self.shown_ids, ids)
-                crowd.sent += 1
+        direct = frames.ndim == 2 and type(ids) is np.ndarray and ids.ndim == 1 and ids.dtype is _INT64  # the entry points' types
+        if not self.blending:
+            if direct:
+                self._remember_call(self.shown, self.shown_ids, self.solved.start, frames, ids)
             else:
-                _blend(self.weights, frames, self.gesture, self.columns, self.solved.start, self.shown, self.shown_ids, ids)
-        self.seen = min(self.seen + 1, 2)
+                _remember(self.shown, self.shown_ids, self.solved.start, frames, ids)
+        elif self.host is not None:
+            if direct:
+                self._move_call(*self._move_arguments, frames, ids)
+            else:
+                _move_guest(*self._move_arguments, frames, ids)
+            self.crowd.sent += 1
+        else:
+            _blend(self.weights, frames, self.gesture, self.columns, self.solved.start, self.shown, self.shown_ids, ids)
+        if self.seen < 2:
+            self.seen += 1
         return frames
 
     def forward(self, forward: np.ndarray) -> None:
@@ -289,15 +320,21 @@ def _progress(now, states, first, label, done, ease, weights, rise, fall):  # pr
 
 @njit(cache=True, nogil=True)
 def _plan_guest(counters, label, done, tapped, held, repeats, first, next_units, base, sigma, carry, pool, history_ids, ids,
-                counts, carries, rows, states, ease, weights, rise, fall):  # pragma: no cover - compiled
+                counts, carries, rows, states, ease, weights, rise, fall, need):  # pragma: no cover - compiled
     """The gesture's frame planned for the gait's solve to make, in one call: each character's
     unit (`_choose_units`), its plan and its window's rows into `rows` (the gait's `guest_rows`),
-    and its weight at the frame planned (`_progress`, whose two answers it returns)."""
+    and its weight at the frame planned (`_progress`). Returns whether a character has fewer than
+    `need` draws left in its pool (then it has done nothing: the caller tops the pool up, as
+    `Crowd._draws_for`, and calls again), and `_progress`'s two answers."""
+    for n in range(counters.shape[0]):
+        if counters[n, FILLED] - counters[n, TAIL] < need:
+            return True, False, False
     _choose_units(counters, label, done, tapped, held, repeats, first, next_units)
     for n in range(counters.shape[0]):
         _plan_window(base[n], sigma[n], counters[n], carry[n], pool[n], history_ids[n], 2, ids[n], counts[n], carries[n],
                      rows[n])
-    return _progress(ids[:, 0], states, first, label, done, ease, weights, rise, fall)
+    playing, whole = _progress(ids[:, 0], states, first, label, done, ease, weights, rise, fall)
+    return False, playing, whole
 
 
 @njit(cache=True, nogil=True)
@@ -309,12 +346,12 @@ def _blend(weights, frames, gesture, columns, lo, shown, shown_ids, ids):  # pra
         w = weights[n]
         for c in columns:
             frames[n, c] = frames[n, c] + w * (gesture[n, c - lo] - frames[n, c])
-    _remember(shown, shown_ids, frames, ids, lo)
+    _remember(shown, shown_ids, lo, frames, ids)
 
 
 @njit(cache=True, nogil=True)
-def _move_guest(gait_history, lo, history, history_ids, counters, carry, ids, counts, carries, states, weights, frames, columns,
-                shown, shown_ids, frame_ids):  # pragma: no cover - compiled
+def _move_guest(gait_history, lo, history, history_ids, counters, carry, ids, counts, carries, states, weights, columns, shown,
+                shown_ids, frames, frame_ids):  # pragma: no cover - compiled
     """The gesture's stream moved on by the frame the gait's solve made for it (the gait's last
     frame, from column `lo`), as its own step would have (stream.py `_advance`), and that frame
     blended into `frames` (`_blend`): one call."""
@@ -325,8 +362,22 @@ def _move_guest(gait_history, lo, history, history_ids, counters, carry, ids, co
     _blend(weights, frames, history[:, 1], columns, lo, shown, shown_ids, frame_ids)
 
 
+def _entry_with_frame(kernel, own: tuple) -> object:
+    """The compiled entry point of `kernel` (whose last two arguments are a frame and its states)
+    for the layer's and the streams' own arguments `own` and a frame (N, D) of float64 and its
+    states (N,) of int64, each of any layout (the engine's frame is new each frame, its states a
+    view of the stream's): the types `GestureLayer.after` checks before it calls it."""
+    types = tuple(typeof(a) for a in own) + (Array(float64, 2, "A"), Array(int64, 1, "A"))
+    if types not in kernel.overloads:
+        kernel.compile(types)
+    return kernel.overloads[types].entry_point
+
+
+_FLOAT64, _INT64 = np.dtype(np.float64), np.dtype(np.int64)
+
+
 @njit(cache=True, nogil=True)
-def _remember(shown, shown_ids, frames, ids, lo):  # pragma: no cover - compiled
+def _remember(shown, shown_ids, lo, frames, ids):  # pragma: no cover - compiled
     """The frame just shown (its solved range) and its states, after the one before."""
     for n in range(shown.shape[0]):
         shown_ids[n, 0], shown_ids[n, 1] = shown_ids[n, 1], ids[n]

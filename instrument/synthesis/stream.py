@@ -277,8 +277,9 @@ class Crowd:
         """The record the compiled step reads, made again only when the interpolation stage has
         handed over new lambda* tables or the draws' pool has grown (the other arrays are written
         in place): a record a frame cost a one-character frame about 1 us."""
-        key = (self.tables, self.pool, self.max_step_ratio)
-        if self._made is None or any(a is not b for a, b in zip(key, self._made[0])):
+        made = self._made
+        if made is None or made[0][0] is not self.tables or made[0][1] is not self.pool or made[0][2] is not self.max_step_ratio:
+            key = (self.tables, self.pool, self.max_step_ratio)  # (compared one by one: a generator's any() cost a frame 0.4 us)
             if len(self._pairs[0]) > 3:  # the hosted rows' cache held rows of the tables before
                 self._pairs[0][:-3] = -1
                 self._pairs[0][-3] = 0
@@ -306,19 +307,23 @@ class Crowd:
         """One frame for each character, (N, D), from the tables the engine's stages set."""
         if self.sent == 0:
             self._carry_to_phase()
-        self._draws_for(self.lookahead + 1)
         fixed = min(self.sent, 2)
         frames = np.empty((self.count, self.history.shape[2]))
-        tables = self._record()
         buffers = self._window_buffers(fixed)
         ratios = self.max_step_ratio
         # the whole crowd's, so a part limits as the crowd does (one character: a plain number)
         limited = bool(ratios[0] > 0) if self.count == 1 else bool((ratios > 0).any())
         cut = parts(self.count)
         if len(cut) == 1:  # one core's worth (one character): no parts to cut
-            self._advance((tables, buffers), tables, buffers, fixed, frames, self.ahead, limited)
+            tables = self._record()
+            # its draws checked in the compiled step (0.4 us a frame in Python), topped up when short
+            while self._advance((tables, buffers), tables, buffers, fixed, frames, self.ahead, limited):
+                self._draws_for(self.lookahead + 1)
+                tables = self._record()  # (its pool may be a new one)
             self.sent += 1
             return frames
+        self._draws_for(self.lookahead + 1)
+        tables = self._record()
         for k in range(1, len(cut)):  # each part's own solver work (the first's is the buffers')
             if (fixed, k) not in self._parts_work:
                 self._parts_work[fixed, k] = np.zeros_like(buffers.work1), np.zeros_like(buffers.work2)
@@ -498,7 +503,9 @@ def _advance(tables, work, fixed, frames, ahead, limit_any):  # pragma: no cover
     part of one), in place. The solver reads each window's means and precisions from the
     character's lambda* tables (`rows`). `limit_any`: whether any character of the crowd has a
     rate limit (then every frame goes through the limit's arithmetic). `ahead` (N, A, D) takes each
-    window's provisional next A frames (`Crowd.ahead`)."""
+    window's provisional next A frames (`Crowd.ahead`). Returns whether a character has fewer
+    draws left in its pool than a plan over the window may take (then it has done nothing: the
+    caller tops the pools up, `Crowd._draws_for`, and calls again)."""
     mean_own, mean_shared, precision_own, precision_shared = (tables.mean_own, tables.mean_shared, tables.precision_own,
                                                               tables.precision_shared)
     base, sigma, counters, carry, pool = tables.base, tables.sigma, tables.counters, tables.carry, tables.pool
@@ -506,6 +513,9 @@ def _advance(tables, work, fixed, frames, ahead, limit_any):  # pragma: no cover
     a, b = tables.guest[0], tables.guest[1]  # (only with the window's two fixed frames: the guest's are two)
     rows, work1, work2, ids, counts, carries = work.rows, work.work1, work.work2, work.ids, work.counts, work.carries
     count, states = mean_own.shape[0], base.shape[2]
+    for n in range(count):
+        if counters[n, FILLED] - counters[n, TAIL] < ids.shape[1] + 3:  # `Crowd._draws_for`'s need
+            return True
     dimension = history.shape[2]
     known = np.ascontiguousarray(history[:, 2 - fixed:]) if fixed else np.zeros((count, 1, dimension))
     work1[:] = 0.0
@@ -555,6 +565,7 @@ def _advance(tables, work, fixed, frames, ahead, limit_any):  # pragma: no cover
                 value = previous + min(max(value - previous, -bound), bound)
             frames[n, d] = value
         _commit(history, history_ids, counters, carry, n, frames[n], ids[n, 0], counts[n], carries[n], states)
+    return False
 
 
 @njit(cache=True, nogil=True)
