@@ -230,7 +230,11 @@ def test_a_take_named_twice_is_one_line_and_a_manifest_gives_its_folders_styles(
     twice = tmp_path / "twice.csv"
     twice.write_text("file,style\ntakes/a.bvh,proud\ntakes/a.bvh,calm\n")
     status, err = cli(capsys, "train", "--manifest", twice, "--out", tmp_path / "m.npz")
-    assert status == 1 and f"{takes / 'a.bvh'}: named twice (as proud walk and as calm walk)" in one_line(err)
+    assert status == 1 and one_line(err).endswith(f"{twice}:3: 'a.bvh': named twice (line 2 too); give each take once")
+    twice = tmp_path / "twice.toml"
+    twice.write_text('[[take]]\nfile = "takes/a.bvh"\nstyle = "proud"\n\n[[take]]\nfile = "takes/a.bvh"\nstyle = "calm"\n')
+    status, err = cli(capsys, "train", "--manifest", twice, "--out", tmp_path / "m.npz")
+    assert status == 1 and one_line(err).endswith(f"{twice}:5: 'a.bvh': named twice (line 1 too); give each take once")
     status, err = cli(capsys, "train", takes, takes / "a.bvh", "--style-from", "(a)", "--out", tmp_path / "m.npz")
     assert status == 1 and "a.bvh: named twice" in one_line(err)
     manifest = tmp_path / "styles.csv"
@@ -253,7 +257,7 @@ def test_a_manifest_naming_a_take_not_there_names_its_line(capsys, files, tmp_pa
         manifest.write_text("file,style\na.bvh,proud\n" + f"{missing},calm\n" if kind == "csv" else
                             f'[[take]]\nfile = "a.bvh"\nstyle = "proud"\n\n[[take]]\nfile = "{missing}"\nstyle = "calm"\n')
         status, err = cli(capsys, "train", "--manifest", manifest, "--out", tmp_path / "m.npz")
-        where = f"{manifest}:3" if kind == "csv" else f"{manifest}: take 2"
+        where = f"{manifest}:3" if kind == "csv" else f"{manifest}:5: take 2"
         line = one_line(err)
         assert status == 1 and f"{where}: '" in line and line.endswith(said) and len(line) < 300
     assert not (tmp_path / "m.npz").exists()
