@@ -169,7 +169,7 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
     opening a device, a port or an output: a one-line UserError naming the file, line and key (or
     the option) of the first problem."""
     from ..control.attract import load_attract
-    from ..control.events import LogReplay, read_log
+    from ..control.events import LogReplay, read_log_and_end
     from ..control.hub import ControlHub
     from ..control.score import ScorePlayer, load_demo, load_score
     from ..control.state import ControlState
@@ -222,9 +222,12 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
         raise UserError(f"{origins.prefix('replay') or origins.prefix('score')}give --replay or --score, not both")
     with origins.blame("replay"):
         # a log's beat lock (its `tempo` events) plays back, unless a live tempo source locks the steps anew
-        replay = (LogReplay([e for e in read_log(args.replay, warn=lambda m: console.warn("log cut", m))
-                             if not (args.sync and e.source.kind == "tempo")], loop=args.loop)
-                  if args.replay else None)
+        replay = None
+        if args.replay:
+            events, end = read_log_and_end(args.replay, warn=lambda m: console.warn("log cut", m))
+            replay = LogReplay([e for e in events if not (args.sync and e.source.kind == "tempo")], loop=args.loop, end=end)
+            if end is not None and seconds is None and not args.loop:
+                seconds = end  # the recorded run's length: its last stretch without a control move plays too
         missing = unreadable_sources(replay.events, mappings) if replay else []
         if missing:
             raise UserError(f"{args.replay}: has {' and '.join(missing)} events but no mapping to read them: "
