@@ -460,6 +460,7 @@ def test_log_replay_and_its_errors(tmp_path):
     (["--osc", "127.0.0.1:9000/midi"], "unknown profile"),
     (["--replay", "missing.jsonl"], "missing.jsonl: cannot read"),
     (["--fast"], "--fast needs an end"),
+    (["--hid", "12345678"], "error: --hid '12345678': expected VVVV:PPPP"),  # the option named, as every option's is
 ])
 def test_run_errors_are_one_line(args, message):
     result = subprocess.run(RUN + args, capture_output=True, text=True, timeout=60)

@@ -287,7 +287,7 @@ def choose_mappings(args: argparse.Namespace, state: ControlState, console: Cons
                 mappings.append(chosen[0])
     if args.hid and not any(m.hid or m.hid_usages for m in mappings):
         shipped = [load_mapping(p, state) for p in shipped_mappings()]
-        chosen, why = choose_hid_mapping(shipped, *parse_hid_id(args.hid))
+        chosen, why = choose_hid_mapping(shipped, *parse_hid_id(args.hid, lambda m: UserError(f"--hid {m}")))
         if chosen is None:
             raise UserError(f"--hid {args.hid}: {why}; give --mapping (instrument learn --hid writes one)")
         console.say(f"HID mapping: {chosen.name} ({chosen.path}), {why}")
