@@ -313,6 +313,21 @@ def test_bad_scores_are_one_line_errors_with_file_line_and_key(tmp_path, text, m
     assert "Traceback" not in result.stderr
 
 
+@pytest.mark.parametrize("text, line, why", [
+    ('[[cue]]\nramp = { speed = 1.2 }\n[[cue]]\nwait = "cue"\n', 3, "waits for a cue that no controller is there to press"),
+    ('[[cue]]\nmark = "a"\nramp = { speed = 1.2 }\nover = 1\n[[cue]]\nrepeat = "a"\n', 5, "repeats a section for ever"),
+])
+def test_an_offline_render_of_a_score_that_never_ends_is_refused(tmp_path, text, line, why):
+    """`--fast` renders a score until its last cue has finished: one that waits for a cue with no
+    controller to press it, or repeats for ever, rendered for ever (a --bvh grew 1 GB an hour)."""
+    path, out = write(tmp_path, text), tmp_path / "piece.bvh"
+    result = subprocess.run(RUN + ["--score", str(path), "--fast", "--no-osc", "--quiet", "--bvh", str(out)],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 1 and not out.exists()
+    assert result.stderr.strip() == f"instrument run: error: --fast needs an end: {path}:{line}: the score {why}" + \
+        (" (give the repeat times)" if "repeat" in why else "") + "; give --seconds"
+
+
 def test_a_show_file_plays_a_score(tmp_path):
     write(tmp_path, '[[cue]]\nramp = { "style/elderly" = 0.5 }\nover = 0.5\n', "cues.toml")
     show = write(tmp_path, 'seconds = 2\nno-osc = true\nquiet = true\nscore = "cues.toml"\nrecord = "take.jsonl"\n', "show.toml")

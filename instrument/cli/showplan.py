@@ -171,7 +171,7 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
     from ..control.attract import load_attract
     from ..control.events import LogReplay, read_log_and_end
     from ..control.hub import ControlHub
-    from ..control.score import ScorePlayer, load_demo, load_score
+    from ..control.score import ScorePlayer, endless_cue, load_demo, load_score
     from ..control.state import ControlState
     from ..models.modelfile import load_model
     from ..output.outputs import make_profile
@@ -262,6 +262,9 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
         for line, gait in missing_gaits(score, model.units):  # said, not refused (as when it is played): it walks
             console.warn(f"gait {gait}", f"{score_path}:{line}: gait {gait}: this model has no {gait} unit "
                          f"(it has {', '.join(model.units)}); it walks")
+    endless = endless_cue(score, live) if args.fast and seconds is None and args.score and not score.loop else None
+    if endless:  # it would render for ever, filling the disk with --bvh
+        raise UserError(f"{origins.prefix('fast')}--fast needs an end: {score_path}:{endless[0]}: {endless[1]}; give --seconds")
     if args.fast and seconds is None and (replay is None or replay.loop or not replay.events):
         raise UserError(f"{origins.prefix('fast')}--fast needs an end: give --seconds, or a --replay log or a --score "
                         "(played once)")
