@@ -56,6 +56,7 @@ def files(tmp_path_factory):
     (folder / "walk.bvh").write_text(walk)
     (folder / "mid.jsonl").write_text(ControlEvent(0.5, "midi:x", "cc/1/1", 64).to_json() + "\n")
     (folder / "show.toml").write_text('fps = 30\nno-osc = true\n')
+    (folder / "score.toml").write_text('[[cue]]\nramp = { gait = "run" }\n[[cue]]\nhold = 0.2\n')
     return folder
 
 
@@ -193,6 +194,10 @@ def test_a_one_frame_bvh_is_inspected_with_the_others(capsys, tmp_path):
     (["synth", "--out", "{walk}"], "{walk}: already exists; give --force"),
     (["skeleton", "--out", "{walk}"], "{walk}: already exists; give --force"),
     (["log", "import", "{walk}", "--out", "{walk}", "--force"], "{walk}: is also the input"),
+    # a recording over a file the show reads, --force or not (it replaced the score with the log)
+    (["run", "--score", "{score}", "--fast", "--no-osc", "--record", "{score}", "--force"], "{score}: is also the input"),
+    (["run", "--config", "{show}", "--seconds", "0.1", "--bvh", "{tmp}/x.bvh", "--record", "{show}", "--force"],
+     "{show}: is also the input"),
     (["info", "{walk}"], "{walk}: not a model file"),
     (["synth", "--out", "{tmp}/s.bvh", "--style", "elderly.arms=1"], "no body part 'arms'"),
     (["synth", "--out", "{tmp}/s.bvh", "--gait", "jog"], "--gait: expected stand, walk, run or a number from 0 to 2, not 'jog'"),
@@ -201,7 +206,8 @@ def test_a_one_frame_bvh_is_inspected_with_the_others(capsys, tmp_path):
     (["learn", "--out", "{tmp}/m.json", "--midi-virtual", "x"], "--out {tmp}/m.json: give a .toml file"),
 ])
 def test_outputs_and_inputs_are_one_line(capsys, files, tmp_path, argv, message):
-    fill = {"{walk}": str(files / "walk.bvh"), "{log}": str(files / "mid.jsonl"), "{tmp}": str(tmp_path)}
+    fill = {"{walk}": str(files / "walk.bvh"), "{log}": str(files / "mid.jsonl"), "{tmp}": str(tmp_path),
+            "{score}": str(files / "score.toml"), "{show}": str(files / "show.toml")}
 
     def filled(text: str) -> str:
         for key, value in fill.items():

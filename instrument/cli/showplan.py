@@ -302,14 +302,18 @@ def choose_mappings(args: argparse.Namespace, state: ControlState, console: Cons
 
 
 def check_recordings(args: argparse.Namespace) -> None:
-    """--bvh and --record may be written (the output rule), are two different files, and --bvh is named .bvh."""
+    """--bvh and --record may be written (the output rule: never one of the show's inputs, the
+    score, a mapping, the show file...), are two different files, and --bvh is named .bvh."""
     if args.bvh and args.record and Path(args.bvh).resolve() == Path(args.record).resolve():
         raise UserError(f"--bvh and --record both name {args.bvh}: give two files")
     if args.bvh and Path(args.bvh).suffix.lower() != ".bvh":  # x.glb held BVH text
         raise UserError(f"{args.bvh}: a recording is BVH: give a .bvh name (`instrument convert` makes a .glb of it)")
+    inputs = [args.config, args.presets]  # --force replaced a --score or a mapping with the log
+    for dest in READS:
+        inputs += (getattr(args, dest) or []) if RUN_BY_KEY[dest].kind == "paths" else [getattr(args, dest)]
     for path in (args.bvh, args.record):
         if path:
-            check_output(path, args.force, inputs=(args.replay,))
+            check_output(path, args.force, inputs=tuple(inputs))
 
 
 def crowd_options(args: argparse.Namespace) -> tuple[int, float, int, int]:
