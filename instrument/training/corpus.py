@@ -144,7 +144,8 @@ def read_manifest(path: Path) -> list[TakeFile]:
             if not isinstance(unit, str):
                 raise UserError(f"{path}:{toml.line('take', k, 'unit')}: take {k + 1}: 'unit' is a string ({', '.join(UNITS)})")
             if not isinstance(gesture, str):
-                raise UserError(f"{path}:{toml.line('take', k, 'gesture')}: take {k + 1}: 'gesture' is a string ({', '.join(GESTURES)})")
+                raise UserError(f"{path}:{toml.line('take', k, 'gesture')}: take {k + 1}: "
+                                f"'gesture' is a string ({', '.join(GESTURES)})")
             unit = checked_unit(where, unit)
             add(TakeFile(_listed_file(base, take["file"], where), checked_style(where, take["style"]), unit,
                          checked_gesture(where, gesture, unit, said)), toml.line("take", k))
