@@ -333,6 +333,23 @@ def test_recover_says_it_cut_a_partial_last_line(capsys, tmp_path, newline):
     assert path.read_bytes() == healthy
 
 
+def test_recover_names_a_damaged_line_it_cut_from_among_the_frames(capsys, tmp_path):
+    """A killed run cuts a take's end, never its middle: recover drops a line short of a value with
+    frames after it too, but said only "cut 1 line that was not a whole frame", as of a cut end,
+    while every later frame now came a frame early. It names the line and says so."""
+    path = tmp_path / "take.bvh"
+    assert cli(capsys, "run", "--no-osc", "--quiet", "--fast", "--seconds", "0.5", "--bvh", path)[0] == 0
+    lines = path.read_text().split("\n")
+    at = lines.index("MOTION") + 3 + 5  # the sixth frame's line (0-based)
+    lines[at] = lines[at].rsplit(" ", 1)[0]
+    path.write_text("\n".join(lines))
+    result = subprocess.run([sys.executable, "-m", "instrument", "recover", str(path)], capture_output=True, text=True, timeout=120)
+    said = result.stdout
+    assert result.returncode == 0, result.stderr
+    assert f"{path}: 14 frames (the header said 15); cut 1 line that was not a whole frame (line {at + 1} among the frames: " \
+           "the frames after it come a frame earlier; a killed run cuts only the end)" in said, said
+
+
 def test_a_recorded_log_carries_its_mappings(tmp_path):
     state = ControlState(STYLES, 5)
     mapping = load_mapping(NANO, state)
