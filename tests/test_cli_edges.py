@@ -56,6 +56,7 @@ def files(tmp_path_factory):
     (folder / "walk.bvh").write_text(walk)
     (folder / "mid.jsonl").write_text(ControlEvent(0.5, "midi:x", "cc/1/1", 64).to_json() + "\n")
     (folder / "show.toml").write_text('fps = 30\nno-osc = true\n')
+    (folder / "score.toml").write_text('[[cue]]\nramp = { gait = "run" }\n[[cue]]\nhold = 0.2\n')
     return folder
 
 
@@ -193,6 +194,10 @@ def test_a_one_frame_bvh_is_inspected_with_the_others(capsys, tmp_path):
     (["synth", "--out", "{walk}"], "{walk}: already exists; give --force"),
     (["skeleton", "--out", "{walk}"], "{walk}: already exists; give --force"),
     (["log", "import", "{walk}", "--out", "{walk}", "--force"], "{walk}: is also the input"),
+    # a recording over a file the show reads, --force or not (it replaced the score with the log)
+    (["run", "--score", "{score}", "--fast", "--no-osc", "--record", "{score}", "--force"], "{score}: is also the input"),
+    (["run", "--config", "{show}", "--seconds", "0.1", "--bvh", "{tmp}/x.bvh", "--record", "{show}", "--force"],
+     "{show}: is also the input"),
     (["info", "{walk}"], "{walk}: not a model file"),
     (["synth", "--out", "{tmp}/s.bvh", "--style", "elderly.arms=1"], "no body part 'arms'"),
     (["synth", "--out", "{tmp}/s.bvh", "--gait", "jog"], "--gait: expected stand, walk, run or a number from 0 to 2, not 'jog'"),
@@ -201,7 +206,8 @@ def test_a_one_frame_bvh_is_inspected_with_the_others(capsys, tmp_path):
     (["learn", "--out", "{tmp}/m.json", "--midi-virtual", "x"], "--out {tmp}/m.json: give a .toml file"),
 ])
 def test_outputs_and_inputs_are_one_line(capsys, files, tmp_path, argv, message):
-    fill = {"{walk}": str(files / "walk.bvh"), "{log}": str(files / "mid.jsonl"), "{tmp}": str(tmp_path)}
+    fill = {"{walk}": str(files / "walk.bvh"), "{log}": str(files / "mid.jsonl"), "{tmp}": str(tmp_path),
+            "{score}": str(files / "score.toml"), "{show}": str(files / "show.toml")}
 
     def filled(text: str) -> str:
         for key, value in fill.items():
@@ -230,7 +236,11 @@ def test_a_take_named_twice_is_one_line_and_a_manifest_gives_its_folders_styles(
     twice = tmp_path / "twice.csv"
     twice.write_text("file,style\ntakes/a.bvh,proud\ntakes/a.bvh,calm\n")
     status, err = cli(capsys, "train", "--manifest", twice, "--out", tmp_path / "m.npz")
-    assert status == 1 and f"{takes / 'a.bvh'}: named twice (as proud walk and as calm walk)" in one_line(err)
+    assert status == 1 and one_line(err).endswith(f"{twice}:3: 'a.bvh': named twice (line 2 too); give each take once")
+    twice = tmp_path / "twice.toml"
+    twice.write_text('[[take]]\nfile = "takes/a.bvh"\nstyle = "proud"\n\n[[take]]\nfile = "takes/a.bvh"\nstyle = "calm"\n')
+    status, err = cli(capsys, "train", "--manifest", twice, "--out", tmp_path / "m.npz")
+    assert status == 1 and one_line(err).endswith(f"{twice}:5: 'a.bvh': named twice (line 1 too); give each take once")
     status, err = cli(capsys, "train", takes, takes / "a.bvh", "--style-from", "(a)", "--out", tmp_path / "m.npz")
     assert status == 1 and "a.bvh: named twice" in one_line(err)
     manifest = tmp_path / "styles.csv"
@@ -253,7 +263,7 @@ def test_a_manifest_naming_a_take_not_there_names_its_line(capsys, files, tmp_pa
         manifest.write_text("file,style\na.bvh,proud\n" + f"{missing},calm\n" if kind == "csv" else
                             f'[[take]]\nfile = "a.bvh"\nstyle = "proud"\n\n[[take]]\nfile = "{missing}"\nstyle = "calm"\n')
         status, err = cli(capsys, "train", "--manifest", manifest, "--out", tmp_path / "m.npz")
-        where = f"{manifest}:3" if kind == "csv" else f"{manifest}: take 2"
+        where = f"{manifest}:3" if kind == "csv" else f"{manifest}:5: take 2"
         line = one_line(err)
         assert status == 1 and f"{where}: '" in line and line.endswith(said) and len(line) < 300
     assert not (tmp_path / "m.npz").exists()
@@ -321,6 +331,23 @@ def test_recover_says_it_cut_a_partial_last_line(capsys, tmp_path, newline):
     status, said = result.returncode, result.stdout
     assert status == 0 and "cut 1 line that was not a whole frame" in said and "left as it is" not in said, said
     assert path.read_bytes() == healthy
+
+
+def test_recover_names_a_damaged_line_it_cut_from_among_the_frames(capsys, tmp_path):
+    """A killed run cuts a take's end, never its middle: recover drops a line short of a value with
+    frames after it too, but said only "cut 1 line that was not a whole frame", as of a cut end,
+    while every later frame now came a frame early. It names the line and says so."""
+    path = tmp_path / "take.bvh"
+    assert cli(capsys, "run", "--no-osc", "--quiet", "--fast", "--seconds", "0.5", "--bvh", path)[0] == 0
+    lines = path.read_text().split("\n")
+    at = lines.index("MOTION") + 3 + 5  # the sixth frame's line (0-based)
+    lines[at] = lines[at].rsplit(" ", 1)[0]
+    path.write_text("\n".join(lines))
+    result = subprocess.run([sys.executable, "-m", "instrument", "recover", str(path)], capture_output=True, text=True, timeout=120)
+    said = result.stdout
+    assert result.returncode == 0, result.stderr
+    assert f"{path}: 14 frames (the header said 15); cut 1 line that was not a whole frame (line {at + 1} among the frames: " \
+           "the frames after it come a frame earlier; a killed run cuts only the end)" in said, said
 
 
 def test_a_recorded_log_carries_its_mappings(tmp_path):

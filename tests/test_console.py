@@ -160,8 +160,9 @@ def test_a_slider_and_the_keys_move_the_walk_in_the_osc_stream_and_replay_exactl
         stderr = show.stop()
         receiver.close()
     assert show.process.returncode == 0, stderr
-    header, *recorded = [json.loads(line) for line in log.read_text().splitlines()]
+    header, *recorded, end = [json.loads(line) for line in log.read_text().splitlines()]
     assert "instrument_log" in header  # what a replay needs comes first (control.loghead)
+    assert list(end) == ["end"]  # and where the run stopped, last
     assert {e["source"] for e in recorded} == {"console"}
     assert {"style/elderly", "speed"} <= {e["control"] for e in recorded}
     # the page's events, recorded like any controller's, replay to the same frames byte for byte

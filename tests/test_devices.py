@@ -36,8 +36,9 @@ def test_a_hid_session_replays_with_the_mapping_it_needs(monkeypatch, tmp_path):
     assert run("--hid", "16c0:05dc", "--mapping", GENERIC, "--fast", "--seconds", "3", "--record", str(log),
                "--bvh", str(live)) == 0
     lines = log.read_text().splitlines()
-    controls = {json.loads(line)["control"] for line in lines[1:]}
-    assert {"X", "Y", "Button 1"} <= controls and all('"hid:16c0:05dc"' in line for line in lines[1:])
+    controls = {json.loads(line)["control"] for line in lines[1:-1]}  # the last line: where the run stopped
+    assert {"X", "Y", "Button 1"} <= controls and all('"hid:16c0:05dc"' in line for line in lines[1:-1])
+    assert json.loads(lines[-1]) == {"end": 3.0}
     assert run("--replay", str(log), "--mapping", GENERIC, "--fast", "--seconds", "3", "--bvh", str(again)) == 0
     assert filecmp.cmp(live, again, shallow=False)
     assert run("--replay", str(log), "--fast", "--seconds", "3", "--bvh", str(header)) == 0  # the header's mapping
@@ -260,7 +261,7 @@ def test_run_plays_two_midi_controllers_each_through_its_own_mapping(jack, tmp_p
         receiver.close()
     assert process.returncode == 0, stderr
     assert frames_and_echo(receiver, "/walk/speed")[-1][1] == 1.5  # the left port's, through its own mapping
-    assert {json.loads(line)["source"] for line in log.read_text().splitlines()[1:]} == {"midi:cli-left", "midi:cli-right"}
+    assert {json.loads(line)["source"] for line in log.read_text().splitlines()[1:-1]} == {"midi:cli-left", "midi:cli-right"}
     result = subprocess.run(command + ["--replay", str(log), "--no-osc", "--fast", "--seconds", "8", "--bvh", str(replay)],
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr

@@ -527,7 +527,7 @@ def test_an_osc_press_reaches_the_engine_and_the_recorded_log_replays_it(tmp_pat
             process.communicate()
         receiver.close()
     assert process.returncode == 0, stderr
-    events = [json.loads(line) for line in log.read_text().splitlines()[1:]]
+    events = [json.loads(line) for line in log.read_text().splitlines()[1:-1]]  # the last line: where the run stopped
     assert [(e["control"], e["value"]) for e in events if e["control"].startswith("gesture")] == [("gesture/wave", 1.0),
                                                                                              ("gesture/wave", 0.0)]
     names, positions, _ = world_positions(live)
@@ -552,7 +552,7 @@ def test_a_scores_cue_taps_a_gesture_and_the_recorded_log_replays_it(tmp_path):
         result = subprocess.run(RUN + source + ["--fast", "--no-osc", "--quiet", "--seconds", "6", "--bvh", str(walks[name])],
                                 capture_output=True, text=True, timeout=120)
         assert result.returncode == 0, result.stderr
-    events = [json.loads(line) for line in log.read_text().splitlines()[1:]]
+    events = [json.loads(line) for line in log.read_text().splitlines()[1:-1]]  # the last line: where the run stopped
     assert [(e["control"], e["value"]) for e in events] == [("gesture/wave", 1.0), ("gesture/wave", 0.0)]
     assert [e["t"] for e in events] == pytest.approx([1.0, 1.1])
     names, positions, _ = world_positions(walks["scored"])

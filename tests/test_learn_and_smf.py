@@ -138,3 +138,7 @@ def test_a_missing_midi_file_is_said_as_every_missing_input_is(tmp_path):
     (tmp_path / "text.mid").write_text("not midi\n")
     with pytest.raises(UserError, match=r"text\.mid: not a readable MIDI file \(MThd not found"):
         import_smf(tmp_path / "text.mid")
+    for name, data in [("short.mid", b"garbage"), ("cut.mid", b"MThd\x00\x00\x00\x06\x00\x01\x00\x01")]:
+        (tmp_path / name).write_bytes(data)  # mido's EOFError says nothing: the line says why
+        with pytest.raises(UserError, match=rf"{name}: not a readable MIDI file \(it ends before its header or a track does\)$"):
+            import_smf(tmp_path / name)

@@ -11,7 +11,7 @@ import time
 import numpy as np
 import pytest
 
-from instrument.control.events import ControlEvent, LogReplay, read_log
+from instrument.control.events import ControlEvent, LogReplay, read_log, read_log_and_end
 from instrument.errors import UserError
 from instrument.motion.bvh import read_bvh
 from instrument.output.osc import MAX_BUNDLE, parse_target
@@ -120,10 +120,12 @@ def test_a_dead_target_leaves_the_run_and_the_recording_intact(tmp_path):
     assert sum(1 for a, _ in receiver.messages() if a == "/VMC/Ext/OK") == 60
 
 
-def test_ctrl_c_leaves_a_valid_recording(tmp_path):
-    path, receiver = tmp_path / "take.bvh", Receiver()
-    process = subprocess.Popen(RUN + ["--osc", f"127.0.0.1:{receiver.port}/flat", "--bvh", str(path), "--quiet"],
-                               stderr=subprocess.PIPE, text=True)
+def test_ctrl_c_leaves_a_valid_recording_and_a_log_that_replays_the_whole_take(tmp_path):
+    path, log, receiver = tmp_path / "take.bvh", tmp_path / "take.jsonl", Receiver()
+    score = tmp_path / "once.toml"  # one cue at the start: the take's rest has no control move
+    score.write_text('[[cue]]\nramp = { "style/elderly" = 1.0, gait = "run" }\n[[cue]]\nhold = 1000\n')
+    process = subprocess.Popen(RUN + ["--score", str(score), "--osc", f"127.0.0.1:{receiver.port}/flat", "--bvh", str(path),
+                                      "--record", str(log), "--quiet"], stderr=subprocess.PIPE, text=True)
     try:
         wait_until(lambda: frame_count(receiver) >= 30, "30 frames")  # however long start-up takes
         sent = frame_count(receiver)
@@ -133,6 +135,13 @@ def test_ctrl_c_leaves_a_valid_recording(tmp_path):
         receiver.close()
     assert process.returncode == 0, stderr
     assert read_bvh(path).frames >= sent >= 30  # every frame sent was recorded
+    # the log's events are all at 0 s: its replay plays as long as the take (it stopped at its last event)
+    replayed = tmp_path / "replayed.bvh"
+    result = subprocess.run(RUN + ["--replay", str(log), "--fast", "--no-osc", "--bvh", str(replayed), "--quiet"],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert max(e.time for e in read_log(log)) == 0.0
+    assert replayed.read_text() == path.read_text()
 
 
 def test_a_killed_run_is_recovered(tmp_path):
@@ -428,10 +437,19 @@ def test_log_replay_and_its_errors(tmp_path):
     assert [e.control for e in replay.due(0.2)] == ["turn"]
     assert [e.control for e in replay.due(1.0)] == ["speed"]
     assert [e.control for e in replay.due(1.65)] == ["turn"]  # looped: the log is 1.5 s long
+    log.write_text('{"t": 0.1, "source": "x", "control": "turn", "value": 1}\n{"end": 4.0}\n')
+    events, end = read_log_and_end(log)
+    assert end == 4.0 and [e.control for e in events] == ["turn"]
+    replay = LogReplay(events, loop=True, end=end)
+    assert [e.control for e in replay.due(0.2)] + [e.control for e in replay.due(4.0)] == ["turn"]
+    assert [e.control for e in replay.due(4.15)] == ["turn"]  # looped where the recorded run stopped
     for bad, message in [("{not json\n", "not JSON"), ('{"t": 1}\n', "missing key 'source'"),
-                         ('{"t": -1, "source": "x", "control": "c", "value": 1}\n', "finite numbers")]:
+                         ('{"t": -1, "source": "x", "control": "c", "value": 1}\n', "finite numbers"),
+                         ('{"end": "soon"}\n', "expected one last line"), ('{"end": 1, "t": 2}\n', "expected one last line"),
+                         ('{"end": 0.5}\n{"t": 1, "source": "x", "control": "c", "value": 1}\n', "ends at 0.5 s, before"),
+                         ('{"end": 2}\n{"end": 3}\n', "expected one last line")]:
         log.write_text('{"t": 0, "source": "x", "control": "c", "value": 1}\n' + bad)
-        with pytest.raises(UserError, match=f"{log}:2: .*{message}"):
+        with pytest.raises(UserError, match=f"{log}:[23]: .*{message}"):
             read_log(log)
 
 
@@ -442,6 +460,7 @@ def test_log_replay_and_its_errors(tmp_path):
     (["--osc", "127.0.0.1:9000/midi"], "unknown profile"),
     (["--replay", "missing.jsonl"], "missing.jsonl: cannot read"),
     (["--fast"], "--fast needs an end"),
+    (["--hid", "12345678"], "error: --hid '12345678': expected VVVV:PPPP"),  # the option named, as every option's is
 ])
 def test_run_errors_are_one_line(args, message):
     result = subprocess.run(RUN + args, capture_output=True, text=True, timeout=60)

@@ -188,9 +188,10 @@ over = 0.9
     assert second.returncode == 0, second.stderr
     third = subprocess.run(RUN + ["--score", str(score), "--bvh", str(live)] + common, capture_output=True, text=True, timeout=120)
     assert third.returncode == 0, third.stderr
-    header, *lines = log.read_text().splitlines()
+    header, *lines, end = log.read_text().splitlines()
     assert "instrument_log" in header  # what a replay needs comes first (control.loghead)
     assert len(lines) > 60 and all('"source": "score"' in line for line in lines)
+    assert end == '{"end": 4.0}'  # and where the run stopped, last
     assert filecmp.cmp(by_score, by_log, shallow=False)
     assert filecmp.cmp(by_score, live, shallow=False)  # realtime plays the same frames
     assert read_bvh(by_score).frames == 120
@@ -209,7 +210,8 @@ def test_a_score_sets_the_gait_by_name_and_its_recorded_log_replays_it(model, tm
                                    "--bvh", str(out)], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert read_bvh(out).frames == 120
-    recorded = [json.loads(line) for line in log.read_text().splitlines()[1:]]
+    *recorded, end = [json.loads(line) for line in log.read_text().splitlines()[1:]]
+    assert end == {"end": 4.0}  # the last line: where the run stopped
     assert [(e["control"], e["value"]) for e in recorded] == [("gait", 2.0), ("gait", 0.0), ("gait", 1.0)]
     assert [e["t"] for e in recorded] == pytest.approx([0.5, 1.5, 2.5])
 
@@ -279,7 +281,7 @@ def test_live_osc_rides_on_top_and_the_cue_button_releases_a_wait(tmp_path):
     elderly = messages_per_frame(receiver, "/walk/style/elderly")
     assert elderly[-1] == 1.0 and len(set(elderly)) > 5  # ramped, not jumped
     assert messages_per_frame(receiver, "/walk/speed")[-1] == pytest.approx(1.6)  # the surface's value stayed
-    sources = {json.loads(line)["source"] for line in log.read_text().splitlines()[1:]}
+    sources = {json.loads(line)["source"] for line in log.read_text().splitlines()[1:-1]}  # the last line: where the run stopped
     assert sources == {"score", "osc"}  # the score's ramp and the surface's speed and cue
     replay = subprocess.run(RUN + ["--replay", str(log), "--fast", "--no-osc", "--quiet", "--seconds", "12", "--bvh", str(replayed)],
                             capture_output=True, text=True, timeout=120)
@@ -311,13 +313,29 @@ def test_bad_scores_are_one_line_errors_with_file_line_and_key(tmp_path, text, m
     assert "Traceback" not in result.stderr
 
 
+@pytest.mark.parametrize("text, line, why", [
+    ('[[cue]]\nramp = { speed = 1.2 }\n[[cue]]\nwait = "cue"\n', 3, "waits for a cue that no controller is there to press"),
+    ('[[cue]]\nmark = "a"\nramp = { speed = 1.2 }\nover = 1\n[[cue]]\nrepeat = "a"\n', 5, "repeats a section for ever"),
+])
+def test_an_offline_render_of_a_score_that_never_ends_is_refused(tmp_path, text, line, why):
+    """`--fast` renders a score until its last cue has finished: one that waits for a cue with no
+    controller to press it, or repeats for ever, rendered for ever (a --bvh grew 1 GB an hour)."""
+    path, out = write(tmp_path, text), tmp_path / "piece.bvh"
+    result = subprocess.run(RUN + ["--score", str(path), "--fast", "--no-osc", "--quiet", "--bvh", str(out)],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 1 and not out.exists()
+    assert result.stderr.strip() == f"instrument run: error: --fast needs an end: {path}:{line}: the score {why}" + \
+        (" (give the repeat times)" if "repeat" in why else "") + "; give --seconds"
+
+
 def test_a_show_file_plays_a_score(tmp_path):
     write(tmp_path, '[[cue]]\nramp = { "style/elderly" = 0.5 }\nover = 0.5\n', "cues.toml")
     show = write(tmp_path, 'seconds = 2\nno-osc = true\nquiet = true\nscore = "cues.toml"\nrecord = "take.jsonl"\n', "show.toml")
     result = subprocess.run(RUN + ["--config", str(show)], capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
-    last = (tmp_path / "take.jsonl").read_text().splitlines()[-1]
+    *_, last, end = (tmp_path / "take.jsonl").read_text().splitlines()
     assert ControlEvent(0.5, "score", "style/elderly", 0.5).to_json() == last
+    assert end == '{"end": 2.0}'  # where the run stopped: the show file's seconds
 
 
 def test_a_boolean_where_a_number_belongs_is_quoted_as_the_file_spells_it(model, tmp_path):

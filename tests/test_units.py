@@ -109,7 +109,11 @@ def test_a_manifest_says_a_standing_takes_gesture_and_a_bad_one_names_its_line(t
     ("two.csv", "file,style\na.bvh,calm\nb.bvh,calm,run\n", ":3: 3 fields, but the header 'file,style' names 2"),
     ("four.csv", "file,style,unit\na.bvh,calm,walk\nb.bvh,calm,run,fast\n", ":3: 4 fields"),
     ("units.toml", '[[take]]\nfile = "a.bvh"\nstyle = "calm"\n[[take]]\nfile = "b.bvh"\nstyle = "calm"\nunits = "run"\n',
-     ": take 2: unknown key 'units'"),
+     ":7: take 2: unknown key 'units'"),
+    ("misspelt.toml", '[[take]]\nfile = "a.bvh"\nstyle = "calm"\n[[take]]\nfile = "b.bvh"\nstyl = "calm"\n',
+     ":6: take 2: unknown key 'styl'"),  # said before the style it lacks: the key is the mistake
+    ("unit.toml", '[[take]]\nfile = "a.bvh"\nstyle = "calm"\nunit = 2\n', ":4: take 1: 'unit' is a string"),
+    ("empty.csv", "file,style\n", ":1: a header and no takes"),
 ])
 def test_a_manifest_column_or_key_it_does_not_read_is_refused_at_its_line(tmp_path, name, text, where):
     """A unit column misspelt (`units`), a row with a unit under a header without one, or a
@@ -134,7 +138,7 @@ def test_a_style_the_controls_cannot_name_is_refused_at_its_line(tmp_path, style
     with pytest.raises(UserError, match=rf"^{re.escape(str(tmp_path / 'm.csv'))}:2: style .* is not a name of letters"):
         read_manifest(tmp_path / "m.csv")
     (tmp_path / "m.toml").write_text(f'[[take]]\nfile = "a.bvh"\nstyle = "{style}"\n')
-    with pytest.raises(UserError, match=r": take 1: style .* is not a name of letters"):
+    with pytest.raises(UserError, match=r"m\.toml:1: take 1: style .* is not a name of letters"):
         read_manifest(tmp_path / "m.toml")
     (tmp_path / "old man.5_1.bvh").touch()  # --style-from's group finds 'old man.5'
     with pytest.raises(UserError, match=r"old man\.5_1\.bvh: --style-from: style 'old man\.5' is not a name"):

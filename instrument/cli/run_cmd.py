@@ -134,6 +134,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
                                                        + ([beat_lock.describe()] if beat_lock else []))
                     or ("score" if score_path else "replay"))
         summary = perform(show, console, stop, on_frame=health.frame)
+        hub.stopped_at(summary.frames / fps)  # frames are consecutive (a dropped slot moves the clock, not the index)
     finally:
         health.notifier.stopping()
         close_all([hub] + devices + [health, health.notifier] + ([tempo] if hasattr(tempo, "close") else []), console)  # the recording first, as the outputs' files

@@ -169,9 +169,9 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
     opening a device, a port or an output: a one-line UserError naming the file, line and key (or
     the option) of the first problem."""
     from ..control.attract import load_attract
-    from ..control.events import LogReplay, read_log
+    from ..control.events import LogReplay, read_log_and_end
     from ..control.hub import ControlHub
-    from ..control.score import ScorePlayer, load_demo, load_score
+    from ..control.score import ScorePlayer, endless_cue, load_demo, load_score
     from ..control.state import ControlState
     from ..models.modelfile import load_model
     from ..output.outputs import make_profile
@@ -222,9 +222,12 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
         raise UserError(f"{origins.prefix('replay') or origins.prefix('score')}give --replay or --score, not both")
     with origins.blame("replay"):
         # a log's beat lock (its `tempo` events) plays back, unless a live tempo source locks the steps anew
-        replay = (LogReplay([e for e in read_log(args.replay, warn=lambda m: console.warn("log cut", m))
-                             if not (args.sync and e.source.kind == "tempo")], loop=args.loop)
-                  if args.replay else None)
+        replay = None
+        if args.replay:
+            events, end = read_log_and_end(args.replay, warn=lambda m: console.warn("log cut", m))
+            replay = LogReplay([e for e in events if not (args.sync and e.source.kind == "tempo")], loop=args.loop, end=end)
+            if end is not None and seconds is None and not args.loop:
+                seconds = end  # the recorded run's length: its last stretch without a control move plays too
         missing = unreadable_sources(replay.events, mappings) if replay else []
         if missing:
             raise UserError(f"{args.replay}: has {' and '.join(missing)} events but no mapping to read them: "
@@ -259,6 +262,9 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
         for line, gait in missing_gaits(score, model.units):  # said, not refused (as when it is played): it walks
             console.warn(f"gait {gait}", f"{score_path}:{line}: gait {gait}: this model has no {gait} unit "
                          f"(it has {', '.join(model.units)}); it walks")
+    endless = endless_cue(score, live) if args.fast and seconds is None and args.score and not score.loop else None
+    if endless:  # it would render for ever, filling the disk with --bvh
+        raise UserError(f"{origins.prefix('fast')}--fast needs an end: {score_path}:{endless[0]}: {endless[1]}; give --seconds")
     if args.fast and seconds is None and (replay is None or replay.loop or not replay.events):
         raise UserError(f"{origins.prefix('fast')}--fast needs an end: give --seconds, or a --replay log or a --score "
                         "(played once)")
@@ -284,7 +290,7 @@ def choose_mappings(args: argparse.Namespace, state: ControlState, console: Cons
                 mappings.append(chosen[0])
     if args.hid and not any(m.hid or m.hid_usages for m in mappings):
         shipped = [load_mapping(p, state) for p in shipped_mappings()]
-        chosen, why = choose_hid_mapping(shipped, *parse_hid_id(args.hid))
+        chosen, why = choose_hid_mapping(shipped, *parse_hid_id(args.hid, lambda m: UserError(f"--hid {m}")))
         if chosen is None:
             raise UserError(f"--hid {args.hid}: {why}; give --mapping (instrument learn --hid writes one)")
         console.say(f"HID mapping: {chosen.name} ({chosen.path}), {why}")
@@ -296,14 +302,18 @@ def choose_mappings(args: argparse.Namespace, state: ControlState, console: Cons
 
 
 def check_recordings(args: argparse.Namespace) -> None:
-    """--bvh and --record may be written (the output rule), are two different files, and --bvh is named .bvh."""
+    """--bvh and --record may be written (the output rule: never one of the show's inputs, the
+    score, a mapping, the show file...), are two different files, and --bvh is named .bvh."""
     if args.bvh and args.record and Path(args.bvh).resolve() == Path(args.record).resolve():
         raise UserError(f"--bvh and --record both name {args.bvh}: give two files")
     if args.bvh and Path(args.bvh).suffix.lower() != ".bvh":  # x.glb held BVH text
         raise UserError(f"{args.bvh}: a recording is BVH: give a .bvh name (`instrument convert` makes a .glb of it)")
+    inputs = [args.config, args.presets]  # --force replaced a --score or a mapping with the log
+    for dest in READS:
+        inputs += (getattr(args, dest) or []) if RUN_BY_KEY[dest].kind == "paths" else [getattr(args, dest)]
     for path in (args.bvh, args.record):
         if path:
-            check_output(path, args.force, inputs=(args.replay,))
+            check_output(path, args.force, inputs=tuple(inputs))
 
 
 def crowd_options(args: argparse.Namespace) -> tuple[int, float, int, int]:

@@ -3,7 +3,8 @@
 The frame loop only appends an accepted event's line to a list; a writer thread takes the list
 about every WRITE_EVERY seconds and writes it with one `os.write`, so whole lines reach the
 file in order and a flood of events costs the frame loop no system calls. Closing writes what
-is left. A run killed outright loses at most the last WRITE_EVERY seconds, and a line it cut
+is left, then the time the run stopped at (`end`, when the run says it: control.events), so a
+replay plays the take to its end. A run killed outright loses at most the last WRITE_EVERY seconds, and a line it cut
 is dropped with a warning when the log is read. The file stops growing at LIMIT bytes (about
 2.5 hours of a 10,000 messages a second flood): the run goes on, and says so.
 
@@ -21,7 +22,7 @@ from pathlib import Path
 
 from ..errors import UserError
 from ..outputfile import write_all
-from .events import ControlEvent
+from .events import ControlEvent, end_line
 
 WRITE_EVERY = 0.1  # seconds between two batches
 LIMIT = 1 << 30  # bytes: a log never grows past this
@@ -53,6 +54,7 @@ class EventLog:
         self.written = 0  # bytes in the file after the header
         self.lost = 0  # events not recorded: the size limit reached, the disk stuck or failing
         self.error: str | None = None  # why recording stopped, once it has
+        self.end: float | None = None  # the performance time the run stopped at, once it has
         self.lock = threading.Lock()
         self.done = threading.Event()
         self.writer = threading.Thread(target=self._run, name="record", daemon=True)
@@ -110,5 +112,10 @@ class EventLog:
             return
         self.done.set()
         self.writer.join()
+        if self.end is not None and self.error is None and not self.lost:  # a log that lost events is not a whole take
+            try:
+                write_all(self.fd, (end_line(self.end) + "\n").encode("utf-8"))
+            except OSError:
+                os.ftruncate(self.fd, self.header_size + self.written)  # as before: it replays to its last event
         os.close(self.fd)
         self.fd = None

@@ -6,6 +6,11 @@ console page's message (speed = 1.2), a score's cue. It is what the hub checks, 
 and what a replay hands back. A `TargetEvent` is what a decoder makes of it: a target of the
 control state and its value. For a device with a mapping (MIDI, HID) the mapping decides; for a
 direct device (OSC, console, score) the control id already is the target name.
+
+A log recorded by a run that stopped (Ctrl-C, SIGTERM, `--seconds`, a score's end) ends with the
+line `{"end": T}`, T the performance time it stopped at: a replay plays until then, so a take's
+last stretch without a control move is not lost. A log without it (a killed run, an older one,
+one written by hand) plays until its last event.
 """
 
 from __future__ import annotations
@@ -72,8 +77,19 @@ class TargetEvent(NamedTuple):
 MAX_TIME = 1e9  # seconds (32 years): a later event was not recorded but edited in (t = 1e308 would make a replay endless)
 
 
+def end_line(time: float) -> str:
+    """The last line of a log recorded by a run that stopped at performance time `time`."""
+    return json.dumps({"end": time})  # exact, as an event's t: the replay stops at the same frame
+
+
 def read_log(path: str | Path, warn: Callable[[str], None] | None = None) -> list[RawEvent]:
-    """Every event of a log, in time order; a bad line is a one-line error naming file and line.
+    """Every event of a log, in time order (see `read_log_and_end`)."""
+    return read_log_and_end(path, warn)[0]
+
+
+def read_log_and_end(path: str | Path, warn: Callable[[str], None] | None = None) -> tuple[list[RawEvent], float | None]:
+    """Every event of a log, in time order, and the time the recorded run stopped at (None when
+    the log does not say); a bad line is a one-line error naming file and line.
 
     A last line without its newline that does not parse was cut by a killed run: the events
     before it are kept, and `warn` is told (what each event means is checked when it is applied).
@@ -83,6 +99,8 @@ def read_log(path: str | Path, warn: Callable[[str], None] | None = None) -> lis
     lines = text.splitlines()
     cut = bool(text) and not text.endswith(("\n", "\r"))
     events = []
+    end: float | None = None
+    end_number = 0
     for number, line in enumerate(lines, 1):
         if not line.strip() or line.lstrip().startswith("#"):
             continue
@@ -97,6 +115,11 @@ def read_log(path: str | Path, warn: Callable[[str], None] | None = None) -> lis
             raise located(path, f"not JSON: {e}", number) from None
         if isinstance(item, dict) and "instrument_log" in item:
             continue  # the header line: the mappings in force (control.loghead)
+        if isinstance(item, dict) and "end" in item:
+            if set(item) != {"end"} or not is_number(item["end"]) or not 0 <= item["end"] <= MAX_TIME or end is not None:
+                raise located(path, f"expected one last line {{\"end\": T}}, T from 0 to {MAX_TIME:.0f} seconds", number)
+            end, end_number = float(item["end"]), number
+            continue
         if not isinstance(item, dict):
             raise located(path, "expected an object with t, source, control, value", number)
         missing = [k for k in ("t", "source", "control", "value") if k not in item]
@@ -107,17 +130,23 @@ def read_log(path: str | Path, warn: Callable[[str], None] | None = None) -> lis
             raise located(path, f"'t' and 'value' must be finite numbers, 't' from 0 to {MAX_TIME:.0f} seconds", number)
         events.append(RawEvent(float(t), Source(str(item["source"])), str(item["control"]), float(value)))
     events.sort(key=lambda e: e.time)
-    return events
+    if end is not None and events and events[-1].time > end:
+        raise located(path, f"the log ends at {end:g} s, before its event at {events[-1].time:g} s", end_number)
+    return events, end
 
 
 class LogReplay:
     """Hands out a log's events as performance time passes; loops when asked. A device like any
     other (control/kinds.py): `poll` is `due`."""
 
-    def __init__(self, events: list[RawEvent], loop: bool = False):
+    def __init__(self, events: list[RawEvent], loop: bool = False, end: float | None = None):
+        """`end`: the time the recorded run stopped at (a log's last line), or None: a second
+        after the last event. A loop starts again there."""
         self.events = events
         self.loop = loop and bool(events)
-        self.length = (events[-1].time + 1.0) if events else 0.0
+        last = events[-1].time if events else 0.0
+        self.end = end
+        self.length = end if end is not None and end > last else last + 1.0 if events else 0.0
         self.position = 0
         self.offset = 0.0
 

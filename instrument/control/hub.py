@@ -138,6 +138,12 @@ class ControlHub:
             state.set(target, event.value)
         return why
 
+    def stopped_at(self, time: float) -> None:
+        """The show stopped at performance time `time` (the first frame it did not play): the log
+        ends with it, so its replay plays as long."""
+        if self.log is not None:
+            self.log.end = time
+
     def close(self) -> None:
         if self.log is not None:
             self.log.close()

@@ -181,6 +181,18 @@ def _cue(item: object, index: int, doc: TomlFile, model: tuple, presets: dict, m
                over=float(item.get("over", 0.0)), curve=curve, mark=mark, **kwargs)
 
 
+def endless_cue(score: Score, pressable: bool) -> tuple[int, str] | None:
+    """(line, why) of the first cue that keeps the score from ever finishing on its own: a repeat
+    without `times`, or a `wait` when nothing can press the cue (`pressable` False: no controller,
+    as in an offline render); None if it finishes."""
+    for cue in score.cues:
+        if cue.repeat is not None and cue.times is None:
+            return cue.line, "the score repeats a section for ever (give the repeat times)"
+        if cue.wait and not pressable:
+            return cue.line, "the score waits for a cue that no controller is there to press"
+    return None
+
+
 def preset_tour(names: list[str], presets: dict[str, dict[str, float]], morph: float, hold: float) -> Score:
     """A looping score that drifts through presets: morph into each, stay a while, go on."""
     cues = []

@@ -81,7 +81,8 @@ def import_smf(path: str | Path, fps: float = 30.0) -> list[ControlEvent]:
             raise UserError(f"{path}: cannot read: {e.strerror or e}") from None  # "MThd not found" has no errno)
         raise UserError(f"{path}: not a readable MIDI file ({printable(str(e), 120)})") from None
     except (EOFError, ValueError, KeyError, IndexError) as e:  # (mido's parser: whatever a broken file makes it raise)
-        raise UserError(f"{path}: not a readable MIDI file ({printable(str(e), 120)})") from None
+        why = "it ends before its header or a track does" if isinstance(e, EOFError) and not str(e) else str(e)
+        raise UserError(f"{path}: not a readable MIDI file ({printable(why, 120)})") from None
     if midi.ticks_per_beat <= 0:  # (mido reads the field signed: SMPTE timing is negative)
         raise UserError(f"{path}: the MIDI file's time division is {midi.ticks_per_beat}: expected ticks per beat above 0 "
                         "(SMPTE time is not read)")

@@ -131,11 +131,13 @@ class BvhRecorder:
                 self.part.unlink(missing_ok=True)
 
 
-def recover(path: str | Path) -> tuple[int, int, Path, int]:
+def recover(path: str | Path) -> tuple[int, int, Path, int, list[int]]:
     """Make the header's frame count match the complete frame lines of the recording at `path` (or
     its NAME.part, where a run killed before its first frame left it): (count before, frames
-    kept, the file that holds them, lines cut: a cut last line or lines that are not frames).
-    A NAME.part with no frame is removed (0 frames kept).
+    kept, the file that holds them, lines cut: a cut last line or lines that are not frames, and
+    the numbers of those of them that had frames after them: the frames after such a line now
+    come a frame earlier, which the user is told). A NAME.part with no frame is removed (0 frames
+    kept).
 
     The usual case (a kill between a frame and its count: a count one short, maybe a cut last
     line) is fixed in place, which needs no free space. Anything else is written to a new file
@@ -159,19 +161,23 @@ def recover(path: str | Path) -> tuple[int, int, Path, int]:
     width = len(complete[0].split()) if complete else 0
     good = [line for line in complete if width and len(line.split()) == width]
     cut = len(complete) - len(good) + (1 if body.split(b"\n")[-1].strip() else 0)
+    first = data[: match.end()].count(b"\n") + 1  # the first frame's line
+    whole = [k for k, line in enumerate(complete) if width and len(line.split()) == width]
+    kept = set(whole)
+    inside = [first + k for k in range(whole[-1]) if k not in kept] if whole else []
     if not good:
         if path.name.endswith(".part"):
             path.unlink()
-            return before, 0, path, cut
+            return before, 0, path, cut, []
         raise UserError(f"{path}: holds no complete frame: nothing to recover")
     if before == len(good) == len(complete) and data.endswith(b"\n"):
-        return before, before, path, 0  # healthy: left exactly as it is
+        return before, before, path, 0, []  # healthy: left exactly as it is
     count = f"{len(good):0{COUNT_WIDTH}d}".encode("ascii")
     if len(good) == len(complete) and len(match.group(1)) == COUNT_WIDTH:
         _fix_in_place(path, match.start(1), count, match.end() + sum(len(line) + 1 for line in good))
     else:
         _rewrite(path, data[: match.start(1)] + count + data[match.end(1): match.end()] + b"".join(l + b"\n" for l in good))
-    return before, len(good), _settle(path), cut
+    return before, len(good), _settle(path), cut, inside
 
 
 def _fix_in_place(path: Path, count_at: int, count: bytes, size: int) -> None:

@@ -21,7 +21,7 @@ from ..motion.steps import LABELS, segment_steps
 from ..motion.upright import upright
 from ..models.units import GESTURES, UNITS
 from ..textfile import read_text
-from ..tomlfile import read_toml
+from ..tomlfile import TomlFile
 from .units import checked_gesture, checked_unit, take_gesture, turn_as_taken, unit_from_name
 
 # the last but one "_"-separated part, starting with a letter: dataset-2_walk_elderly_003 -> elderly,
@@ -117,28 +117,38 @@ def read_manifest(path: Path) -> list[TakeFile]:
     unit is a walk, a standing take without a gesture the one its file's name says (if any)."""
     base = path.parent
     pairs: list[TakeFile] = []
+    lines: dict[Path, int] = {}  # each take's file -> the line that named it first
+
+    def add(take: TakeFile, line: int) -> None:
+        first = lines.setdefault(take.path.resolve(), line)
+        if first != line:  # twice, a take would weigh double (or teach two styles the same steps)
+            raise located(path, f"{quoted(take.path.name)}: named twice (line {first} too); give each take once", line)
+        pairs.append(take)
+
     if path.suffix.lower() == ".toml":
-        _, data = read_toml(path)
-        takes = data.get("take")
+        toml = TomlFile(path)
+        takes = toml.data.get("take")
         if not isinstance(takes, list) or not takes:
             raise UserError(f"{path}: expected [[take]] tables with keys 'file' and 'style'")
-        for k, take in enumerate(takes, 1):
+        for k, take in enumerate(takes):
+            where = f"{path}:{toml.line('take', k)}: take {k + 1}"
+            unknown = sorted(set(take) - set(MANIFEST_COLUMNS)) if isinstance(take, dict) else []
+            if unknown:  # a misspelt 'unit' would train a run as a walk
+                raise UserError(f"{path}:{toml.line('take', k, unknown[0])}: take {k + 1}: unknown key {unknown[0]!r} "
+                                f"(a take has {', '.join(MANIFEST_COLUMNS)})")
             if not isinstance(take, dict) or not isinstance(take.get("file"), str) or not isinstance(take.get("style"), str) \
                     or not take["file"].strip() or not take["style"].strip():
-                raise UserError(f"{path}: take {k}: needs string keys 'file' and 'style', neither empty")
-            unknown = sorted(set(take) - set(MANIFEST_COLUMNS))  # a misspelt 'unit' would train a run as a walk
-            if unknown:
-                raise UserError(f"{path}: take {k}: unknown key {unknown[0]!r} (a take has {', '.join(MANIFEST_COLUMNS)})")
+                raise UserError(f"{where}: needs string keys 'file' and 'style', neither empty")
             said, gesture = "unit" in take, take.get("gesture", "")
             unit = take.get("unit", "walk")
             if not isinstance(unit, str):
-                raise UserError(f"{path}: take {k}: 'unit' is a string ({', '.join(UNITS)})")
+                raise UserError(f"{path}:{toml.line('take', k, 'unit')}: take {k + 1}: 'unit' is a string ({', '.join(UNITS)})")
             if not isinstance(gesture, str):
-                raise UserError(f"{path}: take {k}: 'gesture' is a string ({', '.join(GESTURES)})")
-            unit = checked_unit(f"{path}: take {k}", unit)
-            pairs.append(TakeFile(_listed_file(base, take["file"], f"{path}: take {k}"),
-                                  checked_style(f"{path}: take {k}", take["style"]), unit,
-                                  checked_gesture(f"{path}: take {k}", gesture, unit, said)))
+                raise UserError(f"{path}:{toml.line('take', k, 'gesture')}: take {k + 1}: "
+                                f"'gesture' is a string ({', '.join(GESTURES)})")
+            unit = checked_unit(where, unit)
+            add(TakeFile(_listed_file(base, take["file"], where), checked_style(where, take["style"]), unit,
+                         checked_gesture(where, gesture, unit, said)), toml.line("take", k))
         return pairs
     text = read_text(path)
     reader = csv.reader(text.splitlines())
@@ -164,9 +174,11 @@ def read_manifest(path: Path) -> list[TakeFile]:
         said = row[2].strip() if with_units and len(row) > 2 else ""
         unit = checked_unit(f"{path}:{number}", said or "walk")
         gesture = row[3].strip() if with_gestures and len(row) > 3 else ""
-        pairs.append(TakeFile(_listed_file(base, row[0].strip(), f"{path}:{number}"),
-                              checked_style(f"{path}:{number}", row[1].strip()), unit,
-                              checked_gesture(f"{path}:{number}", gesture, unit, bool(said))))
+        add(TakeFile(_listed_file(base, row[0].strip(), f"{path}:{number}"),
+                     checked_style(f"{path}:{number}", row[1].strip()), unit,
+                     checked_gesture(f"{path}:{number}", gesture, unit, bool(said))), number)
+    if not pairs:
+        raise located(path, "a header and no takes: give a line file,style for each take", 1)
     return pairs
 
 
