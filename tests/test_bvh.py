@@ -177,3 +177,39 @@ def test_a_bad_frame_after_blank_lines_is_named_by_its_own_line():
     lines[18:18] = ["", ""]  # two blank lines after the first frame: the bad frame moves from line 20 to 22
     with pytest.raises(UserError, match=r"^bad\.bvh:22: not a number: 'abc'$"):
         parse_bvh("\n".join(lines), "bad.bvh")
+
+
+def test_a_capture_in_another_format_is_named_by_every_command_that_reads_bvh(tmp_path):
+    """A user who gives a glTF, FBX... export learns what the file is and what to give, in one line
+    naming it, from every command (they all read through read_bvh), not "starts with HIERARCHY"."""
+    take = tmp_path / "take.bvh"
+    take.write_text(SIMPLE)
+    glb = tmp_path / "take.glb"
+    made = subprocess.run([sys.executable, "-m", "instrument", "convert", str(take), "--out", str(glb)],
+                          capture_output=True, text=True)
+    assert made.returncode == 0, made.stderr  # a real .glb, as `convert` writes it
+    takes = tmp_path / "takes"
+    takes.mkdir()
+    (takes / "walk_happy_001.glb").write_bytes(glb.read_bytes())
+    expected = {
+        ("inspect", str(glb)): f"{glb}: a binary glTF (.glb) file, not a BVH (give a .bvh capture",
+        ("convert", str(glb), "--out", str(tmp_path / "again.glb")): f"{glb}: a binary glTF (.glb) file, not a BVH",
+        ("render", "--bvh", str(glb), "--out", str(tmp_path / "walk.png")): f"{glb}: a binary glTF (.glb) file, not a BVH",
+        ("train", str(takes), "--out", str(tmp_path / "model.npz")):
+            f"{takes}: no .bvh files in this folder (it holds .glb files: export the takes as .bvh)",
+    }
+    for args, message in expected.items():
+        result = subprocess.run([sys.executable, "-m", "instrument", *args], capture_output=True, text=True)
+        assert result.returncode == 1 and "Traceback" not in result.stderr, result.stderr
+        assert result.stderr.strip().count("\n") == 0 and message in result.stderr, (args, result.stderr)
+    # what the file holds decides, not its name: a .glb renamed .bvh, an FBX, a glTF's JSON
+    renamed = tmp_path / "walk_happy_002.bvh"
+    renamed.write_bytes(glb.read_bytes())
+    with pytest.raises(UserError, match=f"^{renamed}: a binary glTF \\(.glb\\) file, not a BVH"):
+        read_bvh(renamed)
+    with pytest.raises(UserError, match="^walk.bvh: an FBX file, not a BVH"):
+        parse_bvh("; FBX 7.4.0 project file\n; Created by Blender FBX exporter\n", "walk.bvh")
+    with pytest.raises(UserError, match="^walk.gltf: a glTF file, not a BVH"):
+        parse_bvh('{\n  "asset": {"version": "2.0"}\n}\n', "walk.gltf")
+    with pytest.raises(UserError, match="^bad.bvh:1: a BVH file starts with HIERARCHY$"):  # text of no known format
+        parse_bvh("Frames: 2\n", "bad.bvh")

@@ -158,11 +158,59 @@ def _floats(lines: _Lines, tokens: list[str], count: int, what: str) -> tuple[fl
     return values
 
 
+# What a file that is not BVH is, from how it starts (content first: a name can lie) and else
+# from its name: the formats a capture is commonly exported in, and files often given by mistake.
+_SIGNATURES = (
+    ("glTF", "a binary glTF (.glb) file"),
+    ("Kaydara FBX Binary", "an FBX file"),
+    ("; FBX", "an FBX file"),
+    ("PK\x03\x04", "a zip archive (a .zip or .npz)"),
+    (":FILE", "an Acclaim ASF/AMC file"),
+    (":FULLY-SPECIFIED", "an Acclaim AMC file"),
+)
+_SUFFIXES = {
+    ".glb": "a binary glTF file", ".gltf": "a glTF file", ".vrm": "a VRM (glTF) file", ".fbx": "an FBX file",
+    ".c3d": "a C3D marker file", ".trc": "a TRC marker file", ".dae": "a COLLADA file", ".obj": "a Wavefront OBJ mesh",
+    ".usd": "a USD file", ".usda": "a USD file", ".usdc": "a USD file", ".usdz": "a USD file", ".abc": "an Alembic file",
+    ".amc": "an Acclaim AMC file", ".asf": "an Acclaim ASF file", ".npz": "a NumPy archive", ".npy": "a NumPy array",
+    ".json": "a JSON file", ".csv": "a CSV file", ".toml": "a TOML file", ".blend": "a Blender file",
+    ".ma": "a Maya file", ".mb": "a Maya file", ".zip": "a zip archive",
+}
+
+# the formats a motion capture is exported in besides BVH (a folder of them holds takes in the wrong format)
+OTHER_CAPTURE_SUFFIXES = frozenset({".glb", ".gltf", ".vrm", ".fbx", ".c3d", ".trc", ".dae", ".usd", ".usda", ".usdc",
+                                    ".usdz", ".abc", ".amc", ".asf", ".npz", ".blend", ".ma", ".mb"})
+
+
+def other_format(path: str, head: str) -> str | None:
+    """What the file at `path`, starting with `head`, is when it is plainly some other format
+    ("a binary glTF (.glb) file"), or None: a user who gives an export of the wrong format
+    learns what it is and what to give, not that a BVH starts with HIERARCHY."""
+    start = head.lstrip("\ufeff \t\r\n")
+    for signature, what in _SIGNATURES:
+        if start.startswith(signature):
+            return what
+    if start.startswith("<") and "COLLADA" in start[:2000]:
+        return "a COLLADA (.dae) file"
+    by_name = _SUFFIXES.get(Path(path).suffix.lower())
+    if by_name is not None:
+        return by_name
+    if start.startswith("{"):
+        return "a JSON file"
+    if start.startswith("<"):
+        return "an XML or HTML file"
+    return None
+
+
 def _parse_hierarchy(lines: _Lines) -> Skeleton:
     if not any(line.strip() for line in lines.lines):  # (not "FILE:0: unexpected end of file")
         raise lines.error("the file is empty: a BVH file starts with HIERARCHY")
     tokens = lines.next_tokens()
     if tokens[0].upper() != "HIERARCHY":
+        other = other_format(lines.path, "\n".join(lines.lines[:20]))
+        if other is not None:
+            raise UserError(f"{lines.path}: {other}, not a BVH (give a .bvh capture; "
+                            "a BVH file is text that starts with HIERARCHY)")
         raise lines.error("a BVH file starts with HIERARCHY")
     tokens = lines.next_tokens()
     if tokens[0].upper() != "ROOT":

@@ -12,7 +12,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from ..errors import UserError, located, quoted
-from ..motion.bvh import Motion, Skeleton, read_bvh
+from ..motion.bvh import OTHER_CAPTURE_SUFFIXES, Motion, Skeleton, read_bvh
 from ..motion.features import FeatureLayout, choose_layout, extract, resample, with_deltas
 from ..motion.kinematics import local_transforms
 from ..motion.gestures import gesture_phases
@@ -95,13 +95,23 @@ def bvh_files(paths: list[str] | list[Path]) -> list[Path]:
         if path.is_dir():
             found = sorted(p for p in path.rglob("*") if p.suffix.lower() == ".bvh" and p.is_file())
             if not found:
-                raise UserError(f"{path}: no .bvh files in this folder")
+                raise UserError(f"{path}: no .bvh files in this folder{_other_captures(path)}")
             files.extend(found)
         elif path.is_file():
             files.append(path)
         else:
             raise UserError(f"{path}: no such file or folder")
     return files
+
+
+def _other_captures(folder: Path) -> str:
+    """" (it holds 2 .glb files: ...)" when a folder without BVH holds captures in another format, so
+    a user who exported the wrong format learns it; "" otherwise."""
+    kinds = sorted({p.suffix.lower() for p in folder.rglob("*")
+                    if p.is_file() and p.suffix.lower() in OTHER_CAPTURE_SUFFIXES})
+    if not kinds:
+        return ""
+    return f" (it holds {' and '.join(kinds)} files: export the takes as .bvh)"
 
 
 def styled_takes(paths: list[str] | list[Path], pattern: str = DEFAULT_STYLE_PATTERN,
