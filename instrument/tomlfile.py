@@ -224,7 +224,8 @@ class Field:
     schema is a dict of key -> Field; `TomlFile.check` reads a table against it. (Control
     targets are checked by their rows instead: control/presetfile.py.)"""
 
-    kind: str  # "number" (real), "whole", "bool", "string", "choice", "list", "table", "value" (a number or a name)
+    kind: str  # "number" (real), "whole", "bool", "string", "choice", "list", "table", "value" (a number or a name),
+    #            "tables" (a list of tables, each written [[key]])
     low: float | None = None
     high: float | None = None
     above_low: bool = False  # low itself refused (> low)
@@ -245,7 +246,7 @@ class Field:
                 return f"{text} above {low}" if self.above_low else f"{text}, {low} or more"
             return text
         return {"bool": "true or false", "string": "a string", "list": "a list", "table": "a table",
-                "value": "a number or a name"}.get(
+                "tables": "a list of tables", "value": "a number or a name"}.get(
             self.kind, f"one of {', '.join(self.choices)}")
 
     def problem(self, value: object) -> str | None:
@@ -253,7 +254,8 @@ class Field:
         if self.kind == "choice":
             return None if value in self.choices else f"{quoted(value)} is not one of {', '.join(self.choices)}"
         fits = {"bool": lambda: isinstance(value, bool), "string": lambda: isinstance(value, str),
-                "list": lambda: isinstance(value, list), "table": lambda: isinstance(value, dict),
+                "list": lambda: isinstance(value, list), "tables": lambda: isinstance(value, list),
+                "table": lambda: isinstance(value, dict),
                 "value": lambda: isinstance(value, str) or (isinstance(value, (int, float)) and not isinstance(value, bool)
                                                             and math.isfinite(value)),  # the target's row checks it
                 "whole": lambda: isinstance(value, int) and not isinstance(value, bool) and self._inside(value),
@@ -304,6 +306,9 @@ class TomlFile:
             field = schema.get(key)
             if field is None:
                 raise self.error(path + (key,), f"unknown key (expected one of {', '.join(schema)})", prefix + key)
+            if field.kind == "tables" and isinstance(value, dict):  # [cue] written where each cue is a [[cue]]
+                name = prefix + key
+                raise self.error(path + (key,), f"write each {key} as [[{name}]] (a table of its own), not [{name}]", name)
             problem = field.problem(value)
             if problem is not None:
                 raise self.error(path + (key,), problem, prefix + key)

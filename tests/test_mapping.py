@@ -274,6 +274,14 @@ def test_mapping_errors_name_file_line_and_key(tmp_path, body, line, key):
     assert "\n" not in text
 
 
+def test_a_control_written_as_one_table_says_to_write_each_as_its_own(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text('[device]\nmidi = "x"\n\n[control]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\n')
+    with pytest.raises(UserError) as error:
+        load_mapping(path, state())
+    assert str(error.value) == f"{path}:4: control: write each control as [[control]] (a table of its own), not [control]"
+
+
 def test_broken_toml_is_one_line(tmp_path):
     path = tmp_path / "bad.toml"
     path.write_text("[device\nmidi = 'x'\n")

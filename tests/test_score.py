@@ -304,6 +304,7 @@ def test_live_osc_rides_on_top_and_the_cue_button_releases_a_wait(tmp_path):
     ('[[cue]]\nhold = -1\n', "s.toml:2: hold: expected a number of seconds"),
     ('name = 3\n[[cue]]\nhold = 1\n', "s.toml:1: name: expected a string"),
     ('[[cue\n', "s.toml:1: "),  # not TOML: the line tomllib names
+    ('name = "x"\n\n[cue]\nat = 0\nhold = 1\n', "s.toml:3: cue: write each cue as [[cue]] (a table of its own), not [cue]"),
 ])
 def test_bad_scores_are_one_line_errors_with_file_line_and_key(tmp_path, text, message):
     path = write(tmp_path, text)

@@ -39,7 +39,7 @@ PICKUP_THRESHOLD = 3.0 / 128.0  # of the target's range (Mixxx)
 FAST_SWEEP = 0.050  # seconds: a value this soon after an accepted one is accepted too (Mixxx)
 # a mapping's schema (tomlfile.Field): the top, and each [[control]] table; what depends on other keys is
 # checked in load_mapping and _control ([presets]: control/presetfile.py)
-TOP = {"name": Field("string"), "device": Field("table"), "control": Field("list"), "presets": Field("table"),
+TOP = {"name": Field("string"), "device": Field("table"), "control": Field("tables"), "presets": Field("table"),
        "morph": Field("number", TABLE["morph"].low, TABLE["morph"].high, units="seconds"), "feedback": Field("table")}
 # a [[control]] table's schema (tomlfile.Field); what depends on other keys (number's limit, input) is checked in _control
 CONTROL = {

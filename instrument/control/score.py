@@ -34,7 +34,7 @@ CURVES = ("linear", "ease")
 ACTIONS = ("ramp", "preset", "hold", "wait", "repeat")
 SECONDS = Field("number", 0, units="seconds")
 # the file's schema (tomlfile.Field); what spans keys (one action a cue, at or after, ...) is checked in _cue
-TOP = {"name": Field("string"), "loop": Field("bool"), "presets": Field("table"), "cue": Field("list")}
+TOP = {"name": Field("string"), "loop": Field("bool"), "presets": Field("table"), "cue": Field("tables")}
 CUE = {"at": SECONDS, "after": SECONDS, "mark": Field("string"), "over": SECONDS, "curve": Field("choice", choices=CURVES),
        "times": Field("whole", 1), "ramp": Field("table"), "preset": Field("string"), "hold": SECONDS,
        "wait": Field("string"), "repeat": Field("string")}
