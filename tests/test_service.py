@@ -5,6 +5,7 @@ status endpoint over real UDP, the generated unit, and attract mode with pick-up
 import json
 import os
 import re
+import shlex
 import shutil
 import signal
 import socket
@@ -16,12 +17,14 @@ import time
 import pytest
 
 from conftest import REPO
+from instrument.cli.showplan import kept_names
 from instrument.control.attract import Attract, AttractSettings
 from instrument.control.events import ControlEvent
 from instrument.control.hub import ControlHub
 from instrument.control.mapping import load_mapping
 from instrument.control.score import preset_tour
 from instrument.control.state import ControlState
+from instrument.motion.bvh import read_bvh
 from instrument.terminal import Console
 from instrument.runtime.health import Health
 from instrument.runtime.notify import SystemdNotifier
@@ -296,7 +299,8 @@ def test_the_generated_unit_restarts_on_failure_with_a_watchdog(tmp_path):
     assert result.returncode == 0, result.stderr
     text = unit.read_text()
     for line in ("Type=notify", "Restart=on-failure", "WatchdogSec=5", "LimitRTPRIO=5", "WantedBy=multi-user.target",
-                 f'ExecStart="{sys.executable}" "-m" "instrument" "run" "--config" "{show.resolve()}" "--quiet"'):
+                 f'ExecStart="{sys.executable}" "-m" "instrument" "run" "--config" "{show.resolve()}" "--quiet" '
+                 '"--keep-recordings"'):
         assert line in text.splitlines(), line
     again = subprocess.run([sys.executable, "-m", "instrument", "service", "--config", str(show), "--out", str(unit)],
                            capture_output=True, text=True, timeout=60)
@@ -313,6 +317,49 @@ def test_the_generated_unit_restarts_on_failure_with_a_watchdog(tmp_path):
     missing = subprocess.run([sys.executable, "-m", "instrument", "service", "--config", str(tmp_path / "nope.toml"), "--out",
                               str(tmp_path / "x.service")], capture_output=True, text=True, timeout=60)
     assert missing.returncode == 1 and "nope.toml" in missing.stderr and len(missing.stderr.strip().splitlines()) == 1
+
+
+def test_a_restarted_service_records_beside_the_take_before_the_crash(tmp_path):
+    """A restart after a crash must neither fail on the night's recording (it exists) nor write
+    over it (`force = true`): the unit's own command keeps it and records NAME-2 beside it, the
+    BVH and the controller log under one number."""
+    show = tmp_path / "show.toml"
+    show.write_text('no-osc = true\nseconds = 2\nbvh = "night.bvh"\nrecord = "night.jsonl"\n')
+    unit = tmp_path / "walk.service"
+    made = subprocess.run([sys.executable, "-m", "instrument", "service", "--config", str(show), "--out", str(unit)],
+                          capture_output=True, text=True, timeout=60)
+    assert made.returncode == 0, made.stderr
+    start = next(line for line in unit.read_text().splitlines() if line.startswith("ExecStart="))
+    command = shlex.split(start.removeprefix("ExecStart="))  # (no `%`, `$` or `\` in these paths to unescape)
+    assert command[:3] == [sys.executable, "-m", "instrument"]
+    night, log = tmp_path / "night.bvh", tmp_path / "night.jsonl"
+
+    def frames(path) -> int:
+        match = re.search(r"Frames:\s*(\d+)", path.read_text()) if path.exists() else None
+        return int(match.group(1)) if match else 0
+
+    crashed = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        wait_until(lambda: frames(night) >= 10, "the first start's recording to have frames", timeout=120)
+    finally:
+        crashed.kill()  # a crash: systemd's Restart=on-failure starts the same command again
+        crashed.communicate()
+    taken, taken_log = night.read_bytes(), log.read_bytes()
+    again = subprocess.run([sys.executable, "-m", "instrument", "service", "--config", str(show), "--out", str(unit),
+                            "--force"], capture_output=True, text=True, timeout=60)
+    assert again.returncode == 0, again.stderr  # the unit's check does not refuse a show whose take exists
+    restarted = subprocess.run(command, capture_output=True, text=True, timeout=180)
+    assert restarted.returncode == 0, restarted.stderr
+    assert night.read_bytes() == taken and log.read_bytes() == taken_log  # the take before the crash, untouched
+    assert read_bvh(tmp_path / "night-2.bvh").frames == 60  # the restart's 2 s at 30 fps
+    assert json.loads((tmp_path / "night-2.jsonl").read_text().splitlines()[0])  # its log, under the same number
+    (tmp_path / "night-2.bvh").unlink()  # a number either recording holds is taken for both
+    assert kept_names(str(night), str(log)) == [str(tmp_path / "night-3.bvh"), str(tmp_path / "night-3.jsonl")]
+    show.write_text(show.read_text() + "force = true\n")  # the old advice for restarts: now a contradiction
+    forced = subprocess.run([sys.executable, "-m", "instrument", "service", "--config", str(show), "--out",
+                             str(tmp_path / "forced.service")], capture_output=True, text=True, timeout=60)
+    assert forced.returncode == 1 and len(forced.stderr.strip().splitlines()) == 1
+    assert f"{show}:5: force: --force replaces recordings and --keep-recordings" in forced.stderr
 
 
 def test_attract_drifts_when_idle_and_a_fader_takes_over_with_pickup(model):
@@ -616,7 +663,9 @@ BAD_SHOWS = [
     ('check = true\n', 1, "check: unknown option"),  # the command line's only
     ('sync = "midi"\n', 1, "sync: --sync midi follows the clock of a MIDI input"),
     ('bvh = "no folder/take.bvh"\n', 1, "bvh: "),  # its folder does not exist
-    ('bvh = "taken.bvh"\n', 1, "taken.bvh: already exists"),
+    ('bvh = "taken.bvh"\nkeep-recordings = true\nforce = true\n', 3, "force: --force replaces recordings and "
+     "--keep-recordings (which a service runs a show with) keeps each under a new name: give one"),  # (a take alone:
+    # `run` refuses it, a service records beside it: test_a_restarted_service_records_beside_the_take_before_the_crash)
     ('osc-in = 9000\n[attract]\nafter = -1\n', 3, "attract.after: expected a number of minutes above 0"),
     ('seconds = 1\n[presets.calm]\nspeed = 0.8\n[attract]\nafter = 5\npresets = ["calm"]\n', 4,
      "attract: needs a controller"),

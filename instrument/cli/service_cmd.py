@@ -2,7 +2,9 @@
 
 The unit starts `instrument run --config SHOW` as a notify service: systemd waits for the first
 frame (READY=1), the frame loop pets the watchdog, and a loop that freezes or a process that
-dies is restarted. It may use realtime scheduling at the priority `run` asks for.
+dies is restarted. It may use realtime scheduling at the priority `run` asks for. It runs with
+--keep-recordings: a start after a crash records beside the night's take (NAME-2.bvh), never
+over it nor refusing to start because it exists.
 
 A system unit runs as a user of its own (DynamicUser=, or --run-as an account), in a sandbox
 that leaves the instrument what it needs and nothing more: the network (OSC in and out), the
@@ -96,7 +98,8 @@ def unit_text(show: Path, watchdog: float, user_unit: bool, run_as: str | None, 
     """The unit for `show` (resolved); `writes`: the folders its recordings go to."""
     show = show.resolve()
     command = " ".join([unit_word(python, "executable")]
-                       + [unit_word(w) for w in ("-m", "instrument", "run", "--config", str(show), "--quiet")])
+                       + [unit_word(w) for w in ("-m", "instrument", "run", "--config", str(show), "--quiet",
+                                                 "--keep-recordings")])
     lines = [
         "# Written by `instrument service`. Install: see docs/installations.md.",
         "[Unit]",
@@ -136,7 +139,7 @@ def show_outputs(show: Path) -> tuple[Path, ...]:
 
     parser = argparse.ArgumentParser(prog="instrument")
     add_run_parser(parser.add_subparsers(dest="command"))
-    return plan_show(parser.parse_args(["run", "--config", str(show), "--quiet"])).writes()
+    return plan_show(parser.parse_args(["run", "--config", str(show), "--quiet", "--keep-recordings"])).writes()
 
 
 def run(args: argparse.Namespace) -> int:

@@ -207,6 +207,11 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
     # (a presets file holds [presets] only: the show file given as its own presets is refused here)
     if args.presets and (Path(args.presets).exists() or not args.console):  # the console may save to a new file
         presets.update(read_presets_file(args.presets, model_of(state)))
+    if args.keep_recordings and args.force:
+        raise UserError(f"{origins.prefix('force') or origins.prefix('keep-recordings')}--force replaces recordings and "
+                        "--keep-recordings (which a service runs a show with) keeps each under a new name: give one")
+    if args.keep_recordings:
+        args.bvh, args.record = kept_names(args.bvh, args.record)
     with origins.blame("bvh", "record"):
         check_recordings(args)
     with origins.blame("replay"):
@@ -314,6 +319,22 @@ def check_recordings(args: argparse.Namespace) -> None:
     for path in (args.bvh, args.record):
         if path:
             check_output(path, args.force, inputs=tuple(inputs))
+
+
+def kept_names(*paths: str | None) -> list[str | None]:
+    """The recordings' names for a start that keeps every earlier recording (--keep-recordings):
+    the names given when none of them exists, else NAME-2.EXT, NAME-3.EXT, ... with the first
+    number free for all of them, so a restarted show never writes over the take before the
+    restart, and a start's BVH and controller log share a number (the log replays to the BVH)."""
+    given = [Path(p) for p in paths if p]
+
+    def numbered(path: Path, number: int) -> Path:
+        return path if number == 1 else path.with_name(f"{path.stem}-{number}{path.suffix}")
+
+    number = 1
+    while any(numbered(path, number).exists() for path in given):
+        number += 1
+    return [None if p is None else str(numbered(Path(p), number)) for p in paths]
 
 
 def crowd_options(args: argparse.Namespace) -> tuple[int, float, int, int]:

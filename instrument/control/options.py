@@ -208,6 +208,8 @@ RUN: tuple[Option, ...] = (
            "time on a busy machine)", default=False),
     Option("--quiet", "flag", "no status line (the health line stays)", default=False),
     Option("--force", "flag", "let --bvh and --record replace existing files (default: refuse)", default=False),
+    Option("--keep-recordings", "flag", "when --bvh or --record exists, record beside it as NAME-2, NAME-3, ... (the "
+           "first number free for both), never over it; `instrument service` runs shows with it", default=False),
     Option("--check", "flag", "check the show file and options as a start would (model, mappings, presets, files) and "
            "stop: nothing is opened or written", default=False, in_file=False),
     Option("--health-every", "number", "a health line (frames, late, outputs, devices, memory) this often, 0 for none "
