@@ -123,6 +123,35 @@ def test_a_fork_plays_as_the_same_plan_from_rest(model):
     assert np.array_equal(main.motion.channels, render_sequence(model, [(walk, 40), (stand, 20)]).motion.channels)
 
 
+def test_a_fork_keeps_the_sharing_its_engine_has(model):
+    """The engine copied for a fork keeps the arrays its state shares shared (an array and its
+    views: deepcopy alone parts them), copied apart from the original's; the model is not copied."""
+    from instrument.evaluation.sequence import twin_of
+    from instrument.synthesis.engine import Engine, default_controls
+
+    engine = Engine(model)
+    controls = default_controls(model, {"normal": 1.0})
+    for k in range(3):
+        engine.frame(k / engine.fps, controls)
+
+    def arrays(engine: Engine) -> dict[str, np.ndarray]:
+        return {"frame_ids": engine.frame_ids, "history_ids": engine.stream.history_ids,
+                "space.max_step": engine.space.max_step, "stream.max_step": engine.stream.max_step,
+                "crowd.max_step": engine.gestures.crowd.max_step, "contact_shares": engine.contact_shares,
+                "older_shares": engine.older_shares, "contact table": engine.features[3].table}
+
+    twin = twin_of(engine, [model])
+    assert twin.model is model
+    mine, its = arrays(engine), arrays(twin)
+    pairs = [(a, b) for a in mine for b in mine if a < b]
+    shared = {(a, b) for a, b in pairs if np.shares_memory(mine[a], mine[b])}
+    assert {("frame_ids", "history_ids"), ("space.max_step", "stream.max_step"),
+            ("contact table", "contact_shares")} <= shared  # (names in order)
+    assert {(a, b) for a, b in pairs if np.shares_memory(its[a], its[b])} == shared
+    assert not any(np.shares_memory(mine[a], its[b]) for a in mine for b in its)
+    assert all(np.array_equal(mine[a], its[a]) for a in mine)
+
+
 def test_a_change_part_way_is_measured_from_its_second_command(model, measure):
     """partway_figures: a pop in a fork after its second command is its worst jump (joint, delay
     and time found); the same pop before the second command is not the change's."""
