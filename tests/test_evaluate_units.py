@@ -181,6 +181,13 @@ def test_a_change_part_way_is_measured_from_its_second_command(model, measure):
     assert skeleton.names.index(after["jump_joint"]) in descendants(skeleton.parents, knee)
     assert popped(second - 5)["jump_cm_f2"] == clean["jump_cm_f2"]  # before the change: not its
     assert clean["timings"] == 1 and clean["slide_cm_s"] > 0.0
+    root = model.layout.root
+    lifted = fork.motion.channels.copy()
+    lifted[:, int(skeleton.channel_start()[root]) + skeleton.joints[root].channels.index("Yposition")] += 1000.0
+    aloft = Sequence(Motion(skeleton, lifted, fork.motion.fps), fork.labels, fork.changes)  # no foot down: no slide
+    assert np.isnan(partway_figures([aloft], measure)["slide_cm_s"])
+    for forks in ([fork, aloft], [aloft, fork]):  # one with no slide leaves the largest as it is
+        assert partway_figures(forks, measure)["slide_cm_s"] == clean["slide_cm_s"]
 
 
 def test_the_part_way_summary_takes_the_worst_style_against_its_own_bounds():

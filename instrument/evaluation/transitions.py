@@ -169,9 +169,10 @@ def partway_figures(forks: list[Sequence], measure) -> dict[str, float]:
         if jump > out["jump_cm_f2"]:
             out |= {"jump_cm_f2": jump, "jump_joint": tail.skeleton.names[int(joint_jumps[worst].argmax())],
                     "delay_frames": float(second - first), "jump_s": worst / tail.fps}
-        slide = float(skate[~air].mean()) if (~air).any() else float("nan")
-        if not slide <= out["slide_cm_s"]:  # (the first, or a larger one)
-            out |= {"slide_cm_s": slide, "slide_delay_frames": float(second - first)}
+        if (~air).any():  # (a fork with no foot down has no slide: it leaves the largest as it is)
+            slide = float(skate[~air].mean())
+            if not slide <= out["slide_cm_s"]:  # (the first, or a larger one)
+                out |= {"slide_cm_s": slide, "slide_delay_frames": float(second - first)}
         out["air_frames"] = max(out["air_frames"], float(air.sum()))
     return out
 
