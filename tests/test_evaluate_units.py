@@ -53,7 +53,8 @@ def test_a_walk_stops_within_two_steps_and_sets_off_again(model, measure):
     """walk -> stand -> walk through the engine: still within two steps of the command, back at
     90% of the walking speed within two steps, no foot skating as the worst extrapolated walks
     may (12 cm/s, docs/evaluate.md; the 1.2x-real target is the benchmark's), none in the air."""
-    figures = transition_figures(model, "walk", {"normal": 1.0}, measure)
+    figures, partway = transition_figures(model, "walk", {"normal": 1.0}, measure)
+    assert partway == {}  # (asked for none)
     stop, start = figures["walk->stand"], figures["stand->walk"]
     assert 1 <= stop["stop_steps"] <= 2 and 0.0 < stop["stop_s"] < 2.0
     assert 1 <= start["speed_steps"] <= 2 and 0.0 < start["speed_s"] < 2.0

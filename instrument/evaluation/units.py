@@ -226,12 +226,15 @@ def partway_styles(styles: list[str]) -> list[str]:
 
 
 def partway_summary(result: UnitAssessment) -> dict[str, dict[str, float | str]]:
-    """Per change, gait and weighting ("walk stop called off 1", "run start stopped x2"): the worst jump of the styles
-    swept (`jump_cm_f2`, with its style's name `walk`, joint and delay), as a multiple of that
-    style's steady gait at those weights (`x_steady`: transitions.steady_jump) and of the real
-    takes' largest (`x_real`: the style's own at weight 1, every style's at x2 and -1, as the
-    transition targets take it), and the worst slide (`slide_cm_s`) as a multiple of the real
-    takes' stance skate (`slide_x_real`: the style's at 1, the largest style's at x2 and -1)."""
+    """Per change, gait and weighting ("walk stop called off 1", "run start stopped x2"): of the
+    styles swept, the one whose worst jump is the largest multiple of its own steady gait's at
+    those weights (`x_steady`: transitions.steady_jump), not the one with the largest jump in
+    cm/frame^2 (a livelier style's steady gait jumps more: its larger jump may stand out less),
+    with that style's jump (`jump_cm_f2`), name (`walk`), joint and delay, and the jump as a
+    multiple of the real takes' largest (`x_real`: the style's own at weight 1, every style's at
+    x2 and -1, as the transition targets take it); and, apart, the style whose worst slide is the
+    largest multiple of the real takes' stance skate (`slide_x_real`: the style's at 1, the
+    largest style's at x2 and -1), with its slide (`slide_cm_s`) and name (`slide_walk`)."""
     out: dict[str, dict[str, float | str]] = {}
     for name, made in result.partway.items():
         gait, rest = name.split(" ", 1)
