@@ -39,7 +39,7 @@ from ..training.corpus import Take, TakeFile, make_takes, read_motions
 from .assessment import SETTLE_SECONDS, _cross_validated, model_limbs, _model_ground, real_pairs
 from .recognition import LinearDiscriminant, step_features
 from .sequence import horizontal_speed, velocity_jumps
-from .transitions import transition_figures
+from .transitions import PARTWAY_CHANGES, transition_figures
 
 UNIT_SECONDS = 8.0  # length of each generated run, turn and stand (after the settling half second)
 WEIGHTINGS = (("", 1.0), (" x2", 2.0), (" -1", -1.0))  # the variants of a style: name suffix, weight
@@ -207,10 +207,10 @@ class _Assessor:
                 for suffix, weight in WEIGHTINGS:
                     name = f"{style}{suffix}"
                     self.result.weights[name] = {style: weight}
-                    for kind, figures in transition_figures(self.model, gait, {style: weight}, self.measure,
-                                                            partway=style in swept).items():
-                        into = self.result.partway if kind.startswith(gait + " ") else self.result.transitions
-                        into[f"{kind} {name}"] = figures
+                    transitions, partway = transition_figures(self.model, gait, {style: weight}, self.measure,
+                                                              partway=style in swept)
+                    for into, made in ((self.result.transitions, transitions), (self.result.partway, partway)):
+                        into.update({f"{kind} {name}": figures for kind, figures in made.items()})
                     self.note(f"{gait}->stand->{gait} {name}")
 
     def note(self, name: str) -> None:
@@ -238,7 +238,7 @@ def partway_summary(result: UnitAssessment) -> dict[str, dict[str, float | str]]
     out: dict[str, dict[str, float | str]] = {}
     for name, made in result.partway.items():
         gait, rest = name.split(" ", 1)
-        kind = "stop called off" if rest.startswith("stop called off") else "start stopped"
+        kind = next(change for change in PARTWAY_CHANGES if rest.startswith(change + " "))
         walk = rest[len(kind) + 1:]
         style, weight = next(iter(result.weights[walk].items()))
         suffix = next(s for s, w in WEIGHTINGS if w == weight)
