@@ -39,7 +39,7 @@ from ..training.corpus import Take, TakeFile, make_takes, read_motions
 from .assessment import SETTLE_SECONDS, _cross_validated, model_limbs, _model_ground, real_pairs
 from .recognition import LinearDiscriminant, step_features
 from .sequence import horizontal_speed, velocity_jumps
-from .transitions import PARTWAY_CHANGES, transition_figures
+from .transitions import PARTWAY_CHANGES, PARTWAY_STEPS, transition_figures
 
 UNIT_SECONDS = 8.0  # length of each generated run, turn and stand (after the settling half second)
 WEIGHTINGS = (("", 1.0), (" x2", 2.0), (" -1", -1.0))  # the variants of a style: name suffix, weight
@@ -277,7 +277,7 @@ def partway_table(summary: dict[str, dict[str, float | str]]) -> str:
         return "-" if value is None or (isinstance(value, float) and np.isnan(value)) else fmt.format(value)
 
     lines = ["Changes part-way (figures, not targets): a stop called off and a start stopped, the second command "
-             "swept over the first two steps after the first; per gait and weighting, the worst of the styles swept.", "",
+             f"swept over the first {PARTWAY_STEPS:g} steps after the first; per gait and weighting, the worst of the styles swept.", "",
              "| change | " + " | ".join(h for _, h, _ in PARTWAY_COLUMNS) + " |", "|---" * (len(PARTWAY_COLUMNS) + 1) + "|"]
     lines += ["| " + " | ".join([name] + [cell(row.get(key), fmt) for key, _, fmt in PARTWAY_COLUMNS]) + " |"
               for name, row in summary.items()]
