@@ -81,9 +81,9 @@ landed; with one more step, the other foot comes up beside it, a closing step as
 Once the body stands still (its travel 0), the stride eases back to 1 over STOP_SECONDS, where
 the stand's pose and its stride mean differ only by its sway. A stop called off before its stand
 takes its stride back up no faster than its level, as it braked: over STOP_SECONDS on its own, the
-stride ran ahead of the travel and swept the stance foot back faster than the body sped up (the
-lock held it 30 cm ahead of the pose's, and it snapped back as it let go: youthful's walk, a toe
-2.1 times its steady jump; 1.9 now, docs/evaluate.md, "Changes part-way").
+stride ran ahead of the travel and swept the stance foot back faster than the body sped up, and
+the lock, holding the foot where it was, let it snap back as it let go (docs/evaluate.md,
+"Changes part-way").
 
 A run's first step pushes off only while its stance foot is down: a walk's stance foot is planted
 through the whole step, a run's lifts part of the way (its toe-off; then both feet are in the
@@ -268,21 +268,20 @@ class UnitChooser:
                           np.where(self.turning < 0, self.turn_units.get(-1, unit), unit))
         if stream.sent == 0:
             stream.begin_in(coming)
-        elif (changed := coming != self.coming).any():  # (the steps' frames left only asked for a change)
+        current = counters[:, LABEL] // 2  # the unit of the step under way (a change below leaves it)
+        if stream.sent > 0 and (changed := coming != self.coming).any():  # (the steps' frames left only asked for a change)
             # a stop brakes over at least STOP_SECONDS of its steps: told later, it takes one more
             notice = np.where(coming == self.stand, max(self.notice, self.stop_frames), self.notice)
             # a change back to the unit under way goes on at once: a stop called off before its stand
             # began (made to wait a step, the body stood for one, its travel cut from where its braking
             # had got to in a frame), and a start called off before its first step began (made to wait,
             # the body took that step in place, its pose drawn to the stand's means from the one it stood in)
-            current = counters[:, LABEL] // 2
             calling_off = (((self.coming == self.stand) & (current != self.stand))
                            | ((coming == self.stand) & (current == self.stand)))
             late = changed & ~calling_off & (counters[:, NEXT] == 0) & (self._frames_left(stream) < notice)
             counters[late, NEXT] = self.coming[late] + 1  # the step after this one as planned, then the change
         counters[:, UNIT] = coming
         self.coming = coming
-        current = counters[:, LABEL] // 2
         standing = current == self.stand
         stopping = (coming == self.stand) & ~standing
         # a body standing still told to move holds the pose it stood in until its first step
