@@ -277,7 +277,8 @@ def partway_table(summary: dict[str, dict[str, float | str]]) -> str:
         return "-" if value is None or (isinstance(value, float) and np.isnan(value)) else fmt.format(value)
 
     lines = ["Changes part-way (figures, not targets): a stop called off and a start stopped, the second command "
-             f"swept over the first {PARTWAY_STEPS:g} steps after the first; per gait and weighting, the worst of the styles swept.", "",
+             f"swept over the first {PARTWAY_STEPS:g} steps after the first; per gait and weighting, the worst of the styles "
+             "swept.", "",
              "| change | " + " | ".join(h for _, h, _ in PARTWAY_COLUMNS) + " |", "|---" * (len(PARTWAY_COLUMNS) + 1) + "|"]
     lines += ["| " + " | ".join([name] + [cell(row.get(key), fmt) for key, _, fmt in PARTWAY_COLUMNS]) + " |"
               for name, row in summary.items()]
