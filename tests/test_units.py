@@ -725,34 +725,30 @@ def test_a_stop_called_off_takes_its_stride_back_with_its_travel(model, gait, st
     assert stride[-1] == travel[-1] == 1.0  # and it is back at its gait
 
 
-@pytest.mark.parametrize("gait, style", [(WALK, "normal"), (RUN, "active")])
-def test_a_start_called_off_before_its_first_step_stands_on(model, gait, style):
-    """Told to move in the last frames of a stand's step, the change waits a step (NOTICE_SECONDS);
-    told to stand again 2 frames later, the stop waited too (STOP_SECONDS' notice), so the body took
-    the first step of its gait in place, its pose drawn to the stand's means from the one it stood
-    in: a hand jumped 19.7 cm/frame^2, 3.6 times the steady walk's (active's run: 1.75 times its
-    run's; found by `evaluate --units`' sweep of changes part-way). It stands on at once: no step
-    of the gait, no joint jumping more than in the steady gait before the stop."""
-    from instrument.evaluation.sequence import velocity_jumps
-    from instrument.motion.bvh import Motion
-    from instrument.motion.kinematics import ChannelStream
+@pytest.mark.parametrize("gait, style, gap", [(WALK, "normal", 5), (RUN, "active", 2)])
+def test_a_start_called_off_before_its_first_step_stands_on(model, gait, style, gap):
+    """Told to move in the last frames of a stand's step, the change waits a step (NOTICE_SECONDS)
+    and the body holds the pose it stood in; told to stand again `gap` frames later, it stands on
+    at once (had the stop waited too, the body took its gait's first step in place: a hand jumped
+    3.6 times the steady walk's). Its stand goes on as it was: the stream's last frames put back
+    as they were when it was told to move (bent towards the coming step meanwhile, they came back
+    over 20 frames) and the pose eased back in from the one it held, not drawn to the stand's means
+    from it (a joint jumped 3-8 times the stand's own largest). Now no joint jumps more than the
+    stand's own largest before the start, within half again (the ease back adds its curve to the
+    sway's: 1.05-1.2 times measured)."""
+    from instrument.evaluation.sequence import render_sequence, velocity_jumps
     from instrument.motion.kinematics import world_positions as positions_of
 
-    engine = Engine(model)
     base = default_controls(model, {style: 1.0})
     moving, stand = Controls(base.weights, gait=gait), Controls(base.weights, gait=STAND)
-    channels = ChannelStream(model.layout.skeleton)
-    rows, units = [], []
-    for controls, frames in [(moving, 135), (stand, 120), (moving, 2), (stand, 45)]:
-        for _ in range(frames):
-            pose = engine.frame(len(rows) / engine.fps, controls)
-            rows.append(channels.next(pose.rotations[0], pose.translations[0]))
-            units.append(int(engine.stream.counters[0, LABEL]) // 2)
+    sequence = render_sequence(model, [(moving, 135), (stand, 120), (moving, gap), (stand, 45)])
     told = 135 + 120
-    assert units[told - 1] == engine.units.stand  # it stood when told to move
-    assert set(units[told:]) == {engine.units.stand}  # and stood on
-    jumps = velocity_jumps(positions_of(Motion(model.layout.skeleton, np.array(rows), model.fps)))
-    assert jumps[told:].max() <= jumps[15:135].max()
+    units = sequence.labels // 2
+    stand_unit = model.units.index("stand")
+    assert set(units[told - 15:]) == {stand_unit}  # it stood when told to move, and stood on
+    jumps = velocity_jumps(positions_of(sequence.motion))
+    own = jumps[told - 55:told].max()  # the stand's own, settled
+    assert jumps[told:].max() <= 1.5 * own
 
 
 def _step_state_frames(labels: np.ndarray, states: np.ndarray) -> list[tuple[int, tuple[int, ...]]]:

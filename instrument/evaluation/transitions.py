@@ -34,7 +34,7 @@ import numpy as np
 from ..models.modelfile import Model
 from ..motion.bvh import Motion
 from ..motion.kinematics import world_positions
-from ..synthesis.engine import default_controls
+from ..synthesis.engine import Controls, default_controls
 from ..synthesis.parameters import GAITS
 from .assessment import SETTLE_SECONDS
 from .sequence import Sequence, horizontal_speed, render_forks, render_sequence, velocity_jumps
@@ -47,6 +47,7 @@ WINDOW_AFTER = 1.0  # s after a transition is done that its window still covers
 PARTWAY_STEPS = 2.0  # a change part-way comes up to this many of the gait's steps after the first command
 PARTWAY_EVERY = 3  # frames between the timings swept
 PARTWAY_AFTER = 2.0  # steps of the gait each change part-way is played for after its second command
+PARTWAY_CHANGES = ("stop called off", "start stopped")  # the changes part-way, as their figures are named
 STEADY_SECONDS = 8.0  # the steady gait whose largest jump a transition past the styles is held to (as units.UNIT_SECONDS)
 
 
@@ -56,24 +57,26 @@ def transition_sequence(model: Model, gait: str, weights: dict[str, float]) -> S
 
 
 def transition_forks(model: Model, gait: str, weights: dict[str, float],
-                     partway: bool = False) -> tuple[Sequence, list[Sequence]]:
-    """`transition_sequence`, and with `partway` the sweep of
-    changes part-way (`partway_timings`) forked from it: the stop called off (`gait` again) and
-    the start stopped (stand again) `delay` frames after the command, each played for
-    `partway_frames`."""
+                     partway: bool = False) -> tuple[Sequence, list[Sequence], list[Sequence]]:
+    """`transition_sequence`, and with `partway` the sweep of changes part-way
+    (`partway_timings`) forked from it: the stops called off (`gait` again) and the starts
+    stopped (stand again) `delay` frames after the command, each played for `partway_frames`
+    (two lists, empty without `partway`)."""
     fps = model.fps
     moving = default_controls(model, weights, gait=GAITS.index(gait))
     standing = default_controls(model, weights, gait=GAITS.index("stand"))
     settle = int(round(SETTLE_SECONDS * fps))
     stop_at = settle + int(round(MOVE_SECONDS * fps))
     start_at = stop_at + int(round(STAND_SECONDS * fps))
-    forks = []
+    stops: list[tuple[int, Controls, int]] = []
+    starts: list[tuple[int, Controls, int]] = []
     if partway:
         length = partway_frames(model, gait)
-        forks = ([(stop_at + delay, moving, length) for delay in partway_timings(model, gait)]
-                 + [(start_at + delay, standing, length) for delay in partway_timings(model, gait)])
-    return render_forks(model, [(moving, stop_at), (standing, start_at - stop_at),
-                                (moving, int(round(MOVE_SECONDS * fps)))], forks)
+        stops = [(stop_at + delay, moving, length) for delay in partway_timings(model, gait)]
+        starts = [(start_at + delay, standing, length) for delay in partway_timings(model, gait)]
+    sequence, forks = render_forks(model, [(moving, stop_at), (standing, start_at - stop_at),
+                                           (moving, int(round(MOVE_SECONDS * fps)))], stops + starts)
+    return sequence, forks[:len(stops)], forks[len(stops):]
 
 
 def step_frames(model: Model, unit: str) -> float:
@@ -83,12 +86,12 @@ def step_frames(model: Model, unit: str) -> float:
 
 
 def transition_figures(model: Model, gait: str, weights: dict[str, float], measure,
-                       partway: bool = False) -> dict[str, dict[str, float]]:
+                       partway: bool = False) -> tuple[dict[str, dict[str, float]], dict[str, dict[str, float]]]:
     """{"<gait>->stand": figures, "stand-><gait>": figures} of one sequence (see the module's
-    text); `measure` is units._Measure (the limbs, scale and ground to measure with). With
-    `partway`, also {"<gait> stop called off": figures, "<gait> start stopped": figures}, the
-    worst of the sweep of changes part-way (`partway_figures`)."""
-    sequence, forks = transition_forks(model, gait, weights, partway)
+    text), and with `partway` {"<gait> stop called off": figures, "<gait> start stopped": figures}
+    (PARTWAY_CHANGES), the worst of the sweep of changes part-way (`partway_figures`; {} without);
+    `measure` is units._Measure (the limbs, scale and ground to measure with)."""
+    sequence, stops, starts = transition_forks(model, gait, weights, partway)
     fps = model.fps
     positions = world_positions(sequence.motion) * measure.cm
     root = positions[:, model.layout.root]
@@ -129,11 +132,10 @@ def transition_figures(model: Model, gait: str, weights: dict[str, float], measu
     own = {"gait_jump_cm_f2": steady_jump(model, gait, weights, measure.cm)}
     out = {f"{gait}->stand": stop | window(stop_at, stopped, start_at) | own,
            f"stand->{gait}": start | window(start_at, reached, len(positions)) | own}
-    if forks:
-        half = len(forks) // 2
-        out[f"{gait} stop called off"] = partway_figures(forks[:half], measure) | own
-        out[f"{gait} start stopped"] = partway_figures(forks[half:], measure) | own
-    return out
+    called_off, stopped_again = PARTWAY_CHANGES
+    partway = {f"{gait} {change}": partway_figures(forks, measure) | own
+               for change, forks in ((called_off, stops), (stopped_again, starts)) if forks}
+    return out, partway
 
 
 def partway_timings(model: Model, gait: str) -> range:
@@ -169,9 +171,10 @@ def partway_figures(forks: list[Sequence], measure) -> dict[str, float]:
         if jump > out["jump_cm_f2"]:
             out |= {"jump_cm_f2": jump, "jump_joint": tail.skeleton.names[int(joint_jumps[worst].argmax())],
                     "delay_frames": float(second - first), "jump_s": worst / tail.fps}
-        slide = float(skate[~air].mean()) if (~air).any() else float("nan")
-        if not slide <= out["slide_cm_s"]:  # (the first, or a larger one)
-            out |= {"slide_cm_s": slide, "slide_delay_frames": float(second - first)}
+        if (~air).any():  # (a fork with no foot down has no slide: it leaves the largest as it is)
+            slide = float(skate[~air].mean())
+            if not slide <= out["slide_cm_s"]:  # (the first, or a larger one)
+                out |= {"slide_cm_s": slide, "slide_delay_frames": float(second - first)}
         out["air_frames"] = max(out["air_frames"], float(air.sum()))
     return out
 

@@ -39,7 +39,7 @@ from ..training.corpus import Take, TakeFile, make_takes, read_motions
 from .assessment import SETTLE_SECONDS, _cross_validated, model_limbs, _model_ground, real_pairs
 from .recognition import LinearDiscriminant, step_features
 from .sequence import horizontal_speed, velocity_jumps
-from .transitions import transition_figures
+from .transitions import PARTWAY_CHANGES, PARTWAY_STEPS, transition_figures
 
 UNIT_SECONDS = 8.0  # length of each generated run, turn and stand (after the settling half second)
 WEIGHTINGS = (("", 1.0), (" x2", 2.0), (" -1", -1.0))  # the variants of a style: name suffix, weight
@@ -207,10 +207,10 @@ class _Assessor:
                 for suffix, weight in WEIGHTINGS:
                     name = f"{style}{suffix}"
                     self.result.weights[name] = {style: weight}
-                    for kind, figures in transition_figures(self.model, gait, {style: weight}, self.measure,
-                                                            partway=style in swept).items():
-                        into = self.result.partway if kind.startswith(gait + " ") else self.result.transitions
-                        into[f"{kind} {name}"] = figures
+                    transitions, partway = transition_figures(self.model, gait, {style: weight}, self.measure,
+                                                              partway=style in swept)
+                    for into, made in ((self.result.transitions, transitions), (self.result.partway, partway)):
+                        into.update({f"{kind} {name}": figures for kind, figures in made.items()})
                     self.note(f"{gait}->stand->{gait} {name}")
 
     def note(self, name: str) -> None:
@@ -226,16 +226,19 @@ def partway_styles(styles: list[str]) -> list[str]:
 
 
 def partway_summary(result: UnitAssessment) -> dict[str, dict[str, float | str]]:
-    """Per change, gait and weighting ("walk stop called off 1", "run start stopped x2"): the worst jump of the styles
-    swept (`jump_cm_f2`, with its style's name `walk`, joint and delay), as a multiple of that
-    style's steady gait at those weights (`x_steady`: transitions.steady_jump) and of the real
-    takes' largest (`x_real`: the style's own at weight 1, every style's at x2 and -1, as the
-    transition targets take it), and the worst slide (`slide_cm_s`) as a multiple of the real
-    takes' stance skate (`slide_x_real`: the style's at 1, the largest style's at x2 and -1)."""
+    """Per change, gait and weighting ("walk stop called off 1", "run start stopped x2"): of the
+    styles swept, the one whose worst jump is the largest multiple of its own steady gait's at
+    those weights (`x_steady`: transitions.steady_jump), not the one with the largest jump in
+    cm/frame^2 (a livelier style's steady gait jumps more: its larger jump may stand out less),
+    with that style's jump (`jump_cm_f2`), name (`walk`), joint and delay, and the jump as a
+    multiple of the real takes' largest (`x_real`: the style's own at weight 1, every style's at
+    x2 and -1, as the transition targets take it); and, apart, the style whose worst slide is the
+    largest multiple of the real takes' stance skate (`slide_x_real`: the style's at 1, the
+    largest style's at x2 and -1), with its slide (`slide_cm_s`) and name (`slide_walk`)."""
     out: dict[str, dict[str, float | str]] = {}
     for name, made in result.partway.items():
         gait, rest = name.split(" ", 1)
-        kind = "stop called off" if rest.startswith("stop called off") else "start stopped"
+        kind = next(change for change in PARTWAY_CHANGES if rest.startswith(change + " "))
         walk = rest[len(kind) + 1:]
         style, weight = next(iter(result.weights[walk].items()))
         suffix = next(s for s, w in WEIGHTINGS if w == weight)
@@ -274,7 +277,8 @@ def partway_table(summary: dict[str, dict[str, float | str]]) -> str:
         return "-" if value is None or (isinstance(value, float) and np.isnan(value)) else fmt.format(value)
 
     lines = ["Changes part-way (figures, not targets): a stop called off and a start stopped, the second command "
-             "swept over the first two steps after the first; per gait and weighting, the worst of the styles swept.", "",
+             f"swept over the first {PARTWAY_STEPS:g} steps after the first; per gait and weighting, the worst of the styles "
+             "swept.", "",
              "| change | " + " | ".join(h for _, h, _ in PARTWAY_COLUMNS) + " |", "|---" * (len(PARTWAY_COLUMNS) + 1) + "|"]
     lines += ["| " + " | ".join([name] + [cell(row.get(key), fmt) for key, _, fmt in PARTWAY_COLUMNS]) + " |"
               for name, row in summary.items()]

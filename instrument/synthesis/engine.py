@@ -414,6 +414,10 @@ class Engine:
         self._stand_means: np.ndarray | None = None  # (N, D) `_stand_pose` as of the last retune (None: not made)
         self._last = np.zeros((characters, model.layout.dimension))  # (N, D) the last frame driven
         self._stood = np.zeros((characters, model.layout.dimension))  # (N, D) the pose each body last set off from
+        # (N, 2, D) and (N, 2) the stream's last two frames and their states as each body was last told
+        # to move from a standstill: put back if it is told to stand again before its first step
+        self._stood_history = np.zeros_like(self.stream.history)
+        self._stood_history_ids = np.zeros_like(self.stream.history_ids)
         # when a dict: seconds spent in each stage, added up frame after frame (`instrument bench`'s stage costs)
         self.stage_seconds: dict[str, float] | None = None
         # clock seconds (time.monotonic) the recent restyles took, ahead of a frame or in it: what the
@@ -477,6 +481,12 @@ class Engine:
         self.retune(controls, spread)
         self._mark()
         self.units(controls.gait, controls.turn, self.stream)
+        if self.units.setting_off:  # the stream's last frames as each body was told to move (the pose it holds)
+            self._stood_history[self.units.set_off] = self.stream.history[self.units.set_off]
+            self._stood_history_ids[self.units.set_off] = self.stream.history_ids[self.units.set_off]
+        if self.units.resuming:  # told to stand again before its first step: its stand goes on from them
+            self.stream.history[self.units.resumed] = self._stood_history[self.units.resumed]
+            self.stream.history_ids[self.units.resumed] = self._stood_history_ids[self.units.resumed]
         self._timed("units")
         gait = self.stream if self.method == "stream" else None  # the stream whose solve can make a gesture's frame
         if self.gestures.crowd is not None:
@@ -504,8 +514,9 @@ class Engine:
             self._stood[self.units.set_off] = self._last[self.units.set_off]
         if self.units.shortening:  # a body braking, setting off, or just stood still: its steps shortened
             towards = self._stand_pose()
-            if self.units.starting.any():
-                towards = np.where(self.units.starting[:, None], self._stood, towards)
+            held = self.units.starting | self.units.held  # drawn from the pose it stood in (or held)
+            if held.any():
+                towards = np.where(held[:, None], self._stood, towards)
             self._stride = self.units.strides()
             frames = shortened(frames, towards, self._stride)
         driven = np.empty(frames.shape)

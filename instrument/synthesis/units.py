@@ -38,7 +38,11 @@ of where the lock held them), and through the first step draws the step's pose f
 the same share as the travel (`starting`). Over a step eased in from rest the body covers
 half the step's ground, and the stance foot, swept from where it stood by the same share, moves
 back under the body as fast as the body moves on: it stays where the stand left it, where the
-lock holds it.
+lock holds it. Told to stand again before that first step began (`resumed`), the body never left
+its stand, so nothing of it changes: the engine puts the stream's last two frames back as they
+were when it was told to move (its stand goes on from the pose it held, not from frames bent
+towards the step, which took 20 frames to come back), and its pose eases back in from the held
+one over STOP_SECONDS (`held`), as a stand's after a stop eases in from its means.
 That share is a smootherstep (6x^5 - 15x^4 + 10x^3), not the smoothstep a stop brakes by: the
 step's pose is drawn from the stood one at the share's rate times how far apart they are, and a
 run's first step ends with its stance foot at toe-off, a stride behind where it stood (70 cm at
@@ -81,9 +85,9 @@ landed; with one more step, the other foot comes up beside it, a closing step as
 Once the body stands still (its travel 0), the stride eases back to 1 over STOP_SECONDS, where
 the stand's pose and its stride mean differ only by its sway. A stop called off before its stand
 takes its stride back up no faster than its level, as it braked: over STOP_SECONDS on its own, the
-stride ran ahead of the travel and swept the stance foot back faster than the body sped up (the
-lock held it 30 cm ahead of the pose's, and it snapped back as it let go: youthful's walk, a toe
-2.1 times its steady jump; 1.9 now, docs/evaluate.md, "Changes part-way").
+stride ran ahead of the travel and swept the stance foot back faster than the body sped up, and
+the lock, holding the foot where it was, let it snap back as it let go (docs/evaluate.md,
+"Changes part-way").
 
 A run's first step pushes off only while its stance foot is down: a walk's stance foot is planted
 through the whole step, a run's lifts part of the way (its toe-off; then both feet are in the
@@ -206,6 +210,11 @@ class UnitChooser:
         self.set_off = np.zeros(count, dtype=np.bool_)
         self.setting_off = False  # some body was (a Python bool: the engine reads it every frame)
         self.starting = np.zeros(count, dtype=np.bool_)  # since then: its stride is its level, drawn from that pose
+        # this frame a body told to move was told to stand again before its first step began (the
+        # engine puts its stream back as it was told): its stand goes on from there
+        self.resumed = np.zeros(count, dtype=np.bool_)
+        self.resuming = False  # some body was (a Python bool)
+        self.held = np.zeros(count, dtype=np.bool_)  # since then: its stride eases back in from the pose it held
         self._settled: tuple[int, float] | None = None  # (gait, turn) that left nothing to do frame by frame
         self.pushing, self.stance_foot = pushing_states(model)  # per label: the states its stance foot is down; which
         self.legs = leg_columns(model.layout)  # (2, D) each leg's features
@@ -268,21 +277,20 @@ class UnitChooser:
                           np.where(self.turning < 0, self.turn_units.get(-1, unit), unit))
         if stream.sent == 0:
             stream.begin_in(coming)
-        elif (changed := coming != self.coming).any():  # (the steps' frames left only asked for a change)
+        current = counters[:, LABEL] // 2  # the unit of the step under way (a change below leaves it)
+        if stream.sent > 0 and (changed := coming != self.coming).any():  # (the steps' frames left only asked for a change)
             # a stop brakes over at least STOP_SECONDS of its steps: told later, it takes one more
             notice = np.where(coming == self.stand, max(self.notice, self.stop_frames), self.notice)
             # a change back to the unit under way goes on at once: a stop called off before its stand
             # began (made to wait a step, the body stood for one, its travel cut from where its braking
             # had got to in a frame), and a start called off before its first step began (made to wait,
             # the body took that step in place, its pose drawn to the stand's means from the one it stood in)
-            current = counters[:, LABEL] // 2
             calling_off = (((self.coming == self.stand) & (current != self.stand))
                            | ((coming == self.stand) & (current == self.stand)))
             late = changed & ~calling_off & (counters[:, NEXT] == 0) & (self._frames_left(stream) < notice)
             counters[late, NEXT] = self.coming[late] + 1  # the step after this one as planned, then the change
         counters[:, UNIT] = coming
         self.coming = coming
-        current = counters[:, LABEL] // 2
         standing = current == self.stand
         stopping = (coming == self.stand) & ~standing
         # a body standing still told to move holds the pose it stood in until its first step
@@ -295,7 +303,12 @@ class UnitChooser:
             self.halting |= halted
         self.set_off = still & ~self.starting
         self.setting_off = bool(self.set_off.any())
+        # a start called off before its first step began: its stand goes on from where it was told to
+        # move (the engine puts the stream back as it was), eased back in from the pose it held
+        self.resumed = self.starting & (coming == self.stand) & standing & (self.level == 0.0)
+        self.resuming = bool(self.resumed.any())
         self.starting = (self.starting | still) & (coming != self.stand)
+        self.held = (self.held | self.resumed) & ~self.starting
         self.start_label[self.set_off] = -1
         self.second[self.set_off] = False  # (a start before this one may have ended in its second push)
         self.first_share[self.set_off] = 1.0
@@ -397,6 +410,7 @@ class UnitChooser:
         stride = np.where(braking, np.minimum(self.stride_level, level), np.where(self.starting, level, rising))
         self.stride_level = stride
         self.stride = stride * stride * (3.0 - 2.0 * stride)
+        self.held &= stride < 1.0
         if starting:  # done once its pose, travel and legs are all there (a first step slowed down
             # may bring its level to 1 before the second push has begun: its travel still the share)
             self.stride = np.where(self.starting, eased, self.stride)
