@@ -734,6 +734,32 @@ def test_a_show_run_refuses_gets_no_unit_and_the_same_one_line_error(tmp_path, s
     assert result.stderr.removeprefix("instrument service: ") == checked.stderr.removeprefix("instrument run: ")
 
 
+def test_a_show_whose_take_exists_is_refused_by_run_without_keep_recordings(tmp_path):
+    """Without --keep-recordings (a show run by hand), a take that exists is refused at the show's
+    line, by the check and by a start alike (the service runs it with --keep-recordings instead:
+    test_a_restarted_service_records_beside_the_take_before_the_crash)."""
+    beside_the_show(tmp_path)
+    show = tmp_path / "show.toml"
+    show.write_text('bvh = "taken.bvh"\n')
+    checked = one_verdict(RUN + ["--config", str(show), "--check"], show)
+    assert checked.stderr.startswith(f"instrument run: error: {show}:1: ") and "taken.bvh: already exists" in checked.stderr
+    assert one_verdict(RUN + ["--config", str(show)], show).stderr == checked.stderr
+
+
+def test_keep_recordings_numbers_past_every_take_and_what_a_killed_one_left(tmp_path):
+    """A recording killed before its first frame leaves NAME.part, which a recorder will not open
+    again: the number it holds is taken (counted free, a restarted service failed on every try
+    until systemd gave up). Numbers go one past the highest held, so they keep the starts' order."""
+    night = tmp_path / "night.bvh"
+    (tmp_path / "night.bvh.part").write_text("HIERARCHY\n")
+    started = subprocess.run(RUN + ["--no-osc", "--quiet", "--fast", "--seconds", "1", "--bvh", str(night),
+                                    "--keep-recordings"], capture_output=True, text=True, timeout=300)
+    assert started.returncode == 0, started.stderr
+    assert read_bvh(tmp_path / "night-2.bvh").frames == 30 and not night.exists()
+    (tmp_path / "night-2.bvh").rename(tmp_path / "night-5.bvh")  # a gap below the highest is not filled
+    assert kept_names(str(night), None) == [str(tmp_path / "night-6.bvh"), None]
+
+
 @pytest.mark.parametrize("console", [[], ["--console", "0"]])
 def test_the_show_file_given_as_its_own_presets_is_refused_by_a_check(tmp_path, console):
     """--presets naming the show itself (a save would replace the show with its presets): one line at

@@ -15,6 +15,7 @@ An error about an option the show file gave names the file, the line and the key
 from __future__ import annotations
 
 import argparse
+import re
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -323,18 +324,32 @@ def check_recordings(args: argparse.Namespace) -> None:
 
 def kept_names(*paths: str | None) -> list[str | None]:
     """The recordings' names for a start that keeps every earlier recording (--keep-recordings):
-    the names given when none of them exists, else NAME-2.EXT, NAME-3.EXT, ... with the first
-    number free for all of them, so a restarted show never writes over the take before the
-    restart, and a start's BVH and controller log share a number (the log replays to the BVH)."""
+    the names given when none of them exists, else NAME-2.EXT, NAME-3.EXT, ... numbered one past
+    the highest number any of them holds, so a restarted show never writes over the take before
+    the restart, the numbers keep the order of the starts (one deleted is not filled again), and
+    a start's BVH and controller log share a number (the log replays to the BVH). A number is
+    taken by a recording or by what a killed one left (NAME.part, which a recorder will not open
+    again: counted free, a restart after a crash before the first frame failed on every try)."""
     given = [Path(p) for p in paths if p]
 
-    def numbered(path: Path, number: int) -> Path:
+    def taken(path: Path, name: str) -> bool:
+        return (path.parent / name).exists() or (path.parent / f"{name}.part").exists()
+
+    highest = 0
+    for path in given:
+        if taken(path, path.name):
+            highest = max(highest, 1)
+        pattern = re.compile(rf"{re.escape(path.stem)}-(\d+){re.escape(path.suffix)}(\.part)?")
+        if path.parent.is_dir():
+            for other in path.parent.iterdir():
+                if match := pattern.fullmatch(other.name):
+                    highest = max(highest, int(match.group(1)))
+    number = highest + 1 if highest else 1
+
+    def numbered(path: Path) -> Path:
         return path if number == 1 else path.with_name(f"{path.stem}-{number}{path.suffix}")
 
-    number = 1
-    while any(numbered(path, number).exists() for path in given):
-        number += 1
-    return [None if p is None else str(numbered(Path(p), number)) for p in paths]
+    return [None if p is None else str(numbered(Path(p))) for p in paths]
 
 
 def crowd_options(args: argparse.Namespace) -> tuple[int, float, int, int]:

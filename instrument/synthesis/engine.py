@@ -415,9 +415,12 @@ class Engine:
         self._last = np.zeros((characters, model.layout.dimension))  # (N, D) the last frame driven
         self._stood = np.zeros((characters, model.layout.dimension))  # (N, D) the pose each body last set off from
         # (N, 2, D) and (N, 2) the stream's last two frames and their states as each body was last told
-        # to move from a standstill: put back if it is told to stand again before its first step
+        # to move from a standstill: put back if it is told to stand again before its first step.
+        # (N,) whether they can be: two frames of its own made (not the stream's first frame's
+        # zeros) and no gesture in them (a gesture's upper body in the gait's frames moves on)
         self._stood_history = np.zeros_like(self.stream.history)
         self._stood_history_ids = np.zeros_like(self.stream.history_ids)
+        self._stood_saved = np.zeros(characters, dtype=np.bool_)
         # when a dict: seconds spent in each stage, added up frame after frame (`instrument bench`'s stage costs)
         self.stage_seconds: dict[str, float] | None = None
         # clock seconds (time.monotonic) the recent restyles took, ahead of a frame or in it: what the
@@ -482,11 +485,14 @@ class Engine:
         self._mark()
         self.units(controls.gait, controls.turn, self.stream)
         if self.units.setting_off:  # the stream's last frames as each body was told to move (the pose it holds)
-            self._stood_history[self.units.set_off] = self.stream.history[self.units.set_off]
-            self._stood_history_ids[self.units.set_off] = self.stream.history_ids[self.units.set_off]
+            set_off = self.units.set_off
+            self._stood_history[set_off] = self.stream.history[set_off]
+            self._stood_history_ids[set_off] = self.stream.history_ids[set_off]
+            self._stood_saved[set_off] = self.stream.sent >= 2 and self._no_gesture()
         if self.units.resuming:  # told to stand again before its first step: its stand goes on from them
-            self.stream.history[self.units.resumed] = self._stood_history[self.units.resumed]
-            self.stream.history_ids[self.units.resumed] = self._stood_history_ids[self.units.resumed]
+            back = self.units.resumed & self._stood_saved if self._no_gesture() else np.zeros(self.count, np.bool_)
+            self.stream.history[back] = self._stood_history[back]
+            self.stream.history_ids[back] = self._stood_history_ids[back]
         self._timed("units")
         gait = self.stream if self.method == "stream" else None  # the stream whose solve can make a gesture's frame
         if self.gestures.crowd is not None:
@@ -541,6 +547,11 @@ class Engine:
             self._timed("contact")
         self.made += 1
         return frames
+
+    def _no_gesture(self) -> bool:
+        """No gesture plays nor is hosted by the gait's stream: its frames are the gait's alone (a
+        start called off puts them back only then; with a gesture in them the arm jumped back)."""
+        return self.gestures.playing is None and self.gestures.host is None
 
     def _forward(self, ahead: np.ndarray, solved: np.ndarray) -> np.ndarray:
         """(N, A, D) the frame's forward differences: `ahead`, the stream's provisional next frames,
