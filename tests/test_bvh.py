@@ -197,6 +197,8 @@ def test_a_capture_in_another_format_is_named_by_every_command_that_reads_bvh(tm
         ("render", "--bvh", str(glb), "--out", str(tmp_path / "walk.png")): f"{glb}: a binary glTF (.glb) file, not a BVH",
         ("train", str(takes), "--out", str(tmp_path / "model.npz")):
             f"{takes}: no .bvh files in this folder (it holds .glb files: export the takes as .bvh)",
+        ("evaluate", "--real", str(takes)):  # the shipped model's takes, looked for by name among BVH files
+            "takes the model was trained on is there (it holds .glb files: export the takes as .bvh)",
     }
     for args, message in expected.items():
         result = subprocess.run([sys.executable, "-m", "instrument", *args], capture_output=True, text=True)

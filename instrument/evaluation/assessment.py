@@ -22,7 +22,7 @@ from ..motion.limbs import Limbs, centimetres_per_unit, clearance, find_limbs
 from ..motion.quality import pooled, take_floors, walk_figures
 from ..motion.steps import segment_steps
 from ..synthesis.engine import default_controls, render
-from ..training.corpus import TakeFile, make_takes, read_motions
+from ..training.corpus import TakeFile, make_takes, other_captures, read_motions
 from .recognition import LinearDiscriminant, step_features
 
 VARIANT_KINDS = ("one", "x2", "inverted", "pairs")  # also in cli/evaluate_cmd.py
@@ -76,7 +76,8 @@ def real_pairs(model: Model, folders: Path | list[Path], units: tuple[str, ...] 
     pairs = [t._replace(path=on_disk[t.path.name]) for t in listed if t.path.name in on_disk]
     if not pairs:
         where = ", ".join(str(f) for f in folders)
-        raise UserError(f"{where}: none of the {len(listed)} takes the model was trained on is there")
+        hint = "" if on_disk else "".join(other_captures(f) for f in folders)  # no BVH at all: another format?
+        raise UserError(f"{where}: none of the {len(listed)} takes the model was trained on is there{hint}")
     return pairs
 
 

@@ -95,7 +95,7 @@ def bvh_files(paths: list[str] | list[Path]) -> list[Path]:
         if path.is_dir():
             found = sorted(p for p in path.rglob("*") if p.suffix.lower() == ".bvh" and p.is_file())
             if not found:
-                raise UserError(f"{path}: no .bvh files in this folder{_other_captures(path)}")
+                raise UserError(f"{path}: no .bvh files in this folder{other_captures(path)}")
             files.extend(found)
         elif path.is_file():
             files.append(path)
@@ -104,7 +104,7 @@ def bvh_files(paths: list[str] | list[Path]) -> list[Path]:
     return files
 
 
-def _other_captures(folder: Path) -> str:
+def other_captures(folder: Path) -> str:
     """" (it holds 2 .glb files: ...)" when a folder without BVH holds captures in another format, so
     a user who exported the wrong format learns it; "" otherwise."""
     kinds = sorted({p.suffix.lower() for p in folder.rglob("*")
