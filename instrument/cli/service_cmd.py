@@ -93,13 +93,17 @@ def unit_word(text: str, kind: str = "argument") -> str:
     return f'"{text.replace("$", "$$") if kind == "argument" else text}"'
 
 
+def run_words(show: Path) -> list[str]:
+    """The `instrument` command the unit runs the show with (its checks parse the same words)."""
+    return ["run", "--config", str(show), "--quiet", "--keep-recordings"]
+
+
 def unit_text(show: Path, watchdog: float, user_unit: bool, run_as: str | None, python: str = sys.executable,
               writes: tuple[Path, ...] = ()) -> str:
     """The unit for `show` (resolved); `writes`: the folders its recordings go to."""
     show = show.resolve()
     command = " ".join([unit_word(python, "executable")]
-                       + [unit_word(w) for w in ("-m", "instrument", "run", "--config", str(show), "--quiet",
-                                                 "--keep-recordings")])
+                       + [unit_word(w) for w in ("-m", "instrument", *run_words(show))])
     lines = [
         "# Written by `instrument service`. Install: see docs/installations.md.",
         "[Unit]",
@@ -139,7 +143,7 @@ def show_outputs(show: Path) -> tuple[Path, ...]:
 
     parser = argparse.ArgumentParser(prog="instrument")
     add_run_parser(parser.add_subparsers(dest="command"))
-    return plan_show(parser.parse_args(["run", "--config", str(show), "--quiet", "--keep-recordings"])).writes()
+    return plan_show(parser.parse_args(run_words(show))).writes()
 
 
 def run(args: argparse.Namespace) -> int:

@@ -332,19 +332,16 @@ def kept_names(*paths: str | None) -> list[str | None]:
     again: counted free, a restart after a crash before the first frame failed on every try)."""
     given = [Path(p) for p in paths if p]
 
-    def taken(path: Path, name: str) -> bool:
-        return (path.parent / name).exists() or (path.parent / f"{name}.part").exists()
-
     highest = 0
     for path in given:
-        if taken(path, path.name):
+        if path.exists() or path.with_name(f"{path.name}.part").exists():
             highest = max(highest, 1)
         pattern = re.compile(rf"{re.escape(path.stem)}-(\d+){re.escape(path.suffix)}(\.part)?")
         if path.parent.is_dir():
             for other in path.parent.iterdir():
                 if match := pattern.fullmatch(other.name):
                     highest = max(highest, int(match.group(1)))
-    number = highest + 1 if highest else 1
+    number = highest + 1
 
     def numbered(path: Path) -> Path:
         return path if number == 1 else path.with_name(f"{path.stem}-{number}{path.suffix}")

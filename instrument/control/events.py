@@ -145,7 +145,6 @@ class LogReplay:
         self.events = events
         self.loop = loop and bool(events)
         last = events[-1].time if events else 0.0
-        self.end = end
         self.length = end if end is not None and end > last else last + 1.0 if events else 0.0
         self.position = 0
         self.offset = 0.0

@@ -71,9 +71,9 @@ def transition_forks(model: Model, gait: str, weights: dict[str, float],
     stops: list[tuple[int, Controls, int]] = []
     starts: list[tuple[int, Controls, int]] = []
     if partway:
-        length = partway_frames(model, gait)
-        stops = [(stop_at + delay, moving, length) for delay in partway_timings(model, gait)]
-        starts = [(start_at + delay, standing, length) for delay in partway_timings(model, gait)]
+        length, delays = partway_frames(model, gait), partway_timings(model, gait)
+        stops = [(stop_at + delay, moving, length) for delay in delays]
+        starts = [(start_at + delay, standing, length) for delay in delays]
     sequence, forks = render_forks(model, [(moving, stop_at), (standing, start_at - stop_at),
                                            (moving, int(round(MOVE_SECONDS * fps)))], stops + starts)
     return sequence, forks[:len(stops)], forks[len(stops):]

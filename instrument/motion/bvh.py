@@ -178,8 +178,7 @@ _SUFFIXES = {
 }
 
 # the formats a motion capture is exported in besides BVH (a folder of them holds takes in the wrong format)
-OTHER_CAPTURE_SUFFIXES = frozenset({".glb", ".gltf", ".vrm", ".fbx", ".c3d", ".trc", ".dae", ".usd", ".usda", ".usdc",
-                                    ".usdz", ".abc", ".amc", ".asf", ".npz", ".blend", ".ma", ".mb"})
+OTHER_CAPTURE_SUFFIXES = frozenset(_SUFFIXES) - {".obj", ".npy", ".json", ".csv", ".toml", ".zip"}  # (not motion)
 
 
 def other_format(path: str, head: str) -> str | None:

@@ -159,10 +159,10 @@ def recover(path: str | Path) -> tuple[int, int, Path, int, list[int]]:
     body = data[match.end():]
     complete = body.split(b"\n")[:-1]  # what follows the last newline is a cut line, or nothing
     width = len(complete[0].split()) if complete else 0
-    good = [line for line in complete if width and len(line.split()) == width]
+    whole = [k for k, line in enumerate(complete) if width and len(line.split()) == width]
+    good = [complete[k] for k in whole]
     cut = len(complete) - len(good) + (1 if body.split(b"\n")[-1].strip() else 0)
     first = data[: match.end()].count(b"\n") + 1  # the first frame's line
-    whole = [k for k, line in enumerate(complete) if width and len(line.split()) == width]
     kept = set(whole)
     inside = [first + k for k in range(whole[-1]) if k not in kept] if whole else []
     if not good:

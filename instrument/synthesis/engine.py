@@ -489,8 +489,8 @@ class Engine:
             self._stood_history[set_off] = self.stream.history[set_off]
             self._stood_history_ids[set_off] = self.stream.history_ids[set_off]
             self._stood_saved[set_off] = self.stream.sent >= 2 and self._no_gesture()
-        if self.units.resuming:  # told to stand again before its first step: its stand goes on from them
-            back = self.units.resumed & self._stood_saved if self._no_gesture() else np.zeros(self.count, np.bool_)
+        if self.units.resuming and self._no_gesture():  # told to stand again before its first step: its stand goes on from them
+            back = self.units.resumed & self._stood_saved
             self.stream.history[back] = self._stood_history[back]
             self.stream.history_ids[back] = self._stood_history_ids[back]
         self._timed("units")
