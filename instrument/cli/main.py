@@ -109,6 +109,10 @@ def _name_crashes() -> None:
 def main(argv: list[str] | None = None) -> int:
     """The command line's command; `argv` None: this process's own (then a process left holding
     a dead JACK client ends as soon as the command is done, see `_end_past_jack`)."""
+    if argv is None:  # this process's own command: its MIDI ports end with it (jackwatch.release)
+        from ..control.jackwatch import ENDS_WITH_PROCESS
+
+        ENDS_WITH_PROCESS.set()
     try:
         code = _command(argv)
     except BaseException:  # a bug's traceback: printed, and past a JACK restart the process still ends at once
@@ -127,9 +131,9 @@ def _abandoned() -> bool:
 
 
 def _end_past_jack(code: int) -> None:
-    """After a JACK server restart the dead server's clients are left to libjack (jackwatch.abandon),
-    which can crash while the interpreter and the C libraries tear down at exit: everything is
-    written and closed by now, so the process ends at once with the command's exit status."""
+    """A process whose MIDI ports were left to its end (jackwatch.release: at a show's end, or past
+    a JACK server restart) ends at once with the command's exit status: libjack can crash while
+    the interpreter and the C libraries tear down at exit. Everything is written and closed by now."""
     if _abandoned():
         for stream in (sys.stdout, sys.stderr):
             try:

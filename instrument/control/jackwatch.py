@@ -114,26 +114,33 @@ class JackWatch:
         self.client = None
 
 
-ABANDONED = threading.Event()  # set once any port was left to a dead server (see `abandon`)
+ABANDONED = threading.Event()  # set once any port was left to the process's end (see `abandon`)
+# set by cli.main for a command that is its process's own: its ports are never taken apart (`release`)
+ENDS_WITH_PROCESS = threading.Event()
 
 
 def abandon(port: object) -> None:
-    """Leave a port whose server died alone for good: never closed, never freed. Taking it apart
-    holds the interpreter for about a second (the frame loop with it) or crashes libjack, and
-    freeing it would do the same later; what it keeps is a few kilobytes per restart. A process
-    that abandoned one ends without the interpreter's teardown (cli.main): libjack still holds
-    the dead client, and a show that survived a restart crashed as it exited (once in CI)."""
+    """Leave a port alone for good: never closed, never freed. A port whose server died: taking
+    it apart holds the interpreter for about a second (the frame loop with it) or crashes
+    libjack, and freeing it would do the same later; what it keeps is a few kilobytes per
+    restart. A process that abandoned one ends without the interpreter's teardown (cli.main):
+    libjack still holds the dead client, and a show that survived a restart crashed as it exited
+    (once in CI)."""
     ctypes.pythonapi.Py_IncRef(ctypes.py_object(port))
     ABANDONED.set()
 
 
 def release(port: object, close: Callable[[], None]) -> None:
-    """Take a device's port apart with `close`, unless a JACK server died under this process: then
-    libjack still holds the dead client, and taking any port apart can crash it (a show that
-    survived a restart crashed closing its MIDI input as it ended, in CI), so the port is left,
-    as the dead one was, to the process's end (cli.main ends such a process at once; the OS and
-    the JACK server reclaim its clients). Everything recorded is closed before the devices."""
-    if ABANDONED.is_set():
+    """Take a device's port apart with `close`, unless the process ends with it, or a JACK server
+    died under this process; then the port is left, as a dead one is, to the process's end
+    (cli.main ends such a process at once, its files written and closed; the OS and the JACK
+    server reclaim its clients). Why not close at the end: rtmidi's `close_port` on a JACK
+    virtual input crashed `instrument run` as it ended, the server alive (a segfault, once in
+    about four full test runs, just after the other end closed its own port), and past a server
+    restart libjack still holds the dead client, where taking any port apart can crash it. In a
+    process that goes on (a test's own ports), ports are closed. Everything recorded is closed
+    before the devices."""
+    if ABANDONED.is_set() or ENDS_WITH_PROCESS.is_set():
         abandon(port)
     else:
         close()
