@@ -181,10 +181,14 @@ def _duration_change(space: StyleSpace, weights: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _shared_rows(per_dim, offsets, base, span, bounded, rows, means, precisions):  # pragma: no cover - compiled
+def _shared_rows(per_dim, offsets, base, span, bounded, limit, rows, means, precisions):  # pragma: no cover - compiled
     """Rows `rows` of the shared tables: lambda 0's means plus the mix's change, and the
     precisions exp(-(lambda 0's log variances + the change)), the change bounded to `span` when
-    `bounded`; per_dim (styles, 3D) each style's weight in each dimension. One pass over the
+    `bounded`, and to +-limit (`clipped_precisions`' rule); per_dim (styles, 3D) each style's
+    weight in each dimension. Every retune makes the shared tables here, whichever way the
+    crowd's own are made: a crowd's lead (no offset of its own) then has a lone character's
+    numbers to the bit (the same sums in the same order, the same exp; numpy's exp on an
+    AVX-512 machine differs from this one in the last bit). One pass over the
     rows asked for, where numpy's product, sum and exp made five over every row (and the
     rows of a gesture can wait until one plays: `StyleInterpolation.complete`), reading the
     offsets of the styles in the mix only (a performer's faders mostly rest at 0; the offsets
@@ -210,6 +214,7 @@ def _shared_rows(per_dim, offsets, base, span, bounded, rows, means, precisions)
             change = log_change[f]
             if bounded:
                 change = min(max(change, span[0, r, f]), span[1, r, f])
+            change = min(max(change, -limit), limit)
             means[r, f] = base[0, r, f] + mean_change[f]
             precisions[r, f] = np.exp(-(base[1, r, f] + change))
 
@@ -260,22 +265,20 @@ class StyleInterpolation:
         reach = float(np.abs(per_dim).max(axis=1) @ self._style_reach)  # no log variance change is larger
         if bounded:
             reach = min(reach, self._span_reach)
-        self._pending = None
+        # the shared tables, made row by row in one pass, the rows `later` left for `complete`
+        means, precisions = self._tables()
+        _shared_rows(per_dim, space.offsets, space.base, space.log_variance_span, bounded, limit, self._now_rows, means,
+                     precisions)
+        self._pending = (per_dim, bounded, means, precisions) if len(self._later_rows) else None
+        rest = self.complete if self._pending is not None else None
         if reach + abs(spread) * self._own_reach <= limit:
-            # no variance at its limit: exp(-(a + b)) = exp(-a) exp(-b), the second kept while the spread stays;
-            # the shared tables made row by row in one pass, the rows `later` left for `complete`
-            means, precisions = self._tables()
-            _shared_rows(per_dim, space.offsets, space.base, space.log_variance_span, bounded, self._now_rows, means,
-                         precisions)
-            self._pending = (per_dim, bounded, means, precisions) if len(self._later_rows) else None
-            tables = CrowdLambda(self._mean_term, means, self._precision_factor, precisions, self._plain,
-                                 rest=self.complete if self._pending is not None else None)
+            # no variance at its limit: exp(-(a + b)) = exp(-a) exp(-b), the second kept while the spread stays
+            tables = CrowdLambda(self._mean_term, means, self._precision_factor, precisions, self._plain, rest=rest)
             duration_change = _duration_change(space, weights)
         else:  # the bound above is loose: the change made whole says whether a variance is at its limit
             change, duration_change = style_change(space, weights, part_weights)
             if np.abs(change[1]).max() + abs(spread) * self._own_reach <= limit:  # none is: two factors
-                tables = CrowdLambda(self._mean_term, space.base[0] + change[0], self._precision_factor,
-                                     np.exp(-(space.base[1] + change[1])), self._plain)
+                tables = CrowdLambda(self._mean_term, means, self._precision_factor, precisions, self._plain, rest=rest)
             else:  # some variance at its limit: a character's precisions cannot be two factors
                 # made whole for every character, they cost a crowd of 32 some 20 ms a frame while a
                 # fader moved past the styles (1,000: most of a second): the shared table holds the
@@ -283,9 +286,8 @@ class StyleInterpolation:
                 # another's rows from its log offset as its window reads them (`clip_*`, stream.py `_gather`)
                 if self._clip_spread != spread:
                     self._clip_spread, self._clip_own = spread, np.multiply(self.offset_change[:, 1], spread)
-                precisions = clipped_precisions(change[1], space.base[1], limit)
-                tables = CrowdLambda(self._mean_term, space.base[0] + change[0], self._clip_own, precisions,
-                                     self._plain, change[1], space.base[1], limit)
+                tables = CrowdLambda(self._mean_term, means, self._clip_own, precisions, self._plain, change[1],
+                                     space.base[1], limit, rest=rest)
         shape = (len(self.offsets), space.labels, space.states)
         means, variances = np.empty(shape), np.empty(shape)
         flat_means, flat_variances = means.reshape(len(means), -1), variances.reshape(len(means), -1)
@@ -302,8 +304,8 @@ class StyleInterpolation:
             per_dim, bounded, means, precisions = self._pending
             self._pending = None
             space = self.space
-            _shared_rows(per_dim, space.offsets, space.base, space.log_variance_span, bounded, self._later_rows, means,
-                         precisions)
+            _shared_rows(per_dim, space.offsets, space.base, space.log_variance_span, bounded, MAX_LOG_VARIANCE_CHANGE,
+                         self._later_rows, means, precisions)
 
     def _tables(self) -> tuple[np.ndarray, np.ndarray]:
         """The shared means and precisions to make: two pairs of arrays in turn, so the tables a
@@ -381,13 +383,22 @@ class CrowdLambda:
 
 def clipped_precisions(log_change: np.ndarray, log_base: np.ndarray, limit: float) -> np.ndarray:
     """exp(-(log_base + clip(log_change, -limit, limit))): the precisions of log variances
-    `log_base` moved by `log_change`, each move within +-limit (MAX_LOG_VARIANCE_CHANGE). The
-    shared table of a crowd past the styles and `CrowdLambda.precisions` are made by it, and the
-    stream's `_gather` makes a row the same way."""
-    out = np.clip(log_change, -limit, limit)
-    out += log_base
-    np.negative(out, out=out)
-    return np.exp(out, out=out)
+    `log_base` (K,...) moved by `log_change` (..., K,...), each move within +-limit
+    (MAX_LOG_VARIANCE_CHANGE). `CrowdLambda.precisions` is made by it; the shared tables
+    (`_shared_rows`) and the stream's `_gather` make a row the same way, with the same exp."""
+    log_change = np.ascontiguousarray(log_change, dtype=np.float64)
+    log_base = np.ascontiguousarray(log_base, dtype=np.float64)
+    out = np.empty_like(log_change)
+    _clipped_exp(log_change.reshape(-1, log_base.size), log_base.reshape(-1), limit, out.reshape(-1, log_base.size))
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _clipped_exp(log_change, log_base, limit, out):  # pragma: no cover - compiled
+    """`clipped_precisions` compiled: numba's exp, the one the stream and the shared tables use."""
+    for n in range(log_change.shape[0]):
+        for k in range(log_change.shape[1]):
+            out[n, k] = np.exp(-(min(max(log_change[n, k], -limit), limit) + log_base[k]))
 
 
 def interpolate(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray | None = None) -> Lambda:
