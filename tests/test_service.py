@@ -658,6 +658,7 @@ BAD_SHOWS = [
     ('characters = 2\nbvh-character = 5\n', 2, "bvh-character: expected a character of the crowd, 0 to 1, not 5"),
     ('humanoid = "bad-bones.toml"\n', 1, "bad-bones.toml: expected a [bones] table"),  # read only by an output before
     ('vmc-root = "knees"\n', 1, "vmc-root: expected one of hips, path, not 'knees'"),
+    ('hid = "sony"\n', 1, "hid: 'sony': expected VVVV:PPPP"),  # the row's reader (control/options.py)
     ('midi-virtual = ["x"]\nmidi-api = "oss"\n', 2, "midi-api: expected one of alsa, jack, not 'oss'"),  # was a traceback
     ('seconds = 1\nsync = "beat"\n', 2, "sync: expected one of midi, link, not 'beat'"),  # was ignored
     ('check = true\n', 1, "check: unknown option"),  # the command line's only
