@@ -761,6 +761,22 @@ def test_keep_recordings_numbers_past_every_take_and_what_a_killed_one_left(tmp_
     assert kept_names(str(night), None) == [str(tmp_path / "night-6.bvh"), None]
 
 
+def test_keep_recordings_names_both_numbered_recordings_as_it_starts(tmp_path):
+    """A start beside an earlier take records NAME-2 for the BVH and the controller log alike, and
+    its start-up line names both (it named the BVH only: where the take's controls went was left to
+    guess, and the log is what replays to the BVH)."""
+    night, log = tmp_path / "night.bvh", tmp_path / "night.jsonl"
+    command = RUN + ["--no-osc", "--fast", "--seconds", "1", "--bvh", str(night), "--record", str(log), "--keep-recordings"]
+    first = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert first.returncode == 0 and night.exists() and log.exists(), first.stderr
+    second = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert second.returncode == 0, second.stderr
+    started = [line for line in second.stderr.splitlines() if line.startswith("model ")]
+    numbered_bvh, numbered_log = tmp_path / "night-2.bvh", tmp_path / "night-2.jsonl"
+    assert len(started) == 1 and f"recording {numbered_bvh}" in started[0] and str(numbered_log) in started[0], second.stderr
+    assert read_bvh(numbered_bvh).frames == 30 and json.loads(numbered_log.read_text().splitlines()[0])
+
+
 @pytest.mark.parametrize("console", [[], ["--console", "0"]])
 def test_the_show_file_given_as_its_own_presets_is_refused_by_a_check(tmp_path, console):
     """--presets naming the show itself (a save would replace the show with its presets): one line at

@@ -113,7 +113,8 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
             crowd += f"VMC sends characters 0 to {vmc_characters - 1} (--vmc-characters), the flat profile all; "
         console.say(f"model {args.model or default_model_path()}; {fps:g} fps; {crowd}controls: {', '.join(sources) or 'none'}; "
                     f"OSC to {', '.join(map(str, targets)) or 'nowhere'}" + (f"; recording {args.bvh}" if args.bvh else "")
-                    + (f" (character {bvh_character})" if args.bvh and characters > 1 else ""))
+                    + (f" (character {bvh_character})" if args.bvh and characters > 1 else "")
+                    + (f"; controls logged to {args.record}" if args.record else ""))  # (--keep-recordings: both numbered)
     if not args.fast and not args.normal_priority:
         refused = realtime_scheduling()
         if refused and not args.quiet:
