@@ -40,7 +40,7 @@ from __future__ import annotations
 from typing import Collection
 
 import numpy as np
-from numba import njit, typeof
+from numba import njit
 from numba.types import Array, float64, int64
 
 from ..models.gestures import gesture_labels, gesture_repeats
@@ -104,7 +104,7 @@ class GestureLayer:
         self._move_call: object = None
         self._move_arguments: tuple = ()  # made when the gait begins to host
         # `_remember`'s, while no gesture plays
-        self._remember_call = _entry_with_frame(_remember, (self.shown, self.shown_ids, self.solved.start))
+        self._remember_call = entry_point(_remember, (self.shown, self.shown_ids, self.solved.start), *_FRAME_TYPES)
         self.started = 0  # gestures begun
 
     @property
@@ -211,7 +211,7 @@ class GestureLayer:
             self._move_arguments = (gait.history, self.solved.start, crowd.history, crowd.history_ids, crowd.counters,
                                     crowd.carry, work.ids, work.counts, work.carries, crowd.space.states, self.weights,
                                     self.columns, self.shown, self.shown_ids)
-            self._move_call = _entry_with_frame(_move_guest, self._move_arguments)
+            self._move_call = entry_point(_move_guest, self._move_arguments, *_FRAME_TYPES)
 
     def after(self, frames: np.ndarray, ids: np.ndarray) -> np.ndarray:
         """The frame (N, D) with the gesture's upper body layered on at this frame's weights
@@ -361,18 +361,11 @@ def _move_guest(gait_history, lo, history, history_ids, counters, carry, ids, co
     _blend(weights, frames, history[:, 1], columns, lo, shown, shown_ids, frame_ids)
 
 
-def _entry_with_frame(kernel, own: tuple) -> object:
-    """The compiled entry point of `kernel` (whose last two arguments are a frame and its states)
-    for the layer's and the streams' own arguments `own` and a frame (N, D) of float64 and its
-    states (N,) of int64, each of any layout (the engine's frame is new each frame, its states a
-    view of the stream's): the types `GestureLayer.after` checks before it calls it."""
-    types = tuple(typeof(a) for a in own) + (Array(float64, 2, "A"), Array(int64, 1, "A"))
-    if types not in kernel.overloads:
-        kernel.compile(types)
-    return kernel.overloads[types].entry_point
-
-
 _FLOAT64, _INT64 = np.dtype(np.float64), np.dtype(np.int64)
+# the last two arguments of `_remember` and `_move_guest` as their entry points take them: a frame (N, D) of
+# float64 and its states (N,) of int64, each of any layout (the engine's frame is new each frame, its states a
+# view of the stream's), the types `GestureLayer.after` checks before it calls them
+_FRAME_TYPES = (Array(float64, 2, "A"), Array(int64, 1, "A"))
 
 
 @njit(cache=True, nogil=True)
