@@ -22,7 +22,8 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from instrument.evaluation.targets import check, summary, table
-from instrument.evaluation.units import assess_units, partway_summary, partway_table
+from instrument.cli.evaluate_cmd import partway_table
+from instrument.evaluation.units import assess_units, partway_summary
 from instrument.models.modelfile import default_model_path, load_model
 
 DATA = REPO.parent / "shared" / "data"
@@ -58,7 +59,7 @@ def main() -> int:
     if args.json:
         Path(args.json).write_text(json.dumps(_plain({
             "model": args.model, "weights": result.weights, "synth": result.synth, "real": result.real,
-            "transitions": result.transitions, "real_jumps": result.real_jumps, "partway": result.partway,
+            "transitions": result.transitions, "real_jumps": result.real_jumps, "partway": result.partway_by_name(),
             "partway_summary": partway_summary(result), "targets": [vars(r) for r in rows]}), indent=1))
     return 0
 

@@ -5,6 +5,7 @@ examples/units_figures.py (docs/evaluate.md)."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
@@ -109,6 +110,12 @@ def test_evaluate_units_prints_each_unit_beside_its_real_takes(tmp_path):
     transition_rows = [line for line in lines if line.startswith("| ") and "->" in line.split("|")[1]]
     assert transition_rows  # (the filter finds the transition table's rows, not only its header)
     assert not any("called off" in line or "start stopped" in line for line in transition_rows)
+    report = cli("evaluate", "--styles", "elderly", "--variants", "one", "--seconds", "2", "--units", "--json",
+                 "--real", str(tmp_path))
+    assert report.returncode == 0, report.stderr
+    units = json.loads(report.stdout)["units"]  # every part-way case by name, and the summary's rows
+    assert {"walk stop called off elderly x2", "run start stopped elderly -1"} <= set(units["partway"])
+    assert {"walk stop called off 1", "run start stopped x2"} <= set(units["partway_summary"])
 
 
 def test_a_fork_plays_as_the_same_plan_from_rest(model):
@@ -201,16 +208,15 @@ def test_the_part_way_summary_takes_the_worst_style_against_its_own_bounds():
     against the real stance skate the same way."""
     from instrument.evaluation.units import UnitAssessment, partway_summary
 
-    result = UnitAssessment(weights={"active": {"active": 1.0}, "normal": {"normal": 1.0}, "active x2": {"active": 2.0}},
-                            real_jumps={"walk": {"all": 10.0, "active": 8.0, "normal": 4.0}},
+    result = UnitAssessment(real_jumps={"walk": {"all": 10.0, "active": 8.0, "normal": 4.0}},
                             real={"walk": {"active": {"stance_skate_cm_s": 5.0}, "normal": {"stance_skate_cm_s": 2.0}}})
 
     def case(jump: float, steady: float, slide: float) -> dict:
         return {"jump_cm_f2": jump, "gait_jump_cm_f2": steady, "jump_joint": "Toes_R", "delay_frames": 5.0, "slide_cm_s": slide}
 
-    result.partway["walk stop called off active"] = case(9.0, 6.0, 4.0)  # 1.5x its walk, 1.125x its takes; slide 0.8x
-    result.partway["walk stop called off normal"] = case(6.0, 3.0, 3.0)  # 2.0x, 1.5x; slide 1.5x
-    result.partway["walk stop called off active x2"] = case(12.0, 10.0, 1.0)  # 1.2x; x all styles' takes (10)
+    result.partway["walk", "stop called off", "active", 1.0] = case(9.0, 6.0, 4.0)  # 1.5x its walk, 1.125x its takes; slide 0.8x
+    result.partway["walk", "stop called off", "normal", 1.0] = case(6.0, 3.0, 3.0)  # 2.0x, 1.5x; slide 1.5x
+    result.partway["walk", "stop called off", "active", 2.0] = case(12.0, 10.0, 1.0)  # 1.2x; x all styles' takes (10)
     summary = partway_summary(result)
     assert set(summary) == {"walk stop called off 1", "walk stop called off x2"}
     one = summary["walk stop called off 1"]

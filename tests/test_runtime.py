@@ -19,6 +19,7 @@ from instrument.output.recorder import BvhRecorder
 from instrument.runtime.clock import IDLE_EVERY, IDLE_UNTIL, FrameClock
 from instrument.terminal import Console
 from instrument.runtime.performance import Show, perform
+from conftest import REPO
 from frame_indices import FrameIndices
 from oscrecv import Receiver, frame_count, free_port
 from waiting import wait_until
@@ -461,6 +462,10 @@ def test_log_replay_and_its_errors(tmp_path):
     (["--replay", "missing.jsonl"], "missing.jsonl: cannot read"),
     (["--fast"], "--fast needs an end"),
     (["--hid", "12345678"], "error: --hid '12345678': expected VVVV:PPPP"),  # the option named, as every option's is
+    # read by its row before any mapping is chosen: with a mapping for HID given, it was read only as the device
+    # opened, and its error named no option
+    (["--hid", "12345678", "--mapping", str(REPO / "mappings" / "sony-dualshock4.toml"), "--no-osc"],
+     "error: --hid '12345678': expected VVVV:PPPP"),
 ])
 def test_run_errors_are_one_line(args, message):
     result = subprocess.run(RUN + args, capture_output=True, text=True, timeout=60)

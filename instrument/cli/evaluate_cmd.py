@@ -96,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
             report["units"] = {"weights": units.weights, "synth": {k: _clean(v) for k, v in units.synth.items()},
                                "real": {k: _clean(v) for k, v in units.real.items()},
                                "transitions": _clean(units.transitions), "real_jumps": units.real_jumps,
-                               "partway": _clean(units.partway), "partway_summary": _clean(partway_summary(units)),
+                               "partway": _clean(units.partway_by_name()), "partway_summary": _clean(partway_summary(units)),
                                "targets": [vars(t) | {"measured": _number(t.measured)} for t in targets]}
         if gestures is not None:
             report["gestures"] = {"synth": _clean(gestures.synth), "real": _clean(gestures.real)}
@@ -160,6 +160,12 @@ TRANSITION_COLUMNS = (
     ("jump_cm_f2", "jump cm/f^2", 1.0, "{:.1f}"), ("jump_joint", "joint", None, "{}"),
     ("gait_jump_cm_f2", "gait's jump cm/f^2", 1.0, "{:.1f}"), ("air_frames", "air frames", 1.0, "{:.0f}"),
 )
+PARTWAY_COLUMNS = (  # of evaluation.units.partway_summary
+    ("jump_cm_f2", "worst jump cm/f^2", 1.0, "{:.1f}"), ("x_steady", "x its steady gait's", 1.0, "{:.2f}"),
+    ("x_real", "x real takes'", 1.0, "{:.2f}"), ("walk", "of", None, "{}"), ("jump_joint", "joint", None, "{}"),
+    ("delay_frames", "2nd command after (frames)", 1.0, "{:.0f}"), ("slide_cm_s", "worst slide cm/s", 1.0, "{:.1f}"),
+    ("slide_x_real", "x real stance skate", 1.0, "{:.2f}"), ("slide_walk", "of", None, "{}"),
+)
 
 
 def _cells(name: str, figures: dict, columns) -> str:
@@ -198,7 +204,19 @@ def unit_tables(units) -> str:
             lines.append(f"\nLargest joint velocity jump of the real takes (cm/frame^2): {jumps}")
         parts.append("\n".join(lines))
     if units.partway:
-        from ..evaluation.units import partway_summary, partway_table
+        from ..evaluation.units import partway_summary
 
         parts.append(partway_table(partway_summary(units)))
     return "\n\n".join([""] + parts) if parts else ""
+
+
+def partway_table(summary: dict[str, dict[str, float | str]]) -> str:
+    """A Markdown table of `evaluation.units.partway_summary`, under a line saying what it is."""
+    from ..evaluation.transitions import PARTWAY_STEPS
+
+    lines = ["Changes part-way (figures, not targets): a stop called off and a start stopped, the second command "
+             f"swept over the first {PARTWAY_STEPS:g} steps after the first; per gait and weighting, the worst of the styles "
+             "swept.", "",
+             "| change | " + " | ".join(h for _, h, _, _ in PARTWAY_COLUMNS) + " |", "|---" * (len(PARTWAY_COLUMNS) + 1) + "|"]
+    lines += [_cells(name, row, PARTWAY_COLUMNS) for name, row in summary.items()]
+    return "\n".join(lines)

@@ -10,7 +10,7 @@ from pathlib import Path
 from ..control.devices import MidiInput
 from ..control.hid import HidInput, detect_hid
 from ..control.learn import detect
-from ..control.mapping import parse_hid_id
+from ..control.options import read
 from ..control.spec import TABLE
 from ..errors import UserError
 from ..outputfile import check_output, written
@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--out {out}: give a .toml file (a mapping)")
     if not (args.midi or args.midi_virtual or args.hid):
         raise UserError("give --midi PATTERN (a port to listen to), --midi-virtual NAME or --hid VVVV:PPPP")
-    hid_ids = parse_hid_id(args.hid, lambda m: UserError(f"--hid {m}")) if args.hid else None
+    hid_ids = read("hid", args.hid) if args.hid else None
     from ..control.state import ControlState  # (with the model's code: loaded when run, not for --help)
     from ..models.modelfile import load_model
 

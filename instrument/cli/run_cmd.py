@@ -10,14 +10,13 @@ from ..control.devices import MidiClockReader, MidiInput, OscInput
 from ..control.hid import HidInput
 from ..control.hid_feedback import HidFeedback
 from ..control.loghead import header_line
-from ..control.mapping import parse_hid_id
 from ..errors import UserError
 from ..runtime.health import Health
 from ..runtime.notify import SystemdNotifier
 from ..runtime.priority import realtime_scheduling
 from ..runtime.stopping import StopFlag
 from ..shipped import default_model_path
-from ..control.options import RUN
+from ..control.options import RUN, read
 from ..output.osc import FLAT_PORT, VMC_PORT
 from .showplan import plan_show
 
@@ -65,7 +64,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
             if mapper is not None and not args.no_feedback:
                 outputs.append(MidiFeedback(mapper, state, console, pattern, virtual, args.midi_api))
         if args.hid:
-            vendor, product = parse_hid_id(args.hid)
+            vendor, product = read("hid", args.hid)
             devices.append(HidInput(console, vendor, product))
             mapper = hub.mapper(devices[-1].source)
             if mapper is not None and mapper.mapping.feedback is not None and not args.no_feedback:
@@ -114,7 +113,8 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
             crowd += f"VMC sends characters 0 to {vmc_characters - 1} (--vmc-characters), the flat profile all; "
         console.say(f"model {args.model or default_model_path()}; {fps:g} fps; {crowd}controls: {', '.join(sources) or 'none'}; "
                     f"OSC to {', '.join(map(str, targets)) or 'nowhere'}" + (f"; recording {args.bvh}" if args.bvh else "")
-                    + (f" (character {bvh_character})" if args.bvh and characters > 1 else ""))
+                    + (f" (character {bvh_character})" if args.bvh and characters > 1 else "")
+                    + (f"; controls logged to {args.record}" if args.record else ""))  # (--keep-recordings: both numbered)
     if not args.fast and not args.normal_priority:
         refused = realtime_scheduling()
         if refused and not args.quiet:

@@ -25,8 +25,8 @@ from typing import TYPE_CHECKING, Any
 from ..control.hid import choose_mapping as choose_hid_mapping
 from ..control.kinds import midi_fits
 from ..control.loghead import logged_crowd, logged_mappings, logged_per_device, unreadable_sources
-from ..control.mapping import load_mapping, parse_hid_id, preset_problems, style_problems, target_line
-from ..control.options import RUN, RUN_BY_KEY, Option, host_port
+from ..control.mapping import load_mapping, preset_problems, style_problems, target_line
+from ..control.options import RUN, RUN_BY_KEY, Option, host_port, read
 from ..control.options import value as option_value
 from ..control.presetfile import model_of, read_presets, read_presets_file
 from ..errors import UserError, quoted
@@ -46,7 +46,9 @@ if TYPE_CHECKING:
     from ..control.state import ControlState
 
 DEFAULT_TARGETS = (f"127.0.0.1:{VMC_PORT}/vmc", f"127.0.0.1:{FLAT_PORT}/flat")
-SHOW_FILE_CHECKS = {"osc": parse_target, "hid": parse_hid_id}  # beyond the row's kind, checked as the file is read
+# beyond the row's kind, checked as the file is read: the rows' readers, and --osc's (output/osc.py, a layer
+# above the table's in control/)
+SHOW_FILE_CHECKS = {"osc": parse_target} | {option.key: option.reader for option in RUN if option.reader}
 READS = ("model", "replay", "score", "humanoid", "mapping")  # files that must exist before the show starts
 
 
@@ -70,7 +72,7 @@ def apply_show_file(args: argparse.Namespace) -> TomlFile:
         for k, text in enumerate(value if isinstance(value, list) else [value]) if key in SHOW_FILE_CHECKS else ():
             try:
                 SHOW_FILE_CHECKS[key](text)
-            except UserError as e:
+            except (UserError, ValueError) as e:
                 line = show.line(key, k) if isinstance(value, list) else show.line(key)
                 raise UserError(f"{path}:{line}: {key}: {str(e).removeprefix('--osc ')}") from None
         if getattr(args, option.dest) is None:  # the command line wins
@@ -201,6 +203,8 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
     for option in RUN:
         if option.kind == "address" and getattr(args, option.dest):
             host_port(f"run {option.flag}", getattr(args, option.dest))
+        elif option.reader and getattr(args, option.dest):
+            read(option.key, getattr(args, option.dest))
     with origins.blame("model"):
         model = load_model(args.model or default_model_path())
     state = ControlState(model.style_names, model.states)
@@ -296,7 +300,7 @@ def choose_mappings(args: argparse.Namespace, state: ControlState, console: Cons
                 mappings.append(chosen[0])
     if args.hid and not any(m.hid or m.hid_usages for m in mappings):
         shipped = [load_mapping(p, state) for p in shipped_mappings()]
-        chosen, why = choose_hid_mapping(shipped, *parse_hid_id(args.hid, lambda m: UserError(f"--hid {m}")))
+        chosen, why = choose_hid_mapping(shipped, *read("hid", args.hid))
         if chosen is None:
             raise UserError(f"--hid {args.hid}: {why}; give --mapping (instrument learn --hid writes one)")
         console.say(f"HID mapping: {chosen.name} ({chosen.path}), {why}")

@@ -23,6 +23,7 @@ from ..tomlfile import Field, TomlFile, key_lines
 from .events import ControlEvent, TargetEvent
 from .hid import DS4_NAMES, canonical_input, is_usage_name, legacy_event, unit_with_deadzone
 from .hid_feedback import FeedbackSpec, parse_feedback
+from .options import parse_hid_id
 from .checks import between, is_number, row_of, unknown, value_refusal
 from .presetfile import model_of, read_presets
 from .spec import TABLE, Row
@@ -102,14 +103,6 @@ class Mapping:
     text: str = ""  # the TOML it was read from: a recorded log carries it, so the replay reads events alike
 
 
-def parse_hid_id(text: object, fail=None) -> tuple[int, int]:
-    match = re.fullmatch(r"([0-9a-fA-F]{4}):([0-9a-fA-F]{4})", str(text))
-    if not match:
-        message = f"{quoted(text)}: expected VVVV:PPPP (hexadecimal vendor and product id, e.g. 054c:09cc)"
-        raise fail(message) if fail else UserError(message)
-    return int(match.group(1), 16), int(match.group(2), 16)
-
-
 def load_mapping(path: str | Path, state: ControlState | None = None, text: str | None = None,
                  strict_styles: bool = False) -> Mapping:
     """The mapping file at `path` (or, given `text`, that TOML, with errors naming `path`).
@@ -148,7 +141,10 @@ def load_mapping(path: str | Path, state: ControlState | None = None, text: str 
             raise fail(f"not a regular expression: {e}", "midi") from None
     hid_ids = None
     if hid is not None:
-        hid_ids = tuple(parse_hid_id(h, lambda m: fail(m, "hid")) for h in (hid if isinstance(hid, list) else [hid]))
+        try:
+            hid_ids = tuple(parse_hid_id(h) for h in (hid if isinstance(hid, list) else [hid]))
+        except ValueError as e:
+            raise fail(str(e), "hid") from None
     controls = [_control(doc, item, k, fail, model) for k, item in enumerate(data.get("control", []))]
     presets = read_presets(doc, model)
     morph = data.get("morph", 0.0)

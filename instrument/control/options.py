@@ -15,7 +15,9 @@ control/ (below runtime and the console, which read [HOST:]PORT addresses throug
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
+from typing import Callable
 
 from ..errors import UserError, quoted
 from ..synthesis.parameters import DEFAULT_SPACING, DEFAULT_VMC_CHARACTERS
@@ -99,6 +101,16 @@ OPTIONS: dict[str, Accepts] = {
 }
 
 
+def parse_hid_id(text: object) -> tuple[int, int]:
+    """A HID device's VVVV:PPPP (hexadecimal vendor and product id) as (vendor, product), or
+    ValueError saying what is expected: the reader of --hid's row, which a mapping's `hid` key
+    is read by too."""
+    match = re.fullmatch(r"([0-9a-fA-F]{4}):([0-9a-fA-F]{4})", str(text))
+    if not match:
+        raise ValueError(f"{quoted(text)}: expected VVVV:PPPP (hexadecimal vendor and product id, e.g. 054c:09cc)")
+    return int(match.group(1), 16), int(match.group(2), 16)
+
+
 KINDS = ("text", "path", "number", "address", "flag", "list", "paths", "choice")
 
 
@@ -109,7 +121,8 @@ class Option:
     kind: "text" (a string), "path" (a file; in a show file relative to it), "number" (read by
     `accepts`), "address" ([HOST:]PORT, the port read by `accepts`), "flag" (on or off; true or
     false in a show file), "list" and "paths" (repeatable: a string or a list of strings in a show
-    file), "choice" (one of `choices`). `in_file` False: the command line only."""
+    file), "choice" (one of `choices`). `reader`: a text's own form, checked and read (ValueError
+    saying what is expected: `read`). `in_file` False: the command line only."""
 
     flag: str  # "--fps"; its key in a show file is "fps"
     kind: str
@@ -119,6 +132,7 @@ class Option:
     choices: tuple[str, ...] = ()
     default: object = None  # what `run` uses when neither the command line nor the show file gives it
     in_file: bool = True
+    reader: Callable[[str], object] | None = None
 
     @property
     def dest(self) -> str:
@@ -130,8 +144,9 @@ class Option:
 
     def __post_init__(self):
         if self.kind not in KINDS or (self.kind in ("number", "address")) != (self.accepts is not None) \
-                or (self.kind == "choice") != bool(self.choices):
-            raise ValueError(f"Option {self.flag}: kind {self.kind!r}, accepts {self.accepts}, choices {self.choices}")
+                or (self.kind == "choice") != bool(self.choices) or (self.reader is not None and self.kind != "text"):
+            raise ValueError(f"Option {self.flag}: kind {self.kind!r}, accepts {self.accepts}, choices {self.choices}, "
+                             f"reader {self.reader}")
 
     def argparse_options(self) -> dict:
         """The keyword arguments of argparse's `add_argument` for this row (values are read by
@@ -179,7 +194,8 @@ RUN: tuple[Option, ...] = (
            "channel 10)", metavar="NAME"),
     Option("--no-feedback", "flag", "send nothing back to the MIDI controller (default: LEDs and motor faders follow "
            "the state)", default=False),
-    Option("--hid", "text", "HID game controller by vendor and product id, e.g. 054c:09cc", metavar="VVVV:PPPP"),
+    Option("--hid", "text", "HID game controller by vendor and product id, e.g. 054c:09cc", metavar="VVVV:PPPP",
+           reader=parse_hid_id),
     Option("--mapping", "paths", "mapping file, repeatable (default: the shipped mapping that matches the device)",
            metavar="FILE.toml"),
     Option("--osc-in", "address", "accept control from OSC surfaces (bound to 127.0.0.1 unless HOST is given)", PORT,
@@ -226,6 +242,16 @@ def value(key: str, text: object, where: str | None = None):
         return OPTIONS[key].read(text)
     except ValueError as e:
         raise UserError(f"{where or key.split(' ', 1)[1]}: {e}") from None
+
+
+def read(key: str, text: object, where: str | None = None) -> object:
+    """`text` of `run`'s option `key` ("hid") read by its row's reader, or a one-line UserError
+    naming the option and the text (`--hid '1234': expected ...`, as `host_port`'s) or `where`."""
+    option = RUN_BY_KEY[key]
+    try:
+        return option.reader(text)
+    except ValueError as e:
+        raise UserError(f"{where}: {e}" if where else f"{option.flag} {e}") from None
 
 
 def host_port(key: str, text: object, where: str | None = None) -> tuple[str, int, bool]:

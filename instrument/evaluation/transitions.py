@@ -88,7 +88,7 @@ def step_frames(model: Model, unit: str) -> float:
 def transition_figures(model: Model, gait: str, weights: dict[str, float], measure,
                        partway: bool = False) -> tuple[dict[str, dict[str, float]], dict[str, dict[str, float]]]:
     """{"<gait>->stand": figures, "stand-><gait>": figures} of one sequence (see the module's
-    text), and with `partway` {"<gait> stop called off": figures, "<gait> start stopped": figures}
+    text), and with `partway` {"stop called off": figures, "start stopped": figures}
     (PARTWAY_CHANGES), the worst of the sweep of changes part-way (`partway_figures`; {} without);
     `measure` is units._Measure (the limbs, scale and ground to measure with)."""
     sequence, stops, starts = transition_forks(model, gait, weights, partway)
@@ -133,7 +133,7 @@ def transition_figures(model: Model, gait: str, weights: dict[str, float], measu
     out = {f"{gait}->stand": stop | window(stop_at, stopped, start_at) | own,
            f"stand->{gait}": start | window(start_at, reached, len(positions)) | own}
     called_off, stopped_again = PARTWAY_CHANGES
-    partway = {f"{gait} {change}": partway_figures(forks, measure) | own
+    partway = {change: partway_figures(forks, measure) | own
                for change, forks in ((called_off, stops), (stopped_again, starts)) if forks}
     return out, partway
 

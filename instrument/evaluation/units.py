@@ -39,7 +39,7 @@ from ..training.corpus import Take, TakeFile, make_takes, read_motions
 from .assessment import SETTLE_SECONDS, _cross_validated, model_limbs, _model_ground, real_pairs
 from .recognition import LinearDiscriminant, step_features
 from .sequence import horizontal_speed, velocity_jumps
-from .transitions import PARTWAY_CHANGES, PARTWAY_STEPS, transition_figures
+from .transitions import transition_figures
 
 UNIT_SECONDS = 8.0  # length of each generated run, turn and stand (after the settling half second)
 WEIGHTINGS = (("", 1.0), (" x2", 2.0), (" -1", -1.0))  # the variants of a style: name suffix, weight
@@ -76,8 +76,19 @@ class UnitAssessment:
     synth: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)  # section -> walk name -> figures
     real: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)  # section -> style (turn: "style left") -> figures
     transitions: dict[str, dict[str, float]] = field(default_factory=dict)  # "walk->stand active x2" -> figures
-    partway: dict[str, dict[str, float]] = field(default_factory=dict)  # "walk stop called off active x2" -> the sweep's worst
+    # (gait, change, style, weight): ("walk", "stop called off", "active", 2.0) -> the sweep's worst
+    partway: dict[tuple[str, str, str, float], dict[str, float]] = field(default_factory=dict)
     real_jumps: dict[str, dict[str, float]] = field(default_factory=dict)  # unit -> style or "all" -> largest jump of its real takes, cm/frame^2
+
+    def partway_by_name(self) -> dict[str, dict[str, float]]:
+        """`partway` keyed as the JSON has it: "walk stop called off active x2"."""
+        return {f"{gait} {change} {style}{weight_suffix(weight)}": figures
+                for (gait, change, style, weight), figures in self.partway.items()}
+
+
+def weight_suffix(weight: float) -> str:
+    """A weight of WEIGHTINGS as a walk's name ends with it: "" (1), " x2", " -1"."""
+    return next(suffix for suffix, w in WEIGHTINGS if w == weight)
 
 
 def load_real_units(model: Model, folders: list[Path], cm: float) -> dict[str, RealUnit]:
@@ -209,8 +220,8 @@ class _Assessor:
                     self.result.weights[name] = {style: weight}
                     transitions, partway = transition_figures(self.model, gait, {style: weight}, self.measure,
                                                               partway=style in swept)
-                    for into, made in ((self.result.transitions, transitions), (self.result.partway, partway)):
-                        into.update({f"{kind} {name}": figures for kind, figures in made.items()})
+                    self.result.transitions.update({f"{kind} {name}": figures for kind, figures in transitions.items()})
+                    self.result.partway.update({(gait, change, style, weight): figures for change, figures in partway.items()})
                     self.note(f"{gait}->stand->{gait} {name}")
 
     def note(self, name: str) -> None:
@@ -236,12 +247,9 @@ def partway_summary(result: UnitAssessment) -> dict[str, dict[str, float | str]]
     largest multiple of the real takes' stance skate (`slide_x_real`: the style's at 1, the
     largest style's at x2 and -1), with its slide (`slide_cm_s`) and name (`slide_walk`)."""
     out: dict[str, dict[str, float | str]] = {}
-    for name, made in result.partway.items():
-        gait, rest = name.split(" ", 1)
-        kind = next(change for change in PARTWAY_CHANGES if rest.startswith(change + " "))
-        walk = rest[len(kind) + 1:]
-        style, weight = next(iter(result.weights[walk].items()))
-        suffix = next(s for s, w in WEIGHTINGS if w == weight)
+    for (gait, kind, style, weight), made in result.partway.items():
+        suffix = weight_suffix(weight)
+        walk = f"{style}{suffix}"
         jumps, reals = result.real_jumps.get(gait, {}), result.real.get(gait, {})
         real_jump = jumps.get(style if weight == 1.0 else "all", float("nan"))
         skates = [f["stance_skate_cm_s"] for f in reals.values()]
@@ -261,28 +269,6 @@ def partway_summary(result: UnitAssessment) -> dict[str, dict[str, float | str]]
         if not row["slide_x_real"] <= mine["slide_x_real"] and not np.isnan(row["slide_x_real"]):
             mine |= {"slide_cm_s": row["slide_cm_s"], "slide_x_real": row["slide_x_real"], "slide_walk": walk}
     return out
-
-
-PARTWAY_COLUMNS = (  # (figure, heading, format)
-    ("jump_cm_f2", "worst jump cm/f^2", "{:.1f}"), ("x_steady", "x its steady gait's", "{:.2f}"),
-    ("x_real", "x real takes'", "{:.2f}"), ("walk", "of", "{}"), ("jump_joint", "joint", "{}"),
-    ("delay_frames", "2nd command after (frames)", "{:.0f}"), ("slide_cm_s", "worst slide cm/s", "{:.1f}"),
-    ("slide_x_real", "x real stance skate", "{:.2f}"), ("slide_walk", "of", "{}"),
-)
-
-
-def partway_table(summary: dict[str, dict[str, float | str]]) -> str:
-    """A Markdown table of `partway_summary`, under a line saying what it is."""
-    def cell(value, fmt: str) -> str:
-        return "-" if value is None or (isinstance(value, float) and np.isnan(value)) else fmt.format(value)
-
-    lines = ["Changes part-way (figures, not targets): a stop called off and a start stopped, the second command "
-             f"swept over the first {PARTWAY_STEPS:g} steps after the first; per gait and weighting, the worst of the styles "
-             "swept.", "",
-             "| change | " + " | ".join(h for _, h, _ in PARTWAY_COLUMNS) + " |", "|---" * (len(PARTWAY_COLUMNS) + 1) + "|"]
-    lines += ["| " + " | ".join([name] + [cell(row.get(key), fmt) for key, _, fmt in PARTWAY_COLUMNS]) + " |"
-              for name, row in summary.items()]
-    return "\n".join(lines)
 
 
 class _Measure:

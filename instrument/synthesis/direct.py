@@ -64,10 +64,12 @@ class DirectCall:
         return entry(*arguments)
 
 
-def entry_point(kernel: Any, arguments: tuple) -> Any:
+def entry_point(kernel: Any, arguments: tuple, *last: Any) -> Any:
     """The compiled entry point of `kernel` for the types of `arguments` (compiled if need be):
-    called with arguments of those same types, it skips the dispatcher's typing of each."""
-    types = tuple(typeof(a) for a in arguments)
+    called with arguments of those same types, it skips the dispatcher's typing of each. `last`:
+    the numba types of arguments after those, given as types (an array of any layout, say, where
+    the caller checks what it passes: gestures.py's frames)."""
+    types = tuple(typeof(a) for a in arguments) + last
     if types not in kernel.overloads:
         kernel.compile(types)
     return kernel.overloads[types].entry_point

@@ -40,7 +40,7 @@ from __future__ import annotations
 from typing import Collection
 
 import numpy as np
-from numba import njit, typeof
+from numba import njit
 from numba.types import Array, float64, int64
 
 from ..models.gestures import gesture_labels, gesture_repeats
@@ -49,7 +49,7 @@ from ..motion.features import REFERENCE_FPS
 from .direct import entry_point
 from .interpolation import StyleSpace, body_groups
 from .parameters import GROUPS
-from .stream import FILLED, FOLLOWER, LABEL, TAIL, UNIT, Crowd, _commit, _plan_window
+from .stream import FOLLOWER, LABEL, UNIT, Crowd, _commit, _plan_window, _short_of_draws
 
 EASE_IN = 6 / REFERENCE_FPS  # seconds the gesture's upper body takes to come in (its stream starts where the gait is)
 EASE_OUT = 12 / REFERENCE_FPS  # seconds it takes to hand the arms back to the gait after the lower
@@ -104,7 +104,7 @@ class GestureLayer:
         self._move_call: object = None
         self._move_arguments: tuple = ()  # made when the gait begins to host
         # `_remember`'s, while no gesture plays
-        self._remember_call = _entry_with_frame(_remember, (self.shown, self.shown_ids, self.solved.start))
+        self._remember_call = entry_point(_remember, (self.shown, self.shown_ids, self.solved.start), *_FRAME_TYPES)
         self.started = 0  # gestures begun
 
     @property
@@ -175,8 +175,7 @@ class GestureLayer:
             arguments = self._plan_arguments = (
                 crowd.counters, self.label, self.done, self.tapped, self._holding, self._repeats, self.first,
                 self._next_units, crowd.base, crowd.sigma, crowd.carry, crowd.pool, crowd.history_ids, work.ids, work.counts,
-                work.carries, gait.guest_rows, crowd.space.states, self.ease, self.weights, self.rise, self.fall,
-                crowd.lookahead + 4)  # the draws a plan over the window's frames may take (`Crowd._draws_for`)
+                work.carries, gait.guest_rows, crowd.space.states, self.ease, self.weights, self.rise, self.fall)
             if self._plan_call is None:
                 self._plan_call = entry_point(_plan_guest, arguments)
         short, playing, whole = self._plan_call(*arguments)
@@ -212,7 +211,7 @@ class GestureLayer:
             self._move_arguments = (gait.history, self.solved.start, crowd.history, crowd.history_ids, crowd.counters,
                                     crowd.carry, work.ids, work.counts, work.carries, crowd.space.states, self.weights,
                                     self.columns, self.shown, self.shown_ids)
-            self._move_call = _entry_with_frame(_move_guest, self._move_arguments)
+            self._move_call = entry_point(_move_guest, self._move_arguments, *_FRAME_TYPES)
 
     def after(self, frames: np.ndarray, ids: np.ndarray) -> np.ndarray:
         """The frame (N, D) with the gesture's upper body layered on at this frame's weights
@@ -320,15 +319,15 @@ def _progress(now, states, first, label, done, ease, weights, rise, fall):  # pr
 
 @njit(cache=True, nogil=True)
 def _plan_guest(counters, label, done, tapped, held, repeats, first, next_units, base, sigma, carry, pool, history_ids, ids,
-                counts, carries, rows, states, ease, weights, rise, fall, need):  # pragma: no cover - compiled
+                counts, carries, rows, states, ease, weights, rise, fall):  # pragma: no cover - compiled
     """The gesture's frame planned for the gait's solve to make, in one call: each character's
     unit (`_choose_units`), its plan and its window's rows into `rows` (the gait's `guest_rows`),
-    and its weight at the frame planned (`_progress`). Returns whether a character has fewer than
-    `need` draws left in its pool (then it has done nothing: the caller tops the pool up, as
-    `Crowd._draws_for`, and calls again), and `_progress`'s two answers."""
-    for n in range(counters.shape[0]):
-        if counters[n, FILLED] - counters[n, TAIL] < need:
-            return True, False, False
+    and its weight at the frame planned (`_progress`). Returns whether a character has fewer draws
+    left in its pool than a plan over the window's frames may take (`stream._short_of_draws`; then
+    it has done nothing: the caller tops the pool up, `Crowd._draws_for`, and calls again), and
+    `_progress`'s two answers."""
+    if _short_of_draws(counters, ids.shape[1]):
+        return True, False, False
     _choose_units(counters, label, done, tapped, held, repeats, first, next_units)
     for n in range(counters.shape[0]):
         _plan_window(base[n], sigma[n], counters[n], carry[n], pool[n], history_ids[n], 2, ids[n], counts[n], carries[n],
@@ -362,18 +361,11 @@ def _move_guest(gait_history, lo, history, history_ids, counters, carry, ids, co
     _blend(weights, frames, history[:, 1], columns, lo, shown, shown_ids, frame_ids)
 
 
-def _entry_with_frame(kernel, own: tuple) -> object:
-    """The compiled entry point of `kernel` (whose last two arguments are a frame and its states)
-    for the layer's and the streams' own arguments `own` and a frame (N, D) of float64 and its
-    states (N,) of int64, each of any layout (the engine's frame is new each frame, its states a
-    view of the stream's): the types `GestureLayer.after` checks before it calls it."""
-    types = tuple(typeof(a) for a in own) + (Array(float64, 2, "A"), Array(int64, 1, "A"))
-    if types not in kernel.overloads:
-        kernel.compile(types)
-    return kernel.overloads[types].entry_point
-
-
 _FLOAT64, _INT64 = np.dtype(np.float64), np.dtype(np.int64)
+# the last two arguments of `_remember` and `_move_guest` as their entry points take them: a frame (N, D) of
+# float64 and its states (N,) of int64, each of any layout (the engine's frame is new each frame, its states a
+# view of the stream's), the types `GestureLayer.after` checks before it calls them
+_FRAME_TYPES = (Array(float64, 2, "A"), Array(int64, 1, "A"))
 
 
 @njit(cache=True, nogil=True)

@@ -72,6 +72,7 @@ _NO_PAIRS = {"pair_keys": np.zeros(3, dtype=np.int64), "pair_rows": np.zeros((2,
 # more pairs only empty it more often
 PAIR_SLOTS = 512
 AHEAD = 2  # the provisional frames after the one sent that a step keeps (`Crowd.ahead`: the tangent's, between.py)
+DRAWS_PAST_FRAMES = 3  # a plan over F frames takes at most F + 1 draws; two more kept in hand (`_short_of_draws`)
 
 
 class WindowWork(NamedTuple):
@@ -225,23 +226,19 @@ class Crowd:
                            for a, b in parts(len(rows), LEAST_PER_LIGHT_PART)])
 
     def _draws_for(self, frames: int) -> None:
-        """Make sure every character has draws for a plan over `frames` frames (at most one state
-        instance a frame, plus the one being left)."""
-        need = frames + 3
-        states = self.space.states
+        """Make sure every character has draws for a plan over `frames` frames (`_short_of_draws`)."""
         counters = self.counters
-        if self.count == 1:  # plain numbers: the array form costs a one-character frame 2 us
-            if counters[0, FILLED] - counters[0, TAIL] >= need:
-                return
-        elif (counters[:, FILLED] - counters[:, TAIL]).min() >= need:
+        if not _short_of_draws(counters, frames):
             return
+        need = frames + DRAWS_PAST_FRAMES  # (as `_short_of_draws` asks: the pool is made twice that and a step long)
+        states = self.space.states
         if self.pool.shape[1] < 2 * need + states:
             grown = np.zeros((self.count, 2 * need + states + self.pool.shape[1]))
             grown[:, : self.pool.shape[1]] = self.pool
             self.pool = grown
         for n, rng in enumerate(self.rngs):
             head, filled = counters[n, HEAD], counters[n, FILLED]
-            if filled - counters[n, TAIL] >= need:
+            if not _short_of_draws(counters[n:n + 1], frames):
                 continue
             first = max(head - states, 0)  # the states just left stay: a following step draws again what its leader drew
             kept = filled - first  # draws kept, in order
@@ -498,6 +495,23 @@ def _finish(counter, carry, n, carry_out, states):  # pragma: no cover - compile
 
 
 @njit(cache=True, nogil=True)
+def _short_of_draws(counters, frames):  # pragma: no cover - compiled
+    """Whether a character of `counters` (rows of `Crowd.counters`) has fewer draws left in its
+    pool (FILLED - TAIL) than `frames` + DRAWS_PAST_FRAMES (3). A plan over `frames` frames
+    (`_plan`) passes through at most `frames` + 1 state instances (one a frame, and the one under
+    way, whose frames may all have been played: a state shortened below what it had), the k-th
+    taking the draw at HEAD + k, and HEAD never passes TAIL: it takes at most `frames` + 1 draws
+    past TAIL; two more are kept in hand. A step's window is planned over lookahead + 1 frames
+    (its `ids`), so it asks for lookahead + 4. The one check of the stream's step (`_advance`), a
+    gesture's plan (`gestures._plan_guest`) and the refill (`Crowd._draws_for`)."""
+    need = frames + DRAWS_PAST_FRAMES
+    for n in range(counters.shape[0]):
+        if counters[n, FILLED] - counters[n, TAIL] < need:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
 def _advance(tables, work, fixed, frames, ahead, limit_any):  # pragma: no cover - compiled
     """Plan, solve, rate-limit and commit one frame for every character of `tables` (a crowd or a
     part of one), in place. The solver reads each window's means and precisions from the
@@ -513,9 +527,8 @@ def _advance(tables, work, fixed, frames, ahead, limit_any):  # pragma: no cover
     a, b = tables.guest[0], tables.guest[1]  # (only with the window's two fixed frames: the guest's are two)
     rows, work1, work2, ids, counts, carries = work.rows, work.work1, work.work2, work.ids, work.counts, work.carries
     count, states = mean_own.shape[0], base.shape[2]
-    for n in range(count):
-        if counters[n, FILLED] - counters[n, TAIL] < ids.shape[1] + 3:  # `Crowd._draws_for`'s need
-            return True
+    if _short_of_draws(counters, ids.shape[1]):  # (a plan over the window's frames)
+        return True
     dimension = history.shape[2]
     known = np.ascontiguousarray(history[:, 2 - fixed:]) if fixed else np.zeros((count, 1, dimension))
     work1[:] = 0.0

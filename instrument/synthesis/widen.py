@@ -32,7 +32,7 @@ from numba import njit
 
 from ..motion.features import REFERENCE_FPS, ROOT_FEATURES
 from .contact import eased_per_frame
-from .direct import entry_point
+from .direct import DirectCall
 from .interpolation import body_groups, part_weights_per_group
 from .mlpg import _part, _prefetch_row
 from .stream import numpy_sum
@@ -199,10 +199,10 @@ class RangeFilter:
         self.ease = ease_per_frame(fps)
         self.mean: np.ndarray | None = None  # (N, D) where the swing is scaled about, eased
         self.factor: np.ndarray | None = None  # (N, D) by how much, eased
-        # `_range_step`'s compiled entry point for what `begin` makes of its arguments (float64 C arrays,
-        # (N, D) ones: checked; the kernel only reads the three given), so a frame does not pay the
-        # dispatcher's typing of seven arrays
-        self._step = None
+        # `_range_step` through its compiled entry point (direct.py), chosen at the first frame: every
+        # argument's type is fixed (`begin` makes float64 C arrays of them, (N, D) ones: checked; the kernel
+        # only reads the three given), so a frame does not pay the dispatcher's typing of seven arrays
+        self._step = DirectCall(_range_step)
 
     def __call__(self, frames: np.ndarray, mean: np.ndarray, factor: np.ndarray) -> np.ndarray:
         """Frames (N, D) as made, their swing scaled towards targets `mean` and `factor` (N, D)."""
@@ -212,9 +212,7 @@ class RangeFilter:
         if frames.ndim != 2:
             _range_step(*arguments)
             return out
-        if self._step is None:
-            self._step = entry_point(_range_step, arguments)
-        self._step(*arguments)
+        self._step((), *arguments)
         return out
 
     def begin(self, frames: np.ndarray, mean_shape: tuple, factor_shape: tuple) -> tuple[np.ndarray, np.ndarray, bool]:
