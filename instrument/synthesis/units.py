@@ -131,6 +131,11 @@ START_SECONDS = 0.5  # a body moving again before its stop stood still reaches i
 # comes, a run at 4.2 m/s (active x2) would change its speed by up to 105 cm/s in a frame (the
 # smoothstep's steepest is 1.5 times its mean), against 62 in its steady run
 STOP_SECONDS = 0.4
+# a stop called off turns its level's rate from braking to its gait's over this, not in a frame:
+# turned at once, the travel's and the stride's smoothsteps turned from falling to rising in a
+# frame, a kink that jumped every swinging joint as the command came (youthful's run x2: the
+# root's speed from -29 to +30 cm/s a frame, an arm 0.23 rad/frame^2, the stream's frame itself still)
+REVERSE_SECONDS = 0.1
 TURNING = {1: "turn-left", -1: "turn-right"}  # the turning unit of each side (+1 steers left)
 
 
@@ -254,6 +259,9 @@ class UnitChooser:
         self.rejoin_from, self.rejoin_to = np.ones(count), np.ones(count)
         self.rejoin_left, self.rejoin_stance = np.zeros(count), np.ones(count)
         self.rejoin_swing, self.rejoin_swing_rate = np.ones(count), np.ones(count)
+        self.climb = np.zeros(count)  # the level's rate a frame of a body whose stop is called off
+        self.turning_rate = np.zeros(count)  # how much that rate rises a frame, up to `start_rate`
+        self.reverse_frames = max(REVERSE_SECONDS * model.fps, 1.0)
         self.planted = planted_shares(model)  # (labels, states, 2) how surely each foot is down
         self._strides = np.ones((count, self.legs.shape[1]))  # `strides`' array, filled each frame
 
@@ -405,7 +413,11 @@ class UnitChooser:
         stays = (left_now * down).sum(axis=1) + later  # frames the foot stays down from here
         stance = np.maximum((base * down).sum(axis=1) + later, 2.0)  # the whole stance's
         steps = np.arange(1, int(np.ceil(stays.max())) + 1)
-        level = np.minimum(self.level[rows, None] + steps * self.start_rate[rows, None], 1.0)
+        braking = np.where(np.isfinite(self.braking[rows]), self.braking[rows], 0.0)
+        self.climb[rows] = -braking
+        self.turning_rate[rows] = (self.start_rate[rows] + braking) / self.reverse_frames
+        rates = np.minimum(-braking[:, None] + steps * self.turning_rate[rows, None], self.start_rate[rows, None])
+        level = np.clip(self.level[rows, None] + np.cumsum(rates, axis=1), 0.0, 1.0)
         weight = np.clip(stays[:, None] - (steps - 1), 0.0, 1.0)  # (the last frame's part)
         travel = (level * level * (3.0 - 2.0 * level) * weight).sum(axis=1)
         half = stance / 2.0
@@ -436,7 +448,11 @@ class UnitChooser:
         moving = ~standing & ~stopping
         self.braking[moving] = np.inf  # a stop that changed its mind brakes afresh next time
         self.start_rate[~moving] = 1.0 / self.start_frames
-        level = np.where(moving, np.minimum(self.level + self.start_rate, 1.0),
+        rate = self.start_rate
+        if self.rejoining.any():  # (a stop called off: its level's rate turned over REVERSE_SECONDS)
+            self.climb = np.where(self.rejoining, np.minimum(self.climb + self.turning_rate, self.start_rate), self.climb)
+            rate = np.where(self.rejoining, self.climb, rate)
+        level = np.where(moving, np.clip(self.level + rate, 0.0, 1.0),
                          np.maximum(self.level - self.braking, 0.0))
         self.level = level
         starting = bool(self.starting.any())  # some body sets off from a standstill: its ease is a smootherstep
@@ -471,7 +487,7 @@ class UnitChooser:
         # a moving body comes back up no faster than its level (a stop called off before its stand
         # began: its stance foot moves back under the body as fast as the body speeds up again, as
         # braking it did as the body slowed); one standing (still), over STOP_SECONDS
-        ceiling = np.where(moving, np.maximum(level, self.stride_level), 1.0)
+        ceiling = np.where(moving, np.where(self.rejoining, level, np.maximum(level, self.stride_level)), 1.0)
         rising = np.minimum(self.stride_level + 1.0 / self.stop_frames, ceiling)
         stride = np.where(braking, np.minimum(self.stride_level, level), np.where(self.starting, level, rising))
         self.stride_level = stride
