@@ -135,7 +135,7 @@ STOP_SECONDS = 0.4
 # turned at once, the travel's and the stride's smoothsteps turned from falling to rising in a
 # frame, a kink that jumped every swinging joint as the command came (youthful's run x2: the
 # root's speed from -29 to +30 cm/s a frame, an arm 0.23 rad/frame^2, the stream's frame itself still)
-REVERSE_SECONDS = 0.1
+REVERSE_SECONDS = 0.0
 TURNING = {1: "turn-left", -1: "turn-right"}  # the turning unit of each side (+1 steers left)
 
 
