@@ -131,11 +131,6 @@ START_SECONDS = 0.5  # a body moving again before its stop stood still reaches i
 # comes, a run at 4.2 m/s (active x2) would change its speed by up to 105 cm/s in a frame (the
 # smoothstep's steepest is 1.5 times its mean), against 62 in its steady run
 STOP_SECONDS = 0.4
-# a stop called off turns its level's rate from braking to its gait's over this, not in a frame:
-# turned at once, the travel's and the stride's smoothsteps turned from falling to rising in a
-# frame, a kink that jumped every swinging joint as the command came (youthful's run x2: the
-# root's speed from -29 to +30 cm/s a frame, an arm 0.23 rad/frame^2, the stream's frame itself still)
-REVERSE_SECONDS = 0.0
 TURNING = {1: "turn-left", -1: "turn-right"}  # the turning unit of each side (+1 steers left)
 
 
@@ -250,21 +245,15 @@ class UnitChooser:
         # stopped while setting off: its legs brake with its travel until they are drawn in as far as
         # the rest of its pose (a leg ahead of the rest: made to follow the rest at once, it jumped)
         self.halting = np.zeros(count, dtype=np.bool_)
-        # a stop called off before its stand: each leg, from the stance it is in at the call-off (or
-        # lands in next), goes from the rest's share to the one that lets its foot go where the lock
-        # holds it (`rejoin_to`), its gap to the rest's (`rejoin_gap` as it lets go) opened evenly
-        # over the frames it stays down (`rejoin_left` of `rejoin_stance`), then to the rest's over
-        # its swing (`rejoin_swing`, 0 to 1 at
-        # `rejoin_swing_rate` a frame); a leg in the air at the call-off takes the rest's until it
-        # lands (`rejoin_waiting`). (N, 2) each, the legs' order
+        # a stop called off before its stand: the leg planted at the call-off goes from its share
+        # then (`rejoin_from`) to the one that lets its foot go where the lock holds it
+        # (`rejoin_to`) over the frames it stays down (`rejoin_left` of `rejoin_stance`), then to
+        # the rest's over its swing (`rejoin_swing`, 0 to 1 at `rejoin_swing_rate` a frame)
         self.rejoining = np.zeros(count, dtype=np.bool_)
-        self.rejoin_waiting = np.zeros((count, 2), dtype=np.bool_)
-        self.rejoin_to, self.rejoin_gap = np.ones((count, 2)), np.zeros((count, 2))
-        self.rejoin_left, self.rejoin_stance = np.zeros((count, 2)), np.ones((count, 2))
-        self.rejoin_swing, self.rejoin_swing_rate = np.ones((count, 2)), np.ones((count, 2))
-        self.climb = np.zeros(count)  # the level's rate a frame of a body whose stop is called off
-        self.turning_rate = np.zeros(count)  # how much that rate rises a frame, up to `start_rate`
-        self.reverse_frames = max(REVERSE_SECONDS * model.fps, 1.0)
+        self.rejoin_leg = np.zeros(count, dtype=np.int64)
+        self.rejoin_from, self.rejoin_to = np.ones(count), np.ones(count)
+        self.rejoin_left, self.rejoin_stance = np.zeros(count), np.ones(count)
+        self.rejoin_swing, self.rejoin_swing_rate = np.ones(count), np.ones(count)
         self.planted = planted_shares(model)  # (labels, states, 2) how surely each foot is down
         self._strides = np.ones((count, self.legs.shape[1]))  # `strides`' array, filled each frame
 
@@ -324,10 +313,6 @@ class UnitChooser:
             counters[late, NEXT] = self.coming[late] + 1  # the step after this one as planned, then the change
         counters[:, UNIT] = coming
         self.coming = coming
-        if self.rejoining.any():  # a leg in the air at a call-off landed: its own share over its stance
-            landed = self.rejoining & started & self.rejoin_waiting[np.arange(self.count), self.stance_foot[counters[:, LABEL]]]
-            if landed.any():
-                self._plant(stream, landed)
         standing = current == self.stand
         stopping = (coming == self.stand) & ~standing
         # a body standing still told to move holds the pose it stood in until its first step
@@ -393,31 +378,18 @@ class UnitChooser:
         self.start_label[first] = label
 
     def _rejoin(self, stream: Crowd, called: np.ndarray) -> None:
-        """The bodies whose stop is called off this frame (`called`): their level's rate turns
-        over REVERSE_SECONDS, the leg planted now takes its own share (`_plant`), the other the
-        rest's until it lands."""
-        braking = np.where(np.isfinite(self.braking[called]), self.braking[called], 0.0)
-        self.climb[called] = -braking
-        self.turning_rate[called] = (self.start_rate[called] + braking) / self.reverse_frames
-        self.rejoining |= called
-        self.rejoin_left[called] = 0.0
-        self.rejoin_swing[called] = 1.0
-        self.rejoin_waiting[called] = True
-        self._plant(stream, called)
-
-    def _plant(self, stream: Crowd, rows: np.ndarray) -> None:
-        """Where the share of the stance leg of each body in `rows` (bool) must be as its foot
-        lets go, so that the pose puts the foot where the lock holds it. A leg's swing swept by a
-        share s puts its foot s * d ahead of the hips (d as made, going back at the gait's pace V
-        through the stance); the foot, still, stays behind a body going on at its travel's pace.
-        Over the stance, about its middle, the mismatch at the release comes to V (sum of the
-        travel + s_from (a - mid) - s_to (b - mid)): nil for s_to = (sum of the travel + s_from
-        (a - mid)) / (b - mid), whatever its way there (a now, b the release: the frames the foot
-        stays down at the contact statistics' shares). Taken back up with the travel, the share
-        rose through the stance's end, where d is furthest behind: the foot as made went 27 cm
-        behind its lock, and snapped back as it let go."""
+        """The stance leg of the bodies whose stop is called off this frame (`called`): where its
+        share must be as its foot lets go so that the pose puts the foot where the lock holds it.
+        A leg's swing swept by a share s puts its foot s * d ahead of the hips (d as made, going
+        back at the gait's pace V through the stance); the foot, still, stays behind a body
+        going on at its travel's pace. Over the stance, about its middle, the mismatch at the
+        release comes to V (sum of the travel + s_from (a - mid) - s_to (b - mid)): nil for
+        s_to = (sum of the travel + s_from (a - mid)) / (b - mid), whatever its way there (a now,
+        b the release, the frames the foot stays down at the contact statistics' shares). Taken
+        back up with the travel, the share rose through the stance's end, where d is furthest
+        behind: the foot as made went 27 cm behind its lock, and snapped back as it let go."""
         counters = stream.counters
-        rows = np.flatnonzero(rows)
+        rows = np.flatnonzero(called)
         label = counters[rows, LABEL]
         leg = self.stance_foot[label]
         base = stream.base[rows, label]  # (n, states) this step's frames at mean durations
@@ -433,21 +405,20 @@ class UnitChooser:
         stays = (left_now * down).sum(axis=1) + later  # frames the foot stays down from here
         stance = np.maximum((base * down).sum(axis=1) + later, 2.0)  # the whole stance's
         steps = np.arange(1, int(np.ceil(stays.max())) + 1)
-        rates = np.minimum(self.climb[rows, None] + steps * self.turning_rate[rows, None], self.start_rate[rows, None])
-        level = np.clip(self.level[rows, None] + np.cumsum(rates, axis=1), 0.0, 1.0)
+        level = np.minimum(self.level[rows, None] + steps * self.start_rate[rows, None], 1.0)
         weight = np.clip(stays[:, None] - (steps - 1), 0.0, 1.0)  # (the last frame's part)
-        eased = level * level * (3.0 - 2.0 * level)
-        travel = (eased * weight).sum(axis=1)
-        rest = eased[np.arange(len(rows)), np.ceil(stays).astype(np.int64) - 1]  # the rest's as the foot lets go
+        travel = (level * level * (3.0 - 2.0 * level) * weight).sum(axis=1)
         half = stance / 2.0
         since = stance - stays  # frames of the stance already gone
-        start = self.stride[rows]  # (the leg's until now: the rest's)
-        self.rejoin_waiting[rows, leg] = False
-        self.rejoin_to[rows, leg] = target = np.clip((travel + start * (since - half)) / half, 0.0, 1.0)
-        self.rejoin_gap[rows, leg] = target - rest
-        self.rejoin_left[rows, leg] = self.rejoin_stance[rows, leg] = np.maximum(stays, 1e-9)
-        self.rejoin_swing[rows, leg] = 0.0
-        self.rejoin_swing_rate[rows, leg] = 1.0 / np.maximum(left_now.sum(axis=1) + following.sum(axis=1) - stays, 1.0)
+        start = self.stride[rows]
+        self.rejoin_leg[rows] = leg
+        self.rejoin_from[rows] = start
+        self.rejoin_to[rows] = np.clip((travel + start * (since - half)) / half, 0.0, 1.0)
+        self.rejoin_left[rows] = self.rejoin_stance[rows] = np.maximum(stays, 1e-9)
+        swing = left_now.sum(axis=1) + following.sum(axis=1) - stays  # to its next landing
+        self.rejoin_swing[rows] = 0.0
+        self.rejoin_swing_rate[rows] = 1.0 / np.maximum(swing, 1.0)
+        self.rejoining |= called
 
     def _ease(self, standing: np.ndarray, stopping: np.ndarray, left: np.ndarray | None) -> None:
         """Each body's travel: eased in once it moves (over its first step from a standstill,
@@ -465,11 +436,7 @@ class UnitChooser:
         moving = ~standing & ~stopping
         self.braking[moving] = np.inf  # a stop that changed its mind brakes afresh next time
         self.start_rate[~moving] = 1.0 / self.start_frames
-        rate = self.start_rate
-        if self.rejoining.any():  # (a stop called off: its level's rate turned over REVERSE_SECONDS)
-            self.climb = np.where(self.rejoining, np.minimum(self.climb + self.turning_rate, self.start_rate), self.climb)
-            rate = np.where(self.rejoining, self.climb, rate)
-        level = np.where(moving, np.clip(self.level + rate, 0.0, 1.0),
+        level = np.where(moving, np.minimum(self.level + self.start_rate, 1.0),
                          np.maximum(self.level - self.braking, 0.0))
         self.level = level
         starting = bool(self.starting.any())  # some body sets off from a standstill: its ease is a smootherstep
@@ -504,7 +471,7 @@ class UnitChooser:
         # a moving body comes back up no faster than its level (a stop called off before its stand
         # began: its stance foot moves back under the body as fast as the body speeds up again, as
         # braking it did as the body slowed); one standing (still), over STOP_SECONDS
-        ceiling = np.where(moving, np.where(self.rejoining, level, np.maximum(level, self.stride_level)), 1.0)
+        ceiling = np.where(moving, np.maximum(level, self.stride_level), 1.0)
         rising = np.minimum(self.stride_level + 1.0 / self.stop_frames, ceiling)
         stride = np.where(braking, np.minimum(self.stride_level, level), np.where(self.starting, level, rising))
         self.stride_level = stride
@@ -522,25 +489,24 @@ class UnitChooser:
         self.shortening = bool(stride.min() < 1.0) or bool(own.any() and (self.leg_shares[own] < 1.0).any())
 
     def _rejoined(self, moving: np.ndarray) -> None:
-        """Each leg of a body whose stop was called off (`_rejoin`): one planted from its share
-        to `rejoin_to` while it stays down, then to the rest's (`stride`) by a smootherstep
-        over its swing (fastest as the foot passes under the hips, where the share moves it
-        least); one not yet landed with the rest. Stopped again, its legs brake from there
+        """Each leg of a body whose stop was called off (`_rejoin`): the one planted then from its
+        share to `rejoin_to` while it stays down, then to the rest's (`stride`) by a
+        smootherstep over its swing (fastest as the foot passes under the hips, where the share
+        moves it least); the other with the rest. Stopped again, its legs brake from there
         (`halting`)."""
         stopped = self.rejoining & ~moving
         self.halting |= stopped
-        going = (self.rejoining & moving)[:, None]
-        self.rejoin_left -= going
+        going = self.rejoining & moving
+        self.rejoin_left[going] -= 1.0
         swinging = going & (self.rejoin_left <= 0.0)
-        self.rejoin_swing += swinging * self.rejoin_swing_rate
+        self.rejoin_swing[swinging] += self.rejoin_swing_rate[swinging]
         down = 1.0 - np.maximum(self.rejoin_left, 0.0) / self.rejoin_stance
-        rest = self.stride[:, None]
-        planted = rest + self.rejoin_gap * down
-        swung = self.rejoin_to + (rest - self.rejoin_to) * smootherstep(np.minimum(self.rejoin_swing, 1.0))
-        share = np.where(self.rejoin_waiting | (self.rejoin_swing >= 1.0), rest,
-                         np.where(self.rejoin_left > 0.0, planted, swung))
-        self.leg_shares = np.where(going, share, self.leg_shares)
-        self.rejoining = going[:, 0] & (self.rejoin_waiting | (self.rejoin_swing < 1.0)).any(axis=1)
+        planted = self.rejoin_from + (self.rejoin_to - self.rejoin_from) * down
+        swung = self.rejoin_to + (self.stride - self.rejoin_to) * smootherstep(np.minimum(self.rejoin_swing, 1.0))
+        share = np.where(self.rejoin_left > 0.0, planted, swung)
+        own = self.rejoin_leg[:, None] == np.arange(2)
+        self.leg_shares = np.where(going[:, None], np.where(own, share[:, None], self.stride[:, None]), self.leg_shares)
+        self.rejoining = going & (self.rejoin_swing < 1.0)
 
     def _halt(self, moving: np.ndarray, before: np.ndarray, before_stride: np.ndarray) -> None:
         """A body stopped while it set off: each leg's share of its swing, and the rest's, goes
