@@ -131,7 +131,6 @@ START_SECONDS = 0.5  # a body moving again before its stop stood still reaches i
 # comes, a run at 4.2 m/s (active x2) would change its speed by up to 105 cm/s in a frame (the
 # smoothstep's steepest is 1.5 times its mean), against 62 in its steady run
 STOP_SECONDS = 0.4
-REVERSE_SECONDS = 0.1  # a stop called off turns its stride's rate from braking to rising over this
 TURNING = {1: "turn-left", -1: "turn-right"}  # the turning unit of each side (+1 steers left)
 
 
@@ -255,9 +254,6 @@ class UnitChooser:
         self.rejoin_from, self.rejoin_to = np.ones(count), np.ones(count)
         self.rejoin_left, self.rejoin_stance = np.zeros(count), np.ones(count)
         self.rejoin_swing, self.rejoin_swing_rate = np.ones(count), np.ones(count)
-        self.stride_climb = np.zeros(count)  # the stride level's rate a frame of a body whose stop is called off
-        self.stride_turn = np.zeros(count)  # how much that rate rises a frame
-        self.reverse_frames = max(REVERSE_SECONDS * model.fps, 1.0)
         self.planted = planted_shares(model)  # (labels, states, 2) how surely each foot is down
         self._strides = np.ones((count, self.legs.shape[1]))  # `strides`' array, filled each frame
 
@@ -423,9 +419,6 @@ class UnitChooser:
         self.rejoin_swing[rows] = 0.0
         self.rejoin_swing_rate[rows] = 1.0 / np.maximum(swing, 1.0)
         self.rejoining |= called
-        braking = np.where(np.isfinite(self.braking[rows]), self.braking[rows], 0.0)
-        self.stride_climb[rows] = -braking
-        self.stride_turn[rows] = (1.0 / self.stop_frames + braking) / self.reverse_frames
 
     def _ease(self, standing: np.ndarray, stopping: np.ndarray, left: np.ndarray | None) -> None:
         """Each body's travel: eased in once it moves (over its first step from a standstill,
@@ -480,9 +473,6 @@ class UnitChooser:
         # braking it did as the body slowed); one standing (still), over STOP_SECONDS
         ceiling = np.where(moving, np.maximum(level, self.stride_level), 1.0)
         rising = np.minimum(self.stride_level + 1.0 / self.stop_frames, ceiling)
-        if self.rejoining.any():  # (a stop called off: its stride's rate turned over REVERSE_SECONDS)
-            self.stride_climb = np.minimum(self.stride_climb + self.stride_turn, 1.0 / self.stop_frames)
-            rising = np.where(self.rejoining & moving, np.clip(self.stride_level + self.stride_climb, 0.0, level), rising)
         stride = np.where(braking, np.minimum(self.stride_level, level), np.where(self.starting, level, rising))
         self.stride_level = stride
         self.stride = stride * stride * (3.0 - 2.0 * stride)
