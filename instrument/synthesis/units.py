@@ -87,7 +87,13 @@ the stand's pose and its stride mean differ only by its sway. A stop called off 
 takes its stride back up no faster than its level, as it braked: over STOP_SECONDS on its own, the
 stride ran ahead of the travel and swept the stance foot back faster than the body sped up, and
 the lock, holding the foot where it was, let it snap back as it let go (docs/evaluate.md,
-"Changes part-way").
+"Changes part-way"). Its planted leg takes a share of its own (`_rejoin`): with the rest's, the
+share rose through the end of the stance, where the foot as made is furthest behind the hips,
+and swept it behind where the lock held it (youthful's walk called off 17 frames after the stop:
+27 cm; a toe jumped 10.7 cm/frame^2 as the lock let go, 1.9 times the steady walk's). It goes to
+the share that puts the foot as made where the lock holds it as it lets go, then to the rest's
+over its swing, fastest as the foot passes under the hips (6.2 there; docs/evaluate.md, "A stop
+called off lets its planted foot go where the lock holds it").
 
 A run's first step pushes off only while its stance foot is down: a walk's stance foot is planted
 through the whole step, a run's lifts part of the way (its toe-off; then both feet are in the
@@ -134,6 +140,15 @@ STOP_SECONDS = 0.4
 TURNING = {1: "turn-left", -1: "turn-right"}  # the turning unit of each side (+1 steers left)
 
 
+def planted_shares(model: Model) -> np.ndarray | None:
+    """(labels, states, 2) how sure the average model is that each foot is down in each state
+    (its contact statistics), or None for a model without them."""
+    shares = (getattr(model, "extras", {}) or {}).get("contact_average")
+    if shares is None or np.shape(shares) != (len(model.labels), model.states, 2):
+        return None
+    return np.asarray(shares, dtype=np.float64)
+
+
 def pushing_states(model: Model) -> tuple[np.ndarray, np.ndarray]:
     """Per label (labels,): how many of its first states its stance foot pushes in (up to the
     first state of flight after the foot is down: a run's toe-off; every state of a unit without
@@ -141,26 +156,16 @@ def pushing_states(model: Model) -> tuple[np.ndarray, np.ndarray]:
     average model: 0 or 1, the legs' order). Flight is contact.flight_states' (a state of a unit
     more often in the air than on both feet, planting neither foot), so no threshold of its own is
     asked of a capture. A model without contact statistics: every state, foot 0."""
-    shares = (getattr(model, "extras", {}) or {}).get("contact_average")
+    shares = planted_shares(model)
     labels, states = len(model.labels), model.states
-    if shares is None or np.shape(shares) != (labels, states, 2):
+    if shares is None:
         return np.full(labels, states), np.zeros(labels, dtype=np.int64)
-    shares = np.asarray(shares, dtype=np.float64)
     flight = flight_states(shares.reshape(-1, 2), (model.metadata.get("contact") or {}).get("air"), states,
                            len(model.units)).reshape(labels, states)
     foot = shares.sum(axis=1).argmax(axis=1)
     down = np.cumsum(shares[np.arange(labels), :, foot] >= PLANTED, axis=1) > 0  # from the state it is down
     lifted = flight & down
     return np.where(lifted.any(axis=1), lifted.argmax(axis=1), states), foot
-
-
-def planted_shares(model: Model) -> np.ndarray | None:
-    """(labels, states, 2) how sure the average model is that each foot is down in each state
-    (contact statistics), or None for a model without them."""
-    shares = (getattr(model, "extras", {}) or {}).get("contact_average")
-    if shares is None or np.shape(shares) != (len(model.labels), model.states, 2):
-        return None
-    return np.clip(np.asarray(shares, dtype=np.float64), 0.0, 1.0)
 
 
 def smootherstep(x: np.ndarray) -> np.ndarray:
@@ -245,10 +250,10 @@ class UnitChooser:
         # stopped while setting off: its legs brake with its travel until they are drawn in as far as
         # the rest of its pose (a leg ahead of the rest: made to follow the rest at once, it jumped)
         self.halting = np.zeros(count, dtype=np.bool_)
-        # a stop called off before its stand: the leg planted at the call-off goes from its share
-        # then (`rejoin_from`) to the one that lets its foot go where the lock holds it
-        # (`rejoin_to`) over the frames it stays down (`rejoin_left` of `rejoin_stance`), then to
-        # the rest's over its swing (`rejoin_swing`, 0 to 1 at `rejoin_swing_rate` a frame)
+        # a stop called off before its stand: the leg planted at the call-off (`rejoin_leg`) goes
+        # from its share then (`rejoin_from`) to the one that lets its foot go where the lock holds
+        # it (`rejoin_to`) over the frames it stays down (`rejoin_left` of `rejoin_stance`), then
+        # to the rest's over its swing (`rejoin_swing`, 0 to 1 at `rejoin_swing_rate` a frame)
         self.rejoining = np.zeros(count, dtype=np.bool_)
         self.rejoin_leg = np.zeros(count, dtype=np.int64)
         self.rejoin_from, self.rejoin_to = np.ones(count), np.ones(count)
@@ -306,8 +311,9 @@ class UnitChooser:
             # the body took that step in place, its pose drawn to the stand's means from the one it stood in)
             calling_off = (((self.coming == self.stand) & (current != self.stand))
                            | ((coming == self.stand) & (current == self.stand)))
-            called_off = changed & (self.coming == self.stand) & (current != self.stand) & (coming != self.stand)
-            if (called_off := called_off & ~self.halting & ~self.starting).any():
+            # a stop called off before its stand (a body halting from a start closes its legs' gaps as it was)
+            called_off = changed & (self.coming == self.stand) & (current != self.stand) & (coming != self.stand) & ~self.halting
+            if called_off.any():
                 self._rejoin(stream, called_off)
             late = changed & ~calling_off & (counters[:, NEXT] == 0) & (self._frames_left(stream) < notice)
             counters[late, NEXT] = self.coming[late] + 1  # the step after this one as planned, then the change
