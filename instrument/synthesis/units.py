@@ -87,7 +87,13 @@ the stand's pose and its stride mean differ only by its sway. A stop called off 
 takes its stride back up no faster than its level, as it braked: over STOP_SECONDS on its own, the
 stride ran ahead of the travel and swept the stance foot back faster than the body sped up, and
 the lock, holding the foot where it was, let it snap back as it let go (docs/evaluate.md,
-"Changes part-way").
+"Changes part-way"). Its planted leg takes a share of its own (`_rejoin`): with the rest's, the
+share rose through the end of the stance, where the foot as made is furthest behind the hips,
+and swept it behind where the lock held it (youthful's walk called off 17 frames after the stop:
+27 cm; a toe jumped 10.7 cm/frame^2 as the lock let go, 1.9 times the steady walk's). It goes to
+the share that puts the foot as made where the lock holds it as it lets go, then to the rest's
+over its swing, fastest as the foot passes under the hips (6.2 there; docs/evaluate.md, "A stop
+called off lets its planted foot go where the lock holds it").
 
 A run's first step pushes off only while its stance foot is down: a walk's stance foot is planted
 through the whole step, a run's lifts part of the way (its toe-off; then both feet are in the
@@ -134,6 +140,15 @@ STOP_SECONDS = 0.4
 TURNING = {1: "turn-left", -1: "turn-right"}  # the turning unit of each side (+1 steers left)
 
 
+def planted_shares(model: Model) -> np.ndarray | None:
+    """(labels, states, 2) how sure the average model is that each foot is down in each state
+    (its contact statistics), or None for a model without them."""
+    shares = (getattr(model, "extras", {}) or {}).get("contact_average")
+    if shares is None or np.shape(shares) != (len(model.labels), model.states, 2):
+        return None
+    return np.asarray(shares, dtype=np.float64)
+
+
 def pushing_states(model: Model) -> tuple[np.ndarray, np.ndarray]:
     """Per label (labels,): how many of its first states its stance foot pushes in (up to the
     first state of flight after the foot is down: a run's toe-off; every state of a unit without
@@ -141,11 +156,10 @@ def pushing_states(model: Model) -> tuple[np.ndarray, np.ndarray]:
     average model: 0 or 1, the legs' order). Flight is contact.flight_states' (a state of a unit
     more often in the air than on both feet, planting neither foot), so no threshold of its own is
     asked of a capture. A model without contact statistics: every state, foot 0."""
-    shares = (getattr(model, "extras", {}) or {}).get("contact_average")
+    shares = planted_shares(model)
     labels, states = len(model.labels), model.states
-    if shares is None or np.shape(shares) != (labels, states, 2):
+    if shares is None:
         return np.full(labels, states), np.zeros(labels, dtype=np.int64)
-    shares = np.asarray(shares, dtype=np.float64)
     flight = flight_states(shares.reshape(-1, 2), (model.metadata.get("contact") or {}).get("air"), states,
                            len(model.units)).reshape(labels, states)
     foot = shares.sum(axis=1).argmax(axis=1)
@@ -236,6 +250,16 @@ class UnitChooser:
         # stopped while setting off: its legs brake with its travel until they are drawn in as far as
         # the rest of its pose (a leg ahead of the rest: made to follow the rest at once, it jumped)
         self.halting = np.zeros(count, dtype=np.bool_)
+        # a stop called off before its stand: the leg planted at the call-off (`rejoin_leg`) goes
+        # from its share then (`rejoin_from`) to the one that lets its foot go where the lock holds
+        # it (`rejoin_to`) over the frames it stays down (`rejoin_left` of `rejoin_stance`), then
+        # to the rest's over its swing (`rejoin_swing`, 0 to 1 at `rejoin_swing_rate` a frame)
+        self.rejoining = np.zeros(count, dtype=np.bool_)
+        self.rejoin_leg = np.zeros(count, dtype=np.int64)
+        self.rejoin_from, self.rejoin_to = np.ones(count), np.ones(count)
+        self.rejoin_left, self.rejoin_stance = np.zeros(count), np.ones(count)
+        self.rejoin_swing, self.rejoin_swing_rate = np.ones(count), np.ones(count)
+        self.planted = planted_shares(model)  # (labels, states, 2) how surely each foot is down
         self._strides = np.ones((count, self.legs.shape[1]))  # `strides`' array, filled each frame
 
     def unsteered(self, gait: int, turn: float) -> str | None:
@@ -287,6 +311,10 @@ class UnitChooser:
             # the body took that step in place, its pose drawn to the stand's means from the one it stood in)
             calling_off = (((self.coming == self.stand) & (current != self.stand))
                            | ((coming == self.stand) & (current == self.stand)))
+            # a stop called off before its stand (a body halting from a start closes its legs' gaps as it was)
+            called_off = changed & (self.coming == self.stand) & (current != self.stand) & (coming != self.stand) & ~self.halting
+            if called_off.any():
+                self._rejoin(stream, called_off)
             late = changed & ~calling_off & (counters[:, NEXT] == 0) & (self._frames_left(stream) < notice)
             counters[late, NEXT] = self.coming[late] + 1  # the step after this one as planned, then the change
         counters[:, UNIT] = coming
@@ -331,6 +359,7 @@ class UnitChooser:
         rest = turn - side * share * self.turn_rates.get(side, 0.0)  # what turning steps do not give
         self.added_yaw[:] = np.where(standing, 0.0, rest)
         self._settled = ((gait, turn) if share == 0.0 and stream.sent > 0 and (current == unit).all() and not self.starting.any()
+                         and not self.rejoining.any()
                          and (self.level == np.where(standing, 0.0, 1.0)).all() and (self.stride_level == 1.0).all()
                          else None)  # no easing in or out
 
@@ -353,6 +382,49 @@ class UnitChooser:
         self.swing_rate[first] = 1.0 / np.maximum(frames, 1.0)
         self.start_foot[first] = self.stance_foot[label]
         self.start_label[first] = label
+
+    def _rejoin(self, stream: Crowd, called: np.ndarray) -> None:
+        """The stance leg of the bodies whose stop is called off this frame (`called`): where its
+        share must be as its foot lets go so that the pose puts the foot where the lock holds it.
+        A leg's swing swept by a share s puts its foot s * d ahead of the hips (d as made, going
+        back at the gait's pace V through the stance); the foot, still, stays behind a body
+        going on at its travel's pace. Over the stance, about its middle, the mismatch at the
+        release comes to V (sum of the travel + s_from (a - mid) - s_to (b - mid)): nil for
+        s_to = (sum of the travel + s_from (a - mid)) / (b - mid), whatever its way there (a now,
+        b the release, the frames the foot stays down at the contact statistics' shares). Taken
+        back up with the travel, the share rose through the stance's end, where d is furthest
+        behind: the foot as made went 27 cm behind its lock, and snapped back as it let go."""
+        counters = stream.counters
+        rows = np.flatnonzero(called)
+        label = counters[rows, LABEL]
+        leg = self.stance_foot[label]
+        base = stream.base[rows, label]  # (n, states) this step's frames at mean durations
+        following = stream.base[rows, label ^ 1]  # the other foot's step of the same unit
+        ahead = np.arange(self.states) >= counters[rows, STATE, None]
+        left_now = base * ahead
+        left_now[np.arange(len(rows)), counters[rows, STATE]] -= counters[rows, ELAPSED]
+        if self.planted is None:  # the stance foot down through its step, up as it ends
+            down, next_down = np.ones_like(base), np.zeros_like(base)
+        else:
+            down, next_down = self.planted[label, :, leg], self.planted[label ^ 1, :, leg]
+        later = (following * next_down).sum(axis=1)
+        stays = (left_now * down).sum(axis=1) + later  # frames the foot stays down from here
+        stance = np.maximum((base * down).sum(axis=1) + later, 2.0)  # the whole stance's
+        steps = np.arange(1, int(np.ceil(stays.max())) + 1)
+        level = np.minimum(self.level[rows, None] + steps * self.start_rate[rows, None], 1.0)
+        weight = np.clip(stays[:, None] - (steps - 1), 0.0, 1.0)  # (the last frame's part)
+        travel = (level * level * (3.0 - 2.0 * level) * weight).sum(axis=1)
+        half = stance / 2.0
+        since = stance - stays  # frames of the stance already gone
+        start = self.stride[rows]
+        self.rejoin_leg[rows] = leg
+        self.rejoin_from[rows] = start
+        self.rejoin_to[rows] = np.clip((travel + start * (since - half)) / half, 0.0, 1.0)
+        self.rejoin_left[rows] = self.rejoin_stance[rows] = np.maximum(stays, 1e-9)
+        swing = left_now.sum(axis=1) + following.sum(axis=1) - stays  # to its next landing
+        self.rejoin_swing[rows] = 0.0
+        self.rejoin_swing_rate[rows] = 1.0 / np.maximum(swing, 1.0)
+        self.rejoining |= called
 
     def _ease(self, standing: np.ndarray, stopping: np.ndarray, left: np.ndarray | None) -> None:
         """Each body's travel: eased in once it moves (over its first step from a standstill,
@@ -415,10 +487,32 @@ class UnitChooser:
             # may bring its level to 1 before the second push has begun: its travel still the share)
             self.stride = np.where(self.starting, eased, self.stride)
             self.starting &= ~((level >= 1.0) & (self.travel >= 1.0) & (self.leg_shares >= 1.0).all(axis=1))
+        if self.rejoining.any():
+            self._rejoined(moving)
         if self.halting.any():
             self._halt(moving, before, before_stride)
-        own = self.starting | self.halting  # (a leg's own share may be short of the rest's 1)
+        own = self.starting | self.halting | self.rejoining  # (a leg's own share may be short of the rest's 1)
         self.shortening = bool(stride.min() < 1.0) or bool(own.any() and (self.leg_shares[own] < 1.0).any())
+
+    def _rejoined(self, moving: np.ndarray) -> None:
+        """Each leg of a body whose stop was called off (`_rejoin`): the one planted then from its
+        share to `rejoin_to` while it stays down, then to the rest's (`stride`) by a
+        smootherstep over its swing (fastest as the foot passes under the hips, where the share
+        moves it least); the other with the rest. Stopped again, its legs brake from there
+        (`halting`)."""
+        stopped = self.rejoining & ~moving
+        self.halting |= stopped
+        going = self.rejoining & moving
+        self.rejoin_left[going] -= 1.0
+        swinging = going & (self.rejoin_left <= 0.0)
+        self.rejoin_swing[swinging] += self.rejoin_swing_rate[swinging]
+        down = 1.0 - np.maximum(self.rejoin_left, 0.0) / self.rejoin_stance
+        planted = self.rejoin_from + (self.rejoin_to - self.rejoin_from) * down
+        swung = self.rejoin_to + (self.stride - self.rejoin_to) * smootherstep(np.minimum(self.rejoin_swing, 1.0))
+        share = np.where(self.rejoin_left > 0.0, planted, swung)
+        own = self.rejoin_leg[:, None] == np.arange(2)
+        self.leg_shares = np.where(going[:, None], np.where(own, share[:, None], self.stride[:, None]), self.leg_shares)
+        self.rejoining = going & (self.rejoin_swing < 1.0)
 
     def _halt(self, moving: np.ndarray, before: np.ndarray, before_stride: np.ndarray) -> None:
         """A body stopped while it set off: each leg's share of its swing, and the rest's, goes
@@ -449,7 +543,7 @@ class UnitChooser:
         each frame, overwritten."""
         out = self._strides
         out[:] = self.stride[:, None]
-        own = np.flatnonzero(self.starting | self.halting)
+        own = np.flatnonzero(self.starting | self.halting | self.rejoining)
         if len(own):
             shares = self.leg_shares[own]
             out[own] = np.where(self.legs[0], shares[:, :1], np.where(self.legs[1], shares[:, 1:], self.stride[own, None]))
