@@ -225,6 +225,28 @@ def test_a_show_file_takes_a_crowd_and_names_its_bad_line(tmp_path):
     assert read_bvh(tmp_path / "c.bvh").frames == 30
 
 
+@pytest.mark.parametrize("stand_frames", [8, 17, 23])
+def test_character_0_of_a_crowd_stops_and_sets_off_exactly_as_a_run_of_one(model, stand_frames):
+    """The same promise through gait changes: the lead's stop (called off after `stand_frames`,
+    before it has stood, or after) and its start, while the others brake and set off at their own
+    steps. A feature at stride 1 was drawn towards the stand by a factor 1 whenever another body
+    braked (not the same bits), and a stop called off summed a body's travel grouped by the
+    crowd's longest stance."""
+    single, crowd = Engine(model), Engine(model, characters=3)
+    state = ControlState(model.style_names, model.states)
+    state.set("spread", 1.0)
+    state.set("style/active", 1.0)
+    changes = {40: "stand", 40 + stand_frames: "walk", 140: "stand", 200: "walk"}
+    for i in range(260):
+        if i in changes:
+            assert state.set("gait", changes[i])
+        controls = state.snapshot()
+        alone = single.frame(i / model.fps, controls, state.spread)
+        lead = crowd.frame(i / model.fps, controls, state.spread)
+        assert np.array_equal(alone.rotations[0], lead.rotations[0]), i
+        assert np.array_equal(alone.world_positions[0], lead.world_positions[0]), i
+
+
 def test_character_0_of_a_crowd_walks_exactly_as_a_run_of_one(model):
     """docs/crowds.md's promise: the lead does not change when a crowd grows around it (same
     frames, same planted feet, bit for bit), through a style jump out of the data."""

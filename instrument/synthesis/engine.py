@@ -346,8 +346,9 @@ def shortened(frames: np.ndarray, stand: np.ndarray, stride: np.ndarray) -> np.n
     """Frames (N, D) with every feature but the root's rates (which the drive scales by the
     travel) drawn towards a standing pose `stand` (N, D) to the share `stride` (N, D) of their
     distance from it: a braking body's steps shortened as its travel eases out, a body's first
-    step from a standstill as its travel eases in (units.py)."""
-    out = stand + stride * (frames - stand)
+    step from a standstill as its travel eases in (units.py). A feature at stride 1 is its
+    frame's to the bit (a crowd's lead walks as a lone character while another body brakes)."""
+    out = np.where(stride < 1.0, stand + stride * (frames - stand), frames)
     out[:, ROOT_RATES[0]:ROOT_RATES[1]] = frames[:, ROOT_RATES[0]:ROOT_RATES[1]]
     return out
 

@@ -413,7 +413,9 @@ class UnitChooser:
         steps = np.arange(1, int(np.ceil(stays.max())) + 1)
         level = np.minimum(self.level[rows, None] + steps * self.start_rate[rows, None], 1.0)
         weight = np.clip(stays[:, None] - (steps - 1), 0.0, 1.0)  # (the last frame's part)
-        travel = (level * level * (3.0 - 2.0 * level) * weight).sum(axis=1)
+        # summed in order (a row's zeros past its own stance, where another row's is longer, add
+        # nothing: numpy's pairwise sum would group a row's terms by the crowd's longest)
+        travel = np.cumsum(level * level * (3.0 - 2.0 * level) * weight, axis=1)[:, -1]
         half = stance / 2.0
         since = stance - stays  # frames of the stance already gone
         start = self.stride[rows]
