@@ -163,8 +163,9 @@ def test_past_a_jack_restart_or_at_the_process_end_no_port_is_taken_apart():
     """A show that survived a JACK restart crashed (CI, once) closing its MIDI input as it ended:
     libjack still held the dead server's client; and `run` segfaulted in rtmidi's close_port on its
     JACK virtual input at a clean end, the server alive (about once in four full test runs). Once a
-    port was left to a dead server, or when the process ends with its command, a device's close
-    leaves its port (kept alive for the process's end); otherwise (a test's own ports) it is closed."""
+    port was left to a dead server, any port's close leaves it (kept alive for the process's end);
+    when the process ends with its command, an input's; an output is closed then (its close sends
+    what it queued: a last note-off), as is every port of a process that goes on (a test's own)."""
     script = ("import sys\n"
               "from instrument.control import jackwatch\n"
               "class Port:\n"
@@ -175,11 +176,13 @@ def test_past_a_jack_restart_or_at_the_process_end_no_port_is_taken_apart():
               "if sys.argv[1] == 'ending':\n"
               "    jackwatch.ENDS_WITH_PROCESS.set()\n"
               "before = sys.getrefcount(port)\n"
-              "jackwatch.release(port, lambda: closed.append(1))\n"
+              "jackwatch.release(port, lambda: closed.append(1), leave_at_end=sys.argv[2] == 'input')\n"
               "print('closed' if closed else 'left', sys.getrefcount(port) - before)\n")
-    for case, said in (("abandoned", "left 1"), ("ending", "left 1"), ("steady", "closed 0")):
-        result = subprocess.run([sys.executable, "-c", script, case], capture_output=True, text=True, timeout=120)
-        assert result.returncode == 0 and result.stdout.split() == said.split(), (case, result.stdout, result.stderr)
+    for case, port, said in (("abandoned", "input", "left 1"), ("abandoned", "output", "left 1"),
+                             ("ending", "input", "left 1"), ("ending", "output", "closed 0"),
+                             ("steady", "input", "closed 0"), ("steady", "output", "closed 0")):
+        result = subprocess.run([sys.executable, "-c", script, case, port], capture_output=True, text=True, timeout=120)
+        assert result.returncode == 0 and result.stdout.split() == said.split(), (case, port, result.stdout, result.stderr)
 
 
 def test_only_the_process_own_command_leaves_its_ports_to_the_process_end():

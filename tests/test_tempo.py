@@ -21,6 +21,7 @@ from instrument.shipped import default_model_path
 from instrument.synthesis.engine import Engine, default_controls
 from instrument.synthesis.footfalls import Footfalls, pacing, side_of
 from instrument.synthesis.parameters import GAITS
+from waiting import wait_until
 
 REPO = Path(__file__).resolve().parents[1]
 MIN_TICKS_FOR_TEST = 30  # ticks before the first loss: the line must exist to see one
@@ -342,6 +343,9 @@ def test_footfalls_are_notes_on_the_midi_out_port(jack, tmp_path):
         process.terminate()
         process.communicate(timeout=60)
         if port is not None:
+            # the show's end lets every sounding note go (its close waits for JACK to send it:
+            # ended at once without, a sampler was left with a stuck note)
+            wait_until(lambda: not _sounding(received), "a note-off for every note still sounding", timeout=10)
             port.close()
     ons = [(t, m) for t, m in received if m.type == "note_on"]
     assert len(ons) >= 12
@@ -354,6 +358,15 @@ def test_footfalls_are_notes_on_the_midi_out_port(jack, tmp_path):
     assert alternate.mean() >= 0.75 and (gaps[~alternate] > 1.5 * step).all(), (step, gaps[~alternate])
     offs = [m for _, m in received if m.type == "note_off"]
     assert offs  # a note is let go
+
+
+def _sounding(received: list) -> set[int]:
+    """The notes whose last message was a note-on."""
+    last = {}
+    for _, m in received:
+        if m.type in ("note_on", "note_off"):
+            last[m.note] = m.type == "note_on" and m.velocity > 0
+    return {note for note, on in last.items() if on}
 
 
 def test_sync_midi_without_a_midi_input_is_one_line():

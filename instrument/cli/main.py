@@ -107,9 +107,10 @@ def _name_crashes() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """The command line's command; `argv` None: this process's own (then a process left holding
-    a dead JACK client ends as soon as the command is done, see `_end_past_jack`)."""
-    if argv is None:  # this process's own command: its MIDI ports end with it (jackwatch.release)
+    """The command line's command; `argv` None: this process's own (then its MIDI inputs are left
+    to the process's end, and a process that left a port, or holds a dead JACK client, ends as
+    soon as the command is done: `_end_past_jack`)."""
+    if argv is None:  # this process's own command: its MIDI inputs end with it (jackwatch.release)
         from ..control.jackwatch import ENDS_WITH_PROCESS
 
         ENDS_WITH_PROCESS.set()

@@ -301,7 +301,7 @@ class MidiInput:
         if self.remaker is not None:
             self.remaker.close()
         if self.port is not None:
-            release(self.port, self._close_port)
+            release(self.port, self._close_port, leave_at_end=True)
         self.open = False
 
     def _close_port(self) -> None:

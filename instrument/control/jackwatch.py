@@ -57,14 +57,18 @@ def _library():
 def _quiet():
     """A C function taking a string and doing nothing visible (libc's strlen: its result is
     ignored), for libjack's error and info messages. Not a Python callback: libjack calls it
-    from inside its own locks, where waiting for the interpreter could deadlock the process."""
-    libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-    return ctypes.cast(libc.strlen, _MESSAGE)
+    from inside its own locks, where waiting for the interpreter could deadlock the process.
+    Made once, at the first watch (finding libc runs `ldconfig`: not for every command's start)."""
+    global _QUIET
+    if _QUIET is None:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        _QUIET = ctypes.cast(libc.strlen, _MESSAGE)
+    return _QUIET
 
 
 # libjack's complaints would reach the console from whichever thread made a call (the frame
 # loop's included) and, on a stalled stderr, block it: the console says what matters instead
-_QUIET = _quiet()
+_QUIET = None
 # the remaking threads (one per device) call libjack one at a time: taking a dead client apart
 # while another thread opens a new one has crashed libjack
 JACK_CALLS = threading.Lock()
@@ -77,8 +81,8 @@ class JackWatch:
         self.lost = threading.Event()  # set when the server shut down under us
         self.on_shutdown = _SHUTDOWN(lambda arg: self.lost.set())  # referenced, so not collected
         if self.lib is not None:
-            self.lib.jack_set_error_function(_QUIET)
-            self.lib.jack_set_info_function(_QUIET)
+            self.lib.jack_set_error_function(_quiet())
+            self.lib.jack_set_info_function(_quiet())
         self.reconnect()
 
     @property
@@ -115,7 +119,7 @@ class JackWatch:
 
 
 ABANDONED = threading.Event()  # set once any port was left to the process's end (see `abandon`)
-# set by cli.main for a command that is its process's own: its ports are never taken apart (`release`)
+# set by cli.main for a command that is its process's own: its inputs are left to its end (`release`)
 ENDS_WITH_PROCESS = threading.Event()
 
 
@@ -130,17 +134,19 @@ def abandon(port: object) -> None:
     ABANDONED.set()
 
 
-def release(port: object, close: Callable[[], None]) -> None:
-    """Take a device's port apart with `close`, unless the process ends with it, or a JACK server
-    died under this process; then the port is left, as a dead one is, to the process's end
-    (cli.main ends such a process at once, its files written and closed; the OS and the JACK
-    server reclaim its clients). Why not close at the end: rtmidi's `close_port` on a JACK
-    virtual input crashed `instrument run` as it ended, the server alive (a segfault, once in
-    about four full test runs, just after the other end closed its own port), and past a server
-    restart libjack still holds the dead client, where taking any port apart can crash it. In a
-    process that goes on (a test's own ports), ports are closed. Everything recorded is closed
-    before the devices."""
-    if ABANDONED.is_set() or ENDS_WITH_PROCESS.is_set():
+def release(port: object, close: Callable[[], None], leave_at_end: bool = False) -> None:
+    """Take a device's port apart with `close`, unless a JACK server died under this process, or
+    the process ends with it and the port is one to `leave_at_end` (an input: nothing of it is
+    still to go out); then the port is left, as a dead one is, to the process's end (cli.main
+    ends such a process at once, its files written and closed; the OS and the JACK server
+    reclaim its clients). rtmidi's `close_port` on a JACK virtual input crashed `instrument
+    run` as it ended, the server alive (a segfault, once in about four full test runs, just
+    after the other end closed its own port); past a server restart libjack still holds the
+    dead client, where taking any port apart can crash it. An output is closed even at the
+    end: its close waits for JACK to send what it queued (a footfall's note-off, the
+    feedback's last values), which the process's end would drop. In a process that goes on
+    (a test's own ports), ports are closed. Everything recorded is closed before the devices."""
+    if ABANDONED.is_set() or (leave_at_end and ENDS_WITH_PROCESS.is_set()):
         abandon(port)
     else:
         close()
