@@ -72,6 +72,22 @@ def test_unit_from_a_pattern_that_finds_no_unit_names_the_file():
         unit_from_name(Path("take_7.bvh"), r"^([a-z]+)_")
 
 
+def test_unit_from_reads_a_standing_takes_gesture_where_it_reads_its_unit(tmp_path):
+    """A studio's own names (`actorB_Active_IdleWave01.bvh`, trained with `--unit-from
+    '_([A-Za-z]+?)[0-9]+$'`): the stand was read from --unit-from's group but its gesture from the
+    default part before the style (`actorB`), so the model trained no gesture, and said nothing."""
+    for name in ("actorB_Active_IdleWave01", "actorB_Active_IdleRaise01", "actorB_Active_Idle01", "actorB_Active_Jog01"):
+        (tmp_path / f"{name}.bvh").touch()
+    takes = styled_takes([tmp_path], r"actorB_([A-Za-z]+)_", r"_([A-Za-z]+?)[0-9]+$")
+    assert sorted((t.path.stem, t.unit, t.gesture) for t in takes) == [
+        ("actorB_Active_Idle01", "stand", ""), ("actorB_Active_IdleRaise01", "stand", "raise"),
+        ("actorB_Active_IdleWave01", "stand", "wave"), ("actorB_Active_Jog01", "run", "")]
+    # without --unit-from, the part before the style says both, as before
+    (tmp_path / "x").mkdir()
+    (tmp_path / "x" / "dataset-2_wave-both-hands_active_001.bvh").touch()
+    assert [(t.unit, t.gesture) for t in styled_takes([tmp_path / "x"])] == [("stand", "wave")]
+
+
 def test_a_manifest_says_each_takes_unit_and_a_bad_one_names_its_line(tmp_path):
     for take in ("a.bvh", "b.bvh", "c.bvh"):  # the takes named are there (a missing one is refused at its line)
         (tmp_path / take).touch()

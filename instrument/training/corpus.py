@@ -22,7 +22,7 @@ from ..motion.upright import upright
 from ..models.units import GESTURES, UNITS
 from ..textfile import read_text
 from ..tomlfile import TomlFile
-from .units import checked_gesture, checked_unit, take_gesture, turn_as_taken, unit_from_name
+from .units import checked_gesture, checked_unit, gesture_from_name, take_gesture, turn_as_taken, unit_from_name
 
 # the last but one "_"-separated part, starting with a letter: dataset-2_walk_elderly_003 -> elderly,
 # walk_not-confident_001 -> not-confident, style2_take3 -> style2
@@ -118,7 +118,9 @@ def styled_takes(paths: list[str] | list[Path], pattern: str = DEFAULT_STYLE_PAT
                  unit_pattern: str | None = None) -> list[TakeFile]:
     """Every BVH file named or inside the folders named, its style and unit read from its name
     (training/units.py: a walk unless the name says otherwise)."""
-    return [TakeFile(f, style_from_name(f, pattern), unit_from_name(f, unit_pattern)) for f in bvh_files(paths)]
+    takes = [TakeFile(f, style_from_name(f, pattern), unit_from_name(f, unit_pattern)) for f in bvh_files(paths)]
+    # a stand's gesture from the part its unit was read in (--unit-from's group, training/units.py)
+    return [t._replace(gesture=gesture_from_name(t.path, unit_pattern) or "") if t.unit == "stand" else t for t in takes]
 
 
 def read_manifest(path: Path) -> list[TakeFile]:
