@@ -172,6 +172,20 @@ def test_styled_takes_of_the_motions_folder_hold_every_unit():
 
 @needs_motions
 @needs_walks
+def test_a_style_without_a_unit_the_others_have_is_said(real_walks):
+    """A capture with no runs for one style (a session that ran out of time) trained its run as
+    the average's without a word: each style lacking a unit the corpus has is named."""
+    walks = {p.name.split("_")[2]: p for p in real_walks}
+    pairs = [TakeFile(walks["active"], "active"), TakeFile(walks["elderly"], "elderly"),
+             TakeFile(MOTIONS / "dataset-2_run_active_001.bvh", "active", "run")]
+    _, takes, warnings = load_corpus(pairs, 30.0)
+    assert {(t.style, t.unit) for t in takes} == {("active", "walk"), ("elderly", "walk"), ("active", "run")}
+    assert [w for w in warnings if "no run take" in w] == [
+        "style 'elderly': no run take, so its run is the average's, moved only as its other units are"]
+
+
+@needs_motions
+@needs_walks
 def test_a_turning_take_is_trained_as_the_way_it_turns(tmp_path, real_walks):
     """One of the Bandai set's masculine takes named turn-left turns right (checked with the
     independent reader: its hips' heading); a straight walk named as a turn is left out."""

@@ -329,6 +329,12 @@ def load_corpus(pairs: Sequence[tuple], fps: float, progress=None, states: int =
     kept = {t.style for t in takes}
     warnings += [f"style {style!r}: none of its takes has steps, so the model has no such style"
                  for style in sorted({p.style for p in pairs} - kept)]
+    # a style without a unit the others have plays the average's there, moved only as its other units
+    # are (said: a folder missing one style's runs trained without a word); a style without walks is
+    # said by the adaptation (training/adaptation.py)
+    warnings += [f"style {style!r}: no {unit} take, so its {unit} is the average's, moved only as its other units are"
+                 for style in sorted(kept) for unit in UNITS if unit != "walk" and any(t.unit == unit for t in takes)
+                 and not any(t.style == style and t.unit == unit for t in takes)]
     by_case: dict[str, list[str]] = {}
     for style in sorted(kept):  # a manifest keeps its styles' case, a file name's is read lower-cased
         by_case.setdefault(style.lower(), []).append(style)
