@@ -266,3 +266,22 @@ def test_inspect_reads_names_with_trains_style_from_and_unit_from(tmp_path):
                                   ("--style-from", "actorB_[A-Za-z]+_", "--style-from: the expression needs exactly one group, it has 0")):
         result = run("inspect", str(tmp_path), option, pattern)
         assert result.returncode != 0 and result.stderr.strip().splitlines()[-1].startswith(f"instrument inspect: error: {said}"), result.stderr
+
+
+def test_train_and_inspect_warn_of_a_unit_named_where_the_default_does_not_read(tmp_path):
+    """Names with the unit after the style (`actorB_Calm_Jog01.bvh`) are read as walks without
+    --unit-from: both commands say so, naming the file and the part, and train still trains."""
+    text, _ = cmu_style_walk(fps=30)
+    for name in ("actorB_Calm_Jog01", "actorB_Calm_Walk01"):
+        (tmp_path / f"{name}.bvh").write_text(text)
+    said = ("read as a walk, but its name's 'Jog01' says run (the unit is read from the part before the style: "
+            "give --unit-from REGEX or a manifest)")
+    inspected = run("inspect", str(tmp_path))
+    assert inspected.returncode == 0 and inspected.stdout.count("warning: read as a walk") == 1
+    assert f"  warning: {said}" in inspected.stdout
+    trained = run("train", str(tmp_path), "--out", str(tmp_path / "m.npz"), "--quiet")
+    assert trained.returncode == 0, trained.stderr
+    assert [line for line in trained.stderr.splitlines() if "read as a walk" in line] == [
+        f"warning: {tmp_path / 'actorB_Calm_Jog01.bvh'}: {said}"]
+    quiet = run("inspect", str(tmp_path), "--unit-from", "_([A-Za-z]+?)[0-9]+$")
+    assert "read as a walk" not in quiet.stdout and "unit     run" in quiet.stdout

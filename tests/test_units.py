@@ -88,6 +88,22 @@ def test_unit_from_reads_a_standing_takes_gesture_where_it_reads_its_unit(tmp_pa
     assert [(t.unit, t.gesture) for t in styled_takes([tmp_path / "x"])] == [("stand", "wave")]
 
 
+@pytest.mark.parametrize("name, said", [
+    ("actorB_Active_Jog01", "'Jog01' says run"),  # a studio's scheme: the unit after the style
+    ("actorB_Active_IdleWave01", "'IdleWave01' says stand"),
+    ("actorB_Active_WalkTurnLeft01", "'WalkTurnLeft01' says turn-left"),
+    ("actorB_Active_Walk01", None), ("dataset-2_walk_elderly_003", None), ("style2_take3", None),
+    ("me_forest-walk_proud_1", None),  # a word inside a word is none, as for the unit itself
+])
+def test_a_unit_the_default_reading_does_not_look_for_is_found(name, said):
+    """By default the unit is the part before the style: `actorB_Active_Jog01` trained as a walk,
+    and train said only `units: walk` (train and inspect now warn, naming the part)."""
+    from instrument.training.units import unit_said_elsewhere
+
+    assert unit_from_name(Path(name + ".bvh")) == "walk"
+    assert unit_said_elsewhere(Path(name + ".bvh")) == said
+
+
 def test_a_manifest_says_each_takes_unit_and_a_bad_one_names_its_line(tmp_path):
     for take in ("a.bvh", "b.bvh", "c.bvh"):  # the takes named are there (a missing one is refused at its line)
         (tmp_path / take).touch()

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import UserError
-from .train_cmd import add_name_options, name_patterns
+from .train_cmd import UNIT_ELSEWHERE, add_name_options, name_patterns
 
 if TYPE_CHECKING:  # (the training's modules load numpy: not for --help)
     from ..training.corpus import TakeFile
@@ -36,7 +36,7 @@ def describe(path: Path, listed: TakeFile | None = None, style_from: str | None 
     from ..motion.steps import contiguous_runs, segment_steps
     from ..motion.upright import upright
     from ..training.corpus import DEFAULT_STYLE_PATTERN, style_from_name
-    from ..training.units import gesture_from_name, take_gesture, unit_from_name
+    from ..training.units import gesture_from_name, take_gesture, unit_from_name, unit_said_elsewhere
 
     motion, up = upright(read_bvh(path))
     if listed is not None:
@@ -52,6 +52,9 @@ def describe(path: Path, listed: TakeFile | None = None, style_from: str | None 
     segmentation = standing_steps(motion, choose_layout([motion])) if unit == "stand" else segment_steps(motion)
     steps = segmentation.steps
     warnings = list(segmentation.warnings)
+    elsewhere = unit_said_elsewhere(path) if listed is None and unit_from is None and unit == "walk" else None
+    if elsewhere:
+        warnings.append(UNIT_ELSEWHERE.format(elsewhere))
     if up != "+Y":
         warnings.append(f"{up} is up in this capture: read turned Y up (the models trained on it and their walks are Y up)")
     runs = contiguous_runs(steps)

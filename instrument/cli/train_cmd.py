@@ -32,6 +32,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
+# a take read as a walk whose name says another unit elsewhere (training/units.unit_said_elsewhere)
+UNIT_ELSEWHERE = ("read as a walk, but its name's {} (the unit is read from the part before the style: "
+                  "give --unit-from REGEX or a manifest)")
+
+
 def add_name_options(p: argparse.ArgumentParser) -> None:
     """--style-from and --unit-from, for train and for inspect (which shows what train reads)."""
     p.add_argument("--style-from", metavar="REGEX",
@@ -63,6 +68,7 @@ def name_patterns(args: argparse.Namespace) -> tuple[str, str | None]:
 
 def _pairs(args: argparse.Namespace) -> list:
     from ..training.corpus import bvh_files, read_manifest, styled_takes
+    from ..training.units import unit_said_elsewhere
 
     pairs: list = []
     if args.manifest:
@@ -70,7 +76,12 @@ def _pairs(args: argparse.Namespace) -> list:
     if args.data:
         style_from, unit_from = name_patterns(args)
         listed = {p.path.resolve() for p in pairs}  # a take the manifest names takes its style from there
-        pairs += styled_takes([f for f in bvh_files(args.data) if f.resolve() not in listed], style_from, unit_from)
+        named = styled_takes([f for f in bvh_files(args.data) if f.resolve() not in listed], style_from, unit_from)
+        for take in named if unit_from is None else []:  # said even with --quiet: something to act on
+            elsewhere = unit_said_elsewhere(take.path) if take.unit == "walk" else None
+            if elsewhere:
+                print(f"warning: {take.path}: {UNIT_ELSEWHERE.format(elsewhere)}", file=sys.stderr)
+        pairs += named
     if not pairs:
         raise UserError("no training data: give BVH files or folders, or --manifest")
     first: dict = {}

@@ -53,6 +53,17 @@ def unit_from_name(path: Path, pattern: str | None = None) -> str:
     return unit or "walk"
 
 
+def unit_said_elsewhere(path: Path) -> str | None:
+    """For a take the default reading takes for a walk: the other unit a part of its name says
+    (`actorB_Active_Jog01` -> "'Jog01' says run"), or None. Such names (a studio's own scheme,
+    the unit after the style) trained every run, turn and stand as a walk, saying only `units: walk`."""
+    for part in path.stem.split("_"):
+        unit = unit_of_words(part) if part else None
+        if unit not in (None, "walk"):
+            return f"{part!r} says {unit}"
+    return None
+
+
 def gesture_from_name(path: Path, pattern: str | None = None) -> str | None:
     """The gesture a standing take performs, from the part of its name that says its unit
     (`dataset-2_wave-both-hands_active_001` -> wave; with --unit-from `_([A-Za-z]+?)[0-9]+$`,
