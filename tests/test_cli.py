@@ -266,3 +266,46 @@ def test_inspect_reads_a_manifest_as_train_does(tmp_path):
     assert result.returncode != 0 and "Traceback" not in result.stderr
     assert result.stderr.strip().splitlines() == [f"instrument inspect: error: {tmp_path / 'bad.csv'}:2: gesture 'wave' given to a walk take: "
                                                   "a gesture is a standing take's (unit stand)"]
+
+
+def test_inspect_reads_names_with_trains_style_from_and_unit_from(tmp_path):
+    """A studio's own names (`actorB_Proud_IdleWave01.bvh`) are trained with `--style-from` and
+    `--unit-from`, which inspect did not take: it showed every take as a walk of no style, and
+    each standing take as "not a walk", though train read them as stands and their gestures."""
+    from conftest import REPO
+    motions = REPO.parent / "shared" / "data" / "bandai-motions"
+    if not motions.is_dir():
+        import pytest
+        pytest.skip(f"standing takes not found in {motions}")
+    (tmp_path / "actorB_Proud_IdleWave01.bvh").write_text((motions / "dataset-2_wave-both-hands_active_001.bvh").read_text())
+    text, _ = cmu_style_walk(fps=30)
+    (tmp_path / "actorB_Calm_Walk01.bvh").write_text(text)
+    names = ["--style-from", "actorB_([A-Za-z]+)_", "--unit-from", "_([A-Za-z]+?)[0-9]+$"]
+    result = run("inspect", "--json", str(tmp_path), *names)
+    assert result.returncode == 0, result.stderr
+    found = {Path(info["file"]).stem: (info["unit"], info["style"], info["gesture"]) for info in json.loads(result.stdout)}
+    assert found == {"actorB_Proud_IdleWave01": ("stand", "proud", "wave"), "actorB_Calm_Walk01": ("walk", "calm", None)}
+    assert "unit     stand (wave), style proud (read from the name, as train does)" in run("inspect", str(tmp_path), *names).stdout
+    for option, pattern, said in (("--unit-from", "_(x", "--unit-from: not a regular expression"),
+                                  ("--style-from", "actorB_[A-Za-z]+_", "--style-from: the expression needs exactly one group, it has 0")):
+        result = run("inspect", str(tmp_path), option, pattern)
+        assert result.returncode != 0 and result.stderr.strip().splitlines()[-1].startswith(f"instrument inspect: error: {said}"), result.stderr
+
+
+def test_train_and_inspect_warn_of_a_unit_named_where_the_default_does_not_read(tmp_path):
+    """Names with the unit after the style (`actorB_Calm_Jog01.bvh`) are read as walks without
+    --unit-from: both commands say so, naming the file and the part, and train still trains."""
+    text, _ = cmu_style_walk(fps=30)
+    for name in ("actorB_Calm_Jog01", "actorB_Calm_Walk01"):
+        (tmp_path / f"{name}.bvh").write_text(text)
+    said = ("read as a walk, but its name's 'Jog01' says run (the unit is read from the part before the style: "
+            "give --unit-from REGEX or a manifest)")
+    inspected = run("inspect", str(tmp_path))
+    assert inspected.returncode == 0 and inspected.stdout.count("warning: read as a walk") == 1
+    assert f"  warning: {said}" in inspected.stdout
+    trained = run("train", str(tmp_path), "--out", str(tmp_path / "m.npz"), "--quiet")
+    assert trained.returncode == 0, trained.stderr
+    assert [line for line in trained.stderr.splitlines() if "read as a walk" in line] == [
+        f"warning: {tmp_path / 'actorB_Calm_Jog01.bvh'}: {said}"]
+    quiet = run("inspect", str(tmp_path), "--unit-from", "_([A-Za-z]+?)[0-9]+$")
+    assert "read as a walk" not in quiet.stdout and "unit     run" in quiet.stdout

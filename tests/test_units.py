@@ -72,6 +72,38 @@ def test_unit_from_a_pattern_that_finds_no_unit_names_the_file():
         unit_from_name(Path("take_7.bvh"), r"^([a-z]+)_")
 
 
+def test_unit_from_reads_a_standing_takes_gesture_where_it_reads_its_unit(tmp_path):
+    """A studio's own names (`actorB_Active_IdleWave01.bvh`, trained with `--unit-from
+    '_([A-Za-z]+?)[0-9]+$'`): the stand was read from --unit-from's group but its gesture from the
+    default part before the style (`actorB`), so the model trained no gesture, and said nothing."""
+    for name in ("actorB_Active_IdleWave01", "actorB_Active_IdleRaise01", "actorB_Active_Idle01", "actorB_Active_Jog01"):
+        (tmp_path / f"{name}.bvh").touch()
+    takes = styled_takes([tmp_path], r"actorB_([A-Za-z]+)_", r"_([A-Za-z]+?)[0-9]+$")
+    assert sorted((t.path.stem, t.unit, t.gesture) for t in takes) == [
+        ("actorB_Active_Idle01", "stand", ""), ("actorB_Active_IdleRaise01", "stand", "raise"),
+        ("actorB_Active_IdleWave01", "stand", "wave"), ("actorB_Active_Jog01", "run", "")]
+    # without --unit-from, the part before the style says both, as before
+    (tmp_path / "x").mkdir()
+    (tmp_path / "x" / "dataset-2_wave-both-hands_active_001.bvh").touch()
+    assert [(t.unit, t.gesture) for t in styled_takes([tmp_path / "x"])] == [("stand", "wave")]
+
+
+@pytest.mark.parametrize("name, said", [
+    ("actorB_Active_Jog01", "'Jog01' says run"),  # a studio's scheme: the unit after the style
+    ("actorB_Active_IdleWave01", "'IdleWave01' says stand"),
+    ("actorB_Active_WalkTurnLeft01", "'WalkTurnLeft01' says turn-left"),
+    ("actorB_Active_Walk01", None), ("dataset-2_walk_elderly_003", None), ("style2_take3", None),
+    ("me_forest-walk_proud_1", None),  # a word inside a word is none, as for the unit itself
+])
+def test_a_unit_the_default_reading_does_not_look_for_is_found(name, said):
+    """By default the unit is the part before the style: `actorB_Active_Jog01` trained as a walk,
+    and train said only `units: walk` (train and inspect now warn, naming the part)."""
+    from instrument.training.units import unit_said_elsewhere
+
+    assert unit_from_name(Path(name + ".bvh")) == "walk"
+    assert unit_said_elsewhere(Path(name + ".bvh")) == said
+
+
 def test_a_manifest_says_each_takes_unit_and_a_bad_one_names_its_line(tmp_path):
     for take in ("a.bvh", "b.bvh", "c.bvh"):  # the takes named are there (a missing one is refused at its line)
         (tmp_path / take).touch()
@@ -152,6 +184,20 @@ def test_a_style_the_controls_cannot_name_is_refused_at_its_line(tmp_path, style
 def test_styled_takes_of_the_motions_folder_hold_every_unit():
     units = {t.unit for t in styled_takes([MOTIONS])}
     assert units == {"run", "turn-left", "turn-right", "stand"}
+
+
+@needs_motions
+@needs_walks
+def test_a_style_without_a_unit_the_others_have_is_said(real_walks):
+    """A capture with no runs for one style (a session that ran out of time) trained its run as
+    the average's without a word: each style lacking a unit the corpus has is named."""
+    walks = {p.name.split("_")[2]: p for p in real_walks}
+    pairs = [TakeFile(walks["active"], "active"), TakeFile(walks["elderly"], "elderly"),
+             TakeFile(MOTIONS / "dataset-2_run_active_001.bvh", "active", "run")]
+    _, takes, warnings = load_corpus(pairs, 30.0)
+    assert {(t.style, t.unit) for t in takes} == {("active", "walk"), ("elderly", "walk"), ("active", "run")}
+    assert [w for w in warnings if "no run take" in w] == [
+        "style 'elderly': no run take, so its run is the average's, moved only as its other units are"]
 
 
 @needs_motions

@@ -20,13 +20,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("data", nargs="*", metavar="DATA", help="BVH files or folders")
     p.add_argument("--out", required=True, metavar="MODEL.npz", help="where to write the model")
     p.add_argument("--force", action="store_true", help="overwrite the model if it exists (default: refuse)")
-    p.add_argument("--style-from", metavar="REGEX",
-                   help="regular expression with one group that finds the style in a file name (without .bvh); "
-                        "default: the last but one '_'-separated part, so dataset-2_walk_elderly_003.bvh is elderly")
-    p.add_argument("--unit-from", metavar="REGEX",
-                   help="regular expression with one group that finds the motion unit in a file name (a word for walk, "
-                        "run, turn-left, turn-right or stand); default: the part before the style, so "
-                        "dataset-2_walk-turn-left_active_001.bvh is turn-left, and a name that says nothing is a walk")
+    add_name_options(p)
     p.add_argument("--manifest", metavar="FILE",
                    help="CSV (file,style[,unit[,gesture]]) or TOML ([[take]] file, style[, unit, gesture]) naming takes, "
                         "styles, units and standing takes' gestures")
@@ -38,29 +32,56 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def _pairs(args: argparse.Namespace) -> list:
-    from ..training.corpus import DEFAULT_STYLE_PATTERN, bvh_files, read_manifest, styled_takes
+# a take read as a walk whose name says another unit elsewhere (training/units.unit_said_elsewhere)
+UNIT_ELSEWHERE = ("read as a walk, but its name's {} (the unit is read from the part before the style: "
+                  "give --unit-from REGEX or a manifest)")
 
-    style_from = args.style_from or DEFAULT_STYLE_PATTERN
+
+def add_name_options(p: argparse.ArgumentParser) -> None:
+    """--style-from and --unit-from, for train and for inspect (which shows what train reads)."""
+    p.add_argument("--style-from", metavar="REGEX",
+                   help="regular expression with one group that finds the style in a file name (without .bvh); "
+                        "default: the last but one '_'-separated part, so dataset-2_walk_elderly_003.bvh is elderly")
+    p.add_argument("--unit-from", metavar="REGEX",
+                   help="regular expression with one group that finds the motion unit in a file name (a word for walk, "
+                        "run, turn-left, turn-right or stand; a stand's gesture is read there too); default: the part "
+                        "before the style, so dataset-2_walk-turn-left_active_001.bvh is turn-left, and a name that "
+                        "says nothing is a walk")
+
+
+def name_patterns(args: argparse.Namespace) -> tuple[str, str | None]:
+    """The style's and the unit's expressions (--style-from, --unit-from; None: the default unit
+    part), each checked to compile with exactly one group."""
+    from ..training.corpus import DEFAULT_STYLE_PATTERN
+
+    for option, given in (("--style-from", args.style_from), ("--unit-from", args.unit_from)):
+        if given is None:
+            continue
+        try:
+            groups = re.compile(given).groups
+        except re.error as e:
+            raise UserError(f"{option}: not a regular expression: {e}") from None
+        if groups != 1:
+            raise UserError(f"{option}: the expression needs exactly one group, it has {groups}")
+    return args.style_from or DEFAULT_STYLE_PATTERN, args.unit_from
+
+
+def _pairs(args: argparse.Namespace) -> list:
+    from ..training.corpus import bvh_files, read_manifest, styled_takes
+    from ..training.units import unit_said_elsewhere
+
     pairs: list = []
     if args.manifest:
         pairs += read_manifest(Path(args.manifest))
     if args.data:
-        try:
-            pattern = re.compile(style_from)
-        except re.error as e:
-            raise UserError(f"--style-from: not a regular expression: {e}") from None
-        if pattern.groups != 1:
-            raise UserError(f"--style-from: the expression needs exactly one group, it has {pattern.groups}")
-        if args.unit_from:
-            try:
-                groups = re.compile(args.unit_from).groups
-            except re.error as e:
-                raise UserError(f"--unit-from: not a regular expression: {e}") from None
-            if groups != 1:
-                raise UserError(f"--unit-from: the expression needs exactly one group, it has {groups}")
+        style_from, unit_from = name_patterns(args)
         listed = {p.path.resolve() for p in pairs}  # a take the manifest names takes its style from there
-        pairs += styled_takes([f for f in bvh_files(args.data) if f.resolve() not in listed], style_from, args.unit_from)
+        named = styled_takes([f for f in bvh_files(args.data) if f.resolve() not in listed], style_from, unit_from)
+        for take in named if unit_from is None else []:  # said even with --quiet: something to act on
+            elsewhere = unit_said_elsewhere(take.path) if take.unit == "walk" else None
+            if elsewhere:
+                print(f"warning: {take.path}: {UNIT_ELSEWHERE.format(elsewhere)}", file=sys.stderr)
+        pairs += named
     if not pairs:
         raise UserError("no training data: give BVH files or folders, or --manifest")
     first: dict = {}

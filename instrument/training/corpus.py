@@ -22,7 +22,7 @@ from ..motion.upright import upright
 from ..models.units import GESTURES, UNITS
 from ..textfile import read_text
 from ..tomlfile import TomlFile
-from .units import checked_gesture, checked_unit, take_gesture, turn_as_taken, unit_from_name
+from .units import checked_gesture, checked_unit, gesture_from_name, take_gesture, turn_as_taken, unit_from_name
 
 # the last but one "_"-separated part, starting with a letter: dataset-2_walk_elderly_003 -> elderly,
 # walk_not-confident_001 -> not-confident, style2_take3 -> style2
@@ -118,7 +118,9 @@ def styled_takes(paths: list[str] | list[Path], pattern: str = DEFAULT_STYLE_PAT
                  unit_pattern: str | None = None) -> list[TakeFile]:
     """Every BVH file named or inside the folders named, its style and unit read from its name
     (training/units.py: a walk unless the name says otherwise)."""
-    return [TakeFile(f, style_from_name(f, pattern), unit_from_name(f, unit_pattern)) for f in bvh_files(paths)]
+    takes = [TakeFile(f, style_from_name(f, pattern), unit_from_name(f, unit_pattern)) for f in bvh_files(paths)]
+    # a stand's gesture from the part its unit was read in (--unit-from's group, training/units.py)
+    return [t._replace(gesture=gesture_from_name(t.path, unit_pattern) or "") if t.unit == "stand" else t for t in takes]
 
 
 def read_manifest(path: Path) -> list[TakeFile]:
@@ -327,6 +329,12 @@ def load_corpus(pairs: Sequence[tuple], fps: float, progress=None, states: int =
     kept = {t.style for t in takes}
     warnings += [f"style {style!r}: none of its takes has steps, so the model has no such style"
                  for style in sorted({p.style for p in pairs} - kept)]
+    # a style without a unit the others have plays the average's there, moved only as its other units
+    # are (said: a folder missing one style's runs trained without a word); a style without walks is
+    # said by the adaptation (training/adaptation.py)
+    warnings += [f"style {style!r}: no {unit} take, so its {unit} is the average's, moved only as its other units are"
+                 for style in sorted(kept) for unit in UNITS if unit != "walk" and any(t.unit == unit for t in takes)
+                 and not any(t.style == style and t.unit == unit for t in takes)]
     by_case: dict[str, list[str]] = {}
     for style in sorted(kept):  # a manifest keeps its styles' case, a file name's is read lower-cased
         by_case.setdefault(style.lower(), []).append(style)

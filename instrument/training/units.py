@@ -36,22 +36,41 @@ def unit_of_words(content: str) -> str | None:
     return content if content in UNITS else named_by_words(content, UNIT_WORDS)
 
 
+def _content(path: Path, pattern: str | None) -> str:
+    """The part of a take's file name that says its unit (and a stand's gesture): `pattern`'s
+    (--unit-from's) group, else the part before the style; "" where none matches."""
+    match = re.search(pattern or DEFAULT_UNIT_PATTERN, path.stem)
+    return match.group(1) if match and match.groups() and match.group(1) else ""
+
+
 def unit_from_name(path: Path, pattern: str | None = None) -> str:
     """The unit of a take from its file name: a walk unless the name says otherwise. With a
     `pattern` (--unit-from) its group must name a unit, or the error names the file."""
-    match = re.search(pattern or DEFAULT_UNIT_PATTERN, path.stem)
-    content = match.group(1) if match and match.groups() and match.group(1) else ""
+    content = _content(path, pattern)
     unit = unit_of_words(content) if content else None
     if pattern is not None and unit is None:
         raise UserError(f"{path}: --unit-from found {content!r}, not a unit ({', '.join(UNITS)}) or a word for one")
     return unit or "walk"
 
 
-def gesture_from_name(path: Path) -> str | None:
-    """The gesture a standing take performs, from its name's content part (`dataset-2_wave-both-hands_active_001`
-    -> wave), or None (models/gestures.py)."""
-    match = re.search(DEFAULT_UNIT_PATTERN, path.stem)
-    return gesture_of_words(match.group(1)) if match and match.group(1) else None
+def unit_said_elsewhere(path: Path) -> str | None:
+    """For a take the default reading takes for a walk: the other unit a part of its name says
+    (`actorB_Active_Jog01` -> "'Jog01' says run"), or None. Such names (a studio's own scheme,
+    the unit after the style) trained every run, turn and stand as a walk, saying only `units: walk`."""
+    for part in path.stem.split("_"):
+        unit = unit_of_words(part) if part else None
+        if unit not in (None, "walk"):
+            return f"{part!r} says {unit}"
+    return None
+
+
+def gesture_from_name(path: Path, pattern: str | None = None) -> str | None:
+    """The gesture a standing take performs, from the part of its name that says its unit
+    (`dataset-2_wave-both-hands_active_001` -> wave; with --unit-from `_([A-Za-z]+?)[0-9]+$`,
+    `actorB_Active_IdleWave01` -> wave: read from the default part alone, such a corpus trained
+    no gesture, silently), or None (models/gestures.py)."""
+    content = _content(path, pattern)
+    return gesture_of_words(content) if content else None
 
 
 def take_gesture(path: Path, unit: str, said: str = "") -> str | None:
