@@ -67,7 +67,7 @@ from numba import njit
 
 from ..motion.features import FeatureLayout
 from ..motion.kinematics import _compose, forward_kinematics
-from ..motion.limbs import centimetres_per_unit, find_limbs
+from ..motion.limbs import centimetres_per_unit, find_limbs, foot_tip
 from .contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, HOLD_FRAMES, NEARLY_STRAIGHT, PLANTED, POSSIBLE, SWING_BENT,
                       SWING_CM, eased_per_frame, per_frame)
 from .follow import ease
@@ -125,7 +125,10 @@ class LockState:
 class FootLock:
     """A skeleton's feet as the lock sees them: legs, floor, units (the same for every character)."""
 
-    def __init__(self, layout: FeatureLayout, ground: np.ndarray, fps: float):
+    def __init__(self, layout: FeatureLayout, ground: np.ndarray, fps: float, tip_clearance: float | None = None):
+        """`ground` (2, foot joints): each foot joint's clearance; `tip_clearance`: that of the End
+        Site of a foot without toe joints (limbs.tip_clearance; None: such a foot has no pivot
+        but its ankle, as models trained before it was kept)."""
         self.layout, self.fps = layout, float(fps)
         self.limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
         self.ground = np.ascontiguousarray(ground, dtype=np.float64)  # (2, foot joints) clearance
@@ -139,11 +142,17 @@ class FootLock:
         self.feet = np.array([np.asarray(leg.foot)[o] for leg, o in zip(legs, order)], dtype=np.int64)
         self.ground = np.ascontiguousarray([self.ground[f, o] for f, o in enumerate(order)])
         self.reach = np.array([leg.thigh + leg.shin for leg in legs])  # hip to ankle, stretched
+        # (2, 3) a toe-less foot's tip in its ankle's frame (limbs.foot_tip), which its heel rolls up
+        # about; zeros for a foot with a toe joint, or none known. `pivot_ground` (2,): the clearance
+        # of the point a heel rises about (the tip's, or the pivot joint's)
+        tips = [None if tip_clearance is None else foot_tip(layout.skeleton, leg) for leg in legs]
+        self.tips = np.array([np.zeros(3) if t is None else t for t in tips])
+        self.pivot_ground = np.array([self.ground[f, -1] if t is None else tip_clearance for f, t in enumerate(tips)])
         template_rot, template_pos = (a[0] for a in forward_kinematics(layout.skeleton, layout.template_pose[0][None],
                                                                         layout.template_pose[1][None]))
         self.cm = centimetres_per_unit(layout, template_pos)
         self.swing_lift = SWING_CM / self.cm  # in the skeleton's units
-        self.across = across_axes(template_rot, template_pos, legs)
+        self.across = across_axes(template_rot, template_pos, legs, self.tips)
 
     def start(self, count: int) -> LockState:
         """The state of `count` characters before their first frame: nothing locked yet."""
@@ -162,22 +171,23 @@ class FootLock:
         lock_crowd(rotations, translations, np.ascontiguousarray(shares, dtype=np.float64), world_rot, world_pos,
                    state.weights, state.points, state.headings, state.drop, state.previous, state.rises,
                    state.settling, state.landed, state.held, standing, self.parents, self.joints, self.feet, self.across,
-                   self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm, self.swing_lift)
+                   self.tips, self.pivot_ground, self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm, self.swing_lift)
 
 
-def across_axes(world_rot: np.ndarray, world_pos: np.ndarray, legs) -> np.ndarray:
+def across_axes(world_rot: np.ndarray, world_pos: np.ndarray, legs, tips: np.ndarray) -> np.ndarray:
     """(2, 3) each foot's axis across it (level, to the side of its toe line in the template
     pose, whose world rotations and positions are given), in its ankle's frame: what
     `foot_heading` reads a foot's heading from. The toe line's
     own heading turns half round as a foot pitches past vertical (a run's toe-off has the toes
     behind the ankle), and a lock holding the heading it landed with spun the foot about the
     vertical as it let go; pitching leaves the axis across the foot where it was. A foot without
-    joints below its ankle has none (zeros: no heading, none held)."""
+    joints below its ankle takes its toe line to its tip (`tips` (2, 3), in the ankle's frame:
+    FootLock.tips); without a tip either it has none (zeros: no heading, none held)."""
     axes = np.zeros((2, 3))
     for f, leg in enumerate(legs):
-        toes = world_pos[leg.pivot] - world_pos[leg.ankle]
+        toes = world_pos[leg.pivot] - world_pos[leg.ankle] if leg.pivot != leg.ankle else world_rot[leg.ankle] @ tips[f]
         level = np.hypot(toes[0], toes[2])
-        if leg.pivot != leg.ankle and level > 1e-9:
+        if level > 1e-9:
             across = np.array([toes[2], 0.0, -toes[0]]) / level  # up x toes: the heading's +90 deg, level
             axes[f] = world_rot[leg.ankle].T @ across
     return axes
@@ -273,7 +283,17 @@ def lock_target(world_pos, leg, foot, ground_f, weight, point, landed, held, swi
 
 
 @njit(cache=True, error_model="numpy")
-def heel_rise(world_rot, world_pos, leg, pivot, across, clearance, on_floor, target, allowed, low, high,
+def _toe_line(world_rot, world_pos, ankle, pivot, tip):  # pragma: no cover - compiled
+    """The ankle to the point its heel rises about: the pivot joint, or for a foot that is its
+    ankle alone, its `tip` (in the ankle's frame; zeros where it has none)."""
+    if pivot != ankle:
+        return _sub(world_pos[pivot], world_pos[ankle])
+    r = world_rot[ankle]
+    return (_dot(r[0], tip), _dot(r[1], tip), _dot(r[2], tip))
+
+
+@njit(cache=True, error_model="numpy")
+def heel_rise(world_rot, world_pos, leg, pivot, tip, across, clearance, on_floor, target, allowed, low, high,
               turn):  # pragma: no cover - compiled
     """The foot's turn (3x3, world: written into `turn`) and its angle (returned) about its pivot
     (its front-most joint, the toes) when the lock asks the leg (hip, knee, ankle) to reach
@@ -287,8 +307,9 @@ def heel_rise(world_rot, world_pos, leg, pivot, across, clearance, on_floor, tar
     in [`low`, `high`] (the lock keeps each rise within HEEL_RISE_SPEED of the frame before's,
     so a rise no longer asked for comes down at that pace), and the foot to at most
     MAX_HEEL_RISE from flat, which wins over `low`. `clearance` (2,): the ankle's and the
-    pivot's heights standing on the floor."""
-    toes = _sub(world_pos[pivot], world_pos[leg[2]])
+    pivot's heights standing on the floor. A foot without a toe joint rises about its `tip`
+    (`_toe_line`), the toe joint's place."""
+    toes = _toe_line(world_rot, world_pos, leg[2], pivot, tip)
     toe = (target[0] + toes[0], target[1] + toes[1], target[2] + toes[2])  # where the pivot goes with the ankle
     # the foot's pitch axis, lifting the heel: its axis across it (up x the toe line, for a flat
     # foot), which the turn leaves where it is, and so the heading held; the toe line's own, near
@@ -501,11 +522,12 @@ def leg_swings(hip, knee, ankle, target, toes, swing, shin, work):  # pragma: no
 
 
 @njit(cache=True, error_model="numpy")
-def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, target, work):  # pragma: no cover - compiled
+def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, tip, target, work):  # pragma: no cover - compiled
     """Leg IK in place on the local rotations: hip and knee swung, the ankle keeping its world
     rotation. The hip is the knee's parent and the knee the ankle's (limbs.py): below the hip
-    everything turns with the thigh, below the knee also with the shin. `work` (7, 3, 3): scratch."""
-    toes = _sub(world_pos[toe], world_pos[ankle])
+    everything turns with the thigh, below the knee also with the shin. `work` (7, 3, 3): scratch.
+    The toe line (to the `toe` joint, or a toe-less foot's `tip`) tells a straight knee which way is forward."""
+    toes = _toe_line(world_rot, world_pos, ankle, toe, tip)
     thigh, shin, hip_world, knee_world, turn = work[0], work[1], work[2], work[3], work[4]
     leg_swings(world_pos[hip], world_pos[knee], world_pos[ankle], target, toes, thigh, shin, work[5:])
     _product(thigh, world_rot[hip], hip_world)  # thigh @ world_rot[hip]
@@ -531,7 +553,7 @@ def lock_work():  # pragma: no cover - compiled
 
 @njit(cache=True, error_model="numpy")
 def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, landed, held, standing, parents, joints, feet, across, ground, reach, parent_rot, root, fps, cm,
+               settling, landed, held, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot, root, fps, cm,
                swing_lift, work):  # pragma: no cover - compiled
     """One character's frame (arrays of that character; `drop` a 1-element view, `standing` a
     bool). Returns nothing: rotations, translations, the world transforms and the state are
@@ -576,8 +598,8 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         extension[f] = np.sqrt(_dot(gap, gap))
     on_floor = CONTACT_CM / cm
     rise_step = HEEL_RISE_SPEED / fps
-    _targets(world_rot, world_pos, joints, feet, across, ground, weights, points, planted, landed, held, hold_step, swing_lift,
-             on_floor, extension, rises, rise_step, targets, turns, angles, holding)
+    _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed, held,
+             hold_step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
     # eased towards what it needs by 1 / BLEND_FRAMES of the way a frame at REFERENCE_FPS: the same time at any rate
     drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) * eased_per_frame(
         1.0 / BLEND_FRAMES, fps)
@@ -585,8 +607,8 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         for a in range(3):  # [0, drop, 0] @ parent_rot, element by element (no temporary array)
             translations[root, a] -= drop[0] * parent_rot[1, a]
         world_pos[:, 1] -= drop[0]
-        _targets(world_rot, world_pos, joints, feet, across, ground, weights, points, planted, landed, held, hold_step,
-                 swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
+        _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed,
+                 held, hold_step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
     rises[0], rises[1] = angles[0], angles[1]
     held[0], held[1] = holding[0], holding[1]
     for f in range(2):  # a closing step's foot off the floor
@@ -603,8 +625,8 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         _copy_matrix(turned, world_rot[ankle])  # the foot keeps its generated world rotation, but for the heel's rise
         gap = _sub(targets[f], world_pos[ankle])
         if np.sqrt(_dot(gap, gap)) > 1e-9:
-            solve_leg(rotations, world_rot, world_pos, parents, joints[f, 0], joints[f, 1], ankle, feet[f, -1], targets[f],
-                      matrices[1:])
+            solve_leg(rotations, world_rot, world_pos, parents, joints[f, 0], joints[f, 1], ankle, feet[f, -1], tips[f],
+                      targets[f], matrices[1:])
         elif not _identity(turns[f]):  # the ankle where it was made, the foot turned all the same
             _product_t(world_rot[joints[f, 1]], world_rot[ankle], rotations[ankle])
 
@@ -749,7 +771,7 @@ def _turned(kx, ky, kz, c, s, x, y, z):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def _targets(world_rot, world_pos, joints, feet, across, ground, weights, points, planted, landed, held, hold_step,
+def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed, held, hold_step,
              swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding):  # pragma: no cover - compiled
     """Each ankle's target (2, 3), each foot's heel-rise turn (2, 3, 3) and angle (2,), and how far
     its lowest joint is held down (2,), written into `targets`, `turns`, `angles` and `holding`: a
@@ -765,10 +787,10 @@ def _targets(world_rot, world_pos, joints, feet, across, ground, weights, points
         _set_identity(turns[f])
         angles[f] = 0.0
         if weights[f] > 0.0 or rises[f] > 0.0:
-            clearance = (ground[f, 0], ground[f, -1])
+            clearance = (ground[f, 0], pivot_ground[f])
             low = max(rises[f] - rise_step, 0.0)
             high = min(rises[f] + rise_step, MAX_HEEL_RISE) if weights[f] > 0.0 else low
-            angles[f] = heel_rise(world_rot, world_pos, joints[f], feet[f, -1], across[f], clearance, on_floor, targets[f],
+            angles[f] = heel_rise(world_rot, world_pos, joints[f], feet[f, -1], tips[f], across[f], clearance, on_floor, targets[f],
                                   extension[f], low, high, turns[f])
         if not planted[f] and not planted[1 - f] and weights[f] > 0.0:  # (a walk's other foot is down)
             within_reach(targets[f], world_pos[joints[f, 0]], extension[f])
@@ -793,12 +815,12 @@ def within_reach(target, hip, extension):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, landed, held, standing, parents, joints, feet, across, ground, reach, parent_rot, root, fps, cm,
+               settling, landed, held, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot, root, fps, cm,
                swing_lift):  # pragma: no cover - compiled
     """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
     work = lock_work()
     for n in range(rotations.shape[0]):
         lock_frame(rotations[n], translations[n], shares[n], world_rot[n], world_pos[n], weights[n], points[n], headings[n],
                    drop[n : n + 1], previous[n], rises[n], settling[n], landed[n], held[n], standing[n], parents, joints, feet,
-                   across, ground, reach, parent_rot, root, fps, cm, swing_lift, work)
+                   across, tips, pivot_ground, ground, reach, parent_rot, root, fps, cm, swing_lift, work)
     _compose(parents, rotations, translations, world_rot, world_pos)
