@@ -174,6 +174,14 @@ class FootLock:
                    self.tips, self.pivot_ground, self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm, self.swing_lift)
 
 
+    def pivots(self, world_rot: np.ndarray, world_pos: np.ndarray) -> np.ndarray:
+        """(N, 2, 3) each foot's pivot point in N poses' world transforms (N, J, 3, 3), (N, J, 3):
+        the pivot joint, or a toe-less foot's tip (`tips`), the points the lock holds."""
+        legs = self.limbs.legs
+        return np.stack([world_pos[:, leg.pivot] if leg.pivot != leg.ankle
+                         else world_pos[:, leg.ankle] + world_rot[:, leg.ankle] @ self.tips[f] for f, leg in enumerate(legs)],
+                        axis=1)
+
 def across_axes(world_rot: np.ndarray, world_pos: np.ndarray, legs, tips: np.ndarray) -> np.ndarray:
     """(2, 3) each foot's axis across it (level, to the side of its toe line in the template
     pose, whose world rotations and positions are given), in its ankle's frame: what
@@ -205,16 +213,19 @@ def _lowest_lift(world_pos, foot, ground_f):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def planted_feet(shares, world_pos, previous, feet, ground, fps, cm, planted):  # pragma: no cover - compiled
+def planted_feet(shares, world_rot, world_pos, previous, joints, feet, tips, ground, fps, cm,
+                 planted):  # pragma: no cover - compiled
     """A foot is planted where its state says so, or where the state allows it and the generated
     foot is on the floor and nearly still (as the data's contact was labelled): written into
     `planted` (2,) bool; `previous` (2, 3) becomes this frame's pivots. Returns each generated
     pivot's horizontal speed since the frame before (cm/s; NaN at first), which the closing
-    step's 'still' test reads too."""
-    speeds = (np.hypot(world_pos[feet[0, -1], 0] - previous[0, 0], world_pos[feet[0, -1], 2] - previous[0, 2]) * fps * cm,
-              np.hypot(world_pos[feet[1, -1], 0] - previous[1, 0], world_pos[feet[1, -1], 2] - previous[1, 2]) * fps * cm)
+    step's 'still' test reads too. Pivots: `_pivot_at`."""
+    pivots = (_pivot_at(world_rot, world_pos, joints[0, 2], feet[0, -1], tips[0]),
+              _pivot_at(world_rot, world_pos, joints[1, 2], feet[1, -1], tips[1]))
+    speeds = (np.hypot(pivots[0][0] - previous[0, 0], pivots[0][2] - previous[0, 2]) * fps * cm,
+              np.hypot(pivots[1][0] - previous[1, 0], pivots[1][2] - previous[1, 2]) * fps * cm)
     for f in range(2):
-        pivot = world_pos[feet[f, -1]]
+        pivot = pivots[f]
         speed = speeds[f]
         for i in range(3):
             previous[f, i] = pivot[i]
@@ -251,7 +262,7 @@ def swing_share(world_pos, leg):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def lock_target(world_pos, leg, foot, ground_f, weight, point, landed, held, swing_lift,
+def lock_target(world_rot, world_pos, leg, foot, tip, ground_f, weight, point, landed, held, swing_lift,
                 target):  # pragma: no cover - compiled
     """Where the ankle (leg: hip, knee, ankle) should be, written into `target` (3,): the lock
     blended in horizontally, the lowest foot joint on the floor while planted, never below it,
@@ -265,14 +276,15 @@ def lock_target(world_pos, leg, foot, ground_f, weight, point, landed, held, swi
     lift has gone as the foot was planted (1 planted, 0 swinging); `held`: how far its lowest
     joint is held down (1 planted or handing over, 0 released): both change over HOLD_FRAMES'
     time, not in a frame, and only vertically: the horizontal pull is the lock's own weight, so
-    a foot held down is held where it was planted as much as before."""
+    a foot held down is held where it was planted as much as before. The pivot is `_pivot_at`'s
+    (a toe-less foot's `tip`)."""
     lift = _lowest_lift(world_pos, foot, ground_f)
     for i in range(3):
         target[i] = world_pos[leg[2], i]
     w = ease(weight)
     down = held * w * lift if held > 0.0 else 0.0
     if w > 0:
-        pivot = world_pos[foot[-1]]
+        pivot = _pivot_at(world_rot, world_pos, leg[2], foot[-1], tip)
         target[0] += w * (point[0] - pivot[0])
         target[2] += w * (point[2] - pivot[2])
         target[1] -= down
@@ -290,6 +302,16 @@ def _toe_line(world_rot, world_pos, ankle, pivot, tip):  # pragma: no cover - co
         return _sub(world_pos[pivot], world_pos[ankle])
     r = world_rot[ankle]
     return (_dot(r[0], tip), _dot(r[1], tip), _dot(r[2], tip))
+
+
+@njit(cache=True, error_model="numpy")
+def _pivot_at(world_rot, world_pos, ankle, pivot, tip):  # pragma: no cover - compiled
+    """Where the foot's pivot point is (a tuple): its pivot joint, or for a foot that is its
+    ankle alone, its `tip` (`_toe_line`): the point the lock holds where the foot lands."""
+    if pivot != ankle:
+        return (world_pos[pivot, 0], world_pos[pivot, 1], world_pos[pivot, 2])
+    toes = _toe_line(world_rot, world_pos, ankle, pivot, tip)
+    return (world_pos[ankle, 0] + toes[0], world_pos[ankle, 1] + toes[1], world_pos[ankle, 2] + toes[2])
 
 
 @njit(cache=True, error_model="numpy")
@@ -559,15 +581,16 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     bool). Returns nothing: rotations, translations, the world transforms and the state are
     updated in place."""
     planted, extension, targets, turns, angles, matrices, lifts, holding = work
-    speeds = planted_feet(shares, world_pos, previous, feet, ground, fps, cm, planted)
+    speeds = planted_feet(shares, world_rot, world_pos, previous, joints, feet, tips, ground, fps, cm, planted)
     # both generated feet nearly still (no closing step while the pose steps off; NaN at first: not still)
     still = standing and speeds[0] < SETTLE_STILL_CM_S and speeds[1] < SETTLE_STILL_CM_S
     step = per_frame(BLEND_FRAMES, fps)
     hold_step = per_frame(HOLD_FRAMES, fps)
     for f in range(2):
         if planted[f] and weights[f] == 0.0:
+            pivot = _pivot_at(world_rot, world_pos, joints[f, 2], feet[f, -1], tips[f])
             for i in range(3):
-                points[f, i] = world_pos[feet[f, -1], i]
+                points[f, i] = pivot[i]
             headings[f] = foot_heading(world_rot, joints[f, 2], across[f])
             # landed: a stand may close it up again; and the body has stepped, so the other foot, if
             # a stand closed it up, may be closed up again too (a stop after one step leaves it behind)
@@ -580,7 +603,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     for f in range(2):
         weights[f] = min(1.0, weights[f] + pace[f]) if planted[f] else max(0.0, weights[f] - step)
         landed[f] = min(1.0, landed[f] + hold_step) if planted[f] else max(0.0, landed[f] - hold_step)
-    settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, across, SETTLE_CM / cm,
+    settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, tips, across, SETTLE_CM / cm,
                 1.0 / (SETTLE_SECONDS * fps), SETTLE_LIFT_CM / cm, lifts)
     for f in range(2):
         if weights[f] > 0.0:
@@ -632,7 +655,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
 
 
 @njit(cache=True, error_model="numpy")
-def settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, across, threshold,
+def settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, tips, across, threshold,
                 step, height,
                 lifts):  # pragma: no cover - compiled
     """A closing step: the first time a stand's pose is `still` with both feet planted and locked
@@ -656,7 +679,7 @@ def settle_feet(still, planted, weights, points, headings, settling, world_rot, 
         far = threshold
         for f in range(2):
             if settling[f] == 0.0:
-                pivot = world_pos[feet[f, -1]]
+                pivot = _pivot_at(world_rot, world_pos, joints[f, 2], feet[f, -1], tips[f])
                 away = np.hypot(points[f, 0] - pivot[0], points[f, 2] - pivot[2])
                 if away > far:
                     moving, far = f, away
@@ -672,7 +695,7 @@ def settle_feet(still, planted, weights, points, headings, settling, world_rot, 
     settling[f] = 1.0 if settling[f] + step > 1.0 - 1e-9 else settling[f] + step
     # the share of the way still to go that stays to go (none once the way was all gone)
     keep = (1.0 - ease(settling[f])) / (1.0 - before) if before < 1.0 else 0.0
-    pivot = world_pos[feet[f, -1]]
+    pivot = _pivot_at(world_rot, world_pos, joints[f, 2], feet[f, -1], tips[f])
     for i in (0, 2):
         points[f, i] = pivot[i] + (points[f, i] - pivot[i]) * keep
     turn = (headings[f] - foot_heading(world_rot, joints[f, 2], across[f]) + np.pi) % (2.0 * np.pi) - np.pi
@@ -782,7 +805,7 @@ def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, gro
         # the other foot planted but its lowest point not yet down: this one hands over to it
         handing_over = planted[1 - f] and _sole_lift(world_pos, feet[1 - f], ground[1 - f]) >= on_floor
         holding[f] = min(1.0, held[f] + hold_step) if planted[f] or handing_over else max(0.0, held[f] - hold_step)
-        lock_target(world_pos, joints[f], feet[f], ground[f], weights[f], points[f], ease(landed[f]), ease(holding[f]),
+        lock_target(world_rot, world_pos, joints[f], feet[f], tips[f], ground[f], weights[f], points[f], ease(landed[f]), ease(holding[f]),
                     swing_lift, targets[f])
         _set_identity(turns[f])
         angles[f] = 0.0
