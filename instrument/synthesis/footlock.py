@@ -204,16 +204,25 @@ def across_axes(world_rot: np.ndarray, world_pos: np.ndarray, legs, tips: np.nda
 # ---- kernels (compiled; the names and jobs of the plain-Python lock's methods) --------------
 
 @njit(cache=True, error_model="numpy")
-def _lowest_lift(world_pos, foot, ground_f):  # pragma: no cover - compiled
-    """Height of the foot's lowest joint above its clearance."""
-    lift = np.inf
+def _tip_height(world_rot, world_pos, foot, tip):  # pragma: no cover - compiled
+    """The height of a toe-less foot's `tip` (FootLock.tips: zeros for a foot with toe joints,
+    which have none: inf), the foot's only joint being its ankle."""
+    if tip[0] == 0.0 and tip[1] == 0.0 and tip[2] == 0.0:
+        return np.inf
+    return world_pos[foot[-1], 1] + _dot(world_rot[foot[-1], 1], tip)
+
+
+@njit(cache=True, error_model="numpy")
+def _lowest_lift(world_rot, world_pos, foot, tip, ground_f, tip_ground):  # pragma: no cover - compiled
+    """Height of the foot's lowest joint (or toe-less tip, above `tip_ground`) above its clearance."""
+    lift = _tip_height(world_rot, world_pos, foot, tip) - tip_ground
     for k in range(foot.shape[0]):
         lift = min(lift, world_pos[foot[k], 1] - ground_f[k])
     return lift
 
 
 @njit(cache=True, error_model="numpy")
-def planted_feet(shares, world_rot, world_pos, previous, joints, feet, tips, ground, fps, cm,
+def planted_feet(shares, world_rot, world_pos, previous, joints, feet, tips, pivot_ground, ground, fps, cm,
                  planted):  # pragma: no cover - compiled
     """A foot is planted where its state says so, or where the state allows it and the generated
     foot is on the floor and nearly still (as the data's contact was labelled): written into
@@ -231,7 +240,7 @@ def planted_feet(shares, world_rot, world_pos, previous, joints, feet, tips, gro
             previous[f, i] = pivot[i]
         planted[f] = shares[f] >= PLANTED
         if not planted[f] and shares[f] >= POSSIBLE:
-            lift = _lowest_lift(world_pos, feet[f], ground[f]) * cm
+            lift = _lowest_lift(world_rot, world_pos, feet[f], tips[f], ground[f], pivot_ground[f]) * cm
             planted[f] = lift < CONTACT_CM and speed < CONTACT_SPEED_CM_S  # NaN speed (first frame): False
     if not planted[0] and not planted[1] and max(shares[0], shares[1]) > 0.0:  # a walk has a foot on the floor
         planted[0 if shares[0] >= shares[1] else 1] = True
@@ -239,10 +248,12 @@ def planted_feet(shares, world_rot, world_pos, previous, joints, feet, tips, gro
 
 
 @njit(cache=True, error_model="numpy")
-def _sole_lift(world_pos, foot, ground_f):  # pragma: no cover - compiled
+def _sole_lift(world_rot, world_pos, foot, tip, ground_f, tip_ground):  # pragma: no cover - compiled
     """Height of the foot's lowest point above the lowest clearance of its joints (where its
-    sole stands): a heel down with the toes up is off the floor by this, not by `_lowest_lift`."""
-    low, floor = np.inf, np.inf
+    sole stands): a heel down with the toes up is off the floor by this, not by `_lowest_lift`.
+    A toe-less foot's tip counts as a joint (`_tip_height`)."""
+    low = _tip_height(world_rot, world_pos, foot, tip)
+    floor = tip_ground if low < np.inf else np.inf
     for k in range(foot.shape[0]):
         low = min(low, world_pos[foot[k], 1])
         floor = min(floor, ground_f[k])
@@ -262,7 +273,7 @@ def swing_share(world_pos, leg):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def lock_target(world_rot, world_pos, leg, foot, tip, ground_f, weight, point, landed, held, swing_lift,
+def lock_target(world_rot, world_pos, leg, foot, tip, ground_f, tip_ground, weight, point, landed, held, swing_lift,
                 target):  # pragma: no cover - compiled
     """Where the ankle (leg: hip, knee, ankle) should be, written into `target` (3,): the lock
     blended in horizontally, the lowest foot joint on the floor while planted, never below it,
@@ -278,7 +289,7 @@ def lock_target(world_rot, world_pos, leg, foot, tip, ground_f, weight, point, l
     time, not in a frame, and only vertically: the horizontal pull is the lock's own weight, so
     a foot held down is held where it was planted as much as before. The pivot is `_pivot_at`'s
     (a toe-less foot's `tip`)."""
-    lift = _lowest_lift(world_pos, foot, ground_f)
+    lift = _lowest_lift(world_rot, world_pos, foot, tip, ground_f, tip_ground)
     for i in range(3):
         target[i] = world_pos[leg[2], i]
     w = ease(weight)
@@ -581,7 +592,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     bool). Returns nothing: rotations, translations, the world transforms and the state are
     updated in place."""
     planted, extension, targets, turns, angles, matrices, lifts, holding = work
-    speeds = planted_feet(shares, world_rot, world_pos, previous, joints, feet, tips, ground, fps, cm, planted)
+    speeds = planted_feet(shares, world_rot, world_pos, previous, joints, feet, tips, pivot_ground, ground, fps, cm, planted)
     # both generated feet nearly still (no closing step while the pose steps off; NaN at first: not still)
     still = standing and speeds[0] < SETTLE_STILL_CM_S and speeds[1] < SETTLE_STILL_CM_S
     step = per_frame(BLEND_FRAMES, fps)
@@ -803,9 +814,10 @@ def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, gro
     at that pace after its lock has gone; its hold within `hold_step` of the frame before's (`held`)."""
     for f in range(2):
         # the other foot planted but its lowest point not yet down: this one hands over to it
-        handing_over = planted[1 - f] and _sole_lift(world_pos, feet[1 - f], ground[1 - f]) >= on_floor
+        handing_over = planted[1 - f] and _sole_lift(world_rot, world_pos, feet[1 - f], tips[1 - f], ground[1 - f],
+                                                     pivot_ground[1 - f]) >= on_floor
         holding[f] = min(1.0, held[f] + hold_step) if planted[f] or handing_over else max(0.0, held[f] - hold_step)
-        lock_target(world_rot, world_pos, joints[f], feet[f], tips[f], ground[f], weights[f], points[f], ease(landed[f]), ease(holding[f]),
+        lock_target(world_rot, world_pos, joints[f], feet[f], tips[f], ground[f], pivot_ground[f], weights[f], points[f], ease(landed[f]), ease(holding[f]),
                     swing_lift, targets[f])
         _set_identity(turns[f])
         angles[f] = 0.0
