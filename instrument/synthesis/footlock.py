@@ -625,8 +625,8 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         # while the trailing foot's come off the floor: docs/evaluate.md, "Floating the stricter way")
         share = ease(weights[f]) * (1.0 - (ease(weights[1 - f]) if planted[1 - f] else 0.0))
         if share > 0.0:
-            lay_flat(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], across[f], ground[f, 0],
-                     ground[f, -1], share)
+            lay_flat(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], tips[f], across[f], ground[f, 0],
+                     pivot_ground[f], share)
     for f in range(2):  # each leg's generated hip-to-ankle distance, which the lock keeps where it can
         gap = _sub(world_pos[joints[f, 2]], world_pos[joints[f, 0]])
         extension[f] = np.sqrt(_dot(gap, gap))
@@ -739,19 +739,18 @@ def hold_heading(rotations, world_rot, world_pos, knee, ankle, foot, across, hea
 
 
 @njit(cache=True, error_model="numpy")
-def lay_flat(rotations, world_rot, world_pos, knee, ankle, foot, across, ankle_clearance, pivot_clearance,
+def lay_flat(rotations, world_rot, world_pos, knee, ankle, foot, tip, across, ankle_clearance, pivot_clearance,
              share):  # pragma: no cover - compiled
     """A planted foot whose toes are up (its pivot higher above its clearance than the ankle is
     above its own) pitched down about its ankle, `share` of the way to flat. Real feet roll flat
     soon after the heel lands and stay so while the other foot swings; an extrapolated style
     can stand on its heels through the whole stance, its toes in the air and the swinging foot
     passing below them (the lowest foot joint then sweeps along at the swing's speed). Its
-    joints' world transforms follow; the ankle's local rotation takes the turn."""
-    pivot = foot[-1]
-    if pivot == ankle:
+    joints' world transforms follow; the ankle's local rotation takes the turn. A toe-less
+    foot's toes are its `tip` (`_toe_line`); a foot with neither has none to lay flat."""
+    vx, vy, vz = _toe_line(world_rot, world_pos, ankle, foot[-1], tip)
+    if vx == 0.0 and vy == 0.0 and vz == 0.0:
         return
-    vx, vy, vz = world_pos[pivot, 0] - world_pos[ankle, 0], world_pos[pivot, 1] - world_pos[ankle, 1], \
-        world_pos[pivot, 2] - world_pos[ankle, 2]
     toes_up = vy - (pivot_clearance - ankle_clearance)
     if toes_up <= 0.0:
         return
