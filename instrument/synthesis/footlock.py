@@ -32,6 +32,13 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 - `lock_frame`: one character's frame, in the order above (`_targets` gathers `lock_target` and
   `heel_rise` for both legs); `lock_crowd`: every character's.
 
+A foot that is its ankle alone (no toe joint) but ends in an End Site (`limbs.foot_tip`: many
+CMU conversions and some suits put one at the toes) takes that tip as its pivot point
+(`FootLock.tips`, `_pivot_at`): locked where it lands, the heel rolling up about it, counted
+among the foot's lowest points and laid flat about, as a toe joint is. About the ankle alone no
+heel could rise: a planted leg that could not reach stretched and swung the thigh back, and a
+toe-less walk's hips swung 25-37% wider than its takes' (docs/evaluate.md, "No toes").
+
 Times, not frames: the lock's paces are counted in frames at `motion.features.REFERENCE_FPS` (30, the
 shipped model's rate) and taken as that time at any rate (`contact.per_frame`): its blend in and
 out (BLEND_FRAMES; LANDING_PACE is a multiple of it), the body's drop (eased
@@ -127,8 +134,8 @@ class FootLock:
 
     def __init__(self, layout: FeatureLayout, ground: np.ndarray, fps: float, tip_clearance: float | None = None):
         """`ground` (2, foot joints): each foot joint's clearance; `tip_clearance`: that of the End
-        Site of a foot without toe joints (limbs.tip_clearance; None: such a foot has no pivot
-        but its ankle, as models trained before it was kept)."""
+        Site of a foot without toe joints (learnt in training: limbs.tip_clearance; None: such
+        a foot has no pivot but its ankle, as in models trained before it was kept)."""
         self.layout, self.fps = layout, float(fps)
         self.limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
         self.ground = np.ascontiguousarray(ground, dtype=np.float64)  # (2, foot joints) clearance
