@@ -178,7 +178,8 @@ class FootLock:
         lock_crowd(rotations, translations, np.ascontiguousarray(shares, dtype=np.float64), world_rot, world_pos,
                    state.weights, state.points, state.headings, state.drop, state.previous, state.rises,
                    state.settling, state.landed, state.held, standing, self.parents, self.joints, self.feet, self.across,
-                   self.tips, self.pivot_ground, self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm, self.swing_lift)
+                   self.tips, self.pivot_ground, self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm,
+                   self.swing_lift)
 
 
     def pivots(self, world_rot: np.ndarray, world_pos: np.ndarray) -> np.ndarray:
@@ -593,7 +594,8 @@ def lock_work():  # pragma: no cover - compiled
 
 @njit(cache=True, error_model="numpy")
 def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, landed, held, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot, root, fps, cm,
+               settling, landed, held, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
+               root, fps, cm,
                swing_lift, work):  # pragma: no cover - compiled
     """One character's frame (arrays of that character; `drop` a 1-element view, `standing` a
     bool). Returns nothing: rotations, translations, the world transforms and the state are
@@ -621,7 +623,8 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     for f in range(2):
         weights[f] = min(1.0, weights[f] + pace[f]) if planted[f] else max(0.0, weights[f] - step)
         landed[f] = min(1.0, landed[f] + hold_step) if planted[f] else max(0.0, landed[f] - hold_step)
-    settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, tips, across, SETTLE_CM / cm,
+    settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, tips, across,
+                SETTLE_CM / cm,
                 1.0 / (SETTLE_SECONDS * fps), SETTLE_LIFT_CM / cm, lifts)
     for f in range(2):
         if weights[f] > 0.0:
@@ -811,7 +814,8 @@ def _turned(kx, ky, kz, c, s, x, y, z):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed, held, hold_step,
+def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed, held,
+             hold_step,
              swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding):  # pragma: no cover - compiled
     """Each ankle's target (2, 3), each foot's heel-rise turn (2, 3, 3) and angle (2,), and how far
     its lowest joint is held down (2,), written into `targets`, `turns`, `angles` and `holding`: a
@@ -823,7 +827,8 @@ def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, gro
         handing_over = planted[1 - f] and _sole_lift(world_rot, world_pos, feet[1 - f], tips[1 - f], ground[1 - f],
                                                      pivot_ground[1 - f]) >= on_floor
         holding[f] = min(1.0, held[f] + hold_step) if planted[f] or handing_over else max(0.0, held[f] - hold_step)
-        lock_target(world_rot, world_pos, joints[f], feet[f], tips[f], ground[f], pivot_ground[f], weights[f], points[f], ease(landed[f]), ease(holding[f]),
+        lock_target(world_rot, world_pos, joints[f], feet[f], tips[f], ground[f], pivot_ground[f], weights[f], points[f],
+                    ease(landed[f]), ease(holding[f]),
                     swing_lift, targets[f])
         _set_identity(turns[f])
         angles[f] = 0.0
@@ -831,7 +836,8 @@ def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, gro
             clearance = (ground[f, 0], pivot_ground[f])
             low = max(rises[f] - rise_step, 0.0)
             high = min(rises[f] + rise_step, MAX_HEEL_RISE) if weights[f] > 0.0 else low
-            angles[f] = heel_rise(world_rot, world_pos, joints[f], feet[f, -1], tips[f], across[f], clearance, on_floor, targets[f],
+            angles[f] = heel_rise(world_rot, world_pos, joints[f], feet[f, -1], tips[f], across[f], clearance, on_floor,
+                                  targets[f],
                                   extension[f], low, high, turns[f])
         if not planted[f] and not planted[1 - f] and weights[f] > 0.0:  # (a walk's other foot is down)
             within_reach(targets[f], world_pos[joints[f, 0]], extension[f])
@@ -856,7 +862,8 @@ def within_reach(target, hip, extension):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, landed, held, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot, root, fps, cm,
+               settling, landed, held, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
+               root, fps, cm,
                swing_lift):  # pragma: no cover - compiled
     """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
     work = lock_work()
