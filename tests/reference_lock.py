@@ -1,7 +1,10 @@
 """Test oracle: the foot lock as it was written in plain Python before the pose path was compiled
 (instrument.synthesis.footlock), kept to check that the compiled lock makes the same poses; and
 the one-character pose stream it ran in (instrument.synthesis.posing before CrowdPoses).
-See instrument.synthesis.contact's docstring for what the lock does."""
+See instrument.synthesis.contact's docstring for what the lock does. It restates the lock of
+feet with toe joints (the shipped model's, on which it is compared): a toe-less foot's End Site
+tip as its pivot point (footlock.FootLock.tips; zeros, and so no change, for feet with toes) is
+the compiled lock's alone, pinned by tests/test_other_rigs.py's toe-less rig."""
 
 from __future__ import annotations
 

@@ -79,7 +79,8 @@ def _released_foot(handing_over: bool, weight: float) -> float:
     leg, foot = np.array([0, 1, 2]), np.array([2, 3])
     ground = np.array([10.0, 4.0])  # the ankle's and the toes' clearance
     target = np.empty(3)
-    lock_target(world_pos, leg, foot, ground, weight, world_pos[3].copy(), 0.0, 1.0 if handing_over else 0.0, 0.0, target)
+    lock_target(np.repeat(np.eye(3)[None], 4, axis=0), world_pos, leg, foot, np.zeros(3), ground, 0.0, weight,
+                world_pos[3].copy(), 0.0, 1.0 if handing_over else 0.0, 0.0, target)
     moved = target[1] - world_pos[2, 1]  # the whole foot moves with its ankle
     return float(np.min(world_pos[foot, 1] - ground)) + moved
 

@@ -290,7 +290,7 @@ def measure_pose(model, controls: Controls, turns: int, solves) -> dict:
         if contact is not None:
             shares[k] = engine.contact_shares[0]
     if contact is not None:
-        lock = FootLock(model.layout, contact.clearance, model.fps)
+        lock = FootLock(model.layout, contact.clearance, model.fps, contact.tip_clearance)
 
         def poses():
             stream = PoseStream(model.layout, model.fps, lock)

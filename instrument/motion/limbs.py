@@ -215,6 +215,31 @@ def clearance(positions: list[np.ndarray], limbs: Limbs) -> np.ndarray:
     return np.broadcast_to(per_joint, (2, len(per_joint))).copy()
 
 
+def foot_tip(skeleton: Skeleton, leg: Leg) -> np.ndarray | None:
+    """(3,) where the toes end, in the ankle's frame, for a foot that is its ankle alone (no toe
+    joint: the pivot is the ankle) and ends in an End Site of some length (many CMU
+    conversions and some suits put it at the toe tip); None otherwise. The lock rolls such a
+    heel up about this point as it would about a toe joint: about the ankle alone it could not,
+    and a planted leg that could not reach stretched, swinging the hips 25-37% wider than the
+    takes (docs/evaluate.md, "No toes")."""
+    end = skeleton.joints[leg.ankle].end_site
+    if leg.pivot != leg.ankle or end is None or np.linalg.norm(end) < 1e-9:
+        return None
+    return np.asarray(end, dtype=np.float64)
+
+
+def tip_clearance(world: list[tuple[np.ndarray, np.ndarray]], limbs: Limbs, skeleton: Skeleton) -> float | None:
+    """The toe tip's (`foot_tip`) ground clearance, as `clearance` takes each joint's, from the
+    takes' world rotations and positions (T, J, 3, 3), (T, J, 3): the 1st percentile of its
+    height over both feet, a take at a time, their mean weighted by frames (as the lock's
+    floor, `quality.take_floors`, is); None when neither foot has a tip."""
+    tips = [(leg.ankle, tip) for leg in limbs.legs if (tip := foot_tip(skeleton, leg)) is not None]
+    if not tips:
+        return None
+    floors = [np.percentile(np.concatenate([pos[:, a, 1] + rot[:, a, 1] @ tip for a, tip in tips]), 1.0) for rot, pos in world]
+    return float(np.average(floors, weights=[len(pos) for _, pos in world]))
+
+
 def sole_clearance(positions: list[np.ndarray], limbs: Limbs) -> float:
     """The height of a foot's lowest point when it stands on the floor: the 1st percentile, over
     the takes and both feet, of the lowest foot joint's height in each frame (ankle or toes,

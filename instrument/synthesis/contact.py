@@ -99,6 +99,7 @@ class ContactSpace:
     clearance: np.ndarray  # (2, foot joints)
     legs: int  # index of the legs' body group in per-part weights
     flight: np.ndarray  # (labels * states,) bool: a run's flight there (`flight_states`)
+    tip_clearance: float | None = None  # a toe-less foot's End Site's clearance (limbs.tip_clearance); None: no tip
 
     def shares(self, weights: np.ndarray, part_weights: np.ndarray | None = None) -> np.ndarray:
         """(N, labels * states, 2): how surely each foot is planted in each state for N
@@ -152,8 +153,10 @@ def contact_space(model) -> ContactSpace | None:
     if base.shape != (labels, states, 2) or styles.shape != (len(model.style_names), labels, states, 2):
         return None
     flat = base.reshape(-1, 2)
+    tip = model.metadata.get("contact", {}).get("tip_clearance")
     return ContactSpace(flat, styles.reshape(len(model.style_names), -1, 2) - flat, np.asarray(stored), GROUPS.index("legs"),
-                        flight_states(flat, model.metadata.get("contact", {}).get("air"), states, len(model.units)))
+                        flight_states(flat, model.metadata.get("contact", {}).get("air"), states, len(model.units)),
+                        None if tip is None else float(tip))
 
 
 def flight_states(shares: np.ndarray, air=None, states: int = 1, units: int = 0) -> np.ndarray:

@@ -388,7 +388,7 @@ class Engine:
         self.gesture_tables = GestureTables(self.gestures, interpolation) if self.gestures.names else None
         if self.gesture_tables is not None:
             self.features.append(self.gesture_tables)
-        lock = None if contact is None else FootLock(model.layout, contact.clearance, self.fps)
+        lock = None if contact is None else FootLock(model.layout, contact.clearance, self.fps, contact.tip_clearance)
         self.poses = CrowdPoses(model.layout, self.fps, characters, lock, positions=floor_positions(model, characters, spacing))
         self.frame_ids: np.ndarray | None = None  # (N,) the state (label * states + state) of each newest model frame
         self.contact_shares: np.ndarray | None = None  # (N, 2) how surely each character's newest frame has each foot planted

@@ -71,7 +71,7 @@ class Footfalls:
         if lock is None:
             return []
         weights = self.poses.lock_state.weights
-        pivots = pose.world_positions[:, lock.feet[:, -1]]  # (N, 2, 3)
+        pivots = lock.pivots(pose.world_rotations, pose.world_positions)  # (N, 2, 3)
         settling = self.poses.lock_state.settling
         landed = (self.weights == 0.0) & (weights > 0.0)
         closed = (self.settling > 0.0) & (self.settling < CLOSED) & (settling == CLOSED)  # a closing step set down

@@ -32,6 +32,13 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 - `lock_frame`: one character's frame, in the order above (`_targets` gathers `lock_target` and
   `heel_rise` for both legs); `lock_crowd`: every character's.
 
+A foot that is its ankle alone (no toe joint) but ends in an End Site (`limbs.foot_tip`: many
+CMU conversions and some suits put one at the toes) takes that tip as its pivot point
+(`FootLock.tips`, `_pivot_at`): locked where it lands, the heel rolling up about it, counted
+among the foot's lowest points and laid flat about, as a toe joint is. About the ankle alone no
+heel could rise: a planted leg that could not reach stretched and swung the thigh back, and a
+toe-less walk's hips swung 25-37% wider than its takes' (docs/evaluate.md, "No toes").
+
 Times, not frames: the lock's paces are counted in frames at `motion.features.REFERENCE_FPS` (30, the
 shipped model's rate) and taken as that time at any rate (`contact.per_frame`): its blend in and
 out (BLEND_FRAMES; LANDING_PACE is a multiple of it), the body's drop (eased
@@ -67,7 +74,7 @@ from numba import njit
 
 from ..motion.features import FeatureLayout
 from ..motion.kinematics import _compose, forward_kinematics
-from ..motion.limbs import centimetres_per_unit, find_limbs
+from ..motion.limbs import centimetres_per_unit, find_limbs, foot_tip
 from .contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, HOLD_FRAMES, NEARLY_STRAIGHT, PLANTED, POSSIBLE, SWING_BENT,
                       SWING_CM, eased_per_frame, per_frame)
 from .follow import ease
@@ -125,7 +132,10 @@ class LockState:
 class FootLock:
     """A skeleton's feet as the lock sees them: legs, floor, units (the same for every character)."""
 
-    def __init__(self, layout: FeatureLayout, ground: np.ndarray, fps: float):
+    def __init__(self, layout: FeatureLayout, ground: np.ndarray, fps: float, tip_clearance: float | None = None):
+        """`ground` (2, foot joints): each foot joint's clearance; `tip_clearance`: that of the End
+        Site of a foot without toe joints (learnt in training: limbs.tip_clearance; None: such
+        a foot has no pivot but its ankle, as in models trained before it was kept)."""
         self.layout, self.fps = layout, float(fps)
         self.limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
         self.ground = np.ascontiguousarray(ground, dtype=np.float64)  # (2, foot joints) clearance
@@ -139,11 +149,17 @@ class FootLock:
         self.feet = np.array([np.asarray(leg.foot)[o] for leg, o in zip(legs, order)], dtype=np.int64)
         self.ground = np.ascontiguousarray([self.ground[f, o] for f, o in enumerate(order)])
         self.reach = np.array([leg.thigh + leg.shin for leg in legs])  # hip to ankle, stretched
+        # (2, 3) a toe-less foot's tip in its ankle's frame (limbs.foot_tip), which its heel rolls up
+        # about; zeros for a foot with a toe joint, or none known. `pivot_ground` (2,): the clearance
+        # of the point a heel rises about (the tip's, or the pivot joint's)
+        tips = [None if tip_clearance is None else foot_tip(layout.skeleton, leg) for leg in legs]
+        self.tips = np.array([np.zeros(3) if t is None else t for t in tips])
+        self.pivot_ground = np.array([self.ground[f, -1] if t is None else tip_clearance for f, t in enumerate(tips)])
         template_rot, template_pos = (a[0] for a in forward_kinematics(layout.skeleton, layout.template_pose[0][None],
                                                                         layout.template_pose[1][None]))
         self.cm = centimetres_per_unit(layout, template_pos)
         self.swing_lift = SWING_CM / self.cm  # in the skeleton's units
-        self.across = across_axes(template_rot, template_pos, legs)
+        self.across = across_axes(template_rot, template_pos, legs, self.tips)
 
     def start(self, count: int) -> LockState:
         """The state of `count` characters before their first frame: nothing locked yet."""
@@ -162,22 +178,32 @@ class FootLock:
         lock_crowd(rotations, translations, np.ascontiguousarray(shares, dtype=np.float64), world_rot, world_pos,
                    state.weights, state.points, state.headings, state.drop, state.previous, state.rises,
                    state.settling, state.landed, state.held, standing, self.parents, self.joints, self.feet, self.across,
-                   self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm, self.swing_lift)
+                   self.tips, self.pivot_ground, self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm,
+                   self.swing_lift)
 
 
-def across_axes(world_rot: np.ndarray, world_pos: np.ndarray, legs) -> np.ndarray:
+    def pivots(self, world_rot: np.ndarray, world_pos: np.ndarray) -> np.ndarray:
+        """(N, 2, 3) each foot's pivot point in N poses' world transforms (N, J, 3, 3), (N, J, 3):
+        the pivot joint, or a toe-less foot's tip (`tips`), the points the lock holds."""
+        legs = self.limbs.legs
+        return np.stack([world_pos[:, leg.pivot] if leg.pivot != leg.ankle
+                         else world_pos[:, leg.ankle] + world_rot[:, leg.ankle] @ self.tips[f] for f, leg in enumerate(legs)],
+                        axis=1)
+
+def across_axes(world_rot: np.ndarray, world_pos: np.ndarray, legs, tips: np.ndarray) -> np.ndarray:
     """(2, 3) each foot's axis across it (level, to the side of its toe line in the template
     pose, whose world rotations and positions are given), in its ankle's frame: what
     `foot_heading` reads a foot's heading from. The toe line's
     own heading turns half round as a foot pitches past vertical (a run's toe-off has the toes
     behind the ankle), and a lock holding the heading it landed with spun the foot about the
     vertical as it let go; pitching leaves the axis across the foot where it was. A foot without
-    joints below its ankle has none (zeros: no heading, none held)."""
+    joints below its ankle takes its toe line to its tip (`tips` (2, 3), in the ankle's frame:
+    FootLock.tips); without a tip either it has none (zeros: no heading, none held)."""
     axes = np.zeros((2, 3))
     for f, leg in enumerate(legs):
-        toes = world_pos[leg.pivot] - world_pos[leg.ankle]
+        toes = world_pos[leg.pivot] - world_pos[leg.ankle] if leg.pivot != leg.ankle else world_rot[leg.ankle] @ tips[f]
         level = np.hypot(toes[0], toes[2])
-        if leg.pivot != leg.ankle and level > 1e-9:
+        if level > 1e-9:
             across = np.array([toes[2], 0.0, -toes[0]]) / level  # up x toes: the heading's +90 deg, level
             axes[f] = world_rot[leg.ankle].T @ across
     return axes
@@ -186,31 +212,43 @@ def across_axes(world_rot: np.ndarray, world_pos: np.ndarray, legs) -> np.ndarra
 # ---- kernels (compiled; the names and jobs of the plain-Python lock's methods) --------------
 
 @njit(cache=True, error_model="numpy")
-def _lowest_lift(world_pos, foot, ground_f):  # pragma: no cover - compiled
-    """Height of the foot's lowest joint above its clearance."""
-    lift = np.inf
+def _tip_height(world_rot, world_pos, foot, tip):  # pragma: no cover - compiled
+    """The height of a toe-less foot's `tip` (FootLock.tips: zeros for a foot with toe joints,
+    which have none: inf), the foot's only joint being its ankle."""
+    if tip[0] == 0.0 and tip[1] == 0.0 and tip[2] == 0.0:
+        return np.inf
+    return world_pos[foot[-1], 1] + _dot(world_rot[foot[-1], 1], tip)
+
+
+@njit(cache=True, error_model="numpy")
+def _lowest_lift(world_rot, world_pos, foot, tip, ground_f, tip_ground):  # pragma: no cover - compiled
+    """Height of the foot's lowest joint (or toe-less tip, above `tip_ground`) above its clearance."""
+    lift = _tip_height(world_rot, world_pos, foot, tip) - tip_ground
     for k in range(foot.shape[0]):
         lift = min(lift, world_pos[foot[k], 1] - ground_f[k])
     return lift
 
 
 @njit(cache=True, error_model="numpy")
-def planted_feet(shares, world_pos, previous, feet, ground, fps, cm, planted):  # pragma: no cover - compiled
+def planted_feet(shares, world_rot, world_pos, previous, joints, feet, tips, pivot_ground, ground, fps, cm,
+                 planted):  # pragma: no cover - compiled
     """A foot is planted where its state says so, or where the state allows it and the generated
     foot is on the floor and nearly still (as the data's contact was labelled): written into
     `planted` (2,) bool; `previous` (2, 3) becomes this frame's pivots. Returns each generated
     pivot's horizontal speed since the frame before (cm/s; NaN at first), which the closing
-    step's 'still' test reads too."""
-    speeds = (np.hypot(world_pos[feet[0, -1], 0] - previous[0, 0], world_pos[feet[0, -1], 2] - previous[0, 2]) * fps * cm,
-              np.hypot(world_pos[feet[1, -1], 0] - previous[1, 0], world_pos[feet[1, -1], 2] - previous[1, 2]) * fps * cm)
+    step's 'still' test reads too. Pivots: `_pivot_at`."""
+    pivots = (_pivot_at(world_rot, world_pos, joints[0, 2], feet[0, -1], tips[0]),
+              _pivot_at(world_rot, world_pos, joints[1, 2], feet[1, -1], tips[1]))
+    speeds = (np.hypot(pivots[0][0] - previous[0, 0], pivots[0][2] - previous[0, 2]) * fps * cm,
+              np.hypot(pivots[1][0] - previous[1, 0], pivots[1][2] - previous[1, 2]) * fps * cm)
     for f in range(2):
-        pivot = world_pos[feet[f, -1]]
+        pivot = pivots[f]
         speed = speeds[f]
         for i in range(3):
             previous[f, i] = pivot[i]
         planted[f] = shares[f] >= PLANTED
         if not planted[f] and shares[f] >= POSSIBLE:
-            lift = _lowest_lift(world_pos, feet[f], ground[f]) * cm
+            lift = _lowest_lift(world_rot, world_pos, feet[f], tips[f], ground[f], pivot_ground[f]) * cm
             planted[f] = lift < CONTACT_CM and speed < CONTACT_SPEED_CM_S  # NaN speed (first frame): False
     if not planted[0] and not planted[1] and max(shares[0], shares[1]) > 0.0:  # a walk has a foot on the floor
         planted[0 if shares[0] >= shares[1] else 1] = True
@@ -218,10 +256,12 @@ def planted_feet(shares, world_pos, previous, feet, ground, fps, cm, planted):  
 
 
 @njit(cache=True, error_model="numpy")
-def _sole_lift(world_pos, foot, ground_f):  # pragma: no cover - compiled
+def _sole_lift(world_rot, world_pos, foot, tip, ground_f, tip_ground):  # pragma: no cover - compiled
     """Height of the foot's lowest point above the lowest clearance of its joints (where its
-    sole stands): a heel down with the toes up is off the floor by this, not by `_lowest_lift`."""
-    low, floor = np.inf, np.inf
+    sole stands): a heel down with the toes up is off the floor by this, not by `_lowest_lift`.
+    A toe-less foot's tip counts as a joint (`_tip_height`)."""
+    low = _tip_height(world_rot, world_pos, foot, tip)
+    floor = tip_ground if low < np.inf else np.inf
     for k in range(foot.shape[0]):
         low = min(low, world_pos[foot[k], 1])
         floor = min(floor, ground_f[k])
@@ -241,7 +281,7 @@ def swing_share(world_pos, leg):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def lock_target(world_pos, leg, foot, ground_f, weight, point, landed, held, swing_lift,
+def lock_target(world_rot, world_pos, leg, foot, tip, ground_f, tip_ground, weight, point, landed, held, swing_lift,
                 target):  # pragma: no cover - compiled
     """Where the ankle (leg: hip, knee, ankle) should be, written into `target` (3,): the lock
     blended in horizontally, the lowest foot joint on the floor while planted, never below it,
@@ -255,14 +295,15 @@ def lock_target(world_pos, leg, foot, ground_f, weight, point, landed, held, swi
     lift has gone as the foot was planted (1 planted, 0 swinging); `held`: how far its lowest
     joint is held down (1 planted or handing over, 0 released): both change over HOLD_FRAMES'
     time, not in a frame, and only vertically: the horizontal pull is the lock's own weight, so
-    a foot held down is held where it was planted as much as before."""
-    lift = _lowest_lift(world_pos, foot, ground_f)
+    a foot held down is held where it was planted as much as before. The pivot is `_pivot_at`'s
+    (a toe-less foot's `tip`)."""
+    lift = _lowest_lift(world_rot, world_pos, foot, tip, ground_f, tip_ground)
     for i in range(3):
         target[i] = world_pos[leg[2], i]
     w = ease(weight)
     down = held * w * lift if held > 0.0 else 0.0
     if w > 0:
-        pivot = world_pos[foot[-1]]
+        pivot = _pivot_at(world_rot, world_pos, leg[2], foot[-1], tip)
         target[0] += w * (point[0] - pivot[0])
         target[2] += w * (point[2] - pivot[2])
         target[1] -= down
@@ -273,7 +314,27 @@ def lock_target(world_pos, leg, foot, ground_f, weight, point, landed, held, swi
 
 
 @njit(cache=True, error_model="numpy")
-def heel_rise(world_rot, world_pos, leg, pivot, across, clearance, on_floor, target, allowed, low, high,
+def _toe_line(world_rot, world_pos, ankle, pivot, tip):  # pragma: no cover - compiled
+    """The ankle to the point its heel rises about: the pivot joint, or for a foot that is its
+    ankle alone, its `tip` (in the ankle's frame; zeros where it has none)."""
+    if pivot != ankle:
+        return _sub(world_pos[pivot], world_pos[ankle])
+    r = world_rot[ankle]
+    return (_dot(r[0], tip), _dot(r[1], tip), _dot(r[2], tip))
+
+
+@njit(cache=True, error_model="numpy")
+def _pivot_at(world_rot, world_pos, ankle, pivot, tip):  # pragma: no cover - compiled
+    """Where the foot's pivot point is (a tuple): its pivot joint, or for a foot that is its
+    ankle alone, its `tip` (`_toe_line`): the point the lock holds where the foot lands."""
+    if pivot != ankle:
+        return (world_pos[pivot, 0], world_pos[pivot, 1], world_pos[pivot, 2])
+    toes = _toe_line(world_rot, world_pos, ankle, pivot, tip)
+    return (world_pos[ankle, 0] + toes[0], world_pos[ankle, 1] + toes[1], world_pos[ankle, 2] + toes[2])
+
+
+@njit(cache=True, error_model="numpy")
+def heel_rise(world_rot, world_pos, leg, pivot, tip, across, clearance, on_floor, target, allowed, low, high,
               turn):  # pragma: no cover - compiled
     """The foot's turn (3x3, world: written into `turn`) and its angle (returned) about its pivot
     (its front-most joint, the toes) when the lock asks the leg (hip, knee, ankle) to reach
@@ -287,8 +348,9 @@ def heel_rise(world_rot, world_pos, leg, pivot, across, clearance, on_floor, tar
     in [`low`, `high`] (the lock keeps each rise within HEEL_RISE_SPEED of the frame before's,
     so a rise no longer asked for comes down at that pace), and the foot to at most
     MAX_HEEL_RISE from flat, which wins over `low`. `clearance` (2,): the ankle's and the
-    pivot's heights standing on the floor."""
-    toes = _sub(world_pos[pivot], world_pos[leg[2]])
+    pivot's heights standing on the floor. A foot without a toe joint rises about its `tip`
+    (`_toe_line`), the toe joint's place."""
+    toes = _toe_line(world_rot, world_pos, leg[2], pivot, tip)
     toe = (target[0] + toes[0], target[1] + toes[1], target[2] + toes[2])  # where the pivot goes with the ankle
     # the foot's pitch axis, lifting the heel: its axis across it (up x the toe line, for a flat
     # foot), which the turn leaves where it is, and so the heading held; the toe line's own, near
@@ -501,11 +563,12 @@ def leg_swings(hip, knee, ankle, target, toes, swing, shin, work):  # pragma: no
 
 
 @njit(cache=True, error_model="numpy")
-def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, target, work):  # pragma: no cover - compiled
+def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, tip, target, work):  # pragma: no cover - compiled
     """Leg IK in place on the local rotations: hip and knee swung, the ankle keeping its world
     rotation. The hip is the knee's parent and the knee the ankle's (limbs.py): below the hip
-    everything turns with the thigh, below the knee also with the shin. `work` (7, 3, 3): scratch."""
-    toes = _sub(world_pos[toe], world_pos[ankle])
+    everything turns with the thigh, below the knee also with the shin. `work` (7, 3, 3): scratch.
+    The toe line (to the `toe` joint, or a toe-less foot's `tip`) tells a straight knee which way is forward."""
+    toes = _toe_line(world_rot, world_pos, ankle, toe, tip)
     thigh, shin, hip_world, knee_world, turn = work[0], work[1], work[2], work[3], work[4]
     leg_swings(world_pos[hip], world_pos[knee], world_pos[ankle], target, toes, thigh, shin, work[5:])
     _product(thigh, world_rot[hip], hip_world)  # thigh @ world_rot[hip]
@@ -531,21 +594,23 @@ def lock_work():  # pragma: no cover - compiled
 
 @njit(cache=True, error_model="numpy")
 def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, landed, held, standing, parents, joints, feet, across, ground, reach, parent_rot, root, fps, cm,
+               settling, landed, held, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
+               root, fps, cm,
                swing_lift, work):  # pragma: no cover - compiled
     """One character's frame (arrays of that character; `drop` a 1-element view, `standing` a
     bool). Returns nothing: rotations, translations, the world transforms and the state are
     updated in place."""
     planted, extension, targets, turns, angles, matrices, lifts, holding = work
-    speeds = planted_feet(shares, world_pos, previous, feet, ground, fps, cm, planted)
+    speeds = planted_feet(shares, world_rot, world_pos, previous, joints, feet, tips, pivot_ground, ground, fps, cm, planted)
     # both generated feet nearly still (no closing step while the pose steps off; NaN at first: not still)
     still = standing and speeds[0] < SETTLE_STILL_CM_S and speeds[1] < SETTLE_STILL_CM_S
     step = per_frame(BLEND_FRAMES, fps)
     hold_step = per_frame(HOLD_FRAMES, fps)
     for f in range(2):
         if planted[f] and weights[f] == 0.0:
+            pivot = _pivot_at(world_rot, world_pos, joints[f, 2], feet[f, -1], tips[f])
             for i in range(3):
-                points[f, i] = world_pos[feet[f, -1], i]
+                points[f, i] = pivot[i]
             headings[f] = foot_heading(world_rot, joints[f, 2], across[f])
             # landed: a stand may close it up again; and the body has stepped, so the other foot, if
             # a stand closed it up, may be closed up again too (a stop after one step leaves it behind)
@@ -558,7 +623,8 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     for f in range(2):
         weights[f] = min(1.0, weights[f] + pace[f]) if planted[f] else max(0.0, weights[f] - step)
         landed[f] = min(1.0, landed[f] + hold_step) if planted[f] else max(0.0, landed[f] - hold_step)
-    settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, across, SETTLE_CM / cm,
+    settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, tips, across,
+                SETTLE_CM / cm,
                 1.0 / (SETTLE_SECONDS * fps), SETTLE_LIFT_CM / cm, lifts)
     for f in range(2):
         if weights[f] > 0.0:
@@ -569,15 +635,15 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         # while the trailing foot's come off the floor: docs/evaluate.md, "Floating the stricter way")
         share = ease(weights[f]) * (1.0 - (ease(weights[1 - f]) if planted[1 - f] else 0.0))
         if share > 0.0:
-            lay_flat(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], across[f], ground[f, 0],
-                     ground[f, -1], share)
+            lay_flat(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], tips[f], across[f], ground[f, 0],
+                     pivot_ground[f], share)
     for f in range(2):  # each leg's generated hip-to-ankle distance, which the lock keeps where it can
         gap = _sub(world_pos[joints[f, 2]], world_pos[joints[f, 0]])
         extension[f] = np.sqrt(_dot(gap, gap))
     on_floor = CONTACT_CM / cm
     rise_step = HEEL_RISE_SPEED / fps
-    _targets(world_rot, world_pos, joints, feet, across, ground, weights, points, planted, landed, held, hold_step, swing_lift,
-             on_floor, extension, rises, rise_step, targets, turns, angles, holding)
+    _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed, held,
+             hold_step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
     # eased towards what it needs by 1 / BLEND_FRAMES of the way a frame at REFERENCE_FPS: the same time at any rate
     drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) * eased_per_frame(
         1.0 / BLEND_FRAMES, fps)
@@ -585,8 +651,8 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         for a in range(3):  # [0, drop, 0] @ parent_rot, element by element (no temporary array)
             translations[root, a] -= drop[0] * parent_rot[1, a]
         world_pos[:, 1] -= drop[0]
-        _targets(world_rot, world_pos, joints, feet, across, ground, weights, points, planted, landed, held, hold_step,
-                 swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
+        _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed,
+                 held, hold_step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
     rises[0], rises[1] = angles[0], angles[1]
     held[0], held[1] = holding[0], holding[1]
     for f in range(2):  # a closing step's foot off the floor
@@ -603,14 +669,14 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         _copy_matrix(turned, world_rot[ankle])  # the foot keeps its generated world rotation, but for the heel's rise
         gap = _sub(targets[f], world_pos[ankle])
         if np.sqrt(_dot(gap, gap)) > 1e-9:
-            solve_leg(rotations, world_rot, world_pos, parents, joints[f, 0], joints[f, 1], ankle, feet[f, -1], targets[f],
-                      matrices[1:])
+            solve_leg(rotations, world_rot, world_pos, parents, joints[f, 0], joints[f, 1], ankle, feet[f, -1], tips[f],
+                      targets[f], matrices[1:])
         elif not _identity(turns[f]):  # the ankle where it was made, the foot turned all the same
             _product_t(world_rot[joints[f, 1]], world_rot[ankle], rotations[ankle])
 
 
 @njit(cache=True, error_model="numpy")
-def settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, across, threshold,
+def settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, tips, across, threshold,
                 step, height,
                 lifts):  # pragma: no cover - compiled
     """A closing step: the first time a stand's pose is `still` with both feet planted and locked
@@ -634,7 +700,7 @@ def settle_feet(still, planted, weights, points, headings, settling, world_rot, 
         far = threshold
         for f in range(2):
             if settling[f] == 0.0:
-                pivot = world_pos[feet[f, -1]]
+                pivot = _pivot_at(world_rot, world_pos, joints[f, 2], feet[f, -1], tips[f])
                 away = np.hypot(points[f, 0] - pivot[0], points[f, 2] - pivot[2])
                 if away > far:
                     moving, far = f, away
@@ -650,7 +716,7 @@ def settle_feet(still, planted, weights, points, headings, settling, world_rot, 
     settling[f] = 1.0 if settling[f] + step > 1.0 - 1e-9 else settling[f] + step
     # the share of the way still to go that stays to go (none once the way was all gone)
     keep = (1.0 - ease(settling[f])) / (1.0 - before) if before < 1.0 else 0.0
-    pivot = world_pos[feet[f, -1]]
+    pivot = _pivot_at(world_rot, world_pos, joints[f, 2], feet[f, -1], tips[f])
     for i in (0, 2):
         points[f, i] = pivot[i] + (points[f, i] - pivot[i]) * keep
     turn = (headings[f] - foot_heading(world_rot, joints[f, 2], across[f]) + np.pi) % (2.0 * np.pi) - np.pi
@@ -683,19 +749,18 @@ def hold_heading(rotations, world_rot, world_pos, knee, ankle, foot, across, hea
 
 
 @njit(cache=True, error_model="numpy")
-def lay_flat(rotations, world_rot, world_pos, knee, ankle, foot, across, ankle_clearance, pivot_clearance,
+def lay_flat(rotations, world_rot, world_pos, knee, ankle, foot, tip, across, ankle_clearance, pivot_clearance,
              share):  # pragma: no cover - compiled
     """A planted foot whose toes are up (its pivot higher above its clearance than the ankle is
     above its own) pitched down about its ankle, `share` of the way to flat. Real feet roll flat
     soon after the heel lands and stay so while the other foot swings; an extrapolated style
     can stand on its heels through the whole stance, its toes in the air and the swinging foot
     passing below them (the lowest foot joint then sweeps along at the swing's speed). Its
-    joints' world transforms follow; the ankle's local rotation takes the turn."""
-    pivot = foot[-1]
-    if pivot == ankle:
+    joints' world transforms follow; the ankle's local rotation takes the turn. A toe-less
+    foot's toes are its `tip` (`_toe_line`); a foot with neither has none to lay flat."""
+    vx, vy, vz = _toe_line(world_rot, world_pos, ankle, foot[-1], tip)
+    if vx == 0.0 and vy == 0.0 and vz == 0.0:
         return
-    vx, vy, vz = world_pos[pivot, 0] - world_pos[ankle, 0], world_pos[pivot, 1] - world_pos[ankle, 1], \
-        world_pos[pivot, 2] - world_pos[ankle, 2]
     toes_up = vy - (pivot_clearance - ankle_clearance)
     if toes_up <= 0.0:
         return
@@ -749,7 +814,8 @@ def _turned(kx, ky, kz, c, s, x, y, z):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def _targets(world_rot, world_pos, joints, feet, across, ground, weights, points, planted, landed, held, hold_step,
+def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed, held,
+             hold_step,
              swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding):  # pragma: no cover - compiled
     """Each ankle's target (2, 3), each foot's heel-rise turn (2, 3, 3) and angle (2,), and how far
     its lowest joint is held down (2,), written into `targets`, `turns`, `angles` and `holding`: a
@@ -758,17 +824,20 @@ def _targets(world_rot, world_pos, joints, feet, across, ground, weights, points
     at that pace after its lock has gone; its hold within `hold_step` of the frame before's (`held`)."""
     for f in range(2):
         # the other foot planted but its lowest point not yet down: this one hands over to it
-        handing_over = planted[1 - f] and _sole_lift(world_pos, feet[1 - f], ground[1 - f]) >= on_floor
+        handing_over = planted[1 - f] and _sole_lift(world_rot, world_pos, feet[1 - f], tips[1 - f], ground[1 - f],
+                                                     pivot_ground[1 - f]) >= on_floor
         holding[f] = min(1.0, held[f] + hold_step) if planted[f] or handing_over else max(0.0, held[f] - hold_step)
-        lock_target(world_pos, joints[f], feet[f], ground[f], weights[f], points[f], ease(landed[f]), ease(holding[f]),
+        lock_target(world_rot, world_pos, joints[f], feet[f], tips[f], ground[f], pivot_ground[f], weights[f], points[f],
+                    ease(landed[f]), ease(holding[f]),
                     swing_lift, targets[f])
         _set_identity(turns[f])
         angles[f] = 0.0
         if weights[f] > 0.0 or rises[f] > 0.0:
-            clearance = (ground[f, 0], ground[f, -1])
+            clearance = (ground[f, 0], pivot_ground[f])
             low = max(rises[f] - rise_step, 0.0)
             high = min(rises[f] + rise_step, MAX_HEEL_RISE) if weights[f] > 0.0 else low
-            angles[f] = heel_rise(world_rot, world_pos, joints[f], feet[f, -1], across[f], clearance, on_floor, targets[f],
+            angles[f] = heel_rise(world_rot, world_pos, joints[f], feet[f, -1], tips[f], across[f], clearance, on_floor,
+                                  targets[f],
                                   extension[f], low, high, turns[f])
         if not planted[f] and not planted[1 - f] and weights[f] > 0.0:  # (a walk's other foot is down)
             within_reach(targets[f], world_pos[joints[f, 0]], extension[f])
@@ -793,12 +862,13 @@ def within_reach(target, hip, extension):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, landed, held, standing, parents, joints, feet, across, ground, reach, parent_rot, root, fps, cm,
+               settling, landed, held, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
+               root, fps, cm,
                swing_lift):  # pragma: no cover - compiled
     """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
     work = lock_work()
     for n in range(rotations.shape[0]):
         lock_frame(rotations[n], translations[n], shares[n], world_rot[n], world_pos[n], weights[n], points[n], headings[n],
                    drop[n : n + 1], previous[n], rises[n], settling[n], landed[n], held[n], standing[n], parents, joints, feet,
-                   across, ground, reach, parent_rot, root, fps, cm, swing_lift, work)
+                   across, tips, pivot_ground, ground, reach, parent_rot, root, fps, cm, swing_lift, work)
     _compose(parents, rotations, translations, world_rot, world_pos)

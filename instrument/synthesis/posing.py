@@ -119,7 +119,7 @@ class CrowdPoses:
             over_cores(self._made, [(static[a:b], self.positions[a:b], self.headings[a:b], rotations[a:b],
                                      translations[a:b], world_rot[a:b], world_pos[a:b]) for a, b in cut])
         if self.lock is not None and shares is not None:
-            self._follow(translations, world_pos, np.full(self.count, STRENGTH) if follow is None else follow)
+            self._follow(translations, world_rot, world_pos, np.full(self.count, STRENGTH) if follow is None else follow)
             standing = self._none_standing if standing is None else np.asarray(standing, dtype=np.bool_)
             if len(cut) == 1:
                 self.lock.apply(self.lock_state, rotations, translations, shares, world_rot, world_pos, standing)
@@ -139,11 +139,11 @@ class CrowdPoses:
         self._restorer.next(static, positions, headings, rotations, translations)
         _compose(self._parents, rotations, translations, world_rot, world_pos)
 
-    def _follow(self, translations: np.ndarray, world_pos: np.ndarray, strengths: np.ndarray) -> None:
+    def _follow(self, translations: np.ndarray, world_rot: np.ndarray, world_pos: np.ndarray, strengths: np.ndarray) -> None:
         """Moves each body after its stance foot (follow.py) in place, by the lock's blend of each
         foot so far: the root's translation and, as the whole skeleton hangs from the root,
         every joint's world position."""
-        pivots = world_pos[:, self.lock.feet[:, -1]]  # (N, 2, 3) in the generated pose
+        pivots = self.lock.pivots(world_rot, world_pos)  # (N, 2, 3) in the generated pose
         self._shift(translations, world_pos, self.follow.step(pivots, self.lock_state.weights,
                                                               np.asarray(strengths, dtype=np.float64)))
 

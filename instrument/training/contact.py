@@ -16,14 +16,14 @@ import numpy as np
 from ..models.hsmm import HSMM, forward_backward, pad_segments
 from ..motion.features import FeatureLayout, restore_local
 from ..motion.kinematics import forward_kinematics
-from ..motion.limbs import Limbs, centimetres_per_unit, find_limbs
+from ..motion.limbs import Limbs, centimetres_per_unit, find_limbs, tip_clearance
 from ..motion.quality import AIR_CM, take_floors
 from ..synthesis.contact import CONTACT_CM, CONTACT_SPEED_CM_S
 
 
-def _take_positions(static: np.ndarray, layout: FeatureLayout, fps: float) -> np.ndarray:
+def _take_world(static: np.ndarray, layout: FeatureLayout, fps: float) -> tuple[np.ndarray, np.ndarray]:
     rotations, translations, _ = restore_local(static, layout, fps)
-    return forward_kinematics(layout.skeleton, rotations, translations)[1]
+    return forward_kinematics(layout.skeleton, rotations, translations)
 
 
 def contact_labels(positions: np.ndarray, limbs: Limbs, ground: np.ndarray, cm: float, fps: float) -> np.ndarray:
@@ -73,7 +73,8 @@ def train_contact(layout: FeatureLayout, takes, average: HSMM, styles: HSMM, sty
     limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
     if limbs is None:
         return {}, {}
-    positions = [_take_positions(t.observations[:, : layout.dimension], layout, fps) for t in takes]
+    world = [_take_world(t.observations[:, : layout.dimension], layout, fps) for t in takes]
+    positions = [pos for _, pos in world]
     cm = centimetres_per_unit(layout, positions[0][0])
     floors = take_floors(positions, limbs)  # each take on its own floor (a capture's is not always level)
     labels = [contact_labels(p, limbs, g, cm, fps) for p, g in zip(positions, floors.ground)]
@@ -109,4 +110,7 @@ def train_contact(layout: FeatureLayout, takes, average: HSMM, styles: HSMM, sty
         "contact_cm": CONTACT_CM,
         "contact_speed_cm_s": CONTACT_SPEED_CM_S,
     }
+    tip = tip_clearance(world, limbs, layout.skeleton)
+    if tip is not None:  # feet without toe joints, ending in an End Site: the lock's pivot (footlock.FootLock)
+        metadata["tip_clearance"] = tip
     return {"contact_average": base, "contact_styles": np.stack(per_style)}, metadata
