@@ -16,7 +16,7 @@ import numpy as np
 from ..models.hsmm import HSMM, forward_backward, pad_segments
 from ..motion.features import FeatureLayout, restore_local
 from ..motion.kinematics import forward_kinematics
-from ..motion.limbs import Limbs, centimetres_per_unit, find_limbs, tip_clearance
+from ..motion.limbs import Limbs, centimetres_per_unit, find_limbs, tip_clearance, tip_heights
 from ..motion.quality import AIR_CM, take_floors
 from ..synthesis.contact import CONTACT_CM, CONTACT_SPEED_CM_S
 
@@ -73,8 +73,11 @@ def train_contact(layout: FeatureLayout, takes, average: HSMM, styles: HSMM, sty
     limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
     if limbs is None:
         return {}, {}
-    world = [_take_world(t.observations[:, : layout.dimension], layout, fps) for t in takes]
-    positions = [pos for _, pos in world]
+    positions, tips = [], []  # each take's world positions, and its toe tips' heights (a toe-less foot's)
+    for take in takes:
+        rotations, world_pos = _take_world(take.observations[:, : layout.dimension], layout, fps)
+        positions.append(world_pos)
+        tips.append(tip_heights(rotations, world_pos, limbs, layout.skeleton))
     cm = centimetres_per_unit(layout, positions[0][0])
     floors = take_floors(positions, limbs)  # each take on its own floor (a capture's is not always level)
     labels = [contact_labels(p, limbs, g, cm, fps) for p, g in zip(positions, floors.ground)]
@@ -110,7 +113,6 @@ def train_contact(layout: FeatureLayout, takes, average: HSMM, styles: HSMM, sty
         "contact_cm": CONTACT_CM,
         "contact_speed_cm_s": CONTACT_SPEED_CM_S,
     }
-    tip = tip_clearance(world, limbs, layout.skeleton)
-    if tip is not None:  # feet without toe joints, ending in an End Site: the lock's pivot (footlock.FootLock)
-        metadata["tip_clearance"] = tip
+    if tips[0] is not None:  # feet without toe joints, ending in an End Site: the lock's pivot (footlock.FootLock)
+        metadata["tip_clearance"] = tip_clearance(tips, [len(p) for p in positions])
     return {"contact_average": base, "contact_styles": np.stack(per_style)}, metadata
