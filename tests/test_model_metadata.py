@@ -53,6 +53,12 @@ BROKEN = {  # what is broken: (the change, what the one line says)
     "step frames a list": (set_entry("mean_step_frames", [1]), "metadata 'mean_step_frames'"),
     "training a word": (set_entry("training", "x"), "metadata 'training'"),
     "clearance ragged": (set_entry("contact", "clearance", [[1, 2], [3]]), "metadata 'contact'"),
+    # a toe-less foot's tip (footlock): a word or a list was a traceback in run and synth, NaN
+    # turned the tip's floor test off without a word, true read as 1
+    "tip clearance a word": (set_entry("contact", "tip_clearance", "x"), "tip_clearance a number"),
+    "tip clearance a list": (set_entry("contact", "tip_clearance", [1, 2]), "tip_clearance a number"),
+    "tip clearance not a number": (set_entry("contact", "tip_clearance", float("nan")), "tip_clearance a number"),
+    "tip clearance true": (set_entry("contact", "tip_clearance", True), "tip_clearance a number"),
 }
 
 

@@ -191,7 +191,9 @@ def _check_metadata(path: Path, metadata: dict) -> None:
                  "a list of takes, each with its file, style and frames (and its unit and gesture, as text)"),
         "mean_step_frames": (lambda v: isinstance(v, dict) and all(map(number, v.values())), "a table of numbers"),
         "training": (lambda v: isinstance(v, dict), "a table"),
-        "contact": (lambda v: isinstance(v, dict) and _numbers_2d(v.get("clearance", [[0.0]])), "a table whose clearance is rows of numbers"),
+        "contact": (lambda v: isinstance(v, dict) and _numbers_2d(v.get("clearance", [[0.0]]))
+                    and number(v.get("tip_clearance", 0.0)),
+                    "a table whose clearance is rows of numbers and tip_clearance a number"),
         "licence": (lambda v: isinstance(v, str), "a text"),
         "attribution": (lambda v: isinstance(v, str), "a text"),
     }

@@ -6,7 +6,8 @@ are where those bones start and end, and the foot is the ankle and what hangs be
 foot's pivot, the joint that is locked where it lands and that a heel rises about, is the foot's
 front-most joint (its toes; a toe-tip joint such as Mixamo's Toe_End where there is one): not
 the last joint listed, which may be a heel marker behind the ankle. The ball of the foot (Mixamo's
-ToeBase) was tried: the toe tip then slid 1.5-8 times as much (`instrument evaluate`). The
+ToeBase) was tried: the toe tip then slid 1.5-8 times as much (`instrument evaluate`). A foot
+that is its ankle alone rolls about its End Site, where it has one (`foot_tip`). The
 arms are the two longest branches of the upper body that do not hold one another (the neck
 branches off with them but reaches a third as far); the upper arm and forearm are the last two
 consecutive long bones on an arm's longest way down (a collar bone may be longer than the
@@ -34,7 +35,7 @@ class Leg:
     knee: int
     ankle: int
     foot: tuple[int, ...]  # the ankle and every joint below it (toes, end joints)
-    pivot: int  # the foot's front-most joint: locked where it lands, a heel rises about it; the ankle if none
+    pivot: int  # the foot's front-most joint: locked where it lands, a heel rises about it; the ankle if none (then its End Site: foot_tip)
     thigh: float  # bone lengths in the skeleton's units
     shin: float
 
