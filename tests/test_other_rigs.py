@@ -280,6 +280,19 @@ def test_a_toe_less_rig_swings_its_hips_as_its_takes(real_walks, tmp_path):
         assert abs(made / real - 1.0) <= 0.15, (style, made, real)
 
 
+def test_a_rig_with_toes_on_one_foot_only_is_one_line_before_training(real_walks, tmp_path):
+    """The foot lock holds each foot by its own joints side by side: a skeleton with toes on one
+    foot only trained all the way and then ended in a traceback (numpy's vstack of uneven feet).
+    It is refused at once, naming both feet."""
+    folder = tmp_path / "one-toe"
+    build_set(chosen_takes(real_walks[0].parent, ["active"], 1), Rig(30.0, 1.0, "ZXY", keep_root=False, drop=("Toes_L",)),
+              folder)
+    result = cli("train", str(folder), "--out", str(tmp_path / "model.npz"), "--quiet")
+    assert result.returncode == 1 and len(result.stderr.strip().splitlines()) == 1, result.stderr
+    assert "the feet have different joints (Foot_L against Foot_R, Toes_R)" in result.stderr
+    assert not (tmp_path / "model.npz").exists()
+
+
 @needs_motions
 @pytest.mark.parametrize("name", ["dataset-2_wave-both-hands_elderly_001", "dataset-2_raise-up-both-hands_active_002"])
 def test_a_rig_with_twist_joints_stands_and_gestures_as_its_take(name):

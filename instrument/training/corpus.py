@@ -15,6 +15,7 @@ from ..errors import UserError, located, quoted
 from ..motion.bvh import OTHER_CAPTURE_SUFFIXES, Motion, Skeleton, read_bvh
 from ..motion.features import FeatureLayout, choose_layout, extract, resample, with_deltas
 from ..motion.kinematics import local_transforms
+from ..motion.limbs import find_limbs
 from ..motion.gestures import gesture_phases
 from ..motion.standing import standing_steps
 from ..motion.steps import LABELS, segment_steps
@@ -322,6 +323,7 @@ def load_corpus(pairs: Sequence[tuple], fps: float, progress=None, states: int =
     motions = read_motions(pairs, fps, progress)
     walks = [m for p, m in zip(pairs, motions) if p.unit == "walk"]
     layout = choose_layout(walks or motions)
+    _check_feet(layout, pairs[0].path)
     takes, warnings = make_takes(pairs, motions, layout, progress, states)
     if not takes:  # the warnings are not printed on this path: the line carries the first file's reason
         reason = next((w for w in warnings if not w.endswith(": no steps, left out") and ": dropped " not in w), None)
@@ -341,6 +343,18 @@ def load_corpus(pairs: Sequence[tuple], fps: float, progress=None, states: int =
     warnings += [f"styles {' and '.join(map(repr, same))} differ only in case: the model has them as "
                  f"{len(same)} styles" for same in by_case.values() if len(same) > 1]
     return layout, takes, warnings
+
+
+def _check_feet(layout: FeatureLayout, path: Path) -> None:
+    """Both feet with the same joints, or a one-line error before training: the foot lock holds
+    each foot by its own joints side by side (a skeleton with toes on one foot only was a
+    traceback after the whole of training)."""
+    limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
+    if limbs is None or len({len(foot) for foot in limbs.feet}) == 1:
+        return
+    names = [", ".join(layout.skeleton.joints[j].name for j in foot) for foot in limbs.feet]
+    raise UserError(f"{path}: the feet have different joints ({names[0]} against {names[1]}): "
+                    "give both feet the same joints (toes on both or on neither)")
 
 
 def segments_by_label(takes: list[Take], states: int, units: Sequence[str] = ("walk",)) -> list[list[np.ndarray]]:
