@@ -791,6 +791,24 @@ def test_a_stop_called_off_lets_its_planted_foot_go_where_the_lock_holds_it(mode
     assert jumps[135 + 17:].max() <= 1.3 * steady
 
 
+def test_a_stop_called_off_twice_rejoins_from_where_its_legs_are(model):
+    """Stopped again while it rejoined (its legs braking from their own shares) and called off a
+    second time, a body went on by closing its legs' gaps as a halted start does: the planted
+    leg's share rose with the rest through the end of its stance, the sweep the first call-off
+    no longer makes (feminine's walk, stops of 12 and 8 frames 6 apart: a joint jumped 1.56
+    times the steady walk's largest). It rejoins from where its legs are: 1.34 measured."""
+    from instrument.evaluation.sequence import render_sequence, velocity_jumps
+    from instrument.motion.kinematics import world_positions as positions_of
+
+    base = default_controls(model, {"feminine": 1.0})
+    moving, stand = Controls(base.weights, gait=WALK), Controls(base.weights, gait=STAND)
+    sequence = render_sequence(model, [(moving, 135), (stand, 12), (moving, 6), (stand, 8), (moving, 60)])
+    jumps = velocity_jumps(positions_of(sequence.motion))
+    steady = jumps[15:135].max()  # the walk before the stop, settled
+    assert set(sequence.labels[135:] // 2) == {model.units.index("walk")}  # it never stood
+    assert jumps[135 + 12 + 6 + 8:].max() <= 1.45 * steady
+
+
 @pytest.mark.parametrize("gait, style, gap", [(WALK, "normal", 5), (RUN, "active", 2)])
 def test_a_start_called_off_before_its_first_step_stands_on(model, gait, style, gap):
     """Told to move in the last frames of a stand's step, the change waits a step (NOTICE_SECONDS)

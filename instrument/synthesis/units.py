@@ -259,6 +259,10 @@ class UnitChooser:
         self.rejoin_from, self.rejoin_to = np.ones(count), np.ones(count)
         self.rejoin_left, self.rejoin_stance = np.zeros(count), np.ones(count)
         self.rejoin_swing, self.rejoin_swing_rate = np.ones(count), np.ones(count)
+        # called off again after a second stop (`halting` from a rejoin: `rejoin_halted`), the other
+        # leg's gap to the rest then (`rejoin_gap`) closes as the rest comes up from `rejoin_stride`
+        self.rejoin_halted = np.zeros(count, dtype=np.bool_)
+        self.rejoin_gap, self.rejoin_stride = np.zeros(count), np.zeros(count)
         self.planted = planted_shares(model)  # (labels, states, 2) how surely each foot is down
         self._strides = np.ones((count, self.legs.shape[1]))  # `strides`' array, filled each frame
 
@@ -312,7 +316,9 @@ class UnitChooser:
             calling_off = (((self.coming == self.stand) & (current != self.stand))
                            | ((coming == self.stand) & (current == self.stand)))
             # a stop called off before its stand (a body halting from a start closes its legs' gaps as it was)
-            called_off = changed & (self.coming == self.stand) & (current != self.stand) & (coming != self.stand) & ~self.halting
+            # (one halting from a rejoin, stopped and called off again, rejoins from where its legs are)
+            called_off = (changed & (self.coming == self.stand) & (current != self.stand) & (coming != self.stand)
+                          & (~self.halting | self.rejoin_halted))
             if called_off.any():
                 self._rejoin(stream, called_off)
             late = changed & ~calling_off & (counters[:, NEXT] == 0) & (self._frames_left(stream) < notice)
@@ -418,7 +424,11 @@ class UnitChooser:
         travel = np.cumsum(level * level * (3.0 - 2.0 * level) * weight, axis=1)[:, -1]
         half = stance / 2.0
         since = stance - stays  # frames of the stance already gone
-        start = self.stride[rows]
+        again = self.rejoin_halted[rows]  # its legs their own shares (braked from a first call-off's)
+        start = np.where(again, self.leg_shares[rows, leg], self.stride[rows])
+        self.rejoin_gap[rows] = np.where(again, self.leg_shares[rows, 1 - leg] - self.stride[rows], 0.0)
+        self.rejoin_stride[rows] = self.stride[rows]
+        self.halting[rows] = self.rejoin_halted[rows] = False
         self.rejoin_leg[rows] = leg
         self.rejoin_from[rows] = start
         self.rejoin_to[rows] = np.clip((travel + start * (since - half)) / half, 0.0, 1.0)
@@ -500,10 +510,12 @@ class UnitChooser:
         """Each leg of a body whose stop was called off (`_rejoin`): the one planted then from its
         share to `rejoin_to` while it stays down, then to the rest's (`stride`) by a
         smootherstep over its swing (fastest as the foot passes under the hips, where the share
-        moves it least); the other with the rest. Stopped again, its legs brake from there
-        (`halting`)."""
+        moves it least); the other with the rest (called off a second time, closing its gap to
+        the rest as the rest comes up to 1, as a halting body's legs do). Stopped again, its legs
+        brake from there (`halting`), and a call-off then rejoins from where they are."""
         stopped = self.rejoining & ~moving
         self.halting |= stopped
+        self.rejoin_halted |= stopped
         going = self.rejoining & moving
         self.rejoin_left[going] -= 1.0
         swinging = going & (self.rejoin_left <= 0.0)
@@ -512,9 +524,11 @@ class UnitChooser:
         planted = self.rejoin_from + (self.rejoin_to - self.rejoin_from) * down
         swung = self.rejoin_to + (self.stride - self.rejoin_to) * smootherstep(np.minimum(self.rejoin_swing, 1.0))
         share = np.where(self.rejoin_left > 0.0, planted, swung)
+        remaining = (1.0 - self.stride) / np.maximum(1.0 - self.rejoin_stride, 1e-12)  # the rest's way still to go
+        other = self.stride + self.rejoin_gap * np.minimum(remaining, 1.0)  # (the rest's own, but called off twice)
         own = self.rejoin_leg[:, None] == np.arange(2)
-        self.leg_shares = np.where(going[:, None], np.where(own, share[:, None], self.stride[:, None]), self.leg_shares)
-        self.rejoining = going & (self.rejoin_swing < 1.0)
+        self.leg_shares = np.where(going[:, None], np.where(own, share[:, None], other[:, None]), self.leg_shares)
+        self.rejoining = going & ((self.rejoin_swing < 1.0) | (other != self.stride))
 
     def _halt(self, moving: np.ndarray, before: np.ndarray, before_stride: np.ndarray) -> None:
         """A body stopped while it set off: each leg's share of its swing, and the rest's, goes
@@ -538,6 +552,7 @@ class UnitChooser:
         closing = self.stride[:, None] + (legs - before_stride[:, None]) * np.minimum(remaining, 1.0)[:, None]
         self.leg_shares = np.where(brake[:, None], braked, np.where(halting[:, None], closing, legs))
         self.halting = halting & (np.abs(self.leg_shares - self.stride[:, None]).max(axis=1) > 1e-12)
+        self.rejoin_halted &= self.halting
 
     def strides(self) -> np.ndarray:
         """(N, D) the share of its swing each character's every feature takes (`stride`), but a
