@@ -280,6 +280,25 @@ def test_a_toe_less_rig_swings_its_hips_as_its_takes(real_walks, tmp_path):
         assert abs(made / real - 1.0) <= 0.15, (style, made, real)
 
 
+def test_a_toe_less_foot_rolls_about_an_end_site_ahead_not_one_below(real_walks, tmp_path):
+    """A toe-less foot's End Site is its heel's pivot only where it reaches along the floor (a toe
+    tip): one straight below the ankle (a sole marker) is no toe, and the foot stays its ankle
+    alone, as before the End Site was read (a heel rolled about it would lift the ankle)."""
+    files = build_set(chosen_takes(real_walks[0].parent, ["active"], 1),
+                      Rig(30.0, 1.0, "ZXY", keep_root=False, drop=("Toes_L", "Toes_R")), tmp_path / "no-toes")
+    motion = read_bvh(files[0])
+    layout = choose_layout([motion])
+    limbs = find_limbs(motion.skeleton, layout.root, np.asarray(layout.template))
+    assert all(leg.tip is not None and leg.pivot == leg.ankle for leg in limbs.legs)  # the toe tips
+    joints = list(motion.skeleton.joints)
+    for leg in limbs.legs:  # the End Site moved straight down the ankle's frame's way to the floor
+        world = forward_kinematics(motion.skeleton, *local_transforms(Motion(motion.skeleton, np.asarray(layout.template)[None],
+                                                                               30.0)))[0][0, leg.ankle]
+        joints[leg.ankle] = replace(joints[leg.ankle], end_site=tuple(world.T @ np.array([0.0, -8.0, 0.0])))
+    below = replace(motion.skeleton, joints=tuple(joints))
+    assert all(leg.tip is None for leg in find_limbs(below, layout.root, np.asarray(layout.template)).legs)
+
+
 def test_a_rig_with_toes_on_one_foot_only_is_one_line_before_training(real_walks, tmp_path):
     """The foot lock holds each foot by its own joints side by side: a skeleton with toes on one
     foot only trained all the way and then ended in a traceback (numpy's vstack of uneven feet).
