@@ -243,18 +243,24 @@ def test_a_model_of_a_re_rigged_set_keeps_the_issues_figures(real_walks, tmp_pat
     rig = SETS[name]
     files = build_set(chosen_takes(shared, ["active", "feminine"], 3), rig, folder)
     assert read_bvh(files[0]).fps == rig.fps
-    model = tmp_path / "model.npz"
-    trained = cli("train", str(folder), "--out", str(model), "--quiet")
-    assert trained.returncode == 0, trained.stderr
-    result = cli("evaluate", str(model), "--real", str(folder), "--variants", "one", "--seconds", "8", "--json")
-    assert result.returncode == 0, result.stderr
-    figures = json.loads(result.stdout)
+    figures = _trained_and_evaluated(folder, tmp_path)
     for style in ("active", "feminine"):
         real, made = figures["real"][style], figures["synth"][style]
         assert made["recognised"] >= 0.9 * real["recognised"], (style, made["recognised"], real["recognised"])
         for key in ("knee_deg", "hip_deg", "shoulder_deg"):
             assert abs(made[key] / real[key] - 1.0) <= 0.10, (style, key, made[key], real[key])
         assert made["skate_cm_s"] <= 1.2 * real["skate_cm_s"], (style, made["skate_cm_s"], real["skate_cm_s"])
+
+
+def _trained_and_evaluated(folder: Path, tmp_path: Path) -> dict:
+    """`instrument train` on `folder`, then `evaluate --real` of that model against the same takes
+    (one variant, 8 s): its JSON figures."""
+    model = tmp_path / "model.npz"
+    trained = cli("train", str(folder), "--out", str(model), "--quiet")
+    assert trained.returncode == 0, trained.stderr
+    result = cli("evaluate", str(model), "--real", str(folder), "--variants", "one", "--seconds", "8", "--json")
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout)
 
 
 def test_a_toe_less_rig_swings_its_hips_as_its_takes(real_walks, tmp_path):
@@ -269,12 +275,7 @@ def test_a_toe_less_rig_swings_its_hips_as_its_takes(real_walks, tmp_path):
                       Rig(30.0, 1.0, "ZXY", keep_root=False, drop=("Toes_L", "Toes_R")), folder)
     feet = [j for j in read_bvh(files[0]).skeleton.joints if j.name.startswith("Foot_")]
     assert feet and all(j.end_site is not None for j in feet)  # toe-less: each foot ends in its End Site
-    model = tmp_path / "model.npz"
-    trained = cli("train", str(folder), "--out", str(model), "--quiet")
-    assert trained.returncode == 0, trained.stderr
-    result = cli("evaluate", str(model), "--real", str(folder), "--variants", "one", "--seconds", "8", "--json")
-    assert result.returncode == 0, result.stderr
-    figures = json.loads(result.stdout)
+    figures = _trained_and_evaluated(folder, tmp_path)
     for style in ("active", "elderly"):
         real, made = figures["real"][style]["hip_deg"], figures["synth"][style]["hip_deg"]
         assert abs(made / real - 1.0) <= 0.15, (style, made, real)
