@@ -243,17 +243,23 @@ def test_inspect_says_each_takes_unit_and_style_and_cuts_a_stand_as_training_doe
     assert "unit     stand, style proud" in text and "not a walk" not in text and "style (none in the name" in text
 
 
-def test_inspect_reads_a_manifest_as_train_does(tmp_path):
-    """`inspect --manifest` says each take's style, unit and gesture as the manifest gives them
-    (train's reading), where the takes' names say nothing; a bad row is one line at its line."""
+def _a_wave_and_a_walk(folder: Path, wave: str, walk: str) -> None:
+    """A real standing take that waves, and a CMU-style walk, into `folder` under the names given
+    (skipped where the shared standing takes are not beside the repository)."""
     from conftest import REPO
     motions = REPO.parent / "shared" / "data" / "bandai-motions"
     if not motions.is_dir():
         import pytest
         pytest.skip(f"standing takes not found in {motions}")
-    (tmp_path / "take1.bvh").write_text((motions / "dataset-2_wave-both-hands_active_001.bvh").read_text())
+    (folder / wave).write_text((motions / "dataset-2_wave-both-hands_active_001.bvh").read_text())
     text, _ = cmu_style_walk(fps=30)
-    (tmp_path / "take2.bvh").write_text(text)
+    (folder / walk).write_text(text)
+
+
+def test_inspect_reads_a_manifest_as_train_does(tmp_path):
+    """`inspect --manifest` says each take's style, unit and gesture as the manifest gives them
+    (train's reading), where the takes' names say nothing; a bad row is one line at its line."""
+    _a_wave_and_a_walk(tmp_path, "take1.bvh", "take2.bvh")
     (tmp_path / "m.csv").write_text("file,style,unit,gesture\ntake1.bvh,proud,stand,wave\ntake2.bvh,calm,,\n")
     result = run("inspect", "--json", "--manifest", str(tmp_path / "m.csv"))
     assert result.returncode == 0, result.stderr
@@ -272,14 +278,7 @@ def test_inspect_reads_names_with_trains_style_from_and_unit_from(tmp_path):
     """A studio's own names (`actorB_Proud_IdleWave01.bvh`) are trained with `--style-from` and
     `--unit-from`, which inspect did not take: it showed every take as a walk of no style, and
     each standing take as "not a walk", though train read them as stands and their gestures."""
-    from conftest import REPO
-    motions = REPO.parent / "shared" / "data" / "bandai-motions"
-    if not motions.is_dir():
-        import pytest
-        pytest.skip(f"standing takes not found in {motions}")
-    (tmp_path / "actorB_Proud_IdleWave01.bvh").write_text((motions / "dataset-2_wave-both-hands_active_001.bvh").read_text())
-    text, _ = cmu_style_walk(fps=30)
-    (tmp_path / "actorB_Calm_Walk01.bvh").write_text(text)
+    _a_wave_and_a_walk(tmp_path, "actorB_Proud_IdleWave01.bvh", "actorB_Calm_Walk01.bvh")
     names = ["--style-from", "actorB_([A-Za-z]+)_", "--unit-from", "_([A-Za-z]+?)[0-9]+$"]
     result = run("inspect", "--json", str(tmp_path), *names)
     assert result.returncode == 0, result.stderr
