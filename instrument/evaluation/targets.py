@@ -15,6 +15,12 @@ Bounds that the issue gives in words are read as follows:
   is larger: past the styles the steady gait itself may swing beyond every real take ("exaggerate
   past anything recorded": the same swing's duration over more range is more acceleration), and a
   pop is what the transition adds to it (docs/evaluate.md, "The x2 transitions held to their gait").
+  Held to its own gait, a transition is compared with the same synthesized stride, so the two
+  differ only by what the start's history leaves in the stream's solve after the start is done
+  (about 1e-3 of a feature at the second stride's landing): the comparison has a resolution of
+  OWN_JUMP_RESOLUTION of the bound, far below a pop (the one found at that bound was 0.75% over it,
+  a rear toe swept back 7.5 cm in a frame) and above that residue (0.003-0.01% of it; docs/evaluate.md,
+  "A start's landing against its own gait's").
 - "no sliding foot" through a transition: the stance skate at most 1.2x the style's real takes'
   of the unit at weight 1, at most 1.2x the largest style's at x2 and -1.
 - "both feet in the air where the real motion has none" (walk transitions): a share of the
@@ -31,6 +37,7 @@ from .units import UnitAssessment
 FLIGHT_FLOOR = 0.02
 STAND_HIPS_CM_S = 6.0
 STAND_FEET_CM_S = 2.0
+OWN_JUMP_RESOLUTION = 1e-3  # a transition's jump above its own gait's by less than this share of it is no pop
 MOST_STEPS = 2
 
 
@@ -60,11 +67,14 @@ def _within(group: str, walk: str, value: float, real: float, share: float, fmt:
     return Target(group, walk, value, f"within {share:.0%} of {fmt.format(real)}", abs(off) <= share, f"{off:+.1%}")
 
 
-def _at_most(group: str, walk: str, value: float, bound: float, fmt: str = "{:.1f}", what: str = "") -> Target:
+def _at_most(group: str, walk: str, value: float, bound: float, fmt: str = "{:.1f}", what: str = "",
+             resolution: float = 0.0) -> Target:
+    """`value` at most `bound`, or above it by no more than `resolution` of it."""
     text = f"<= {fmt.format(bound)}{what}"
     if _nan(value) or _nan(bound):
         return Target(group, walk, value, text, False, "not measured")
-    return Target(group, walk, value, text, value <= bound + 1e-9, f"{value / bound:.2f}x" if bound else "")
+    return Target(group, walk, value, text, value <= bound * (1.0 + resolution) + 1e-9,
+                  f"{value / bound:.2f}x" if bound else "")
 
 
 def _at_least(group: str, walk: str, value: float, bound: float, fmt: str = "{:.2f}") -> Target:
@@ -125,10 +135,12 @@ def check(result: UnitAssessment) -> list[Target]:
         else:
             rows.append(_at_most("start steps", name, made["speed_steps"], MOST_STEPS, "{:.0f}"))
         bound = jumps.get(style if weight == 1.0 else "all", float("nan"))
-        what = f" ({made.get('jump_joint', '')})"
+        what, resolution = f" ({made.get('jump_joint', '')})", 0.0
         if weight != 1.0 and made.get("gait_jump_cm_f2", 0.0) > bound:
-            bound, what = made["gait_jump_cm_f2"], f" (its {gait}'s own; {made.get('jump_joint', '')})"
-        rows.append(_at_most("transition jump cm/frame^2", name, made["jump_cm_f2"], bound, what=what))
+            bound, resolution = made["gait_jump_cm_f2"], OWN_JUMP_RESOLUTION
+            what = f" (its {gait}'s own, to {resolution:.1%}; {made.get('jump_joint', '')})"
+        rows.append(_at_most("transition jump cm/frame^2", name, made["jump_cm_f2"], bound, what=what,
+                             resolution=resolution))
         if reals:
             slides = [f["stance_skate_cm_s"] for f in reals.values()]
             bound = 1.2 * (reals[style]["stance_skate_cm_s"] if weight == 1.0 and style in reals else max(slides))
