@@ -228,8 +228,9 @@ def test_the_part_way_summary_takes_the_worst_style_against_its_own_bounds():
 
 def test_a_transition_past_the_styles_is_held_to_its_gait_at_those_weights():
     """The jump target: at weight 1 the style's real takes bound a transition, whatever its gait
-    does; at x2 the larger of all styles' takes and the gait's own jump in the same sequence, so a
-    swing wider than any take's passes and a pop beyond the gait's own swing fails."""
+    does; at x2 the larger of all styles' takes and the gait's own jump (its steady run from rest),
+    so a swing wider than any take's passes and a pop beyond the gait's own swing fails, a residue
+    within 0.1% of the gait's own not counted one."""
     from instrument.evaluation.targets import check
     from instrument.evaluation.units import UnitAssessment
 
@@ -245,11 +246,10 @@ def test_a_transition_past_the_styles_is_held_to_its_gait_at_those_weights():
     swing = jump_row("walk->stand active x2", 2.0, 13.0, 13.5)
     assert swing.passed and "walk's own" in swing.bound  # the x2 walk swings 13.5 itself
     assert jump_row("walk->stand active x2", 2.0, 14.0, 13.5).passed is False  # a pop beyond it
-    # held to its own gait's same stride, the comparison's resolution is 0.1% of it: the start's
-    # residue in the stream (0.003%) is no pop, a toe swept back 7.5 cm in a frame (0.75%) is
+    # held to its own gait, the comparison's resolution is 0.1% of it: a start's residue in the
+    # stream (normal x2: 0.003%) is no pop, a jump 0.11% over is one
     assert jump_row("walk->stand active x2", 2.0, 13.5 * 1.0009, 13.5).passed
     assert jump_row("walk->stand active x2", 2.0, 13.5 * 1.0011, 13.5).passed is False
-    assert jump_row("walk->stand active x2", 2.0, 13.5 * 1.0075, 13.5).passed is False
     # the real takes' bound has none: a jump a hair over the style's takes fails
     assert jump_row("walk->stand active", 1.0, 8.0 * 1.0005, 12.0).passed is False
     assert jump_row("walk->stand active x2", 2.0, 10.0 * 1.0005, 9.0).passed is False

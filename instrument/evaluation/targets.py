@@ -15,12 +15,13 @@ Bounds that the issue gives in words are read as follows:
   is larger: past the styles the steady gait itself may swing beyond every real take ("exaggerate
   past anything recorded": the same swing's duration over more range is more acceleration), and a
   pop is what the transition adds to it (docs/evaluate.md, "The x2 transitions held to their gait").
-  Held to its own gait, a transition is compared with the same synthesized stride, so the two
-  differ only by what the start's history leaves in the stream's solve after the start is done
-  (about 1e-3 of a feature at the second stride's landing): the comparison has a resolution of
-  OWN_JUMP_RESOLUTION of the bound, far below a pop (the one found at that bound was 0.75% over it,
-  a rear toe swept back 7.5 cm in a frame) and above that residue (0.003-0.01% of it; docs/evaluate.md,
-  "A start's landing against its own gait's").
+  A jump within OWN_JUMP_RESOLUTION of its own gait's is not counted a pop: a start's window runs
+  past the point it reached speed into the gait's own strides, so where the gait's peak stride
+  falls in it the strict comparison sets a copy still converging against its limit, the sign of
+  a residue deciding (normal x2's start: 3e-5 of the bound above, the start's history still in
+  the stream's solve by ~1e-3 of a feature). The resolution lies between such a residue and a
+  pop (the one found at that bound was 0.75% over it, a rear toe swept back 7.5 cm in a frame):
+  docs/evaluate.md, "A start's landing against its own gait's".
 - "no sliding foot" through a transition: the stance skate at most 1.2x the style's real takes'
   of the unit at weight 1, at most 1.2x the largest style's at x2 and -1.
 - "both feet in the air where the real motion has none" (walk transitions): a share of the
