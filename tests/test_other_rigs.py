@@ -19,14 +19,15 @@ from hypothesis import strategies as st
 
 from instrument.motion.bvh import Motion, read_bvh, write_bvh
 from instrument.motion.kinematics import channels_from_local, forward_kinematics, local_transforms, world_positions
-from instrument.motion.features import ROOT_FEATURES, choose_layout, extract, heading_angle, resample
-from instrument.motion.limbs import Leg, Limbs, find_limbs, hip_height, units_to_metres
+from instrument.motion.features import ROOT_FEATURES, FeatureLayout, choose_layout, extract, heading_angle, resample
+from instrument.motion.limbs import Leg, Limbs, find_limbs, foot_tip, hip_height, units_to_metres
 from instrument.motion.quality import limb_ranges
 from instrument.motion.gestures import gesture_phases
 from instrument.motion.standing import still_frames
 from instrument.motion.steps import segment_steps
 from instrument.motion.upright import TO_Y_UP, up_axis, upright
 from instrument.models.modelfile import load_model
+from instrument.synthesis.footlock import FootLock
 from instrument.training.corpus import read_motions
 from instrument.training.units import gesture_from_name
 
@@ -281,23 +282,35 @@ def test_a_toe_less_rig_swings_its_hips_as_its_takes(real_walks, tmp_path):
         assert abs(made / real - 1.0) <= 0.15, (style, made, real)
 
 
-def test_a_toe_less_foot_rolls_about_an_end_site_ahead_not_one_below(real_walks, tmp_path):
-    """A toe-less foot's End Site is its heel's pivot only where it reaches along the floor (a toe
-    tip): one straight below the ankle (a sole marker) is no toe, and the foot stays its ankle
-    alone, as before the End Site was read (a heel rolled about it would lift the ankle)."""
+def test_a_toe_less_foot_rolls_about_an_end_site_ahead_not_one_below_or_behind(real_walks, tmp_path):
+    """A toe-less foot's End Site is its heel's pivot only where it reaches forward, the way the
+    takes travel (a toe tip): one straight below the ankle (a sole marker) or as far behind it as
+    the toe tip was ahead (a heel marker) is no toe, and the foot stays its ankle alone, as
+    before the End Site was read; the lock then holds no tip. Reaching along the floor by a
+    quarter of its length, as was asked before, took the heel marker for a toe tip."""
     files = build_set(chosen_takes(real_walks[0].parent, ["active"], 1),
                       Rig(30.0, 1.0, "ZXY", keep_root=False, drop=("Toes_L", "Toes_R")), tmp_path / "no-toes")
     motion = read_bvh(files[0])
     layout = choose_layout([motion])
-    limbs = find_limbs(motion.skeleton, layout.root, np.asarray(layout.template))
-    assert all(leg.tip is not None and leg.pivot == leg.ankle for leg in limbs.legs)  # the toe tips
-    joints = list(motion.skeleton.joints)
-    for leg in limbs.legs:  # the End Site moved straight down the ankle's frame's way to the floor
-        world = forward_kinematics(motion.skeleton, *local_transforms(Motion(motion.skeleton, np.asarray(layout.template)[None],
-                                                                               30.0)))[0][0, leg.ankle]
-        joints[leg.ankle] = replace(joints[leg.ankle], end_site=tuple(world.T @ np.array([0.0, -8.0, 0.0])))
-    below = replace(motion.skeleton, joints=tuple(joints))
-    assert all(leg.tip is None for leg in find_limbs(below, layout.root, np.asarray(layout.template)).legs)
+    legs = find_limbs(motion.skeleton, layout.root, np.asarray(layout.template)).legs
+    assert all(leg.pivot == leg.ankle and foot_tip(layout, leg) is not None for leg in legs)  # the toe tips
+    ankles = forward_kinematics(motion.skeleton, *local_transforms(Motion(motion.skeleton, np.asarray(layout.template)[None],
+                                                                           30.0)))[0][0]
+
+    def moved(where) -> FeatureLayout:
+        """The layout with each foot's End Site moved to `where(its world reach)` in the template pose."""
+        joints = list(motion.skeleton.joints)
+        for leg in legs:
+            world = ankles[leg.ankle]
+            joints[leg.ankle] = replace(joints[leg.ankle], end_site=tuple(world.T @ where(world @ np.asarray(joints[leg.ankle].end_site))))
+        return replace(layout, skeleton=replace(motion.skeleton, joints=tuple(joints)))
+
+    below = moved(lambda reach: np.array([0.0, -np.linalg.norm(reach), 0.0]))
+    behind = moved(lambda reach: reach * np.array([-1.0, 1.0, -1.0]))  # turned half round about the vertical
+    for odd in (below, behind):
+        assert all(foot_tip(odd, leg) is None for leg in legs)
+        lock = FootLock(odd, np.zeros((2, 1)), 30.0, tip_clearance=4.0)
+        assert not lock.tips.any()
 
 
 def test_a_rig_with_toes_on_one_foot_only_is_one_line_before_training(real_walks, tmp_path):
