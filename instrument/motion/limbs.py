@@ -244,15 +244,21 @@ def foot_tip(layout: FeatureLayout, leg: Leg) -> np.ndarray | None:
     return np.asarray(end, dtype=np.float64)
 
 
-def tip_heights(world_rot: np.ndarray, world_pos: np.ndarray, limbs: Limbs, layout: FeatureLayout) -> np.ndarray | None:
-    """(T * feet,) the toe tips' (`foot_tip`) heights over one take's frames, from its world
-    rotations and positions (T, J, 3, 3), (T, J, 3); None when neither foot has a tip. Taken a
-    take at a time, so training keeps the heights, not every take's rotations (a corpus of 400
-    takes: some 200 MB more)."""
+def tip_positions(world_rot: np.ndarray, world_pos: np.ndarray, limbs: Limbs, layout: FeatureLayout) -> np.ndarray | None:
+    """(T, tips, 3) where the toe-less feet's tips (`foot_tip`) are in world transforms (T, J, 3, 3),
+    (T, J, 3), in the legs' order; None when neither foot has a tip."""
     tips = [(leg.ankle, tip) for leg in limbs.legs if (tip := foot_tip(layout, leg)) is not None]
     if not tips:
         return None
-    return np.concatenate([world_pos[:, a, 1] + world_rot[:, a, 1] @ tip for a, tip in tips])
+    return np.stack([world_pos[:, a] + world_rot[:, a] @ tip for a, tip in tips], axis=1)
+
+
+def tip_heights(world_rot: np.ndarray, world_pos: np.ndarray, limbs: Limbs, layout: FeatureLayout) -> np.ndarray | None:
+    """(T * feet,) the toe tips' (`tip_positions`) heights over one take's frames; None when
+    neither foot has a tip. Taken a take at a time, so training keeps the heights, not every
+    take's rotations (a corpus of 400 takes: some 200 MB more)."""
+    tips = tip_positions(world_rot, world_pos, limbs, layout)
+    return None if tips is None else tips[:, :, 1].T.ravel()
 
 
 def tip_clearance(heights: list[np.ndarray], frames: list[int]) -> float:
