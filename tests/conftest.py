@@ -63,6 +63,27 @@ def real_walks() -> list[Path]:
 
 
 @pytest.fixture(scope="session")
+def toe_less(real_walks, tmp_path_factory) -> tuple[Path, Path]:
+    """Two takes each of the shared active and elderly walks with their toe joints dropped (each
+    foot ends in an End Site where the toes began, as many CMU conversions and some suits do:
+    examples/odd_inputs.py's `no-toes`) and the model `instrument train` makes of them: (the
+    takes' folder, the model file)."""
+    import subprocess
+
+    sys.path.insert(0, str(REPO / "examples"))
+    from other_rigs import Rig, build_set, chosen_takes
+
+    folder = tmp_path_factory.mktemp("toe-less")
+    takes, model = folder / "takes", folder / "model.npz"
+    build_set(chosen_takes(real_walks[0].parent, ["active", "elderly"], 2),
+              Rig(30.0, 1.0, "ZXY", keep_root=False, drop=("Toes_L", "Toes_R")), takes)
+    trained = subprocess.run([sys.executable, "-m", "instrument", "train", str(takes), "--out", str(model), "--quiet"],
+                             capture_output=True, text=True, timeout=1800)
+    assert trained.returncode == 0, trained.stderr
+    return takes, model
+
+
+@pytest.fixture(scope="session")
 def jack():
     """A JACK server with the dummy driver (real MIDI without a sound card), started if needed."""
     import shutil

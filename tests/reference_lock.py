@@ -2,9 +2,9 @@
 (instrument.synthesis.footlock), kept to check that the compiled lock makes the same poses; and
 the one-character pose stream it ran in (instrument.synthesis.posing before CrowdPoses).
 See instrument.synthesis.contact's docstring for what the lock does. It restates the lock of
-feet with toe joints (the shipped model's, on which it is compared): a toe-less foot's End Site
-tip as its pivot point (footlock.FootLock.tips; zeros, and so no change, for feet with toes) is
-the compiled lock's alone, pinned by tests/test_other_rigs.py's toe-less rig."""
+feet with toe joints (the shipped model's, on which it is compared) and of feet that are their
+ankle alone, rolling about their End Site's tip (`tip_clearance` given: limbs.foot_tip,
+footlock.FootLock.tips; compared on a toe-less re-rig of the shared walks)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from numba import njit
 
 from instrument.motion.features import FeatureLayout, restore_local
 from instrument.motion.kinematics import forward_kinematics
-from instrument.motion.limbs import centimetres_per_unit, find_limbs
+from instrument.motion.limbs import centimetres_per_unit, find_limbs, foot_tip
 from instrument.synthesis.posing import Pose
 from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, HOLD_FRAMES, NEARLY_STRAIGHT,
                                           POSSIBLE, PLANTED, REFERENCE_FPS, SWING_BENT, SWING_CM)
@@ -26,11 +26,19 @@ def EASE(x: float) -> float:
     return x * x * (3.0 - 2.0 * x)  # smoothstep: the lock starts and ends with zero speed
 
 
-def _across(world_rot: np.ndarray, world_pos: np.ndarray, leg) -> np.ndarray:
-    """A foot's axis across it in its ankle's frame: level and to the side of its toe line in the
-    template pose (`world_rot`, `world_pos`); zeros for a foot without toes."""
-    toes = world_pos[leg.pivot] - world_pos[leg.ankle]
-    if leg.pivot == leg.ankle or np.hypot(toes[0], toes[2]) <= 1e-9:
+def _toe_line(world_rot: np.ndarray, world_pos: np.ndarray, leg, tip: np.ndarray | None) -> np.ndarray:
+    """The ankle to the point its heel rises about: its pivot joint, or for a foot that is its
+    ankle alone, its End Site's `tip` (in the ankle's frame); zeros for such a foot without one."""
+    if leg.pivot == leg.ankle and tip is not None:
+        return world_rot[leg.ankle] @ tip
+    return world_pos[leg.pivot] - world_pos[leg.ankle]
+
+
+def _across(world_rot: np.ndarray, world_pos: np.ndarray, leg, tip: np.ndarray | None = None) -> np.ndarray:
+    """A foot's axis across it in its ankle's frame: level and to the side of its toe line
+    (`_toe_line`) in the template pose (`world_rot`, `world_pos`); zeros for a foot without toes."""
+    toes = _toe_line(world_rot, world_pos, leg, tip)
+    if np.hypot(toes[0], toes[2]) <= 1e-9:
         return np.zeros(3)
     across = np.cross([0.0, 1.0, 0.0], toes)
     return world_rot[leg.ankle].T @ (across / np.linalg.norm(across))
@@ -146,36 +154,36 @@ def _pitch_to_height(toes: np.ndarray, axis: np.ndarray, height: float) -> float
     return best
 
 
-def _heel_rise(world_rot: np.ndarray, world_pos: np.ndarray, leg, across: np.ndarray, ground: np.ndarray, on_floor: float,
-               target: np.ndarray, allowed: float, low: float, high: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """The foot's turn about its front-most joint (leg.pivot) that raises the heel until the leg
+def _heel_rise(world_rot: np.ndarray, world_pos: np.ndarray, leg, toes: np.ndarray, across: np.ndarray,
+               clearance: tuple[float, float], on_floor: float, target: np.ndarray, allowed: float, low: float,
+               high: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """The foot's turn about its toe line's end (`toes`: `_toe_line`) that raises the heel until the leg
     reaches no further than `allowed` (less of the way where the toes are higher above their
     clearance than the heel above its own, none from `on_floor` higher), and the ankle's target
     after it, found numerically (a scan of the rise, then bisection) to check the compiled
     closed form: the smallest rise that reaches, else the one in [0, MAX_HEEL_RISE] that comes
     nearest; then held in [low, high] and to at most MAX_HEEL_RISE from standing flat. Also the
-    angle."""
-    toes = world_pos[leg.pivot] - world_pos[leg.ankle]
+    angle. `clearance`: the ankle's and the toe line end's heights standing on the floor."""
     axis = world_rot[leg.ankle] @ across  # lifting the heel about the foot's axis across it
     if np.linalg.norm(axis[[0, 2]]) < 1e-12:
         return np.eye(3), target, 0.0
-    drop = ground[leg.foot.index(leg.pivot)] - ground[0]  # the toes' height below the ankle's, standing flat
+    drop = clearance[1] - clearance[0]  # the toes' height below the ankle's, standing flat
     length = np.linalg.norm(toes)
     forward = np.cross(axis, [0.0, 1.0, 0.0])  # level, towards the toes of a flat foot
     forward /= np.linalg.norm(forward)
     risen = np.arcsin(np.clip(drop / length, -1, 1)) - np.arctan2(toes[1], toes @ forward)
     high = min(high, max(MAX_HEEL_RISE - risen, 0.0))
-    angle = float(np.clip(_needed_rise(world_pos, leg, toes, axis, ground, on_floor, target, allowed), min(low, high), high))
+    angle = float(np.clip(_needed_rise(world_pos, leg, toes, axis, clearance, on_floor, target, allowed), min(low, high), high))
     if angle <= 0.0:
         return np.eye(3), target, 0.0
     turn = _axis_rotation(axis, angle)
     return turn, target + toes + turn @ -toes, angle
 
 
-def _needed_rise(world_pos, leg, toes, axis, ground, on_floor, target, allowed) -> float:
+def _needed_rise(world_pos, leg, toes, axis, clearance, on_floor, target, allowed) -> float:
     hip = world_pos[leg.hip]
     toe, back = target + toes, -toes
-    toes_up = (world_pos[leg.pivot, 1] - ground[leg.foot.index(leg.pivot)]) - (world_pos[leg.ankle, 1] - ground[0])
+    toes_up = toes[1] - (clearance[1] - clearance[0])  # the toes' lift above the heel's, each above its clearance
     share = min(max(1.0 - toes_up / on_floor, 0.0), 1.0)
     reach = np.linalg.norm(target - hip)
     if share <= 0.0 or reach <= allowed:
@@ -214,9 +222,12 @@ def _needed_rise(world_pos, leg, toes, axis, ground, on_floor, target, allowed) 
 class FootLock:
     """One character's planted feet, carried from frame to frame (see the module's docstring)."""
 
-    def __init__(self, layout: FeatureLayout, ground: np.ndarray, fps: float):
+    def __init__(self, layout: FeatureLayout, ground: np.ndarray, fps: float, tip_clearance: float | None = None):
         self.layout, self.fps = layout, fps
         self.limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
+        # a toe-less foot's End Site tip (in its ankle's frame) and its clearance, where the model has one
+        self.tips = [None if tip_clearance is None else foot_tip(layout, leg) for leg in self.limbs.legs]
+        self.tip_clearance = tip_clearance
         self.ground = np.asarray(ground, dtype=np.float64)
         self.parents = layout.skeleton.parents
         self.weight = np.zeros(2)  # how far each foot's lock is blended in
@@ -226,11 +237,10 @@ class FootLock:
         self.rise = np.zeros(2)  # each foot's heel rise in the frame before
         self.rise_step = HEEL_RISE_SPEED / fps  # how far a rise may change in a frame
         self.parent_rot = layout.template_pose[2]  # the root's parent's world rotation
-        self.pivot = [leg.pivot for leg in self.limbs.legs]  # the joint whose landing point is locked (the toes)
         template_rot, template = (a[0] for a in forward_kinematics(layout.skeleton, layout.template_pose[0][None],
                                                                    layout.template_pose[1][None]))
         self.cm = centimetres_per_unit(layout, template)
-        self.across = [_across(template_rot, template, leg) for leg in self.limbs.legs]
+        self.across = [_across(template_rot, template, leg, tip) for leg, tip in zip(self.limbs.legs, self.tips)]
         self.swing_lift = SWING_CM / self.cm  # in the skeleton's units
         self.previous = np.full((2, 3), np.nan)  # each pivot's generated position in the frame before
         self.settling = np.zeros(2)  # each foot's closing step: 0 may take one, (0, 1) how far, CLOSED
@@ -241,6 +251,39 @@ class FootLock:
         self.landed = np.zeros(2)  # how far each foot's swing lift has gone since it was planted
         self.held = np.zeros(2)  # how far each foot's lowest joint is held on the floor
 
+    def toes(self, f: int, world_rot: np.ndarray, world_pos: np.ndarray) -> np.ndarray:
+        """Foot f's toe line (`_toe_line`)."""
+        return _toe_line(world_rot, world_pos, self.limbs.legs[f], self.tips[f])
+
+    def pivots(self, world_rot: np.ndarray, world_pos: np.ndarray) -> np.ndarray:
+        """(2, 3) the points the lock holds: each pivot joint, or a toe-less foot's tip."""
+        return np.array([world_pos[leg.pivot] if self.tips[f] is None else world_pos[leg.ankle] + world_rot[leg.ankle] @ self.tips[f]
+                         for f, leg in enumerate(self.limbs.legs)])
+
+    def pivot_ground(self, f: int) -> float:
+        """The clearance of foot f's toe line's end: its pivot joint's, or its tip's."""
+        leg = self.limbs.legs[f]
+        return self.ground[f][list(leg.foot).index(leg.pivot)] if self.tips[f] is None else self.tip_clearance
+
+    def _points(self, f: int, world_rot: np.ndarray, world_pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Foot f's points' heights and their clearances: its joints', and its tip's where it has one."""
+        foot = list(self.limbs.legs[f].foot)
+        heights, grounds = world_pos[foot, 1], np.asarray(self.ground[f], dtype=float)
+        if self.tips[f] is None:
+            return heights, grounds
+        tip = world_pos[self.limbs.legs[f].ankle, 1] + self.toes(f, world_rot, world_pos)[1]
+        return np.append(heights, tip), np.append(grounds, self.tip_clearance)
+
+    def lift(self, f: int, world_rot: np.ndarray, world_pos: np.ndarray) -> float:
+        """Height of foot f's lowest point above its own clearance."""
+        heights, grounds = self._points(f, world_rot, world_pos)
+        return float(np.min(heights - grounds))
+
+    def sole(self, f: int, world_rot: np.ndarray, world_pos: np.ndarray) -> float:
+        """Height of foot f's lowest point above the lowest of its clearances."""
+        heights, grounds = self._points(f, world_rot, world_pos)
+        return float(np.min(heights) - np.min(grounds))
+
     def apply(self, rotations: np.ndarray, translations: np.ndarray, shares: np.ndarray,
               standing: bool = False) -> tuple[np.ndarray, ...]:
         """Local rotations (J, 3, 3) of one frame, adjusted, the translations (J, 3), and their
@@ -249,14 +292,14 @@ class FootLock:
         rotations = rotations.copy()
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
         world_rot, world_pos = world_rot[0], world_pos[0]
-        planted, speeds = self._planted(shares, world_pos)
+        planted, speeds = self._planted(shares, world_rot, world_pos)
         still = standing and bool((speeds < SETTLE_STILL_CM_S).all())  # NaN (first frame): not still
         step = self.blend_step
         # landing from flight (the other foot neither planted nor held): its lock comes in faster
         pace = [LANDING_PACE * step if self.weight[1 - f] == 0.0 and not planted[1 - f] else step for f in range(2)]
         for f, leg in enumerate(self.limbs.legs):
             if planted[f] and self.weight[f] == 0.0:
-                self.lock[f] = world_pos[self.pivot[f]]
+                self.lock[f] = self.pivots(world_rot, world_pos)[f]
                 self.heading[f] = _heading(world_rot, leg, self.across[f])
                 self.settling[f] = 0.0  # landed; and the other foot, if closed up, may be closed up again
                 if self.settling[1 - f] == CLOSED:
@@ -278,11 +321,10 @@ class FootLock:
         for f, leg in enumerate(self.limbs.legs):  # alone on the floor, a planted foot is pitched flat about its ankle
             # (a released other foot, its lock still blending out, does not keep it from standing flat)
             share = EASE(self.weight[f]) * (1.0 - (EASE(self.weight[1 - f]) if planted[1 - f] else 0.0))
-            toes = world_pos[leg.pivot] - world_pos[leg.ankle]
-            ground = self.ground[f]
-            up = toes[1] - (ground[list(leg.foot).index(leg.pivot)] - ground[list(leg.foot).index(leg.ankle)])
+            toes = self.toes(f, world_rot, world_pos)
+            up = toes[1] - (self.pivot_ground(f) - self.ground[f][list(leg.foot).index(leg.ankle)])
             axis = world_rot[leg.ankle] @ self.across[f]  # pitched about its axis across it
-            if share > 0.0 and leg.pivot != leg.ankle and up > 0.0 and np.linalg.norm(axis) > 1e-12:
+            if share > 0.0 and toes.any() and up > 0.0 and np.linalg.norm(axis) > 1e-12:
                 angle = _pitch_to_height(toes, axis, toes[1] - share * up)
                 if angle is None:
                     continue
@@ -316,7 +358,7 @@ class FootLock:
                 rotations[leg.pivot] = (turns[f] @ world_rot[self.parents[leg.pivot]]).T @ world_rot[leg.pivot]
             world_rot[leg.ankle] = turns[f] @ world_rot[leg.ankle]
             if np.linalg.norm(targets[f] - world_pos[leg.ankle]) > 1e-9:
-                self._solve(leg, rotations, world_rot, world_pos, targets[f])
+                self._solve(f, rotations, world_rot, world_pos, targets[f])
             elif not np.array_equal(turns[f], np.eye(3)):  # the ankle where it was made, the foot turned all the same
                 rotations[leg.ankle] = world_rot[leg.knee].T @ world_rot[leg.ankle]
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
@@ -331,7 +373,8 @@ class FootLock:
         if not stepping:
             if not (still and planted.all() and (self.weight == 1.0).all()):
                 return lifts
-            away = {f: np.hypot(*(self.lock[f] - world_pos[self.pivot[f]])[[0, 2]]) for f in range(2) if self.settling[f] == 0.0}
+            away = {f: np.hypot(*(self.lock[f] - self.pivots(world_rot, world_pos)[f])[[0, 2]]) for f in range(2)
+                    if self.settling[f] == 0.0}
             over = {f: d for f, d in away.items() if d > SETTLE_CM / self.cm}
             if not over:
                 for f in away:
@@ -344,7 +387,7 @@ class FootLock:
         if self.settling[f] > 1.0 - 1e-9:  # n steps of 1 / n summing a hair under 1 end the step
             self.settling[f] = 1.0
         keep = (1.0 - EASE(self.settling[f])) / (1.0 - before) if before < 1.0 else 0.0
-        goal = world_pos[self.pivot[f]]
+        goal = self.pivots(world_rot, world_pos)[f]
         self.lock[f][[0, 2]] = goal[[0, 2]] + (self.lock[f] - goal)[[0, 2]] * keep
         turn = (self.heading[f] - _heading(world_rot, self.limbs.legs[f], self.across[f]) + np.pi) % (2 * np.pi) - np.pi
         self.heading[f] -= turn * (1.0 - keep)
@@ -353,23 +396,23 @@ class FootLock:
             self.settling[f] = CLOSED
         return lifts
 
-    def _planted(self, shares: np.ndarray, world_pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _planted(self, shares: np.ndarray, world_rot: np.ndarray, world_pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A foot is planted where its state says so, or where the state allows it and the
         generated foot is on the floor and nearly still (as the data's contact was labelled);
         and each generated pivot's horizontal speed (cm/s), which the closing step reads too."""
         planted = shares >= PLANTED
-        pivots = world_pos[self.pivot]
+        pivots = self.pivots(world_rot, world_pos)
         speed = np.hypot(*(pivots - self.previous)[:, [0, 2]].T) * self.fps * self.cm
         self.previous = pivots
         for f, leg in enumerate(self.limbs.legs):
             if not planted[f] and shares[f] >= POSSIBLE:
-                lift = np.min(world_pos[list(leg.foot), 1] - self.ground[f]) * self.cm
+                lift = self.lift(f, world_rot, world_pos) * self.cm
                 planted[f] = lift < CONTACT_CM and speed[f] < CONTACT_SPEED_CM_S  # NaN speed (first frame): False
         if not planted.any() and shares.max() > 0.0:  # a walk has a foot on the floor: the likelier one
             planted[int(np.argmax(shares))] = True
         return planted, speed
 
-    def _target(self, f: int, leg, world_pos: np.ndarray, held: float) -> np.ndarray:
+    def _target(self, f: int, leg, world_rot: np.ndarray, world_pos: np.ndarray, held: float) -> np.ndarray:
         """Where the ankle should be: the lock blended in horizontally, the lowest foot joint on
         the floor while planted, never below it, and a little above it while swinging; a
         released foot rises as generated, but while it hands over to the other (planted, its
@@ -377,12 +420,12 @@ class FootLock:
         out. The swing lift goes (as the foot is planted) and the hold on the floor (as it is
         released, not handing over) over HOLD_FRAMES frames at REFERENCE_FPS, eased: `held` is
         how far the hold has come this frame, self.landed how far the lift has gone."""
-        lift = np.min(world_pos[list(leg.foot), 1] - self.ground[f])
+        lift = self.lift(f, world_rot, world_pos)
         target = world_pos[leg.ankle].copy()
         w = EASE(self.weight[f])
         down = EASE(held) * w * lift if held > 0.0 else 0.0
         if w > 0:
-            pull = self.lock[f] - world_pos[self.pivot[f]]
+            pull = self.lock[f] - self.pivots(world_rot, world_pos)[f]
             target[[0, 2]] += w * pull[[0, 2]]
             target[1] -= down
         lowest_after = lift - down
@@ -397,17 +440,18 @@ class FootLock:
         heel still up from it."""
         targets, turns, self.next_rise, self.next_held = [], [], np.zeros(2), np.zeros(2)
         for f, leg in enumerate(self.limbs.legs):
-            other = self.limbs.legs[1 - f].foot
-            sole = np.min(world_pos[list(other), 1]) - np.min(self.ground[1 - f])  # the other foot's lowest point
+            sole = self.sole(1 - f, world_rot, world_pos)  # the other foot's lowest point
             holding = planted[f] or (planted[1 - f] and sole >= CONTACT_CM / self.cm)  # planted, or handing over
             self.next_held[f] = min(1.0, self.held[f] + self.hold_step) if holding else max(0.0, self.held[f] - self.hold_step)
-            target = self._target(f, leg, world_pos, self.next_held[f])
+            target = self._target(f, leg, world_rot, world_pos, self.next_held[f])
             turn = np.eye(3)
             if self.weight[f] > 0 or self.rise[f] > 0:  # after its lock, a heel comes down at the same pace
                 low = max(self.rise[f] - self.rise_step, 0.0)
                 high = min(self.rise[f] + self.rise_step, MAX_HEEL_RISE) if self.weight[f] > 0 else low
-                turn, target, self.next_rise[f] = _heel_rise(world_rot, world_pos, leg, self.across[f], self.ground[f],
-                                                             CONTACT_CM / self.cm, target, extension[f], low, high)
+                clearance = (self.ground[f][0], self.pivot_ground(f))
+                turn, target, self.next_rise[f] = _heel_rise(world_rot, world_pos, leg, self.toes(f, world_rot, world_pos),
+                                                             self.across[f], clearance, CONTACT_CM / self.cm, target,
+                                                             extension[f], low, high)
             if not planted[f] and not planted[1 - f] and self.weight[f] > 0:  # released in flight: the leg no longer than made
                 gap = target - world_pos[leg.hip]
                 if np.linalg.norm(gap) > extension[f] > 0.0:
@@ -416,9 +460,10 @@ class FootLock:
             turns.append(turn)
         return targets, turns
 
-    def _solve(self, leg, rotations: np.ndarray, world_rot: np.ndarray, world_pos: np.ndarray, target: np.ndarray) -> None:
+    def _solve(self, f: int, rotations: np.ndarray, world_rot: np.ndarray, world_pos: np.ndarray, target: np.ndarray) -> None:
         """Leg IK in place on the local rotations: hip and knee swung, the ankle keeping its world rotation."""
-        toes = world_pos[leg.pivot] - world_pos[leg.ankle]
+        leg = self.limbs.legs[f]
+        toes = self.toes(f, world_rot, world_pos)
         thigh, shin = _leg_swings(world_pos[leg.hip], world_pos[leg.knee], world_pos[leg.ankle], target, toes)
         # the hip is the knee's parent and the knee the ankle's (limbs.py): below the hip everything
         # turns with the thigh, below the knee also with the shin
@@ -460,8 +505,9 @@ class PoseStream:
     def _follow(self, rotations: np.ndarray, translations: np.ndarray, strength: float | None) -> np.ndarray:
         """The frame's translations with the body moved after its stance foot, by the lock's
         blend of each foot so far."""
-        world_pos = forward_kinematics(self.layout.skeleton, rotations, translations)[1][0]
-        offset = self.follow.step(world_pos[self.lock.pivot], self.lock.weight, STRENGTH if strength is None else strength)
+        world_rot, world_pos = (a[0] for a in forward_kinematics(self.layout.skeleton, rotations, translations))
+        offset = self.follow.step(self.lock.pivots(world_rot, world_pos), self.lock.weight,
+                                  STRENGTH if strength is None else strength)
         moved = translations.copy()
         moved[0, self.layout.root] += offset @ self.lock.parent_rot  # world to the root's parent's frame
         return moved

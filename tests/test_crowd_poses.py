@@ -6,10 +6,11 @@ import pytest
 
 import reference_lock as reference
 from instrument.synthesis.posing import CrowdPoses, PoseStream
+from instrument.models.modelfile import load_model
 from instrument.synthesis.contact import contact_space
 from instrument.synthesis import footlock
 from instrument.synthesis.footlock import FootLock
-from instrument.synthesis.interpolation import GROUPS
+from instrument.synthesis.interpolation import GROUPS, style_space
 from instrument.synthesis.engine import drive
 from instrument.synthesis.stream import Controls, Crowd
 from walks import step
@@ -51,7 +52,7 @@ def _features(model, space, performances: list[list[Controls]]):
 
 def _reference_run(model, static, shares, position=None, heading=0.0, locked=True, fps=None):
     contact, fps = contact_space(model), fps or model.fps
-    lock = reference.FootLock(model.layout, contact.clearance, fps) if locked else None
+    lock = reference.FootLock(model.layout, contact.clearance, fps, contact.tip_clearance) if locked else None
     stream = reference.PoseStream(model.layout, fps, lock)
     if position is not None:
         stream.position, stream.heading = np.asarray(position, dtype=float), heading
@@ -97,6 +98,31 @@ def test_one_character_makes_the_reference_poses_through_style_changes_and_extra
     plain = _reference_run(model, static[:, 0], shares[:, 0], locked=False)
     moved = [np.abs(a.world_positions - b.world_positions).max() for a, b in zip(poses, plain)]
     assert max(moved) > 1e-2 and np.mean(np.array(moved) > 1e-6) > 0.5
+
+
+def test_a_toe_less_foot_makes_the_reference_poses(toe_less):
+    """A rig whose feet are their ankles alone, ending in an End Site at the toe tip (the shared
+    walks' toe joints dropped: `toe_less`), its heels rolling up about those tips: the compiled
+    lock and the reference make the same poses through style changes and extrapolation, and the
+    tips were what the lock held (a heel rose about one; a lock without them makes other poses)."""
+    model = load_model(toe_less[1])
+    contact = contact_space(model)
+    static, shares = _features(model, style_space(model), [_performance(model, 400, 0)])
+    lock = FootLock(model.layout, contact.clearance, model.fps, contact.tip_clearance)
+    assert lock.tips.any(axis=1).all()
+    stream = PoseStream(model.layout, model.fps, lock)
+    poses, rises = [], []
+    for row, s in zip(static[:, 0], shares[:, 0]):
+        poses.append(stream.next(row, s))
+        rises.append(stream.crowd.lock_state.rises[0].copy())
+    for got, want in zip(poses, _reference_run(model, static[:, 0], shares[:, 0])):
+        for field in FIELDS:
+            np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
+    assert np.max(rises) > 0.05  # radians: a heel rose about its tip
+    tipless = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps))
+    moved = [np.abs(tipless.next(row, s).world_positions - got.world_positions).max()
+             for row, s, got in zip(static[:, 0], shares[:, 0], poses)]
+    assert max(moved) > 1.0  # cm
 
 
 def test_a_crowd_makes_each_characters_own_poses(model, space):

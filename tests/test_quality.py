@@ -12,8 +12,8 @@ from conftest import SHARED_WALKS, needs_walks
 from instrument.motion.bvh import Motion, Skeleton, parse_bvh, read_bvh
 from instrument.motion.features import choose_layout
 from instrument.motion.kinematics import world_positions
-from instrument.motion.limbs import centimetres_per_unit, clearance, find_limbs, sole_clearance
-from instrument.motion.quality import walk_figures
+from instrument.motion.limbs import Leg, Limbs, centimetres_per_unit, clearance, find_limbs, sole_clearance
+from instrument.motion.quality import skate, walk_figures
 from samples import cmu_style_walk
 
 
@@ -87,6 +87,26 @@ def _x_channel(motion: Motion, joint: int) -> int:
 
 
 @needs_walks
+def test_a_heel_rolling_about_its_toe_tip_is_not_skate():
+    """A toe-less foot (its ankle alone) planted at its End Site's tip while its heel rolls up
+    about it, 0 to 40 degrees over a second, the other foot swinging 30 cm up: its ankle moves
+    forward (over the tip) as it rises, which read as skate when the ankle was the foot's only
+    point; with the tip among the foot's points, what carries the body is still."""
+    frames, fps = 30, 30.0
+    roll = np.radians(np.linspace(0.0, 40.0, frames))
+    tip = np.array([0.0, 1.0, 20.0])  # the toe tip on the floor; the ankle 14 cm behind it, 10 up, flat
+    ankle = tip + np.stack([np.zeros(frames), 10.0 * np.cos(roll) + 14.0 * np.sin(roll),
+                            -14.0 * np.cos(roll) + 10.0 * np.sin(roll)], axis=1)
+    pos = np.zeros((frames, 7, 3))  # hips, then each leg's hip, knee, ankle
+    pos[:, 0] = [0.0, 90.0, 0.0]
+    pos[:, 3], pos[:, 6] = ankle, [15.0, 30.0, 0.0]
+    legs = tuple(Leg(1 + 3 * k, 2 + 3 * k, 3 + 3 * k, (3 + 3 * k,), 3 + 3 * k, 40.0, 40.0) for k in range(2))
+    limbs = Limbs(0, legs, (), 80.0)
+    tips = np.stack([np.broadcast_to(tip, (frames, 3)), pos[:, 6] + [0.0, -8.0, 14.0]], axis=1)
+    assert skate(pos, limbs, fps) > 5.0  # cm/s: the ankle's roll forward
+    assert skate(pos, limbs, fps, tips) == 0.0
+
+
 def test_played_walks_swing_knees_and_hips_through_the_takes_ranges(model):
     """Issue 10's range target on the shipped model: the walk as played (range filter, feet
     planted) against the real takes of its style, measured as `instrument evaluate` does."""

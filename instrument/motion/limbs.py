@@ -7,7 +7,7 @@ foot's pivot, the joint that is locked where it lands and that a heel rises abou
 front-most joint (its toes; a toe-tip joint such as Mixamo's Toe_End where there is one): not
 the last joint listed, which may be a heel marker behind the ankle. The ball of the foot (Mixamo's
 ToeBase) was tried: the toe tip then slid 1.5-8 times as much (`instrument evaluate`). A foot
-that is its ankle alone rolls about its End Site, where it has one (`foot_tip`). The
+that is its ankle alone rolls about its End Site, where that reaches forward (`foot_tip`). The
 arms are the two longest branches of the upper body that do not hold one another (the neck
 branches off with them but reaches a third as far); the upper arm and forearm are the last two
 consecutive long bones on an arm's longest way down (a collar bone may be longer than the
@@ -23,7 +23,7 @@ from functools import lru_cache
 import numpy as np
 
 from .bvh import Motion, Skeleton
-from .features import ROOT_FEATURES, FeatureLayout
+from .features import ROOT_FEATURES, FeatureLayout, heading_angle
 from .kinematics import forward_kinematics, local_transforms
 
 UP = np.array([0.0, 1.0, 0.0])
@@ -38,8 +38,6 @@ class Leg:
     pivot: int  # the foot's front-most joint: locked where it lands, a heel rises about it; the ankle if none (then its End Site: foot_tip)
     thigh: float  # bone lengths in the skeleton's units
     shin: float
-    # a foot that is its ankle alone: its End Site (the toe tip), in the ankle's frame (`foot_tip`)
-    tip: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -163,8 +161,7 @@ def find_limbs(skeleton: Skeleton, root: int, template: np.ndarray) -> Limbs | N
 @lru_cache(maxsize=8)
 def _find_limbs(skeleton: Skeleton, root: int, template: tuple[float, ...]) -> Limbs | None:
     rotations, translations = local_transforms(Motion(skeleton, np.asarray(template)[None], 30.0))
-    world_rot, world_pos = forward_kinematics(skeleton, rotations, translations)
-    positions = world_pos[0]
+    positions = forward_kinematics(skeleton, rotations, translations)[1][0]
     parents = skeleton.parents
     lengths = np.linalg.norm(translations[0], axis=1)
     height = positions[:, 1] - positions[:, 1].min()
@@ -179,9 +176,8 @@ def _find_limbs(skeleton: Skeleton, root: int, template: tuple[float, ...]) -> L
         except ValueError:
             continue
         foot = descendants(parents, ankle)
-        pivot = _front(positions, ankle, foot)
-        legs.append(Leg(hip, knee, ankle, tuple(foot), pivot, float(lengths[knee]), float(lengths[ankle]),
-                        _end_tip(skeleton, world_rot[0, ankle], ankle, pivot)))
+        legs.append(Leg(hip, knee, ankle, tuple(foot), _front(positions, ankle, foot), float(lengths[knee]),
+                        float(lengths[ankle])))
     if len(legs) != 2:
         return None
     in_legs = {j for leg in legs for j in descendants(parents, _chain(parents, leg.hip, root)[0])}
@@ -220,40 +216,49 @@ def clearance(positions: list[np.ndarray], limbs: Limbs) -> np.ndarray:
     return np.broadcast_to(per_joint, (2, len(per_joint))).copy()
 
 
-def _end_tip(skeleton: Skeleton, ankle_rot: np.ndarray, ankle: int, pivot: int) -> tuple[float, float, float] | None:
-    """A foot that is its ankle alone (the pivot is the ankle): its End Site, where that reaches
-    along the floor in the template pose (`ankle_rot`, the ankle's world rotation there) by a
-    quarter of its length or more: a toe tip (the template, an average walking pose, may pitch
-    it 55 degrees down: the shared walks' left foot), not a sole marker under the ankle, which
-    no heel rolls about."""
-    end = skeleton.joints[ankle].end_site
-    if pivot != ankle or end is None or np.linalg.norm(end) < 1e-9:
-        return None
-    reach = ankle_rot @ np.asarray(end, dtype=np.float64)
-    if np.hypot(reach[0], reach[2]) < 0.25 * np.linalg.norm(reach):
-        return None
-    return (float(end[0]), float(end[1]), float(end[2]))
+TIP_REACH = 0.25  # an End Site is a toe tip where it reaches this share of its length forward (`foot_tip`)
 
 
-def foot_tip(leg: Leg) -> np.ndarray | None:
+def foot_tip(layout: FeatureLayout, leg: Leg) -> np.ndarray | None:
     """(3,) where the toes end, in the ankle's frame, for a foot that is its ankle alone (no toe
-    joint: the pivot is the ankle) and ends in an End Site reaching forward (many CMU
-    conversions and some suits put it at the toe tip; `_end_tip`); None otherwise. The lock rolls
-    such a heel up about this point as it would about a toe joint: about the ankle alone it could
-    not, and a planted leg that could not reach stretched, swinging the hips 25-37% wider than
-    the takes (docs/evaluate.md, "No toes")."""
-    return None if leg.tip is None else np.asarray(leg.tip, dtype=np.float64)
+    joint: the pivot is the ankle) and ends in an End Site reaching forward, the way the takes
+    travel (many CMU conversions and some suits put it at the toe tip); None otherwise. The lock
+    rolls such a heel up about this point as it would about a toe joint: about the ankle alone
+    it could not, and a planted leg that could not reach stretched, swinging the hips 25-37%
+    wider than the takes (docs/evaluate.md, "No toes").
+
+    Forward is the heading frame's +Z in the template pose (`FeatureLayout.heading_reference`:
+    where the takes travel, whatever the rig's axes), and the End Site must reach TIP_REACH of
+    its length along it there: the template, an average walking pose, may pitch a toe tip 55
+    degrees down (the shared walks' left foot: 0.57 of it forward). A sole marker straight below
+    the ankle reaches nowhere and a heel marker behind it reaches back; no heel rolls about
+    either (a heel rolled about a point behind the ankle would swing the foot the wrong way)."""
+    end = layout.skeleton.joints[leg.ankle].end_site
+    if leg.pivot != leg.ankle or end is None or np.linalg.norm(end) < 1e-9:
+        return None
+    world_rot = forward_kinematics(layout.skeleton, layout.template_pose[0][None], layout.template_pose[1][None])[0][0]
+    yaw = heading_angle(world_rot[layout.root][None], layout.heading_reference)[0]
+    reach = world_rot[leg.ankle] @ np.asarray(end, dtype=np.float64)
+    if reach @ np.array([np.sin(yaw), 0.0, np.cos(yaw)]) < TIP_REACH * np.linalg.norm(reach):
+        return None
+    return np.asarray(end, dtype=np.float64)
 
 
-def tip_heights(world_rot: np.ndarray, world_pos: np.ndarray, limbs: Limbs) -> np.ndarray | None:
-    """(T * feet,) the toe tips' (`foot_tip`) heights over one take's frames, from its world
-    rotations and positions (T, J, 3, 3), (T, J, 3); None when neither foot has a tip. Taken a
-    take at a time, so training keeps the heights, not every take's rotations (a corpus of 400
-    takes: some 200 MB more)."""
-    tips = [(leg.ankle, tip) for leg in limbs.legs if (tip := foot_tip(leg)) is not None]
+def tip_positions(world_rot: np.ndarray, world_pos: np.ndarray, limbs: Limbs, layout: FeatureLayout) -> np.ndarray | None:
+    """(T, tips, 3) where the toe-less feet's tips (`foot_tip`) are in world transforms (T, J, 3, 3),
+    (T, J, 3), in the legs' order; None when neither foot has a tip."""
+    tips = [(leg.ankle, tip) for leg in limbs.legs if (tip := foot_tip(layout, leg)) is not None]
     if not tips:
         return None
-    return np.concatenate([world_pos[:, a, 1] + world_rot[:, a, 1] @ tip for a, tip in tips])
+    return np.stack([world_pos[:, a] + world_rot[:, a] @ tip for a, tip in tips], axis=1)
+
+
+def tip_heights(world_rot: np.ndarray, world_pos: np.ndarray, limbs: Limbs, layout: FeatureLayout) -> np.ndarray | None:
+    """(T * feet,) the toe tips' (`tip_positions`) heights over one take's frames; None when
+    neither foot has a tip. Taken a take at a time, so training keeps the heights, not every
+    take's rotations (a corpus of 400 takes: some 200 MB more)."""
+    tips = tip_positions(world_rot, world_pos, limbs, layout)
+    return None if tips is None else tips[:, :, 1].T.ravel()
 
 
 def tip_clearance(heights: list[np.ndarray], frames: list[int]) -> float:

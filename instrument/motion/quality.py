@@ -6,7 +6,8 @@ height). A foot's height is measured against its ground clearance: how high each
 is when it stands on the floor (the lowest it comes in the real data), so "on the floor" means
 the same for a toe joint 4 cm above the sole and an ankle 12 cm above it.
 
-    skate     horizontal speed of the lowest foot joint in each frame, which carries the body (cm/s)
+    skate     horizontal speed of the lowest foot joint in each frame, which carries the body (cm/s;
+              a toe-less foot's End Site tip, where it has one, counts as a joint: limbs.foot_tip)
     contact skate  the same of each foot while its lowest joint is within CONTACT_CM of its
               clearance (also counts a shuffling swing foot, so it is only reported in --json)
     under     frames where some foot joint is more than 1 cm below its clearance (fraction)
@@ -30,7 +31,7 @@ import numpy as np
 from .bvh import Motion
 from .features import FeatureLayout, heading_angle, travel_direction
 from .kinematics import forward_kinematics, local_transforms
-from .limbs import Limbs, clearance, sole_clearance
+from .limbs import Limbs, clearance, sole_clearance, tip_positions
 from .rotations import axis_angle_matrix
 from .steps import Step, is_below, segment_steps
 
@@ -112,13 +113,18 @@ def limb_ranges(pos: np.ndarray, yaw: np.ndarray, limbs: Limbs, root: int) -> di
             "shoulder_deg": float(np.mean(shoulders)) if shoulders else float("nan")}
 
 
-def skate(pos: np.ndarray, limbs: Limbs, fps: float) -> float:
-    """How fast the foot joint carrying the body (the lowest of both feet's in each frame) moves
-    over the floor, on average, in the units of the world positions `pos` (T, J, 3) per second.
-    Training's range calibration holds it no higher (training/widen.py)."""
-    feet = list(limbs.feet[0] + limbs.feet[1])
-    lowest = np.argmin(pos[:, feet, 1], axis=1)
-    moving = np.linalg.norm(np.gradient(pos[:, feet][:, :, [0, 2]], axis=0), axis=2) * fps
+def skate(pos: np.ndarray, limbs: Limbs, fps: float, tips: np.ndarray | None = None) -> float:
+    """How fast the foot point carrying the body (the lowest of both feet's joints in each frame,
+    and of toe-less feet's tips (T, tips, 3) where given: `limbs.tip_positions`) moves over the
+    floor, on average, in the units of the world positions `pos` (T, J, 3) per second. Training's
+    range calibration holds it no higher (training/widen.py). A toe-less foot's ankle alone rises
+    as its heel rolls up about its tip, which the foot lock holds still: counted without the
+    tip, that roll read as skate."""
+    points = pos[:, list(limbs.feet[0] + limbs.feet[1])]
+    if tips is not None:
+        points = np.concatenate([points, tips], axis=1)
+    lowest = np.argmin(points[:, :, 1], axis=1)
+    moving = np.linalg.norm(np.gradient(points[:, :, [0, 2]], axis=0), axis=2) * fps
     return float(moving[np.arange(len(pos)), lowest].mean())
 
 
@@ -152,7 +158,8 @@ def walk_figures(motion: Motion, layout: FeatureLayout, limbs: Limbs, ground: np
         horizontal = np.linalg.norm(np.gradient(pos[:, list(foot)][:, :, [0, 2]], axis=0), axis=2) * fps
         speeds.append(horizontal[np.arange(motion.frames), lowest])
     lift, speed = np.array(lifts), np.array(speeds)
-    out["skate_cm_s"] = skate(pos, limbs, fps)
+    tips = tip_positions(world_rot, world_pos, limbs, layout)  # a toe-less foot's tip: a point the lock holds it by
+    out["skate_cm_s"] = skate(pos, limbs, fps, None if tips is None else tips * cm)
     contact = lift < CONTACT_CM
     out["contact_skate_cm_s"] = float(speed[contact].mean()) if contact.any() else float("nan")
     out["under_frac"] = float((lift < -UNDER_CM).any(axis=0).mean())

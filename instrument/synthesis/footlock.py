@@ -152,7 +152,7 @@ class FootLock:
         # (2, 3) a toe-less foot's tip in its ankle's frame (limbs.foot_tip), which its heel rolls up
         # about; zeros for a foot with a toe joint, or none known. `pivot_ground` (2,): the clearance
         # of the point a heel rises about (the tip's, or the pivot joint's)
-        tips = [None if tip_clearance is None else foot_tip(leg) for leg in legs]
+        tips = [None if tip_clearance is None else foot_tip(layout, leg) for leg in legs]
         self.tips = np.array([np.zeros(3) if t is None else t for t in tips])
         self.pivot_ground = np.array([self.ground[f, -1] if t is None else tip_clearance for f, t in enumerate(tips)])
         template_rot, template_pos = (a[0] for a in forward_kinematics(layout.skeleton, layout.template_pose[0][None],

@@ -77,7 +77,7 @@ def train_contact(layout: FeatureLayout, takes, average: HSMM, styles: HSMM, sty
     for take in takes:
         rotations, world_pos = _take_world(take.observations[:, : layout.dimension], layout, fps)
         positions.append(world_pos)
-        tips.append(tip_heights(rotations, world_pos, limbs))
+        tips.append(tip_heights(rotations, world_pos, limbs, layout))
     cm = centimetres_per_unit(layout, positions[0][0])
     floors = take_floors(positions, limbs)  # each take on its own floor (a capture's is not always level)
     labels = [contact_labels(p, limbs, g, cm, fps) for p, g in zip(positions, floors.ground)]

@@ -18,7 +18,7 @@ from scipy.ndimage import uniform_filter1d
 from ..motion.bvh import Motion
 from ..motion.features import ROOT_FEATURES, heading_angle, restore
 from ..motion.kinematics import forward_kinematics, local_transforms
-from ..motion.limbs import find_limbs
+from ..motion.limbs import find_limbs, tip_positions
 from ..motion.quality import limb_ranges, skate
 from ..synthesis.engine import Engine, render
 from ..synthesis.stream import Controls
@@ -116,12 +116,14 @@ def _widen(log_factors: np.ndarray, found: list[int], figure: str, step: float) 
     log_factors[found] = np.clip(log_factors[found] + step, -bound, bound)
 
 
-def _limb_figures(motion, limbs, root: int) -> dict[str, float]:
+def _limb_figures(motion, limbs, layout) -> dict[str, float]:
     """The knees', hips' and shoulders' ranges of a walk in degrees, and its feet's skate (in the
-    skeleton's units per second), as `instrument evaluate` measures them."""
+    skeleton's units per second, a toe-less foot's tip among its points: the lock's), as
+    `instrument evaluate` measures them."""
     world_rot, world_pos = forward_kinematics(motion.skeleton, *local_transforms(motion))
+    root = layout.root
     return limb_ranges(world_pos, heading_angle(world_rot[:, root]), limbs, root) | {
-        "skate": skate(world_pos, limbs, motion.fps)}
+        "skate": skate(world_pos, limbs, motion.fps, tip_positions(world_rot, world_pos, limbs, layout))}
 
 
 def _miss(real: dict[str, float], made: dict[str, float], figures) -> float:
@@ -163,7 +165,7 @@ def _calibrate_limbs(model, takes, log_factors: np.ndarray, weights: np.ndarray,
     columns = _calibrated_columns(layout, limbs)
     if not columns:  # neither the legs nor the shoulders are modelled
         return
-    measured = [_limb_figures(restore(t.observations[:, : layout.dimension], layout, model.fps), limbs, layout.root)
+    measured = [_limb_figures(restore(t.observations[:, : layout.dimension], layout, model.fps), limbs, layout)
                 for t in chosen]
     frames_of = [t.frames for t in chosen]
     real = {figure: float(np.average([m[figure] for m in measured], weights=frames_of)) for figure in columns}
@@ -172,7 +174,7 @@ def _calibrate_limbs(model, takes, log_factors: np.ndarray, weights: np.ndarray,
         trial = replace(model, extras=extras_with(log_factors))
         settle = settle_frames(model.fps)
         made = render(trial, Controls(weights), settle + int(round(CALIBRATION_SECONDS * model.fps)))
-        return _limb_figures(Motion(made.skeleton, made.channels[settle:], made.fps), limbs, layout.root)
+        return _limb_figures(Motion(made.skeleton, made.channels[settle:], made.fps), limbs, layout)
 
     for _ in range(CALIBRATION_ROUNDS):
         made = played()
