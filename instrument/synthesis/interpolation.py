@@ -245,7 +245,8 @@ class StyleInterpolation:
         self._later = np.zeros(rows, dtype=np.bool_) if later is None else np.asarray(later, dtype=np.bool_)
         self._now_rows = np.flatnonzero(~self._later)  # the rows a retune makes; `complete` makes the others
         self._later_rows = np.flatnonzero(self._later)
-        self._pending: tuple | None = None  # (weights per dimension, bounded, the tables) of the rows still to make
+        self._pending: _LaterRows | None = None  # the last call's rows left for later
+        self._older: _LaterRows | None = None  # the call's before it: retired when its arrays are made again
         self._shared: list[tuple[np.ndarray, np.ndarray]] = []  # the shared tables' arrays, made again in place
 
     def __call__(self, weights: np.ndarray, part_weights: np.ndarray | None, spread: float
@@ -265,10 +266,12 @@ class StyleInterpolation:
             reach = min(reach, self._span_reach)
         # the shared tables, made row by row in one pass, the rows `later` left for `complete`
         means, precisions = self._tables()
+        if self._older is not None:  # these arrays were its tables: its rows must not land in these
+            self._older.retire()
         _shared_rows(per_dim, space.offsets, space.base, space.log_variance_span, bounded, limit, self._now_rows, means,
                      precisions)
-        self._pending = (per_dim, bounded, means, precisions) if len(self._later_rows) else None
-        rest = self.complete if self._pending is not None else None
+        rest = _LaterRows(space, self._later_rows, per_dim, bounded, means, precisions) if len(self._later_rows) else None
+        self._older, self._pending = self._pending, rest
         duration_change = _duration_change(space, weights)
         if reach + abs(spread) * self._own_reach <= limit:
             # no variance at its limit: exp(-(a + b)) = exp(-a) exp(-b), the second kept while the spread stays
@@ -299,11 +302,7 @@ class StyleInterpolation:
         """The rows the last call left (`later`: a gesture's, which only a playing gesture reads),
         made into the same tables: the same numbers as if made with the others."""
         if self._pending is not None:
-            per_dim, bounded, means, precisions = self._pending
-            self._pending = None
-            space = self.space
-            _shared_rows(per_dim, space.offsets, space.base, space.log_variance_span, bounded, MAX_LOG_VARIANCE_CHANGE,
-                         self._later_rows, means, precisions)
+            self._pending()
 
     def _tables(self) -> tuple[np.ndarray, np.ndarray]:
         """The shared means and precisions to make: two pairs of arrays in turn, so the tables a
@@ -315,6 +314,32 @@ class StyleInterpolation:
             return self._shared[-1]
         self._shared.reverse()
         return self._shared[0]
+
+
+class _LaterRows:
+    """One call's rows of the shared tables left for later (`later`: a gesture's), made into that
+    call's tables the first time they are asked for. It is the `rest` of the tables the call
+    hands over, so a holder of the last call's tables, read after a newer call, completes its
+    own rows, not the newer call's. The call after next makes its arrays again (the tables
+    alternate between two pairs: `StyleInterpolation._tables`) and retires it first, so a holder
+    of tables two calls old can no longer write its rows into a newer call's."""
+
+    def __init__(self, space: StyleSpace, rows: np.ndarray, per_dim: np.ndarray, bounded: bool, means: np.ndarray,
+                 precisions: np.ndarray):
+        self.space, self.rows, self.per_dim, self.bounded = space, rows, per_dim, bounded
+        self.tables: tuple[np.ndarray, np.ndarray] | None = (means, precisions)  # None: made, or retired
+
+    def __call__(self) -> None:
+        if self.tables is not None:
+            means, precisions = self.tables
+            self.tables = None
+            space = self.space
+            _shared_rows(self.per_dim, space.offsets, space.base, space.log_variance_span, self.bounded,
+                         MAX_LOG_VARIANCE_CHANGE, self.rows, means, precisions)
+
+    def retire(self) -> None:
+        """Its tables' arrays are another call's now: its rows are not to be made."""
+        self.tables = None
 
 
 def _duration_part(base: np.ndarray, shared: np.ndarray, own: np.ndarray, spread: float, limit: float, means: np.ndarray,
