@@ -27,7 +27,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from test_faults import RUN, SEED, assert_valid_bvh, bvh_frames, mutate, random_stop_moment, valid_packets  # noqa: E402
+from test_faults import (RUN, SEED, SIGNAL_EXITS, assert_valid_bvh, bvh_frames, mutate, signal_trial,  # noqa: E402
+                         valid_packets)
 
 from instrument.control.events import read_log  # noqa: E402
 from instrument.models.modelfile import default_model_path, load_model  # noqa: E402
@@ -152,17 +153,13 @@ def signal_trials(count: int, folder: Path) -> bool:
     ok = True
     for trial in range(count):
         path = folder / f"signal{trial}.bvh"
-        process = subprocess.Popen(RUN + ["--no-osc", "--bvh", str(path), "--fast", "--seconds", "600", "--quiet"],
-                                   stderr=subprocess.PIPE, text=True)
-        random_stop_moment(rng, path)
-        process.send_signal(rng.choice([signal.SIGINT, signal.SIGTERM]))
-        stderr = process.communicate(timeout=120)[1]
+        code, stderr = signal_trial(rng, path)
         if path.exists():
             frames = assert_valid_bvh(path)
             kind = "valid BVH" if frames >= 1 else "EMPTY BVH"
         else:
             kind = "no file (stopped before the first frame)"
-        ok &= "Traceback" not in stderr and process.returncode in (0, -signal.SIGINT, -signal.SIGTERM) and kind != "EMPTY BVH"
+        ok &= "Traceback" not in stderr and code in SIGNAL_EXITS and kind != "EMPTY BVH"
         outcomes[kind] = outcomes.get(kind, 0) + 1
     print(f"signals: {count} trials at random times: " + ", ".join(f"{k} {v}" for k, v in outcomes.items())
           + f"; {'held' if ok else 'FAILED'}")
