@@ -27,12 +27,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from test_faults import RUN, SEED, assert_valid_bvh, bvh_frames, mutate, random_stop_moment, valid_packets  # noqa: E402
+from test_faults import (RUN, SEED, SIGNAL_EXITS, assert_valid_bvh, bvh_frames, mutate, signal_trial,  # noqa: E402
+                         valid_packets)
 
 from instrument.control.events import read_log  # noqa: E402
 from instrument.models.modelfile import default_model_path, load_model  # noqa: E402
 from instrument.output.osc import message as osc_message  # noqa: E402
-from oscrecv import free_port  # noqa: E402
+from oscrecv import Receiver, free_port  # noqa: E402
 
 
 def midi_sender(port_name: str):
@@ -113,35 +114,6 @@ def soak(minutes: float, rate: int, folder: Path) -> bool:
     return ok
 
 
-class StampedReceiver:
-    """UDP on 127.0.0.1 keeping each datagram with the monotonic time it arrived."""
-
-    def __init__(self):
-        import threading
-
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", 0))
-        self.sock.settimeout(0.2)
-        self.port = self.sock.getsockname()[1]
-        self.stamped: list[tuple[float, bytes]] = []
-        self.running = True
-        self.thread = threading.Thread(target=self._loop, daemon=True)
-        self.thread.start()
-
-    def _loop(self) -> None:
-        while self.running:
-            try:
-                data = self.sock.recv(65536)
-            except socket.timeout:
-                continue
-            self.stamped.append((time.monotonic(), data))
-
-    def close(self) -> None:
-        self.running = False
-        self.thread.join(2)
-        self.sock.close()
-
-
 def storm_figures(folder: Path) -> bool:
     """Two 12 s shows at 30 fps, the same but for ten 60 kB bundles (2,500 messages each, 0.5 s
     apart) in the second: late and dropped frames, the longest gap between frames arriving at a
@@ -150,7 +122,7 @@ def storm_figures(folder: Path) -> bool:
     bundle = b"#bundle\0" + struct.pack(">Q", 1) + b"".join(struct.pack(">i", len(m)) + m for m in messages)
     ok = True
     for storm in (False, True):
-        port, receiver = free_port(), StampedReceiver()
+        port, receiver = free_port(), Receiver()
         bvh, log = folder / f"storm{storm}.bvh", folder / f"storm{storm}.jsonl"
         process = subprocess.Popen(RUN + ["--osc-in", str(port), "--osc", f"127.0.0.1:{receiver.port}/flat", "--seconds", "12",
                                           "--bvh", str(bvh), "--record", str(log)], stderr=subprocess.PIPE, text=True)
@@ -163,7 +135,8 @@ def storm_figures(folder: Path) -> bool:
         stderr = process.communicate(timeout=120)[1]
         receiver.close()
         sock.close()
-        arrivals = [stamp for stamp, datagram in receiver.stamped if b"/walk/frame" in datagram][30:]  # after warming up
+        arrivals = [stamp for stamp, datagram in zip(receiver.arrivals, receiver.datagrams)
+                    if b"/walk/frame" in datagram][30:]  # after warming up
         seen = len(read_log(log))
         summary = next((l for l in reversed(stderr.splitlines()) if l.startswith("stopped after")), "(no summary line)")
         gap = max((b - a for a, b in zip(arrivals, arrivals[1:])), default=float("nan")) * 1000
@@ -180,17 +153,13 @@ def signal_trials(count: int, folder: Path) -> bool:
     ok = True
     for trial in range(count):
         path = folder / f"signal{trial}.bvh"
-        process = subprocess.Popen(RUN + ["--no-osc", "--bvh", str(path), "--fast", "--seconds", "600", "--quiet"],
-                                   stderr=subprocess.PIPE, text=True)
-        random_stop_moment(rng, path)
-        process.send_signal(rng.choice([signal.SIGINT, signal.SIGTERM]))
-        stderr = process.communicate(timeout=120)[1]
+        code, stderr = signal_trial(rng, path)
         if path.exists():
             frames = assert_valid_bvh(path)
             kind = "valid BVH" if frames >= 1 else "EMPTY BVH"
         else:
             kind = "no file (stopped before the first frame)"
-        ok &= "Traceback" not in stderr and process.returncode in (0, -signal.SIGINT, -signal.SIGTERM) and kind != "EMPTY BVH"
+        ok &= "Traceback" not in stderr and code in SIGNAL_EXITS and kind != "EMPTY BVH"
         outcomes[kind] = outcomes.get(kind, 0) + 1
     print(f"signals: {count} trials at random times: " + ", ".join(f"{k} {v}" for k, v in outcomes.items())
           + f"; {'held' if ok else 'FAILED'}")

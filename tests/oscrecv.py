@@ -1,9 +1,11 @@
-"""A plain UDP receiver on 127.0.0.1 for the tests: keeps every datagram, parsed by python-osc."""
+"""A plain UDP receiver on 127.0.0.1 for the tests: keeps every datagram (and when it arrived),
+parsed by python-osc."""
 
 from __future__ import annotations
 
 import socket
 import threading
+import time
 
 from pythonosc.osc_bundle import OscBundle
 from pythonosc.osc_message import OscMessage
@@ -16,6 +18,7 @@ class Receiver:
         self.sock.settimeout(0.2)
         self.port = self.sock.getsockname()[1]
         self.datagrams: list[bytes] = []
+        self.arrivals: list[float] = []  # time.monotonic() as each datagram was read, one a datagram
         self.running = True
         self.thread = threading.Thread(target=self._loop, daemon=True)
         self.thread.start()
@@ -23,11 +26,13 @@ class Receiver:
     def _loop(self) -> None:
         while self.running:
             try:
-                self.datagrams.append(self.sock.recv(65536))
+                data = self.sock.recv(65536)
             except socket.timeout:
                 continue
             except OSError:
                 return
+            self.arrivals.append(time.monotonic())
+            self.datagrams.append(data)
 
     def close(self) -> None:
         self.running = False

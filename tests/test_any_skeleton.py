@@ -496,8 +496,8 @@ def test_styles_that_differ_only_in_case_are_said_to_be_two(real_walks):
     from instrument.training.corpus import load_corpus
 
     normal = [p for p in real_walks if "_normal_" in p.name][:2]
-    _, takes, warnings = load_corpus([(normal[0], "Normal"), (normal[1], "normal")], 30.0)
+    _, takes, warnings, _ = load_corpus([(normal[0], "Normal"), (normal[1], "normal")], 30.0)
     assert {t.style for t in takes} == {"Normal", "normal"}
     assert "styles 'Normal' and 'normal' differ only in case: the model has them as 2 styles" in warnings
-    _, _, warnings = load_corpus([(normal[0], "normal"), (normal[1], "normal")], 30.0)
+    _, _, warnings, _ = load_corpus([(normal[0], "normal"), (normal[1], "normal")], 30.0)
     assert not any("differ only in case" in w for w in warnings)

@@ -308,3 +308,29 @@ def test_train_and_inspect_warn_of_a_unit_named_where_the_default_does_not_read(
         f"warning: {tmp_path / 'actorB_Calm_Jog01.bvh'}: {said}"]
     quiet = run("inspect", str(tmp_path), "--unit-from", "_([A-Za-z]+?)[0-9]+$")
     assert "read as a walk" not in quiet.stdout and "unit     run" in quiet.stdout
+
+
+def test_train_says_when_the_takes_rate_is_not_the_models(real_walks, tmp_path):
+    """60 fps takes gave a 30 fps model without a word unless `--fps 60` was given: train says
+    so in one line, naming the takes' rate, the model's and how to keep theirs (said even with
+    --quiet); given --fps, the rate is the one asked for and nothing is said. Real walks
+    resampled to 60 fps as the team resamples a rig's takes (examples/other_rigs.py)."""
+    from instrument.cli.train_cmd import other_rates
+    from instrument.models.modelfile import load_model
+    from instrument.motion.bvh import read_bvh, write_bvh
+    from instrument.motion.features import resample
+
+    for path in [p for p in real_walks if "_active_" in p.name][:2]:
+        write_bvh(tmp_path / path.name, resample(read_bvh(path), 60.0))
+    said = ("warning: the takes are at 60 fps, resampled to the model's 30 fps (--fps's default): "
+            "give --fps 60 to keep their rate")
+    for given, fps, lines in (((), 30.0, [said]), (("--fps", "60"), 60.0, [])):
+        model = tmp_path / f"model-{fps:g}.npz"
+        trained = run("train", str(tmp_path), "--out", str(model), "--quiet", *given)
+        assert trained.returncode == 0, trained.stderr
+        assert [line for line in trained.stderr.splitlines() if " fps" in line] == lines, trained.stderr
+        assert load_model(model).fps == fps
+    assert other_rates([30.0, 60.0, 120.0, 30.0], 30.0) == (
+        "2 of the 4 takes are at 60 and 120 fps, resampled to the model's 30 fps (--fps's default): "
+        "give --fps 120 to keep the highest rate")
+    assert other_rates([30.0, 30.0], 30.0) is None

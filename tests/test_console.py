@@ -23,6 +23,7 @@ import pytest
 from conftest import REPO
 from instrument.motion.bvh import read_bvh
 from oscrecv import Receiver
+from waiting import wait_until
 
 RUN = [sys.executable, "-m", "instrument", "run"]
 NANO = str(REPO / "mappings" / "korg-nanokontrol2.toml")
@@ -65,17 +66,6 @@ class Instrument:
         return "".join(self.lines)
 
 
-def until(condition, timeout: float = 30.0, what: str = "condition"):
-    """Poll `condition` until it is true (returned) or fail after a generous deadline."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = condition()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError(f"timed out waiting for {what}")
-
-
 def echoed(receiver: Receiver, address: str) -> list[float]:
     return [params[0] for a, params in receiver.messages() if a == address]
 
@@ -113,7 +103,7 @@ def browser(chromium):
 
 def open_page(driver, url: str) -> None:
     driver.get(url)
-    until(lambda: frame_number(driver) > 5, 60, "frames on the page")
+    wait_until(lambda: frame_number(driver) > 5, "frames on the page", timeout=60)
 
 
 def frame_number(driver) -> int:
@@ -153,9 +143,10 @@ def test_a_slider_and_the_keys_move_the_walk_in_the_osc_stream_and_replay_exactl
         ActionChains(browser).move_to_element_with_offset(elderly, int(elderly.size["width"] * 0.3), 0).click().perform()
         wanted = slider_value(browser, "style/elderly")
         assert wanted > 1.5  # the click landed in the exaggerated part of the slider
-        until(lambda: echoed(receiver, "/walk/style/elderly")[-1:] == [pytest.approx(wanted, abs=1e-6)], what="the weight in OSC")
+        wait_until(lambda: echoed(receiver, "/walk/style/elderly")[-1:] == [pytest.approx(wanted, abs=1e-6)],
+                   what="the weight in OSC")
         press(browser, Keys.ARROW_UP)  # a step faster
-        until(lambda: echoed(receiver, "/walk/speed")[-1:] == [pytest.approx(1.1)], what="the speed in OSC")
+        wait_until(lambda: echoed(receiver, "/walk/speed")[-1:] == [pytest.approx(1.1)], what="the speed in OSC")
     finally:
         stderr = show.stop()
         receiver.close()
@@ -178,7 +169,8 @@ def test_a_midi_fader_moves_the_slider_on_every_page_and_pages_stay_in_sync(jack
     show = Instrument("--console", "0", "--midi-virtual", "instr-console", "--midi-api", "jack", "--mapping", NANO, "--no-osc",
                       "--quiet", "--no-feedback")
     try:
-        names = until(lambda: [n for n in jack.get_output_names() if "instr-console" in n], 30, "the virtual MIDI port")
+        names = wait_until(lambda: [n for n in jack.get_output_names() if "instr-console" in n], "the virtual MIDI port",
+                           timeout=30)
         fader = jack.open_output(names[0])
         open_page(browser, show.url)
         first = browser.current_window_handle
@@ -202,20 +194,20 @@ def test_a_midi_fader_moves_the_slider_on_every_page_and_pages_stay_in_sync(jack
                 time.sleep(0.01)
             cc(100)
             try:
-                until(followed, 10, "the slider to follow the fader")
+                wait_until(followed, "the slider to follow the fader", timeout=10)
                 break
             except AssertionError:
                 fader.close()
                 fader = jack.open_output(names[0])
         for window in (first, second):
             browser.switch_to.window(window)
-            until(followed, what="the slider to follow the fader on every page")
+            wait_until(followed, what="the slider to follow the fader on every page")
         # one page's move shows on the other
         browser.switch_to.window(first)
         browser.execute_script("const box = document.querySelector('[data-target=\"turn\"] input[type=number]');"
                                "box.value = '-0.75'; box.dispatchEvent(new Event('change'));")
         browser.switch_to.window(second)
-        until(lambda: slider_value(browser, "turn") == -0.75, what="the other page to follow")
+        wait_until(lambda: slider_value(browser, "turn") == -0.75, what="the other page to follow")
         fader.close()
     finally:
         stderr = show.stop()
@@ -236,20 +228,20 @@ def test_store_recall_and_save_presets_that_the_cli_reads(browser, tmp_path):
         box.click()
         box.send_keys(Keys.CONTROL, "a")
         box.send_keys("1.25", Keys.ENTER)  # typed over the whole value
-        until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [pytest.approx(1.25)], what="the typed weight")
+        wait_until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [pytest.approx(1.25)], what="the typed weight")
         browser.find_element("id", "store-name").send_keys("graceful", Keys.ENTER)
-        button = until(lambda: browser.find_elements("css selector", '[data-preset="graceful"]'),
-                       what="the stored preset's button")[0]
+        button = wait_until(lambda: browser.find_elements("css selector", '[data-preset="graceful"]'),
+                            what="the stored preset's button")[0]
         browser.find_element("id", "reset").click()
-        until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [0.0], what="the reset")
+        wait_until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [0.0], what="the reset")
         button.click()
-        until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [pytest.approx(1.25)], what="the recalled preset")
+        wait_until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [pytest.approx(1.25)], what="the recalled preset")
         browser.find_element("id", "reset").click()
-        until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [0.0], what="the second reset")
+        wait_until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [0.0], what="the second reset")
         press(browser, "1")  # number keys recall presets
-        until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [pytest.approx(1.25)], what="the preset by key")
+        wait_until(lambda: echoed(receiver, "/walk/style/feminine")[-1:] == [pytest.approx(1.25)], what="the preset by key")
         browser.find_element("id", "save").click()
-        until(lambda: "saved 1 presets" in browser.find_element("id", "saved").text, what="the save")
+        wait_until(lambda: "saved 1 presets" in browser.find_element("id", "saved").text, what="the save")
     finally:
         stderr = show.stop()
         receiver.close()
@@ -260,7 +252,7 @@ def test_store_recall_and_save_presets_that_the_cli_reads(browser, tmp_path):
     again = Receiver()
     result = subprocess.run(RUN + ["--presets", str(saved), "--replay", str(cue), "--seconds", "1", "--fast", "--quiet",
                                    "--osc", f"127.0.0.1:{again.port}/flat"], capture_output=True, text=True, timeout=60)
-    until(lambda: len(echoed(again, "/walk/style/feminine")) == 30, what="the second run's frames")
+    wait_until(lambda: len(echoed(again, "/walk/style/feminine")) == 30, what="the second run's frames")
     again.close()
     assert result.returncode == 0, result.stderr
     assert echoed(again, "/walk/style/feminine")[-1] == pytest.approx(1.25)
@@ -282,16 +274,17 @@ def test_the_xy_pad_blends_the_chosen_styles(browser):
         pad = browser.find_element("id", "pad")
         # the right edge, half way up: all the second style, at its own weight
         ActionChains(browser).move_to_element_with_offset(pad, pad.size["width"] // 2 - 2, 0).click().perform()
-        until(lambda: echoed(receiver, "/walk/style/youthful")[-1:] == [pytest.approx(1.0, abs=0.02)]
-              and echoed(receiver, "/walk/style/normal")[-1:] == [pytest.approx(0.0, abs=0.02)], what="the pad's blend")
+        wait_until(lambda: echoed(receiver, "/walk/style/youthful")[-1:] == [pytest.approx(1.0, abs=0.02)]
+                   and echoed(receiver, "/walk/style/normal")[-1:] == [pytest.approx(0.0, abs=0.02)], what="the pad's blend")
         third.select_by_value("elderly")  # three styles: a triangle, the first at the top, the third bottom right
         ActionChains(browser).move_to_element_with_offset(pad, 0, -pad.size["height"] // 2 + 3).click().perform()
-        until(lambda: echoed(receiver, "/walk/style/normal")[-1:] == [pytest.approx(1.0, abs=0.02)]
-              and echoed(receiver, "/walk/style/elderly")[-1:] == [pytest.approx(0.0, abs=0.02)], what="the triangle's top")
+        wait_until(lambda: echoed(receiver, "/walk/style/normal")[-1:] == [pytest.approx(1.0, abs=0.02)]
+                   and echoed(receiver, "/walk/style/elderly")[-1:] == [pytest.approx(0.0, abs=0.02)], what="the triangle's top")
         corner = (pad.size["width"] // 2 - 2, pad.size["height"] // 2 - 2)
         ActionChains(browser).move_to_element_with_offset(pad, *corner).click().perform()
-        until(lambda: echoed(receiver, "/walk/style/elderly")[-1:] == [pytest.approx(1.0, abs=0.02)]
-              and echoed(receiver, "/walk/style/normal")[-1:] == [pytest.approx(0.0, abs=0.02)], what="the bottom right corner")
+        wait_until(lambda: echoed(receiver, "/walk/style/elderly")[-1:] == [pytest.approx(1.0, abs=0.02)]
+                   and echoed(receiver, "/walk/style/normal")[-1:] == [pytest.approx(0.0, abs=0.02)],
+                   what="the bottom right corner")
     finally:
         stderr = show.stop()
         receiver.close()
@@ -312,7 +305,7 @@ def test_the_view_draws_the_walking_figure(browser):
         view = browser.find_element("id", "view")
         first = screenshot(view)
         start = frame_number(browser)
-        until(lambda: frame_number(browser) > start + 15, what="half a second of frames")
+        wait_until(lambda: frame_number(browser) > start + 15, what="half a second of frames")
         second = screenshot(view)
         if os.environ.get("INSTRUMENT_DOCS_SCREENSHOT"):  # the docs' picture: INSTRUMENT_DOCS_SCREENSHOT=1 pytest ...
             browser.save_screenshot(str(REPO / "docs" / "console.png"))
@@ -334,14 +327,14 @@ def test_the_view_draws_a_crowd_and_follows_its_first_character(browser):
     try:
         open_page(browser, show.url)
         start = frame_number(browser)
-        until(lambda: browser.execute_script("return figure.others.length") == 2, what="the crowd on the page")
+        wait_until(lambda: browser.execute_script("return figure.others.length") == 2, what="the crowd on the page")
 
         def roots():
             return np.array(browser.execute_script(
                 "const r = Math.max(figure.first, 0); return [figure.positions[r], ...figure.others.map((p) => p[r])]"))
 
         before = roots()
-        until(lambda: frame_number(browser) > start + 30, what="a second of frames")
+        wait_until(lambda: frame_number(browser) > start + 30, what="a second of frames")
         after = roots()
         followed = browser.execute_script("return figure.camera.follow")
     finally:
@@ -385,8 +378,8 @@ class FlatFrames:
     def after(self, count: int) -> list[dict[str, list]]:
         """The next `count` frames from now."""
         start = len(self.update())
-        return until(lambda: self.update()[start:start + count] if len(self.update()) >= start + count else None,
-                     60, f"{count} more frames")
+        return wait_until(lambda: self.update()[start:start + count] if len(self.update()) >= start + count else None,
+                          f"{count} more frames", timeout=60)
 
 
 def head_above_hips(frames: list[dict[str, list]]) -> float:
@@ -420,8 +413,8 @@ def fresh_page(driver, show: Instrument, stream: FlatFrames) -> None:
     """The page open, the show reset to the average walk (the shared show's earlier tests undone)."""
     open_page(driver, show.url)
     driver.find_element("id", "reset").click()
-    until(lambda: stream.last("/walk/liveliness") == 0.0 and stream.last("/walk/style/elderly") == 0.0
-          and slider_value(driver, "liveliness") == 0.0, what="the reset")
+    wait_until(lambda: stream.last("/walk/liveliness") == 0.0 and stream.last("/walk/style/elderly") == 0.0
+               and slider_value(driver, "liveliness") == 0.0, what="the reset")
 
 
 def click_at(driver, element, share: float) -> None:
@@ -444,19 +437,19 @@ def test_part_weight_phase_stretch_and_liveliness_sliders_reach_the_walk(browser
     browser.find_element("css selector", "#parts-box summary").click()
     click_at(browser, slider(browser, "part/elderly/upper"), 0.99)
     assert slider_value(browser, "part/elderly/upper") > 3.5
-    until(lambda: head_above_hips(stream.update()[-30:]) < posture - 5, what="the upper body to follow its weight")
+    wait_until(lambda: head_above_hips(stream.update()[-30:]) < posture - 5, what="the upper body to follow its weight")
     # a per-state phase stretch: state 2 of every step drawn out to the slider's end makes the step longer
     browser.find_element("id", "reset").click()
-    until(lambda: abs(head_above_hips(stream.update()[-30:]) - posture) < 1, what="the posture back after the reset")
+    wait_until(lambda: abs(head_above_hips(stream.update()[-30:]) - posture) < 1, what="the posture back after the reset")
     browser.find_element("css selector", "#phases-box summary").click()
     click_at(browser, slider(browser, "phase/2"), 0.99)
     assert slider_value(browser, "phase/2") > 3.5
-    until(lambda: step_frames(stream.update()[-90:]) > step + 3, what="longer steps")
+    wait_until(lambda: step_frames(stream.update()[-90:]) > step + 3, what="longer steps")
     # liveliness, echoed in the stream
     click_at(browser, slider(browser, "liveliness"), 0.7)
     wanted = slider_value(browser, "liveliness")
     assert 0.5 < wanted < 0.9
-    until(lambda: stream.last("/walk/liveliness") == pytest.approx(wanted, abs=1e-6), what="the liveliness in OSC")
+    wait_until(lambda: stream.last("/walk/liveliness") == pytest.approx(wanted, abs=1e-6), what="the liveliness in OSC")
 
 
 def pressed(driver, target: str) -> list[str]:
@@ -473,15 +466,15 @@ def test_the_gait_buttons_set_the_gait_and_light_what_the_instrument_echoes(brow
     fresh_page(browser, show, stream)
     gait = lambda: browser.find_elements("css selector", '[data-target="gait"] button')  # noqa: E731
     assert [b.text for b in gait()] == ["stand", "walk", "run"]
-    until(lambda: stream.last("/walk/gait") == 1.0 and pressed(browser, "gait") == ["walk"], what="walk at the start")
+    wait_until(lambda: stream.last("/walk/gait") == 1.0 and pressed(browser, "gait") == ["walk"], what="walk at the start")
     gait()[2].click()
-    until(lambda: stream.last("/walk/gait") == 2.0, what="run in the OSC stream")
-    until(lambda: pressed(browser, "gait") == ["run"], what="run lit")
+    wait_until(lambda: stream.last("/walk/gait") == 2.0, what="run in the OSC stream")
+    wait_until(lambda: pressed(browser, "gait") == ["run"], what="run lit")
     asyncio.run(talk(show.url, [json.dumps({"set": "gait", "value": "stand"})]))  # another page, by name
-    until(lambda: stream.last("/walk/gait") == 0.0, what="stand in the OSC stream")
-    until(lambda: pressed(browser, "gait") == ["stand"], what="stand lit by another page's change")
+    wait_until(lambda: stream.last("/walk/gait") == 0.0, what="stand in the OSC stream")
+    wait_until(lambda: pressed(browser, "gait") == ["stand"], what="stand lit by another page's change")
     browser.find_element("id", "reset").click()
-    until(lambda: stream.last("/walk/gait") == 1.0 and pressed(browser, "gait") == ["walk"], what="walk after a reset")
+    wait_until(lambda: stream.last("/walk/gait") == 1.0 and pressed(browser, "gait") == ["walk"], what="walk after a reset")
 
 
 def hands_over_head(frame: dict[str, list]) -> float:
@@ -502,11 +495,11 @@ def test_a_gesture_button_held_raises_the_hands_until_let_go(browser, mixer):
     assert max(hands_over_head(f) for f in stream.after(30)) < 0  # walking: the hands below the head
     browser.execute_script("arguments[0].scrollIntoView({block: 'center'})", buttons[0])
     ActionChains(browser).click_and_hold(buttons[0]).perform()
-    until(lambda: buttons[0].get_attribute("aria-pressed") == "true", what="wave lit while held")
-    until(lambda: hands_over_head(stream.update()[-1]) > 0, what="the hands over the head")
+    wait_until(lambda: buttons[0].get_attribute("aria-pressed") == "true", what="wave lit while held")
+    wait_until(lambda: hands_over_head(stream.update()[-1]) > 0, what="the hands over the head")
     ActionChains(browser).release().perform()
-    until(lambda: buttons[0].get_attribute("aria-pressed") == "false", what="wave unlit on release")
-    until(lambda: max(hands_over_head(f) for f in stream.update()[-30:]) < 0, 60, what="the hands down after the release")
+    wait_until(lambda: buttons[0].get_attribute("aria-pressed") == "false", what="wave unlit on release")
+    wait_until(lambda: max(hands_over_head(f) for f in stream.update()[-30:]) < 0, "the hands down after the release", timeout=60)
 
 
 @needs_browser
@@ -519,9 +512,9 @@ def test_the_arrow_keys_steer_while_held(browser, mixer):
     browser.execute_script("document.activeElement && document.activeElement.blur()")
     for key, turn in ((Keys.ARROW_LEFT, 1.0), (Keys.ARROW_RIGHT, -1.0)):  # positive turns left
         ActionChains(browser).key_down(key).perform()
-        until(lambda: stream.last("/walk/turn") == turn, what=f"the turn {turn} while the key is held")
+        wait_until(lambda: stream.last("/walk/turn") == turn, what=f"the turn {turn} while the key is held")
         ActionChains(browser).key_up(key).perform()
-        until(lambda: stream.last("/walk/turn") == 0.0, what="the turn back to 0 on release")
+        wait_until(lambda: stream.last("/walk/turn") == 0.0, what="the turn back to 0 on release")
 
 
 @needs_browser
@@ -530,13 +523,13 @@ def test_a_preset_recall_morphs_over_the_time_the_page_shows(browser, mixer):
     fresh_page(browser, show, stream)
     click_at(browser, slider(browser, "morph"), 0.2)  # the morph time, set on the page
     box = browser.find_element("css selector", '[data-target="morph"] input[type=number]')
-    until(lambda: browser.execute_script("return latest.v.morph") == slider_value(browser, "morph") > 0,
-          what="the instrument to take the morph time")
-    shown = float(until(lambda: box.get_attribute("value"), what="the morph time shown"))
+    wait_until(lambda: browser.execute_script("return latest.v.morph") == slider_value(browser, "morph") > 0,
+               what="the instrument to take the morph time")
+    shown = float(wait_until(lambda: box.get_attribute("value"), what="the morph time shown"))
     assert 1.0 < shown < 4.0
     start = len(stream.update())
     browser.find_element("css selector", '[data-preset="far"]').click()  # style/elderly 0 -> 3
-    until(lambda: stream.last("/walk/style/elderly") == 3.0, what="the preset's value")
+    wait_until(lambda: stream.last("/walk/style/elderly") == 3.0, what="the preset's value")
     frames = stream.update()[start:]
     path = [(f["/walk/frame"][1], f["/walk/style/elderly"][0]) for f in frames]
     moving = [(t, v) for t, v in path if 0 < v < 3.0]
@@ -575,15 +568,15 @@ def test_touch_on_a_tablet_moves_a_slider_and_the_pad(browser, mixer):
     touch_drag(browser, slider(browser, "liveliness"), (0.02, 0.5), (0.75, 0.5))
     wanted = slider_value(browser, "liveliness")
     assert 0.5 < wanted < 0.9
-    until(lambda: stream.last("/walk/liveliness") == pytest.approx(wanted, abs=1e-6), what="the dragged liveliness in OSC")
+    wait_until(lambda: stream.last("/walk/liveliness") == pytest.approx(wanted, abs=1e-6), what="the dragged liveliness in OSC")
     first, second, third = (Select(e) for e in browser.find_elements("css selector", "#pad-styles select"))
     first.select_by_value("normal")
     second.select_by_value("youthful")
     third.select_by_value("")
     # a finger across the pad at half height, from the first style to the second
     touch_drag(browser, browser.find_element("id", "pad"), (0.05, 0.5), (0.99, 0.5))
-    until(lambda: stream.last("/walk/style/youthful") == pytest.approx(1.0, abs=0.02)
-          and stream.last("/walk/style/normal") == pytest.approx(0.0, abs=0.02), what="the pad's blend by touch")
+    wait_until(lambda: stream.last("/walk/style/youthful") == pytest.approx(1.0, abs=0.02)
+               and stream.last("/walk/style/normal") == pytest.approx(0.0, abs=0.02), what="the pad's blend by touch")
 
 
 @needs_browser
@@ -604,27 +597,27 @@ def test_orbit_and_the_follow_camera_change_the_view(browser, mixer):
         c, r = camera(), root()
         return float(np.hypot(c["target"][0] - r[0], c["target"][2] - r[2]))
 
-    until(lambda: apart() < 50, what="the camera on the character")  # so the held camera still sees it
+    wait_until(lambda: apart() < 50, what="the camera on the character")  # so the held camera still sees it
     browser.find_element("id", "follow").click()  # the camera held still, so only the orbit changes the picture
     drawn = "return !figure.dirty && !!figure.positions && figure.positions.length > 0"
-    until(lambda: browser.execute_script(drawn), what="the view drawn")
+    wait_until(lambda: browser.execute_script(drawn), what="the view drawn")
     before, picture = camera(), screenshot(view)
     ActionChains(browser).click_and_hold(view).move_by_offset(150, 60).release().perform()  # orbit
     after = camera()
     assert abs(after["yaw"] - before["yaw"]) > 0.5 and after["pitch"] > before["pitch"] + 0.1
-    until(lambda: (np.abs(screenshot(view) - picture).max(axis=2) > 40).sum() > 2000, timeout=60.0,
-          what="the orbited view drawn")
+    wait_until(lambda: (np.abs(screenshot(view) - picture).max(axis=2) > 40).sum() > 2000, timeout=60.0,
+               what="the orbited view drawn")
     browser.find_element("id", "follow").click()
     # follow off: the camera stays where it is while the character walks away
     browser.find_element("id", "follow").click()
     assert browser.find_element("id", "follow").get_attribute("aria-pressed") == "false"
     fixed = camera()["target"]
-    until(lambda: apart() > 150, what="the character to walk out of the centre")
+    wait_until(lambda: apart() > 150, what="the character to walk out of the centre")
     assert camera()["target"] == fixed
     # follow on: the camera catches up with the character
     browser.find_element("id", "follow").click()
     assert browser.find_element("id", "follow").get_attribute("aria-pressed") == "true"
-    until(lambda: apart() < 50, what="the camera to follow")  # it eases after the walking character: a little behind
+    wait_until(lambda: apart() < 50, what="the camera to follow")  # it eases after the walking character: a little behind
     browser.find_element("id", "home").click()  # "view": the camera back to its start
     home = camera()
     assert (home["yaw"], home["pitch"]) == (before["yaw"], before["pitch"])
@@ -697,10 +690,10 @@ def test_a_named_host_needs_the_token_and_bad_messages_never_stop_the_show(tmp_p
         replies = asyncio.run(talk(show.url, bad + good, wait_for=len(bad)))
         assert replies[0]["type"] == "hello" and "youthful" in replies[0]["styles"]
         assert sum(r["type"] == "refused" for r in replies) == len(bad)
-        until(lambda: echoed(receiver, "/walk/speed")[-1:] == [4.0], what="the speed at the top of its range")
-        until(lambda: echoed(receiver, "/walk/style/youthful")[-1:] == [-0.5], what="the good message")
+        wait_until(lambda: echoed(receiver, "/walk/speed")[-1:] == [4.0], what="the speed at the top of its range")
+        wait_until(lambda: echoed(receiver, "/walk/style/youthful")[-1:] == [-0.5], what="the good message")
         frames = len(echoed(receiver, "/walk/speed"))
-        until(lambda: len(echoed(receiver, "/walk/speed")) > frames + 10, what="the show to go on")
+        wait_until(lambda: len(echoed(receiver, "/walk/speed")) > frames + 10, what="the show to go on")
     finally:
         stderr = show.stop()
         receiver.close()
@@ -719,11 +712,12 @@ def test_a_flood_of_page_messages_never_stops_the_show():
         def taken() -> bool:  # a page's message after the flood: refused while the queue is still full, taken once it drains
             asyncio.run(talk(show.url, ['{"set": "style/active", "value": 0.7}']))
             try:
-                return until(lambda: echoed(receiver, "/walk/style/active")[-1:] == [pytest.approx(0.7)], timeout=2.0)
+                return wait_until(lambda: echoed(receiver, "/walk/style/active")[-1:] == [pytest.approx(0.7)], "the message",
+                                  timeout=2.0)
             except AssertionError:
                 return False
 
-        until(taken, timeout=120.0, what="a message after the flood")
+        wait_until(taken, timeout=120.0, what="a message after the flood")
     finally:
         stderr = show.stop()
         receiver.close()
@@ -903,16 +897,16 @@ def test_hundreds_of_presets_stored_from_a_page_keep_the_console_alive():
         for start in range(0, 700, 50):  # in batches the link's queue holds (a flood is refused: another test)
             for k in range(start, start + 50):
                 page.send({"set": "speed", "value": 0.5 + k / 1000}, {"store": names[k]})
-            until(lambda: page.presets() == names[: start + 50], 120, f"{start + 50} presets on the page")
+            wait_until(lambda: page.presets() == names[: start + 50], f"{start + 50} presets on the page", timeout=120)
         frames = page.frames()
-        until(lambda: page.frames() > frames + 30, 60, "frames after the presets")
+        wait_until(lambda: page.frames() > frames + 30, "frames after the presets", timeout=60)
         page.send({"set": "style/active", "value": 0.7})  # the controls still work
-        until(lambda: echoed(receiver, "/walk/style/active")[-1:] == [pytest.approx(0.7)], what="a control after")
+        wait_until(lambda: echoed(receiver, "/walk/style/active")[-1:] == [pytest.approx(0.7)], what="a control after")
         later = Page(show.url)  # and a page opened now is told them all
-        until(lambda: later.presets() == names, 60, "the presets on a new page")
+        wait_until(lambda: later.presets() == names, "the presets on a new page", timeout=60)
         later.close()
         page.send({"preset": "look-650"})  # a preset stored late recalls what it stored
-        until(lambda: echoed(receiver, "/walk/speed")[-1:] == [pytest.approx(1.15, abs=1e-4)], what="look-650 recalled")
+        wait_until(lambda: echoed(receiver, "/walk/speed")[-1:] == [pytest.approx(1.15, abs=1e-4)], what="look-650 recalled")
         page.close()
     finally:
         stderr = show.stop()
@@ -938,14 +932,14 @@ def test_presets_stored_over_osc_and_from_pages_stop_at_the_documented_maximum()
             for k in range(sent, sent + 100):
                 client.send_message(f"/walk/store/osc-{k:05d}", 1.0)
             sent += 100
-            until(lambda: len(page.presets()) >= min(sent, MAX_PRESETS), 120, f"{min(sent, MAX_PRESETS)} presets")
+            wait_until(lambda: len(page.presets()) >= min(sent, MAX_PRESETS), f"{min(sent, MAX_PRESETS)} presets", timeout=120)
         show.wait_for(f"already {MAX_PRESETS} presets, the most a show holds")
         page.send({"store": "one-more"})  # the page is told why
-        until(lambda: any("the most a show holds" in r["reason"] for r in page.of("refused")), what="the refusal")
+        wait_until(lambda: any("the most a show holds" in r["reason"] for r in page.of("refused")), what="the refusal")
         page.send({"set": "speed", "value": 1.5}, {"store": "osc-00007"})  # an existing name is stored over
         page.close()
         later = Page(show.url)
-        until(lambda: later.presets(), what="the presets on a new page")
+        wait_until(lambda: later.presets(), what="the presets on a new page")
         assert len(later.presets()) == MAX_PRESETS and "one-more" not in later.presets()
         assert later.presets()[-1] == f"osc-{MAX_PRESETS - 1:05d}"
         later.close()
@@ -997,7 +991,7 @@ def test_saving_first_thing_keeps_every_preset_and_the_names_read_back(tmp_path)
     try:
         page = Page(show.url)
         page.send({"save": True})  # the very first thing the page does
-        until(lambda: page.of("saved"), what="the save")
+        wait_until(lambda: page.of("saved"), what="the save")
         assert page.of("saved")[0].get("text", "").startswith("saved 2 presets"), page.of("saved")
         page.close()
     finally:
@@ -1029,11 +1023,11 @@ def test_pages_beyond_the_maximum_are_refused_and_the_others_go_on():
     pages = []
     try:
         pages = [Page(show.url) for _ in range(MAX_PAGES)]
-        until(lambda: all(page.frames() for page in pages), 120, "frames on every page")
+        wait_until(lambda: all(page.frames() for page in pages), "frames on every page", timeout=120)
         assert status_of(show.url) == 503
         show.wait_for(f"already {MAX_PAGES} open")
         pages.pop().close()
-        until(lambda: status_of(show.url) == 101, 60, "room for one page again")
+        wait_until(lambda: status_of(show.url) == 101, "room for one page again", timeout=60)
     finally:
         for page in pages:
             page.close()
@@ -1057,16 +1051,16 @@ def test_a_stopped_console_server_is_said_and_shown_down_in_health():
         return json.loads(asker.recv(65536))
 
     try:
-        until(lambda: report()["outputs"].get("console") == "up", 60, "the console up")
+        wait_until(lambda: report()["outputs"].get("console") == "up", "the console up", timeout=60)
         children = open(f"/proc/{show.process.pid}/task/{show.process.pid}/children").read().split()
         servers = [int(c) for c in children if "instrument.console.server" in open(f"/proc/{c}/cmdline").read()]
         assert len(servers) == 1
         os.kill(servers[0], signal.SIGKILL)
         show.wait_for("console: the server process stopped; the show goes on without it")
-        down = until(lambda: (r := report())["outputs"]["console"] == "down" and r, 60, "the console down")
+        down = wait_until(lambda: (r := report())["outputs"]["console"] == "down" and r, "the console down", timeout=60)
         assert any("stopped" in d for d in down["devices"] if d.startswith("console"))
         frames = down["frames"]
-        until(lambda: report()["frames"] > frames + 30, 60, "the show to go on")
+        wait_until(lambda: report()["frames"] > frames + 30, "the show to go on", timeout=60)
     finally:
         asker.close()
         stderr = show.stop()
@@ -1086,9 +1080,9 @@ def test_a_presets_file_of_hundreds_reaches_the_pages_and_saves_whole(tmp_path):
     show = Instrument("--console", "0", "--quiet", "--no-osc", "--presets", str(saved))
     try:
         page = Page(show.url)
-        until(lambda: len(page.presets()) == 900, 120, "900 presets on the page")
+        wait_until(lambda: len(page.presets()) == 900, "900 presets on the page", timeout=120)
         page.send({"save": True})
-        until(lambda: page.of("saved"), 60, "the save")
+        wait_until(lambda: page.of("saved"), "the save", timeout=60)
         assert page.of("saved")[0].get("text", "").startswith("saved 900 presets"), page.of("saved")
         page.close()
     finally:

@@ -15,6 +15,7 @@ from bvh_independent import foot_skate, world_positions
 from instrument.control.state import ControlState
 from instrument.motion.kinematics import channels_from_local
 from instrument.synthesis.engine import Engine, default_controls, render
+from instrument.synthesis.interpolation import StyleInterpolation
 
 FEET = ["Foot_L", "Toes_L", "Foot_R", "Toes_R"]
 
@@ -239,6 +240,32 @@ def test_a_restyle_leaves_the_gestures_rows_until_one_plays_and_they_play_as_if_
             assert not np.array_equal(lazy.stream.tables.precision_shared[gesture_rows], made)
             assert np.array_equal(lazy.stream.precisions[0][gesture_rows], made)  # made when the whole is read
     assert lazy.gestures.started == 1
+
+
+def test_tables_read_after_a_newer_retune_complete_their_own_gesture_rows(model, space):
+    """The rows a retune leaves for later (a gesture's) are made by its own tables when they are
+    read: tables read after a newer retune hold their own mix's rows, and the newer tables keep
+    theirs (the rows once came from the newest retune's mix, made into the newest's tables, and
+    the older's were never made). Tables two retunes old no longer write into the arrays a newer
+    retune made again."""
+    later = Engine(model, 1, model.fps).gestures.rows()
+    assert later is not None and later.any()
+    styles = len(space.style_names)
+    mixes = [np.eye(styles)[k] * weight for k, weight in ((1, 1.2), (0, 2.0), (3, -1.0))]
+    made_whole = [StyleInterpolation(space, np.zeros((1, styles)))(mix, None, 0.0)[0] for mix in mixes]
+    lazy = StyleInterpolation(space, np.zeros((1, styles)), later)
+    first, second = lazy(mixes[0], None, 0.0)[0], lazy(mixes[1], None, 0.0)[0]
+    assert np.array_equal(first.means, made_whole[0].means)
+    assert np.array_equal(first.precisions, made_whole[0].precisions)
+    assert np.array_equal(second.means, made_whole[1].means)
+    assert np.array_equal(second.precisions, made_whole[1].precisions)
+    unread = lazy(mixes[0], None, 0.0)[0]
+    lazy(mixes[1], None, 0.0)
+    third = lazy(mixes[2], None, 0.0)[0]  # made in the arrays `unread` had
+    assert np.array_equal(third.precisions, made_whole[2].precisions)
+    unread.rest()  # two retunes old: its rows are not to be made, and not in the third's arrays
+    assert np.array_equal(third.means, made_whole[2].means)
+    assert np.array_equal(third.precisions, made_whole[2].precisions)
 
 
 def test_the_engine_times_its_own_restyles(model):

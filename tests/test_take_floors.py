@@ -76,7 +76,7 @@ def cmu_contact():
     """The public CMU takes' average step model and contact statistics, trained as `instrument
     train` trains them (30 fps, 5 states), and each take's contact and air labels."""
     pairs = styled_takes([CMU])
-    layout, takes, _ = load_corpus(pairs, 30.0)
+    layout, takes, _, _ = load_corpus(pairs, 30.0)
     segments = segments_by_label(takes, 5)
     average = train_average(segments, 5, variance_floors(segments))
     one_style = HSMM(*(getattr(average, p)[None] for p in ("means", "variances", "duration_means", "duration_variances")))

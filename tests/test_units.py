@@ -194,7 +194,7 @@ def test_a_style_without_a_unit_the_others_have_is_said(real_walks):
     walks = {p.name.split("_")[2]: p for p in real_walks}
     pairs = [TakeFile(walks["active"], "active"), TakeFile(walks["elderly"], "elderly"),
              TakeFile(MOTIONS / "dataset-2_run_active_001.bvh", "active", "run")]
-    _, takes, warnings = load_corpus(pairs, 30.0)
+    _, takes, warnings, _ = load_corpus(pairs, 30.0)
     assert {(t.style, t.unit) for t in takes} == {("active", "walk"), ("elderly", "walk"), ("active", "run")}
     assert [w for w in warnings if "no run take" in w] == [
         "style 'elderly': no run take, so its run is the average's, moved only as its other units are"]
@@ -215,7 +215,7 @@ def test_a_turning_take_is_trained_as_the_way_it_turns(tmp_path, real_walks):
     straight.write_bytes(real_walks[0].read_bytes())
     pairs = [TakeFile(mislabelled, "masculine", "turn-left"), TakeFile(straight, "normal", "turn-left"),
              TakeFile(MOTIONS / "dataset-2_walk-turn-left_masculine_001.bvh", "masculine", "turn-left")]
-    _, takes, warnings = load_corpus(pairs, 30.0)
+    _, takes, warnings, _ = load_corpus(pairs, 30.0)
     assert [(t.path.name, t.unit) for t in takes] == [(mislabelled.name, "turn-right"),
                                                       ("dataset-2_walk-turn-left_masculine_001.bvh", "turn-left")]
     assert any(w.startswith(f"{mislabelled}: named turn-left but turns") and "used as turn-right" in w for w in warnings)

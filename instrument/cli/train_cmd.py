@@ -24,7 +24,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--manifest", metavar="FILE",
                    help="CSV (file,style[,unit[,gesture]]) or TOML ([[take]] file, style[, unit, gesture]) naming takes, "
                         "styles, units and standing takes' gestures")
-    p.add_argument("--fps", type=checked("train --fps"), default=30.0, help="frame rate the model works at (default 30)")
+    p.add_argument("--fps", type=checked("train --fps"),
+                   help="frame rate the model works at (default 30; takes at another rate are resampled to it)")
     p.add_argument("--states", type=checked("train --states"), default=5, help="states per step model (default 5)")
     p.add_argument("--licence", help="licence of the model (that of the training data; default: says it is unspecified)")
     p.add_argument("--attribution", default="", help="attribution the licence requires")
@@ -93,10 +94,27 @@ def _pairs(args: argparse.Namespace) -> list:
     return pairs
 
 
+def other_rates(rates: list[float], fps: float) -> str | None:
+    """What to say where takes captured at `rates` (one a file) train a model at the default
+    rate `fps`, which they are resampled to (60 fps takes gave a 30 fps model without a word):
+    their rates, the model's, and how to keep theirs. None where every take is at the model's."""
+    other = sorted({rate for rate in rates if abs(rate - fps) >= 1e-9})  # `resample`'s test
+    if not other:
+        return None
+    count = sum(abs(rate - fps) >= 1e-9 for rate in rates)
+    takes = ("the takes are" if count == len(rates) else
+             f"{count} of the {len(rates)} takes {'is' if count == 1 else 'are'}")
+    named = [f"{rate:g}" for rate in other]
+    listed = named[0] if len(named) == 1 else f"{', '.join(named[:-1])} and {named[-1]}"
+    return (f"{takes} at {listed} fps, resampled to the model's {fps:g} fps "
+            f"(--fps's default): give --fps {other[-1]:g} to keep {'their' if len(other) == 1 else 'the highest'} rate")
+
+
 def run(args: argparse.Namespace) -> int:
     # the training code (numpy, scipy, numba): loaded when run, not for --help
     from ..training.build import UNSPECIFIED_LICENCE, build_model
     from ..models.modelfile import save_model
+    from ..motion.features import DEFAULT_FPS
 
     check_output(args.out, args.force)
     if Path(args.out).suffix.lower() != ".npz":  # a model is read back by its content, but named as one
@@ -109,12 +127,14 @@ def run(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     command = "instrument train " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if sys.argv[1:2] == ["train"] else ""
     model, report, takes = build_model(
-        pairs, args.fps, args.states, command, args.licence or UNSPECIFIED_LICENCE, args.attribution,
+        pairs, DEFAULT_FPS if args.fps is None else args.fps, args.states, command, args.licence or UNSPECIFIED_LICENCE,
+        args.attribution,
         progress=Progress(args.quiet),
         on_iteration=lambda i, ll: say(f"EM iteration {i:2d}: log-likelihood per frame {ll:.4f}"),
     )
     save_model(args.out, model)
-    for w in report.warnings:  # said even with --quiet: not progress, something to act on
+    rates = other_rates(report.capture_rates, model.fps) if args.fps is None else None  # given: the rate asked for
+    for w in report.warnings + ([rates] if rates else []):  # said even with --quiet: not progress, something to act on
         print(f"warning: {w}", file=sys.stderr)
     steps = sum(len(t.steps) for t in takes)
     say(f"done in {time.perf_counter() - started:.1f} s: {len(takes)} takes, {steps} steps, "

@@ -137,25 +137,23 @@ def past_the_styles(mixes: np.ndarray) -> bool:
     return bool((mixes < 0.0).any() or (mixes.sum(axis=0) > 1.0).any())
 
 
-def style_change(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """How far lambda* moves from lambda 0 at one character's weights (styles,) and part
-    weights (styles, groups): (2, labels * states, 3D) means and log variances, the log
-    variances' within the span of the models' own (`StyleSpace.log_variance_span`), and
-    (2, labels * states) of the durations (which follow the overall weights)."""
-    weights = np.asarray(weights, dtype=np.float64)
-    styles = len(weights)
-    if part_weights is None:
-        change = (weights @ space.offsets.reshape(styles, -1)).reshape(space.base.shape)
-        mixes = weights[:, None]
+def _log_variance_change(space: StyleSpace, weights: np.ndarray, per_dim: np.ndarray, parts: bool, bounded: bool
+                         ) -> np.ndarray:
+    """(labels * states, 3D) how far lambda*'s log variances move from lambda 0's at one mix
+    (`_mix_per_dimension`'s `per_dim` and `bounded`; `parts`: part weights were given), within
+    the span of the models' own (`StyleSpace.log_variance_span`) past the styles. Made whole only
+    where the bound on it is loose (`StyleInterpolation.__call__`'s slow branches); the means'
+    change is never needed whole, so it is not made."""
+    log_offsets = space.offsets[:, 1]
+    if parts:
+        change = np.einsum("sf,skf->kf", per_dim, log_offsets)
     else:
-        mixes = part_weights_per_group(weights, part_weights)  # (styles, groups)
-        per_dim = mixes @ space.group_masks  # each dimension is in one group
-        change = np.einsum("sf,sxkf->xkf", per_dim, space.offsets)
-    if past_the_styles(mixes):  # a convex mix needs no bound
-        np.maximum(change[1], space.log_variance_span[0], out=change[1])  # (two passes: half np.clip's time)
-        np.minimum(change[1], space.log_variance_span[1], out=change[1])
-    return change, _duration_change(space, weights)
+        change = (np.asarray(weights, dtype=np.float64) @ log_offsets.reshape(len(log_offsets), -1)).reshape(
+            log_offsets.shape[1:])
+    if bounded:  # a convex mix needs no bound
+        np.maximum(change, space.log_variance_span[0], out=change)  # (two passes: half np.clip's time)
+        np.minimum(change, space.log_variance_span[1], out=change)
+    return change
 
 
 def _mix_per_dimension(space: StyleSpace, weights: np.ndarray, part_weights: np.ndarray | None
@@ -163,7 +161,7 @@ def _mix_per_dimension(space: StyleSpace, weights: np.ndarray, part_weights: np.
     """(styles, 3D) the weight of each style in each observation dimension (the overall weight,
     or its group's part weight), and whether the mix is past the styles (a weight below 0, or
     a group's adding up to more than 1), where the log variances' change is bounded to the span
-    (`style_change`'s rule)."""
+    (`_log_variance_change`'s rule)."""
     weights = np.asarray(weights, dtype=np.float64)
     if part_weights is None:
         mixes = weights[:, None]
@@ -175,7 +173,7 @@ def _mix_per_dimension(space: StyleSpace, weights: np.ndarray, part_weights: np.
 
 
 def _duration_change(space: StyleSpace, weights: np.ndarray) -> np.ndarray:
-    """(2, labels * states) how far the duration pdfs move from lambda 0's (`style_change`'s second)."""
+    """(2, labels * states) how far the duration pdfs move from lambda 0's (they follow the overall weights)."""
     weights = np.asarray(weights, dtype=np.float64)
     return (weights @ space.duration_offsets.reshape(len(weights), -1)).reshape(space.duration_base.shape)
 
@@ -247,7 +245,8 @@ class StyleInterpolation:
         self._later = np.zeros(rows, dtype=np.bool_) if later is None else np.asarray(later, dtype=np.bool_)
         self._now_rows = np.flatnonzero(~self._later)  # the rows a retune makes; `complete` makes the others
         self._later_rows = np.flatnonzero(self._later)
-        self._pending: tuple | None = None  # (weights per dimension, bounded, the tables) of the rows still to make
+        self._pending: _LaterRows | None = None  # the last call's rows left for later
+        self._older: _LaterRows | None = None  # the call's before it: retired when its arrays are made again
         self._shared: list[tuple[np.ndarray, np.ndarray]] = []  # the shared tables' arrays, made again in place
 
     def __call__(self, weights: np.ndarray, part_weights: np.ndarray | None, spread: float
@@ -267,17 +266,19 @@ class StyleInterpolation:
             reach = min(reach, self._span_reach)
         # the shared tables, made row by row in one pass, the rows `later` left for `complete`
         means, precisions = self._tables()
+        if self._older is not None:  # these arrays were its tables: its rows must not land in these
+            self._older.retire()
         _shared_rows(per_dim, space.offsets, space.base, space.log_variance_span, bounded, limit, self._now_rows, means,
                      precisions)
-        self._pending = (per_dim, bounded, means, precisions) if len(self._later_rows) else None
-        rest = self.complete if self._pending is not None else None
+        rest = _LaterRows(space, self._later_rows, per_dim, bounded, means, precisions) if len(self._later_rows) else None
+        self._older, self._pending = self._pending, rest
+        duration_change = _duration_change(space, weights)
         if reach + abs(spread) * self._own_reach <= limit:
             # no variance at its limit: exp(-(a + b)) = exp(-a) exp(-b), the second kept while the spread stays
             tables = CrowdLambda(self._mean_term, means, self._precision_factor, precisions, self._plain, rest=rest)
-            duration_change = _duration_change(space, weights)
         else:  # the bound above is loose: the change made whole says whether a variance is at its limit
-            change, duration_change = style_change(space, weights, part_weights)
-            if np.abs(change[1]).max() + abs(spread) * self._own_reach <= limit:  # none is: two factors
+            log_change = _log_variance_change(space, weights, per_dim, part_weights is not None, bounded)
+            if np.abs(log_change).max() + abs(spread) * self._own_reach <= limit:  # none is: two factors
                 tables = CrowdLambda(self._mean_term, means, self._precision_factor, precisions, self._plain, rest=rest)
             else:  # some variance at its limit: a character's precisions cannot be two factors
                 # made whole for every character, they cost a crowd of 32 some 20 ms a frame while a
@@ -286,7 +287,7 @@ class StyleInterpolation:
                 # another's rows from its log offset as its window reads them (`clip_*`, stream.py `_gather`)
                 if self._clip_spread != spread:
                     self._clip_spread, self._clip_own = spread, np.multiply(self.offset_change[:, 1], spread)
-                tables = CrowdLambda(self._mean_term, means, self._clip_own, precisions, self._plain, change[1],
+                tables = CrowdLambda(self._mean_term, means, self._clip_own, precisions, self._plain, log_change,
                                      space.base[1], limit, rest=rest)
         shape = (len(self.offsets), space.labels, space.states)
         means, variances = np.empty(shape), np.empty(shape)
@@ -301,11 +302,7 @@ class StyleInterpolation:
         """The rows the last call left (`later`: a gesture's, which only a playing gesture reads),
         made into the same tables: the same numbers as if made with the others."""
         if self._pending is not None:
-            per_dim, bounded, means, precisions = self._pending
-            self._pending = None
-            space = self.space
-            _shared_rows(per_dim, space.offsets, space.base, space.log_variance_span, bounded, MAX_LOG_VARIANCE_CHANGE,
-                         self._later_rows, means, precisions)
+            self._pending()
 
     def _tables(self) -> tuple[np.ndarray, np.ndarray]:
         """The shared means and precisions to make: two pairs of arrays in turn, so the tables a
@@ -317,6 +314,32 @@ class StyleInterpolation:
             return self._shared[-1]
         self._shared.reverse()
         return self._shared[0]
+
+
+class _LaterRows:
+    """One call's rows of the shared tables left for later (`later`: a gesture's), made into that
+    call's tables the first time they are asked for. It is the `rest` of the tables the call
+    hands over, so a holder of the last call's tables, read after a newer call, completes its
+    own rows, not the newer call's. The call after next makes its arrays again (the tables
+    alternate between two pairs: `StyleInterpolation._tables`) and retires it first, so a holder
+    of tables two calls old can no longer write its rows into a newer call's."""
+
+    def __init__(self, space: StyleSpace, rows: np.ndarray, per_dim: np.ndarray, bounded: bool, means: np.ndarray,
+                 precisions: np.ndarray):
+        self.space, self.rows, self.per_dim, self.bounded = space, rows, per_dim, bounded
+        self.tables: tuple[np.ndarray, np.ndarray] | None = (means, precisions)  # None: made, or retired
+
+    def __call__(self) -> None:
+        if self.tables is not None:
+            means, precisions = self.tables
+            self.tables = None
+            space = self.space
+            _shared_rows(self.per_dim, space.offsets, space.base, space.log_variance_span, self.bounded,
+                         MAX_LOG_VARIANCE_CHANGE, self.rows, means, precisions)
+
+    def retire(self) -> None:
+        """Its tables' arrays are another call's now: its rows are not to be made."""
+        self.tables = None
 
 
 def _duration_part(base: np.ndarray, shared: np.ndarray, own: np.ndarray, spread: float, limit: float, means: np.ndarray,

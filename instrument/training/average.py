@@ -19,6 +19,7 @@ VARIANCE_FLOOR_RATIO = 0.01  # of the global variance of each feature, as in HTS
 class TrainingReport:
     loglik_per_frame: list[float] = field(default_factory=list)  # one entry per EM iteration
     warnings: list[str] = field(default_factory=list)
+    capture_rates: list[float] = field(default_factory=list)  # each file's frame rate as captured (the model's is `fps`)
 
 
 def variance_floors(segments: list[list[np.ndarray]]) -> Floors:

@@ -49,8 +49,8 @@ def build_model(
     durations and swing (training/little.py); None leaves them as the adaptation and the range
     filter make them alone."""
     started = time.perf_counter()
-    layout, takes, warnings = load_corpus(pairs, fps, progress, states)
-    report = TrainingReport(warnings=list(warnings))
+    layout, takes, warnings, rates = load_corpus(pairs, fps, progress, states)
+    report = TrainingReport(warnings=list(warnings), capture_rates=rates)
     units = model_units({t.unit for t in takes})
     gestures = model_gestures(takes)  # their labels after the units' (models/gestures.py)
 

@@ -248,14 +248,23 @@ def _units_problem(size: float, reference: float) -> str | None:
 def read_motions(pairs: Sequence[tuple], fps: float, progress=None) -> list[Motion]:
     """Read and resample every take; an error names the files whose skeleton differs from the
     first, or whose body is of another size than the others' (a take in other units)."""
+    return read_motions_and_rates(pairs, fps, progress)[0]
+
+
+def read_motions_and_rates(pairs: Sequence[tuple], fps: float, progress=None) -> tuple[list[Motion], list[float]]:
+    """`read_motions`, and each take's frame rate as captured (training says where it is not
+    the model's)."""
     pairs = take_files(pairs)
     if not pairs:
         raise UserError("no takes to read: no .bvh file was given")
     motions: list[Motion] = []
+    rates: list[float] = []
     for k, (path, *_) in enumerate(pairs):
         if not path.is_file():
             raise UserError(f"{path}: no such file")
-        motions.append(resample(upright(read_bvh(path))[0], fps))  # Y up, whatever the capture's axes
+        captured = upright(read_bvh(path))[0]  # Y up, whatever the capture's axes
+        rates.append(captured.fps)
+        motions.append(resample(captured, fps))
         if progress:
             progress(k + 1, len(pairs), "reading")
     first = motions[0].skeleton
@@ -272,7 +281,7 @@ def read_motions(pairs: Sequence[tuple], fps: float, progress=None) -> list[Moti
     if odd:
         raise UserError(f"{odd[0][0]}: {odd[0][1]} the other takes' (in other units? metres among centimetres): "
                         "convert it or leave it out" + (f" ({len(odd) - 1} more such takes)" if len(odd) > 1 else ""))
-    return motions
+    return motions, rates
 
 
 def make_takes(pairs: Sequence[tuple], motions: list[Motion], layout: FeatureLayout, progress=None,
@@ -316,11 +325,13 @@ def _step_frames(static: np.ndarray, steps: list) -> np.ndarray:
     return static[np.concatenate([np.arange(s.start, s.end) for s in steps])] if steps else static[:0]
 
 
-def load_corpus(pairs: Sequence[tuple], fps: float, progress=None, states: int = 5) -> tuple[FeatureLayout, list[Take], list[str]]:
+def load_corpus(pairs: Sequence[tuple], fps: float, progress=None, states: int = 5
+                ) -> tuple[FeatureLayout, list[Take], list[str], list[float]]:
     """Read, resample, check skeletons, choose the feature layout (from the walks: the template
-    pose and the root's axes are a walker's), extract features and steps."""
+    pose and the root's axes are a walker's), extract features and steps. Last, each file's
+    frame rate as captured."""
     pairs = take_files(pairs)
-    motions = read_motions(pairs, fps, progress)
+    motions, rates = read_motions_and_rates(pairs, fps, progress)
     walks = [m for p, m in zip(pairs, motions) if p.unit == "walk"]
     layout = choose_layout(walks or motions)
     _check_feet(layout, pairs[0].path)
@@ -342,7 +353,7 @@ def load_corpus(pairs: Sequence[tuple], fps: float, progress=None, states: int =
         by_case.setdefault(style.lower(), []).append(style)
     warnings += [f"styles {' and '.join(map(repr, same))} differ only in case: the model has them as "
                  f"{len(same)} styles" for same in by_case.values() if len(same) > 1]
-    return layout, takes, warnings
+    return layout, takes, warnings, rates
 
 
 def _check_feet(layout: FeatureLayout, path: Path) -> None:
