@@ -11,13 +11,20 @@ the first of the next as it joins any two steps; the foot lock keeps the feet pl
 
 Turning steps are taken in proportion to the steering: with `turn` at f times the rate the
 character's turning steps turn (their duration-weighted mean yaw rate in its own lambda*, made at
-each retune: `retune`), a share f of the steps are turning ones, chosen by error diffusion (each
-step adds f to a running sum; a step is a turning one when the sum passes one half, which takes
-one away), so over a few steps the walk turns at the rate asked for and no step is half of each. The rate is the character's own, not the average
-model's: active x2's left turns turn 40 deg/s, the average's 22, so with the average's rate
-`--turn 0.35` (20 deg/s) took nine steps in ten turning and turned some 35 deg/s. Steering beyond what every step turning gives, a run
-steered (there are no turning runs in the data), or a model without turning steps adds the rest
-as yaw rate (the engine's drive, as before units); a standing character does not turn.
+each retune: `retune`), about a share f of the steps are turning ones, chosen by error diffusion
+of the heading (`_turns`): a turning step gives what it yaws past the walk's step of the same
+foot, and the walk sways one way a step and back the next (13 degrees a step in lambda 0, 6 to
+24 at x2 of a style), while the turning steps need not turn alike (youthful x2's left turn: its
+right step 4 degrees past the walk's, its left 13). So over a few steps the walk turns at the
+rate asked for and no step is half of each. Shared out by lambda 0's rate (22 deg/s left, where
+exhausted x2's right turns turn 35 and youthful x2's left 15), one step in so many (which put
+every turning step on the same foot at a half), `synth` at half a style's own rate turned 0.41
+to 1.62 times what it asked (each style at 1 and x2, both ways, 20 s, the hips' heading over
+whole strides); so it turns 0.79 to 1.07 times (the window MLPG joins a turning step and a
+walk's step other than either's means; the lowest normal x2 right and feminine x2 left).
+Steering beyond what every step turning gives, a run steered (there are no turning runs in the
+data), or a model without turning steps adds the rest as yaw rate (the engine's drive, as before
+units); a standing character does not turn.
 
 A change needs notice to be smooth: the window MLPG solves bends the motion towards the new
 unit's means only from the frame it first sees them. Told a frame before its step ends, a run
@@ -209,12 +216,16 @@ class UnitChooser:
         self.stand = self.units.index("stand") if "stand" in self.units else -1
         states = model.states
         self.turn_units = {side: self.units.index(unit) for side, unit in TURNING.items() if unit in self.units}
-        # (N,) rad/s each character's turning steps of each side turn at, that way (the average
-        # model's until the first retune: `retune`), and the turn they were shared for
         self.fps = float(model.fps)
-        self.yaw = np.repeat(model.average.means[None, ..., YAW], count, axis=0)  # (N, labels, states) rad/s, lambda*'s
-        self.turn_rates = turn_rates(self.yaw, model.average.duration_means[None], self.turn_units)
-        self.turn_rates = {side: np.repeat(rate, count) for side, rate in self.turn_rates.items()}
+        # (N, labels, states) rad/s each character's yaw rate means, and per side (N,) how fast its
+        # turning steps turn that way (`turn_rates`): lambda 0's until the first retune, then made
+        # from the lambda* a retune left (`_retuned`) when a walk is next steered
+        self.yaw = np.repeat(model.average.means[None, ..., YAW], count, axis=0)
+        rates = turn_rates(self.yaw[:1], model.average.duration_means[None], self.turn_units)
+        self._rates = {side: np.repeat(rate, count) for side, rate in rates.items()}
+        self._retuned: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._own_of: np.ndarray | None = None  # the tables' own means `_own_yaw` (N, labels * states) is the yaw of
+        self._own_yaw = np.zeros((count, 0))
         # (side, turn shared, steering) `share` and `rest` are of (None: made again)
         self._steered: tuple[int, float, float] | None = None
         self.share = np.zeros(count)  # that turn over each character's full turn (its turning steps' rate), up to 1
@@ -382,12 +393,27 @@ class UnitChooser:
                          else None)  # no easing in or out
 
     def retune(self, mean_own: np.ndarray, mean_shared: np.ndarray, duration_means: np.ndarray) -> None:
-        """Each character's turning rates from its lambda* as retuned (means as its two factors,
-        `CrowdLambda`, (N, labels * states, 3D) and (labels * states, 3D); duration means (N,
-        labels, states)): a style change's, not a frame's."""
-        self.yaw = (mean_own[..., YAW] + mean_shared[:, YAW]).reshape(duration_means.shape)
-        self.turn_rates = turn_rates(self.yaw, duration_means, self.turn_units)
+        """Each character's lambda* as retuned (its means as two factors, `CrowdLambda`: (N,
+        labels * states, 3D) and (labels * states, 3D); its duration means (N, labels, states)),
+        which `turn_rates` reads: a style change's, not a frame's. Kept until a walk is steered
+        (the live crowd's demo retunes every frame: made at each, they cost a crowd of 100 some
+        40-90 us, 0.4-0.9 us a character)."""
+        self._retuned = (mean_own, mean_shared, duration_means)
         self._steered = None
+
+    @property
+    def turn_rates(self) -> dict[int, np.ndarray]:
+        """Per side (+1 left), (N,) rad/s each character's turning steps turn that way (`yaw`
+        made with them), from the lambda* of the last retune."""
+        if self._retuned is not None:
+            mean_own, mean_shared, duration_means = self._retuned
+            self._retuned = None
+            if mean_own is not self._own_of:  # a character's own term moves with the spread alone: its
+                # yaw column kept (gathered across a crowd of 100's tables, it cost 50-60 us)
+                self._own_of, self._own_yaw = mean_own, np.ascontiguousarray(mean_own[..., YAW])
+            self.yaw = (self._own_yaw + mean_shared[:, YAW]).reshape(duration_means.shape)
+            self._rates = turn_rates(self.yaw, duration_means, self.turn_units)
+        return self._rates
 
     def _shared(self, side: int, turn: float, steering: float) -> np.ndarray:
         """(N,) the yaw rate the drive adds to `steering`, besides turning steps for `turn` (rad/s;
@@ -408,9 +434,9 @@ class UnitChooser:
     def _turns(self, rows: np.ndarray, side: int, turn: float, stream: Crowd) -> np.ndarray:
         """Whether the coming step of each character `rows` turns: error diffusion of the heading.
         A turning step turns the body by what it yaws less what a walk's step of the same foot
-        yaws (the walk sways some 13 to 24 degrees a step one way then back), over its planned
-        frames at its cadence; the step turns when the heading left owing (`sum`, rad) plus what
-        the turn asks over it, less that, is nearer 0 than without it."""
+        yaws, over its planned frames at its cadence (the drive's); the step turns when the
+        heading left owing (`sum`, rad) plus what the turn asks over the step, less that, is
+        nearer 0 than without it. A turn at a character's full rate or past it turns every step."""
         labels = stream.counters[rows, LABEL]
         foot = labels % 2 if stream.sent == 0 else 1 - labels % 2  # the coming step's (the first one's at the first frame)
         straight, turning = 2 * self.walk + foot, 2 * self.turn_units[side] + foot
