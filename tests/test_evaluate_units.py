@@ -77,7 +77,7 @@ def test_a_turn_takes_rate_does_not_move_with_a_frame_more_or_less(model, measur
     """A turn take's mean rate (the target its turning unit is held to) from the heading at its
     first and last step ends moved with where segmentation found them: cut a frame (or two)
     shorter, these takes lost their last step, 26.1 -> 34.4, 33.6 -> 47.0 and 25.4 -> 34.3 deg/s
-    at 30 fps. Measured from a stride's mean heading at each end, a frame moves it ~1% (2% at most)."""
+    at 30 fps. Measured from a stride's mean heading at each end, a frame moves it 2.2% at most."""
     from instrument.motion.features import resample
 
     take = resample(read_bvh(MOTIONS / f"dataset-2_walk-{name}.bvh"), model.fps)
