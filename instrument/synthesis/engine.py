@@ -189,8 +189,9 @@ class Durations:
 
 
 class TurnRates:
-    """How fast each character's turning steps turn in its lambda* (the units stage shares the
-    steering out by it: UnitChooser.retune), made when the style changes, not a frame."""
+    """How fast each character's turning steps turn in its lambda*, which the units stage shares
+    the steering out by: each style change's lambda* handed to it (UnitChooser.retune), the
+    rates made from it when a walk is next steered, not a frame."""
 
     name = "turns"
 
