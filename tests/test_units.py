@@ -486,9 +486,55 @@ def _cm(model) -> float:
     return 100.0 / metres_to_units(model.layout)
 
 
+def _own_turn_rate(model, weights: dict[str, float], side: int) -> float:
+    """rad/s (+ left) the turning steps of `side` (+1 left) turn at in the lambda* of these
+    weights, made apart from the engine: the duration-weighted mean yaw rate of the unit's labels."""
+    from instrument.synthesis.interpolation import interpolate, style_space
+
+    lam = interpolate(style_space(model), default_controls(model, weights).weights)
+    k = model.units.index("turn-left" if side > 0 else "turn-right")
+    yaw = lam.means.reshape(len(model.labels), model.states, -1)[2 * k:2 * k + 2, :, 3]  # root.yaw_rate
+    durations = lam.duration_means[2 * k:2 * k + 2]
+    return float((yaw * durations).sum() / durations.sum())
+
+
+def _stride_turn_rate(path: Path) -> float:
+    """deg/s (+ left) a written walk's hips turn over whole strides: the heading of the line
+    between the upper legs, from the first left footfall (the left foot furthest ahead) to the
+    last, the hips' sway within a stride left out (read back with the independent reader)."""
+    from scipy.signal import find_peaks
+
+    names, positions, fps = world_positions(path)
+    across = positions[:, names.index("UpperLeg_L")] - positions[:, names.index("UpperLeg_R")]
+    heading = np.unwrap(np.arctan2(-across[:, 2], across[:, 0]))  # about +y: + turns left
+    forward = np.cross(across / np.linalg.norm(across, axis=1, keepdims=True), [0.0, 1.0, 0.0])
+    ahead = np.einsum("tk,tk->t", positions[:, names.index("Foot_L")] - positions[:, names.index("Foot_R")], forward)
+    footfalls, _ = find_peaks(ahead, distance=int(0.3 * fps), prominence=0.25 * np.ptp(ahead))
+    first, last = footfalls[0], footfalls[-1]
+    assert len(footfalls) >= 10 and last - first > 10 * fps  # ten strides, ten seconds
+    return float(np.degrees(heading[last] - heading[first]) / ((last - first) / fps))
+
+
+@pytest.mark.parametrize("style, side", [("exhausted", -1), ("youthful", 1)])
+def test_a_style_steered_at_half_its_own_turn_turns_at_the_rate_asked(tmp_path, model, style, side):
+    """Turning steps are shared out by the character's own turns, not the average model's:
+    exhausted x2's right turns turn 35 deg/s, youthful x2's left 15, the average's 22. Shared out
+    by the average's rate and one step in so many (a turning step's foot fell on the same foot
+    each time: a turn-left unit's right step turns 2 degrees past the walk's, its left 13, for
+    youthful x2), `synth` steered at half their own rates turned exhausted x2 1.61 times what it
+    asked (28.0 deg/s for 17.4) and youthful x2 0.75 times (5.7 for 7.6)."""
+    weights = {style: 2.0}
+    turn = 0.5 * _own_turn_rate(model, weights, side)
+    assert np.sign(turn) == side
+    done = _synth(tmp_path, "--style", f"{style}=2", "--turn", f"{turn:.6f}", "--seconds", "20", "--out", "turn.bvh")
+    assert done.returncode == 0, done.stderr
+    made = _stride_turn_rate(tmp_path / "turn.bvh")
+    assert made == pytest.approx(np.degrees(turn), rel=0.10)
+
+
 def test_turning_steps_are_taken_in_proportion_to_the_turn(model):
     left, right = model.units.index("turn-left"), model.units.index("turn-right")
-    rate = Engine(model).units.turn_rates[1]
+    rate = _own_turn_rate(model, {"normal": 1.0}, 1)
     shares = []
     for fraction in (0.0, 0.5, 1.0):
         _, units, _, _, _, _ = _engine_frames(model, [(WALK, 300)], turn=fraction * rate)
@@ -497,7 +543,7 @@ def test_turning_steps_are_taken_in_proportion_to_the_turn(model):
     assert shares[0] == 0.0
     assert 0.3 < shares[1] < 0.7
     assert shares[2] > 0.9
-    _, units, _, _, _, _ = _engine_frames(model, [(WALK, 200)], turn=-rate)
+    _, units, _, _, _, _ = _engine_frames(model, [(WALK, 200)], turn=_own_turn_rate(model, {"normal": 1.0}, -1))
     assert np.mean(units[60:, 0] == right) > 0.9
 
 

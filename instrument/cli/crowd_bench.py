@@ -22,7 +22,7 @@ COST_FRAMES = 30
 
 
 # the engine's stages in the order it runs them (`Engine.stage_seconds`), then the pose and the output's
-ENGINE_STAGES = ("cast", "interpolation", "durations", "units", "stream", "range", "drive", "gestures", "between", "contact")
+ENGINE_STAGES = ("cast", "interpolation", "durations", "turns", "units", "stream", "range", "drive", "gestures", "between", "contact")
 STAGES = ENGINE_STAGES + ("posing", "finite", "encoding", "sending")
 
 

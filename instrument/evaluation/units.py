@@ -30,7 +30,7 @@ from ..motion.bvh import Motion
 from ..motion.features import extract, heading_angle
 from ..motion.kinematics import forward_kinematics, local_transforms, world_positions
 from ..motion.limbs import Limbs, clearance
-from ..motion.quality import AIR_CM, pooled, stride_headings, walk_figures
+from ..motion.quality import AIR_CM, mean_turn_rate, pooled, stride_headings, walk_figures
 from ..motion.standing import pieces, still_frames
 from ..motion.steps import Step, segment_steps
 from ..synthesis.engine import Engine, default_controls, render
@@ -194,7 +194,7 @@ class _Assessor:
         turning = [(sign, side) for sign, side in SIDES if f"turn-{side}" in self.model.units]
         if not turning:
             return
-        rates = Engine(self.model).units.turn_rates
+        engine = Engine(self.model)  # each style's own full turn (its turning steps' rate): every step turns
         section = self.result.synth.setdefault("turn", {})
         for sign, side in turning:
             takes = self.reals.get(f"turn-{side}")
@@ -203,8 +203,10 @@ class _Assessor:
                     self.real_figures(takes, self.measure.turning, key=lambda style: f"{style} {side}"))
             for style in self.styles:
                 name = f"{style} {side}"
-                motion, positions = self.made(name, {style: 1.0}, turn=sign * rates[sign])
-                section[name] = self.measure.turning(motion, positions) | {"turn_asked_deg_s": float(np.degrees(sign * rates[sign]))}
+                engine.retune(default_controls(self.model, {style: 1.0}))
+                turn = sign * float(engine.units.turn_rates[sign][0])
+                motion, positions = self.made(name, {style: 1.0}, turn=turn)
+                section[name] = self.measure.turning(motion, positions) | {"turn_asked_deg_s": float(np.degrees(turn))}
                 self.note(f"turn {name}")
 
     def transitions(self) -> None:
@@ -287,9 +289,9 @@ class _Measure:
             "jump_cm_f2": float(velocity_jumps(positions).max()), "finite": float(np.isfinite(motion.channels).all())}
 
     def turning(self, motion: Motion, positions: np.ndarray) -> dict[str, float]:
-        """The walk's figures and the turn: `turn_deg_s` the mean rate over the steps (the heading
-        at the last step's end less that at the first's start, over the time between: the mean
-        of the yaw rate a turning unit learns from its takes; + to the left), `turn_peak_deg_s`
+        """The walk's figures and the turn: `turn_deg_s` the mean rate (quality.mean_turn_rate:
+        the mean heading over the last stride less that over the first, over the time between:
+        the mean of the yaw rate a turning unit learns from its takes; + to the left), `turn_peak_deg_s`
         the rate through the middle half of the heading's change, from each stride's mean
         heading (a take walks into and out of its turn and turns faster in it than on average;
         a steady turn has both the same), and `radius_cm`, the speed over the mean rate."""
@@ -297,10 +299,7 @@ class _Measure:
         world_rot = forward_kinematics(motion.skeleton, *local_transforms(motion))[0]
         yaw = np.degrees(heading_angle(world_rot[:, self.layout.root], self.layout.heading_reference))
         steps = segment_steps(motion, self.layout).steps
-        rate = peak = float("nan")
-        if steps and steps[-1].end - 1 > steps[0].start:
-            first, last = steps[0].start, steps[-1].end - 1
-            rate = (yaw[last] - yaw[first]) / ((last - first) / motion.fps)
+        rate, peak = mean_turn_rate(yaw, steps, motion.fps), float("nan")
         times, headings = stride_headings(np.radians(yaw), steps, motion.fps)
         if len(times) >= 2 and headings[-1] != headings[0]:
             total = headings[-1] - headings[0]

@@ -188,6 +188,24 @@ class Durations:
     repace = retune
 
 
+class TurnRates:
+    """How fast each character's turning steps turn in its lambda*, which the units stage shares
+    the steering out by: each style change's lambda* handed to it (UnitChooser.retune), the
+    rates made from it when a walk is next steered, not a frame."""
+
+    name = "turns"
+
+    def __init__(self, interpolation: Interpolation, units: UnitChooser):
+        self.interpolation, self.units = interpolation, units
+
+    def retune(self, mix: Mix, stream: Crowd) -> None:
+        tables = stream.tables
+        self.units.retune(tables.mean_own, tables.mean_shared, self.interpolation.duration_means)
+
+    def repace(self, mix: Mix, stream: Crowd) -> None:
+        """lambda*'s turns do not move with the pace."""
+
+
 class RangeTargets:
     """Where the range filter scales each character's swing about: the stride mean of its unit
     (what a walk, a run or a stand averages over its two steps) and the factors. The factors were
@@ -385,6 +403,7 @@ class Engine:
         self.contact = None if contact is None else ContactTables(contact)
         self.features += [f for f in (self.range_targets, self.contact) if f is not None]
         self.units = UnitChooser(model, characters)
+        self.features.append(TurnRates(interpolation, self.units))
         self.gesture_tables = GestureTables(self.gestures, interpolation) if self.gestures.names else None
         if self.gesture_tables is not None:
             self.features.append(self.gesture_tables)

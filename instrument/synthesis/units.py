@@ -10,12 +10,21 @@ way is finished, so a run never stops in mid-flight. ST-MLPG joins the last step
 the first of the next as it joins any two steps; the foot lock keeps the feet planted through it.
 
 Turning steps are taken in proportion to the steering: with `turn` at f times the rate the
-model's turning steps turn (their duration-weighted mean yaw rate), a share f of the steps are
-turning ones, chosen by error diffusion (each step adds f to a running sum; a step is a turning
-one when the sum passes one half, which takes one away), so over a few steps the walk turns at the
-rate asked for and no step is half of each. Steering beyond what every step turning gives, a run
-steered (there are no turning runs in the data), or a model without turning steps adds the rest
-as yaw rate (the engine's drive, as before units); a standing character does not turn.
+character's turning steps turn (their duration-weighted mean yaw rate in its own lambda*, made at
+each retune: `retune`), about a share f of the steps are turning ones, chosen by error diffusion
+of the heading (`_turns`): a turning step gives what it yaws past the walk's step of the same
+foot, and the walk sways one way a step and back the next (13 degrees a step in lambda 0, 6 to
+24 at x2 of a style), while the turning steps need not turn alike (youthful x2's left turn: its
+right step 4 degrees past the walk's, its left 13). So over a few steps the walk turns at the
+rate asked for and no step is half of each. Shared out by lambda 0's rate (22 deg/s left, where
+exhausted x2's right turns turn 35 and youthful x2's left 15), one step in so many (which put
+every turning step on the same foot at a half), `synth` at half a style's own rate turned 0.41
+to 1.62 times what it asked (each style at 1 and x2, both ways, 20 s, the hips' heading over
+whole strides); so it turns 0.79 to 1.07 times (the window MLPG joins a turning step and a
+walk's step other than either's means; the lowest normal x2 right and feminine x2 left).
+Steering beyond what every step turning gives, a run steered (there are no turning runs in the
+data), or a model without turning steps adds the rest as yaw rate (the engine's drive, as before
+units); a standing character does not turn.
 
 A change needs notice to be smooth: the window MLPG solves bends the motion towards the new
 unit's means only from the frame it first sees them. Told a frame before its step ends, a run
@@ -180,6 +189,17 @@ def smoothstep_of(y: np.ndarray) -> np.ndarray:
     return 0.5 - np.sin(np.arcsin(np.clip(1.0 - 2.0 * y, -1.0, 1.0)) / 3.0)
 
 
+def turn_rates(yaw: np.ndarray, duration_means: np.ndarray, turn_units: dict[int, int]) -> dict[int, np.ndarray]:
+    """Per side (+1 left), (N,) rad/s the turning steps of N characters turn at that way: the
+    duration-weighted mean yaw rate of the unit's two labels, from each character's yaw rate means
+    and duration means (N, labels, states). A turn a style inverts comes out negative."""
+    out = {}
+    for side, k in turn_units.items():
+        means, durations = yaw[:, 2 * k:2 * k + 2], duration_means[:, 2 * k:2 * k + 2]
+        out[side] = side * (means * durations).sum(axis=(1, 2)) / durations.sum(axis=(1, 2))
+    return out
+
+
 class UnitChooser:
     """Per character: the unit of the coming steps and the yaw rate the drive adds."""
 
@@ -195,16 +215,22 @@ class UnitChooser:
         self.walk = walk
         self.stand = self.units.index("stand") if "stand" in self.units else -1
         states = model.states
-        means, durations = model.average.means[..., YAW], model.average.duration_means  # (labels, states)
-
-        def rate(unit: str) -> float:
-            k = self.units.index(unit)
-            rows = slice(2 * k, 2 * k + 2)
-            return float((means[rows] * durations[rows]).sum() / durations[rows].sum())
-
         self.turn_units = {side: self.units.index(unit) for side, unit in TURNING.items() if unit in self.units}
-        self.turn_rates = {side: abs(rate(self.units[k])) for side, k in self.turn_units.items()}  # rad/s
-        self.sum = np.zeros(count)  # the error diffusion's running sum, per character
+        self.fps = float(model.fps)
+        # (N, labels, states) rad/s each character's yaw rate means, and per side (N,) how fast its
+        # turning steps turn that way (`turn_rates`): lambda 0's until the first retune, then made
+        # from the lambda* a retune left (`_retuned`) when a walk is next steered
+        self.yaw = np.repeat(model.average.means[None, ..., YAW], count, axis=0)
+        rates = turn_rates(self.yaw[:1], model.average.duration_means[None], self.turn_units)
+        self._rates = {side: np.repeat(rate, count) for side, rate in rates.items()}
+        self._retuned: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._own_of: np.ndarray | None = None  # the tables' own means `_own_yaw` (N, labels * states) is the yaw of
+        self._own_yaw = np.zeros((count, 0))
+        # (side, turn shared, steering) `share` and `rest` are of (None: made again)
+        self._steered: tuple[int, float, float] | None = None
+        self.share = np.zeros(count)  # that turn over each character's full turn (its turning steps' rate), up to 1
+        self.rest = np.zeros(count)  # rad/s of that turn its turning steps do not give (the drive adds it)
+        self.sum = np.zeros(count)  # rad: the heading each character's steps still owe the turn (the error diffusion's)
         self.turning = np.zeros(count, dtype=np.int64)  # +1 / -1: the coming step turns left / right; 0 straight
         self.step_label = np.full(count, -1)  # the label of the step under way at the last frame
         self.states = states
@@ -288,19 +314,17 @@ class UnitChooser:
         started = (counters[:, LABEL] != self.step_label) & (counters[:, STATE] == 0)
         self.step_label = counters[:, LABEL].copy()
         side = 1 if turn > 0 else -1
-        share = 0.0
-        if unit == self.walk and turn != 0.0 and side in self.turn_units:
-            share = min(abs(turn) / max(self.turn_rates[side], 1e-9), 1.0)
-        if share == 0.0:
+        steered = unit == self.walk and turn != 0.0 and side in self.turn_units
+        rest = self._shared(side, turn if steered else 0.0, turn)
+        if not steered:
             self.turning[:] = 0
             self.sum[:] = 0.0
         else:
             changed_side = (self.turning != 0) & (self.turning != side)
+            self.sum[changed_side] = 0.0  # the other way's heading is no debt of this one
             decide = started | changed_side | (stream.sent == 0)
-            self.sum[decide] += share
-            turns = decide & (self.sum >= 0.5)
-            self.sum[turns] -= 1.0
-            self.turning[decide] = np.where(turns[decide], side, 0)
+            if decide.any():
+                self.turning[decide] = np.where(self._turns(np.flatnonzero(decide), side, turn, stream), side, 0)
         coming = np.where(self.turning > 0, self.turn_units.get(1, unit),
                           np.where(self.turning < 0, self.turn_units.get(-1, unit), unit))
         if stream.sent == 0:
@@ -362,12 +386,70 @@ class UnitChooser:
             self.second_legs_from[second] = self.leg_shares[second]
             self.second |= second
         self._ease(standing, stopping, self._frames_to_stand(stream, stopping) if stopping.any() else None)
-        rest = turn - side * share * self.turn_rates.get(side, 0.0)  # what turning steps do not give
         self.added_yaw[:] = np.where(standing, 0.0, rest)
-        self._settled = ((gait, turn) if share == 0.0 and stream.sent > 0 and (current == unit).all() and not self.starting.any()
+        self._settled = ((gait, turn) if not steered and stream.sent > 0 and (current == unit).all() and not self.starting.any()
                          and not self.rejoining.any()
                          and (self.level == np.where(standing, 0.0, 1.0)).all() and (self.stride_level == 1.0).all()
                          else None)  # no easing in or out
+
+    def retune(self, mean_own: np.ndarray, mean_shared: np.ndarray, duration_means: np.ndarray) -> None:
+        """Each character's lambda* as retuned (its means as two factors, `CrowdLambda`: (N,
+        labels * states, 3D) and (labels * states, 3D); its duration means (N, labels, states)),
+        which `turn_rates` reads: a style change's, not a frame's. Kept until a walk is steered
+        (the live crowd's demo retunes every frame: made at each, they cost a crowd of 100 some
+        40-90 us, 0.4-0.9 us a character)."""
+        self._retuned = (mean_own, mean_shared, duration_means)
+        self._steered = None
+
+    @property
+    def turn_rates(self) -> dict[int, np.ndarray]:
+        """Per side (+1 left), (N,) rad/s each character's turning steps turn that way (`yaw`
+        made with them), from the lambda* of the last retune."""
+        if self._retuned is not None:
+            mean_own, mean_shared, duration_means = self._retuned
+            self._retuned = None
+            if mean_own is not self._own_of:  # a character's own term moves with the spread alone: its
+                # yaw column kept (gathered across a crowd of 100's tables, it cost 50-60 us)
+                self._own_of, self._own_yaw = mean_own, np.ascontiguousarray(mean_own[..., YAW])
+            self.yaw = (self._own_yaw + mean_shared[:, YAW]).reshape(duration_means.shape)
+            self._rates = turn_rates(self.yaw, duration_means, self.turn_units)
+        return self._rates
+
+    def _shared(self, side: int, turn: float, steering: float) -> np.ndarray:
+        """(N,) the yaw rate the drive adds to `steering`, besides turning steps for `turn` (rad/s;
+        0: none), and `share`, how much of each character's full turn that is (1: every step
+        turns; 0: none can): made when the turn or the rates change."""
+        if self._steered != (side, turn, steering):
+            self._steered = (side, turn, steering)
+            if turn == 0.0:
+                self.share[:] = 0.0
+                self.rest[:] = steering
+            else:
+                rate = self.turn_rates[side]
+                turning = rate > 1e-9  # a style inverted past its turns turns the other way: its drive steers
+                self.share[:] = np.where(turning, np.minimum(abs(turn) / np.where(turning, rate, 1.0), 1.0), 0.0)
+                self.rest[:] = turn - side * self.share * np.where(turning, rate, 0.0)
+        return self.rest
+
+    def _turns(self, rows: np.ndarray, side: int, turn: float, stream: Crowd) -> np.ndarray:
+        """Whether the coming step of each character `rows` turns: error diffusion of the heading.
+        A turning step turns the body by what it yaws less what a walk's step of the same foot
+        yaws, over its planned frames at its cadence (the drive's); the step turns when the
+        heading left owing (`sum`, rad) plus what the turn asks over the step, less that, is
+        nearer 0 than without it. A turn at a character's full rate or past it turns every step."""
+        labels = stream.counters[rows, LABEL]
+        foot = labels % 2 if stream.sent == 0 else 1 - labels % 2  # the coming step's (the first one's at the first frame)
+        straight, turning = 2 * self.walk + foot, 2 * self.turn_units[side] + foot
+        frames, yaw, at = stream.base[rows], self.yaw[rows], np.arange(len(rows))
+        walked, turned = frames[at, straight], frames[at, turning]  # (R, states)
+        gain = stream.cadence[rows] * ((yaw[at, turning] * turned).sum(axis=1) - (yaw[at, straight] * walked).sum(axis=1))
+        owed = self.sum[rows]
+        if_straight = owed + turn * walked.sum(axis=1) / self.fps
+        if_turning = owed + (turn * turned.sum(axis=1) - gain) / self.fps
+        share = self.share[rows]
+        turns = (share >= 1.0) | ((share > 0.0) & (np.abs(if_turning) < np.abs(if_straight)))
+        self.sum[rows] = np.where(share >= 1.0, 0.0, np.where(turns, if_turning, if_straight))
+        return turns
 
     def _begin_start(self, stream: Crowd, first: np.ndarray) -> None:
         """The rates of the bodies (`first`) whose first step from a standstill begins this frame:
