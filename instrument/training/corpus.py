@@ -180,8 +180,9 @@ def read_manifest(path: Path) -> list[TakeFile]:
     for number, row in enumerate(rows[1:], 2):
         if not row or not "".join(row).strip():
             continue
-        if len(row) < 2 or not row[0].strip() or not row[1].strip():
-            raise located(path, "expected 'file,style'", number)
+        if len(row) < 2 or not row[0].strip() or not row[1].strip():  # name what is missing
+            lacking = f"{quoted(row[0].strip())}: no style" if row[0].strip() else "no file"
+            raise located(path, f"{lacking}: each take is a line file,style (neither empty)", number)
         if len(row) > len(header) and "".join(row[len(header):]).strip():
             raise located(path, f"{len(row)} fields, but the header {quoted(','.join(rows[0]))} names {len(header)}", number)
         said = row[2].strip() if with_units and len(row) > 2 else ""
