@@ -256,6 +256,21 @@ def test_still_standing_is_found_in_the_standing_takes_and_never_in_walks_or_run
 
 
 @needs_motions
+@needs_walks
+def test_a_styles_standing_takes_of_one_piece_each_give_both_labels(real_walks):
+    """Active's wave and raise hold one still piece each (as 23 of the 56 Bandai standing takes
+    do): every take's began "right", so the style had no left piece, and a corpus of one standing
+    take per style lost its stand unit. A style's pieces go on alternating from take to take, and
+    every other style starts at left (one single-piece take a style still gives both labels)."""
+    stands = [TakeFile(MOTIONS / f"dataset-2_{what}_active_001.bvh", "active", "stand")
+              for what in ("wave-both-hands", "raise-up-both-hands")]
+    stands.append(TakeFile(MOTIONS / "dataset-2_wave-both-hands_elderly_001.bvh", "elderly", "stand"))
+    _, takes, _ = load_corpus([TakeFile(real_walks[0], "normal"), *stands], 30.0)
+    labels = {(t.path.name, t.style): [s.label for s in t.steps] for t in takes if t.unit == "stand"}
+    assert list(labels.values()) == [["right"], ["left"], ["left"]], labels
+
+
+@needs_motions
 @pytest.mark.parametrize("name", ["dataset-2_raise-up-both-hands_normal_001", "dataset-2_raise-up-both-hands_youthful_004"])
 def test_a_pause_is_no_stand_at_any_rate(model, name):
     """A standing take read at 120 fps stands in as many pieces as at 30, none shorter than the

@@ -282,6 +282,9 @@ def make_takes(pairs: Sequence[tuple], motions: list[Motion], layout: FeatureLay
     takes without steps are left out with a warning."""
     takes: list[Take] = []
     warnings: list[str] = []
+    # per style, its standing takes' pieces so far, from 0 or 1 by turns (the label of its next piece,
+    # standing.py): two styles of one single-piece take each still give the stand both labels
+    stand_pieces: dict[str, int] = {}
     for k, ((path, style, unit, named), motion) in enumerate(zip(take_files(pairs), motions)):
         if not motion.skeleton.same_layout(layout.skeleton):
             raise UserError(f"{path}: the model was trained on another skeleton: this file's "
@@ -292,7 +295,12 @@ def make_takes(pairs: Sequence[tuple], motions: list[Motion], layout: FeatureLay
             raise UserError(f"{path}: {problem} the skeleton it is measured against (the model's, or the first "
                             "take's; in other units? metres against centimetres)")
         static, _, _ = extract(motion, layout)
-        segmentation = standing_steps(motion, layout, states) if unit == "stand" else segment_steps(motion, layout)
+        if unit == "stand":
+            first = stand_pieces.setdefault(style, len(stand_pieces) % 2)
+            segmentation = standing_steps(motion, layout, states, first=first)
+            stand_pieces[style] = first + len(segmentation.steps)
+        else:
+            segmentation = segment_steps(motion, layout)
         gesture = take_gesture(path, unit, named)
         phases = gesture_phases(motion, layout, states) if gesture else []
         warnings += [f"{path}: {w}" for w in segmentation.warnings]
