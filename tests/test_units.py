@@ -271,6 +271,21 @@ def test_a_styles_standing_takes_of_one_piece_each_give_both_labels(real_walks):
 
 
 @needs_motions
+@needs_walks
+def test_a_stand_too_short_for_both_labels_is_said_in_a_stands_words(real_walks, tmp_path):
+    """One style's one standing take holding one still piece: the stand is left out, and the
+    warning says what a stand lacks (it said "no left step long enough for 5 states")."""
+    (tmp_path / "takes.csv").write_text(f"file,style,unit\n{real_walks[0]},calm,walk\n"
+                                        f"{MOTIONS / 'dataset-2_wave-both-hands_active_001.bvh'},calm,stand\n")
+    result = subprocess.run([sys.executable, "-m", "instrument", "train", "--manifest", str(tmp_path / "takes.csv"),
+                             "--out", str(tmp_path / "m.npz")], capture_output=True, text=True, timeout=900)
+    assert result.returncode == 0, result.stderr
+    assert ("warning: unit 'stand': its takes hold too little still standing with the arms down for a right and a left "
+            "piece of 5 frames or more (one still stretch of 0.8 s gives both, before or after the gesture): left out "
+            "(its gait plays the walk)") in result.stderr, result.stderr
+
+
+@needs_motions
 @pytest.mark.parametrize("name", ["dataset-2_raise-up-both-hands_normal_001", "dataset-2_raise-up-both-hands_youthful_004"])
 def test_a_pause_is_no_stand_at_any_rate(model, name):
     """A standing take read at 120 fps stands in as many pieces as at 30, none shorter than the
