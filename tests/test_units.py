@@ -145,6 +145,9 @@ def test_a_manifest_says_a_standing_takes_gesture_and_a_bad_one_names_its_line(t
     ("misspelt.toml", '[[take]]\nfile = "a.bvh"\nstyle = "calm"\n[[take]]\nfile = "b.bvh"\nstyl = "calm"\n',
      ":6: take 2: unknown key 'styl'"),  # said before the style it lacks: the key is the mistake
     ("unit.toml", '[[take]]\nfile = "a.bvh"\nstyle = "calm"\nunit = 2\n', ":4: take 1: 'unit' is a string"),
+    # a table misspelt: its take was dropped unread, and a model trained on the others
+    ("takes.toml", '[[take]]\nfile = "a.bvh"\nstyle = "calm"\n[[takes]]\nfile = "b.bvh"\nstyle = "brisk"\n',
+     ":4: unknown table or key 'takes' (a manifest holds [[take]] tables)"),
     ("empty.csv", "file,style\n", ":1: a header and no takes"),
 ])
 def test_a_manifest_column_or_key_it_does_not_read_is_refused_at_its_line(tmp_path, name, text, where):

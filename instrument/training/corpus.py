@@ -140,6 +140,10 @@ def read_manifest(path: Path) -> list[TakeFile]:
 
     if path.suffix.lower() == ".toml":
         toml = TomlFile(path)
+        unknown = sorted(set(toml.data) - {"take"})
+        if unknown:  # [[takes]], [[Take]]: its takes were dropped unread
+            raise UserError(f"{path}:{toml.line(unknown[0])}: unknown table or key {unknown[0]!r} "
+                            "(a manifest holds [[take]] tables)")
         takes = toml.data.get("take")
         if not isinstance(takes, list) or not takes:
             raise UserError(f"{path}: expected [[take]] tables with keys 'file' and 'style'")
