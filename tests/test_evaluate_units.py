@@ -269,3 +269,17 @@ def test_the_target_rows_are_plain_values_a_json_report_writes():
     rows = check(result)
     assert [r.passed for r in rows] == [True, True]
     assert json.loads(json.dumps([vars(r) for r in rows]))[0]["passed"] is True
+
+
+def test_a_style_of_one_take_says_why_its_recognition_is_not_measured():
+    """One take a style and unit (a user's little corpus): the real takes' recognition, cross-
+    validated over a style's takes, has no figure, and the row read '>= nan | FAIL'."""
+    from instrument.evaluation.targets import check
+    from instrument.evaluation.units import UnitAssessment
+
+    stand = {"hips_cm_s": 0.0, "feet_cm_s": 0.5, "recognised": 0.4}
+    result = UnitAssessment(weights={"elderly": {"elderly": 1.0}}, synth={"stand": {"elderly": stand}},
+                            real={"stand": {"elderly": {"recognised": float("nan")}}})
+    row = next(r for r in check(result) if r.target == "stand recognised")
+    assert "nan" not in row.bound and "a style's takes are recognised only among two or more" in row.bound
+    assert (row.passed, row.by) == (False, "not measured")
