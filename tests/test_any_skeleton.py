@@ -340,6 +340,18 @@ def test_a_take_in_other_units_is_named_in_training_and_in_evaluation(real_walks
     assert str(odd) in str(error.value)
 
 
+def test_a_take_of_another_skeleton_is_named_against_the_skeleton_most_takes_share(real_walks, tmp_path):
+    """One take of another rig sorted first: the error named the two takes of the corpus's own
+    skeleton as the ones that differ (from "the first file's")."""
+    odd = tmp_path / "a_walk_odd_001.bvh"
+    odd.write_text(real_walks[0].read_text().replace("JOINT Hips", "JOINT pelvis"))
+    pairs = [(odd, "odd"), (real_walks[0], "normal"), (real_walks[1], "normal")]
+    with pytest.raises(UserError) as error:
+        read_motions(pairs, 30.0)
+    assert str(error.value).startswith(f"skeleton differs from that of 2 of the 3 takes ({real_walks[0]}): {odd} "
+                                       f"({odd.name}: 22 joints against 22; it lacks Hips and has pelvis instead)"), error.value
+
+
 def test_a_take_of_another_body_size_is_said_in_training(real_walks, tmp_path):
     """A performer 0.7 times the size of the first walk's (a child among adults, each captured on
     their own skeleton) trained without a word, and that style's walk slid its feet 14.6 cm/s on

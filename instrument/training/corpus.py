@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import hashlib
 import re
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple, Sequence
@@ -266,11 +267,17 @@ def read_motions(pairs: Sequence[tuple], fps: float, progress=None) -> list[Moti
         motions.append(resample(upright(read_bvh(path))[0], fps))  # Y up, whatever the capture's axes
         if progress:
             progress(k + 1, len(pairs), "reading")
-    first = motions[0].skeleton
+    # the skeleton most takes share (the first such on a tie): an odd take sorted first named the others
+    layouts = [tuple((j.name, j.parent, j.channels) for j in m.skeleton.joints) for m in motions]  # as same_layout
+    counts = Counter(layouts)
+    common = max(range(len(motions)), key=lambda k: (counts[layouts[k]], -k))
+    first = motions[common].skeleton
     different = [(p.path, m) for p, m in zip(pairs, motions) if not m.skeleton.same_layout(first)]
     if different:
+        shared = counts[layouts[common]]
+        whose = "the first file's" if shared == 1 else f"that of {shared} of the {len(pairs)} takes"
         raise UserError(
-            f"skeleton differs from the first file's ({pairs[0][0]}): {', '.join(str(p) for p, _ in different[:5])}"
+            f"skeleton differs from {whose} ({pairs[common][0]}): {', '.join(str(p) for p, _ in different[:5])}"
             + (f" and {len(different) - 5} more" if len(different) > 5 else "")
             + f" ({different[0][0].name}: {skeleton_difference(first, different[0][1].skeleton)})"
         )
