@@ -96,8 +96,11 @@ BROKEN = {
     "bad offset": (SIMPLE.replace("OFFSET 0 -10 0\n\t\tCHANNELS", "OFFSET 0 x 0\n\t\tCHANNELS"), "OFFSET has a value that is not a number"),
     "empty file": ("", "bad.bvh: the file is empty"),  # not "bad.bvh:0: unexpected end of file"
     "blank file": ("\n  \n\t\n", "bad.bvh: the file is empty"),
+    # the body is 20 long: its hips 9 km up for a frame is no motion (read, it trained a floating style)
+    "leap": (SIMPLE.replace("1 90 2 0", "1 900000 2 0"), "Hips Yposition leaps 899910 in one frame (the body is about 20 long)"),
 }
-LINES = {"missing MOTION": 15, "truncated frames": 20, "channel count": 20, "not a number": 20, "CHANNELS count": 9, "unknown channel": 9, "bad offset": 8}
+LINES = {"missing MOTION": 15, "truncated frames": 20, "channel count": 20, "not a number": 20, "CHANNELS count": 9, "unknown channel": 9,
+         "bad offset": 8, "leap": 20}
 
 
 @pytest.mark.parametrize("case", sorted(BROKEN))
@@ -120,6 +123,25 @@ def test_broken_file_on_the_command_line_is_one_line_and_exit_1(tmp_path):
     assert result.stderr.strip().count("\n") == 0
     assert f"{bad}:20: not a number" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+def test_a_glitch_frame_in_a_real_take_is_refused_by_train_at_its_line(real_walks, tmp_path):
+    """One frame of a shared walk with its hips 10 km up (finite, so read before): train trained
+    on it without a word, and the style's walk floated 39 m above the floor, standing still."""
+    lines = real_walks[0].read_text().splitlines()
+    first = lines.index("MOTION") + 4  # 1-based line of the first frame
+    values = lines[first - 1 + 100].split()
+    values[7] = "1000000"  # Hips Yposition (joint_Root's six channels come first)
+    lines[first - 1 + 100] = " ".join(values)
+    take = tmp_path / real_walks[0].name
+    take.write_text("\n".join(lines) + "\n")
+    assert read_bvh(real_walks[0]).frames > 101  # (the untouched take reads)
+    result = subprocess.run([sys.executable, "-m", "instrument", "train", str(take), "--out", str(tmp_path / "m.npz")],
+                            capture_output=True, text=True, timeout=600)
+    assert result.returncode == 1, result.stderr
+    assert result.stderr.strip().splitlines()[-1].startswith(f"instrument train: error: {take}:{first + 100}: Hips Yposition leaps ")
+    assert "Traceback" not in result.stderr
+    assert not (tmp_path / "m.npz").exists()
 
 
 @pytest.mark.parametrize("order", ["XYZ", "ZYX", "YXZ"])

@@ -11,7 +11,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import SHARED_WALKS
+from conftest import SHARED_WALKS, needs_walks
 
 from instrument.evaluation.assessment import model_limbs
 from instrument.evaluation.sequence import velocity_jumps
@@ -290,3 +290,35 @@ def test_the_target_rows_are_plain_values_a_json_report_writes():
     rows = check(result)
     assert [r.passed for r in rows] == [True, True]
     assert json.loads(json.dumps([vars(r) for r in rows]))[0]["passed"] is True
+
+
+def test_a_style_of_one_take_says_why_its_recognition_is_not_measured():
+    """One take a style and unit (a user's little corpus): the real takes' recognition, cross-
+    validated over a style's takes, has no figure, and the row read '>= nan | FAIL'."""
+    from instrument.evaluation.targets import check
+    from instrument.evaluation.units import UnitAssessment
+
+    stand = {"hips_cm_s": 0.0, "feet_cm_s": 0.5, "recognised": 0.4}
+    result = UnitAssessment(weights={"elderly": {"elderly": 1.0}}, synth={"stand": {"elderly": stand}},
+                            real={"stand": {"elderly": {"recognised": float("nan")}}})
+    row = next(r for r in check(result) if r.target == "stand recognised")
+    assert "nan" not in row.bound and "a style's takes are recognised only among two or more" in row.bound
+    assert (row.passed, row.by) == (False, "not measured")
+
+
+@needs_walks
+def test_takes_the_model_lists_that_real_does_not_hold_are_said(real_walks, tmp_path):
+    """A user's --real folder with the walks but not the runs: the runs had no real figures and no
+    targets, and evaluate said nothing of why."""
+    from instrument.evaluation.assessment import missing_takes
+    from instrument.models.modelfile import default_model_path, load_model
+
+    for path in real_walks[:2]:
+        (tmp_path / path.name).write_bytes(path.read_bytes())
+    model = load_model(default_model_path())
+    lines = missing_takes(model, [tmp_path], None)
+    assert lines[0] == (f"173 of the model's 175 walk takes are not in {tmp_path} ({real_walks[2].name} ...): "
+                        "measured without them (give their folder with another --real)")
+    assert sorted(line.split(" takes ")[0].split()[-1] for line in lines) == ["run", "stand", "turn-left", "turn-right", "walk"]
+    assert len(missing_takes(model, [tmp_path])) == 1  # the walks alone, without --units
+    assert missing_takes(model, [real_walks[0].parent]) == []

@@ -221,7 +221,12 @@ def test_bad_manifest_names_file_and_line(tmp_path):
     manifest.write_text("file,style\na.bvh,slow\nb.bvh\n")
     (tmp_path / "a.bvh").touch()  # line 2 names a file that is there: line 3 lacks its style
     result = cli("train", "--manifest", str(manifest), "--out", str(tmp_path / "m.npz"))
-    assert result.returncode == 1 and f"{manifest}:3:" in result.stderr
+    assert result.returncode == 1 and f"{manifest}:3: 'b.bvh': no style: each take is a line file,style" in result.stderr
+    for row, said in (("b.bvh,,walk", "'b.bvh': no style"), (",slow,walk", "no file")):  # a field left empty
+        manifest.write_text(f"file,style,unit\na.bvh,slow,walk\n{row}\n")
+        result = cli("train", "--manifest", str(manifest), "--out", str(tmp_path / "m.npz"))
+        assert result.returncode == 1 and len(result.stderr.strip().splitlines()) == 1, result.stderr
+        assert f"{manifest}:3: {said}: each take is a line file,style (neither empty)" in result.stderr
 
 
 def test_shipped_default_model(real_walks):

@@ -145,6 +145,9 @@ def test_a_manifest_says_a_standing_takes_gesture_and_a_bad_one_names_its_line(t
     ("misspelt.toml", '[[take]]\nfile = "a.bvh"\nstyle = "calm"\n[[take]]\nfile = "b.bvh"\nstyl = "calm"\n',
      ":6: take 2: unknown key 'styl'"),  # said before the style it lacks: the key is the mistake
     ("unit.toml", '[[take]]\nfile = "a.bvh"\nstyle = "calm"\nunit = 2\n', ":4: take 1: 'unit' is a string"),
+    # a table misspelt: its take was dropped unread, and a model trained on the others
+    ("takes.toml", '[[take]]\nfile = "a.bvh"\nstyle = "calm"\n[[takes]]\nfile = "b.bvh"\nstyle = "brisk"\n',
+     ":4: unknown table or key 'takes' (a manifest holds [[take]] tables)"),
     ("empty.csv", "file,style\n", ":1: a header and no takes"),
 ])
 def test_a_manifest_column_or_key_it_does_not_read_is_refused_at_its_line(tmp_path, name, text, where):
@@ -253,6 +256,36 @@ def test_still_standing_is_found_in_the_standing_takes_and_never_in_walks_or_run
         assert speed.max() < 10.0
     assert not still_frames(read_bvh(real_walks[0]), layout).any()
     assert not still_frames(read_bvh(MOTIONS / "dataset-2_run_normal_001.bvh"), layout).any()
+
+
+@needs_motions
+@needs_walks
+def test_a_styles_standing_takes_of_one_piece_each_give_both_labels(real_walks):
+    """Active's wave and raise hold one still piece each (as 23 of the 56 Bandai standing takes
+    do): every take's began "right", so the style had no left piece, and a corpus of one standing
+    take per style lost its stand unit. A style's pieces go on alternating from take to take, and
+    every other style starts at left (one single-piece take a style still gives both labels)."""
+    stands = [TakeFile(MOTIONS / f"dataset-2_{what}_active_001.bvh", "active", "stand")
+              for what in ("wave-both-hands", "raise-up-both-hands")]
+    stands.append(TakeFile(MOTIONS / "dataset-2_wave-both-hands_elderly_001.bvh", "elderly", "stand"))
+    _, takes, _ = load_corpus([TakeFile(real_walks[0], "normal"), *stands], 30.0)
+    labels = {(t.path.name, t.style): [s.label for s in t.steps] for t in takes if t.unit == "stand"}
+    assert list(labels.values()) == [["right"], ["left"], ["left"]], labels
+
+
+@needs_motions
+@needs_walks
+def test_a_stand_too_short_for_both_labels_is_said_in_a_stands_words(real_walks, tmp_path):
+    """One style's one standing take holding one still piece: the stand is left out, and the
+    warning says what a stand lacks (it said "no left step long enough for 5 states")."""
+    (tmp_path / "takes.csv").write_text(f"file,style,unit\n{real_walks[0]},calm,walk\n"
+                                        f"{MOTIONS / 'dataset-2_wave-both-hands_active_001.bvh'},calm,stand\n")
+    result = subprocess.run([sys.executable, "-m", "instrument", "train", "--manifest", str(tmp_path / "takes.csv"),
+                             "--out", str(tmp_path / "m.npz")], capture_output=True, text=True, timeout=900)
+    assert result.returncode == 0, result.stderr
+    assert ("warning: unit 'stand': its takes hold too little still standing with the arms down for a right and a left "
+            "piece of 5 frames or more (one still stretch of 0.8 s gives both, before or after the gesture): left out "
+            "(its gait plays the walk)") in result.stderr, result.stderr
 
 
 @needs_motions

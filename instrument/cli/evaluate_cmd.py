@@ -72,11 +72,14 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--styles: the model has no style {unknown[0]!r} (it has {', '.join(model.style_names)})")
     styles = [s for s in model.style_names if s in styles]  # the model's order, whatever the command line's
     kinds = args.variants
-    from ..evaluation.assessment import assess
+    from ..evaluation.assessment import assess, missing_takes
 
     progress = None if args.json else (lambda name: print(f"  measured {name}", file=sys.stderr))
     real = [Path(folder) for folder in args.real] if args.real else None
     result = assess(model, seconds, real, styles, kinds, progress)
+    if real is not None:
+        for line in missing_takes(model, real, None if args.units else ("walk",)):
+            print(f"warning: --real: {line}", file=sys.stderr)
     units = None
     if args.units:
         from ..evaluation.targets import check

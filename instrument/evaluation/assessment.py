@@ -65,20 +65,44 @@ def real_pairs(model: Model, folders: Path | list[Path], units: tuple[str, ...] 
     """The takes the model's provenance names (those of `units`; None: all), found in `folders`
     (searched recursively; a take listed without a unit is a walk)."""
     folders = [folders] if isinstance(folders, Path) else list(folders)
-    on_disk: dict[str, Path] = {}
-    for folder in folders:
-        if not folder.is_dir():
-            raise UserError(f"{folder}: no such folder")
-        on_disk |= {p.name: p for p in sorted(folder.rglob("*.bvh"))}
-    listed = [TakeFile(Path(d["file"]), d["style"], d.get("unit", "walk"), d.get("gesture", ""))
-              for d in model.metadata.get("data", [])]
-    listed = [t for t in listed if units is None or t.unit in units]
+    on_disk = _on_disk(folders)
+    listed = _listed(model, units)
     pairs = [t._replace(path=on_disk[t.path.name]) for t in listed if t.path.name in on_disk]
     if not pairs:
         where = ", ".join(str(f) for f in folders)
         hint = "" if on_disk else "".join(other_captures(f) for f in folders)  # no BVH at all: another format?
         raise UserError(f"{where}: none of the {len(listed)} takes the model was trained on is there{hint}")
     return pairs
+
+
+def _on_disk(folders: list[Path]) -> dict[str, Path]:
+    on_disk: dict[str, Path] = {}
+    for folder in folders:
+        if not folder.is_dir():
+            raise UserError(f"{folder}: no such folder")
+        on_disk |= {p.name: p for p in sorted(folder.rglob("*.bvh"))}
+    return on_disk
+
+
+def _listed(model: Model, units: tuple[str, ...] | None) -> list[TakeFile]:
+    listed = [TakeFile(Path(d["file"]), d["style"], d.get("unit", "walk"), d.get("gesture", ""))
+              for d in model.metadata.get("data", [])]
+    return [t for t in listed if units is None or t.unit in units]
+
+
+def missing_takes(model: Model, folders: list[Path], units: tuple[str, ...] | None = ("walk",)) -> list[str]:
+    """One line per unit some of whose listed takes none of `folders` holds: measured without them
+    (a unit with none there has no real figures nor targets), which evaluate said nothing of."""
+    on_disk = _on_disk(folders)
+    lines = []
+    for unit in dict.fromkeys(t.unit for t in _listed(model, units)):
+        mine = [t.path.name for t in _listed(model, (unit,))]
+        gone = [name for name in mine if name not in on_disk]
+        if gone:
+            lines.append(f"{len(gone)} of the model's {len(mine)} {unit} takes are not in {', '.join(map(str, folders))} "
+                         f"({gone[0]}{' ...' if len(gone) > 1 else ''}): measured without them (give their folder with "
+                         "another --real)")
+    return lines
 
 
 def assess(

@@ -78,8 +78,13 @@ def _at_most(group: str, walk: str, value: float, bound: float, fmt: str = "{:.1
                   f"{value / bound:.2f}x" if bound else "")
 
 
+# a style's real takes are recognised cross-validated, one take left out at a time: with one take a
+# style there is no figure, and the row's bound read ">= nan"
+UNRECOGNISED = "its real takes' share (not measured: a style's takes are recognised only among two or more)"
+
+
 def _at_least(group: str, walk: str, value: float, bound: float, fmt: str = "{:.2f}") -> Target:
-    text = f">= {fmt.format(bound)}"
+    text = f">= {UNRECOGNISED if _nan(bound) and group.endswith('recognised') else fmt.format(bound)}"
     if _nan(value) or _nan(bound):
         return Target(group, walk, value, text, False, "not measured")
     return Target(group, walk, value, text, value >= bound - 1e-9, f"{value - bound:+.2f}")

@@ -321,7 +321,10 @@ def parse_bvh(text: str, path: str = "<text>") -> Motion:
         values = None
     if values is None or values.size != frame_count * width or not np.isfinite(values).all():
         _raise_frame_error(path, numbered, width)
-    return Motion(skeleton, values.reshape(frame_count, width), _fps_from_frame_time(frame_time), source=path)
+    fps = _fps_from_frame_time(frame_time)
+    values = values.reshape(frame_count, width)
+    _check_jumps(path, skeleton, values, line_numbers, fps)
+    return Motion(skeleton, values, fps, source=path)
 
 
 MIN_FRAME_TIME, MAX_FRAME_TIME = 0.001, 1.0  # seconds: motion capture runs at 1 to 1000 frames per second
@@ -332,6 +335,46 @@ def _fps_from_frame_time(frame_time: float) -> float:
     fps = 1.0 / frame_time
     whole = round(fps)
     return float(whole) if whole > 0 and abs(fps - whole) < 1e-4 * fps else fps
+
+
+JUMP_EXTENTS_PER_SECOND = 20.0  # a position channel faster than this many body extents a second is a glitch
+
+
+def body_extent(skeleton: Skeleton) -> float:
+    """The longest chain of bones from the root to an end (OFFSETs and End Sites summed as
+    lengths, whatever the pose): about a body's height, in the file's units."""
+    reach = np.zeros(len(skeleton.joints))
+    ends = [0.0]
+    for k, joint in enumerate(skeleton.joints):  # parents come first in a BVH
+        if joint.parent >= 0:
+            reach[k] = reach[joint.parent] + float(np.linalg.norm(joint.offset))
+        if joint.end_site is not None:
+            ends.append(reach[k] + float(np.linalg.norm(joint.end_site)))
+    return float(max(reach.max(initial=0.0), *ends))
+
+
+def _check_jumps(path: str, skeleton: Skeleton, values: np.ndarray, line_numbers: list[int], fps: float) -> None:
+    """Refuse a position channel that leaps between two frames faster than JUMP_EXTENTS_PER_SECOND
+    body extents a second (about 34 m/s for a body 1.7 m long; a sprinter makes 12): a capture
+    glitch, a marker swap or takes joined end to end. Parsed as finite numbers, one such frame of
+    the hips 10 km up trained a style whose walk floated 39 m above the floor and stood still,
+    without a word; its line is named here instead."""
+    extent = body_extent(skeleton)
+    columns = [start + k for start, joint in zip(skeleton.channel_start(), skeleton.joints)
+               for k, channel in enumerate(joint.channels) if channel.endswith("position")]
+    if extent <= 0 or not columns or len(values) < 2:
+        return
+    with np.errstate(over="ignore", invalid="ignore"):  # 1e308 against -1e308 is a leap too
+        leaps = np.abs(np.diff(values[:, columns], axis=0)) * fps
+    over = ~(leaps <= JUMP_EXTENTS_PER_SECOND * extent)
+    if over.any():
+        frame, column = np.argwhere(over)[0]
+        channel = int(columns[column])
+        joint = int(np.searchsorted(skeleton.channel_start(), channel, side="right") - 1)
+        name = skeleton.joints[joint].channels[channel - skeleton.channel_start()[joint]]
+        jump = abs(float(values[frame + 1, channel]) - float(values[frame, channel]))
+        raise located(path, f"{skeleton.joints[joint].name} {name} leaps {jump:.6g} in one frame (the body is "
+                            f"about {extent:.3g} long): a capture glitch? fix or cut the frame", line_numbers[frame + 1])
 
 
 def _raise_frame_error(path: str, numbered: list[tuple[int, str]], width: int) -> None:

@@ -18,7 +18,7 @@ from .bvh import Motion
 from .features import REFERENCE_FPS, FeatureLayout
 from .kinematics import forward_kinematics, local_transforms
 from .limbs import descendants, find_limbs
-from .steps import Segmentation, Step
+from .steps import LABELS, Segmentation, Step
 
 ROOT_SPEED = 0.07  # leg lengths per second: the root's horizontal speed at rest (about 6 cm/s for a 0.85 m leg)
 FOOT_SPEED = 0.06  # leg lengths per second: a planted foot
@@ -87,8 +87,13 @@ def pieces(start: int, end: int, fps: float, states: int = STATES) -> list[tuple
     return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
-def standing_steps(motion: Motion, layout: FeatureLayout, states: int = STATES) -> Segmentation:
-    """The still stretches of a take as alternating right and left pieces (see the module's text).
+def standing_steps(motion: Motion, layout: FeatureLayout, states: int = STATES, first: int = 0) -> Segmentation:
+    """The still stretches of a take as alternating right and left pieces (see the module's text),
+    the first labelled LABELS[first % 2]: training goes on from a style's previous standing take
+    (and starts every other style at "left"), since a take often holds one piece (23 of the 56
+    Bandai standing takes) and every one began at "right": active's and youthful's stands had no
+    left piece, and a corpus of one standing take per style lost its stand unit ("no left step
+    long enough").
 
     A stretch shorter than MIN_STILL_SECONDS is a pause, not a stand. It was 5 frames at any rate:
     at 120 fps the gesture takes' 42-167 ms pauses (32 of 107 stretches) became stand pieces, and
@@ -97,6 +102,6 @@ def standing_steps(motion: Motion, layout: FeatureLayout, states: int = STATES) 
     steps: list[Step] = []
     for start, end in stretches(still_frames(motion, layout), max(states, int(round(MIN_STILL_SECONDS * motion.fps)))):
         for a, b in pieces(start, end, motion.fps, states):
-            steps.append(Step("right" if len(steps) % 2 == 0 else "left", a, b))
+            steps.append(Step(LABELS[(first + len(steps)) % 2], a, b))
     warnings = [] if steps else ["no still standing with the arms down found"]
     return Segmentation(steps, warnings, ("", ""))

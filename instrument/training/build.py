@@ -15,6 +15,7 @@ from ..errors import UserError
 from ..models.modelfile import Model
 from ..motion.features import ROOT_FEATURES, WINDOWS
 from ..motion.gestures import PHASES
+from ..motion.standing import PIECE_SECONDS
 from ..motion.steps import LABELS
 from ..synthesis.interpolation import body_groups
 from ..synthesis.parameters import GROUPS
@@ -30,6 +31,10 @@ from .units import held_posture, mirrored_pairs, model_units
 from .widen import calibrate_range, train_range
 
 UNSPECIFIED_LICENCE = "unspecified: the licence of the training data applies"
+
+# a stand's "steps" are pieces of still standing (motion/standing.py): "no left step" said nothing a user could act on
+STAND_TOO_LITTLE = ("unit 'stand': its takes hold too little still standing with the arms down for a right and a left piece "
+                    "of {states} frames or more (one still stretch of {seconds:g} s gives both, before or after the gesture): ")
 
 
 def build_model(
@@ -67,8 +72,9 @@ def build_model(
     lacking_phase = {g: phase for k, g in enumerate(gestures) for p, phase in enumerate(PHASES)
                      if not segments[2 * len(units) + len(PHASES) * k + p]}
     if lacking or lacking_phase:
-        report.warnings += [f"unit {unit!r}: no {foot} step long enough for {states} states in any take: left out "
-                            "(its gait plays the walk)" for unit, foot in lacking.items()]
+        report.warnings += [(STAND_TOO_LITTLE.format(states=states, seconds=2 * PIECE_SECONDS) if unit == "stand" else
+                             f"unit {unit!r}: no {foot} step long enough for {states} states in any take: ")
+                            + "left out (its gait plays the walk)" for unit, foot in lacking.items()]
         report.warnings += [f"gesture {g!r}: no {phase} long enough for {states} states in any take: left out"
                             for g, phase in lacking_phase.items()]
         units = [u for u in units if u not in lacking]

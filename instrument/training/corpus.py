@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import hashlib
 import re
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple, Sequence
@@ -140,6 +141,10 @@ def read_manifest(path: Path) -> list[TakeFile]:
 
     if path.suffix.lower() == ".toml":
         toml = TomlFile(path)
+        unknown = sorted(set(toml.data) - {"take"})
+        if unknown:  # [[takes]], [[Take]]: its takes were dropped unread
+            raise UserError(f"{path}:{toml.line(unknown[0])}: unknown table or key {unknown[0]!r} "
+                            "(a manifest holds [[take]] tables)")
         takes = toml.data.get("take")
         if not isinstance(takes, list) or not takes:
             raise UserError(f"{path}: expected [[take]] tables with keys 'file' and 'style'")
@@ -180,8 +185,9 @@ def read_manifest(path: Path) -> list[TakeFile]:
     for number, row in enumerate(rows[1:], 2):
         if not row or not "".join(row).strip():
             continue
-        if len(row) < 2 or not row[0].strip() or not row[1].strip():
-            raise located(path, "expected 'file,style'", number)
+        if len(row) < 2 or not row[0].strip() or not row[1].strip():  # name what is missing
+            lacking = f"{quoted(row[0].strip())}: no style" if row[0].strip() else "no file"
+            raise located(path, f"{lacking}: each take is a line file,style (neither empty)", number)
         if len(row) > len(header) and "".join(row[len(header):]).strip():
             raise located(path, f"{len(row)} fields, but the header {quoted(','.join(rows[0]))} names {len(header)}", number)
         said = row[2].strip() if with_units and len(row) > 2 else ""
@@ -228,6 +234,9 @@ def skeleton_difference(expected: Skeleton, found: Skeleton) -> str:
 
 
 UNITS_APART = 2.0  # a take this many times larger or smaller than the others is in other units
+# a take this many times larger or smaller than the model's skeleton is another body: said (the
+# model learns the hips' height and speeds in units, and plays every style on its one skeleton)
+SIZES_APART = 1.1
 
 
 def body_size(skeleton: Skeleton, channels: np.ndarray) -> float:
@@ -267,11 +276,17 @@ def read_motions_and_rates(pairs: Sequence[tuple], fps: float, progress=None) ->
         motions.append(resample(captured, fps))
         if progress:
             progress(k + 1, len(pairs), "reading")
-    first = motions[0].skeleton
+    # the skeleton most takes share (the first such on a tie): an odd take sorted first named the others
+    layouts = [tuple((j.name, j.parent, j.channels) for j in m.skeleton.joints) for m in motions]  # as same_layout
+    counts = Counter(layouts)
+    common = max(range(len(motions)), key=lambda k: (counts[layouts[k]], -k))
+    first = motions[common].skeleton
     different = [(p.path, m) for p, m in zip(pairs, motions) if not m.skeleton.same_layout(first)]
     if different:
+        shared = counts[layouts[common]]
+        whose = "the first file's" if shared == 1 else f"that of {shared} of the {len(pairs)} takes"
         raise UserError(
-            f"skeleton differs from the first file's ({pairs[0][0]}): {', '.join(str(p) for p, _ in different[:5])}"
+            f"skeleton differs from {whose} ({pairs[common][0]}): {', '.join(str(p) for p, _ in different[:5])}"
             + (f" and {len(different) - 5} more" if len(different) > 5 else "")
             + f" ({different[0][0].name}: {skeleton_difference(first, different[0][1].skeleton)})"
         )
@@ -290,17 +305,32 @@ def make_takes(pairs: Sequence[tuple], motions: list[Motion], layout: FeatureLay
     takes without steps are left out with a warning."""
     takes: list[Take] = []
     warnings: list[str] = []
+    # per style, its standing takes' pieces so far, from 0 or 1 by turns (the label of its next piece,
+    # standing.py): two styles of one single-piece take each still give the stand both labels
+    stand_pieces: dict[str, int] = {}
+    reference = body_size(layout.skeleton, np.asarray(layout.template))
     for k, ((path, style, unit, named), motion) in enumerate(zip(take_files(pairs), motions)):
         if not motion.skeleton.same_layout(layout.skeleton):
             raise UserError(f"{path}: the model was trained on another skeleton: this file's "
                             f"{skeleton_difference(layout.skeleton, motion.skeleton)}")
-        problem = _units_problem(body_size(motion.skeleton, motion.channels[0]),
-                                 body_size(layout.skeleton, np.asarray(layout.template)))
+        size = body_size(motion.skeleton, motion.channels[0])
+        problem = _units_problem(size, reference)
         if problem:
             raise UserError(f"{path}: {problem} the skeleton it is measured against (the model's, or the first "
                             "take's; in other units? metres against centimetres)")
+        if reference > 0 and not 1 / SIZES_APART < size / reference < SIZES_APART:
+            # measured: a style from a body 0.8 times the skeleton's walked with its hips 4.6% low, from 0.7 times
+            # its feet slid 14.6 cm/s (others': 0.00)
+            warnings.append(f"{path}: its body is {size / reference:.2f} times the size of the skeleton the model keeps "
+                            "(the first walk's): its style's hips' height and speeds are learnt in the take's units and "
+                            "played on that skeleton (hips low or high, strides that do not fit it); give one body size")
         static, _, _ = extract(motion, layout)
-        segmentation = standing_steps(motion, layout, states) if unit == "stand" else segment_steps(motion, layout)
+        if unit == "stand":
+            first = stand_pieces.setdefault(style, len(stand_pieces) % 2)
+            segmentation = standing_steps(motion, layout, states, first=first)
+            stand_pieces[style] = first + len(segmentation.steps)
+        else:
+            segmentation = segment_steps(motion, layout)
         gesture = take_gesture(path, unit, named)
         phases = gesture_phases(motion, layout, states) if gesture else []
         warnings += [f"{path}: {w}" for w in segmentation.warnings]
