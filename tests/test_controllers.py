@@ -350,6 +350,8 @@ def test_show_file_starts_the_whole_setup(tmp_path):
     ('seconds = 2\nconsole-token = "s3cret"\n', "--console-token means nothing without --console"),
     ('# fps is set below\nseconds = 2\n\nfps = 500\n', "show.toml:4: fps: expected a number from 24 to 120"),
     ('seconds = 2\nname = "fps = 1"\n', "show.toml:2: name: unknown option"),
+    ('seconds = 2\nosc_in = "9001"\n', "show.toml:2: osc_in: unknown option (the show file takes the flags of `instrument run`; "
+                                        "did you mean osc-in?)"),
     ('seconds = 2\nosc-in = "127.0.0.1:x"\n', "show.toml:2: osc-in: expected [HOST:]PORT"),
     ('seconds = 2\nosc = [\n  "127.0.0.1:9000",\n  "127.0.0.1:99999",\n]\n', "show.toml:4: osc: '127.0.0.1:99999'"),
 ])
