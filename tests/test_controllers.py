@@ -350,6 +350,8 @@ def test_show_file_starts_the_whole_setup(tmp_path):
     ('seconds = 2\nconsole-token = "s3cret"\n', "--console-token means nothing without --console"),
     ('# fps is set below\nseconds = 2\n\nfps = 500\n', "show.toml:4: fps: expected a number from 24 to 120"),
     ('seconds = 2\nname = "fps = 1"\n', "show.toml:2: name: unknown option"),
+    ('seconds = 2\nosc_in = "9001"\n', "show.toml:2: osc_in: unknown option (the show file takes the flags of `instrument run`; "
+                                        "did you mean osc-in?)"),
     ('seconds = 2\nosc-in = "127.0.0.1:x"\n', "show.toml:2: osc-in: expected [HOST:]PORT"),
     ('seconds = 2\nosc = [\n  "127.0.0.1:9000",\n  "127.0.0.1:99999",\n]\n', "show.toml:4: osc: '127.0.0.1:99999'"),
 ])
@@ -438,3 +440,19 @@ def test_midi_through_a_missing_alsa_is_one_line_suggesting_jack(port):
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("instrument run: error: MIDI is not available"), result.stderr
     assert "give --midi-api jack" in lines[0] and "ALSA" in lines[0]
+
+
+@pytest.mark.parametrize("port", [["--midi-virtual", "instr-nowhere"], ["--midi-out", "instr-nowhere"]])
+def test_midi_through_jack_with_no_server_is_one_line_suggesting_alsa(port, tmp_path):
+    """With --midi-api jack and no JACK server (a server name nothing answers to), libjack's own
+    lines ("Cannot connect to server socket ...", five of them) are kept off stderr: the error is
+    one line, naming the failure and how to use ALSA instead."""
+    mapping = ["--mapping", str(REPO / "mappings" / "generic-8-faders.toml")]  # (no "MIDI mapping:" line)
+    environment = dict(__import__("os").environ, JACK_DEFAULT_SERVER=f"instr-nowhere-{tmp_path.name}",
+                       JACK_NO_START_SERVER="1")
+    result = subprocess.run(RUN + port + mapping + ["--midi-api", "jack", "--no-osc", "--seconds", "1"], capture_output=True,
+                            text=True, timeout=120, env=environment)
+    assert result.returncode == 1
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("instrument run: error: MIDI is not available (jack API)"), result.stderr
+    assert "give --midi-api alsa" in lines[0]

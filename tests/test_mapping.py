@@ -152,6 +152,21 @@ def test_pickup_follows_mixxx(tmp_path):
     assert s.get("style/elderly") == pytest.approx(30 / 127 * 3 - 1)
 
 
+def test_a_picked_up_fader_moved_in_coarse_slow_steps_keeps_its_parameter(tmp_path):
+    """Once a fader has its parameter, each move is taken however far it jumps and however long
+    after the last (Mixxx: the previous position was at the parameter). A brisk move of a fader
+    sends steps of 8 in 50 ms, timed by the frame that polls them (33 or 67 ms apart); the fader
+    lost its parameter after the step that picked it up, leaving elderly at 0.13 of 1.83."""
+    m = mapper(tmp_path, '[[control]]\nmessage = "cc"\nnumber = 0\ntarget = "style/elderly"\nrange = [-1.0, 2.0]\ntakeover = "pickup"\n')
+    s = state()  # elderly is 0, which is fader position 127/3 = 42.3
+    for index, position in enumerate(range(0, 128, 8)):
+        send(m, s, "cc/1/0", position, t=index * 0.067)
+    assert s.get("style/elderly") == pytest.approx(120 / 127 * 3 - 1)
+    s.set("style/elderly", 0.0)  # a preset moves the parameter away from the fader (at 120)
+    send(m, s, "cc/1/0", 112, t=5.0)  # the fader was far from the parameter: still ignored
+    assert s.get("style/elderly") == 0.0
+
+
 def test_value_scaling_converges_at_the_end_of_travel(tmp_path):
     m = mapper(tmp_path, '[[control]]\nmessage = "cc"\nnumber = 0\ntarget = "liveliness"\ntakeover = "scale"\n')
     s = state()

@@ -67,7 +67,9 @@ def apply_show_file(args: argparse.Namespace) -> TomlFile:
         option = RUN_BY_KEY.get(key)
         where = f"{path}:{show.line(key)}: {key}"
         if option is None or not option.in_file:
-            raise UserError(f"{where}: unknown option (the show file takes the flags of `instrument run`)")
+            written = RUN_BY_KEY.get(key.replace("_", "-"))  # TOML habit: osc_in for osc-in
+            hint = f"; did you mean {written.key}?" if written is not None and written.in_file else ""
+            raise UserError(f"{where}: unknown option (the show file takes the flags of `instrument run`{hint})")
         value = file_value(option, value, where)
         for k, text in enumerate(value if isinstance(value, list) else [value]) if key in SHOW_FILE_CHECKS else ():
             try:

@@ -21,7 +21,7 @@ from ..terminal import Console
 from . import oscparse
 from .checks import value_refusal
 from .events import RawEvent, Source
-from .jackwatch import Remaker, release
+from .jackwatch import Remaker, quiet_libjack, release
 from .spec import TABLE, Row
 
 RETRY_SECONDS = 1.0
@@ -116,6 +116,8 @@ def midi_system(api: str | None) -> Iterator[None]:
     """Make MIDI ports inside: when the MIDI system itself fails (no ALSA sequencer, no JACK
     server) the failure is one UserError saying why, ALSA's reason included, and what to give instead."""
     caught: list[str] = []
+    if api == "jack":
+        quiet_libjack()
     with alsa_errors_caught(caught):
         try:
             yield

@@ -74,15 +74,24 @@ _QUIET = None
 JACK_CALLS = threading.Lock()
 
 
+def quiet_libjack():
+    """libjack (the copy rtmidi's clients live in) with its error and info messages kept off
+    stderr, or None where there is none: with no server, opening a MIDI port printed five lines
+    of libjack's ("Cannot connect to server socket err = ...") above the one that says what
+    failed and what to do (devices.midi_system)."""
+    lib = _library()
+    if lib is not None:
+        lib.jack_set_error_function(_quiet())
+        lib.jack_set_info_function(_quiet())
+    return lib
+
+
 class JackWatch:
     def __init__(self):
-        self.lib = _library()
+        self.lib = quiet_libjack()
         self.client = None
         self.lost = threading.Event()  # set when the server shut down under us
         self.on_shutdown = _SHUTDOWN(lambda arg: self.lost.set())  # referenced, so not collected
-        if self.lib is not None:
-            self.lib.jack_set_error_function(_quiet())
-            self.lib.jack_set_info_function(_quiet())
         self.reconnect()
 
     @property

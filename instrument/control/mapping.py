@@ -372,9 +372,10 @@ class Mapper:
             memory.last_accepted = time
             return between(value, current, end)
         near = abs(position - current) <= PICKUP_THRESHOLD * span
+        held = abs(previous - current) <= PICKUP_THRESHOLD * span  # it was at the parameter: a move of a fader in hand
         crossed = (previous - current) * (position - current) < 0
         recent = time - memory.last_accepted <= FAST_SWEEP
-        if near or crossed or recent:
+        if near or held or crossed or recent:
             memory.last_accepted = time
             self.awaiting.discard(spec)
             return position

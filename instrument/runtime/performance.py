@@ -21,7 +21,7 @@ from ..control.events import ControlEvent, LogReplay
 from ..control.hub import ControlHub
 from ..control.state import ControlState
 from ..models.modelfile import Model
-from ..synthesis.engine import Engine
+from ..synthesis.engine import Engine, rehearse
 from ..synthesis.parameters import DEFAULT_SPACING, GAITS
 from ..control.values import all_values
 from ..synthesis.footfalls import Footfalls, pacing
@@ -138,6 +138,7 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
     model, outputs, state, fps, seconds, replay = show.model, show.sinks, show.state, show.fps, show.seconds, show.replay
     live_sources, describe_sources = show.sources, show.describe_sources
     apply = show.apply or ControlHub([], console=console).apply  # checked, counted and warned as a show's events are
+    rehearse(model, show.characters, fps, show.lookahead)  # every kernel compiled now, not at the show's first run, stand or wave
     engine = Engine(model, show.characters, fps, show.lookahead, spacing=show.spacing)
     clock = FrameClock(fps, realtime=not show.fast)
     feet = Footfalls(engine.poses)
