@@ -445,3 +445,29 @@ def test_an_unknown_target_says_what_its_kind_takes(tmp_path, target, hint):
     with pytest.raises(UserError) as error:
         load_mapping(mapping, ControlState(["elderly", "youthful"], 5))
     assert str(error.value) == f"{mapping}:8: target: {target}: unknown target {hint}"
+
+
+def test_an_osc_action_without_an_argument_is_a_press(state_of):
+    """Max, QLab and TouchOSC buttons send an address alone: for an action (a preset's recall,
+    reset) that is a press; for a target that holds a value it is refused, nothing changed."""
+    from pythonosc.osc_message_builder import OscMessageBuilder
+
+    state, console = state_of(), Console(quiet=True)
+    osc = OscInput(console, "127.0.0.1:0")
+    hub = ControlHub([], console=console)
+    taken: list[tuple[str, float]] = []
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
+            for address in ("/walk/reset", "/walk/speed", "/walk/preset/calm"):
+                sender.sendto(OscMessageBuilder(address).build().dgram, osc.sock.getsockname())
+            sender.sendto(osc_packet("/walk/spread", 0.5), osc.sock.getsockname())  # the last one
+            deadline = time.monotonic() + 30
+            while state.spread != 0.5 and time.monotonic() < deadline:
+                for event in osc.poll(0.0):
+                    taken.append((event.control, event.value))
+                    hub.apply(state, event)
+                time.sleep(0.01)
+    finally:
+        osc.close()
+    assert taken == [("reset", 1.0), ("preset/calm", 1.0), ("spread", 0.5)]
+    assert osc.refused == {"argument": 1}  # /walk/speed alone

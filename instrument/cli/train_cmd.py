@@ -123,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
     styles = sorted({p.style for p in pairs})
     units = sorted({p.unit for p in pairs})
-    say(f"training on {len(pairs)} takes, {len(styles)} styles: {', '.join(styles)}; units: {', '.join(units)}")
+    say(f"training on {len(pairs)} takes, {len(styles)} {'style' if len(styles) == 1 else 'styles'}: {', '.join(styles)}; units: {', '.join(units)}")
     started = time.perf_counter()
     command = "instrument train " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if sys.argv[1:2] == ["train"] else ""
     model, report, takes = build_model(
@@ -138,5 +138,5 @@ def run(args: argparse.Namespace) -> int:
         print(f"warning: {w}", file=sys.stderr)
     steps = sum(len(t.steps) for t in takes)
     say(f"done in {time.perf_counter() - started:.1f} s: {len(takes)} takes, {steps} steps, "
-        f"{len(model.style_names)} styles, {model.layout.dimension} features x 3 -> {args.out}")
+        f"{len(model.style_names)} {'style' if len(model.style_names) == 1 else 'styles'}, {model.layout.dimension} features x 3 -> {args.out}")
     return 0

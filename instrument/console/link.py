@@ -212,7 +212,7 @@ class ConsoleInput:
         """For the status line, health lines and status replies: never the token."""
         if self.link.failure:
             return f"console {self.link.page_url(token=False)} (stopped: {self.link.failure})"
-        return f"console {self.link.page_url(token=False)} ({self.link.pages} pages)"
+        return f"console {self.link.page_url(token=False)} ({self.link.pages} {'page' if self.link.pages == 1 else 'pages'})"
 
     def close(self) -> None:
         self.link.close()

@@ -19,7 +19,7 @@ from contextlib import contextmanager
 from ..errors import UserError, printable
 from ..terminal import Console
 from . import oscparse
-from .checks import value_refusal
+from .checks import row_of, value_refusal
 from .events import RawEvent, Source
 from .jackwatch import Remaker, quiet_libjack, release
 from .spec import TABLE, Row
@@ -369,6 +369,9 @@ class OscInput:
             self._refuse("address", f"ignored OSC address {address[:60]!r} on {self.address}: controls are /walk/...")
         elif tag == "s" and (row := TABLE.get(address[len("/walk/"):])) is not None and row.choices:
             self._take_name(message, row, now, events)
+        elif not tag and (row := row_of(address[len("/walk/"):], (), 0)) is not None and row.action:
+            # an action's message with no argument is a press: Max's, QLab's and TouchOSC's buttons send them so
+            events.append(RawEvent(now, self.source, address[len("/walk/"):], 1.0))
         elif value is None:
             self._refuse("argument", f"ignored {address[:60]} on {self.address}: "
                          + (f"its argument (type {tag!r}) is not a number" if tag else "it has no argument (a number is needed)"))

@@ -12,7 +12,7 @@ A row's `pattern` is how its targets are written: `<style>`, `<group>` and `<k>`
 from the model (its style names, the body-part groups, its states 1..N), `<gesture>` with a
 gesture's name (synthesis/parameters.py: a model without that gesture ignores it), `<name>` with a
 preset name. Action rows (reset, cue, preset/<name>, store/<name>) are pressed, not held: a
-value above 0 acts, and no preset or score ramp holds them.
+value above 0 acts (over OSC, a message with no argument too), and no preset or score ramp holds them.
 """
 
 from __future__ import annotations
