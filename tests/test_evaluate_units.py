@@ -71,7 +71,6 @@ def test_settled_is_where_stillness_lasts_to_the_end():
 
 
 @needs_motions
-@needs_motions
 @pytest.mark.parametrize("name", ["turn-left_active_001", "turn-left_exhausted_005", "turn-right_active_002"])
 def test_a_turn_takes_rate_does_not_move_with_a_frame_more_or_less(model, measure, name):
     """A turn take's mean rate (the target its turning unit is held to) from the heading at its

@@ -86,7 +86,6 @@ def _x_channel(motion: Motion, joint: int) -> int:
     return int(motion.skeleton.channel_start()[joint]) + motion.skeleton.joints[joint].channels.index("Xposition")
 
 
-@needs_walks
 def test_a_heel_rolling_about_its_toe_tip_is_not_skate():
     """A toe-less foot (its ankle alone) planted at its End Site's tip while its heel rolls up
     about it, 0 to 40 degrees over a second, the other foot swinging 30 cm up: its ankle moves
