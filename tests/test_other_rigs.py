@@ -312,17 +312,21 @@ def test_a_toe_less_rig_swings_its_hips_as_its_takes(toe_less, tmp_path):
         assert skate <= 1.5 * takes_skate and under == 0.0, (style, skate, takes_skate, under)
 
 
+def _toe_less(take: Path, folder: Path) -> tuple[Motion, FeatureLayout, tuple[Leg, ...]]:
+    """One shared walk with its toe joints dropped (each foot ends in an End Site at the toe tip),
+    its layout as training chooses it, and its legs."""
+    motion = read_bvh(build_set([take], Rig(30.0, 1.0, "ZXY", keep_root=False, drop=("Toes_L", "Toes_R")), folder)[0])
+    layout = choose_layout([motion])
+    return motion, layout, find_limbs(motion.skeleton, layout.root, np.asarray(layout.template)).legs
+
+
 def test_a_toe_less_foot_rolls_about_an_end_site_ahead_not_one_below_or_behind(real_walks, tmp_path):
     """A toe-less foot's End Site is its heel's pivot only where it reaches forward, the way the
     takes travel (a toe tip): one straight below the ankle (a sole marker) or as far behind it as
     the toe tip was ahead (a heel marker) is no toe, and the foot stays its ankle alone, as
     before the End Site was read; the lock then holds no tip. Reaching along the floor by a
     quarter of its length, as was asked before, took the heel marker for a toe tip."""
-    files = build_set(chosen_takes(real_walks[0].parent, ["active"], 1),
-                      Rig(30.0, 1.0, "ZXY", keep_root=False, drop=("Toes_L", "Toes_R")), tmp_path / "no-toes")
-    motion = read_bvh(files[0])
-    layout = choose_layout([motion])
-    legs = find_limbs(motion.skeleton, layout.root, np.asarray(layout.template)).legs
+    motion, layout, legs = _toe_less(chosen_takes(real_walks[0].parent, ["active"], 1)[0], tmp_path)
     assert all(leg.pivot == leg.ankle and foot_tip(layout, leg) is not None for leg in legs)  # the toe tips
     ankles = forward_kinematics(motion.skeleton, *local_transforms(Motion(motion.skeleton, np.asarray(layout.template)[None],
                                                                            30.0)))[0][0]
@@ -341,6 +345,41 @@ def test_a_toe_less_foot_rolls_about_an_end_site_ahead_not_one_below_or_behind(r
         assert all(foot_tip(odd, leg) is None for leg in legs)
         lock = FootLock(odd, np.zeros((2, 1)), 30.0, tip_clearance=4.0)
         assert not lock.tips.any()
+
+
+@pytest.mark.parametrize("style, index", [("active", 1), ("feminine", 0)])
+def test_both_toe_less_feet_roll_about_their_tips_whatever_the_first_frame(real_walks, tmp_path, style, index):
+    """The template (the first take's first frame) of these takes has one foot pitched far down:
+    its End Site reaches 0.18 (active's 2nd take, the right foot) and 0.06 (feminine's 1st, the
+    left) of its length forward. Judged each by itself, that foot lost its tip and the lock rolled
+    one heel about its toe tip and the other about its ankle; the foot standing lower, the more
+    nearly flat, now judges for both."""
+    _, layout, legs = _toe_less(chosen_takes(real_walks[0].parent, [style], index + 1)[index], tmp_path)
+    assert all(leg.pivot == leg.ankle and foot_tip(layout, leg) is not None for leg in legs)
+    assert FootLock(layout, np.zeros((2, 1)), 30.0, tip_clearance=4.0).tips.any(axis=1).all()
+
+
+def test_a_model_from_before_issue_30_finds_the_toe_tips_of_hips_facing_sideways(real_walks, tmp_path):
+    """A model without `root_reference` reads its heading from the root's own axes: with the hips'
+    rest turned a quarter round (the body's pose unchanged), their +Z points across the way the
+    takes travel, and a toe tip asked to reach along it was refused. There the End Site need
+    only reach along the floor, as it did before issue 30's heading reference was read."""
+    motion, layout, legs = _toe_less(chosen_takes(real_walks[0].parent, ["active"], 1)[0], tmp_path)
+    skeleton, root = motion.skeleton, layout.root
+    turn = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # a quarter round about the vertical
+    rotations, translations = (a.copy() for a in layout.template_pose[:2])
+    rotations[root] = rotations[root] @ turn
+    joints = list(skeleton.joints)
+    for child in skeleton.children(root):  # turned back below the hips: every other joint's world pose kept
+        rotations[child] = turn.T @ rotations[child]
+        translations[child] = turn.T @ translations[child]
+        joints[child] = replace(joints[child], offset=tuple(turn.T @ np.asarray(joints[child].offset)))
+    turned = replace(skeleton, joints=tuple(joints))
+    template = channels_from_local(turned, rotations[None], translations[None])[0]
+    old = replace(layout, skeleton=turned, template=tuple(float(v) for v in template), root_reference=None)
+    kept = world_positions(Motion(turned, template[None], 30.0))[0]
+    assert np.allclose(kept, world_positions(Motion(skeleton, np.asarray(layout.template)[None], 30.0))[0], atol=1e-9)
+    assert all(foot_tip(old, leg) is not None for leg in legs)
 
 
 def test_a_rig_with_toes_on_one_foot_only_is_one_line_before_training(real_walks, tmp_path):

@@ -225,23 +225,53 @@ def foot_tip(layout: FeatureLayout, leg: Leg) -> np.ndarray | None:
     travel (many CMU conversions and some suits put it at the toe tip); None otherwise. The lock
     rolls such a heel up about this point as it would about a toe joint: about the ankle alone
     it could not, and a planted leg that could not reach stretched, swinging the hips 25-37%
-    wider than the takes (docs/evaluate.md, "No toes").
+    wider than the takes (docs/evaluate.md, "No toes"). Decided once per layout (`_foot_tips`):
+    training, calibration, evaluate and the lock ask for every take and every character."""
+    return _foot_tips(layout).get(leg.ankle)
+
+
+@lru_cache(maxsize=8)
+def _foot_tips(layout: FeatureLayout) -> dict[int, np.ndarray]:
+    """Each toe-less foot's End Site (read-only, by its ankle) where the End Sites are toe tips;
+    empty where they are not, or no foot is toe-less.
+
+    Both feet are decided together, by the foot whose ankle stands lower in the template pose:
+    the more nearly flat of the two (a walk's planted foot), whose End Site reaches TIP_REACH of
+    its length forward when it is a toe tip. The template is one frame (the first take's first),
+    and its other foot may be pitched 80 degrees down: judged each by itself, the shared walks'
+    toe-less re-rig lost one foot's tip in 3 of their 12 takes' first frames (forward by 0.05-0.18
+    of its length) and in 34% of all their frames, the lock rolling one heel about its toe tip and
+    the other about its ankle; the lower foot reached at least 0.45 forward in every frame. A sole
+    marker straight below the ankle reaches nowhere and a heel marker behind it reaches back; no
+    heel rolls about either (one rolled about a point behind the ankle would swing the foot the
+    wrong way).
 
     Forward is the heading frame's +Z in the template pose (`FeatureLayout.heading_reference`:
-    where the takes travel, whatever the rig's axes), and the End Site must reach TIP_REACH of
-    its length along it there: the template, an average walking pose, may pitch a toe tip 55
-    degrees down (the shared walks' left foot: 0.57 of it forward). A sole marker straight below
-    the ankle reaches nowhere and a heel marker behind it reaches back; no heel rolls about
-    either (a heel rolled about a point behind the ankle would swing the foot the wrong way)."""
-    end = layout.skeleton.joints[leg.ankle].end_site
-    if leg.pivot != leg.ankle or end is None or np.linalg.norm(end) < 1e-9:
-        return None
-    world_rot = forward_kinematics(layout.skeleton, layout.template_pose[0][None], layout.template_pose[1][None])[0][0]
-    yaw = heading_angle(world_rot[layout.root][None], layout.heading_reference)[0]
-    reach = world_rot[leg.ankle] @ np.asarray(end, dtype=np.float64)
-    if reach @ np.array([np.sin(yaw), 0.0, np.cos(yaw)]) < TIP_REACH * np.linalg.norm(reach):
-        return None
-    return np.asarray(end, dtype=np.float64)
+    where the takes travel, whatever the rig's axes). A model from before issue 30 (no
+    `root_reference`) reads its heading from the root's own axes, which need not face the way the
+    takes travel (hips whose rest faces X): there the End Site need only reach along the floor,
+    which a heel marker passes too."""
+    limbs = find_limbs(layout.skeleton, layout.root, np.asarray(layout.template))
+    joints = layout.skeleton.joints
+    ends = {leg.ankle: np.asarray(joints[leg.ankle].end_site, dtype=np.float64) for leg in (limbs.legs if limbs else ())
+            if leg.pivot == leg.ankle and joints[leg.ankle].end_site is not None
+            and np.linalg.norm(joints[leg.ankle].end_site) >= 1e-9}
+    if not ends:
+        return {}
+    world_rot, world_pos = (a[0] for a in forward_kinematics(layout.skeleton, layout.template_pose[0][None],
+                                                              layout.template_pose[1][None]))
+    judge = min(ends, key=lambda ankle: world_pos[ankle, 1])
+    reach = world_rot[judge] @ ends[judge]
+    if layout.root_reference is None:
+        ahead = float(np.hypot(reach[0], reach[2]))
+    else:
+        yaw = heading_angle(world_rot[layout.root][None], layout.heading_reference)[0]
+        ahead = float(reach @ np.array([np.sin(yaw), 0.0, np.cos(yaw)]))
+    if ahead < TIP_REACH * np.linalg.norm(reach):
+        return {}
+    for end in ends.values():
+        end.flags.writeable = False  # shared by every caller
+    return ends
 
 
 def tip_positions(world_rot: np.ndarray, world_pos: np.ndarray, limbs: Limbs, layout: FeatureLayout) -> np.ndarray | None:
