@@ -62,6 +62,23 @@ def test_a_walk_stops_within_two_steps_and_sets_off_again(model, measure):
     assert stop["steady_cm_s"] > 80.0  # it was walking before
     assert stop["slide_cm_s"] < 12.0 and start["slide_cm_s"] < 12.0
     assert stop["air_frames"] == 0 and start["air_frames"] == 0
+    assert start["timings"] == 6 and start["sooner_frames"] in (0, 3, 6, 9, 12, 15)
+
+
+def test_a_start_is_measured_on_either_foot(model):
+    """A stand alternates its two pieces, and a start's first step is the other foot's: told at one
+    moment only, the evaluation measured starts on one foot (feminine's on the other jumped 7.4
+    against its takes' 5.1, unseen). The six moments a start is told at set off on both feet."""
+    from instrument.evaluation.transitions import transition_forks
+
+    sequence, _, _, earlier = transition_forks(model, "walk", {"normal": 1.0})
+    stand = model.units.index("stand")
+
+    def first_foot(played) -> int:
+        after = played.labels[played.changes[-1]:]
+        return int(after[after // 2 != stand][0]) % 2
+
+    assert {first_foot(played) for played in [sequence, *earlier]} == {0, 1}
 
 
 def test_settled_is_where_stillness_lasts_to_the_end():
