@@ -189,7 +189,7 @@ def smoothstep_of(y: np.ndarray) -> np.ndarray:
     return 0.5 - np.sin(np.arcsin(np.clip(1.0 - 2.0 * y, -1.0, 1.0)) / 3.0)
 
 
-def turn_rates(yaw: np.ndarray, duration_means: np.ndarray, turn_units: dict[int, int]) -> dict[int, np.ndarray]:
+def unit_turn_rates(yaw: np.ndarray, duration_means: np.ndarray, turn_units: dict[int, int]) -> dict[int, np.ndarray]:
     """Per side (+1 left), (N,) rad/s the turning steps of N characters turn at that way: the
     duration-weighted mean yaw rate of the unit's two labels, from each character's yaw rate means
     and duration means (N, labels, states). A turn a style inverts comes out negative."""
@@ -218,10 +218,10 @@ class UnitChooser:
         self.turn_units = {side: self.units.index(unit) for side, unit in TURNING.items() if unit in self.units}
         self.fps = float(model.fps)
         # (N, labels, states) rad/s each character's yaw rate means, and per side (N,) how fast its
-        # turning steps turn that way (`turn_rates`): lambda 0's until the first retune, then made
+        # turning steps turn that way (`unit_turn_rates`): lambda 0's until the first retune, then made
         # from the lambda* a retune left (`_retuned`) when a walk is next steered
         self.yaw = np.repeat(model.average.means[None, ..., YAW], count, axis=0)
-        rates = turn_rates(self.yaw[:1], model.average.duration_means[None], self.turn_units)
+        rates = unit_turn_rates(self.yaw[:1], model.average.duration_means[None], self.turn_units)
         self._rates = {side: np.repeat(rate, count) for side, rate in rates.items()}
         self._retuned: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._own_of: np.ndarray | None = None  # the tables' own means `_own_yaw` (N, labels * states) is the yaw of
@@ -230,7 +230,12 @@ class UnitChooser:
         self._steered: tuple[int, float, float] | None = None
         self.share = np.zeros(count)  # that turn over each character's full turn (its turning steps' rate), up to 1
         self.rest = np.zeros(count)  # rad/s of that turn its turning steps do not give (the drive adds it)
-        self.sum = np.zeros(count)  # rad: the heading each character's steps still owe the turn (the error diffusion's)
+        self.aim = np.zeros(count)  # rad/s of that turn its steps are to give (the turn less `rest`)
+        # rad: the heading each character's steps still owe the turn, `aim` less what its frames turned
+        # (the error diffusion's, measured: `made`), held within one turning step's worth
+        self.sum = np.zeros(count)
+        self.steering = False  # the walk is steered by turning steps (`made` adds each frame to `sum`)
+        self._side = 0  # the side steered at the last frame (+1 left; 0: not steered)
         self.turning = np.zeros(count, dtype=np.int64)  # +1 / -1: the coming step turns left / right; 0 straight
         self.step_label = np.full(count, -1)  # the label of the step under way at the last frame
         self.states = states
@@ -315,16 +320,19 @@ class UnitChooser:
         self.step_label = counters[:, LABEL].copy()
         side = 1 if turn > 0 else -1
         steered = unit == self.walk and turn != 0.0 and side in self.turn_units
-        rest = self._shared(side, turn if steered else 0.0, turn)
+        rest = self._shared(side, turn if steered else 0.0, turn, stream)
         if not steered:
             self.turning[:] = 0
             self.sum[:] = 0.0
         else:
+            if side != self._side:
+                self.sum[:] = 0.0  # the other way's heading is no debt of this one
             changed_side = (self.turning != 0) & (self.turning != side)
-            self.sum[changed_side] = 0.0  # the other way's heading is no debt of this one
             decide = started | changed_side | (stream.sent == 0)
             if decide.any():
-                self.turning[decide] = np.where(self._turns(np.flatnonzero(decide), side, turn, stream), side, 0)
+                self.turning[decide] = np.where(self._turns(np.flatnonzero(decide), side, stream), side, 0)
+        self.steering = steered
+        self._side = side if steered else 0
         coming = np.where(self.turning > 0, self.turn_units.get(1, unit),
                           np.where(self.turning < 0, self.turn_units.get(-1, unit), unit))
         if stream.sent == 0:
@@ -412,44 +420,69 @@ class UnitChooser:
                 # yaw column kept (gathered across a crowd of 100's tables, it cost 50-60 us)
                 self._own_of, self._own_yaw = mean_own, np.ascontiguousarray(mean_own[..., YAW])
             self.yaw = (self._own_yaw + mean_shared[:, YAW]).reshape(duration_means.shape)
-            self._rates = turn_rates(self.yaw, duration_means, self.turn_units)
+            self._rates = unit_turn_rates(self.yaw, duration_means, self.turn_units)
         return self._rates
 
-    def _shared(self, side: int, turn: float, steering: float) -> np.ndarray:
+    def repace(self) -> None:
+        """The pace changed: the turning steps' rates scale with the cadence (the drive's), so the
+        shares are made again when the walk is next steered."""
+        self._steered = None
+
+    def _shared(self, side: int, turn: float, steering: float, stream: Crowd) -> np.ndarray:
         """(N,) the yaw rate the drive adds to `steering`, besides turning steps for `turn` (rad/s;
         0: none), and `share`, how much of each character's full turn that is (1: every step
-        turns; 0: none can): made when the turn or the rates change."""
+        turns; 0: none can): its turning steps' rate in lambda* times its cadence, as the drive
+        scales their yaw. Made when the turn, the rates or the pace change."""
         if self._steered != (side, turn, steering):
             self._steered = (side, turn, steering)
             if turn == 0.0:
                 self.share[:] = 0.0
-                self.rest[:] = steering
+                self.aim[:] = 0.0
             else:
-                rate = self.turn_rates[side]
+                rate = self.turn_rates[side] * stream.cadence
                 turning = rate > 1e-9  # a style inverted past its turns turns the other way: its drive steers
                 self.share[:] = np.where(turning, np.minimum(abs(turn) / np.where(turning, rate, 1.0), 1.0), 0.0)
-                self.rest[:] = turn - side * self.share * np.where(turning, rate, 0.0)
+                self.aim[:] = side * self.share * np.where(turning, rate, 0.0)
+            self.rest[:] = steering - self.aim
         return self.rest
 
-    def _turns(self, rows: np.ndarray, side: int, turn: float, stream: Crowd) -> np.ndarray:
+    def made(self, yaw: np.ndarray) -> None:
+        """Each character's frame as driven (its yaw rate, (N,) rad/s, the drive's steering in it):
+        what its steps turned is taken from the heading they owe. Measured, not predicted: the
+        window MLPG joins a turning step and a walk's step other than either's means (at speed 2
+        normal's right turning step was planned 8.2 degrees past the walk's step and gave 1.7)."""
+        if self.steering:
+            self.sum += (self.aim - (yaw - self.added_yaw)) / self.fps
+
+    def _turns(self, rows: np.ndarray, side: int, stream: Crowd) -> np.ndarray:
         """Whether the coming step of each character `rows` turns: error diffusion of the heading.
-        A turning step turns the body by what it yaws less what a walk's step of the same foot
-        yaws, over its planned frames at its cadence (the drive's); the step turns when the
-        heading left owing (`sum`, rad) plus what the turn asks over the step, less that, is
-        nearer 0 than without it. A turn at a character's full rate or past it turns every step."""
+        The heading owed as measured (`sum`), plus what the step under way will owe (its `aim`
+        over its planned frames less what its means yaw at its cadence, the drive's), plus what
+        the coming step will: it turns when that is nearer 0 taking a turning step than a walk's
+        (the walk's sway, one way a step and back the next, is in both). What the steps could
+        not give is forgiven past one turning step's worth, so a debt run up where the steps could
+        not turn (a slow walk's, a style's that turns the other way) is not paid later at another
+        rate. A turn at a character's full rate or past it turns every step; one it cannot turn
+        that way (share 0) none."""
         labels = stream.counters[rows, LABEL]
-        foot = labels % 2 if stream.sent == 0 else 1 - labels % 2  # the coming step's (the first one's at the first frame)
-        straight, turning = 2 * self.walk + foot, 2 * self.turn_units[side] + foot
         frames, yaw, at = stream.base[rows], self.yaw[rows], np.arange(len(rows))
-        walked, turned = frames[at, straight], frames[at, turning]  # (R, states)
-        gain = stream.cadence[rows] * ((yaw[at, turning] * turned).sum(axis=1) - (yaw[at, straight] * walked).sum(axis=1))
-        owed = self.sum[rows]
-        if_straight = owed + turn * walked.sum(axis=1) / self.fps
-        if_turning = owed + (turn * turned.sum(axis=1) - gain) / self.fps
+        aim, cadence = self.aim[rows], stream.cadence[rows]
+
+        def owes(label: np.ndarray) -> np.ndarray:  # (R,) rad a step of `label` leaves owing
+            planned = frames[at, label]
+            return (aim * planned.sum(axis=1) - cadence * (yaw[at, label] * planned).sum(axis=1)) / self.fps
+
         share = self.share[rows]
-        turns = (share >= 1.0) | ((share > 0.0) & (np.abs(if_turning) < np.abs(if_straight)))
-        self.sum[rows] = np.where(share >= 1.0, 0.0, np.where(turns, if_turning, if_straight))
-        return turns
+        # one stride of turning steps at the full rate: the most a diffusion that keeps up leaves owing
+        units = 2 * self.turn_units[side]
+        bound = np.abs(aim / np.maximum(share, 1e-9)) * frames[at, units:units + 2].sum(axis=(1, 2)) / self.fps
+        under_way = 0.0 if stream.sent == 0 else owes(labels)  # (at the first frame the first step is the coming one)
+        owed = np.where((share > 0.0) & (share < 1.0), np.clip(self.sum[rows] + under_way, -bound, bound), 0.0)
+        self.sum[rows] = owed - under_way  # (the step under way's sway cancels the last step's in `owed`)
+        foot = labels % 2 if stream.sent == 0 else 1 - labels % 2  # the coming step's
+        straight, turning = 2 * self.walk + foot, units + foot
+        if_straight, if_turning = owed + owes(straight), owed + owes(turning)
+        return (share >= 1.0) | ((share > 0.0) & (np.abs(if_turning) < np.abs(if_straight)))
 
     def _begin_start(self, stream: Crowd, first: np.ndarray) -> None:
         """The rates of the bodies (`first`) whose first step from a standstill begins this frame:
