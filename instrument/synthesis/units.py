@@ -317,6 +317,7 @@ class UnitChooser:
         counters = stream.counters
         unit = self.gait_units[gait]
         started = (counters[:, LABEL] != self.step_label) & (counters[:, STATE] == 0)
+        ended = self.step_label  # the label of the step that ended where one started
         self.step_label = counters[:, LABEL].copy()
         side = 1 if turn > 0 else -1
         steered = unit == self.walk and turn != 0.0 and side in self.turn_units
@@ -327,6 +328,10 @@ class UnitChooser:
         else:
             if side != self._side:
                 self.sum[:] = 0.0  # the other way's heading is no debt of this one
+            walked = np.flatnonzero(started & (ended >= 0))
+            if len(walked):  # the steps owe the turn over the walk's sway: a step ended is measured against a walk's
+                foot = 2 * self.walk + ended[walked] % 2  # step of the same foot
+                self.sum[walked] += self._step_yaw(walked, foot, stream)
             changed_side = (self.turning != 0) & (self.turning != side)
             decide = started | changed_side | (stream.sent == 0)
             if decide.any():
@@ -454,34 +459,40 @@ class UnitChooser:
         if self.steering:
             self.sum += (self.aim - (yaw - self.added_yaw)) / self.fps
 
+    def _step_yaw(self, rows: np.ndarray, labels: np.ndarray, stream: Crowd) -> np.ndarray:
+        """(R,) rad a step of each of `labels` turns the characters `rows` by its means: its yaw
+        rate means over its planned frames, at its cadence (the drive's)."""
+        planned, at = stream.base[rows], np.arange(len(rows))
+        return stream.cadence[rows] * (self.yaw[rows, labels] * planned[at, labels]).sum(axis=1) / self.fps
+
     def _turns(self, rows: np.ndarray, side: int, stream: Crowd) -> np.ndarray:
         """Whether the coming step of each character `rows` turns: error diffusion of the heading.
-        The heading owed as measured (`sum`), plus what the step under way will owe (its `aim`
-        over its planned frames less what its means yaw at its cadence, the drive's), plus what
-        the coming step will: it turns when that is nearer 0 taking a turning step than a walk's
-        (the walk's sway, one way a step and back the next, is in both). What the steps could
-        not give is forgiven past one turning step's worth, so a debt run up where the steps could
-        not turn (a slow walk's, a style's that turns the other way) is not paid later at another
-        rate. A turn at a character's full rate or past it turns every step; one it cannot turn
-        that way (share 0) none."""
+        The heading owed is measured (`sum`: `made` takes what each frame turned, a step's end
+        gives back what a walk's step of the same foot turns, so the walk's sway, one way a step
+        and back the next, is not owed); to it the step under way adds what it will owe by its
+        means (the turn over its frames, less what it turns past a walk's step of its foot), and
+        the coming step turns when that less what a turning step gives past the walk's is nearer
+        0 than without. What the steps could not give is forgiven past a stride of turning steps'
+        worth, so a debt run up where they could not keep up (a slow walk's, a style's that turns
+        the other way) is not paid later at another rate. A turn at a character's full rate or
+        past it turns every step; one it cannot turn that way (share 0) none."""
         labels = stream.counters[rows, LABEL]
-        frames, yaw, at = stream.base[rows], self.yaw[rows], np.arange(len(rows))
-        aim, cadence = self.aim[rows], stream.cadence[rows]
+        planned, at = stream.base[rows], np.arange(len(rows))
+        aim, share = self.aim[rows], self.share[rows]
 
-        def owes(label: np.ndarray) -> np.ndarray:  # (R,) rad a step of `label` leaves owing
-            planned = frames[at, label]
-            return (aim * planned.sum(axis=1) - cadence * (yaw[at, label] * planned).sum(axis=1)) / self.fps
+        def owes(label: np.ndarray) -> np.ndarray:  # (R,) rad a step of `label` leaves owing, over a walk's
+            walk = 2 * self.walk + label % 2
+            return (aim * planned[at, label].sum(axis=1) / self.fps - self._step_yaw(rows, label, stream)
+                    + self._step_yaw(rows, walk, stream))
 
-        share = self.share[rows]
-        # one stride of turning steps at the full rate: the most a diffusion that keeps up leaves owing
         units = 2 * self.turn_units[side]
-        bound = np.abs(aim / np.maximum(share, 1e-9)) * frames[at, units:units + 2].sum(axis=(1, 2)) / self.fps
+        # one stride of turning steps at the full rate: the most a diffusion that keeps up leaves owing
+        bound = np.abs(aim / np.maximum(share, 1e-9)) * planned[at, units:units + 2].sum(axis=(1, 2)) / self.fps
         under_way = 0.0 if stream.sent == 0 else owes(labels)  # (at the first frame the first step is the coming one)
         owed = np.where((share > 0.0) & (share < 1.0), np.clip(self.sum[rows] + under_way, -bound, bound), 0.0)
-        self.sum[rows] = owed - under_way  # (the step under way's sway cancels the last step's in `owed`)
+        self.sum[rows] = owed - under_way
         foot = labels % 2 if stream.sent == 0 else 1 - labels % 2  # the coming step's
-        straight, turning = 2 * self.walk + foot, units + foot
-        if_straight, if_turning = owed + owes(straight), owed + owes(turning)
+        if_straight, if_turning = owed + owes(2 * self.walk + foot), owed + owes(units + foot)
         return (share >= 1.0) | ((share > 0.0) & (np.abs(if_turning) < np.abs(if_straight)))
 
     def _begin_start(self, stream: Crowd, first: np.ndarray) -> None:
