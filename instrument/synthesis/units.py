@@ -11,17 +11,26 @@ the first of the next as it joins any two steps; the foot lock keeps the feet pl
 
 Turning steps are taken in proportion to the steering: with `turn` at f times the rate the
 character's turning steps turn (their duration-weighted mean yaw rate in its own lambda*, made at
-each retune: `retune`), about a share f of the steps are turning ones, chosen by error diffusion
-of the heading (`_turns`): a turning step gives what it yaws past the walk's step of the same
-foot, and the walk sways one way a step and back the next (13 degrees a step in lambda 0, 6 to
-24 at x2 of a style), while the turning steps need not turn alike (youthful x2's left turn: its
-right step 4 degrees past the walk's, its left 13). So over a few steps the walk turns at the
-rate asked for and no step is half of each. Shared out by lambda 0's rate (22 deg/s left, where
-exhausted x2's right turns turn 35 and youthful x2's left 15), one step in so many (which put
-every turning step on the same foot at a half), `synth` at half a style's own rate turned 0.41
-to 1.62 times what it asked (each style at 1 and x2, both ways, 20 s, the hips' heading over
-whole strides); so it turns 0.79 to 1.07 times (the window MLPG joins a turning step and a
-walk's step other than either's means; the lowest normal x2 right and feminine x2 left).
+each retune: `retune`, times its cadence, as the drive scales the steps' yaw), about a share f of
+the steps are turning ones, chosen by error diffusion of the heading (`_turns`): the heading the
+steps owe is measured from the frames as driven (`made`) against a walk's step of the same foot
+(the walk sways one way a step and back the next, 13 degrees a step in lambda 0, 6 to 48 at x2 of
+a style and at speed 2), and a step turns when what it will turn (as that label's step turned when
+last taken, else by its means) past the walk's step brings the heading owed nearer 0. The turning
+steps need not turn alike (youthful x2's left turn: its right step 4 degrees past the walk's, its
+left 13; masculine x2's right turn at speed 2: its right step 36 past, its left 17 back). So over
+a few steps the walk turns at the rate asked for and no step is half of each. Shared out by lambda
+0's rate (22 deg/s left, where exhausted x2's right turns turn 35 and youthful x2's left 15), one
+step in so many (which put every turning step on the same foot at a half), `synth` at half a
+style's own rate turned 0.41 to 1.62 times what it asked (each style at 1 and x2, both ways, 20 s,
+the hips' heading over whole strides); by the rate alone and a gain per step predicted from the
+means, 0.79 to 1.07 at speed 1 but 0.17 to 0.69 for normal at speed 2 (the window MLPG joins
+steps taken fast further from their means: a right turning step planned 8.2 degrees past the
+walk's gave 1.7). Measured, it turns TURNFIX_FIGURES. The heading owed is held within a turning
+step's gain past the walk's and a stride at the full rate, and cleared where no step turns that
+way or the side changes: a debt run up where the steps could not keep up (a style whose turn
+goes the other way steered 30 s ran one up to -303 degrees, then normal turned -21.9 deg/s for
+30 s, asked -10) is not paid at the next rate.
 Steering beyond what every step turning gives, a run steered (there are no turning runs in the
 data), or a model without turning steps adds the rest as yaw rate (the engine's drive, as before
 units); a standing character does not turn.
@@ -230,6 +239,7 @@ class UnitChooser:
         self._steered: tuple[int, float, float] | None = None
         self.share = np.zeros(count)  # that turn over each character's full turn (its turning steps' rate), up to 1
         self.rest = np.zeros(count)  # rad/s of that turn its turning steps do not give (the drive adds it)
+        self.unpaid = np.zeros(count)  # rad/s the drive adds over the step under way: the heading its steps could not give
         self.aim = np.zeros(count)  # rad/s of that turn its steps are to give (the turn less `rest`)
         # rad: the heading each character's steps still owe the turn, `aim` less what its frames turned
         # (the error diffusion's, measured: `made`), held within one turning step's worth
@@ -331,10 +341,12 @@ class UnitChooser:
         if not steered:
             self.turning[:] = 0
             self.sum[:] = 0.0
+            self.unpaid[:] = 0.0
             self.whole[:] = False
         else:
             if side != self._side:
                 self.sum[:] = 0.0  # the other way's heading is no debt of this one
+                self.unpaid[:] = 0.0
             walked = np.flatnonzero(started & (ended >= 0))
             if len(walked):
                 label, whole = ended[walked], self.whole[walked]
@@ -412,7 +424,7 @@ class UnitChooser:
             self.second_legs_from[second] = self.leg_shares[second]
             self.second |= second
         self._ease(standing, stopping, self._frames_to_stand(stream, stopping) if stopping.any() else None)
-        self.added_yaw[:] = np.where(standing, 0.0, rest)
+        self.added_yaw[:] = np.where(standing, 0.0, rest + self.unpaid)
         self._settled = ((gait, turn) if not steered and stream.sent > 0 and (current == unit).all() and not self.starting.any()
                          and not self.rejoining.any()
                          and (self.level == np.where(standing, 0.0, 1.0)).all() and (self.stride_level == 1.0).all()
@@ -512,13 +524,18 @@ class UnitChooser:
 
         units, walk = 2 * self.turn_units[side], 2 * self.walk
         # the most a diffusion that keeps up leaves owing: a turning step's gain past the walk's (the
-        # larger foot's: masculine x2's right step turns 36 degrees past it, its left 17 back) and a
-        # stride of turning steps at the full rate
-        bound = (np.abs(aim / np.maximum(share, 1e-9)) * planned[at, units:units + 2].sum(axis=(1, 2)) / self.fps
+        # larger foot's: masculine x2's right step turns 36 degrees past it, its left 17 back) and
+        # the turn over a stride
+        bound = (np.abs(aim) * planned[at, units:units + 2].sum(axis=(1, 2)) / self.fps
                  + np.maximum(*(np.abs(owes(np.full(len(rows), units + f)) - owes(np.full(len(rows), walk + f)))
                                 for f in (0, 1))))
         under_way = 0.0 if stream.sent == 0 else owes(labels)  # (at the first frame the first step is the coming one)
-        owed = np.where((share > 0.0) & (share < 1.0), np.clip(self.sum[rows] + under_way, -bound, bound), 0.0)
+        shared = (share > 0.0) & (share < 1.0)
+        owed = np.where(shared, np.clip(self.sum[rows] + under_way, -bound, bound), 0.0)
+        # past that, the steps cannot keep up (active x2's left turn at speed 2: its right step turns
+        # right of the walk's): the drive gives the rest over the step under way
+        frames = planned[at, labels].sum(axis=1)
+        self.unpaid[rows] = np.where(shared, self.sum[rows] + under_way - owed, 0.0) * self.fps / np.maximum(frames, 1.0)
         self.sum[rows] = owed - under_way
         foot = labels % 2 if stream.sent == 0 else 1 - labels % 2  # the coming step's
         if_straight, if_turning = owed + owes(walk + foot), owed + owes(units + foot)
