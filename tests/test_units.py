@@ -562,8 +562,9 @@ def test_a_style_steered_at_part_of_its_own_turn_turns_at_the_rate_asked(tmp_pat
     drive scales the steps' yaw by the cadence (0.5 at speed 0.5, 1.7-1.8 at speed 2), and the
     window MLPG joins steps taken faster further from their means: shared by the rate alone and
     a gain per step predicted from the means, normal at speed 2 turned 0.17-0.69 times what it
-    asked; the heading the steps owe is now measured from the frames made (the fractions here
-    keep some steps straight at each pace)."""
+    asked, and these exhausted x2 0.72 and youthful x2 1.36 at speed 2, youthful x2 1.14 at 0.5;
+    the heading the steps owe is now measured from the frames made (the fractions here keep some
+    steps straight at each pace)."""
     weights = {style: 2.0}
     turn = fraction * _own_turn_rate(model, weights, side)
     assert np.sign(turn) == side
@@ -590,7 +591,8 @@ def test_a_style_that_turns_the_other_way_leaves_no_debt_for_the_next(tmp_path, 
     """A style whose right turns turn left (active at -3: no step can turn right, the drive
     steers it) steered right for 20 s, then normal: the heading owed ran up to -303 degrees in
     30 s and normal turned -21.9 deg/s for the 30 s after, asked -10. Owed only where a step can
-    turn that way, and never past one stride's worth, it turns at what is asked 3 s on."""
+    turn that way, and held within a turning step's gain and a stride's turn, it turns at what is
+    asked 3 s on (before: -22.3)."""
     turn = -np.radians(10.0)
     score = (f'[[cue]]\nat = 0\nramp = {{ "style/active" = -3.0, turn = {turn:.6f} }}\n\n'
              '[[cue]]\nat = 20\nramp = { "style/active" = 0.0, "style/normal" = 1.0 }\n')
@@ -600,7 +602,7 @@ def test_a_style_that_turns_the_other_way_leaves_no_debt_for_the_next(tmp_path, 
 def test_a_turn_lowered_after_a_long_slow_steer_turns_at_the_rate_asked(tmp_path, model):
     """At speed 0.5 the drive halves the steps' yaw: shared by the rate alone, 0.8 of normal's
     rate asked more than every step turning gives, and the heading owed ran to +220 degrees in
-    30 s; lowered to 7.3 deg/s, the walk turned 12.3 for the next 20 s paying it back."""
+    30 s; lowered to 7.3 deg/s, the walk turned 12.3 for the next 20 s paying it back (here 12.8)."""
     rate = _own_turn_rate(model, {"normal": 1.0}, 1)
     score = (f'[[cue]]\nat = 0\nramp = {{ "style/normal" = 1.0, speed = 0.5, turn = {0.8 * rate:.6f} }}\n\n'
              f'[[cue]]\nat = 20\nramp = {{ turn = {np.radians(7.3):.6f} }}\n')

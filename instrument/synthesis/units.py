@@ -26,11 +26,14 @@ style's own rate turned 0.41 to 1.62 times what it asked (each style at 1 and x2
 the hips' heading over whole strides); by the rate alone and a gain per step predicted from the
 means, 0.79 to 1.07 at speed 1 but 0.17 to 0.69 for normal at speed 2 (the window MLPG joins
 steps taken fast further from their means: a right turning step planned 8.2 degrees past the
-walk's gave 1.7). Measured, it turns TURNFIX_FIGURES. The heading owed is held within a turning
-step's gain past the walk's and a stride at the full rate, and cleared where no step turns that
-way or the side changes: a debt run up where the steps could not keep up (a style whose turn
-goes the other way steered 30 s ran one up to -303 degrees, then normal turned -21.9 deg/s for
-30 s, asked -10) is not paid at the next rate.
+walk's gave 1.7). Measured, it turns 0.92 to 1.11 times what it asks at speed 1 (at half its rate), 0.93 to 1.06 at speed 2 (three
+quarters) and 0.92 to 1.20 at speed 0.5 (a quarter; masculine x2 left, swaying 41 degrees a step,
+asked 4.6 deg/s, 1.20), each style at 1 and x2, both ways, 20 s (40 at speed 0.5). The heading owed is held within a turning
+step's larger gain past the walk's and the turn over a stride (past that the drive gives it over
+the step under way), and cleared where no step turns that way, where every step turns, or when
+the side changes: a debt run up where the steps could not keep up (a style whose turn goes the
+other way steered 30 s ran one up to -303 degrees, then normal turned -21.9 deg/s for 30 s,
+asked -10) is not paid at the next rate.
 Steering beyond what every step turning gives, a run steered (there are no turning runs in the
 data), or a model without turning steps adds the rest as yaw rate (the engine's drive, as before
 units); a standing character does not turn.
@@ -505,14 +508,14 @@ class UnitChooser:
     def _turns(self, rows: np.ndarray, side: int, stream: Crowd) -> np.ndarray:
         """Whether the coming step of each character `rows` turns: error diffusion of the heading.
         The heading owed is measured (`sum`: `made` takes what each frame turned, a step's end
-        gives back what a walk's step of the same foot turns, so the walk's sway, one way a step
-        and back the next, is not owed); to it the step under way adds what it will owe by its
-        means (the turn over its frames, less what it turns past a walk's step of its foot), and
-        the coming step turns when that less what a turning step gives past the walk's is nearer
-        0 than without. What the steps could not give is forgiven past a stride of turning steps'
-        worth, so a debt run up where they could not keep up (a slow walk's, a style's that turns
-        the other way) is not paid later at another rate. A turn at a character's full rate or
-        past it turns every step; one it cannot turn that way (share 0) none."""
+        gives back what a walk's step of the same foot turns by its means, so the walk's sway,
+        one way a step and back the next, is not owed); to it the step under way adds what it
+        will owe (the turn over its frames, less what it turns past a walk's step of its foot:
+        `_step_yaw`), and the coming step turns when that less what a turning step gives past the
+        walk's is nearer 0 than without. Past what a diffusion that keeps up leaves owing, the
+        drive gives the rest over the step under way (`unpaid`), so no debt is run up to be paid
+        later at another rate. A turn at a character's full rate or past it turns every step;
+        one it cannot turn that way (share 0) none: neither owes anything."""
         labels = stream.counters[rows, LABEL]
         planned, at = stream.base[rows], np.arange(len(rows))
         aim, share = self.aim[rows], self.share[rows]
