@@ -350,16 +350,16 @@ class UnitChooser:
             if side != self._side:
                 self.sum[:] = 0.0  # the other way's heading is no debt of this one
                 self.unpaid[:] = 0.0
-            walked = np.flatnonzero(started & (ended >= 0))
-            if len(walked):
+            if started.any():  # (a step begins every dozen frames or so: nothing to do between)
+                walked = np.flatnonzero(started & (ended >= 0))
                 label, whole = ended[walked], self.whole[walked]
                 last = self.step_turns[walked, label]
                 self.step_turns[walked, label] = np.where(
                     whole, np.where(np.isnan(last), self.stepped[walked], 0.5 * (last + self.stepped[walked])), last)
                 # the steps owe the turn over the walk's sway: a step ended is measured against a walk's of its foot
                 self.sum[walked] += self._step_yaw(walked, 2 * self.walk + label % 2, stream, taken=False)
-            self.stepped[started] = 0.0
-            self.whole[started] = True
+                self.stepped[started] = 0.0
+                self.whole[started] = True
             changed_side = (self.turning != 0) & (self.turning != side)
             decide = started | changed_side | (stream.sent == 0)
             if decide.any():
