@@ -363,7 +363,7 @@ def test_a_take_of_another_body_size_is_said_in_training(real_walks, tmp_path):
     write_bvh(small, _scaled(read_bvh(chosen[1]), 0.7))
     same = tmp_path / "same.bvh"
     write_bvh(same, _scaled(read_bvh(chosen[1]), 1.0))
-    _, takes, warnings = load_corpus([(chosen[0], "normal"), (small, "active"), (same, "calm")], 30.0)
+    _, takes, warnings, _ = load_corpus([(chosen[0], "normal"), (small, "active"), (same, "calm")], 30.0)
     assert len(takes) == 3
     said = [w for w in warnings if "times the size of the skeleton the model keeps" in w]
     assert said == [f"{small}: its body is 0.70 times the size of the skeleton the model keeps (the first walk's): its "

@@ -268,7 +268,7 @@ def test_a_styles_standing_takes_of_one_piece_each_give_both_labels(real_walks):
     stands = [TakeFile(MOTIONS / f"dataset-2_{what}_active_001.bvh", "active", "stand")
               for what in ("wave-both-hands", "raise-up-both-hands")]
     stands.append(TakeFile(MOTIONS / "dataset-2_wave-both-hands_elderly_001.bvh", "elderly", "stand"))
-    _, takes, _ = load_corpus([TakeFile(real_walks[0], "normal"), *stands], 30.0)
+    _, takes, _, _ = load_corpus([TakeFile(real_walks[0], "normal"), *stands], 30.0)
     labels = {(t.path.name, t.style): [s.label for s in t.steps] for t in takes if t.unit == "stand"}
     assert list(labels.values()) == [["right"], ["left"], ["left"]], labels
 
@@ -531,10 +531,11 @@ def _own_turn_rate(model, weights: dict[str, float], side: int) -> float:
     return float((yaw * durations).sum() / durations.sum())
 
 
-def _stride_turn_rate(path: Path) -> float:
+def _stride_turn_rate(path: Path, start: float = 0.0, stop: float = np.inf) -> float:
     """deg/s (+ left) a written walk's hips turn over whole strides: the heading of the line
     between the upper legs, from the first left footfall (the left foot furthest ahead) to the
-    last, the hips' sway within a stride left out (read back with the independent reader)."""
+    last between `start` and `stop` seconds, the hips' sway within a stride left out (read back
+    with the independent reader)."""
     from scipy.signal import find_peaks
 
     names, positions, fps = world_positions(path)
@@ -543,26 +544,69 @@ def _stride_turn_rate(path: Path) -> float:
     forward = np.cross(across / np.linalg.norm(across, axis=1, keepdims=True), [0.0, 1.0, 0.0])
     ahead = np.einsum("tk,tk->t", positions[:, names.index("Foot_L")] - positions[:, names.index("Foot_R")], forward)
     footfalls, _ = find_peaks(ahead, distance=int(0.3 * fps), prominence=0.25 * np.ptp(ahead))
+    footfalls = footfalls[(footfalls >= start * fps) & (footfalls <= stop * fps)]
     first, last = footfalls[0], footfalls[-1]
-    assert len(footfalls) >= 10 and last - first > 10 * fps  # ten strides, ten seconds
+    assert len(footfalls) >= 6 and last - first > min(10.0, 0.6 * (min(stop, len(ahead) / fps) - start)) * fps
     return float(np.degrees(heading[last] - heading[first]) / ((last - first) / fps))
 
 
+@pytest.mark.parametrize("speed, fraction", [(1.0, 0.5), (2.0, 0.75), (0.5, 0.25)])
 @pytest.mark.parametrize("style, side", [("exhausted", -1), ("youthful", 1)])
-def test_a_style_steered_at_half_its_own_turn_turns_at_the_rate_asked(tmp_path, model, style, side):
+def test_a_style_steered_at_part_of_its_own_turn_turns_at_the_rate_asked(tmp_path, model, style, side, speed, fraction):
     """Turning steps are shared out by the character's own turns, not the average model's:
     exhausted x2's right turns turn 35 deg/s, youthful x2's left 15, the average's 22. Shared out
     by the average's rate and one step in so many (a turning step's foot fell on the same foot
     each time: a turn-left unit's right step turns 2 degrees past the walk's, its left 13, for
     youthful x2), `synth` steered at half their own rates turned exhausted x2 1.61 times what it
-    asked (28.0 deg/s for 17.4) and youthful x2 0.75 times (5.7 for 7.6)."""
+    asked (28.0 deg/s for 17.4) and youthful x2 0.75 times (5.7 for 7.6). At another pace the
+    drive scales the steps' yaw by the cadence (0.5 at speed 0.5, 1.7-1.8 at speed 2), and the
+    window MLPG joins steps taken faster further from their means: shared by the rate alone and
+    a gain per step predicted from the means, normal at speed 2 turned 0.17-0.69 times what it
+    asked, and these exhausted x2 0.72 and youthful x2 1.36 at speed 2, youthful x2 1.14 at 0.5;
+    the heading the steps owe is now measured from the frames made (the fractions here keep some
+    steps straight at each pace)."""
     weights = {style: 2.0}
-    turn = 0.5 * _own_turn_rate(model, weights, side)
+    turn = fraction * _own_turn_rate(model, weights, side)
     assert np.sign(turn) == side
-    done = _synth(tmp_path, "--style", f"{style}=2", "--turn", f"{turn:.6f}", "--seconds", "20", "--out", "turn.bvh")
+    seconds = 20 / min(speed, 1.0)  # ten strides
+    done = _synth(tmp_path, "--style", f"{style}=2", "--turn", f"{turn:.6f}", "--speed", f"{speed:g}",
+                  "--seconds", f"{seconds:g}", "--out", "turn.bvh")
     assert done.returncode == 0, done.stderr
     made = _stride_turn_rate(tmp_path / "turn.bvh")
     assert made == pytest.approx(np.degrees(turn), rel=0.10)
+
+
+def _score_turn_rate(tmp_path, score: str, start: float, stop: float) -> float:
+    """deg/s the hips turn over whole strides between `start` and `stop` s of `score` rendered
+    by `run --score --fast --bvh`."""
+    (tmp_path / "piece.toml").write_text(score)
+    done = subprocess.run([sys.executable, "-m", "instrument", "run", "--score", "piece.toml", "--fast", "--no-osc",
+                           "--quiet", "--seconds", f"{stop:g}", "--bvh", "piece.bvh"], capture_output=True, text=True,
+                          cwd=tmp_path, timeout=900)
+    assert done.returncode == 0, done.stderr
+    return _stride_turn_rate(tmp_path / "piece.bvh", start, stop)
+
+
+def test_a_style_that_turns_the_other_way_leaves_no_debt_for_the_next(tmp_path, model):
+    """A style whose right turns turn left (active at -3: no step can turn right, the drive
+    steers it) steered right for 20 s, then normal: the heading owed ran up to -303 degrees in
+    30 s and normal turned -21.9 deg/s for the 30 s after, asked -10. Owed only where a step can
+    turn that way, and held within a turning step's gain and a stride's turn, it turns at what is
+    asked 3 s on (before: -22.3)."""
+    turn = -np.radians(10.0)
+    score = (f'[[cue]]\nat = 0\nramp = {{ "style/active" = -3.0, turn = {turn:.6f} }}\n\n'
+             '[[cue]]\nat = 20\nramp = { "style/active" = 0.0, "style/normal" = 1.0 }\n')
+    assert _score_turn_rate(tmp_path, score, 23.0, 38.0) == pytest.approx(-10.0, rel=0.15)
+
+
+def test_a_turn_lowered_after_a_long_slow_steer_turns_at_the_rate_asked(tmp_path, model):
+    """At speed 0.5 the drive halves the steps' yaw: shared by the rate alone, 0.8 of normal's
+    rate asked more than every step turning gives, and the heading owed ran to +220 degrees in
+    30 s; lowered to 7.3 deg/s, the walk turned 12.3 for the next 20 s paying it back (here 12.8)."""
+    rate = _own_turn_rate(model, {"normal": 1.0}, 1)
+    score = (f'[[cue]]\nat = 0\nramp = {{ "style/normal" = 1.0, speed = 0.5, turn = {0.8 * rate:.6f} }}\n\n'
+             f'[[cue]]\nat = 20\nramp = {{ turn = {np.radians(7.3):.6f} }}\n')
+    assert _score_turn_rate(tmp_path, score, 23.0, 40.0) == pytest.approx(7.3, rel=0.15)
 
 
 def test_turning_steps_are_taken_in_proportion_to_the_turn(model):

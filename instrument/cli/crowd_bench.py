@@ -21,8 +21,10 @@ COST_CROWD = 100  # characters in the crowd whose per-character cost is measured
 COST_FRAMES = 30
 
 
-# the engine's stages in the order it runs them (`Engine.stage_seconds`), then the pose and the output's
-ENGINE_STAGES = ("cast", "interpolation", "durations", "turns", "units", "stream", "range", "drive", "gestures", "between", "contact")
+# the engine's stages in the order it first runs them (`Engine.stage_seconds`: a restyle's tables, range
+# and contact before the turns; range, gestures and contact run again later in the frame), then the
+# pose and the output's
+ENGINE_STAGES = ("cast", "interpolation", "durations", "range", "contact", "turns", "units", "stream", "drive", "gestures", "between")
 STAGES = ENGINE_STAGES + ("posing", "finite", "encoding", "sending")
 
 

@@ -203,7 +203,9 @@ class TurnRates:
         self.units.retune(tables.mean_own, tables.mean_shared, self.interpolation.duration_means)
 
     def repace(self, mix: Mix, stream: Crowd) -> None:
-        """lambda*'s turns do not move with the pace."""
+        """lambda*'s turns do not move with the pace, but the yaw the drive makes of them does
+        (the cadence scales it): the shares are made again."""
+        self.units.repace()
 
 
 class RangeTargets:
@@ -547,6 +549,7 @@ class Engine:
             frames = shortened(frames, towards, self._stride)
         driven = np.empty(frames.shape)
         drive(frames, self.stream.cadence, self.units.travel, self.units.added_yaw, driven)
+        self.units.made(driven[:, 3])
         frames = driven
         self._last = driven  # (a new array each frame: kept without a copy)
         self._timed("drive")

@@ -11,17 +11,29 @@ the first of the next as it joins any two steps; the foot lock keeps the feet pl
 
 Turning steps are taken in proportion to the steering: with `turn` at f times the rate the
 character's turning steps turn (their duration-weighted mean yaw rate in its own lambda*, made at
-each retune: `retune`), about a share f of the steps are turning ones, chosen by error diffusion
-of the heading (`_turns`): a turning step gives what it yaws past the walk's step of the same
-foot, and the walk sways one way a step and back the next (13 degrees a step in lambda 0, 6 to
-24 at x2 of a style), while the turning steps need not turn alike (youthful x2's left turn: its
-right step 4 degrees past the walk's, its left 13). So over a few steps the walk turns at the
-rate asked for and no step is half of each. Shared out by lambda 0's rate (22 deg/s left, where
-exhausted x2's right turns turn 35 and youthful x2's left 15), one step in so many (which put
-every turning step on the same foot at a half), `synth` at half a style's own rate turned 0.41
-to 1.62 times what it asked (each style at 1 and x2, both ways, 20 s, the hips' heading over
-whole strides); so it turns 0.79 to 1.07 times (the window MLPG joins a turning step and a
-walk's step other than either's means; the lowest normal x2 right and feminine x2 left).
+each retune: `retune`, times its cadence, as the drive scales the steps' yaw), about a share f of
+the steps are turning ones, chosen by error diffusion of the heading (`_turns`): the heading the
+steps owe is measured from the frames as driven (`made`) against a walk's step of the same foot
+(the walk sways one way a step and back the next, 13 degrees a step in lambda 0, 6 to 48 at x2 of
+a style and at speed 2), and a step turns when what it will turn (as that label's step turned when
+last taken, else by its means) past the walk's step brings the heading owed nearer 0. The turning
+steps need not turn alike (youthful x2's left turn: its right step 4 degrees past the walk's, its
+left 13; masculine x2's right turn at speed 2: its right step 36 past, its left 17 back). So over
+a few steps the walk turns at the rate asked for and no step is half of each. Shared out by lambda
+0's rate (22 deg/s left, where exhausted x2's right turns turn 35 and youthful x2's left 15), one
+step in so many (which put every turning step on the same foot at a half), `synth` at half a
+style's own rate turned 0.41 to 1.62 times what it asked (each style at 1 and x2, both ways, 20 s,
+the hips' heading over whole strides); by the rate alone and a gain per step predicted from the
+means, 0.79 to 1.07 at speed 1 but 0.17 to 0.69 for normal at speed 2 (the window MLPG joins
+steps taken fast further from their means: a right turning step planned 8.2 degrees past the
+walk's gave 1.7). Measured, it turns 0.92 to 1.11 times what it asks at speed 1 (at half its rate), 0.93 to 1.06 at speed 2 (three
+quarters) and 0.92 to 1.20 at speed 0.5 (a quarter; masculine x2 left, swaying 41 degrees a step,
+asked 4.6 deg/s, 1.20), each style at 1 and x2, both ways, 20 s (40 at speed 0.5). The heading owed is held within a turning
+step's larger gain past the walk's and the turn over a stride (past that the drive gives it over
+the step under way), and cleared where no step turns that way, where every step turns, or when
+the side changes: a debt run up where the steps could not keep up (a style whose turn goes the
+other way steered 30 s ran one up to -303 degrees, then normal turned -21.9 deg/s for 30 s,
+asked -10) is not paid at the next rate.
 Steering beyond what every step turning gives, a run steered (there are no turning runs in the
 data), or a model without turning steps adds the rest as yaw rate (the engine's drive, as before
 units); a standing character does not turn.
@@ -189,7 +201,7 @@ def smoothstep_of(y: np.ndarray) -> np.ndarray:
     return 0.5 - np.sin(np.arcsin(np.clip(1.0 - 2.0 * y, -1.0, 1.0)) / 3.0)
 
 
-def turn_rates(yaw: np.ndarray, duration_means: np.ndarray, turn_units: dict[int, int]) -> dict[int, np.ndarray]:
+def unit_turn_rates(yaw: np.ndarray, duration_means: np.ndarray, turn_units: dict[int, int]) -> dict[int, np.ndarray]:
     """Per side (+1 left), (N,) rad/s the turning steps of N characters turn at that way: the
     duration-weighted mean yaw rate of the unit's two labels, from each character's yaw rate means
     and duration means (N, labels, states). A turn a style inverts comes out negative."""
@@ -218,10 +230,10 @@ class UnitChooser:
         self.turn_units = {side: self.units.index(unit) for side, unit in TURNING.items() if unit in self.units}
         self.fps = float(model.fps)
         # (N, labels, states) rad/s each character's yaw rate means, and per side (N,) how fast its
-        # turning steps turn that way (`turn_rates`): lambda 0's until the first retune, then made
+        # turning steps turn that way (`unit_turn_rates`): lambda 0's until the first retune, then made
         # from the lambda* a retune left (`_retuned`) when a walk is next steered
         self.yaw = np.repeat(model.average.means[None, ..., YAW], count, axis=0)
-        rates = turn_rates(self.yaw[:1], model.average.duration_means[None], self.turn_units)
+        rates = unit_turn_rates(self.yaw[:1], model.average.duration_means[None], self.turn_units)
         self._rates = {side: np.repeat(rate, count) for side, rate in rates.items()}
         self._retuned: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._own_of: np.ndarray | None = None  # the tables' own means `_own_yaw` (N, labels * states) is the yaw of
@@ -230,7 +242,19 @@ class UnitChooser:
         self._steered: tuple[int, float, float] | None = None
         self.share = np.zeros(count)  # that turn over each character's full turn (its turning steps' rate), up to 1
         self.rest = np.zeros(count)  # rad/s of that turn its turning steps do not give (the drive adds it)
-        self.sum = np.zeros(count)  # rad: the heading each character's steps still owe the turn (the error diffusion's)
+        self.unpaid = np.zeros(count)  # rad/s the drive adds over the step under way: the heading its steps could not give
+        self.aim = np.zeros(count)  # rad/s of that turn its steps are to give (the turn less `rest`)
+        # rad: the heading each character's steps still owe the turn, `aim` less what its frames turned
+        # (the error diffusion's, measured: `made`), held within one turning step's worth
+        self.sum = np.zeros(count)
+        self.steering = False  # the walk is steered by turning steps (`made` adds each frame to `sum`)
+        # rad each character's steps of each label turned when last taken whole while steered (half
+        # the last, half those before; NaN: not yet, its means' yaw stands in), what the step
+        # under way has turned so far, and whether it was steered from its start
+        self.step_turns = np.full((count, len(model.labels)), np.nan)
+        self.stepped = np.zeros(count)
+        self.whole = np.zeros(count, dtype=np.bool_)
+        self._side = 0  # the side steered at the last frame (+1 left; 0: not steered)
         self.turning = np.zeros(count, dtype=np.int64)  # +1 / -1: the coming step turns left / right; 0 straight
         self.step_label = np.full(count, -1)  # the label of the step under way at the last frame
         self.states = states
@@ -312,19 +336,36 @@ class UnitChooser:
         counters = stream.counters
         unit = self.gait_units[gait]
         started = (counters[:, LABEL] != self.step_label) & (counters[:, STATE] == 0)
+        ended = self.step_label  # the label of the step that ended where one started
         self.step_label = counters[:, LABEL].copy()
         side = 1 if turn > 0 else -1
         steered = unit == self.walk and turn != 0.0 and side in self.turn_units
-        rest = self._shared(side, turn if steered else 0.0, turn)
+        rest = self._shared(side, turn if steered else 0.0, turn, stream)
         if not steered:
             self.turning[:] = 0
             self.sum[:] = 0.0
+            self.unpaid[:] = 0.0
+            self.whole[:] = False
         else:
+            if side != self._side:
+                self.sum[:] = 0.0  # the other way's heading is no debt of this one
+                self.unpaid[:] = 0.0
+            if started.any():  # (a step begins every dozen frames or so: nothing to do between)
+                walked = np.flatnonzero(started & (ended >= 0))
+                label, whole = ended[walked], self.whole[walked]
+                last = self.step_turns[walked, label]
+                self.step_turns[walked, label] = np.where(
+                    whole, np.where(np.isnan(last), self.stepped[walked], 0.5 * (last + self.stepped[walked])), last)
+                # the steps owe the turn over the walk's sway: a step ended is measured against a walk's of its foot
+                self.sum[walked] += self._step_yaw(walked, 2 * self.walk + label % 2, stream, taken=False)
+                self.stepped[started] = 0.0
+                self.whole[started] = True
             changed_side = (self.turning != 0) & (self.turning != side)
-            self.sum[changed_side] = 0.0  # the other way's heading is no debt of this one
             decide = started | changed_side | (stream.sent == 0)
             if decide.any():
-                self.turning[decide] = np.where(self._turns(np.flatnonzero(decide), side, turn, stream), side, 0)
+                self.turning[decide] = np.where(self._turns(np.flatnonzero(decide), side, stream), side, 0)
+        self.steering = steered
+        self._side = side if steered else 0
         coming = np.where(self.turning > 0, self.turn_units.get(1, unit),
                           np.where(self.turning < 0, self.turn_units.get(-1, unit), unit))
         if stream.sent == 0:
@@ -386,7 +427,7 @@ class UnitChooser:
             self.second_legs_from[second] = self.leg_shares[second]
             self.second |= second
         self._ease(standing, stopping, self._frames_to_stand(stream, stopping) if stopping.any() else None)
-        self.added_yaw[:] = np.where(standing, 0.0, rest)
+        self.added_yaw[:] = np.where(standing, 0.0, rest + self.unpaid)
         self._settled = ((gait, turn) if not steered and stream.sent > 0 and (current == unit).all() and not self.starting.any()
                          and not self.rejoining.any()
                          and (self.level == np.where(standing, 0.0, 1.0)).all() and (self.stride_level == 1.0).all()
@@ -412,44 +453,96 @@ class UnitChooser:
                 # yaw column kept (gathered across a crowd of 100's tables, it cost 50-60 us)
                 self._own_of, self._own_yaw = mean_own, np.ascontiguousarray(mean_own[..., YAW])
             self.yaw = (self._own_yaw + mean_shared[:, YAW]).reshape(duration_means.shape)
-            self._rates = turn_rates(self.yaw, duration_means, self.turn_units)
+            self._rates = unit_turn_rates(self.yaw, duration_means, self.turn_units)
         return self._rates
 
-    def _shared(self, side: int, turn: float, steering: float) -> np.ndarray:
+    def repace(self) -> None:
+        """The pace changed: the turning steps' rates scale with the cadence (the drive's), so the
+        shares are made again when the walk is next steered."""
+        self._steered = None
+
+    def _shared(self, side: int, turn: float, steering: float, stream: Crowd) -> np.ndarray:
         """(N,) the yaw rate the drive adds to `steering`, besides turning steps for `turn` (rad/s;
         0: none), and `share`, how much of each character's full turn that is (1: every step
-        turns; 0: none can): made when the turn or the rates change."""
+        turns; 0: none can): its turning steps' rate in lambda* times its cadence, as the drive
+        scales their yaw. Made when the turn, the rates or the pace change."""
         if self._steered != (side, turn, steering):
             self._steered = (side, turn, steering)
             if turn == 0.0:
                 self.share[:] = 0.0
-                self.rest[:] = steering
+                self.aim[:] = 0.0
             else:
-                rate = self.turn_rates[side]
+                rate = self.turn_rates[side] * stream.cadence
                 turning = rate > 1e-9  # a style inverted past its turns turns the other way: its drive steers
                 self.share[:] = np.where(turning, np.minimum(abs(turn) / np.where(turning, rate, 1.0), 1.0), 0.0)
-                self.rest[:] = turn - side * self.share * np.where(turning, rate, 0.0)
+                self.aim[:] = side * self.share * np.where(turning, rate, 0.0)
+            self.rest[:] = steering - self.aim
         return self.rest
 
-    def _turns(self, rows: np.ndarray, side: int, turn: float, stream: Crowd) -> np.ndarray:
+    def made(self, yaw: np.ndarray) -> None:
+        """Each character's frame as driven (its yaw rate, (N,) rad/s, the drive's steering in it):
+        what its steps turned is taken from the heading they owe. Measured, not predicted: the
+        window MLPG joins a turning step and a walk's step other than either's means (at speed 2
+        normal's right turning step was planned 8.2 degrees past the walk's step and gave 1.7)."""
+        if self.steering:
+            turned = (yaw - self.added_yaw) / self.fps
+            self.sum += self.aim / self.fps - turned
+            self.stepped += turned
+
+    def _step_yaw(self, rows: np.ndarray, labels: np.ndarray, stream: Crowd, taken: bool = True) -> np.ndarray:
+        """(R,) rad a step of each of `labels` turns the characters `rows`: as it turned when last
+        taken (`step_turns`; `taken` False: never), else by its means (its yaw rate means over its
+        planned frames, at its cadence, the drive's). The window MLPG joins steps taken fast
+        further from their means: at speed 2 masculine x2's left step turning right turned 29
+        degrees left of the walk's, so the diffusion, trusting the means, kept taking it (0.74 of
+        what it asked). The walk's step the heading is owed over stays its means': a walk's step
+        taken next to a turning one turns some of its turn (normal at speed 2, measured against
+        them, turned 1.10 times what it asked over 110 s)."""
+        planned, at = stream.base[rows], np.arange(len(rows))
+        means = stream.cadence[rows] * (self.yaw[rows, labels] * planned[at, labels]).sum(axis=1) / self.fps
+        if not taken:
+            return means
+        turned = self.step_turns[rows, labels]
+        return np.where(np.isnan(turned), means, turned)
+
+    def _turns(self, rows: np.ndarray, side: int, stream: Crowd) -> np.ndarray:
         """Whether the coming step of each character `rows` turns: error diffusion of the heading.
-        A turning step turns the body by what it yaws less what a walk's step of the same foot
-        yaws, over its planned frames at its cadence (the drive's); the step turns when the
-        heading left owing (`sum`, rad) plus what the turn asks over the step, less that, is
-        nearer 0 than without it. A turn at a character's full rate or past it turns every step."""
+        The heading owed is measured (`sum`: `made` takes what each frame turned, a step's end
+        gives back what a walk's step of the same foot turns by its means, so the walk's sway,
+        one way a step and back the next, is not owed); to it the step under way adds what it
+        will owe (the turn over its frames, less what it turns past a walk's step of its foot:
+        `_step_yaw`), and the coming step turns when that less what a turning step gives past the
+        walk's is nearer 0 than without. Past what a diffusion that keeps up leaves owing, the
+        drive gives the rest over the step under way (`unpaid`), so no debt is run up to be paid
+        later at another rate. A turn at a character's full rate or past it turns every step;
+        one it cannot turn that way (share 0) none: neither owes anything."""
         labels = stream.counters[rows, LABEL]
-        foot = labels % 2 if stream.sent == 0 else 1 - labels % 2  # the coming step's (the first one's at the first frame)
-        straight, turning = 2 * self.walk + foot, 2 * self.turn_units[side] + foot
-        frames, yaw, at = stream.base[rows], self.yaw[rows], np.arange(len(rows))
-        walked, turned = frames[at, straight], frames[at, turning]  # (R, states)
-        gain = stream.cadence[rows] * ((yaw[at, turning] * turned).sum(axis=1) - (yaw[at, straight] * walked).sum(axis=1))
-        owed = self.sum[rows]
-        if_straight = owed + turn * walked.sum(axis=1) / self.fps
-        if_turning = owed + (turn * turned.sum(axis=1) - gain) / self.fps
-        share = self.share[rows]
-        turns = (share >= 1.0) | ((share > 0.0) & (np.abs(if_turning) < np.abs(if_straight)))
-        self.sum[rows] = np.where(share >= 1.0, 0.0, np.where(turns, if_turning, if_straight))
-        return turns
+        planned, at = stream.base[rows], np.arange(len(rows))
+        aim, share = self.aim[rows], self.share[rows]
+
+        def owes(label: np.ndarray) -> np.ndarray:  # (R,) rad a step of `label` leaves owing, over a walk's
+            walk = 2 * self.walk + label % 2
+            return (aim * planned[at, label].sum(axis=1) / self.fps - self._step_yaw(rows, label, stream)
+                    + self._step_yaw(rows, walk, stream, taken=False))
+
+        units, walk = 2 * self.turn_units[side], 2 * self.walk
+        # the most a diffusion that keeps up leaves owing: a turning step's gain past the walk's (the
+        # larger foot's: masculine x2's right step turns 36 degrees past it, its left 17 back) and
+        # the turn over a stride
+        bound = (np.abs(aim) * planned[at, units:units + 2].sum(axis=(1, 2)) / self.fps
+                 + np.maximum(*(np.abs(owes(np.full(len(rows), units + f)) - owes(np.full(len(rows), walk + f)))
+                                for f in (0, 1))))
+        under_way = 0.0 if stream.sent == 0 else owes(labels)  # (at the first frame the first step is the coming one)
+        shared = (share > 0.0) & (share < 1.0)
+        owed = np.where(shared, np.clip(self.sum[rows] + under_way, -bound, bound), 0.0)
+        # past that, the steps cannot keep up (active x2's left turn at speed 2: its right step turns
+        # right of the walk's): the drive gives the rest over the step under way
+        frames = planned[at, labels].sum(axis=1)
+        self.unpaid[rows] = np.where(shared, self.sum[rows] + under_way - owed, 0.0) * self.fps / np.maximum(frames, 1.0)
+        self.sum[rows] = owed - under_way
+        foot = labels % 2 if stream.sent == 0 else 1 - labels % 2  # the coming step's
+        if_straight, if_turning = owed + owes(walk + foot), owed + owes(units + foot)
+        return (share >= 1.0) | ((share > 0.0) & (np.abs(if_turning) < np.abs(if_straight)))
 
     def _begin_start(self, stream: Crowd, first: np.ndarray) -> None:
         """The rates of the bodies (`first`) whose first step from a standstill begins this frame:
