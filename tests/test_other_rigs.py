@@ -436,7 +436,9 @@ def vocabulary(real_walks, tmp_path_factory):
     model = folder / "model.npz"
     trained = cli("train", "--manifest", str(manifest), "--out", str(model), "--quiet")
     assert trained.returncode == 0, trained.stderr
-    assert "warning" not in trained.stderr, trained.stderr
+    # nothing to warn of but the takes' rate (the rig's, not the model's 30 fps: said, as meant)
+    said = [line for line in trained.stderr.splitlines() if "warning" in line and "resampled to the model's" not in line]
+    assert not said, trained.stderr
     # the standing takes' gestures, which their names no longer say, from the manifest's fourth column
     said = {gesture_from_name(t.path) for t in takes if t.unit == "stand"} - {None}
     assert said and set(load_model(model).metadata.get("gestures", {})) == said
