@@ -661,6 +661,13 @@ def test_a_jack_server_restart_with_midi_pattern_reconnects_to_the_port(tmp_path
         server = start_private_jack(rtmidi, server_name, jackd_log)
         sender = new_sender()
         speed_becomes(sender, 0.25)  # the instrument found the port again and reads it
+
+        def on_again() -> bool:  # a status line after the reconnect line says the port is on
+            said = errors.read_text().splitlines()
+            back = [n for n, line in enumerate(said) if re.search(r"MIDI input '[^']*fault-pattern-out' connected", line)]
+            return bool(back) and any(line.startswith("frame ") and line.endswith("fault-pattern-out on")
+                                      for line in said[back[-1]:])
+        wait_until(on_again, "a status line saying the port is on again", timeout=120)
         process.send_signal(signal.SIGTERM)
         process.wait(timeout=60)
         stderr = errors.read_text()
