@@ -110,6 +110,10 @@ def other_rates(rates: list[float], fps: float) -> str | None:
             f"(--fps's default): give --fps {other[-1]:g} to keep {'their' if len(other) == 1 else 'the highest'} rate")
 
 
+def _styles(count: int) -> str:
+    return f"{count} style" if count == 1 else f"{count} styles"
+
+
 def run(args: argparse.Namespace) -> int:
     # the training code (numpy, scipy, numba): loaded when run, not for --help
     from ..training.build import UNSPECIFIED_LICENCE, build_model
@@ -123,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
     say = (lambda *a: None) if args.quiet else (lambda *a: print(*a, file=sys.stderr))
     styles = sorted({p.style for p in pairs})
     units = sorted({p.unit for p in pairs})
-    say(f"training on {len(pairs)} takes, {len(styles)} {'style' if len(styles) == 1 else 'styles'}: {', '.join(styles)}; units: {', '.join(units)}")
+    say(f"training on {len(pairs)} takes, {_styles(len(styles))}: {', '.join(styles)}; units: {', '.join(units)}")
     started = time.perf_counter()
     command = "instrument train " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if sys.argv[1:2] == ["train"] else ""
     model, report, takes = build_model(
@@ -138,5 +142,5 @@ def run(args: argparse.Namespace) -> int:
         print(f"warning: {w}", file=sys.stderr)
     steps = sum(len(t.steps) for t in takes)
     say(f"done in {time.perf_counter() - started:.1f} s: {len(takes)} takes, {steps} steps, "
-        f"{len(model.style_names)} {'style' if len(model.style_names) == 1 else 'styles'}, {model.layout.dimension} features x 3 -> {args.out}")
+        f"{_styles(len(model.style_names))}, {model.layout.dimension} features x 3 -> {args.out}")
     return 0

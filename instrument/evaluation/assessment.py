@@ -94,9 +94,11 @@ def missing_takes(model: Model, folders: list[Path], units: tuple[str, ...] | No
     """One line per unit some of whose listed takes none of `folders` holds: measured without them
     (a unit with none there has no real figures nor targets), which evaluate said nothing of."""
     on_disk = _on_disk(folders)
+    by_unit: dict[str, list[str]] = {}
+    for take in _listed(model, units):
+        by_unit.setdefault(take.unit, []).append(take.path.name)
     lines = []
-    for unit in dict.fromkeys(t.unit for t in _listed(model, units)):
-        mine = [t.path.name for t in _listed(model, (unit,))]
+    for unit, mine in by_unit.items():
         gone = [name for name in mine if name not in on_disk]
         if gone:
             lines.append(f"{len(gone)} of the model's {len(mine)} {unit} takes are not in {', '.join(map(str, folders))} "

@@ -102,11 +102,14 @@ class Skeleton:
             )
         )
 
+    def layout_key(self) -> tuple:
+        """Its joints, parents and channels (not the offsets, which may differ slightly): what
+        `same_layout` compares, hashable (training counts the skeletons its takes share)."""
+        return tuple((j.name, j.parent, j.channels) for j in self.joints)
+
     def same_layout(self, other: "Skeleton") -> bool:
         """True when both have the same joints, parents and channels (offsets may differ slightly)."""
-        return [(j.name, j.parent, j.channels) for j in self.joints] == [
-            (j.name, j.parent, j.channels) for j in other.joints
-        ]
+        return self.layout_key() == other.layout_key()
 
 
 @dataclass

@@ -55,7 +55,7 @@ from .mlpg import mlpg
 from .parameters import DEFAULT_SPACING, GAITS, GROUPS, default_lookahead
 from .posing import CrowdPose, CrowdPoses
 from .stream import Controls, Crowd
-from .units import UnitChooser
+from .units import YAW, UnitChooser
 from .cores import over_cores, parts
 from .widen import KEPT_FROM, KEPT_TO, RangeFilter, RangeSpace, range_part, range_space, stride_means, unit_targets
 
@@ -549,7 +549,7 @@ class Engine:
             frames = shortened(frames, towards, self._stride)
         driven = np.empty(frames.shape)
         drive(frames, self.stream.cadence, self.units.travel, self.units.added_yaw, driven)
-        self.units.made(driven[:, 3])
+        self.units.made(driven[:, YAW])
         frames = driven
         self._last = driven  # (a new array each frame: kept without a copy)
         self._timed("drive")

@@ -19,21 +19,14 @@ a style and at speed 2), and a step turns when what it will turn (as that label'
 last taken, else by its means) past the walk's step brings the heading owed nearer 0. The turning
 steps need not turn alike (youthful x2's left turn: its right step 4 degrees past the walk's, its
 left 13; masculine x2's right turn at speed 2: its right step 36 past, its left 17 back). So over
-a few steps the walk turns at the rate asked for and no step is half of each. Shared out by lambda
-0's rate (22 deg/s left, where exhausted x2's right turns turn 35 and youthful x2's left 15), one
-step in so many (which put every turning step on the same foot at a half), `synth` at half a
-style's own rate turned 0.41 to 1.62 times what it asked (each style at 1 and x2, both ways, 20 s,
-the hips' heading over whole strides); by the rate alone and a gain per step predicted from the
-means, 0.79 to 1.07 at speed 1 but 0.17 to 0.69 for normal at speed 2 (the window MLPG joins
-steps taken fast further from their means: a right turning step planned 8.2 degrees past the
-walk's gave 1.7). Measured, it turns 0.92 to 1.11 times what it asks at speed 1 (at half its rate), 0.93 to 1.06 at speed 2 (three
-quarters) and 0.92 to 1.20 at speed 0.5 (a quarter; masculine x2 left, swaying 41 degrees a step,
-asked 4.6 deg/s, 1.20), each style at 1 and x2, both ways, 20 s (40 at speed 0.5). The heading owed is held within a turning
-step's larger gain past the walk's and the turn over a stride (past that the drive gives it over
-the step under way), and cleared where no step turns that way, where every step turns, or when
-the side changes: a debt run up where the steps could not keep up (a style whose turn goes the
-other way steered 30 s ran one up to -303 degrees, then normal turned -21.9 deg/s for 30 s,
-asked -10) is not paid at the next rate.
+a few steps the walk turns at the rate asked for and no step is half of each (`synth` at a
+share of each style's own rate, speeds 0.5 to 2: 0.92 to 1.20 times what it asks; the versions
+before, shared out by lambda 0's rate or by a gain predicted from the means, and why they missed:
+docs/evaluate.md, "A turn shared out by the character's own turns", "A turn shared out at any
+pace"). The heading owed is held within a turning step's larger gain past the walk's and the turn
+over a stride (past that the drive gives it over the step under way), and cleared where no step
+turns that way, where every step turns, or when the side changes, so a debt run up where the
+steps could not keep up is not paid later at another rate.
 Steering beyond what every step turning gives, a run steered (there are no turning runs in the
 data), or a model without turning steps adds the rest as yaw rate (the engine's drive, as before
 units); a standing character does not turn.

@@ -277,7 +277,7 @@ def read_motions_and_rates(pairs: Sequence[tuple], fps: float, progress=None) ->
         if progress:
             progress(k + 1, len(pairs), "reading")
     # the skeleton most takes share (the first such on a tie): an odd take sorted first named the others
-    layouts = [tuple((j.name, j.parent, j.channels) for j in m.skeleton.joints) for m in motions]  # as same_layout
+    layouts = [m.skeleton.layout_key() for m in motions]
     counts = Counter(layouts)
     common = max(range(len(motions)), key=lambda k: (counts[layouts[k]], -k))
     first = motions[common].skeleton
