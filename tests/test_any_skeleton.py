@@ -204,6 +204,24 @@ def test_a_humanoid_map_naming_one_bone_twice_is_one_line(tmp_path):
     assert str(error.value) == f"{bones}:4: [bones] 'LowerLeg_L' = 'LeftUpperLeg': 'UpperLeg_L' is LeftUpperLeg already"
 
 
+@pytest.mark.parametrize("text, said", [
+    ('[bones]\n"Hips" = "Hips"\n\n[Bones]\n"UpperLeg_L" = "LeftUpperLeg"\n',
+     ':4: Bones: unknown table or key (a humanoid map is one [bones] table of "joint" = "HumanBone")'),
+    ('map = "mine"\n[bones]\n"Hips" = "Hips"\n', ":1: map: unknown table or key"),
+    ('# the hips\n[bones]\n"Hips" = "Hips"\n"UpperLeg_X" = "LeftUpperLeg"\n', ":4: [bones] key 'UpperLeg_X': the model's skeleton has no such joint"),
+    ('[bones]\n"Hips" = "Hips"\n"UpperLeg_L" = "LeftUpperLegg"\n', ":3: [bones] 'UpperLeg_L' = 'LeftUpperLegg': not a humanoid bone"),
+    ('[bones]\n"Hips" = "Hips"\n[bones.arm]\n"UpperArm_L" = "LeftUpperArm"\n', ":3: [bones] key 'arm': the model's skeleton has no such joint"),
+])
+def test_a_humanoid_map_key_it_does_not_read_is_one_line_at_its_line(tmp_path, text, said):
+    """A second table (`[Bones]`, a note above [bones]) was read past: its bones never moved on
+    the avatar and nothing said so. Every refusal names the line."""
+    bones = tmp_path / "bones.toml"
+    bones.write_text(text)
+    with pytest.raises(UserError) as error:
+        read_humanoid(bones, load_model(default_model_path()).layout.skeleton)
+    assert str(error.value).startswith(f"{bones}{said}"), error.value
+
+
 def test_humanoid_guess_of_the_shipped_skeleton():
     guessed = guess_humanoid(load_model(default_model_path()).layout.skeleton)
     assert {guessed[n] for n in ("Hips", "UpperLeg_L", "LowerLeg_R", "Toes_L", "UpperArm_R", "Chest")} == {

@@ -274,6 +274,17 @@ def test_inspect_reads_a_manifest_as_train_does(tmp_path):
                                                   "a gesture is a standing take's (unit stand)"]
 
 
+def test_train_refuses_a_manifest_unit_not_in_the_table_of_units(tmp_path):
+    """A tester's `runn` trained a run (the manifest's unit read by its words, as a file name's):
+    train now stops at the manifest's line, in one line naming the units, before reading any take."""
+    _a_wave_and_a_walk(tmp_path, "take1.bvh", "take2.bvh")
+    (tmp_path / "m.csv").write_text("file,style,unit\ntake2.bvh,calm,walk\ntake1.bvh,calm,runn\n")
+    result = run("train", "--manifest", str(tmp_path / "m.csv"), "--out", str(tmp_path / "m.npz"))
+    assert result.returncode != 0 and not (tmp_path / "m.npz").exists()
+    assert result.stderr.strip().splitlines() == [f"instrument train: error: {tmp_path / 'm.csv'}:3: unit 'runn' is not one of "
+                                                  "walk, run, turn-left, turn-right, stand"]
+
+
 def test_inspect_reads_names_with_trains_style_from_and_unit_from(tmp_path):
     """A studio's own names (`actorB_Proud_IdleWave01.bvh`) are trained with `--style-from` and
     `--unit-from`, which inspect did not take: it showed every take as a walk of no style, and

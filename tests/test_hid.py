@@ -515,6 +515,25 @@ def test_a_mapping_naming_no_usage_is_a_one_line_error(tmp_path, model):
         load_mapping(path, state_of(model))
 
 
+def test_a_feedback_colour_for_no_style_of_the_model_is_a_one_line_error(tmp_path, model):
+    """[feedback.colours] `eldrly = ...` (a style misspelt) was kept and never shown, and
+    `colours = "#ff0000"` (no table) crashed with a traceback: both are refused at their line
+    when the user names the mapping (its styles held against the model, as its targets are)."""
+    path = tmp_path / "pad.toml"
+    head = '[device]\nhid = "054c:09cc"\n[feedback]\nreport = 5\nlight-bar = 6\n'
+    path.write_text(head + '[feedback.colours]\nelderly = "#7040ff"\neldrly = "#ff8000"\nnone = "#101010"\n')
+    with pytest.raises(UserError) as refused:
+        load_mapping(path, state_of(model), strict_styles=True)
+    assert str(refused.value) == (f"{path}:8: eldrly: no style 'eldrly' in the model (a colour is for one of its styles "
+                                  f"({', '.join(model.style_names)}) or none)")
+    assert "eldrly" in load_mapping(path, state_of(model)).feedback.colours  # a shipped mapping, for any model's styles
+    path.write_text(head + 'colours = "#ff0000"\n')
+    with pytest.raises(UserError, match=r"pad.toml:6: colours: expected a \[feedback.colours\] table"):
+        load_mapping(path, state_of(model))
+    path.write_text(head + '[feedback.colours]\nelderly = "#7040ff"\nnone = "#101010"\n')
+    assert load_mapping(path, state_of(model), strict_styles=True).feedback.colours["elderly"] == (0x70, 0x40, 0xFF)
+
+
 # Unplugging and feedback
 
 def test_spacemouse_unplugged_and_replugged_its_led_on_each_time(model):

@@ -125,15 +125,38 @@ def test_a_manifest_says_a_standing_takes_gesture_and_a_bad_one_names_its_line(t
         (tmp_path / take).touch()
     (tmp_path / "m.csv").write_text("file,style,unit,gesture\na.bvh,calm,stand,wave\nb.bvh,calm,stand,\nc.bvh,calm,run,\n")
     assert [(t.unit, t.gesture) for t in read_manifest(tmp_path / "m.csv")] == [("stand", "wave"), ("stand", ""), ("run", "")]
-    (tmp_path / "m.toml").write_text('[[take]]\nfile = "a.bvh"\nstyle = "calm"\nunit = "stand"\ngesture = "hands-up"\n')
+    (tmp_path / "m.toml").write_text('[[take]]\nfile = "a.bvh"\nstyle = "calm"\nunit = "stand"\ngesture = "Raise"\n')
     assert read_manifest(tmp_path / "m.toml")[0].gesture == "raise"
     for text, said in (("a.bvh,calm,stand,hop\n", ":2: gesture 'hop' is not one of wave, raise"),
+                       ("a.bvh,calm,stand,waves\n", ":2: gesture 'waves' is not one of wave, raise"),  # read by words: a wave
+                       ("a.bvh,calm,stand,hands-up\n", ":2: gesture 'hands-up' is not one of wave, raise"),
                        ("b.bvh,calm,stand,wave\na.bvh,calm,run,wave\n", ":3: gesture 'wave' given to a run take:"),
                        ("a.bvh,calm,,wave\n", ":2: gesture 'wave' given to a walk take (no unit given: a walk):")):
         (tmp_path / "bad.csv").write_text("file,style,unit,gesture\n" + text)
         with pytest.raises(UserError) as refused:
             read_manifest(tmp_path / "bad.csv")
         assert str(refused.value).startswith(f"{tmp_path / 'bad.csv'}{said}"), refused.value
+
+
+@pytest.mark.parametrize("unit", ["runn", "jog", "Running", "walk-turn-left", "turnleft", "rest"])
+def test_a_manifest_unit_is_one_of_the_units_not_a_word_for_one(tmp_path, unit):
+    """A manifest's `unit` was read by its words as a file name is (`runn` a run, `rest` a stand):
+    a name is guessed from, but a manifest is the user's word, so a unit not in the table of units
+    is refused at its line (a TOML take's `unit` key's line), naming the units it may be."""
+    for take in ("a.bvh", "b.bvh"):
+        (tmp_path / take).touch()
+    units = "walk, run, turn-left, turn-right, stand"
+    (tmp_path / "m.csv").write_text(f"file,style,unit\na.bvh,calm,walk\nb.bvh,calm,{unit}\n")
+    with pytest.raises(UserError) as refused:
+        read_manifest(tmp_path / "m.csv")
+    assert str(refused.value) == f"{tmp_path / 'm.csv'}:3: unit {unit!r} is not one of {units}"
+    (tmp_path / "m.toml").write_text(f'[[take]]\nfile = "a.bvh"\nstyle = "calm"\n\n[[take]]\nfile = "b.bvh"\n'
+                                     f'style = "calm"\n# the second take\nunit = "{unit}"\n')
+    with pytest.raises(UserError) as refused:
+        read_manifest(tmp_path / "m.toml")
+    assert str(refused.value) == f"{tmp_path / 'm.toml'}:9: take 2: unit {unit!r} is not one of {units}"
+    (tmp_path / "case.csv").write_text("file,style,unit\na.bvh,calm,Walk\nb.bvh,calm,TURN-LEFT\n")  # a unit in any case
+    assert [t.unit for t in read_manifest(tmp_path / "case.csv")] == ["walk", "turn-left"]
 
 
 @pytest.mark.parametrize("name, text, where", [

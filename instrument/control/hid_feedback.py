@@ -21,12 +21,14 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
+from typing import Collection
 
 from ..errors import quoted
 from ..terminal import Console
 from .hid import LEDS, HidInput
 
 FEEDBACK_KEYS = ("leds", "report", "fixed", "light-bar", "colours")
+NO_STYLE = "none"  # the colour's name for no style leading
 
 
 @dataclass(frozen=True)
@@ -47,8 +49,10 @@ def _byte(value: object) -> bool:
     return isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= 255
 
 
-def parse_feedback(table: object, fail) -> FeedbackSpec:
-    """A mapping file's [feedback] table, checked; `fail(message, key)` makes the located error."""
+def parse_feedback(table: object, fail, styles: Collection[str]) -> FeedbackSpec:
+    """A mapping file's [feedback] table, checked; `fail(message, key)` makes the located error.
+    A colour is for one of `styles` (the model's, as the mapping's targets are checked) or
+    "none": a misspelt style's colour was kept and never shown."""
     if not isinstance(table, dict):
         raise fail("must be a table", "feedback")
     for key in table:
@@ -67,7 +71,13 @@ def parse_feedback(table: object, fail) -> FeedbackSpec:
     if not isinstance(fixed, dict) or not all(k.isdigit() and _byte(int(k)) and _byte(v) for k, v in fixed.items()):
         raise fail("expected { byte = value, ... }, whole numbers 0 to 255", "fixed")
     colours = {}
-    for name, text in (table.get("colours") or {}).items():
+    given = table.get("colours", {})
+    if not isinstance(given, dict):  # colours = "#ff0000" (a crash before: no table to read)
+        raise fail('expected a [feedback.colours] table of style = "#rrggbb"', "colours")
+    for name, text in given.items():
+        if name != NO_STYLE and name not in styles:
+            raise fail(f"no style {quoted(name)} in the model (a colour is for one of its styles "
+                       f"({', '.join(styles)}) or {NO_STYLE})", name)
         colour = _colour(text)
         if colour is None:
             raise fail(f"{quoted(text)}: expected a colour as \"#rrggbb\"", name)
@@ -79,7 +89,7 @@ def leading_style(echo: dict[str, float]) -> str:
     """The style with the largest weight above 0, or "none"."""
     weights = {k[len("style/"):]: v for k, v in echo.items() if k.startswith("style/")}
     best = max(weights, key=weights.get, default=None)
-    return best if best is not None and weights[best] > 0 else "none"
+    return best if best is not None and weights[best] > 0 else NO_STYLE
 
 
 class HidFeedback:
@@ -129,7 +139,7 @@ class HidFeedback:
         reports = self._led_reports() if fresh and self.spec.leds else []
         if self.spec.light_bar is not None:
             colours = self.spec.colours
-            colour = colours.get(leading_style(echo), colours.get("none", (0, 0, 0)))
+            colour = colours.get(leading_style(echo), colours.get(NO_STYLE, (0, 0, 0)))
             if fresh or colour != self.colour:
                 report = self._light_bar_report(colour)
                 if report is not None:

@@ -148,7 +148,7 @@ def load_mapping(path: str | Path, state: ControlState | None = None, text: str 
     controls = [_control(doc, item, k, fail, model) for k, item in enumerate(data.get("control", []))]
     presets = read_presets(doc, model)
     morph = data.get("morph", 0.0)
-    feedback = parse_feedback(data["feedback"], fail) if "feedback" in data else None
+    feedback = parse_feedback(data["feedback"], fail, model[0]) if "feedback" in data else None
     return Mapping(str(data.get("name", path.stem)), str(path), midi, hid_ids, tuple(controls), presets, float(morph),
                    tuple(usages), feedback, text)
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..errors import UserError
 from ..motion.bvh import Skeleton
-from ..tomlfile import key_lines, read_toml
+from ..tomlfile import TomlFile
 
 HUMAN_BONES = (
     "Hips", "Spine", "Chest", "UpperChest", "Neck", "Head",
@@ -133,21 +133,26 @@ def guess_humanoid(skeleton: Skeleton) -> dict[str, str]:
 
 
 def read_humanoid(path: str | Path, skeleton: Skeleton) -> dict[str, str]:
-    path = Path(path)
-    text, data = read_toml(path)
-    bones = data.get("bones")
+    """A `--humanoid` file: one [bones] table of "joint" = "HumanBone" and nothing else, each pair
+    checked against the model's skeleton and the humanoid bones; an error names the file and the
+    line. Another table or key (`[Bones]`, a second map under `[bones2]`) is refused: read past,
+    its bones never moved on the avatar, and nothing said so."""
+    doc = TomlFile(path)
+    unknown = [key for key in doc.data if key != "bones"]
+    if unknown:
+        raise doc.error((unknown[0],), 'unknown table or key (a humanoid map is one [bones] table of "joint" = "HumanBone")')
+    bones = doc.data.get("bones")
     if not isinstance(bones, dict) or not bones:
-        raise UserError(f"{path}: expected a [bones] table of \"joint\" = \"HumanBone\"")
+        raise UserError(f"{path}:{doc.line('bones')}: expected a [bones] table of \"joint\" = \"HumanBone\"")
     taken: dict[object, str] = {}
     for joint, bone in bones.items():
+        where = f"{path}:{doc.line('bones', joint)}: [bones]"
         if joint not in skeleton.names:
-            raise UserError(f"{path}: [bones] key {joint!r}: the model's skeleton has no such joint (it has "
+            raise UserError(f"{where} key {joint!r}: the model's skeleton has no such joint (it has "
                             f"{', '.join(skeleton.names[:6])}, ...): this map is for another skeleton")
-        if bone not in HUMAN_BONES:
-            raise UserError(f"{path}: [bones] {joint!r} = {bone!r}: not a humanoid bone ({', '.join(HUMAN_BONES[:4])}, ...)")
+        if not isinstance(bone, str) or bone not in HUMAN_BONES:
+            raise UserError(f"{where} {joint!r} = {bone!r}: not a humanoid bone ({', '.join(HUMAN_BONES[:4])}, ...)")
         if bone in taken:  # a VMC receiver would get the bone twice a frame, from two joints
-            line = key_lines(text).get(("bones", joint))
-            raise UserError(f"{path}:{line}: [bones] {joint!r} = {bone!r}: {taken[bone]!r} is {bone} already"
-                            if line else f"{path}: [bones] {joint!r} = {bone!r}: {taken[bone]!r} is {bone} already")
+            raise UserError(f"{where} {joint!r} = {bone!r}: {taken[bone]!r} is {bone} already")
         taken[bone] = joint
     return dict(bones)

@@ -164,9 +164,10 @@ def read_manifest(path: Path) -> list[TakeFile]:
             if not isinstance(gesture, str):
                 raise UserError(f"{path}:{toml.line('take', k, 'gesture')}: take {k + 1}: "
                                 f"'gesture' is a string ({', '.join(GESTURES)})")
-            unit = checked_unit(where, unit)
+            at = {key: f"{path}:{toml.line('take', k, key)}: take {k + 1}" if key in take else where for key in ("unit", "gesture")}
+            unit = checked_unit(at["unit"], unit)  # the line of the key that says it, not its table's
             add(TakeFile(_listed_file(base, take["file"], where), checked_style(where, take["style"]), unit,
-                         checked_gesture(where, gesture, unit, said)), toml.line("take", k))
+                         checked_gesture(at["gesture"], gesture, unit, said)), toml.line("take", k))
         return pairs
     text = read_text(path)
     reader = csv.reader(text.splitlines())

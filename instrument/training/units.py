@@ -102,21 +102,24 @@ def turn_as_taken(unit: str, yaw_rates: np.ndarray, fps: float) -> tuple[str | N
 
 
 def checked_unit(where: str, unit: str) -> str:
-    """A manifest's unit, as a unit name, or an error naming where it is."""
-    found = unit_of_words(unit)
-    if found is None:
+    """A manifest's unit, one of UNITS (in any case), or an error naming where it is. Not read
+    as leniently as a file name (`unit_of_words`): a name is guessed from, a manifest is the
+    user's word, and `runn` or `walking-fast` read by its words trained a run or a walk unasked."""
+    found = unit.strip().lower()
+    if found not in UNITS:
         raise UserError(f"{where}: unit {unit!r} is not one of {', '.join(UNITS)}")
     return found
 
 
 def checked_gesture(where: str, gesture: str, unit: str, unit_said: bool = True) -> str:
-    """A manifest's gesture ("" for none said), as a gesture name, or an error naming where it is:
-    one the model knows (wave, raise), of a standing take (gestures are made standing; a take
-    whose unit was left empty, `unit_said` False, is a walk, and the error says so)."""
+    """A manifest's gesture ("" for none said), one of GESTURES (in any case), or an error naming
+    where it is: exact, as a manifest's unit is (`waves` is no gesture), of a standing take
+    (gestures are made standing; a take whose unit was left empty, `unit_said` False, is a walk,
+    and the error says so)."""
     if not gesture:
         return ""
-    found = gesture_of_words(gesture)
-    if found is None:
+    found = gesture.strip().lower()
+    if found not in GESTURES:
         raise UserError(f"{where}: gesture {gesture!r} is not one of {', '.join(GESTURES)}")
     if unit != "stand":
         raise UserError(f"{where}: gesture {gesture!r} given to a {unit} take{'' if unit_said else ' (no unit given: a walk)'}: "
