@@ -79,7 +79,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
                                  + ([f"score {score_path}"] if score_path else []))
 
             link = ConsoleLink(args.console, model, state, hub.presets, console, fps, args.console_token, args.presets,
-                               sources)
+                               sources, plan.has())
             devices.append(link.input)
             for line in link.announcement():
                 console.say(line)

@@ -137,6 +137,11 @@ class ShowPlan:
     live: bool  # a controller (MIDI, HID, OSC in, the console) plays
     console: Console  # quiet as the options say
 
+    def has(self) -> frozenset[str]:
+        """What of the targets' NEEDS (control/spec.py) this run meets: a tempo source, a crowd.
+        The console offers only the targets that do something in it."""
+        return frozenset(({"sync"} if self.args.sync else set()) | ({"crowd"} if self.characters > 1 else set()))
+
     def writes(self) -> tuple[Path, ...]:
         """The folders its recordings (--bvh, --record) go to."""
         return tuple(Path(p).resolve().parent for p in (self.args.bvh, self.args.record) if p)
