@@ -43,14 +43,17 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     from ..output.outputs import OscOutput, RecorderOutput
     from ..output.footfall_midi import FootfallMidi
     from ..runtime.link import LinkTempo
-    from ..runtime.performance import Show, close_all, perform
+    from ..runtime.performance import Show, close_all, compile_kernels, perform
     from ..runtime.tempo import BeatLock, TempoFollower
 
-    plan = plan_show(args)  # everything checked before anything opens
+    with stop.ending_at_once("instrument run"):  # nothing is open yet: Ctrl-C ends the process at once
+        plan = plan_show(args)  # everything checked before anything opens
+        if args.check:
+            print(f"{args.config or 'the options'}: the show is fine (checked whole; nothing was opened or written)")
+            return 0
+        # a first run compiles here for half a minute, not in the first frame with the devices open
+        compile_kernels(plan.model, plan.characters, plan.fps, plan.profiles.values())
     console = plan.console
-    if args.check:
-        print(f"{args.config or 'the options'}: the show is fine (checked whole; nothing was opened or written)")
-        return 0
     fps, seconds, state, model, mappings, replay = plan.fps, plan.seconds, plan.state, plan.model, plan.mappings, plan.replay
     characters, spacing, bvh_character, vmc_characters = plan.characters, plan.spacing, plan.bvh_character, plan.vmc_characters
     score_path, targets, attract, hub = plan.score_path, plan.targets, plan.attract, plan.hub
