@@ -205,8 +205,10 @@ def test_a_humanoid_map_naming_one_bone_twice_is_one_line(tmp_path):
 
 
 @pytest.mark.parametrize("text, line, says", [
-    ('[bones]\n"Hips" = "Hips"\n"UpperLeg_L" = "LeftUperLeg"\n', 3, "'LeftUperLeg': not a humanoid bone (did you mean 'LeftUpperLeg'?)"),
-    ('[bones]\n"Hips" = "Hips"\n"UperLeg_L" = "LeftUpperLeg"\n', 3, "'UperLeg_L': the model's skeleton has no such joint (did you mean 'UpperLeg_L'?)"),
+    ('[bones]\n"Hips" = "Hips"\n"UpperLeg_L" = "LeftUperLeg"\n', 3,
+     "'LeftUperLeg': not a humanoid bone (did you mean 'LeftUpperLeg'?)"),
+    ('[bones]\n"Hips" = "Hips"\n"UperLeg_L" = "LeftUpperLeg"\n', 3,
+     "'UperLeg_L': the model's skeleton has no such joint (did you mean 'UpperLeg_L'?)"),
     ('# mine\n[bone]\n"Hips" = "Hips"\n', 2, "bone: unknown key (expected one of bones)"),
     ('[bones]\n"Hips" = 3\n', 2, "3: not a humanoid bone"),
 ])

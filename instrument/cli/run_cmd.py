@@ -32,7 +32,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    with StopFlag() as stop:  # Ctrl-C and SIGTERM from here on, start-up included, only ask to stop
+    with StopFlag() as stop:  # Ctrl-C and SIGTERM from here on only ask to stop, once anything is open
         return _run(args, stop)
 
 

@@ -57,10 +57,11 @@ class StopFlag:
             return
 
         def end(signum: int, _frame=None) -> None:
-            try:
-                os.write(2, f"{command}: stopped by {signal.Signals(signum).name} before anything was opened\n".encode())
-            except OSError:  # no stderr: the status says it
-                pass
+            line = f"{command}: stopped by {signal.Signals(signum).name} before anything was opened\n".encode()
+            # written from a thread, waited for a second at most: a stderr nobody reads never holds the exit
+            writer = threading.Thread(target=_write_stderr, args=(line,), daemon=True)
+            writer.start()
+            writer.join(1.0)
             os._exit(128 + signum)
 
         before = {signum: signal.signal(signum, end) for signum in SIGNALS}
@@ -77,3 +78,10 @@ class StopFlag:
 
     def __exit__(self, *exc) -> None:
         self.restore()
+
+
+def _write_stderr(data: bytes) -> None:
+    try:
+        os.write(2, data)
+    except OSError:  # no stderr: the exit status says it
+        pass
