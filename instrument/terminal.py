@@ -1,4 +1,4 @@
-"""What the performer reads: warnings (each kind at most once a minute) and a status line.
+"""What the performer reads: warnings (each subject of each kind at most once a minute) and a status line.
 
 Writing to the console never blocks or stops the frame loop. Lines are queued and written by a
 background thread straight to the file descriptor, so a terminal or pipe that nobody reads
@@ -18,6 +18,7 @@ import time
 from collections import deque
 
 QUEUE_LIMIT = 1000  # lines waiting for a stuck writer; more are dropped (counted in `dropped`)
+SUBJECTS_PER_KEY = 8  # distinct subjects of one kind of warning said a minute; more are left to the callers' counts
 
 
 class Console:
@@ -26,7 +27,7 @@ class Console:
         self.stream = stream if stream is not None else sys.stderr  # None when Python started with fd 2 closed
         self.now = now
         self.repeat_after = repeat_after
-        self.last_said: dict[str, float] = {}
+        self.last_said: dict[str, dict[str, float]] = {}  # key -> {subject: when it was last said}
         try:
             self.tty = self.stream is not None and self.stream.isatty()
         except (OSError, ValueError):
@@ -40,12 +41,19 @@ class Console:
         self.wake = threading.Condition()
         self.writer: threading.Thread | None = None
 
-    def warn(self, key: str, message: str) -> bool:
-        """Say `message` unless the same key was said less than a minute ago; True if said."""
+    def warn(self, key: str, message: str, subject: str = "") -> bool:
+        """Say `message` unless the same key and subject (the OSC address, the control, the
+        device the message is about) was said less than a minute ago; True if said. Each distinct
+        subject is named once a minute: a second typo of another address is shown, not only
+        counted. At most SUBJECTS_PER_KEY subjects of a key are said a minute, so a peer sending
+        a flood of distinct bad addresses cannot flood the terminal (the callers count them all)."""
         t = self.now()
-        if key in self.last_said and t - self.last_said[key] < self.repeat_after:
+        said = self.last_said.setdefault(key, {})
+        for old in [s for s, at in said.items() if t - at >= self.repeat_after]:
+            del said[old]
+        if subject in said or len(said) >= SUBJECTS_PER_KEY:
             return False
-        self.last_said[key] = t
+        said[subject] = t
         self._line(f"warning: {message}")
         return True
 

@@ -191,7 +191,7 @@ def test_joints_named_for_no_bone_ask_for_a_humanoid_map_in_one_line(tmp_path):
     assert "\n" not in str(error.value)
     bones = tmp_path / "bones.toml"
     bones.write_text(f'[bones]\n"{generic["Hips"]}" = "Hips"\n')
-    assert make_profile("vmc", model, str(bones)).bones == ["Hips"]
+    assert make_profile("vmc", model, read_humanoid(bones, model.layout.skeleton)).bones == ["Hips"]
 
 
 def test_a_humanoid_map_naming_one_bone_twice_is_one_line(tmp_path):
@@ -204,22 +204,44 @@ def test_a_humanoid_map_naming_one_bone_twice_is_one_line(tmp_path):
     assert str(error.value) == f"{bones}:4: [bones] 'LowerLeg_L' = 'LeftUpperLeg': 'UpperLeg_L' is LeftUpperLeg already"
 
 
-@pytest.mark.parametrize("text, said", [
-    ('[bones]\n"Hips" = "Hips"\n\n[Bones]\n"UpperLeg_L" = "LeftUpperLeg"\n',
-     ':4: Bones: unknown table or key (a humanoid map is one [bones] table of "joint" = "HumanBone")'),
-    ('map = "mine"\n[bones]\n"Hips" = "Hips"\n', ":1: map: unknown table or key"),
-    ('# the hips\n[bones]\n"Hips" = "Hips"\n"UpperLeg_X" = "LeftUpperLeg"\n', ":4: [bones] key 'UpperLeg_X': the model's skeleton has no such joint"),
-    ('[bones]\n"Hips" = "Hips"\n"UpperLeg_L" = "LeftUpperLegg"\n', ":3: [bones] 'UpperLeg_L' = 'LeftUpperLegg': not a humanoid bone"),
-    ('[bones]\n"Hips" = "Hips"\n[bones.arm]\n"UpperArm_L" = "LeftUpperArm"\n', ":3: [bones] key 'arm': the model's skeleton has no such joint"),
+@pytest.mark.parametrize("text, line, says", [
+    ('[bones]\n"Hips" = "Hips"\n\n[Bones]\n"UpperLeg_L" = "LeftUpperLeg"\n', 4, "Bones: unknown key"),
+    ('map = "mine"\n[bones]\n"Hips" = "Hips"\n', 1, "map: unknown key"),
+    ('# the hips\n[bones]\n"Hips" = "Hips"\n"UpperLeg_X" = "LeftUpperLeg"\n', 4, "the model's skeleton has no such joint"),
+    ('[bones]\n"Hips" = "Hips"\n"UpperLeg_L" = "LeftUpperLegg"\n', 3, "'LeftUpperLegg': not a humanoid bone"),
+    ('[bones]\n"Hips" = "Hips"\n[bones.arm]\n"UpperArm_L" = "LeftUpperArm"\n', 3, "the model's skeleton has no such joint"),
 ])
-def test_a_humanoid_map_key_it_does_not_read_is_one_line_at_its_line(tmp_path, text, said):
+def test_a_humanoid_map_key_it_does_not_read_is_one_line_at_its_line(tmp_path, text, line, says):
     """A second table (`[Bones]`, a note above [bones]) was read past: its bones never moved on
     the avatar and nothing said so. Every refusal names the line."""
     bones = tmp_path / "bones.toml"
     bones.write_text(text)
     with pytest.raises(UserError) as error:
         read_humanoid(bones, load_model(default_model_path()).layout.skeleton)
-    assert str(error.value).startswith(f"{bones}{said}"), error.value
+    assert str(error.value).startswith(f"{bones}:{line}:") and says in str(error.value), error.value
+
+
+@pytest.mark.parametrize("text, line, says", [
+    ('[bones]\n"Hips" = "Hips"\n"UpperLeg_L" = "LeftUperLeg"\n', 3,
+     "'LeftUperLeg': not a humanoid bone (did you mean 'LeftUpperLeg'?)"),
+    ('[bones]\n"Hips" = "Hips"\n"UperLeg_L" = "LeftUpperLeg"\n', 3,
+     "'UperLeg_L': the model's skeleton has no such joint (did you mean 'UpperLeg_L'?)"),
+    ('# mine\n[bone]\n"Hips" = "Hips"\n', 2, "bone: unknown key (expected one of bones)"),
+    ('[bones]\n"Hips" = 3\n', 2, "3: not a humanoid bone"),
+])
+def test_a_bad_bone_map_stops_run_at_start_whatever_the_targets_naming_its_line(tmp_path, text, line, says):
+    """A bone map the performer named was read only for a VMC target: with the flat profile alone
+    (or no OSC) a misspelt bone or joint passed `run` silently, and when it was read the error
+    named no line. Now it is read at start whatever the targets: one line naming file and line."""
+    bones = tmp_path / "bones.toml"
+    bones.write_text(text)
+    for targets in (["--no-osc"], ["--osc", "127.0.0.1:9/flat"], ["--osc", "127.0.0.1:9/vmc"]):
+        result = cli("run", "--check", "--humanoid", str(bones), *targets)
+        assert result.returncode == 1 and "Traceback" not in result.stderr, result.stderr
+        lines = result.stderr.splitlines()
+        assert len(lines) == 1 and lines[0].startswith(f"instrument run: error: {bones}:{line}: ") and says in lines[0], lines
+    bones.write_text('[bones]\n"Hips" = "Hips"\n')  # the check can pass
+    assert cli("run", "--check", "--humanoid", str(bones), "--no-osc").returncode == 0
 
 
 def test_humanoid_guess_of_the_shipped_skeleton():

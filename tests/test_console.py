@@ -662,6 +662,32 @@ def status_of(url: str, origin: str | None = None) -> int:
     return asyncio.run(get())
 
 
+@needs_browser
+def test_the_page_offers_only_the_controls_that_do_something_in_this_run(browser):
+    """The page builds its controls from the table of targets the hello message carries: a run
+    without --sync showed the tempo lock's buttons and steps per beat, and one character the
+    crowd's spread, which moved nothing. The rows say what they need; the run says what it has."""
+    from instrument.cli.main import build_parser
+    from instrument.cli.showplan import plan_show
+
+    def offered(url: str) -> set[str]:
+        open_page(browser, url)
+        return set(browser.execute_script("return [...document.querySelectorAll('[data-target]')].map(e => e.dataset.target)"))
+
+    for characters, unused, used in (("1", {"sync", "steps-per-beat", "spread"}, {"speed", "gait", "turn"}),
+                                      ("2", {"sync", "steps-per-beat"}, {"spread", "speed"})):
+        show = Instrument("--console", "127.0.0.1:0", "--no-osc", "--quiet", "--characters", characters)
+        try:
+            targets = offered(show.url)
+            rows = {row["pattern"] for row in asyncio.run(talk(show.url, []))[0]["rows"]}
+        finally:
+            show.stop()
+        assert used <= targets and not unused & targets, targets
+        assert not unused & rows and used <= rows
+    synced = build_parser("run").parse_args(["run", "--sync", "midi", "--midi-virtual", "x", "--no-osc", "--check"])
+    assert plan_show(synced).has() == {"sync"}  # where the lock's controls are offered (test_tempo.py: their rows)
+
+
 def test_a_named_host_needs_the_token_and_bad_messages_never_stop_the_show(tmp_path):
     import urllib.error
     import urllib.request

@@ -320,6 +320,35 @@ def test_an_osc_surface_sets_the_gait_by_number_or_by_name_and_a_bad_name_is_ref
     assert replayed_gaits(log, last_frame(receiver) / 30 + 1.0) == [1.0, 2.0, 0.0, 1.0]
 
 
+def test_each_distinct_bad_osc_address_is_named_and_its_repeats_counted(tmp_path):
+    """A performer's OSC typos: the warning was throttled per kind, so a second unknown address
+    within the minute was only counted and never named. Each distinct bad address (or control)
+    is named once; its repeats are counted, not said again."""
+    from pythonosc.udp_client import SimpleUDPClient
+
+    control_port, receiver = free_port(), Receiver()
+    process = subprocess.Popen(RUN + ["--osc-in", str(control_port), "--osc", f"127.0.0.1:{receiver.port}/flat"],
+                               stderr=subprocess.PIPE, text=True)
+    stderr = StderrLines(process)
+    client = SimpleUDPClient("127.0.0.1", control_port)
+    try:
+        wait_until(lambda: last_frame(receiver) >= 20, "20 frames")
+        for address in ("/walk/speeed", "/walk/tunr", "/walk/speeed", "/foo/speed", "/bar/speed", "/foo/speed"):
+            client.send_message(address, 0.5)
+        client.send_message("/walk/style/nrmal", 0.5)  # said last: the ones before it are taken by then
+        stderr.wait_for("'style/nrmal'")
+    finally:
+        process.terminate()
+        process.wait(60)
+        receiver.close()
+    text = stderr.text()
+    assert process.returncode == 0, text
+    warnings = [line for line in text.splitlines() if line.startswith("warning:")]
+    for named in ("'speeed'", "'tunr'", "'style/nrmal'", "'/foo/speed'", "'/bar/speed'"):
+        assert sum(named in line for line in warnings) == 1, (named, warnings)
+    assert "'unknown target': 4" in text and "'address': 3" in text  # every one counted
+
+
 def test_show_file_starts_the_whole_setup(tmp_path):
     receiver = Receiver()
     show = tmp_path / "show.toml"

@@ -811,3 +811,25 @@ def test_the_event_log_stops_at_its_limit_and_counts_what_it_lost(tmp_path, monk
     assert (tmp_path / "take.jsonl").stat().st_size <= 10_000
     assert len(kept) + log.lost == len(events) and log.lost > 0 and "limit" in log.error
     assert kept == events[: len(kept)]  # what was kept is the start, in order, whole lines
+
+
+def test_the_console_names_each_subject_once_a_minute_and_at_most_a_few_subjects_of_a_kind():
+    """Warnings are throttled per kind and subject (the address, control or device): each
+    distinct subject is said once a minute, its repeats not; a flood of distinct subjects of one
+    kind says SUBJECTS_PER_KEY of them a minute, not thousands of lines."""
+    import io
+
+    from instrument.terminal import SUBJECTS_PER_KEY, Console
+
+    clock = [0.0]
+    out = io.StringIO()
+    console = Console(stream=out, now=lambda: clock[0])
+    assert console.warn("osc-in address", "bad /a", subject="/a")
+    assert not console.warn("osc-in address", "bad /a", subject="/a")  # a repeat: counted by the caller
+    assert console.warn("osc-in address", "bad /b", subject="/b")  # another address: named
+    assert console.warn("refused osc unknown target", "bad /a", subject="/a")  # another kind: its own
+    said = sum(console.warn("osc-in address", f"bad /x{k}", subject=f"/x{k}") for k in range(1000))
+    assert said == SUBJECTS_PER_KEY - 2
+    clock[0] = 61.0  # a minute on: said again
+    assert console.warn("osc-in address", "bad /a", subject="/a") and console.warn("osc-in address", "bad /x999", subject="/x999")
+    assert out.getvalue().count("warning:") == 2 + 1 + SUBJECTS_PER_KEY - 2 + 2

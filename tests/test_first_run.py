@@ -9,12 +9,16 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
 
+import pytest
+
 from conftest import REPO
 from samples import cmu_style_walk
+from waiting import StderrLines
 
 COMPILING = "compiling the walk's kernels for this machine"
 
@@ -44,6 +48,32 @@ def test_a_first_run_says_it_is_compiling_into_the_users_cache_and_a_second_says
     second = subprocess.run([sys.executable, "-m", "instrument", "inspect", str(walk)], capture_output=True, text=True,
                             timeout=600, env=env)
     assert second.returncode == 0 and COMPILING not in second.stderr, second.stderr
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_while_a_first_run_compiles_ends_it_at_once_with_one_line(tmp_path, signum):
+    """Ctrl-C while a first `run` compiled (half a minute) waited for the compile to end: it ran
+    in the first frame, with the devices open, where a signal only asks the loop to stop. The
+    kernels are compiled before anything opens, where a signal ends the process at once: one
+    line, 130 (143 for SIGTERM), nothing written, and the start-up never goes on to open the
+    outputs (on main the compile ended, the show said its start-up line and exited 0)."""
+    bvh, log, cache = tmp_path / "take.bvh", tmp_path / "take.jsonl", tmp_path / "cache"
+    process = subprocess.Popen([sys.executable, "-m", "instrument", "run", "--no-osc", "--seconds", "5", "--bvh", str(bvh),
+                                "--record", str(log)], stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
+                               env=clean_env(NUMBA_CACHE_DIR=str(cache)))
+    stderr = StderrLines(process)
+    try:
+        stderr.wait_for(COMPILING)
+        process.send_signal(signum)
+        process.wait(600)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    lines = stderr.text().splitlines()
+    assert process.returncode == 128 + signum, lines
+    assert len(lines) == 2 and lines[0].startswith(COMPILING), lines
+    assert lines[1] == f"instrument run: stopped by {signal.Signals(signum).name} before anything was opened"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cache"]  # no recording, no log
 
 
 def test_the_cache_folder_follows_the_user_systemd_and_an_explicit_choice(tmp_path):

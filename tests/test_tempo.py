@@ -685,11 +685,13 @@ def test_a_show_file_selects_the_sync_and_a_bad_one_is_one_line(tmp_path):
 
 def test_the_console_turns_the_lock_on_and_off_and_chooses_steps_per_beat():
     """The console builds its page from the spec table: `sync` as two buttons (off, on), the
-    steps per beat as a slider, both in the walk section; a page's "off" turns the lock off."""
+    steps per beat as a slider, both in the walk section of a run with --sync (only); a page's
+    "off" turns the lock off."""
     from instrument.control.spec import rows_for_page
     from instrument.control.state import ControlState
 
-    rows = {row["pattern"]: row for row in rows_for_page()}
+    assert not {"sync", "steps-per-beat"} & {row["pattern"] for row in rows_for_page()}  # a run without --sync
+    rows = {row["pattern"]: row for row in rows_for_page({"sync"})}
     assert rows["sync"]["choices"] == ["off", "on"] and rows["sync"]["section"] == "walk"
     assert rows["steps-per-beat"]["section"] == "walk" and rows["steps-per-beat"]["range"] == [0.0, 2.0]
     state = ControlState(["a"], 5)

@@ -27,7 +27,7 @@ from instrument.models.modelfile import load_model
 from instrument.motion.bvh import Joint, Motion, Skeleton, read_bvh, write_bvh
 from instrument.motion.features import choose_layout, extract
 from instrument.motion.kinematics import channels_from_local, forward_kinematics, local_transforms
-from instrument.output.humanoid import guess_humanoid
+from instrument.output.humanoid import guess_humanoid, read_humanoid
 from instrument.output.outputs import make_profile
 from instrument.output.vmc import VmcProfile
 from instrument.synthesis.posing import Pose
@@ -272,7 +272,7 @@ def test_normalised_avatar_matches_the_bvh_with_a_model_on_another_skeleton(walk
     model = load_model(model_path)
     motion = motions[walk.stem]
     for root in ("hips", "path"):
-        profile = make_profile("vmc", model, str(humanoid), vmc_root=root)
+        profile = make_profile("vmc", model, read_humanoid(humanoid, model.layout.skeleton), vmc_root=root)
         assert profile.scale == 1.0  # metres, recognised
         assert_close(compare(profile, motion, mapping))
 

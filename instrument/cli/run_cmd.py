@@ -32,7 +32,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    with StopFlag() as stop:  # Ctrl-C and SIGTERM from here on, start-up included, only ask to stop
+    with StopFlag() as stop:  # Ctrl-C and SIGTERM from here on only ask to stop, once anything is open
         return _run(args, stop)
 
 
@@ -43,14 +43,17 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
     from ..output.outputs import OscOutput, RecorderOutput
     from ..output.footfall_midi import FootfallMidi
     from ..runtime.link import LinkTempo
-    from ..runtime.performance import Show, close_all, perform
+    from ..runtime.performance import Show, close_all, compile_kernels, perform
     from ..runtime.tempo import BeatLock, TempoFollower
 
-    plan = plan_show(args)  # everything checked before anything opens
+    with stop.ending_at_once("instrument run"):  # nothing is open yet: Ctrl-C ends the process at once
+        plan = plan_show(args)  # everything checked before anything opens
+        if args.check:
+            print(f"{args.config or 'the options'}: the show is fine (checked whole; nothing was opened or written)")
+            return 0
+        # a first run compiles here for half a minute, not in the first frame with the devices open
+        compile_kernels(plan.model, plan.characters, plan.fps, plan.profiles.values())
     console = plan.console
-    if args.check:
-        print(f"{args.config or 'the options'}: the show is fine (checked whole; nothing was opened or written)")
-        return 0
     fps, seconds, state, model, mappings, replay = plan.fps, plan.seconds, plan.state, plan.model, plan.mappings, plan.replay
     characters, spacing, bvh_character, vmc_characters = plan.characters, plan.spacing, plan.bvh_character, plan.vmc_characters
     score_path, targets, attract, hub = plan.score_path, plan.targets, plan.attract, plan.hub
@@ -79,7 +82,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
                                  + ([f"score {score_path}"] if score_path else []))
 
             link = ConsoleLink(args.console, model, state, hub.presets, console, fps, args.console_token, args.presets,
-                               sources)
+                               sources, plan.has())
             devices.append(link.input)
             for line in link.announcement():
                 console.say(line)

@@ -137,6 +137,11 @@ class ShowPlan:
     live: bool  # a controller (MIDI, HID, OSC in, the console) plays
     console: Console  # quiet as the options say
 
+    def has(self) -> frozenset[str]:
+        """What of the targets' NEEDS (control/spec.py) this run meets: a tempo source, a crowd.
+        The console offers only the targets that do something in it."""
+        return frozenset(({"sync"} if self.args.sync else set()) | ({"crowd"} if self.characters > 1 else set()))
+
     def writes(self) -> tuple[Path, ...]:
         """The folders its recordings (--bvh, --record) go to."""
         return tuple(Path(p).resolve().parent for p in (self.args.bvh, self.args.record) if p)
@@ -179,6 +184,7 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
     from ..control.score import ScorePlayer, endless_cue, load_demo, load_score
     from ..control.state import ControlState
     from ..models.modelfile import load_model
+    from ..output.humanoid import read_humanoid
     from ..output.outputs import make_profile
 
     given = {dest for dest, value in vars(args).items() if value is not None}
@@ -251,7 +257,9 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
             raise UserError(f"{origins.prefix('osc')}--osc {target}: {vmc_characters} characters need VMC ports "
                             f"{target.port} to {target.port + vmc_characters - 1}, past 65535")
     with origins.blame("humanoid"):  # the OSC profiles' joints, humanoid bones and root (output/outputs.py)
-        profiles = {kind: make_profile(kind, model, args.humanoid, args.vmc_root, not args.no_relaxed_hands, characters)
+        # a bone map named is read whatever the targets: a mistake in it is said now, not when a VMC target is added
+        humanoid = read_humanoid(args.humanoid, model.layout.skeleton) if args.humanoid else None
+        profiles = {kind: make_profile(kind, model, humanoid, args.vmc_root, not args.no_relaxed_hands, characters)
                     for kind in {t.profile for t in targets}}
     hub = ControlHub(mappings, presets, None, morph, console,
                      per_device=logged_per_device(args.replay) if args.replay else True)  # as the log was played

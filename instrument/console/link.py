@@ -10,7 +10,7 @@ import secrets
 import socket
 import subprocess
 import sys
-from typing import Callable
+from collections.abc import Callable, Collection
 
 import numpy as np
 
@@ -61,16 +61,17 @@ def network_addresses() -> list[str]:
     return list(dict.fromkeys(a for a in found if not a.startswith("127.") and a != "0.0.0.0"))
 
 
-def hello(model, state: ControlState, save_path: str | None, fps: float) -> dict:
-    """What a page is told once, on connecting: the model's styles and skeleton, the ranges (the
-    server adds the names of the presets it holds)."""
+def hello(model, state: ControlState, save_path: str | None, fps: float, has: Collection[str] = ()) -> dict:
+    """What a page is told once, on connecting: the model's styles and skeleton, the ranges of the
+    targets this run can use (`has`: control/spec.py's NEEDS the run meets), and the server adds
+    the names of the presets it holds."""
     skeleton = model.layout.skeleton
     return {
         "type": "hello", "styles": state.style_names, "groups": list(GROUPS), "states": state.states,
         "gestures": list(gesture_labels(model.metadata)),  # the gesture buttons: those the model holds
         "joints": list(skeleton.names), "parents": [j.parent for j in skeleton.joints], "root": model.layout.root,
         "fps": fps, "save": save_path, "order": list(all_values(state)),
-        "rows": rows_for_page(),  # the sliders: control/spec.py's rows (console.js builds them from these)
+        "rows": rows_for_page(has),  # the sliders: control/spec.py's rows (console.js builds them from these)
     }
 
 
@@ -79,7 +80,7 @@ class ConsoleLink:
 
     def __init__(self, address: str, model, state: ControlState, presets: dict[str, dict[str, float]], console: Console,
                  fps: float, token: str | None = None, save_path: str | None = None,
-                 sources: Callable[[], str] = lambda: ""):
+                 sources: Callable[[], str] = lambda: "", has: Collection[str] = ()):
         host, port, named = split_address(address)
         if save_path is not None:
             check_presets_file(save_path)  # at start, not at the first save: a show file given by mistake
@@ -95,7 +96,7 @@ class ConsoleLink:
                                         pass_fds=[theirs.fileno()])
         theirs.close()
         config = {"host": host, "port": port, "token": self.token, "targets": state.targets(), "save": save_path,
-                  "max_presets": MAX_PRESETS, "hello": hello(model, state, save_path, fps)}
+                  "max_presets": MAX_PRESETS, "hello": hello(model, state, save_path, fps, has)}
         self.sock.sendall(JSON + json.dumps(config).encode("utf-8"))
         self.sock.settimeout(START_SECONDS)
         try:

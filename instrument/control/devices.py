@@ -366,7 +366,8 @@ class OscInput:
             self._refuse("malformed", f"ignored a malformed OSC message on {self.address} ({error})")
             return
         if not address.startswith("/walk/"):
-            self._refuse("address", f"ignored OSC address {address[:60]!r} on {self.address}: controls are /walk/...")
+            self._refuse("address", f"ignored OSC address {address[:60]!r} on {self.address}: controls are /walk/...",
+                         address)
         elif tag == "s" and (row := TABLE.get(address[len("/walk/"):])) is not None and row.choices:
             self._take_name(message, row, now, events)
         elif not tag and (row := row_of(address[len("/walk/"):], (), 0)) is not None and row.action:
@@ -374,7 +375,8 @@ class OscInput:
             events.append(RawEvent(now, self.source, address[len("/walk/"):], 1.0))
         elif value is None:
             self._refuse("argument", f"ignored {address[:60]} on {self.address}: "
-                         + (f"its argument (type {tag!r}) is not a number" if tag else "it has no argument (a number is needed)"))
+                         + (f"its argument (type {tag!r}) is not a number" if tag else "it has no argument (a number is needed)"),
+                         address)
         else:
             events.append(RawEvent(now, self.source, address[len("/walk/"):], value))
             self._left_over(message, address)
@@ -390,7 +392,7 @@ class OscInput:
         value = row.number(name)
         why = value_refusal(row, row.kind, value)
         if why is not None:
-            self._refuse(why.kind, f"ignored /walk/{row.kind} on {self.address}: {why.text}")
+            self._refuse(why.kind, f"ignored /walk/{row.kind} on {self.address}: {why.text}", f"/walk/{row.kind}")
         else:
             events.append(RawEvent(now, self.source, row.kind, float(value)))
             self._left_over(message, f"/walk/{row.kind}")
@@ -405,9 +407,11 @@ class OscInput:
                               f"{len(extra)} more (type tags {extra[:16]!r}): a control takes one value "
                               "(such messages are taken so; the next is shown in a minute)")
 
-    def _refuse(self, kind: str, message: str) -> None:
+    def _refuse(self, kind: str, message: str, address: str = "") -> None:
+        """Counted by kind; said once a minute per kind and address (each distinct bad address named)."""
         self.refused[kind] = self.refused.get(kind, 0) + 1
-        self.console.warn(f"osc-in {kind}", message + " (such messages are counted; the next is shown in a minute)")
+        self.console.warn(f"osc-in {kind}", message + (" (counted; this address's next is shown in a minute)" if address
+                                                       else " (counted; the next is shown in a minute)"), subject=address)
 
     def describe(self) -> str:
         return f"osc-in {self.address}"

@@ -6,7 +6,7 @@ heard from, by its kind's entry in the registry (control/kinds.py): one per devi
 controllers of one kind, each with its own mapping, play at once. What a decoder asks for is
 checked against the table of targets (control/targets.py) first; an event that is refused changes
 nothing, is not recorded, is counted in `refused` by kind and warned about once a minute per
-source and kind.
+kind and control (each distinct control named: terminal.Console.warn).
 """
 
 from __future__ import annotations
@@ -99,7 +99,8 @@ class ControlHub:
                 origin = event.source.kind[:20] if isinstance(event.source, Source) else "?"
                 self.console.warn(f"refused {origin} {why}",
                                   f"ignored {_short(event.source)} {_short(event.control)!r} = {event.value!r}: {why} "
-                                  "(such events are counted; the next is shown in a minute)")
+                                  "(counted; this control's next is shown in a minute)",
+                                  subject=f"{_short(event.source)} {_short(event.control)}")
             return False
         if self.log is not None:
             self.log.write(event)

@@ -5,7 +5,8 @@ browser console, replayed logs, scores, presets files, a show file's and a mappi
 [presets], attract mode, the command line) is checked against these rows by control/checks.py,
 so the same value gets the same verdict whatever brought it. What other parts show of the
 targets is derived from the rows too: the values a control surface is echoed (`echoed`), the
-console's sliders (the hello message carries `rows_for_page`), learn's default ranges
+console's sliders (the hello message carries `rows_for_page`: those this run can use, by each
+row's `needs`), learn's default ranges
 (`Row.fader`), a stored preset's targets (`Row.stored`) and the table in docs/controls.md.
 
 A row's `pattern` is how its targets are written: `<style>`, `<group>` and `<k>` are filled
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Collection
 from dataclasses import dataclass
 
 from ..synthesis.parameters import GAITS, GESTURES, GROUPS, MAX_SPEED, MIN_SPEED
@@ -26,6 +28,8 @@ from ..synthesis.parameters import GAITS, GESTURES, GROUPS, MAX_SPEED, MIN_SPEED
 MAX_TURN = 3.0  # rad/s
 WEIGHT_LIMIT = 10.0
 MAX_MORPH = 600.0  # seconds
+# what a target may need of the run to do anything: a tempo source (run --sync), a crowd (--characters above 1)
+NEEDS = ("sync", "crowd")
 PRESET_NAME = re.compile(r"^[A-Za-z0-9_.-]{1,40}$")  # preset names: plain TOML keys, safe in a URL and on screen
 
 
@@ -46,6 +50,11 @@ class Row:
     slider: tuple[float, float] | None = None  # the console slider's travel, when shorter than the range
     fader: tuple[float, float] | None = None  # the range `instrument learn` gives a learned control
     choices: tuple[str, ...] = ()  # names of the whole values low, low + 1, ... (a name is taken for its number)
+    needs: str = ""  # what a run must have for the target to do anything (NEEDS); the console offers it only then
+
+    def __post_init__(self):
+        if self.needs and self.needs not in NEEDS:
+            raise ValueError(f"Row {self.pattern}: needs {self.needs!r}, not one of {NEEDS}")
 
     @property
     def kind(self) -> str:
@@ -82,12 +91,12 @@ _ROWS = (
     Row("liveliness", 0.0, 1.0, 0.0, "", "0: every step alike; 1: durations drawn from the model",
         stored=True, echoed=True, section="walk", fader=(0.0, 1.0)),
     Row("spread", 0.0, 1.0, 0.0, "", "a crowd's style spread: 0 every character as performed; 1 each its own style mix",
-        stored=True, echoed=True, section="walk", fader=(0.0, 1.0)),
+        stored=True, echoed=True, section="walk", fader=(0.0, 1.0), needs="crowd"),
     Row("sync", 0.0, 1.0, 1.0, "", "with run --sync: on (1) steps on the music's beat, off (0) keeps the walk's own time",
-        section="walk", fader=(0.0, 1.0), choices=("off", "on")),
+        section="walk", fader=(0.0, 1.0), choices=("off", "on"), needs="sync"),
     Row("steps-per-beat", 0.0, 2.0, 0.0, "steps",
         "with run --sync: steps per beat the walk locks to, 0.5, 1 or 2 (nearest); below 0.25 the lock chooses",
-        stored=True, section="walk", fader=(0.0, 2.0)),
+        stored=True, section="walk", fader=(0.0, 2.0), needs="sync"),
     Row("morph", 0.0, MAX_MORPH, 0.0, "s", "seconds a recalled preset takes to arrive (0: at once); a reset keeps it",
         section="morph", slider=(0.0, 10.0)),
     Row("phase/<k>", MIN_SPEED, MAX_SPEED, 1.0, "x", "stretch of state k (1-based) of every step",
@@ -123,12 +132,15 @@ def names(style_names: list[str], states: int) -> list[str]:
     return out
 
 
-def rows_for_page() -> list[dict]:
+def rows_for_page(has: Collection[str] = ()) -> list[dict]:
     """The rows as the console's hello message carries them: the page builds its sliders from these
-    (a row with named values, gait, as one button a name)."""
+    (a row with named values, gait, as one button a name). A row that needs what the run does not
+    have (`has`: of NEEDS) is left out: the tempo lock's controls without --sync, the crowd's
+    spread for one character, would move nothing."""
     return [{"kind": row.kind, "pattern": row.pattern, "range": [row.low, row.high],
              "travel": list(row.slider or (row.low, row.high)), "section": row.section, "units": row.units,
-             "help": row.help, "choices": list(row.choices)} for row in _ROWS if row.section is not None]
+             "help": row.help, "choices": list(row.choices)} for row in _ROWS
+            if row.section is not None and (not row.needs or row.needs in has)]
 
 
 def markdown_table() -> str:

@@ -15,12 +15,14 @@ maps joint names to bone names:
 
 from __future__ import annotations
 
+import difflib
 import re
+from collections.abc import Sequence
 from pathlib import Path
 
-from ..errors import UserError
+from ..errors import quoted
 from ..motion.bvh import Skeleton
-from ..tomlfile import TomlFile
+from ..tomlfile import Field, TomlFile
 
 HUMAN_BONES = (
     "Hips", "Spine", "Chest", "UpperChest", "Neck", "Head",
@@ -132,27 +134,37 @@ def guess_humanoid(skeleton: Skeleton) -> dict[str, str]:
     return mapping
 
 
+SCHEMA = {"bones": Field("table", required='the map: a [bones] table of "joint" = "HumanBone" lines')}
+
+
 def read_humanoid(path: str | Path, skeleton: Skeleton) -> dict[str, str]:
-    """A `--humanoid` file: one [bones] table of "joint" = "HumanBone" and nothing else, each pair
-    checked against the model's skeleton and the humanoid bones; an error names the file and the
-    line. Another table or key (`[Bones]`, a second map under `[bones2]`) is refused: read past,
-    its bones never moved on the avatar, and nothing said so."""
+    """{joint: human bone} of a bone map file (`run --humanoid`, `skeleton --humanoid`), checked
+    against `skeleton`: an unknown key or table, a joint the skeleton lacks, a bone that is not a
+    humanoid bone, a bone given twice is a one-line UserError naming the file and the line."""
     doc = TomlFile(path)
-    unknown = [key for key in doc.data if key != "bones"]
-    if unknown:
-        raise doc.error((unknown[0],), 'unknown table or key (a humanoid map is one [bones] table of "joint" = "HumanBone")')
-    bones = doc.data.get("bones")
-    if not isinstance(bones, dict) or not bones:
-        raise UserError(f"{path}:{doc.line('bones')}: expected a [bones] table of \"joint\" = \"HumanBone\"")
-    taken: dict[object, str] = {}
+    bones = doc.check((), doc.data, SCHEMA)["bones"]
+    if not bones:
+        raise doc.error(("bones",), 'empty: expected "joint" = "HumanBone" lines', "[bones]")
+    taken: dict[str, str] = {}
     for joint, bone in bones.items():
-        where = f"{path}:{doc.line('bones', joint)}: [bones]"
+        where, shown = ("bones", joint), f"[bones] {joint!r}"
         if joint not in skeleton.names:
-            raise UserError(f"{where} key {joint!r}: the model's skeleton has no such joint (it has "
-                            f"{', '.join(skeleton.names[:6])}, ...): this map is for another skeleton")
+            close = _nearest(joint, skeleton.names)
+            raise doc.error(where, "the model's skeleton has no such joint (" + (
+                f"did you mean {close!r}?)" if close else
+                f"it has {', '.join(skeleton.names[:6])}, ...): this map is for another skeleton"), shown)
         if not isinstance(bone, str) or bone not in HUMAN_BONES:
-            raise UserError(f"{where} {joint!r} = {bone!r}: not a humanoid bone ({', '.join(HUMAN_BONES[:4])}, ...)")
+            close = _nearest(bone, HUMAN_BONES)
+            raise doc.error(where, f"{quoted(bone)}: not a humanoid bone (" + (
+                f"did you mean {close!r}?)" if close else f"{', '.join(HUMAN_BONES[:4])}, ...: Unity's HumanBodyBones)"),
+                shown)
         if bone in taken:  # a VMC receiver would get the bone twice a frame, from two joints
-            raise UserError(f"{where} {joint!r} = {bone!r}: {taken[bone]!r} is {bone} already")
+            raise doc.error(where, f"{taken[bone]!r} is {bone} already", f"{shown} = {bone!r}")
         taken[bone] = joint
     return dict(bones)
+
+
+def _nearest(name: object, names: Sequence[str]) -> str | None:
+    """The one of `names` that `name` is a typo of, if any."""
+    close = difflib.get_close_matches(str(name), names, n=1, cutoff=0.8)
+    return close[0] if close else None

@@ -12,7 +12,7 @@ from ..motion.kinematics import ChannelStream
 from ..synthesis.posing import Frame
 from .background import Background
 from .flat import FlatProfile, footfall_datagrams
-from .humanoid import guess_humanoid, read_humanoid
+from .humanoid import guess_humanoid
 from .osc import Datagrams, OscTarget, UdpOut, unbundled
 from .recorder import BvhRecorder
 from .vmc import VmcProfile
@@ -105,13 +105,14 @@ class RecorderOutput:
         self.recorder.close()
 
 
-def make_profile(kind: str, model: Model, humanoid_file: str | None = None, vmc_root: str = "hips", fingers: bool = True,
-                 characters: int = 1):
-    """`characters`: the flat profile of a crowd carries them all (a VMC target takes one)."""
+def make_profile(kind: str, model: Model, humanoid: dict[str, str] | None = None, vmc_root: str = "hips",
+                 fingers: bool = True, characters: int = 1):
+    """`humanoid`: the VMC profile's joint-to-bone map (`read_humanoid`), None: guessed from the
+    joints' names. `characters`: the flat profile of a crowd carries them all (a VMC target takes one)."""
     layout = model.layout
     if kind == "flat":
         return FlatProfile(layout.skeleton.names, layout.root, characters)
-    mapping = read_humanoid(humanoid_file, layout.skeleton) if humanoid_file else guess_humanoid(layout.skeleton)
+    mapping = humanoid if humanoid is not None else guess_humanoid(layout.skeleton)
     if not mapping:  # joints named joint01, joint02, ...: nothing to send a humanoid, nor to rest in a T-pose
         names = layout.skeleton.names
         raise UserError(f"no joint name of the model's skeleton ({', '.join(names[:4])}{', ...' if len(names) > 4 else ''}) "

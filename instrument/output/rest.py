@@ -16,6 +16,7 @@ import numpy as np
 
 from ..models.modelfile import Model
 from ..motion.bvh import Joint, Motion, Skeleton
+from .humanoid import read_humanoid
 from .outputs import make_profile
 from .tpose import DIRECTIONS
 
@@ -45,7 +46,8 @@ def joint_names(skeleton: Skeleton, bone_of: dict[int, str]) -> list[str]:
 
 def tpose_rest(model: Model, humanoid_file: str | None = None) -> Motion:
     """The model's skeleton re-rested in the T-pose, as a one-frame motion at the model's rate."""
-    profile = make_profile("vmc", model, humanoid_file, fingers=False)
+    humanoid = read_humanoid(humanoid_file, model.layout.skeleton) if humanoid_file else None
+    profile = make_profile("vmc", model, humanoid, fingers=False)
     skeleton = model.layout.skeleton
     bone_of = dict(zip(profile.joints, profile.bones))
     world = []  # T-pose world rotation of every joint: its reference, else carried from its parent

@@ -13,7 +13,7 @@ import gc
 import time
 from collections import deque
 from dataclasses import dataclass, field, replace
-from typing import Callable, Protocol, Sequence
+from typing import Callable, Iterable, Protocol, Sequence
 
 import numpy as np
 
@@ -298,6 +298,20 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
     summary.late, summary.dropped = clock.late, clock.dropped
     summary.seconds = time.monotonic() - started
     return summary
+
+
+def compile_kernels(model: Model, characters: int, fps: float, profiles: Iterable = ()) -> None:
+    """Every kernel a show's frames call, compiled (or loaded from numba's cache): the engine's
+    (`rehearse`), the check of a frame's poses and each OSC profile's encoding of a frame. `run`
+    calls it before it opens anything, where Ctrl-C ends the process at once: a first run
+    compiles for half a minute (in `perform`, with the devices open, a Ctrl-C waited for it).
+    With the cache warm it takes about as long as loading the kernels."""
+    rehearse(model, characters, fps)
+    state = ControlState(model.style_names, model.states)
+    crowd, _ = FinitePoses()(Engine(model, characters, fps).frame(0.0, state.snapshot(), state.spread))
+    for profile in profiles:
+        if hasattr(profile, "encode"):  # the flat profile's compiled encoding, of the poses an output gives it
+            profile.encode(crowd if getattr(profile, "whole_crowd", False) else crowd.character(0), state.echo())
 
 
 def frame_lead(work_times: Sequence[float], restyles: Sequence[float], fps: float) -> tuple[float, float]:
