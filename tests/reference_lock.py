@@ -445,7 +445,8 @@ class FootLock:
         for f, leg in enumerate(self.limbs.legs):
             sole = self.sole(1 - f, world_rot, world_pos)  # the other foot's lowest point
             holding = planted[f] or (planted[1 - f] and sole >= CONTACT_CM / self.cm)  # planted, or handing over
-            self.next_held[f] = min(1.0, self.held[f] + self.hold_step) if holding else max(0.0, self.held[f] - self.hold_step)
+            going = min(self.hold_step, self.blend_step) if planted[1 - f] else self.hold_step
+            self.next_held[f] = min(1.0, self.held[f] + self.hold_step) if holding else max(0.0, self.held[f] - going)
             target = self._target(f, leg, world_rot, world_pos, self.next_held[f])
             turn = np.eye(3)
             if self.weight[f] > 0 or self.rise[f] > 0:  # after its lock, a heel comes down at the same pace
