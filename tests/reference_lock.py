@@ -16,7 +16,7 @@ from instrument.motion.kinematics import forward_kinematics
 from instrument.motion.limbs import centimetres_per_unit, find_limbs, foot_tip
 from instrument.synthesis.posing import Pose
 from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, HOLD_FRAMES, NEARLY_STRAIGHT,
-                                          POSSIBLE, PLANTED, REFERENCE_FPS, SWING_BENT, SWING_CM)
+                                          POSSIBLE, PLANTED, REFERENCE_FPS, RELEASE_HOLD_FRAMES, SWING_BENT, SWING_CM)
 from instrument.synthesis.follow import STRENGTH
 from instrument.synthesis.footlock import (CLOSED, HEEL_RISE_SPEED, LANDING_PACE, MAX_HEEL_RISE, SETTLE_CM, SETTLE_LIFT_CM,
                                            SETTLE_SECONDS, SETTLE_STILL_CM_S, STRETCH)
@@ -250,6 +250,7 @@ class FootLock:
         # the lock's times are frames at REFERENCE_FPS, the same time at this rate: a frame's share of them
         self.blend_step = REFERENCE_FPS / fps / BLEND_FRAMES  # of a lock's blend in or out
         self.hold_step = REFERENCE_FPS / fps / HOLD_FRAMES  # of the swing lift's going, or the hold's on the floor
+        self.release_step = REFERENCE_FPS / fps / RELEASE_HOLD_FRAMES  # of the hold's going in a walk's release
         self.drop_share = 1.0 - (1.0 - 1.0 / BLEND_FRAMES) ** (REFERENCE_FPS / fps)  # of the way to the body's drop
         self.landed = np.zeros(2)  # how far each foot's swing lift has gone since it was planted
         self.held = np.zeros(2)  # how far each foot's lowest joint is held on the floor
@@ -445,7 +446,7 @@ class FootLock:
         for f, leg in enumerate(self.limbs.legs):
             sole = self.sole(1 - f, world_rot, world_pos)  # the other foot's lowest point
             holding = planted[f] or (planted[1 - f] and sole >= CONTACT_CM / self.cm)  # planted, or handing over
-            going = min(self.hold_step, self.blend_step) if planted[1 - f] else self.hold_step
+            going = self.release_step if planted[1 - f] else self.hold_step  # a walk's release: RELEASE_HOLD_FRAMES
             self.next_held[f] = min(1.0, self.held[f] + self.hold_step) if holding else max(0.0, self.held[f] - going)
             target = self._target(f, leg, world_rot, world_pos, self.next_held[f])
             turn = np.eye(3)

@@ -45,15 +45,17 @@ out (BLEND_FRAMES; LANDING_PACE is a multiple of it), the body's drop (eased
 1 / BLEND_FRAMES of the way in a 30 fps frame's time), as HEEL_RISE_SPEED and SETTLE_SECONDS were
 already. The swing lift a foot keeps in the air goes as it is planted, and the hold of its
 lowest joint on the floor goes as it is released (not handing over), over HOLD_FRAMES: one frame
-at 30 fps, as before, but eased over that 33 ms at a higher rate (`LockState.landed` and `held`).
+at 30 fps, as before, but eased over that 33 ms at a higher rate (`LockState.landed` and `held`);
+in a walk's release, over RELEASE_HOLD_FRAMES (two), its heel rise going out with the lock.
 Dropped in one frame, those 2-3 cm were a pop whose third difference grows with the square of
 the rate: active's walk made at 120 fps had 4.3 times the jitter of the same walk unlocked, now
 2.0 times, and at 30 fps the walks are the same to the digit. Only the vertical lift and hold
 fade so; the horizontal pull stays the lock's weight, so toes held down are held where they were
 planted as much as before, not slid along the floor (blending the hold out with the lock's
 weight instead kept the toes down while the lock let go: skate 1.5 to 6.2 cm/s at 120 fps, and
-at 30 fps the hips swung 2-3 degrees wider). docs/evaluate.md, "The lock the same in seconds at
-any rate".
+at 30 fps the hips swung 2-3 degrees wider; two frames in a walk's release is the measured middle,
+docs/evaluate.md, "A release eased out with its lock"). docs/evaluate.md, "The lock the same in
+seconds at any rate".
 
 Nothing is allocated a character: vectors are tuples (`_sub`, `_cross`), and matrices and
 per-frame arrays are written into the caller's arrays (`lock_work`, made once a call), since
@@ -75,8 +77,8 @@ from numba import njit
 from ..motion.features import FeatureLayout
 from ..motion.kinematics import _compose, forward_kinematics
 from ..motion.limbs import centimetres_per_unit, find_limbs, foot_tip
-from .contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, HOLD_FRAMES, NEARLY_STRAIGHT, PLANTED, POSSIBLE, SWING_BENT,
-                      SWING_CM, eased_per_frame, per_frame)
+from .contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, HOLD_FRAMES, NEARLY_STRAIGHT, PLANTED, POSSIBLE,
+                      RELEASE_HOLD_FRAMES, SWING_BENT, SWING_CM, eased_per_frame, per_frame)
 from .follow import ease
 
 MAX_HEEL_RISE = np.radians(50.0)  # the most a planted foot pitches up about its toes, from standing flat
@@ -100,11 +102,6 @@ CLOSED = 2.0  # LockState.settling of a foot that has taken its closing step, or
 # BLEND_FRAMES, as a walk's heel strike rolls in with the other foot down, a run's landing foot slid on
 # for a third of a stance of six frames (active's run skated 1.08x its takes')
 LANDING_PACE = 2.0
-# a released foot's lowest joint, while its hold on the floor goes (at the lock's pace in a walk), is
-# up at least this many cm for each cm it has moved along the floor from where it was locked: real toes
-# leaving the floor are 1 cm up after 0.6-1.9 cm (the medians of four styles' walk takes; 2 cm up after
-# 1.6-4.6). Held down as the lock let go, they slid 3-4 cm along the floor at up to 110 cm/s.
-TOE_OFF_SLOPE = 1.0
 
 
 @dataclass
@@ -286,8 +283,8 @@ def swing_share(world_pos, leg):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def lock_target(world_rot, world_pos, leg, foot, tip, ground_f, tip_ground, weight, point, landed, held, released,
-                swing_lift, target):  # pragma: no cover - compiled
+def lock_target(world_rot, world_pos, leg, foot, tip, ground_f, tip_ground, weight, point, landed, held, swing_lift,
+                target):  # pragma: no cover - compiled
     """Where the ankle (leg: hip, knee, ankle) should be, written into `target` (3,): the lock
     blended in horizontally, the lowest foot joint on the floor while planted, never below it,
     and a little above it while swinging on a bent knee. A released foot rises as generated (held down, the knee would
@@ -309,9 +306,6 @@ def lock_target(world_rot, world_pos, leg, foot, tip, ground_f, tip_ground, weig
     down = held * w * lift if held > 0.0 else 0.0
     if w > 0:
         pivot = _pivot_at(world_rot, world_pos, leg[2], foot[-1], tip)
-        if released and down > 0.0:  # leaving the floor: up at least TOE_OFF_SLOPE of how far it has moved along it
-            along = (1.0 - w) * np.sqrt((point[0] - pivot[0]) ** 2 + (point[2] - pivot[2]) ** 2)
-            down = min(down, max(lift - TOE_OFF_SLOPE * along, 0.0))
         target[0] += w * (point[0] - pivot[0])
         target[2] += w * (point[2] - pivot[2])
         target[1] -= down
@@ -623,6 +617,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     still = standing and speeds[0] < SETTLE_STILL_CM_S and speeds[1] < SETTLE_STILL_CM_S
     step = per_frame(BLEND_FRAMES, fps)
     hold_step = per_frame(HOLD_FRAMES, fps)
+    release_step = per_frame(RELEASE_HOLD_FRAMES, fps)
     for f in range(2):
         if planted[f] and weights[f] == 0.0:
             pivot = _pivot_at(world_rot, world_pos, joints[f, 2], feet[f, -1], tips[f])
@@ -660,7 +655,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     on_floor = CONTACT_CM / cm
     rise_step = HEEL_RISE_SPEED / fps
     _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed, held,
-             hold_step, step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
+             hold_step, release_step, step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
     # eased towards what it needs by 1 / BLEND_FRAMES of the way a frame at REFERENCE_FPS: the same time at any rate
     drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) * eased_per_frame(
         1.0 / BLEND_FRAMES, fps)
@@ -669,7 +664,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             translations[root, a] -= drop[0] * parent_rot[1, a]
         world_pos[:, 1] -= drop[0]
         _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed,
-                 held, hold_step, step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
+                 held, hold_step, release_step, step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
     rises[0], rises[1] = angles[0], angles[1]
     held[0], held[1] = holding[0], holding[1]
     for f in range(2):  # a closing step's foot off the floor
@@ -832,29 +827,32 @@ def _turned(kx, ky, kz, c, s, x, y, z):  # pragma: no cover - compiled
 
 @njit(cache=True, error_model="numpy")
 def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed, held,
-             hold_step, step,
+             hold_step, release_step, step,
              swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding):  # pragma: no cover - compiled
     """Each ankle's target (2, 3), each foot's heel-rise turn (2, 3, 3) and angle (2,), and how far
     its lowest joint is held down (2,), written into `targets`, `turns`, `angles` and `holding`: a
     foot whose lock is blended in rises on its toes where its leg would otherwise stretch past its
     generated extension, its rise within `rise_step` of the frame before's (`rises`), coming down
     at that pace after its lock has gone; its hold within `hold_step` of the frame before's (`held`).
-    A released foot's rise goes out no faster than its lock's eased weight, which fell by `step`
-    this frame while the other foot is planted (a walk's release, not a run's toe-off into
-    flight): the cap on the foot's pitch (MAX_HEEL_RISE) does not take the ankle's lift at once
-    (it still bounds the foot's pitch: `heel_rise`'s `keep`). At a toe-off the generated foot
-    pitches up fast, and the cap let the rise go in one frame while the weight blended out over
-    four: feminine's walk let go of 6.7 cm in two frames, a jump of 7.92 cm/frame^2 against its
-    takes' 5.1, now 5.68 (docs/evaluate.md, "A release eased out with its lock"). Carried into a
-    run's flight, the ankle so lifted skated (active's run stance skate 76.4 -> 79.1 cm/s, over)."""
+    In a walk's release (the other foot planted; not a run's toe-off into flight) the foot lets
+    go more gently: its rise goes out no faster than its lock's eased weight, which fell by
+    `step` this frame (the cap on the foot's pitch, MAX_HEEL_RISE, no longer takes the ankle's
+    lift at once: it still bounds the pitch, `heel_rise`'s `keep`), and its hold steps down by
+    `release_step` (RELEASE_HOLD_FRAMES), not `hold_step`. At a toe-off the generated foot
+    pitches up fast: the cap took the rise in one frame and the hold went in one while the
+    weight blended out over four, and feminine's walk gave back a 6.7 cm correction in two
+    frames, a jump of 7.92 cm/frame^2 against its takes' 5.1 (now 4.90). Carried into a run's
+    flight, the ankle so lifted skated (active's run stance skate 76.4 -> 79.1 cm/s, over its
+    bound) and the hold so slowed kept the toes down (exhausted's flight share under its
+    takes'). docs/evaluate.md, "A release eased out with its lock"."""
     for f in range(2):
         # the other foot planted but its lowest point not yet down: this one hands over to it
         handing_over = planted[1 - f] and _sole_lift(world_rot, world_pos, feet[1 - f], tips[1 - f], ground[1 - f],
                                                      pivot_ground[1 - f]) >= on_floor
-        going = min(hold_step, step) if planted[1 - f] else hold_step  # a walk's release at the blend's pace
+        going = release_step if planted[1 - f] else hold_step  # a walk's release over RELEASE_HOLD_FRAMES
         holding[f] = min(1.0, held[f] + hold_step) if planted[f] or handing_over else max(0.0, held[f] - going)
         lock_target(world_rot, world_pos, joints[f], feet[f], tips[f], ground[f], pivot_ground[f], weights[f], points[f],
-                    ease(landed[f]), ease(holding[f]), not (planted[f] or handing_over),
+                    ease(landed[f]), ease(holding[f]),
                     swing_lift, targets[f])
         _set_identity(turns[f])
         angles[f] = 0.0
