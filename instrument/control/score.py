@@ -117,7 +117,7 @@ def load_demo(model: Model, state: ControlState, presets: dict[str, dict[str, fl
     and turn. A cue fades from one style to the next named, which falls on another of the model's
     whenever it has two; with one, the style faded in is kept (the fade out falling on the same
     style is dropped), so it still goes to 2, to -1 and back. Its gaits and gestures are played
-    as far as the model has them (`playable`): a model trained on walks walks on, unwarned."""
+    as far as the model has them (`_playable`): a model trained on walks walks on, unwarned of them."""
     path = demo_score_path()
     text = read_text(path)
     mine = state.style_names
@@ -125,13 +125,13 @@ def load_demo(model: Model, state: ControlState, presets: dict[str, dict[str, fl
     if not all(name in mine for name in named):
         played_by = {name: mine[k % len(mine)] for k, name in enumerate(named)}
         text = INLINE_TABLE.sub(lambda table: _played_by(table.group(0), played_by), text)
-    return playable(load_score(path, state, presets, loop=True, text=text), model)
+    return _playable(load_score(path, state, presets, loop=True, text=text), model)
 
 
-def playable(score: Score, model: Model) -> Score:
+def _playable(score: Score, model: Model) -> Score:
     """The score without the ramp entries that set a gait the model has no unit for (`Model.units`)
-    or a gesture it does not hold (its metadata's, `gesture_labels`), so the demo asks nothing of a
-    model that it would warn about. A cue left with nothing to ramp holds for its `over` instead,
+    or a gesture it does not hold (its metadata's, `gesture_labels`), so the demo sets no gait or
+    gesture the show would warn it lacks. A cue left with nothing to ramp holds for its `over` instead,
     so the cues after it keep their times."""
     gestures = gesture_labels(model.metadata)
 
