@@ -46,6 +46,20 @@ def model():
     return load_model(default_model_path())
 
 
+def walk_only(model):
+    """The shipped model with its walk's two steps only: a model trained on walks (no run, stand,
+    turning steps or gestures), as tests of what such a model does need one."""
+    from dataclasses import replace
+
+    from instrument.models.hsmm import HSMM
+
+    return replace(model, metadata={k: v for k, v in model.metadata.items() if k not in ("units", "gestures")}
+                   | {"labels": ["right", "left"]},
+                   average=HSMM(*(getattr(model.average, p)[:2] for p in HSMM.__dataclass_fields__)),
+                   styles=HSMM(*(getattr(model.styles, p)[:, :2] for p in HSMM.__dataclass_fields__)),
+                   extras={k: (v[..., :2, :, :] if k.startswith("contact") else v) for k, v in model.extras.items()})
+
+
 @pytest.fixture(scope="session")
 def space(model):
     """The shipped model's style space."""

@@ -9,7 +9,8 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import REPO
+from bvh_independent import world_positions
+from conftest import REPO, walk_only
 from instrument.control.events import ControlEvent
 from instrument.control.score import ScorePlayer, eased, load_demo, load_score
 from instrument.errors import UserError
@@ -121,38 +122,104 @@ hold = 1
     assert seen[90][0] == -1.0 and seen[105][0] == pytest.approx(-1.0 + 3.0 * 15 / 60)  # the loop ramps it from there again
 
 
+DEMO_SECONDS = 81  # one pass of the demo (examples/demo/demo.toml: its last ramp ends at 80 s, then a hold of 1)
+
+
 def test_demo_score_plays_the_demo(model):
     state = state_of(model)
     player = ScorePlayer(load_score(REPO / "examples" / "demo" / "demo.toml", state, loop=True), state)
-    seen = play(player, state, 130.0)
+    seen = play(player, state, DEMO_SECONDS + 14.0)
     assert max(v[0] for v in seen.values()) == 1.0  # elderly up to 1 between 4 and 8 s
-    assert seen[8 * 30][0] == 1.0 and seen[63 * 30] == (0.0, 1.0) and seen[67 * 30][0] == 1.0  # and again after 59 s
+    assert seen[8 * 30][0] == 1.0 and seen[(DEMO_SECONDS + 3) * 30] == (0.0, 1.0)  # back to the average walk
+    assert seen[(DEMO_SECONDS + 8) * 30][0] == 1.0  # and again from the top
     assert not player.finished
+
+
+def play_demo(model, state: ControlState, seconds: float = DEMO_SECONDS) -> tuple[list[ControlEvent], np.ndarray]:
+    """The demo for `model`, frame by frame into `state`: the events it handed out, and the
+    style weights of each frame."""
+    player, events, weights = ScorePlayer(load_demo(model, state), state), [], []
+    for k in range(int(seconds * 30)):
+        for event in player.due(k / 30):
+            assert state.set(event.control, event.value)
+            events.append(event)
+        weights.append(state.weights.copy())
+    return events, np.array(weights)
 
 
 def test_the_demo_plays_in_any_models_styles(model):
     """The demo is written for the shipped model's styles; a model trained on one's own takes
-    plays the same minute in its own: every style faded in and out, one exaggerated to 2 and one
-    inverted to -1, as the shipped model's; the shipped model's demo is the file as written."""
+    plays the same performance in its own: every style faded in and out, one exaggerated to 2 and
+    one inverted to -1, as the shipped model's; the shipped model's demo is the file as written."""
     shipped = state_of(model)
-    assert load_demo(shipped) == load_score(REPO / "examples" / "demo" / "demo.toml", shipped, loop=True)
+    assert load_demo(model, shipped) == load_score(REPO / "examples" / "demo" / "demo.toml", shipped, loop=True)
     mine = ControlState(["proud", "sneaky", "tired"], model.states)
-    player = ScorePlayer(load_demo(mine), mine)
-    seen = []
-    for k in range(int(60 * 30)):
-        for event in player.due(k / 30):
-            assert mine.set(event.control, event.value)
-        seen.append([mine.get(f"style/{name}") for name in mine.style_names])
-    seen = np.array(seen)
+    _, seen = play_demo(model, mine)
     assert (seen.max(axis=0) >= 1.0).all() and seen.max() == 2.0 and seen.min() == -1.0
     assert (seen[-1] == 0.0).all()  # back to the average, so the loop joins
     alone = ControlState(["proud"], model.states)  # one style: faded in, exaggerated, inverted, back
-    player, seen = ScorePlayer(load_demo(alone), alone), []
-    for k in range(60 * 30):
-        for event in player.due(k / 30):
-            assert alone.set(event.control, event.value)
-        seen.append(alone.get("style/proud"))
+    seen = play_demo(model, alone)[1][:, 0]
     assert max(seen) == 2.0 and min(seen) == -1.0 and seen[-1] == 0.0
+
+
+def test_the_demo_shows_the_gaits_and_gestures_a_model_has_and_leaves_out_those_it_lacks(model):
+    """On the shipped model the demo runs, stands, waves and raises its hands, and ends walking
+    with its hands down, as it started; a model trained on walks sets no gait but the walk and no
+    gesture, and the cues after the dropped ones keep their times."""
+    def gaits_and_gestures(events):
+        return [(e.control, e.value) for e in events if e.control == "gait" or e.control.startswith("gesture/")]
+
+    shipped = state_of(model)
+    events, _ = play_demo(model, shipped)
+    done = gaits_and_gestures(events)
+    assert ("gait", 2.0) in done and ("gait", 0.0) in done
+    assert ("gesture/wave", 1.0) in done and ("gesture/raise", 1.0) in done
+    assert (shipped.gait, shipped.gestures) == (1.0, {"wave": 0.0, "raise": 0.0})  # the loop joins
+    walks = walk_only(model)
+    state = state_of(walks)
+    lean, _ = play_demo(walks, state)
+    assert set(gaits_and_gestures(lean)) <= {("gait", 1.0)}
+    assert [(e.time, e.control, e.value) for e in lean if e.control.startswith("style/")] == \
+        [(e.time, e.control, e.value) for e in events if e.control.startswith("style/")]  # the same timing
+
+
+def test_run_plays_the_demo_with_a_run_a_stand_and_gestures_and_a_walk_only_model_walks_it(model, tmp_path):
+    """`instrument run` with no controller, recorded: the log holds the demo's gait changes and
+    gestures, and the BVH shows them (the hips half as fast again a while after the run is set as
+    before it at speed 1.4, still a while after the stand, the hands over the head while waving);
+    a model trained on walks plays the same demo through without error or warning of a gait or gesture,
+    its log never setting one it lacks."""
+    from instrument.models.modelfile import save_model
+
+    def demo_run(log: str, *extra: str):
+        done = subprocess.run(RUN + ["--fast", "--seconds", str(DEMO_SECONDS), "--no-osc", "--record", log, *extra],
+                              capture_output=True, text=True, cwd=tmp_path, timeout=600)
+        assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
+        lines = [json.loads(line) for line in (tmp_path / log).read_text().splitlines()[1:-1]]
+        return done, [(e["t"], e["control"], e["value"]) for e in lines]
+
+    _, events = demo_run("shipped.jsonl", "--bvh", "demo.bvh")
+    when = {(control, value): t for t, control, value in reversed(events)}  # the first time each was set
+    run, walk = when[("gait", 2.0)], min(t for t, c, v in events if (c, v) == ("gait", 1.0) and t > when[("gait", 2.0)])
+    stand, wave = when[("gait", 0.0)], when[("gesture/wave", 1.0)]
+    assert run < walk < stand < wave < when[("gesture/raise", 1.0)]
+    names, positions, fps = world_positions(tmp_path / "demo.bvh")
+    hips = positions[:, names.index("Hips")][:, [0, 2]]
+    speed = np.r_[0.0, np.linalg.norm(np.diff(hips, axis=0), axis=1) * fps]  # cm/s over the floor, each frame
+
+    def frames(start: float, end: float) -> slice:
+        return slice(int(start * fps), int(end * fps))
+
+    assert speed[frames(run + 2, walk)].mean() > 1.5 * speed[frames(run - 4, run)].mean()  # measured 296 and 166
+    assert speed[frames(stand + 2, wave)].max() < 10.0  # standing (measured 0)
+    hands = positions[:, [names.index("Hand_L"), names.index("Hand_R")], 1].min(axis=1)
+    assert (hands > positions[:, names.index("Head"), 1])[frames(wave, wave + 4)].any()  # both over the head
+
+    save_model(tmp_path / "walks.npz", walk_only(model))
+    done, events = demo_run("walks.jsonl", "--model", "walks.npz")
+    assert not any(c == "gait" and v != 1.0 or c.startswith("gesture/") for _, c, v in events), events
+    assert "gait" not in done.stderr and "gesture" not in done.stderr, done.stderr
+    assert any(c == "style/elderly" for _, c, _ in events)  # the rest of the demo plays
 
 
 def test_score_and_its_recorded_log_give_the_same_bvh_byte_for_byte(tmp_path):

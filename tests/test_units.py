@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from bvh_independent import world_positions
-from conftest import REPO, needs_walks
+from conftest import REPO, needs_walks, walk_only
 
 from instrument.errors import UserError
 from instrument.motion.bvh import read_bvh
@@ -656,19 +656,6 @@ def test_every_character_of_a_crowd_changes_gait_at_its_own_step(model):
     assert len(set(arrivals)) > 1  # they started in different phases of the step: they arrive apart
 
 
-def _walk_only(model):
-    """The shipped model with its walk's two steps only (a model trained on walks)."""
-    from dataclasses import replace
-
-    from instrument.models.hsmm import HSMM
-
-    return replace(model, metadata={k: v for k, v in model.metadata.items() if k not in ("units", "gestures")}
-                   | {"labels": ["right", "left"]},
-                   average=HSMM(*(getattr(model.average, p)[:2] for p in HSMM.__dataclass_fields__)),
-                   styles=HSMM(*(getattr(model.styles, p)[:, :2] for p in HSMM.__dataclass_fields__)),
-                   extras={k: (v[..., :2, :, :] if k.startswith("contact") else v) for k, v in model.extras.items()})
-
-
 def test_the_turning_unit_a_steered_walk_lacks_is_read_from_the_chooser_the_walk_uses(model):
     """`UnitChooser.unsteered` answers from the tables the chooser steers by: a walk-only model
     plays every gait as its walk, so a steered run or stand lacks its turning steps as the walk does
@@ -676,7 +663,7 @@ def test_the_turning_unit_a_steered_walk_lacks_is_read_from_the_chooser_the_walk
     the shipped model has both sides, and its run and stand take no turning steps by design."""
     from instrument.synthesis.units import UnitChooser
 
-    walks = UnitChooser(_walk_only(model), 1)
+    walks = UnitChooser(walk_only(model), 1)
     assert [walks.unsteered(gait, 1.0) for gait in range(3)] == ["turn-left"] * 3
     assert [walks.unsteered(gait, -0.2) for gait in range(3)] == ["turn-right"] * 3
     assert walks.unsteered(1, 0.0) is None
@@ -685,10 +672,10 @@ def test_the_turning_unit_a_steered_walk_lacks_is_read_from_the_chooser_the_walk
 
 
 def test_a_walk_only_model_plays_every_gait_as_its_walk(model):
-    walk_only = _walk_only(model)
-    engine = Engine(walk_only)
+    walks = walk_only(model)
+    engine = Engine(walks)
     assert engine.units.missing == ["stand", "run"]
-    _, units, _, _, _, speed = _engine_frames(walk_only, [(STAND, 60), (RUN, 60)])
+    _, units, _, _, _, speed = _engine_frames(walks, [(STAND, 60), (RUN, 60)])
     assert (units == 0).all() and speed[30:].min() > 0
 
 
@@ -750,7 +737,7 @@ def test_a_score_that_stops_stands_and_runs_renders_with_run_fast_bvh(tmp_path):
 def test_synth_says_when_a_model_has_no_unit_for_the_gait_and_writes_its_walk(model, tmp_path):
     from instrument.models.modelfile import save_model
 
-    save_model(tmp_path / "walks.npz", _walk_only(model))
+    save_model(tmp_path / "walks.npz", walk_only(model))
     done = _synth(tmp_path, "--model", "walks.npz", "--gait", "run", "--seconds", "2", "--out", "run.bvh")
     assert done.returncode == 0, done.stderr
     assert "--gait run: this model has no run unit (it has walk); it walks" in done.stderr

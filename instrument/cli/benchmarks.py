@@ -58,7 +58,7 @@ def measure_pacing(model_path: str | None, seconds: float, fps: float, console_a
     timing: list[float] = []
     refused = realtime_scheduling()  # as `instrument run` does
     state = link.output.state if link else ControlState(model.style_names, model.states)
-    demo = ScorePlayer(load_demo(state), state)
+    demo = ScorePlayer(load_demo(model, state), state)
     try:
         summary = perform(Show(model, outputs, fps, seconds, state=state, replay=demo, sources=live_sources), console,
                           timing=timing)

@@ -47,7 +47,7 @@ def live_path(model: Model, count: int, spread: float = 0.5):
     profile = make_profile("flat", model, characters=count)
     state = ControlState(model.style_names, model.states)
     state.set("spread", spread)
-    demo = ScorePlayer(load_demo(state), state, start=-DEMO_FIRST_RAMP_S)
+    demo = ScorePlayer(load_demo(model, state), state, start=-DEMO_FIRST_RAMP_S)
     console = Console(quiet=True)
     apply = ControlHub([], console=console).apply  # as the live loop applies a score's events
     sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -142,7 +142,7 @@ def keeps_time(model: Model, count: int, seconds: float = TRIAL_SECONDS) -> tupl
     state.set("spread", 0.5)
     # from the demo's first ramp on: weights move every frame, the engine's dearest case (the
     # demo's first seconds stand still, and a crowd that holds them may not hold the rest)
-    demo = ScorePlayer(load_demo(state), state, start=-DEMO_FIRST_RAMP_S)
+    demo = ScorePlayer(load_demo(model, state), state, start=-DEMO_FIRST_RAMP_S)
     timing: list[float] = []
     try:
         summary = perform(Show(model, [output], CROWD_FPS, seconds, characters=count, state=state, replay=demo), console,

@@ -268,9 +268,9 @@ def plan_show(args: argparse.Namespace) -> ShowPlan:
         for target in preset_problems(mapping, hub.presets):
             raise UserError(f"{mapping.path}:{target_line(mapping, target)}: target {target!r}: no such preset "
                             "(the mapping, the show file and --presets define none by that name)")
-    if score_path and not args.score:  # the built-in demo, in this model's styles
+    if score_path and not args.score:  # the built-in demo, in this model's styles, gaits and gestures
         try:
-            replay = ScorePlayer(load_demo(state, hub.presets), state)
+            replay = ScorePlayer(load_demo(model, state, hub.presets), state)
         except UserError as error:
             console.say(f"the demo does not fit this model ({error}): the walk stays at the average; "
                         "give --score or a controller to play it")

@@ -17,17 +17,24 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..errors import UserError, quoted
+from ..models.gestures import gesture_labels
 from ..shipped import demo_score_path
+from ..synthesis.parameters import GAITS
+from ..synthesis.stream import gait_index
 from ..textfile import read_text
 from ..tomlfile import Field, TomlFile
 from .checks import between, row_of
 from .events import ControlEvent
 from .presetfile import held_values, model_of, read_presets
 from .state import ControlState
+
+if TYPE_CHECKING:
+    from ..models.modelfile import Model
 
 SOURCE = "score"
 CURVES = ("linear", "ease")
@@ -102,14 +109,15 @@ DEMO_STYLE = re.compile(r'"style/([^"]+)"')
 INLINE_TABLE = re.compile(r"\{[^{}]*\}")
 
 
-def load_demo(state: ControlState, presets: dict[str, dict[str, float]] | None = None) -> Score:
+def load_demo(model: Model, state: ControlState, presets: dict[str, dict[str, float]] | None = None) -> Score:
     """The built-in demo (examples/demo/demo.toml, looped), for any model. It is written for the
     shipped model's styles; a model without all of them plays the demo's styles by its own in
     turn (the demo's first style by the model's first, its second by the second, round again),
-    so a model trained on one's own takes performs the same minute of fades, exaggeration,
-    inversion, pace and turn. A cue fades from one style to the next named, which falls on
-    another of the model's whenever it has two; with one, the style faded in is kept (the fade
-    out falling on the same style is dropped), so it still goes to 2, to -1 and back."""
+    so a model trained on one's own takes performs the same fades, exaggeration, inversion, pace
+    and turn. A cue fades from one style to the next named, which falls on another of the model's
+    whenever it has two; with one, the style faded in is kept (the fade out falling on the same
+    style is dropped), so it still goes to 2, to -1 and back. Its gaits and gestures are played
+    as far as the model has them (`_playable`): a model trained on walks walks on, unwarned of them."""
     path = demo_score_path()
     text = read_text(path)
     mine = state.style_names
@@ -117,7 +125,28 @@ def load_demo(state: ControlState, presets: dict[str, dict[str, float]] | None =
     if not all(name in mine for name in named):
         played_by = {name: mine[k % len(mine)] for k, name in enumerate(named)}
         text = INLINE_TABLE.sub(lambda table: _played_by(table.group(0), played_by), text)
-    return load_score(path, state, presets, loop=True, text=text)
+    return _playable(load_score(path, state, presets, loop=True, text=text), model)
+
+
+def _playable(score: Score, model: Model) -> Score:
+    """The score without the ramp entries that set a gait the model has no unit for (`Model.units`)
+    or a gesture it does not hold (its metadata's, `gesture_labels`), so the demo sets no gait or
+    gesture the show would warn it lacks. A cue left with nothing to ramp holds for its `over` instead,
+    so the cues after it keep their times."""
+    gestures = gesture_labels(model.metadata)
+
+    def plays(target: str, value: float) -> bool:
+        if target == "gait":
+            return GAITS[gait_index(value)] in model.units
+        return not target.startswith("gesture/") or target.split("/")[1] in gestures
+
+    cues = []
+    for cue in score.cues:
+        ramp = {target: value for target, value in cue.ramp.items() if plays(target, value)}
+        if ramp != cue.ramp:
+            cue = replace(cue, ramp=ramp) if ramp else replace(cue, ramp={}, over=0.0, hold=cue.over)
+        cues.append(cue)
+    return replace(score, cues=tuple(cues))
 
 
 def _played_by(table: str, played_by: dict[str, str]) -> str:
