@@ -25,12 +25,6 @@ def toml_string(text: str) -> str:
     return json.dumps(text, ensure_ascii=False)
 
 
-def read_toml(path: str | Path) -> tuple[str, dict]:
-    """The file's text (for finding the line of a bad key) and its parsed contents."""
-    text = read_text(path)
-    return text, parse_toml(text, path)
-
-
 def parse_toml(text: str, path: str | Path) -> dict:
     """TOML text read from `path` (named in the one-line error)."""
     try:

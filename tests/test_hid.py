@@ -35,7 +35,7 @@ from instrument.errors import UserError
 from instrument.terminal import Console
 from instrument.runtime.performance import Show, perform
 from instrument.shipped import shipped_mappings
-from instrument.tomlfile import read_toml
+from instrument.tomlfile import TomlFile
 
 MAPPINGS = REPO / "mappings"
 
@@ -524,14 +524,32 @@ def test_a_feedback_colour_for_no_style_of_the_model_is_a_one_line_error(tmp_pat
     path.write_text(head + '[feedback.colours]\nelderly = "#7040ff"\neldrly = "#ff8000"\nnone = "#101010"\n')
     with pytest.raises(UserError) as refused:
         load_mapping(path, state_of(model), strict_styles=True)
-    assert str(refused.value) == (f"{path}:8: eldrly: no style 'eldrly' in the model (a colour is for one of its styles "
-                                  f"({', '.join(model.style_names)}) or none)")
+    # worded as a mapping's target `style/eldrly` is (control/checks.py, the one check of style names)
+    assert str(refused.value) == (f"{path}:8: eldrly: style/eldrly: unknown target (this model's styles: "
+                                  f"{', '.join(sorted(model.style_names))}); or none, for no style leading")
     assert "eldrly" in load_mapping(path, state_of(model)).feedback.colours  # a shipped mapping, for any model's styles
     path.write_text(head + 'colours = "#ff0000"\n')
     with pytest.raises(UserError, match=r"pad.toml:6: colours: expected a \[feedback.colours\] table"):
         load_mapping(path, state_of(model))
     path.write_text(head + '[feedback.colours]\nelderly = "#7040ff"\nnone = "#101010"\n')
     assert load_mapping(path, state_of(model), strict_styles=True).feedback.colours["elderly"] == (0x70, 0x40, 0xFF)
+
+
+@pytest.mark.parametrize("key", ["name", "report", "leds", "hid", "midi", "feedback", "colours"])
+def test_a_bad_colour_named_as_another_key_is_refused_at_its_own_line(tmp_path, model, key):
+    """A colour under [feedback.colours] named as a key of elsewhere (`name = "#101010"`) was
+    refused at that other key's line (the mapping's `name`, line 1): the error was found by the
+    key's name alone. It names the colour's own line."""
+    path = tmp_path / "pad.toml"
+    path.write_text('name = "pad"\n[device]\nhid = "054c:09cc"\nmidi = "pad"\n[feedback]\nleds = true\nreport = 5\n'
+                    f'light-bar = 6\n[feedback.colours]\nelderly = "#7040ff"\n{key} = "#101010"\n')
+    with pytest.raises(UserError) as refused:
+        load_mapping(path, state_of(model), strict_styles=True)
+    assert str(refused.value).startswith(f"{path}:11: {key}: style/{key}: unknown target"), refused.value
+    path.write_text(path.read_text().replace('"#101010"', '"#10101"'))  # a shipped mapping's (any style): its bad colour
+    with pytest.raises(UserError) as refused:
+        load_mapping(path, state_of(model))
+    assert str(refused.value) == f"{path}:11: {key}: '#10101': expected a colour as \"#rrggbb\""
 
 
 # Unplugging and feedback
@@ -575,7 +593,7 @@ def test_spacemouse_unplugged_and_replugged_its_led_on_each_time(model):
 
 
 def test_dualshock4_light_bar_shows_the_leading_styles_colour(model):
-    colours = read_toml(MAPPINGS / "sony-dualshock4.toml")[1]["feedback"]["colours"]
+    colours = TomlFile(MAPPINGS / "sony-dualshock4.toml").data["feedback"]["colours"]
     rgb = {name: bytes.fromhex(text[1:]) for name, text in colours.items()}
     sim = SimulatedDevice(DUALSHOCK4_USB, 0x054C, 0x09CC)
     state = state_of(model)

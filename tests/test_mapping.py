@@ -261,6 +261,9 @@ def test_a_style_the_model_lacks_is_reported_not_fatal(tmp_path):
     ('[device]\nmidi = "x"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\nrange = [1, 1]\n', 7, "range"),
     ('[device]\nmidi = "x"\n\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\ncolour = "red"\n', 8, "colour"),
     ('[device]\nhid = "sony"\n', 2, "hid"),
+    # a key also written elsewhere: the error names [device]'s, not the first one of its name (line 1)
+    ('name = "pad"\n[device]\nmidi = "x"\nname = "pad"\n', 4, "name"),
+    ('morph = 1.0\n[device]\nmorph = 1.0\n', 3, "morph"),
     ('[device]\nmidi = "x"\n[[control]]\nmessage = "cc"\ntarget = "speed"\n', 3, "number"),
     ('[device]\nmidi = "x"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\nrange = [nan, 1]\n', 7, "range"),
     ('[device]\nmidi = "x"\n[[control]]\nmessage = "cc"\nnumber = 1\ntarget = "speed"\nrange = [0, inf]\n', 7, "range"),

@@ -622,7 +622,7 @@ import sys
 from numba.core.registry import CPUDispatcher
 from instrument.control.events import ControlEvent, LogReplay
 from instrument.models.modelfile import default_model_path, load_model
-from instrument.runtime.performance import Show, perform
+from instrument.runtime.performance import Show, compile_kernels, perform
 from instrument.terminal import Console
 
 def kernels():
@@ -632,19 +632,38 @@ def kernels():
 played = [(0.3, "gait", 2.0), (0.4, "gesture/wave", 1.0), (0.6, "gesture/wave", 0.0), (1.2, "gait", 0.0)]
 events = [ControlEvent(t, "direct", target, value) for t, target, value in played]
 first = {}
-perform(Show(load_model(default_model_path()), [], fps=30, seconds=2.5, replay=LogReplay(events), fast=True),
-        Console(quiet=True), on_frame=lambda index, clock, summary: first.update(kernels()) if index == 0 else None)
+model = load_model(default_model_path())
+compiled = sys.argv[1:] == ["run"]  # as `run` does: compile_kernels before anything opens, then perform rehearses no more
+if compiled:
+    compile_kernels(model, 1, 30)
+perform(Show(model, [], fps=30, seconds=2.5, replay=LogReplay(events), fast=True), Console(quiet=True),
+        on_frame=lambda index, clock, summary: first.update(kernels()) if index == 0 else None, compiled=compiled)
 print(" ".join(sorted(name for name, signatures in kernels().items() if signatures - first.get(name, set()))))
 """
 
 
-def test_a_show_loads_every_kernel_before_its_first_frame():
+@pytest.mark.parametrize("caller", ["perform", "run"])
+def test_a_show_loads_every_kernel_before_its_first_frame(caller):
     """A run, a stand and a wave first asked for mid-show find their kernels ready: numba compiles
     (or loads from its cache) a kernel at its first call, and on a new install that was the
     show's first run or wave, dropping 76 frames at 30 fps after the documented warm-up. In a
     process of its own (this one's kernels are loaded by other tests): no kernel gains a signature
-    after the first frame (before the rehearsal: the gestures' six and widen's stride means)."""
-    done = subprocess.run([sys.executable, "-c", KERNELS_AFTER_THE_FIRST_FRAME], capture_output=True, text=True,
+    after the first frame (before the rehearsal: the gestures' six and widen's stride means),
+    whether `perform` rehearses or, as in `run`, `compile_kernels` did before it."""
+    done = subprocess.run([sys.executable, "-c", KERNELS_AFTER_THE_FIRST_FRAME, caller], capture_output=True, text=True,
                           timeout=600, cwd=REPO)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == []
+
+
+def test_run_rehearses_the_show_once(monkeypatch):
+    """`run` rehearsed twice: in compile_kernels before anything opened, and again in perform
+    (start-up time for nothing). Counted by wrapping the real rehearsal: once."""
+    from instrument.cli.main import main
+    from instrument.runtime import performance
+
+    rehearsals = []
+    real = performance.rehearse
+    monkeypatch.setattr(performance, "rehearse", lambda *args: rehearsals.append(args) or real(*args))
+    assert main(["run", "--seconds", "0.5", "--no-osc", "--quiet", "--normal-priority"]) == 0
+    assert len(rehearsals) == 1

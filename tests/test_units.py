@@ -118,6 +118,23 @@ def test_a_manifest_says_each_takes_unit_and_a_bad_one_names_its_line(tmp_path):
     assert [t.unit for t in read_manifest(tmp_path / "m.toml")] == ["turn-left", "walk"]
 
 
+def test_a_manifest_unit_left_empty_is_a_walk_in_csv_and_toml_alike(tmp_path):
+    """A CSV's blank unit field was a walk, a TOML take's `unit = ""` refused (docs/training.md said
+    both were walks): left empty, it is a walk in both, and a gesture given it says so."""
+    for take in ("a.bvh", "b.bvh"):
+        (tmp_path / take).touch()
+    (tmp_path / "m.csv").write_text("file,style,unit\na.bvh,calm,\nb.bvh,calm, \n")
+    (tmp_path / "m.toml").write_text('[[take]]\nfile = "a.bvh"\nstyle = "calm"\nunit = ""\n'
+                                     '[[take]]\nfile = "b.bvh"\nstyle = "calm"\nunit = " "\n')
+    for name in ("m.csv", "m.toml"):
+        assert [t.unit for t in read_manifest(tmp_path / name)] == ["walk", "walk"], name
+    (tmp_path / "m.toml").write_text('[[take]]\nfile = "a.bvh"\nstyle = "calm"\nunit = ""\ngesture = "wave"\n')
+    with pytest.raises(UserError) as refused:
+        read_manifest(tmp_path / "m.toml")
+    assert str(refused.value).startswith(f"{tmp_path / 'm.toml'}:5: take 1: gesture 'wave' given to a walk take "
+                                         "(no unit given: a walk)"), refused.value
+
+
 def test_a_manifest_says_a_standing_takes_gesture_and_a_bad_one_names_its_line(tmp_path):
     """A take whose name says nothing (`take007.bvh`) trained its stand but no gesture: the
     manifest's fourth column (a [[take]]'s `gesture`) says it; left empty, the name says it."""

@@ -136,7 +136,7 @@ def _run(args: argparse.Namespace, stop: StopFlag) -> int:
                     describe_sources=lambda: ", ".join([d.describe() for d in devices]
                                                        + ([beat_lock.describe()] if beat_lock else []))
                     or ("score" if score_path else "replay"))
-        summary = perform(show, console, stop, on_frame=health.frame)
+        summary = perform(show, console, stop, on_frame=health.frame, compiled=True)  # compile_kernels above
         hub.stopped_at(summary.frames / fps)  # frames are consecutive (a dropped slot moves the clock, not the index)
     finally:
         health.notifier.stopping()

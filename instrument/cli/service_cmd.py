@@ -119,6 +119,9 @@ def unit_text(show: Path, watchdog: float, user_unit: bool, run_as: str | None, 
         "Environment=PYTHONUNBUFFERED=1",
         f"WatchdogSec={watchdog:g}",
         "Restart=on-failure",
+        # stopped by SIGTERM (systemctl stop) or SIGINT before anything opened (a first start's compile),
+        # run ends at once with 128 + the signal: a stop asked for, not a failure to restart or report
+        "SuccessExitStatus=130 143",
         "RestartSec=2",
         "TimeoutStartSec=300",  # a first start compiles the kernels (about half a minute) before the first frame
         "TimeoutStopSec=15",

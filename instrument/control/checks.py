@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Collection
 from dataclasses import dataclass
 from numbers import Real
-from typing import Collection
 
 from ..errors import printable, quoted
 from ..synthesis.parameters import GESTURES, GROUPS

@@ -20,11 +20,12 @@ reconnection; a device that is gone is the input's business (it reconnects), nev
 from __future__ import annotations
 
 import re
+from collections.abc import Collection
 from dataclasses import dataclass, field
-from typing import Collection
 
 from ..errors import quoted
 from ..terminal import Console
+from .checks import row_of, unknown
 from .hid import LEDS, HidInput
 
 FEEDBACK_KEYS = ("leds", "report", "fixed", "light-bar", "colours")
@@ -49,38 +50,40 @@ def _byte(value: object) -> bool:
     return isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= 255
 
 
-def parse_feedback(table: object, fail, styles: Collection[str]) -> FeedbackSpec:
-    """A mapping file's [feedback] table, checked; `fail(message, key)` makes the located error.
-    A colour is for one of `styles` (the model's, as the mapping's targets are checked) or
-    "none": a misspelt style's colour was kept and never shown."""
+def parse_feedback(table: object, fail, model: tuple[Collection[str], int]) -> FeedbackSpec:
+    """A mapping file's [feedback] table, checked; `fail(message, *path)` makes the error located at
+    the key's full path ("feedback", "colours", name): a name alone is ambiguous (`name` or `report`
+    under [feedback.colours] is also a key elsewhere, whose line it named). A colour is for a style
+    of `model` (styles, states), checked as its `style/<name>` target would be (control/checks.py),
+    or "none": a misspelt style's colour was kept and never shown."""
     if not isinstance(table, dict):
         raise fail("must be a table", "feedback")
     for key in table:
         if key not in FEEDBACK_KEYS:
-            raise fail(f"unknown key in [feedback] (expected {', '.join(FEEDBACK_KEYS)})", key)
+            raise fail(f"unknown key in [feedback] (expected {', '.join(FEEDBACK_KEYS)})", "feedback", key)
     leds = table.get("leds", False)
     if not isinstance(leds, bool):
-        raise fail("must be true or false", "leds")
+        raise fail("must be true or false", "feedback", "leds")
     report, light_bar = table.get("report"), table.get("light-bar")
     for key, value in (("report", report), ("light-bar", light_bar)):
         if value is not None and not _byte(value):
-            raise fail("must be a whole number 0 to 255", key)
+            raise fail("must be a whole number 0 to 255", "feedback", key)
     if (report is None) != (light_bar is None):
-        raise fail("a light bar needs both report and light-bar", "light-bar" if light_bar is None else "report")
+        raise fail("a light bar needs both report and light-bar", "feedback", "light-bar" if light_bar is None else "report")
     fixed = table.get("fixed", {})
     if not isinstance(fixed, dict) or not all(k.isdigit() and _byte(int(k)) and _byte(v) for k, v in fixed.items()):
-        raise fail("expected { byte = value, ... }, whole numbers 0 to 255", "fixed")
+        raise fail("expected { byte = value, ... }, whole numbers 0 to 255", "feedback", "fixed")
     colours = {}
     given = table.get("colours", {})
     if not isinstance(given, dict):  # colours = "#ff0000" (a crash before: no table to read)
-        raise fail('expected a [feedback.colours] table of style = "#rrggbb"', "colours")
+        raise fail('expected a [feedback.colours] table of style = "#rrggbb"', "feedback", "colours")
     for name, text in given.items():
-        if name != NO_STYLE and name not in styles:
-            raise fail(f"no style {quoted(name)} in the model (a colour is for one of its styles "
-                       f"({', '.join(styles)}) or {NO_STYLE})", name)
+        if name != NO_STYLE and row_of(f"style/{name}", *model) is None:
+            raise fail(f"{unknown(f'style/{name}', *model).text}; or {NO_STYLE}, for no style leading",
+                       "feedback", "colours", name)
         colour = _colour(text)
         if colour is None:
-            raise fail(f"{quoted(text)}: expected a colour as \"#rrggbb\"", name)
+            raise fail(f"{quoted(text)}: expected a colour as \"#rrggbb\"", "feedback", "colours", name)
         colours[name] = colour
     return FeedbackSpec(leds, report, tuple((int(k), v) for k, v in fixed.items()), light_bar, colours)
 

@@ -116,39 +116,38 @@ def load_mapping(path: str | Path, state: ControlState | None = None, text: str 
     text, data = doc.text, doc.data
     model = model_of(state, strict_styles)
 
-    def fail(message: str, key: str, index: int | None = None) -> UserError:
-        if index is not None:
-            return doc.error(("control", index, key), message, key)
-        places = [(key,), ("device", key), ("feedback", key), ("feedback", "colours", key)]
-        return doc.error(next((p for p in places if p in doc.lines), (key,)), message, key)
+    def fail(message: str, *path: str | int) -> UserError:
+        """The error at the key's full path (("control", 2, "range")), named by its last name:
+        the name alone is ambiguous (`name` is the mapping's and may be a style's colour too)."""
+        return doc.error(path, message, str(path[-1]))
 
     doc.check((), data, TOP)
     device = data.get("device", {})
     midi, hid = device.get("midi"), device.get("hid")
     for key in device:
         if key not in ("midi", "hid", "hid-usages"):
-            raise fail("unknown key in [device] (midi, hid or hid-usages)", key)
+            raise fail("unknown key in [device] (midi, hid or hid-usages)", "device", key)
     usages = device.get("hid-usages", [])
     if not (isinstance(usages, list) and all(isinstance(u, str) and is_usage_name(u) for u in usages)):
         raise fail("expected a list of HID usage names (X, Rz, Hat, Button 1, ..., and what the device is: "
-                   "Game Pad, Joystick, Multi-axis Controller)", "hid-usages")
+                   "Game Pad, Joystick, Multi-axis Controller)", "device", "hid-usages")
     if midi is not None:
         if not isinstance(midi, str):
-            raise fail("must be a string (a port name pattern)", "midi")
+            raise fail("must be a string (a port name pattern)", "device", "midi")
         try:
             re.compile(midi)
         except re.error as e:
-            raise fail(f"not a regular expression: {e}", "midi") from None
+            raise fail(f"not a regular expression: {e}", "device", "midi") from None
     hid_ids = None
     if hid is not None:
         try:
             hid_ids = tuple(parse_hid_id(h) for h in (hid if isinstance(hid, list) else [hid]))
         except ValueError as e:
-            raise fail(str(e), "hid") from None
+            raise fail(str(e), "device", "hid") from None
     controls = [_control(doc, item, k, fail, model) for k, item in enumerate(data.get("control", []))]
     presets = read_presets(doc, model)
     morph = data.get("morph", 0.0)
-    feedback = parse_feedback(data["feedback"], fail, model[0]) if "feedback" in data else None
+    feedback = parse_feedback(data["feedback"], fail, model) if "feedback" in data else None
     return Mapping(str(data.get("name", path.stem)), str(path), midi, hid_ids, tuple(controls), presets, float(morph),
                    tuple(usages), feedback, text)
 
@@ -162,48 +161,49 @@ def _control(doc: TomlFile, item: dict, index: int, fail, model: tuple) -> Contr
     if "range" in values:
         r = values["range"]
         if not (len(r) == 2 and all(is_number(v) for v in r) and r[0] != r[1]):
-            raise fail("expected [low, high], two different finite numbers", "range", index)
+            raise fail("expected [low, high], two different finite numbers", "control", index, "range")
         values["range"] = (float(r[0]), float(r[1]))
     if numbered and "number" not in values:
-        raise fail(f"expected a whole number from 0 to {limit}", "number", index)
+        raise fail(f"expected a whole number from 0 to {limit}", "control", index, "number")
     if message == "cc14" and values["number"] > 31:
-        raise fail("a 14-bit pair has its MSB on CC 0 to 31 (the LSB is number + 32)", "number", index)
+        raise fail("a 14-bit pair has its MSB on CC 0 to 31 (the LSB is number + 32)", "control", index, "number")
     if message == "hid":
         values["input"] = canonical_input(str(values.get("input")))
         if values["input"] is None:
             raise fail(f"{quoted(item.get('input'))} is not a HID usage name (X, Y, Z, Rx, Ry, Rz, Slider, Dial, Wheel, Hat/up, "
-                       "Button 1, PPPP:UUUU, ...)", "input", index)
+                       "Button 1, PPPP:UUUU, ...)", "control", index, "input")
     target = values["target"]
     row = row_of(target, *model)
     if row is None or row.kind == "store":
         raise fail(unknown(target, *model).text if row is None else f"{target}: a mapping recalls presets, "
-                   "it does not store them", "target", index)
+                   "it does not store them", "control", index, "target")
     if values.get("mode") == "set" or "value" in values:
         values["value"] = _set_value(item, row, target, fail, index)
         return ControlSpec(**values)
     for end in item.get("range", (0.0, 1.0)):  # every value the control can send is inside the target's range
         why = value_refusal(row, target, end)
         if why is not None:
-            raise fail(f"the control's range sends {end:g}: {why.text}", "range" if "range" in values else "target", index)
+            raise fail(f"the control's range sends {end:g}: {why.text}", "control", index,
+                       "range" if "range" in values else "target")
     return ControlSpec(**values)
 
 
 def _set_value(item: dict, row: Row, target: str, fail, index: int) -> float:
     """The value a button in mode "set" sets (checked by the one check: a name is its number)."""
     if item.get("mode") != "set":
-        raise fail('only for mode = "set" (a button that sets its target to this value)', "value", index)
+        raise fail('only for mode = "set" (a button that sets its target to this value)', "control", index, "value")
     if "value" not in item:
-        raise fail('missing: the value a press sets (mode = "set")', "value", index)
+        raise fail('missing: the value a press sets (mode = "set")', "control", index, "value")
     if item["message"] not in BUTTONS:
-        raise fail(f'mode = "set" is for a button ({", ".join(BUTTONS)}), not {item["message"]}', "mode", index)
+        raise fail(f'mode = "set" is for a button ({", ".join(BUTTONS)}), not {item["message"]}', "control", index, "mode")
     if row.action:
-        raise fail(f'{target}: mode = "set" sets a value, and {target} is pressed (mode = "momentary")', "mode", index)
+        raise fail(f'{target}: mode = "set" sets a value, and {target} is pressed (mode = "momentary")', "control", index, "mode")
     for key in ("range", "curve", "takeover", "step", "deadzone", "invert"):
         if key in item:
-            raise fail('not for mode = "set" (a press sets `value`)', key, index)
+            raise fail('not for mode = "set" (a press sets `value`)', "control", index, key)
     why = value_refusal(row, target, item["value"])
     if why is not None:
-        raise fail(why.text, "value", index)
+        raise fail(why.text, "control", index, "value")
     return float(row.number(item["value"]))
 
 

@@ -5,7 +5,8 @@ the file, the line and the key."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Collection
+from collections.abc import Collection
+from typing import TYPE_CHECKING
 
 from ..errors import quoted
 from ..tomlfile import Field, Key, TomlFile

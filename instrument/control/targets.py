@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from typing import Collection
+from collections.abc import Collection
 
 from .checks import HID_RAW_HIGH, HID_RELEASED, MIDI_RAW, is_number, raw_problem, refusal
 from .spec import MAX_MORPH, MAX_TURN, PRESET_NAME, TABLE, WEIGHT_LIMIT

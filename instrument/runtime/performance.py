@@ -126,9 +126,13 @@ class Show:
 
 def perform(show: Show, console: Console, stop: StopFlag | None = None,
             on_frame: Callable[[int, FrameClock, Summary], None] | None = None,
-            timing: list[float] | None = None) -> Summary:
+            timing: list[float] | None = None, compiled: bool = False) -> Summary:
     """Play the show until its `seconds` of performance time, the end of a non-looping replay, or
     Ctrl-C.
+
+    Every kernel the show can reach is compiled before its first frame (`rehearse`), unless
+    `compiled` says the caller did it already with `compile_kernels` for this model, crowd and
+    rate (`run` does, before it opens anything: a second rehearsal only cost start-up time).
 
     `stop` is the flag Ctrl-C and SIGTERM set (installed here unless the caller did, so that a
     stop during its start-up is kept too). `on_frame`, when given, is called after each frame is
@@ -138,7 +142,8 @@ def perform(show: Show, console: Console, stop: StopFlag | None = None,
     model, outputs, state, fps, seconds, replay = show.model, show.sinks, show.state, show.fps, show.seconds, show.replay
     live_sources, describe_sources = show.sources, show.describe_sources
     apply = show.apply or ControlHub([], console=console).apply  # checked, counted and warned as a show's events are
-    rehearse(model, show.characters, fps, show.lookahead)  # every kernel compiled now, not at the show's first run, stand or wave
+    if not compiled:  # every kernel compiled now, not at the show's first run, stand or wave
+        rehearse(model, show.characters, fps, show.lookahead)
     engine = Engine(model, show.characters, fps, show.lookahead, spacing=show.spacing)
     clock = FrameClock(fps, realtime=not show.fast)
     feet = Footfalls(engine.poses)
@@ -304,8 +309,9 @@ def compile_kernels(model: Model, characters: int, fps: float, profiles: Iterabl
     """Every kernel a show's frames call, compiled (or loaded from numba's cache): the engine's
     (`rehearse`), the check of a frame's poses and each OSC profile's encoding of a frame. `run`
     calls it before it opens anything, where Ctrl-C ends the process at once: a first run
-    compiles for half a minute (in `perform`, with the devices open, a Ctrl-C waited for it).
-    With the cache warm it takes about as long as loading the kernels."""
+    compiles for half a minute (in `perform`, with the devices open, a Ctrl-C waited for it);
+    `perform(..., compiled=True)` then does not rehearse again. With the cache warm it takes
+    about as long as loading the kernels."""
     rehearse(model, characters, fps)
     state = ControlState(model.style_names, model.states)
     crowd, _ = FinitePoses()(Engine(model, characters, fps).frame(0.0, state.snapshot(), state.spread))

@@ -37,7 +37,7 @@ plays the stage only keeps the last two frames' upper body.
 
 from __future__ import annotations
 
-from typing import Collection
+from collections.abc import Collection
 
 import numpy as np
 from numba import njit

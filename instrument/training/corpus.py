@@ -33,7 +33,7 @@ DEFAULT_STYLE_PATTERN = r"(?:^|_)([A-Za-z][A-Za-z0-9-]*)_[^_]*$"
 # (`/walk/style/<name>`) and of synth's `--style NAME.PART=W`: a '/', '.', '=', space or OSC's
 # pattern characters in it would make them name something else
 STYLE_NAME = re.compile(r"[\w-]+")
-# a manifest's columns (CSV) or a [[take]]'s keys (TOML); 'unit' may be left out (a walk), and
+# a manifest's columns (CSV) or a [[take]]'s keys (TOML); 'unit' may be left out or empty (a walk), and
 # 'gesture' (a standing take's: wave, raise) too (read from the file's name)
 MANIFEST_COLUMNS = ("file", "style", "unit", "gesture")
 
@@ -157,15 +157,14 @@ def read_manifest(path: Path) -> list[TakeFile]:
             if not isinstance(take, dict) or not isinstance(take.get("file"), str) or not isinstance(take.get("style"), str) \
                     or not take["file"].strip() or not take["style"].strip():
                 raise UserError(f"{where}: needs string keys 'file' and 'style', neither empty")
-            said, gesture = "unit" in take, take.get("gesture", "")
-            unit = take.get("unit", "walk")
+            unit, gesture = take.get("unit", ""), take.get("gesture", "")
             if not isinstance(unit, str):
                 raise UserError(f"{path}:{toml.line('take', k, 'unit')}: take {k + 1}: 'unit' is a string ({', '.join(UNITS)})")
             if not isinstance(gesture, str):
                 raise UserError(f"{path}:{toml.line('take', k, 'gesture')}: take {k + 1}: "
                                 f"'gesture' is a string ({', '.join(GESTURES)})")
             at = {key: f"{path}:{toml.line('take', k, key)}: take {k + 1}" if key in take else where for key in ("unit", "gesture")}
-            unit = checked_unit(at["unit"], unit)  # the line of the key that says it, not its table's
+            said, unit = bool(unit.strip()), checked_unit(at["unit"], unit)  # at the line of the key that says it
             add(TakeFile(_listed_file(base, take["file"], where), checked_style(where, take["style"]), unit,
                          checked_gesture(at["gesture"], gesture, unit, said)), toml.line("take", k))
         return pairs
@@ -192,7 +191,7 @@ def read_manifest(path: Path) -> list[TakeFile]:
         if len(row) > len(header) and "".join(row[len(header):]).strip():
             raise located(path, f"{len(row)} fields, but the header {quoted(','.join(rows[0]))} names {len(header)}", number)
         said = row[2].strip() if with_units and len(row) > 2 else ""
-        unit = checked_unit(f"{path}:{number}", said or "walk")
+        unit = checked_unit(f"{path}:{number}", said)
         gesture = row[3].strip() if with_gestures and len(row) > 3 else ""
         add(TakeFile(_listed_file(base, row[0].strip(), f"{path}:{number}"),
                      checked_style(f"{path}:{number}", row[1].strip()), unit,

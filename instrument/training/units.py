@@ -102,10 +102,11 @@ def turn_as_taken(unit: str, yaw_rates: np.ndarray, fps: float) -> tuple[str | N
 
 
 def checked_unit(where: str, unit: str) -> str:
-    """A manifest's unit, one of UNITS (in any case), or an error naming where it is. Not read
+    """A manifest's unit, one of UNITS (in any case), or an error naming where it is; left empty
+    (a CSV's blank field, a TOML take's `unit = ""`, or none given) a walk, alike in both. Not read
     as leniently as a file name (`unit_of_words`): a name is guessed from, a manifest is the
     user's word, and `runn` or `walking-fast` read by its words trained a run or a walk unasked."""
-    found = unit.strip().lower()
+    found = unit.strip().lower() or "walk"
     if found not in UNITS:
         raise UserError(f"{where}: unit {unit!r} is not one of {', '.join(UNITS)}")
     return found
