@@ -16,7 +16,7 @@ from instrument.motion.kinematics import forward_kinematics
 from instrument.motion.limbs import centimetres_per_unit, find_limbs, foot_tip
 from instrument.synthesis.posing import Pose
 from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, HOLD_FRAMES, NEARLY_STRAIGHT,
-                                          POSSIBLE, PLANTED, REFERENCE_FPS, RELEASE_HOLD_FRAMES, SWING_BENT, SWING_CM)
+                                          POSSIBLE, PLANTED, REFERENCE_FPS, SWING_BENT, SWING_CM)
 from instrument.synthesis.follow import STRENGTH
 from instrument.synthesis.footlock import (CLOSED, HEEL_RISE_SPEED, LANDING_PACE, MAX_HEEL_RISE, SETTLE_CM, SETTLE_LIFT_CM,
                                            SETTLE_SECONDS, SETTLE_STILL_CM_S, STRETCH)
@@ -156,15 +156,13 @@ def _pitch_to_height(toes: np.ndarray, axis: np.ndarray, height: float) -> float
 
 def _heel_rise(world_rot: np.ndarray, world_pos: np.ndarray, leg, toes: np.ndarray, across: np.ndarray,
                clearance: tuple[float, float], on_floor: float, target: np.ndarray, allowed: float, low: float,
-               high: float, keep: float) -> tuple[np.ndarray, np.ndarray, float]:
+               high: float) -> tuple[np.ndarray, np.ndarray, float]:
     """The foot's turn about its toe line's end (`toes`: `_toe_line`) that raises the heel until the leg
     reaches no further than `allowed` (less of the way where the toes are higher above their
     clearance than the heel above its own, none from `on_floor` higher), and the ankle's target
     after it, found numerically (a scan of the rise, then bisection) to check the compiled
     closed form: the smallest rise that reaches, else the one in [0, MAX_HEEL_RISE] that comes
-    nearest; then held in [low, high] and to at most MAX_HEEL_RISE from standing flat; the
-    target moved as a rise of at least `keep` moves it (a released foot's rise going out with its
-    lock's eased weight; the foot pitched by the bounded rise alone). Also the
+    nearest; then held in [low, high] and to at most MAX_HEEL_RISE from standing flat. Also the
     angle. `clearance`: the ankle's and the toe line end's heights standing on the floor."""
     axis = world_rot[leg.ankle] @ across  # lifting the heel about the foot's axis across it
     if np.linalg.norm(axis[[0, 2]]) < 1e-12:
@@ -176,11 +174,10 @@ def _heel_rise(world_rot: np.ndarray, world_pos: np.ndarray, leg, toes: np.ndarr
     risen = np.arcsin(np.clip(drop / length, -1, 1)) - np.arctan2(toes[1], toes @ forward)
     high = min(high, max(MAX_HEEL_RISE - risen, 0.0))
     angle = float(np.clip(_needed_rise(world_pos, leg, toes, axis, clearance, on_floor, target, allowed), min(low, high), high))
-    carried = max(angle, keep)  # the ankle moved by this rise, the foot pitched by `angle` alone
-    if carried <= 0.0:
+    if angle <= 0.0:
         return np.eye(3), target, 0.0
-    lifted = _axis_rotation(axis, carried)
-    return (_axis_rotation(axis, angle) if angle > 0.0 else np.eye(3)), target + toes + lifted @ -toes, carried
+    turn = _axis_rotation(axis, angle)
+    return turn, target + toes + turn @ -toes, angle
 
 
 def _needed_rise(world_pos, leg, toes, axis, clearance, on_floor, target, allowed) -> float:
@@ -250,7 +247,6 @@ class FootLock:
         # the lock's times are frames at REFERENCE_FPS, the same time at this rate: a frame's share of them
         self.blend_step = REFERENCE_FPS / fps / BLEND_FRAMES  # of a lock's blend in or out
         self.hold_step = REFERENCE_FPS / fps / HOLD_FRAMES  # of the swing lift's going, or the hold's on the floor
-        self.release_step = REFERENCE_FPS / fps / RELEASE_HOLD_FRAMES  # of the hold's going in a walk's release
         self.drop_share = 1.0 - (1.0 - 1.0 / BLEND_FRAMES) ** (REFERENCE_FPS / fps)  # of the way to the body's drop
         self.landed = np.zeros(2)  # how far each foot's swing lift has gone since it was planted
         self.held = np.zeros(2)  # how far each foot's lowest joint is held on the floor
@@ -446,20 +442,16 @@ class FootLock:
         for f, leg in enumerate(self.limbs.legs):
             sole = self.sole(1 - f, world_rot, world_pos)  # the other foot's lowest point
             holding = planted[f] or (planted[1 - f] and sole >= CONTACT_CM / self.cm)  # planted, or handing over
-            going = self.release_step if planted[1 - f] else self.hold_step  # a walk's release: RELEASE_HOLD_FRAMES
-            self.next_held[f] = min(1.0, self.held[f] + self.hold_step) if holding else max(0.0, self.held[f] - going)
+            self.next_held[f] = min(1.0, self.held[f] + self.hold_step) if holding else max(0.0, self.held[f] - self.hold_step)
             target = self._target(f, leg, world_rot, world_pos, self.next_held[f])
             turn = np.eye(3)
             if self.weight[f] > 0 or self.rise[f] > 0:  # after its lock, a heel comes down at the same pace
                 low = max(self.rise[f] - self.rise_step, 0.0)
                 high = min(self.rise[f] + self.rise_step, MAX_HEEL_RISE) if self.weight[f] > 0 else low
-                # released in a walk (the other foot planted): the rise goes out as the eased weight (the cap does not take it at once)
-                keep = (self.rise[f] * EASE(self.weight[f]) / EASE(self.weight[f] + self.blend_step)
-                        if not planted[f] and planted[1 - f] and self.weight[f] > 0 else 0.0)
                 clearance = (self.ground[f][0], self.pivot_ground(f))
                 turn, target, self.next_rise[f] = _heel_rise(world_rot, world_pos, leg, self.toes(f, world_rot, world_pos),
                                                              self.across[f], clearance, CONTACT_CM / self.cm, target,
-                                                             extension[f], low, high, keep)
+                                                             extension[f], low, high)
             if not planted[f] and not planted[1 - f] and self.weight[f] > 0:  # released in flight: the leg no longer than made
                 gap = target - world_pos[leg.hip]
                 if np.linalg.norm(gap) > extension[f] > 0.0:

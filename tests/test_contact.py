@@ -32,7 +32,7 @@ def heel_rise(pos, leg, pivot, *arguments):
     toes = pos[pivot] - pos[leg[2]]
     across = np.array([toes[2], 0.0, -toes[0]]) / np.hypot(toes[0], toes[2])
     return turn, footlock.heel_rise(np.repeat(np.eye(3)[None], len(pos), axis=0), pos, leg, pivot, np.zeros(3), across,
-                                   *arguments, 0.0, turn)
+                                   *arguments, turn)
 
 
 def test_two_bone_ik_reaches_a_reachable_target_and_keeps_the_bones():
@@ -137,7 +137,7 @@ def test_a_foot_pitched_past_vertical_keeps_its_heading_and_rises_about_its_own_
             target = pos[2] + _about([0.0, 1.0, 0.0], yaw) @ np.array([0.0, 0.0, -6.0])  # held back: out of reach
             turn = np.empty((3, 3))
             rise = footlock.heel_rise(world_rot, pos, np.array([0, 1, 2]), 3, np.zeros(3), across, np.array([8.0, 3.0]), 2.0,
-                                      target, np.linalg.norm(pos[2] - pos[0]), 0.0, footlock.MAX_HEEL_RISE, 0.0, turn)
+                                      target, np.linalg.norm(pos[2] - pos[0]), 0.0, footlock.MAX_HEEL_RISE, turn)
             if rise > 0.0:  # (a foot pitched MAX_HEEL_RISE or more rises no further)
                 # the turn's axis: level, across the foot
                 axis = np.array([turn[2, 1] - turn[1, 2], turn[0, 2] - turn[2, 0], turn[1, 0] - turn[0, 1]])

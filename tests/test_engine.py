@@ -91,8 +91,7 @@ def test_a_run_at_120_fps_is_as_smooth_and_its_planted_feet_as_still_as_at_30(tm
     frames read at 120 has more third difference than the frames themselves, which smooth it.
     The feet's contact shares go on a line between the frames (`Engine.shares_at`): held at the
     newest frame's, the lock took each state's step up to three output frames early and the
-    planted feet slid 1.73 times as fast as at 30 fps (4.45 against 2.57 cm/s, 5 s); now 1.29, and
-    1.31 since a walk's release eases out over two frames (5.42 against 4.14; over four, 1.66)."""
+    planted feet slid 1.73 times as fast as at 30 fps (4.45 against 2.57 cm/s, 5 s); now 1.29."""
     score = tmp_path / "active.toml"
     score.write_text('[[cue]]\nat = 0\nramp = { "style/active" = 1.0 }\n')
     figures, planted = {}, {}

@@ -84,13 +84,6 @@ SWING_CM = 2.0  # a foot in the air keeps its lowest joint this far above its cl
 # eased over that time at a higher rate, where in one frame the same 2-3 cm made a pop whose third
 # difference grows with the rate's square (at 120 fps the made walk's jitter was 3.9x its takes')
 HOLD_FRAMES = 1
-# frames at REFERENCE_FPS the hold goes over in a walk's release (the other foot planted): there the
-# lock's heel rise goes out with its eased weight (footlock._targets), and the hold let go in one
-# frame lifted the toes as the foot pitched up: feminine's walk popped 5.68 against its takes' 5.1.
-# Over two frames: 4.90; over BLEND_FRAMES (the lock's own pace) the toes were held down as the rise
-# moved them along the floor: planted feet slid 1.66 times as fast at 120 fps as at 30 (two: 1.31).
-# docs/evaluate.md, "A release eased out with its lock"
-RELEASE_HOLD_FRAMES = 2
 PLANTED = 0.5  # a state this sure of a foot's contact plants it
 POSSIBLE = 0.2  # a state this sure plants a foot that is on the floor and still
 NEARLY_STRAIGHT = np.radians(10.0)  # a knee bent less than this may be bent the wrong way (see footlock.leg_swings)

@@ -45,17 +45,15 @@ out (BLEND_FRAMES; LANDING_PACE is a multiple of it), the body's drop (eased
 1 / BLEND_FRAMES of the way in a 30 fps frame's time), as HEEL_RISE_SPEED and SETTLE_SECONDS were
 already. The swing lift a foot keeps in the air goes as it is planted, and the hold of its
 lowest joint on the floor goes as it is released (not handing over), over HOLD_FRAMES: one frame
-at 30 fps, as before, but eased over that 33 ms at a higher rate (`LockState.landed` and `held`);
-in a walk's release, over RELEASE_HOLD_FRAMES (two), its heel rise going out with the lock.
+at 30 fps, as before, but eased over that 33 ms at a higher rate (`LockState.landed` and `held`).
 Dropped in one frame, those 2-3 cm were a pop whose third difference grows with the square of
 the rate: active's walk made at 120 fps had 4.3 times the jitter of the same walk unlocked, now
 2.0 times, and at 30 fps the walks are the same to the digit. Only the vertical lift and hold
 fade so; the horizontal pull stays the lock's weight, so toes held down are held where they were
 planted as much as before, not slid along the floor (blending the hold out with the lock's
 weight instead kept the toes down while the lock let go: skate 1.5 to 6.2 cm/s at 120 fps, and
-at 30 fps the hips swung 2-3 degrees wider; two frames in a walk's release is the measured middle,
-docs/evaluate.md, "A release eased out with its lock"). docs/evaluate.md, "The lock the same in
-seconds at any rate".
+at 30 fps the hips swung 2-3 degrees wider). docs/evaluate.md, "The lock the same in seconds at
+any rate".
 
 Nothing is allocated a character: vectors are tuples (`_sub`, `_cross`), and matrices and
 per-frame arrays are written into the caller's arrays (`lock_work`, made once a call), since
@@ -77,8 +75,8 @@ from numba import njit
 from ..motion.features import FeatureLayout
 from ..motion.kinematics import _compose, forward_kinematics
 from ..motion.limbs import centimetres_per_unit, find_limbs, foot_tip
-from .contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, HOLD_FRAMES, NEARLY_STRAIGHT, PLANTED, POSSIBLE,
-                      RELEASE_HOLD_FRAMES, SWING_BENT, SWING_CM, eased_per_frame, per_frame)
+from .contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, HOLD_FRAMES, NEARLY_STRAIGHT, PLANTED, POSSIBLE, SWING_BENT,
+                      SWING_CM, eased_per_frame, per_frame)
 from .follow import ease
 
 MAX_HEEL_RISE = np.radians(50.0)  # the most a planted foot pitches up about its toes, from standing flat
@@ -336,7 +334,7 @@ def _pivot_at(world_rot, world_pos, ankle, pivot, tip):  # pragma: no cover - co
 
 
 @njit(cache=True, error_model="numpy")
-def heel_rise(world_rot, world_pos, leg, pivot, tip, across, clearance, on_floor, target, allowed, low, high, keep,
+def heel_rise(world_rot, world_pos, leg, pivot, tip, across, clearance, on_floor, target, allowed, low, high,
               turn):  # pragma: no cover - compiled
     """The foot's turn (3x3, world: written into `turn`) and its angle (returned) about its pivot
     (its front-most joint, the toes) when the lock asks the leg (hip, knee, ankle) to reach
@@ -349,10 +347,7 @@ def heel_rise(world_rot, world_pos, leg, pivot, tip, across, clearance, on_floor
     rolling on toes in the air would lift the whole foot off the floor. That angle is then held
     in [`low`, `high`] (the lock keeps each rise within HEEL_RISE_SPEED of the frame before's,
     so a rise no longer asked for comes down at that pace), and the foot to at most
-    MAX_HEEL_RISE from flat, which wins over `low`. The ankle's target is moved as a rise of at
-    least `keep` would move it (returned, the rise the next frame's bounds start from), though
-    the foot pitches no further than that bound: a released foot's rise going out with its
-    lock's eased weight (`_targets`), the foot never pitched past MAX_HEEL_RISE. `clearance` (2,): the ankle's and the
+    MAX_HEEL_RISE from flat, which wins over `low`. `clearance` (2,): the ankle's and the
     pivot's heights standing on the floor. A foot without a toe joint rises about its `tip`
     (`_toe_line`), the toe joint's place."""
     toes = _toe_line(world_rot, world_pos, leg[2], pivot, tip)
@@ -376,20 +371,14 @@ def heel_rise(world_rot, world_pos, leg, pivot, tip, across, clearance, on_floor
     high = min(high, max(MAX_HEEL_RISE - risen, 0.0))
     theta = min(max(_needed_rise(world_pos[leg[0]], toes, toe, k, clearance, on_floor, target, allowed), min(low, high)),
                 high)
-    carried = max(theta, keep)  # the ankle goes where this rise puts it; the foot pitches by theta alone
-    if carried <= 0.0:
+    if theta <= 0.0:
         _set_identity(turn)
         return 0.0
-    _axis_rotation(k, np.sin(carried), 1.0 - np.cos(carried), turn)
+    _axis_rotation(k, np.sin(theta), 1.0 - np.cos(theta), turn)
     v = _sub(target, toe)
     for i in range(3):
         target[i] = toe[i] + _dot(turn[i], v)
-    if theta < carried:
-        if theta > 0.0:
-            _axis_rotation(k, np.sin(theta), 1.0 - np.cos(theta), turn)
-        else:
-            _set_identity(turn)
-    return carried
+    return theta
 
 
 @njit(cache=True, error_model="numpy")
@@ -617,7 +606,6 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     still = standing and speeds[0] < SETTLE_STILL_CM_S and speeds[1] < SETTLE_STILL_CM_S
     step = per_frame(BLEND_FRAMES, fps)
     hold_step = per_frame(HOLD_FRAMES, fps)
-    release_step = per_frame(RELEASE_HOLD_FRAMES, fps)
     for f in range(2):
         if planted[f] and weights[f] == 0.0:
             pivot = _pivot_at(world_rot, world_pos, joints[f, 2], feet[f, -1], tips[f])
@@ -655,7 +643,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     on_floor = CONTACT_CM / cm
     rise_step = HEEL_RISE_SPEED / fps
     _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed, held,
-             hold_step, release_step, step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
+             hold_step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
     # eased towards what it needs by 1 / BLEND_FRAMES of the way a frame at REFERENCE_FPS: the same time at any rate
     drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) * eased_per_frame(
         1.0 / BLEND_FRAMES, fps)
@@ -664,7 +652,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             translations[root, a] -= drop[0] * parent_rot[1, a]
         world_pos[:, 1] -= drop[0]
         _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed,
-                 held, hold_step, release_step, step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
+                 held, hold_step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
     rises[0], rises[1] = angles[0], angles[1]
     held[0], held[1] = holding[0], holding[1]
     for f in range(2):  # a closing step's foot off the floor
@@ -827,30 +815,18 @@ def _turned(kx, ky, kz, c, s, x, y, z):  # pragma: no cover - compiled
 
 @njit(cache=True, error_model="numpy")
 def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed, held,
-             hold_step, release_step, step,
+             hold_step,
              swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding):  # pragma: no cover - compiled
     """Each ankle's target (2, 3), each foot's heel-rise turn (2, 3, 3) and angle (2,), and how far
     its lowest joint is held down (2,), written into `targets`, `turns`, `angles` and `holding`: a
     foot whose lock is blended in rises on its toes where its leg would otherwise stretch past its
     generated extension, its rise within `rise_step` of the frame before's (`rises`), coming down
-    at that pace after its lock has gone; its hold within `hold_step` of the frame before's (`held`).
-    In a walk's release (the other foot planted; not a run's toe-off into flight) the foot lets
-    go more gently: its rise goes out no faster than its lock's eased weight, which fell by
-    `step` this frame (the cap on the foot's pitch, MAX_HEEL_RISE, no longer takes the ankle's
-    lift at once: it still bounds the pitch, `heel_rise`'s `keep`), and its hold steps down by
-    `release_step` (RELEASE_HOLD_FRAMES), not `hold_step`. At a toe-off the generated foot
-    pitches up fast: the cap took the rise in one frame and the hold went in one while the
-    weight blended out over four, and feminine's walk gave back a 6.7 cm correction in two
-    frames, a jump of 7.92 cm/frame^2 against its takes' 5.1 (now 4.90). Carried into a run's
-    flight, the ankle so lifted skated (active's run stance skate 76.4 -> 79.1 cm/s, over its
-    bound) and the hold so slowed kept the toes down (exhausted's flight share under its
-    takes'). docs/evaluate.md, "A release eased out with its lock"."""
+    at that pace after its lock has gone; its hold within `hold_step` of the frame before's (`held`)."""
     for f in range(2):
         # the other foot planted but its lowest point not yet down: this one hands over to it
         handing_over = planted[1 - f] and _sole_lift(world_rot, world_pos, feet[1 - f], tips[1 - f], ground[1 - f],
                                                      pivot_ground[1 - f]) >= on_floor
-        going = release_step if planted[1 - f] else hold_step  # a walk's release over RELEASE_HOLD_FRAMES
-        holding[f] = min(1.0, held[f] + hold_step) if planted[f] or handing_over else max(0.0, held[f] - going)
+        holding[f] = min(1.0, held[f] + hold_step) if planted[f] or handing_over else max(0.0, held[f] - hold_step)
         lock_target(world_rot, world_pos, joints[f], feet[f], tips[f], ground[f], pivot_ground[f], weights[f], points[f],
                     ease(landed[f]), ease(holding[f]),
                     swing_lift, targets[f])
@@ -860,13 +836,9 @@ def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, gro
             clearance = (ground[f, 0], pivot_ground[f])
             low = max(rises[f] - rise_step, 0.0)
             high = min(rises[f] + rise_step, MAX_HEEL_RISE) if weights[f] > 0.0 else low
-            # released in a walk (the other foot planted) and blending out: the rise scaled as the eased
-            # weight (which was weights[f] + step); a run's toe-off into flight lets go as before
-            walk_release = not planted[f] and planted[1 - f] and weights[f] > 0.0
-            keep = rises[f] * ease(weights[f]) / ease(weights[f] + step) if walk_release else 0.0
             angles[f] = heel_rise(world_rot, world_pos, joints[f], feet[f, -1], tips[f], across[f], clearance, on_floor,
                                   targets[f],
-                                  extension[f], low, high, keep, turns[f])
+                                  extension[f], low, high, turns[f])
         if not planted[f] and not planted[1 - f] and weights[f] > 0.0:  # (a walk's other foot is down)
             within_reach(targets[f], world_pos[joints[f, 0]], extension[f])
 
