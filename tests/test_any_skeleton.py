@@ -211,13 +211,13 @@ def test_a_humanoid_map_naming_one_bone_twice_is_one_line(tmp_path):
     ('[bones]\n"Hips" = "Hips"\n"UpperLeg_L" = "LeftUpperLegg"\n', 3, "'LeftUpperLegg': not a humanoid bone"),
     ('[bones]\n"Hips" = "Hips"\n[bones.arm]\n"UpperArm_L" = "LeftUpperArm"\n', 3, "the model's skeleton has no such joint"),
 ])
-def test_a_humanoid_map_key_it_does_not_read_is_one_line_at_its_line(tmp_path, text, line, says):
+def test_a_humanoid_map_key_it_does_not_read_is_one_line_at_its_line(model, tmp_path, text, line, says):
     """A second table (`[Bones]`, a note above [bones]) was read past: its bones never moved on
     the avatar and nothing said so. Every refusal names the line."""
     bones = tmp_path / "bones.toml"
     bones.write_text(text)
     with pytest.raises(UserError) as error:
-        read_humanoid(bones, load_model(default_model_path()).layout.skeleton)
+        read_humanoid(bones, model.layout.skeleton)
     assert str(error.value).startswith(f"{bones}:{line}:") and says in str(error.value), error.value
 
 
