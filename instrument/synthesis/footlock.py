@@ -100,6 +100,10 @@ CLOSED = 2.0  # LockState.settling of a foot that has taken its closing step, or
 # BLEND_FRAMES, as a walk's heel strike rolls in with the other foot down, a run's landing foot slid on
 # for a third of a stance of six frames (active's run skated 1.08x its takes')
 LANDING_PACE = 2.0
+# a walk's foot released (the other planted) gives back the lock's correction in joint space: the
+# last locked frame's local rotation offsets at hip, knee, ankle and toes, eased out (smoothstep)
+# over this many frames at REFERENCE_FPS, on top of the generated rotations (`release_joints`)
+RELEASE_FRAMES = 6
 
 
 @dataclass
@@ -116,6 +120,10 @@ class LockState:
     settling: np.ndarray  # (N, 2) each foot's closing step: 0 may take one, (0, 1) how far through, CLOSED (`settle_feet`)
     landed: np.ndarray  # (N, 2) how far each foot's swing lift has gone as it was planted, 0..1 (over HOLD_FRAMES)
     held: np.ndarray  # (N, 2) how far each foot's lowest joint is held on the floor, 0..1 (over HOLD_FRAMES)
+    # (N, 2, 4, 3, 3) each planted foot's lock as local rotation offsets (generated^T @ locked) at its
+    # hip, knee, ankle and pivot (identity for a pivot that is the ankle), as of its last locked frame
+    offsets: np.ndarray
+    releasing: np.ndarray  # (N, 2) how much of those offsets a released walk's foot still carries, 1..0 (0: none)
 
     def part(self, start: int, stop: int) -> LockState:
         """Characters start to stop: views of the same arrays, for a part of the crowd on a core."""
@@ -127,6 +135,7 @@ class LockState:
         self.rises[n] = 0.0
         self.settling[n] = 0.0
         self.landed[n], self.held[n] = 0.0, 0.0
+        self.offsets[n], self.releasing[n] = np.eye(3), 0.0
 
 
 class FootLock:
@@ -165,7 +174,7 @@ class FootLock:
         """The state of `count` characters before their first frame: nothing locked yet."""
         return LockState(np.zeros((count, 2)), np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros(count),
                          np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros((count, 2)), np.zeros((count, 2)),
-                         np.zeros((count, 2)))
+                         np.zeros((count, 2)), np.tile(np.eye(3), (count, 2, 4, 1, 1)), np.zeros((count, 2)))
 
     def apply(self, state: LockState, rotations: np.ndarray, translations: np.ndarray, shares: np.ndarray,
               world_rot: np.ndarray, world_pos: np.ndarray, standing: np.ndarray | None = None) -> None:
@@ -177,7 +186,7 @@ class FootLock:
         standing = np.zeros(len(shares), dtype=np.bool_) if standing is None else np.ascontiguousarray(standing, dtype=np.bool_)
         lock_crowd(rotations, translations, np.ascontiguousarray(shares, dtype=np.float64), world_rot, world_pos,
                    state.weights, state.points, state.headings, state.drop, state.previous, state.rises,
-                   state.settling, state.landed, state.held, standing, self.parents, self.joints, self.feet, self.across,
+                   state.settling, state.landed, state.held, state.offsets, state.releasing, standing, self.parents, self.joints, self.feet, self.across,
                    self.tips, self.pivot_ground, self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm,
                    self.swing_lift)
 
@@ -587,20 +596,25 @@ def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, t
 def lock_work():  # pragma: no cover - compiled
     """What a character's `lock_frame` writes as it goes, made once for a whole crowd's call so the
     lock allocates nothing a character: planted (2,) bool, extension (2,), targets (2, 3), turns
-    (2, 3, 3), angles (2,), scratch matrices (8, 3, 3), closing steps' lifts (2,) and holds (2,)."""
+    (2, 3, 3), angles (2,), scratch matrices (8, 3, 3), closing steps' lifts (2,) and holds (2,), the
+    legs' generated local rotations (2, 4, 3, 3: `release_joints`' joints) and the lock's own weights (2,)."""
     return (np.empty(2, dtype=np.bool_), np.empty(2), np.empty((2, 3)), np.empty((2, 3, 3)), np.empty(2),
-            np.empty((8, 3, 3)), np.empty(2), np.empty(2))
+            np.empty((8, 3, 3)), np.empty(2), np.empty(2), np.empty((2, 4, 3, 3)), np.empty(2))
 
 
 @njit(cache=True, error_model="numpy")
 def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, landed, held, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
+               settling, landed, held, offsets, releasing, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
                root, fps, cm,
                swing_lift, work):  # pragma: no cover - compiled
     """One character's frame (arrays of that character; `drop` a 1-element view, `standing` a
     bool). Returns nothing: rotations, translations, the world transforms and the state are
     updated in place."""
-    planted, extension, targets, turns, angles, matrices, lifts, holding = work
+    planted, extension, targets, turns, angles, matrices, lifts, holding, generated, locking = work
+    for f in range(2):  # the legs' local rotations as made, which a locked foot's offsets are measured from
+        leg = (joints[f, 0], joints[f, 1], joints[f, 2], feet[f, -1])
+        for k in range(4):
+            _copy_matrix(rotations[leg[k]], generated[f, k])
     speeds = planted_feet(shares, world_rot, world_pos, previous, joints, feet, tips, pivot_ground, ground, fps, cm, planted)
     # both generated feet nearly still (no closing step while the pose steps off; NaN at first: not still)
     still = standing and speeds[0] < SETTLE_STILL_CM_S and speeds[1] < SETTLE_STILL_CM_S
@@ -621,19 +635,33 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     pace = (LANDING_PACE * step if weights[1] == 0.0 and not planted[1] else step,
             LANDING_PACE * step if weights[0] == 0.0 and not planted[0] else step)
     for f in range(2):
+        if planted[f]:
+            releasing[f] = 0.0
+        elif weights[f] == 1.0 and planted[1 - f]:  # a walk's foot let go from its full lock: given back in joint space
+            releasing[f], rises[f], held[f] = 1.0, 0.0, 0.0
+    for f in range(2):
         weights[f] = min(1.0, weights[f] + pace[f]) if planted[f] else max(0.0, weights[f] - step)
         landed[f] = min(1.0, landed[f] + hold_step) if planted[f] else max(0.0, landed[f] - hold_step)
+        if releasing[f] > 0.0:
+            releasing[f] = max(0.0, releasing[f] - per_frame(RELEASE_FRAMES, fps))
+            # the swing lift comes in as the offsets go (at once, a bent knee's foot was lifted 2 cm in a frame)
+            landed[f] = max(landed[f], releasing[f])
+            release_joints(rotations, translations, world_rot, world_pos, parents, joints[f], feet[f], offsets[f],
+                           ease(releasing[f]), matrices[:2])
+        # the weight the lock itself holds the foot with: none while it is given back in joint space
+        # (`weights` still blends out as before, for the body's follow and the footfalls)
+        locking[f] = 0.0 if releasing[f] > 0.0 else weights[f]
     settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, tips, across,
                 SETTLE_CM / cm,
                 1.0 / (SETTLE_SECONDS * fps), SETTLE_LIFT_CM / cm, lifts)
     for f in range(2):
-        if weights[f] > 0.0:
+        if locking[f] > 0.0:
             hold_heading(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], across[f], headings[f],
-                         ease(weights[f]))
+                         ease(locking[f]))
     for f in range(2):  # alone on the floor, a planted foot stands flat; a released other foot whose lock is
         # still blending out does not keep it from doing so (it would hold the landing foot's toes up
         # while the trailing foot's come off the floor: docs/evaluate.md, "Floating the stricter way")
-        share = ease(weights[f]) * (1.0 - (ease(weights[1 - f]) if planted[1 - f] else 0.0))
+        share = ease(locking[f]) * (1.0 - (ease(locking[1 - f]) if planted[1 - f] else 0.0))
         if share > 0.0:
             lay_flat(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], tips[f], across[f], ground[f, 0],
                      pivot_ground[f], share)
@@ -642,7 +670,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         extension[f] = np.sqrt(_dot(gap, gap))
     on_floor = CONTACT_CM / cm
     rise_step = HEEL_RISE_SPEED / fps
-    _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed, held,
+    _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, locking, points, planted, landed, held,
              hold_step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
     # eased towards what it needs by 1 / BLEND_FRAMES of the way a frame at REFERENCE_FPS: the same time at any rate
     drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) * eased_per_frame(
@@ -651,7 +679,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         for a in range(3):  # [0, drop, 0] @ parent_rot, element by element (no temporary array)
             translations[root, a] -= drop[0] * parent_rot[1, a]
         world_pos[:, 1] -= drop[0]
-        _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed,
+        _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, locking, points, planted, landed,
                  held, hold_step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
     rises[0], rises[1] = angles[0], angles[1]
     held[0], held[1] = holding[0], holding[1]
@@ -673,6 +701,59 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
                       targets[f], matrices[1:])
         elif not _identity(turns[f]):  # the ankle where it was made, the foot turned all the same
             _product_t(world_rot[joints[f, 1]], world_rot[ankle], rotations[ankle])
+    for f in range(2):  # a held foot's lock as offsets from the rotations made, for its release
+        if planted[f] and weights[f] > 0.0:
+            leg = (joints[f, 0], joints[f, 1], joints[f, 2], feet[f, -1])
+            for k in range(4):
+                if k == 3 and leg[3] == leg[2]:  # the pivot is the ankle: its offset is the ankle's
+                    _set_identity(offsets[f, k])
+                else:
+                    _product_t(generated[f, k], rotations[leg[k]], offsets[f, k])
+
+
+@njit(cache=True, error_model="numpy")
+def release_joints(rotations, translations, world_rot, world_pos, parents, leg, foot, offsets, share,
+                   turn):  # pragma: no cover - compiled
+    """A walk's released foot given back in joint space: `share` (1..0) of each of its lock's
+    offsets (4, 3, 3: generated^T @ locked local rotations at the hip, knee, ankle and pivot, as
+    of its last locked frame; the angle scaled about the offset's own axis) applied on top of
+    the generated local rotations, and the leg's world transforms (hip, knee and `foot`) by FK.
+    Letting go of the ankle's IK target instead (the lock's weight, hold and heel rise) jumped the
+    ankle as the rise's cap fell at toe-off; rotations eased out cannot snap. `turn` (2, 3, 3): scratch."""
+    chain = (leg[0], leg[1], leg[2], foot[-1])
+    for k in range(4):
+        if k == 3 and chain[3] == chain[2]:
+            break
+        _scaled_rotation(offsets[k], share, turn[0])
+        _product(rotations[chain[k]], turn[0], turn[1])  # the generated rotation, then the share of the offset
+        _copy_matrix(turn[1], rotations[chain[k]])
+    for j in range(parents.shape[0]):  # parents before children: hip, knee, then the foot
+        member = j == leg[0] or j == leg[1]
+        for i in range(foot.shape[0]):
+            member = member or foot[i] == j
+        if not member:
+            continue
+        p = parents[j]
+        for a in range(3):
+            for b in range(3):
+                world_rot[j, a, b] = (world_rot[p, a, 0] * rotations[j, 0, b] + world_rot[p, a, 1] * rotations[j, 1, b]
+                                      + world_rot[p, a, 2] * rotations[j, 2, b])
+            world_pos[j, a] = world_pos[p, a] + (world_rot[p, a, 0] * translations[j, 0] + world_rot[p, a, 1] * translations[j, 1]
+                                                 + world_rot[p, a, 2] * translations[j, 2])
+
+
+@njit(cache=True, error_model="numpy")
+def _scaled_rotation(rotation, share, out):  # pragma: no cover - compiled
+    """out = `rotation` with its angle scaled by `share`, about the same axis."""
+    c = min(max((rotation[0, 0] + rotation[1, 1] + rotation[2, 2] - 1.0) / 2.0, -1.0), 1.0)
+    angle = np.arccos(c)
+    s = np.sin(angle)
+    if angle < 1e-9 or s < 1e-9:
+        _set_identity(out)
+        return
+    axis = ((rotation[2, 1] - rotation[1, 2]) / (2.0 * s), (rotation[0, 2] - rotation[2, 0]) / (2.0 * s),
+            (rotation[1, 0] - rotation[0, 1]) / (2.0 * s))
+    _axis_rotation(axis, np.sin(share * angle), 1.0 - np.cos(share * angle), out)
 
 
 @njit(cache=True, error_model="numpy")
@@ -862,13 +943,14 @@ def within_reach(target, hip, extension):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, landed, held, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
+               settling, landed, held, offsets, releasing, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
                root, fps, cm,
                swing_lift):  # pragma: no cover - compiled
     """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
     work = lock_work()
     for n in range(rotations.shape[0]):
         lock_frame(rotations[n], translations[n], shares[n], world_rot[n], world_pos[n], weights[n], points[n], headings[n],
-                   drop[n : n + 1], previous[n], rises[n], settling[n], landed[n], held[n], standing[n], parents, joints, feet,
+                   drop[n : n + 1], previous[n], rises[n], settling[n], landed[n], held[n], offsets[n], releasing[n],
+                   standing[n], parents, joints, feet,
                    across, tips, pivot_ground, ground, reach, parent_rot, root, fps, cm, swing_lift, work)
     _compose(parents, rotations, translations, world_rot, world_pos)
