@@ -103,7 +103,7 @@ LANDING_PACE = 2.0
 # a walk's foot released (the other planted) gives back the lock's correction in joint space: the
 # last locked frame's local rotation offsets at hip, knee, ankle and toes, eased out (smoothstep)
 # over this many frames at REFERENCE_FPS, on top of the generated rotations (`release_joints`)
-RELEASE_FRAMES = 6
+RELEASE_FRAMES = 8
 
 
 @dataclass
