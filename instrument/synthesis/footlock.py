@@ -121,7 +121,7 @@ class LockState:
     landed: np.ndarray  # (N, 2) how far each foot's swing lift has gone as it was planted, 0..1 (over HOLD_FRAMES)
     held: np.ndarray  # (N, 2) how far each foot's lowest joint is held on the floor, 0..1 (over HOLD_FRAMES)
     # (N, 2, 4, 3, 3) each planted foot's lock as local rotation offsets (generated^T @ locked) at its
-    # hip, knee, ankle and pivot (identity for a pivot that is the ankle), as of its last locked frame
+    # hip, knee and ankle, and its pivot's world turn (locked @ generated^T), as of its last locked frame
     offsets: np.ndarray
     releasing: np.ndarray  # (N, 2) how much of those offsets a released walk's foot still carries, 1..0 (0: none)
 
@@ -613,8 +613,9 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     planted, extension, targets, turns, angles, matrices, lifts, holding, generated, locking = work
     for f in range(2):  # the legs' local rotations as made, which a locked foot's offsets are measured from
         leg = (joints[f, 0], joints[f, 1], joints[f, 2], feet[f, -1])
-        for k in range(4):
+        for k in range(3):
             _copy_matrix(rotations[leg[k]], generated[f, k])
+        _copy_matrix(world_rot[leg[3]], generated[f, 3])  # the toes': their world rotation
     speeds = planted_feet(shares, world_rot, world_pos, previous, joints, feet, tips, pivot_ground, ground, fps, cm, planted)
     # both generated feet nearly still (no closing step while the pose steps off; NaN at first: not still)
     still = standing and speeds[0] < SETTLE_STILL_CM_S and speeds[1] < SETTLE_STILL_CM_S
@@ -646,8 +647,8 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             releasing[f] = max(0.0, releasing[f] - per_frame(RELEASE_FRAMES, fps))
             # the swing lift comes in as the offsets go (at once, a bent knee's foot was lifted 2 cm in a frame)
             landed[f] = max(landed[f], releasing[f])
-            release_joints(rotations, translations, world_rot, world_pos, parents, joints[f], feet[f], offsets[f],
-                           ease(releasing[f]), matrices[:2])
+            release_joints(rotations, translations, world_rot, world_pos, parents, joints[f], feet[f], tips[f], across[f],
+                           ground[f, 0], pivot_ground[f], offsets[f], ease(releasing[f]), matrices[:3])
         # the weight the lock itself holds the foot with: none while it is given back in joint space
         # (`weights` still blends out as before, for the body's follow and the footfalls)
         locking[f] = 0.0 if releasing[f] > 0.0 else weights[f]
@@ -704,30 +705,55 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     for f in range(2):  # a held foot's lock as offsets from the rotations made, for its release
         if planted[f] and weights[f] > 0.0:
             leg = (joints[f, 0], joints[f, 1], joints[f, 2], feet[f, -1])
-            for k in range(4):
-                if k == 3 and leg[3] == leg[2]:  # the pivot is the ankle: its offset is the ankle's
-                    _set_identity(offsets[f, k])
-                else:
-                    _product_t(generated[f, k], rotations[leg[k]], offsets[f, k])
+            for k in range(3):
+                _product_t(generated[f, k], rotations[leg[k]], offsets[f, k])
+            # the toes' world turn (locked @ made^T): the toes keep their world rotation as the heel rises
+            for i in range(3):
+                for j in range(3):
+                    offsets[f, 3, i, j] = _dot(world_rot[leg[3]][i], generated[f, 3][j])
 
 
 @njit(cache=True, error_model="numpy")
-def release_joints(rotations, translations, world_rot, world_pos, parents, leg, foot, offsets, share,
-                   turn):  # pragma: no cover - compiled
+def release_joints(rotations, translations, world_rot, world_pos, parents, leg, foot, tip, across, ankle_clearance,
+                   pivot_clearance, offsets, share, turn):  # pragma: no cover - compiled
     """A walk's released foot given back in joint space: `share` (1..0) of each of its lock's
     offsets (4, 3, 3: generated^T @ locked local rotations at the hip, knee, ankle and pivot, as
     of its last locked frame; the angle scaled about the offset's own axis) applied on top of
     the generated local rotations, and the leg's world transforms (hip, knee and `foot`) by FK.
     Letting go of the ankle's IK target instead (the lock's weight, hold and heel rise) jumped the
-    ankle as the rise's cap fell at toe-off; rotations eased out cannot snap. `turn` (2, 3, 3): scratch."""
-    chain = (leg[0], leg[1], leg[2], foot[-1])
-    for k in range(4):
-        if k == 3 and chain[3] == chain[2]:
-            break
+    ankle as the rise's cap fell at toe-off; rotations eased out cannot snap. The foot is then
+    pitched back about its ankle to no more than MAX_HEEL_RISE from flat (or as made, if more):
+    the offsets' pitch on a made foot pitching up at toe-off took it up to 20 deg past the vertical
+    (elderly -1). The toes keep their world rotation as made but for a share of the lock's world
+    turn of them (offsets[3]: about the vertical, the held heading), as a rising heel leaves them.
+    `turn` (3, 3, 3): scratch."""
+    made = _risen(world_rot, world_pos, leg[2], foot[-1], tip, across, ankle_clearance, pivot_clearance)
+    pivot = foot[-1]
+    _copy_matrix(world_rot[pivot], turn[2])  # the toes' world rotation as made
+    chain = (leg[0], leg[1], leg[2])
+    for k in range(3):
         _scaled_rotation(offsets[k], share, turn[0])
         _product(rotations[chain[k]], turn[0], turn[1])  # the generated rotation, then the share of the offset
         _copy_matrix(turn[1], rotations[chain[k]])
-    for j in range(parents.shape[0]):  # parents before children: hip, knee, then the foot
+    _leg_forward(rotations, translations, world_rot, world_pos, parents, leg, foot)
+    excess = _risen(world_rot, world_pos, leg[2], pivot, tip, across, ankle_clearance, pivot_clearance) - max(
+        MAX_HEEL_RISE, made)
+    r = world_rot[leg[2]]
+    k = (_dot(r[0], across), _dot(r[1], across), _dot(r[2], across))
+    if excess > 0.0 and np.hypot(k[0], k[2]) > 1e-12:  # about the foot's axis across it (heel_rise's): negative lowers the heel
+        turn_foot(rotations, world_rot, world_pos, leg[1], leg[2], foot, k[0], k[1], k[2], np.cos(excess), -np.sin(excess))
+    if pivot != leg[2]:  # the toes: their world rotation as made, turned by the share of the lock's world turn of them
+        _scaled_rotation(offsets[3], share, turn[0])
+        _product(turn[0], turn[2], turn[1])
+        _product_t(world_rot[parents[pivot]], turn[1], rotations[pivot])
+        _leg_forward(rotations, translations, world_rot, world_pos, parents, leg, foot)
+
+
+@njit(cache=True, error_model="numpy")
+def _leg_forward(rotations, translations, world_rot, world_pos, parents, leg, foot):  # pragma: no cover - compiled
+    """The world transforms of a leg's hip, knee and `foot` joints from their local ones (FK; a BVH
+    lists parents before children)."""
+    for j in range(parents.shape[0]):
         member = j == leg[0] or j == leg[1]
         for i in range(foot.shape[0]):
             member = member or foot[i] == j
@@ -740,6 +766,21 @@ def release_joints(rotations, translations, world_rot, world_pos, parents, leg, 
                                       + world_rot[p, a, 2] * rotations[j, 2, b])
             world_pos[j, a] = world_pos[p, a] + (world_rot[p, a, 0] * translations[j, 0] + world_rot[p, a, 1] * translations[j, 1]
                                                  + world_rot[p, a, 2] * translations[j, 2])
+
+
+@njit(cache=True, error_model="numpy")
+def _risen(world_rot, world_pos, ankle, pivot, tip, across, ankle_clearance, pivot_clearance) -> float:  # pragma: no cover - compiled
+    """How far the foot's heel is up from standing flat (radians; as `heel_rise` measures it,
+    growing past the vertical); 0 for a foot with no toe line or axis across it."""
+    toes = _toe_line(world_rot, world_pos, ankle, pivot, tip)
+    r = world_rot[ankle]
+    k = (_dot(r[0], across), _dot(r[1], across), _dot(r[2], across))
+    level = np.hypot(k[0], k[2])
+    length = np.sqrt(_dot(toes, toes))
+    if level < 1e-12 or length < 1e-12:
+        return 0.0
+    flat = np.arcsin(min(max((pivot_clearance - ankle_clearance) / length, -1.0), 1.0))
+    return flat - np.arctan2(toes[1], (toes[2] * k[0] - toes[0] * k[2]) / level)
 
 
 @njit(cache=True, error_model="numpy")
