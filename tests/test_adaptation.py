@@ -5,10 +5,12 @@ the duration floor, and settings chosen by held-out likelihood."""
 import numpy as np
 import pytest
 
+from conftest import REPO, needs_walks, walk_files
 from instrument.training.adaptation import (DEFAULT, ONE_PASS_MAP, REFERENCE_FPS, Settings, adapt, adapt_styles,
                                           duration_floor, floored_keeping_length, heldout_score)
 from instrument.models.hsmm import HSMM, Floors
-from instrument.training.average import train_average
+from instrument.training.average import train_average, variance_floors
+from instrument.training.corpus import load_corpus, segments_by_label, styled_takes
 from test_hsmm import STATES, TRUE_DURATION_MEANS, sample
 
 FLOORS = Floors(np.full(2, 1e-3))
@@ -97,7 +99,8 @@ def test_styles_choose_their_settings_and_tiny_styles_warn(average):
     many = [shifted(20, 5 + k) for k in range(4)]  # four takes
     tiny = [shifted(2, 9)]  # one take, two steps a label
     report: list[str] = []
-    styles, chosen = adapt_styles(average, {"many": many, "tiny": tiny}, FLOORS, report)
+    styles, chosen = adapt_styles(average, {"many": [("walk", t) for t in many], "tiny": [("walk", t) for t in tiny]},
+                                  FLOORS, report)
     assert any("'tiny'" in w for w in report)  # said once, by whoever reads the report
     assert not any("'many'" in w for w in report)
     assert chosen["many"].heldout_loglik_per_frame is not None and chosen["tiny"].heldout_loglik_per_frame is None
@@ -131,3 +134,35 @@ def test_a_style_adapts_alike_at_any_frame_rate(average):
         np.testing.assert_allclose(at_rate.duration_means / rate, reference.duration_means, atol=1e-9)
         in_frames = adapt(fine, held, FLOORS, settings)  # the weight as frames of the fine rate
         assert np.abs(in_frames.means - reference.means).max() > 0.3
+
+
+MOTIONS = REPO.parent / "shared" / "data" / "bandai-motions"
+
+
+@needs_walks
+@pytest.mark.skipif(not MOTIONS.is_dir(), reason=f"runs not found in {MOTIONS}")
+def test_a_one_take_run_is_adapted_with_its_own_prior_not_the_walks():
+    """Feminine's walks and one run take (harden8): chosen on all the style's steps, the walk's
+    tau 64 held the run too, and its 3-4 steps a foot kept a third of the take (its flight halved
+    in the made run). Each unit now has its own: the run, too short to split, the smallest prior,
+    which explains feminine's 11 other run takes (never trained on) better per frame than the
+    walk's settings do; the walk keeps what its held-out steps choose."""
+    runs = sorted(MOTIONS.glob("dataset-2_run_feminine_*.bvh"))
+    walks = [f for f in walk_files() if "_feminine_" in f.name]
+    _, takes, _, _ = load_corpus(styled_takes(walks + runs), 30.0)
+    units = ["walk", "run"]
+    train = [t for t in takes if t.unit == "walk" or t.path == runs[0]]
+    segments = segments_by_label(train, 5, units)
+    floors = variance_floors(segments)
+    average = train_average(segments, 5, floors)
+    styles, report = adapt_styles(average, {"feminine": [(t.unit, segments_by_label([t], 5, units)) for t in train]},
+                                  floors, [], units=units)
+    chosen = report["feminine"]
+    assert chosen.units["walk"].folds == "takes" and chosen.units["run"].folds == "few"
+    assert chosen.units["run"].settings.tau < chosen.settings.tau  # the walk's choice (64) is not the run's
+    others = segments_by_label([t for t in takes if t not in train], 5, units)
+    others = [label if k >= 2 else [] for k, label in enumerate(others)]  # the other run takes' steps
+    model = HSMM(*(getattr(styles, f)[0] for f in HSMM.__dataclass_fields__))
+    own, frames = heldout_score(model, others)
+    walks_prior, _ = heldout_score(adapt(average, segments, floors, chosen.settings), others)
+    assert frames > 1000 and own / frames > walks_prior / frames + 5.0
