@@ -142,27 +142,31 @@ MOTIONS = REPO.parent / "shared" / "data" / "bandai-motions"
 @needs_walks
 @pytest.mark.skipif(not MOTIONS.is_dir(), reason=f"runs not found in {MOTIONS}")
 def test_a_one_take_run_is_adapted_with_its_own_prior_not_the_walks():
-    """Feminine's walks and one run take (harden8): chosen on all the style's steps, the walk's
-    tau 64 held the run too, and its 3-4 steps a foot kept a third of the take (its flight halved
-    in the made run). Each unit now has its own: the run, too short to split, the smallest prior,
-    which explains feminine's 11 other run takes (never trained on) better per frame than the
-    walk's settings do; the walk keeps what its held-out steps choose."""
-    runs = sorted(MOTIONS.glob("dataset-2_run_feminine_*.bvh"))
+    """Walks and one run take a style (harden8's corpus, smaller: feminine's 27 walks, three of
+    each other style's, every style's first run). Chosen on all the style's steps, feminine's
+    walk's tau 64 held its run too, and its 3-4 steps a foot kept a third of the take (its flight
+    halved in the made run). Each unit now has its own: the run, too short to split, the smallest
+    prior, which explains feminine's 11 other run takes (never trained on) better per frame than
+    the walk's settings do (491.8 against 468.7 when written); the walk keeps what its own
+    held-out takes choose."""
+    runs = sorted(MOTIONS.glob("dataset-2_run_*_001.bvh"))
+    held = sorted(set(MOTIONS.glob("dataset-2_run_feminine_*.bvh")) - set(runs))
     walks = [f for f in walk_files() if "_feminine_" in f.name]
-    _, takes, _, _ = load_corpus(styled_takes(walks + runs), 30.0)
+    for style in {f.stem.split("_")[2] for f in runs} - {"feminine"}:
+        walks += [f for f in walk_files() if f"_{style}_" in f.name][:3]
+    _, takes, _, _ = load_corpus(styled_takes(walks + runs + held), 30.0)
     units = ["walk", "run"]
-    train = [t for t in takes if t.unit == "walk" or t.path == runs[0]]
+    train = [t for t in takes if t.path not in held]
     segments = segments_by_label(train, 5, units)
     floors = variance_floors(segments)
     average = train_average(segments, 5, floors)
-    styles, report = adapt_styles(average, {"feminine": [(t.unit, segments_by_label([t], 5, units)) for t in train]},
+    feminine = [t for t in train if t.style == "feminine"]
+    styles, report = adapt_styles(average, {"feminine": [(t.unit, segments_by_label([t], 5, units)) for t in feminine]},
                                   floors, [], units=units)
     chosen = report["feminine"]
     assert chosen.units["walk"].folds == "takes" and chosen.units["run"].folds == "few"
     assert chosen.units["run"].settings.tau < chosen.settings.tau  # the walk's choice (64) is not the run's
-    others = segments_by_label([t for t in takes if t not in train], 5, units)
-    others = [label if k >= 2 else [] for k, label in enumerate(others)]  # the other run takes' steps
-    model = HSMM(*(getattr(styles, f)[0] for f in HSMM.__dataclass_fields__))
-    own, frames = heldout_score(model, others)
-    walks_prior, _ = heldout_score(adapt(average, segments, floors, chosen.settings), others)
-    assert frames > 1000 and own / frames > walks_prior / frames + 5.0
+    others = [label if k >= 2 else [] for k, label in enumerate(segments_by_label([t for t in takes if t.path in held], 5, units))]
+    own, frames = heldout_score(HSMM(*(getattr(styles, f)[0] for f in HSMM.__dataclass_fields__)), others)
+    walks_prior, _ = heldout_score(adapt(average, segments_by_label(feminine, 5, units), floors, chosen.settings), others)
+    assert frames > 500 and own / frames > walks_prior / frames + 10.0, (own / frames, walks_prior / frames)
