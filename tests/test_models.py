@@ -70,6 +70,12 @@ def test_info_json(small_model):
         assert info["model_step_frames"][style] == pytest.approx(info["mean_step_frames"][style], rel=0.05)
     # no style state collapses: the floor is 2 frames where the steps are long enough (these are)
     assert min(info["shortest_state_frames"].values()) >= 2.0 - 1e-9
+    # what the adaptation chose, per unit (a walks-only model: the walk's, on alternate takes), as info prints it
+    for style, chosen in info["training"]["adaptation"].items():
+        assert chosen["units"] == {"walk": {"depth": chosen["depth"], "tau": chosen["tau"], "folds": "takes",
+                                            "heldout_loglik_per_frame": chosen["heldout_loglik_per_frame"]}}
+        depth = "none" if chosen["depth"] is None else chosen["depth"]
+        assert f"{style:<12} walk {depth}/{chosen['tau']:g}\n" in cli("info", str(path)).stdout
 
 
 def test_save_and_load_round_trip(small_model, tmp_path):
