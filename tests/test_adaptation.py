@@ -7,7 +7,7 @@ import pytest
 
 from conftest import REPO, needs_walks, walk_files
 from instrument.training.adaptation import (DEFAULT, ONE_PASS_MAP, REFERENCE_FPS, Settings, adapt, adapt_styles,
-                                          duration_floor, floored_keeping_length, heldout_score)
+                                          duration_floor, floored_keeping_length, heldout_score, unit_folds)
 from instrument.models.hsmm import HSMM, Floors
 from instrument.training.average import train_average, variance_floors
 from instrument.training.corpus import load_corpus, segments_by_label, styled_takes
@@ -135,6 +135,21 @@ def test_a_style_adapts_alike_at_any_frame_rate(average):
         in_frames = adapt(fine, held, FLOORS, settings)  # the weight as frames of the fine rate
         assert np.abs(in_frames.means - reference.means).max() > 0.3
 
+
+
+def test_each_unit_is_split_in_folds_on_its_own():
+    """Three walks and one run: the walks alternate between the folds, the run's one take is cut in
+    its halves (split with the walks, it lay in one fold and was scored only where no run had been
+    adapted)."""
+    def take(unit: str, steps: int, mark: float) -> tuple[str, list[list[np.ndarray]]]:
+        label = [np.full((3, 2), mark + i) for i in range(steps)]
+        return unit, ([label, label, [], []] if unit == "walk" else [[], [], label, label])
+
+    folds, how = unit_folds([take("walk", 2, 0.0), take("run", 4, 10.0), take("walk", 2, 20.0), take("walk", 2, 30.0)])
+    assert how == {"walk": "takes", "run": "halves"}
+    marks = [[[float(s[0, 0]) for s in label] for label in fold] for fold in folds]
+    assert marks[0][0] == [0.0, 1.0, 30.0, 31.0] and marks[1][0] == [20.0, 21.0]  # walks 1 and 3, walk 2
+    assert marks[0][2] == [10.0, 11.0] and marks[1][2] == [12.0, 13.0]  # the run's first and second half
 
 MOTIONS = REPO.parent / "shared" / "data" / "bandai-motions"
 
