@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
     if any("units" in chosen for chosen in adaptation.values()):  # models trained before 2026-11-30 chose per style
         print("  adapted    per unit: tree depth / tau (frames), chosen on the unit's own held-out steps (how split):")
         for name, chosen in adaptation.items():
-            print(f"    {name:<12} " + ", ".join(_choice(unit, c) for unit, c in chosen["units"].items()))
+            print(f"    {name:<12} " + ", ".join(_choice(unit, c) for unit, c in chosen.get("units", {}).items()))
     print(f"  data       {info['takes']} takes, {info['frames']} frames")
     print(f"  trained    {info['training'].get('command', '')!s} ({info['training'].get('seconds', '?')} s)")
     print(f"  licence    {info['licence']}")
