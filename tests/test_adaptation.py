@@ -2,12 +2,15 @@
 the duration floor, and settings chosen by held-out likelihood."""
 
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from conftest import REPO, needs_walks, walk_files
-from instrument.training.adaptation import (DEFAULT, ONE_PASS_MAP, REFERENCE_FPS, Settings, adapt, adapt_styles,
-                                          duration_floor, floored_keeping_length, heldout_score, unit_folds)
+from instrument.training.adaptation import (DEFAULT, ONE_PASS_MAP, REFERENCE_FPS, TAUS, Settings, adapt, adapt_styles,
+                                          alignment, combined, duration_floor, floored_keeping_length, heldout_score,
+                                          unit_folds)
 from instrument.models.hsmm import HSMM, Floors
 from instrument.training.average import train_average, variance_floors
 from instrument.training.corpus import load_corpus, segments_by_label, styled_takes
@@ -136,20 +139,75 @@ def test_a_style_adapts_alike_at_any_frame_rate(average):
         assert np.abs(in_frames.means - reference.means).max() > 0.3
 
 
+def merged(takes: list[list[list[np.ndarray]]]) -> list[list[np.ndarray]]:
+    """Takes' steps (take, label, step) as one list of steps per label."""
+    return [[s for take in takes for s in take[k]] for k in range(len(takes[0]))]
+
+
+def test_a_walks_only_corpus_trains_as_one_walk_setting_per_style(average):
+    """Walks alone, one unit: each style is the adaptation of all its steps with its walk's settings,
+    from lambda 0's alignment as the style was adapted before units were chosen apart (summed over
+    the alternate takes' or the one take's halves when chosen; all steps at once when too few to
+    choose), to the bit. A too-short walk was aligned in halves and summed, and came out 3.5e-12
+    away in its means with other durations and likelihoods."""
+    corpus = {"many": [shifted(6, 20 + k) for k in range(3)], "one": [shifted(8, 30)], "tiny": [shifted(2, 31)]}
+    warnings: list[str] = []
+    styles, report = adapt_styles(average, {s: [("walk", t) for t in takes] for s, takes in corpus.items()}, FLOORS,
+                                  warnings)
+    assert [report[s].units["walk"].folds for s in corpus] == ["takes", "halves", "default"]
+    assert len(warnings) == 1 and "'tiny'" in warnings[0] and "its walk" in warnings[0]
+    for i, (style, takes) in enumerate(corpus.items()):
+        if len(takes) >= 2:  # alternate takes
+            folds = [merged(takes[0::2]), merged(takes[1::2])]
+        else:  # the one take's halves
+            folds = [[label[: len(label) // 2] for label in takes[0]], [label[len(label) // 2 :] for label in takes[0]]]
+        first = None if style == "tiny" else combined(*(alignment(average, fold) for fold in folds))
+        trace: list[float] = []
+        alone = adapt(average, merged(takes), FLOORS, report[style].settings, trace, first)
+        for name in ("means", "variances", "duration_means", "duration_variances"):
+            np.testing.assert_array_equal(getattr(styles, name)[i], getattr(alone, name), err_msg=f"{style} {name}")
+        assert report[style].loglik_per_frame == trace
+
 
 def test_each_unit_is_split_in_folds_on_its_own():
     """Three walks and one run: the walks alternate between the folds, the run's one take is cut in
     its halves (split with the walks, it lay in one fold and was scored only where no run had been
     adapted)."""
-    def take(unit: str, steps: int, mark: float) -> tuple[str, list[list[np.ndarray]]]:
-        label = [np.full((3, 2), mark + i) for i in range(steps)]
-        return unit, ([label, label, [], []] if unit == "walk" else [[], [], label, label])
-
-    folds, how = unit_folds([take("walk", 2, 0.0), take("run", 4, 10.0), take("walk", 2, 20.0), take("walk", 2, 30.0)])
+    folds, how = unit_folds([take("walk", 2, 0.0), take("run", 4, 10.0), take("walk", 2, 20.0), take("walk", 2, 30.0)],
+                            UNITS)
     assert how == {"walk": "takes", "run": "halves"}
-    marks = [[[float(s[0, 0]) for s in label] for label in fold] for fold in folds]
+    marks = fold_marks(folds)
     assert marks[0][0] == [0.0, 1.0, 30.0, 31.0] and marks[1][0] == [20.0, 21.0]  # walks 1 and 3, walk 2
     assert marks[0][2] == [10.0, 11.0] and marks[1][2] == [12.0, 13.0]  # the run's first and second half
+
+
+def test_takes_that_leave_a_fold_without_a_foot_are_split_in_halves():
+    """A unit is split by takes only where each fold then holds a step of each foot: a run of one
+    long take and one of a single right step is split in the halves of its steps (by takes, the
+    second fold had no left step to score), and walks whose alternate takes both hold both feet
+    still alternate."""
+    one_foot = ("run", [[], [], [np.full((3, 2), 20.0)], []])
+    folds, how = unit_folds([take("walk", 2, 0.0), take("run", 4, 10.0), take("walk", 1, 30.0), one_foot], UNITS)
+    assert how == {"walk": "takes", "run": "halves"}
+    marks = fold_marks(folds)
+    assert marks[0][0] == [0.0, 1.0] and marks[1][0] == [30.0]  # walk 1, walk 2
+    assert marks[0][2] == [10.0, 11.0] and marks[1][2] == [12.0, 13.0, 20.0]  # the run's right steps in halves
+    assert marks[0][3] == [10.0, 11.0] and marks[1][3] == [12.0, 13.0]  # and its left: a step of each in each fold
+
+
+UNITS = ("walk", "run")
+
+
+def take(unit: str, steps: int, mark: float) -> tuple[str, list[list[np.ndarray]]]:
+    """A take of `steps` steps a foot of `unit` (UNITS), each step's frames all `mark` plus its index."""
+    label = [np.full((3, 2), mark + i) for i in range(steps)]
+    return unit, ([label, label, [], []] if unit == "walk" else [[], [], label, label])
+
+
+def fold_marks(folds: list[list[list[np.ndarray]]]) -> list[list[list[float]]]:
+    """Which steps each fold's labels hold, by their marks (see take)."""
+    return [[[float(s[0, 0]) for s in label] for label in fold] for fold in folds]
+
 
 MOTIONS = REPO.parent / "shared" / "data" / "bandai-motions"
 
@@ -160,10 +218,11 @@ def test_a_one_take_run_is_adapted_with_its_own_prior_not_the_walks():
     """Walks and one run take a style (harden8's corpus, smaller: feminine's 27 walks, three of
     each other style's, every style's first run). Chosen on all the style's steps, feminine's
     walk's tau 64 held its run too, and its 3-4 steps a foot kept a third of the take (its flight
-    halved in the made run). Each unit now has its own: the run, too short to split, the smallest
-    prior, which explains feminine's 11 other run takes (never trained on) better per frame than
-    the walk's settings do (491.8 against 468.7 when written); the walk keeps what its own
-    held-out takes choose."""
+    halved in the made run). Each unit now has its own: the walk what its own held-out takes
+    choose, the run, too short to split (`few`), the walk's depth with the smallest prior whatever
+    tau the walk chose. Scored on feminine's 11 other run takes (never trained on), the made run
+    explains them better per frame than the run adapted at the walk's depth with tau 64 (491.8
+    against 468.7 when written), the prior a walk's choice of 64 held it to."""
     runs = sorted(MOTIONS.glob("dataset-2_run_*_001.bvh"))
     held = sorted(set(MOTIONS.glob("dataset-2_run_feminine_*.bvh")) - set(runs))
     walks = [f for f in walk_files() if "_feminine_" in f.name]
@@ -179,9 +238,13 @@ def test_a_one_take_run_is_adapted_with_its_own_prior_not_the_walks():
     styles, report = adapt_styles(average, {"feminine": [(t.unit, segments_by_label([t], 5, units)) for t in feminine]},
                                   floors, [], units=units)
     chosen = report["feminine"]
-    assert chosen.units["walk"].folds == "takes" and chosen.units["run"].folds == "few"
-    assert chosen.units["run"].settings.tau < chosen.settings.tau  # the walk's choice (64) is not the run's
-    others = [label if k >= 2 else [] for k, label in enumerate(segments_by_label([t for t in takes if t.path in held], 5, units))]
+    walk, run = chosen.units["walk"], chosen.units["run"]
+    assert walk.folds == "takes" and walk.settings == chosen.settings
+    assert run.folds == "few" and run.heldout_loglik_per_frame is None
+    assert run.settings == replace(walk.settings, tau=TAUS[0])
+    runs_only = segments_by_label([t for t in takes if t.path in held], 5, units)
+    others = [label if k >= 2 else [] for k, label in enumerate(runs_only)]  # the run's labels only
     own, frames = heldout_score(HSMM(*(getattr(styles, f)[0] for f in HSMM.__dataclass_fields__)), others)
-    walks_prior, _ = heldout_score(adapt(average, segments_by_label(feminine, 5, units), floors, chosen.settings), others)
-    assert frames > 500 and own / frames > walks_prior / frames + 10.0, (own / frames, walks_prior / frames)
+    held_to = adapt(average, segments_by_label(feminine, 5, units), floors, replace(run.settings, tau=64.0))
+    at_64, _ = heldout_score(held_to, others)
+    assert frames > 500 and own / frames > at_64 / frames + 10.0, (own / frames, at_64 / frames)

@@ -302,35 +302,39 @@ def _unit_labels(units: Sequence[str], unit: str) -> range:
     return range(2 * k, 2 * k + 2)
 
 
-def unit_folds(takes: list[TakeSteps]) -> tuple[list[list[list[np.ndarray]]], dict[str, str]]:
+def unit_folds(takes: list[TakeSteps], units: Sequence[str]) -> tuple[list[list[list[np.ndarray]]], dict[str, str]]:
     """The style's steps in two folds, each unit split on its own, and how ("takes" or "halves").
 
-    A unit with two takes or more is split by alternate takes of that unit, so its choice is
-    judged on takes the adaptation never saw; a unit with one take by its first and second half
-    of steps (in each label). Split over all the style's takes together, a one-take run lay in
-    one fold, and was scored only where no run had been adapted. A take's other labels (a
-    standing take's gestures) go with it."""
+    A unit is split by alternate takes of that unit where each fold then holds a step of each of
+    its feet, so its choice is judged on takes the adaptation never saw; otherwise (one take, or
+    takes of a step or two that leave a fold without one foot's steps) by the first and second
+    half of its steps (in each label). Split over all the style's takes together, a one-take run
+    lay in one fold, and was scored only where no run had been adapted. A take's other labels
+    (a standing take's gestures) go with it. `units` are the model's, in the order of its labels."""
     folds: list[list[list[np.ndarray]]] = [[[] for _ in takes[0][1]] for _ in range(2)]
     how = {}
     for unit in dict.fromkeys(u for u, _ in takes):
         mine = [segments for u, segments in takes if u == unit]
-        how[unit] = "takes" if len(mine) >= 2 else "halves"
-        for i, segments in enumerate(mine):
-            for k, label in enumerate(segments):
-                if len(mine) >= 2:
-                    folds[i % 2][k] += label
-                else:
-                    folds[0][k] += label[: len(label) // 2]
-                    folds[1][k] += label[len(label) // 2 :]
+        feet = _unit_labels(units, unit) if unit in units else range(0)  # a unit left out of the model has none
+        parts = [_merge(mine[0::2]), _merge(mine[1::2])] if len(mine) >= 2 else []
+        how[unit] = "takes" if parts and all(part[k] for part in parts for k in feet) else "halves"
+        if how[unit] == "halves":
+            every = _merge(mine)
+            parts = [[label[: len(label) // 2] for label in every], [label[len(label) // 2 :] for label in every]]
+        for fold, part in zip(folds, parts):
+            for k, label in enumerate(part):
+                fold[k] += label
     return folds, how
 
 
 def choose_settings(average: HSMM, takes: list[TakeSteps], units: Sequence[str], floors: Floors,
-                    fps: float = REFERENCE_FPS) -> tuple[dict[str, UnitChoice], list[Statistics | None]]:
+                    fps: float = REFERENCE_FPS) -> tuple[dict[str, UnitChoice], list[Statistics | None] | None]:
     """Each unit's tree depth, then tau, with the best two-fold held-out log-likelihood per
     frame of that unit's own steps (and lambda 0's alignment of all the style's steps, computed
-    on the way). Units with too few steps of a foot (MIN_STEPS_TO_CHOOSE) are left out: the
-    caller gives them the walk's choice.
+    on the way; None, and nothing computed, where no unit can be chosen, so such a style is
+    adapted from an alignment of all its steps at once, as before units were chosen apart).
+    Units with too few steps of a foot (MIN_STEPS_TO_CHOOSE) are left out: the caller gives
+    them the walk's choice.
 
     Every candidate is adapted on all the training fold's units (the shared transforms learn from
     them all), and each unit scores it on its own held-out steps. Chosen on all the style's
@@ -341,9 +345,11 @@ def choose_settings(average: HSMM, takes: list[TakeSteps], units: Sequence[str],
     units' halves are not held so: a run's one take (35 to 40 frames a label, under the floor)
     kept a third of itself at tau 64, and on every shared style's 11 other run takes tau 16
     explains the runs better than 64 at every depth (docs/evaluate.md, "A run from one take a style")."""
-    folds, how = unit_folds(takes)
+    folds, how = unit_folds(takes, units)
     merged = _merge([segments for _, segments in takes])
     chosen = [u for u in units if u in how and min(len(merged[k]) for k in _unit_labels(units, u)) >= MIN_STEPS_TO_CHOOSE]
+    if not chosen:
+        return {}, None
     firsts = [alignment(average, fold) for fold in folds]  # lambda 0's alignment, the same for every candidate
     scored: dict[Settings, dict[str, float]] = {}
 
@@ -383,11 +389,11 @@ def adapt_styles(average: HSMM, takes_per_style: dict[str, list[TakeSteps]], flo
     Each unit's labels come from an adaptation of all the style's steps with that unit's
     settings, so a run still learns the shared transforms from the walk; one adaptation is run per
     distinct setting. A unit with too few steps of a foot to split (MIN_STEPS_TO_CHOOSE: a run of
-    1 to 4 steps a foot) takes the walk's depth and the smallest tau, TAUS[0]: on the shared
-    runs, a one-take run's halves of 2 or 3 steps chose no transform for normal (409.5 per frame
-    on its 11 other takes, against 441.8 with the tree), and at the walk's depth tau 16 was the
-    best of the three for every style's other run takes. A style whose walk is too small is adapted with
-    DEFAULT, and warned of."""
+    fewer than 4, 1 to 3, steps a foot) takes the walk's depth and the smallest tau, TAUS[0]: on
+    the shared runs, a one-take run split anyway (halves of 1 or 2 steps) chose no transform for
+    normal (409.5 per frame on its 11 other takes, against 441.8 with the tree), and at the
+    walk's depth tau 16 was the best of the three for every style's other run takes. A style
+    whose walk is too small is adapted with DEFAULT, and warned of."""
     models, reports = [], {}
     for style, takes in takes_per_style.items():
         segments = _merge([s for _, s in takes])
@@ -395,10 +401,10 @@ def adapt_styles(average: HSMM, takes_per_style: dict[str, list[TakeSteps]], flo
         walk = choices.get("walk")
         if walk is None:
             walk = UnitChoice(fixed or DEFAULT, None, "fixed" if fixed else "default")
-            fewest = min(len(label) for label in segments[:2])
             if fixed is None:
+                fewest = min(len(label) for label in segments[:2])
                 warnings.append(f"style {style!r} has only {fewest} walking steps of one foot: too few to choose the "
-                                "adaptation by held-out likelihood, one shared transform is used")
+                                "adaptation of its walk by held-out likelihood, its walk takes one shared transform")
         few = walk if fixed is not None else UnitChoice(replace(walk.settings, tau=TAUS[0]), None, "few")
         per_unit = {u: choices.get(u, walk if u == "walk" else few)
                     for u in units if u == "walk" or any(segments[k] for k in _unit_labels(units, u))}
@@ -407,11 +413,20 @@ def adapt_styles(average: HSMM, takes_per_style: dict[str, list[TakeSteps]], flo
         for choice in per_unit.values():
             if choice.settings not in adapted:
                 adapted[choice.settings] = adapt(average, segments, floors, choice.settings, first=first, fps=fps)
-        label_settings = [per_unit[units[k // 2]].settings if k < 2 * len(units) and units[k // 2] in per_unit
-                          else walk.settings for k in range(len(segments))]
-        model = HSMM(*(np.stack([getattr(adapted[s], f)[k] for k, s in enumerate(label_settings)]) for f in _FIELDS))
+        model = stitched(adapted, [per_unit[u].settings if u in per_unit else walk.settings for u in units],
+                         walk.settings)
         models.append(model)
         reports[style] = StyleReport(walk.settings, walk.heldout_loglik_per_frame, trace, float(model.duration_means.min()),
                                      per_unit)
     stacked = HSMM(*(np.stack([getattr(m, f) for m in models]) for f in _FIELDS))
     return stacked, reports
+
+
+def stitched(adapted: dict[Settings, HSMM], unit_settings: Sequence[Settings], rest: Settings) -> HSMM:
+    """One style model from its adaptations (one per distinct setting): each unit's two labels
+    (right and left step, in the order of `unit_settings`) from the adaptation with that unit's
+    settings, every later label (the gestures') from `rest`'s. The adaptations all learn from all
+    the style's steps, so a unit's labels differ only in the prior they were pulled toward."""
+    labels = len(next(iter(adapted.values())).means)
+    per_label = [unit_settings[k // 2] if k < 2 * len(unit_settings) else rest for k in range(labels)]
+    return HSMM(*(np.stack([getattr(adapted[s], f)[k] for k, s in enumerate(per_label)]) for f in _FIELDS))
