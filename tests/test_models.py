@@ -78,7 +78,25 @@ def test_info_json(small_model):
         assert f"{style:<12} walk {depth}/{chosen['tau']:g}\n" in cli("info", str(path)).stdout
 
 
-def test_save_and_load_round_trip(small_model, tmp_path):
+
+def test_info_prints_how_each_units_settings_were_chosen(small_model, tmp_path):
+    """A unit too short to split shows `(few)`, halves `(halves)`, no transform `none`; alternate
+    takes nothing (the small model's metadata given a run as a one-take run's training writes it)."""
+    path, _, _ = small_model
+    with np.load(path) as arrays:
+        saved = {k: arrays[k] for k in arrays.files}
+    metadata = json.loads(str(saved["metadata"]))
+    units = metadata["training"]["adaptation"]["normal"]["units"]
+    units["run"] = {"depth": 2, "tau": 16.0, "heldout_loglik_per_frame": None, "folds": "few"}
+    units["stand"] = {"depth": None, "tau": 64.0, "heldout_loglik_per_frame": 401.5, "folds": "halves"}
+    saved["metadata"] = np.array(json.dumps(metadata))
+    edited = tmp_path / "edited.npz"
+    np.savez_compressed(edited, **saved)
+    result = cli("info", str(edited))
+    assert result.returncode == 0, result.stderr
+    walk = units["walk"]
+    walk_depth = "none" if walk["depth"] is None else walk["depth"]
+    assert f"normal       walk {walk_depth}/{walk['tau']:g}, run 2/16 (few), stand none/64 (halves)\n" in result.stdout
     model = load_model(small_model[0])
     copy = tmp_path / "copy.npz"
     save_model(copy, model)
