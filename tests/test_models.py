@@ -82,16 +82,18 @@ def test_info_json(small_model):
 def test_info_prints_how_each_units_settings_were_chosen(small_model, tmp_path):
     """A unit too short to split shows `(few)`, halves `(halves)`, no transform `none`; alternate
     takes nothing (the small model's metadata given a run as a one-take run's training writes it)."""
-    path, _, _ = small_model
-    with np.load(path) as arrays:
-        saved = {k: arrays[k] for k in arrays.files}
-    metadata = json.loads(str(saved["metadata"]))
-    units = metadata["training"]["adaptation"]["normal"]["units"]
-    units["run"] = {"depth": 2, "tau": 16.0, "heldout_loglik_per_frame": None, "folds": "few"}
-    units["stand"] = {"depth": None, "tau": 64.0, "heldout_loglik_per_frame": 401.5, "folds": "halves"}
-    saved["metadata"] = np.array(json.dumps(metadata))
+    units: dict = {}
+
+    def given_a_run_and_a_stand(arrays: dict) -> None:
+        metadata = json.loads(str(arrays["metadata"]))
+        units.update(metadata["training"]["adaptation"]["normal"]["units"])
+        units["run"] = {"depth": 2, "tau": 16.0, "heldout_loglik_per_frame": None, "folds": "few"}
+        units["stand"] = {"depth": None, "tau": 64.0, "heldout_loglik_per_frame": 401.5, "folds": "halves"}
+        metadata["training"]["adaptation"]["normal"]["units"] = units
+        arrays["metadata"] = np.array(json.dumps(metadata))
+
     edited = tmp_path / "edited.npz"
-    np.savez_compressed(edited, **saved)
+    _rewrite(small_model[0], edited, given_a_run_and_a_stand)
     result = cli("info", str(edited))
     assert result.returncode == 0, result.stderr
     walk = units["walk"]
