@@ -70,9 +70,35 @@ def test_info_json(small_model):
         assert info["model_step_frames"][style] == pytest.approx(info["mean_step_frames"][style], rel=0.05)
     # no style state collapses: the floor is 2 frames where the steps are long enough (these are)
     assert min(info["shortest_state_frames"].values()) >= 2.0 - 1e-9
+    # what the adaptation chose, per unit (a walks-only model: the walk's, on alternate takes), as info prints it
+    for style, chosen in info["training"]["adaptation"].items():
+        assert chosen["units"] == {"walk": {"depth": chosen["depth"], "tau": chosen["tau"], "folds": "takes",
+                                            "heldout_loglik_per_frame": chosen["heldout_loglik_per_frame"]}}
+        depth = "none" if chosen["depth"] is None else chosen["depth"]
+        assert f"{style:<12} walk {depth}/{chosen['tau']:g}\n" in cli("info", str(path)).stdout
 
 
-def test_save_and_load_round_trip(small_model, tmp_path):
+
+def test_info_prints_how_each_units_settings_were_chosen(small_model, tmp_path):
+    """A unit too short to split shows `(few)`, halves `(halves)`, no transform `none`; alternate
+    takes nothing (the small model's metadata given a run as a one-take run's training writes it)."""
+    units: dict = {}
+
+    def given_a_run_and_a_stand(arrays: dict) -> None:
+        metadata = json.loads(str(arrays["metadata"]))
+        units.update(metadata["training"]["adaptation"]["normal"]["units"])
+        units["run"] = {"depth": 2, "tau": 16.0, "heldout_loglik_per_frame": None, "folds": "few"}
+        units["stand"] = {"depth": None, "tau": 64.0, "heldout_loglik_per_frame": 401.5, "folds": "halves"}
+        metadata["training"]["adaptation"]["normal"]["units"] = units
+        arrays["metadata"] = np.array(json.dumps(metadata))
+
+    edited = tmp_path / "edited.npz"
+    _rewrite(small_model[0], edited, given_a_run_and_a_stand)
+    result = cli("info", str(edited))
+    assert result.returncode == 0, result.stderr
+    walk = units["walk"]
+    walk_depth = "none" if walk["depth"] is None else walk["depth"]
+    assert f"normal       walk {walk_depth}/{walk['tau']:g}, run 2/16 (few), stand none/64 (halves)\n" in result.stdout
     model = load_model(small_model[0])
     copy = tmp_path / "copy.npz"
     save_model(copy, model)

@@ -64,9 +64,20 @@ def run(args: argparse.Namespace) -> int:
         data = info["mean_step_frames"].get(name)  # none for a style trained without walks
         print(f"    {name:<12} {'no walk' if data is None else f'{data:5.1f}':>7} / {info['model_step_frames'][name]:5.1f}"
               f"   {info['shortest_state_frames'][name]:4.1f}")
+    adaptation = info["training"].get("adaptation", {})
+    if any("units" in chosen for chosen in adaptation.values()):  # models trained before 2026-11-30 chose per style
+        print("  adapted    per unit: tree depth / tau (frames), chosen on the unit's own held-out steps (how split):")
+        for name, chosen in adaptation.items():
+            print(f"    {name:<12} " + ", ".join(_choice(unit, c) for unit, c in chosen.get("units", {}).items()))
     print(f"  data       {info['takes']} takes, {info['frames']} frames")
     print(f"  trained    {info['training'].get('command', '')!s} ({info['training'].get('seconds', '?')} s)")
     print(f"  licence    {info['licence']}")
     if info["attribution"]:
         print(f"  attribution {info['attribution']}")
     return 0
+
+
+def _choice(unit: str, chosen: dict) -> str:
+    """`run 2/16 (halves)`: a unit's adaptation settings as `instrument info` prints them."""
+    depth = "none" if chosen["depth"] is None else chosen["depth"]
+    return f"{unit} {depth}/{chosen['tau']:g}" + ("" if chosen["folds"] == "takes" else f" ({chosen['folds']})")

@@ -22,13 +22,16 @@ sooner than at 30 fps and a 120 fps model's styles came out other than a 30 fps 
 same takes (docs/evaluate.md, "Settings in frames"). Durations are counted in steps (one per
 state visit whatever the rate), so their weight `tau / 2` is not scaled.
 
-The tree depth and `tau` are chosen per style by two-fold held-out likelihood (alternate takes,
-or the halves of a single take), so a user never tunes them. State durations never fall below a floor taken from
+The tree depth and `tau` are chosen per style and per unit (walk, run, turn, stand) by two-fold
+held-out likelihood of that unit's own steps (alternate takes of the unit, or the halves of a
+single take), so a user never tunes them, and a run learnt from one take is not held to the
+prior the walk chose. State durations never fall below a floor taken from
 the data (see duration_floor), and the floor does not lengthen the step (floored_keeping_length).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
@@ -38,10 +41,10 @@ from ..motion.features import REFERENCE_FPS
 
 DEPTHS = (None, 0, 1, 2)  # None: no transform (MAP only); 0: one class; 1: one per label; 2: one per state
 TAUS = (16.0, 64.0, 256.0)  # MAP prior weights tried, in frames at REFERENCE_FPS (0.53, 2.1, 8.5 s of data)
-ONE_TAKE_MIN_TAU = 64.0  # with a single take, no smaller weight (see choose_settings)
+ONE_TAKE_MIN_TAU = 64.0  # a walk from a single take: no smaller weight (see choose_settings)
 FLOOR_SHARE = 0.5  # a state's duration stays above this share of its lambda 0 share of the style's step
 MIN_STATE_SECONDS = 2.0 / REFERENCE_FPS  # and above this (2 frames at 30 fps), where the style's steps are long enough
-MIN_STEPS_TO_CHOOSE = 4  # fewer steps of a label than this: no held-out choice, DEFAULT settings
+MIN_STEPS_TO_CHOOSE = 4  # fewer steps of a unit's foot than this: no held-out choice (see adapt_styles)
 TOLERANCE = 0.05  # EM stops when the log-likelihood per frame gains less than this (it is in the hundreds)
 
 
@@ -64,16 +67,38 @@ DEFAULT = Settings()
 ONE_PASS_MAP = Settings(depth=None, tau=10.0, iterations=1, floor_share=0.0)
 
 
+# a take as the adaptation reads it: its unit, and per label its step segments
+TakeSteps = tuple[str, list[list[np.ndarray]]]
+_FIELDS = ("means", "variances", "duration_means", "duration_variances")
+
+
+@dataclass(frozen=True)
+class UnitChoice:
+    """The settings a unit's labels are adapted with, and how they were chosen."""
+    settings: Settings
+    heldout_loglik_per_frame: float | None  # of the chosen settings on the unit's own held-out steps; None if not chosen
+    # "takes" (alternate takes of the unit), "halves" (of its one take); not chosen: "few" (too few
+    # steps of a foot to split: the walk's depth, the smallest tau), "default" (DEFAULT: the walk
+    # itself has too few), "fixed" (given)
+    folds: str
+
+    def to_dict(self) -> dict:
+        return {"depth": self.settings.depth, "tau": self.settings.tau,
+                "heldout_loglik_per_frame": self.heldout_loglik_per_frame, "folds": self.folds}
+
+
 @dataclass
 class StyleReport:
-    settings: Settings
-    heldout_loglik_per_frame: float | None  # of the chosen settings, None if not chosen by held-out
-    loglik_per_frame: list[float] = field(default_factory=list)  # per EM iteration, full data
+    settings: Settings  # the walk's (and the gestures')
+    heldout_loglik_per_frame: float | None  # of the walk's settings on its held-out steps, None if not chosen by held-out
+    loglik_per_frame: list[float] = field(default_factory=list)  # per EM iteration, full data, the walk's settings
     min_duration: float = 0.0  # shortest state duration mean of the adapted model (frames)
+    units: dict[str, UnitChoice] = field(default_factory=dict)  # each unit the style has: its settings
 
     def to_dict(self) -> dict:
         return {**asdict(self.settings), "heldout_loglik_per_frame": self.heldout_loglik_per_frame,
-                "loglik_per_frame": self.loglik_per_frame, "min_duration": self.min_duration}
+                "loglik_per_frame": self.loglik_per_frame, "min_duration": self.min_duration,
+                "units": {unit: choice.to_dict() for unit, choice in self.units.items()}}
 
 
 def _classes(depth: int, labels: int, states: int) -> list[list[np.ndarray]]:
@@ -271,59 +296,137 @@ def _merge(takes: list[list[list[np.ndarray]]]) -> list[list[np.ndarray]]:
     return [[seg for take in takes for seg in take[k]] for k in range(len(takes[0]))]
 
 
-def choose_settings(average: HSMM, takes: list[list[list[np.ndarray]]], floors: Floors,
-                    fps: float = REFERENCE_FPS) -> tuple[Settings, float, list[Statistics | None]]:
-    """The tree depth, then tau, with the best two-fold held-out log-likelihood per frame (and
-    lambda 0's alignment of all the style's steps, computed on the way).
+def _unit_labels(units: Sequence[str], unit: str) -> range:
+    """A unit's labels: its right and left step (label = 2 * unit + foot, models/units.py)."""
+    k = units.index(unit)
+    return range(2 * k, 2 * k + 2)
 
-    With two takes or more, the folds are alternate takes, so the choice is judged on takes the
-    adaptation never saw. With one take, they are its first and second half of steps; those
-    halves are alike (one performer, one session), which rewards fitting the take, so tau is
-    not let below ONE_TAKE_MIN_TAU there."""
-    if len(takes) >= 2:
-        folds = [_merge(takes[0::2]), _merge(takes[1::2])]
-        taus = TAUS
-    else:
-        folds = [[label[: len(label) // 2] for label in takes[0]], [label[len(label) // 2 :] for label in takes[0]]]
-        taus = tuple(t for t in TAUS if t >= ONE_TAKE_MIN_TAU)
-    quick = replace(DEFAULT, iterations=2, tau=taus[0])
+
+def unit_folds(takes: list[TakeSteps], units: Sequence[str]) -> tuple[list[list[list[np.ndarray]]], dict[str, str]]:
+    """The style's steps in two folds, each unit split on its own, and how ("takes" or "halves").
+
+    A unit is split by alternate takes of that unit where each fold then holds a step of each of
+    its feet, so its choice is judged on takes the adaptation never saw; otherwise (one take, or
+    takes of a step or two that leave a fold without one foot's steps) by the first and second
+    half of its steps (in each label). Split over all the style's takes together, a one-take run
+    lay in one fold, and was scored only where no run had been adapted. A take's other labels
+    (a standing take's gestures) go with it. `units` are the model's, in the order of its labels."""
+    folds: list[list[list[np.ndarray]]] = [[[] for _ in takes[0][1]] for _ in range(2)]
+    how = {}
+    for unit in dict.fromkeys(u for u, _ in takes):
+        mine = [segments for u, segments in takes if u == unit]
+        feet = _unit_labels(units, unit) if unit in units else range(0)  # a unit left out of the model has none
+        parts = [_merge(mine[0::2]), _merge(mine[1::2])] if len(mine) >= 2 else []
+        how[unit] = "takes" if parts and all(part[k] for part in parts for k in feet) else "halves"
+        if how[unit] == "halves":
+            every = _merge(mine)
+            parts = [[label[: len(label) // 2] for label in every], [label[len(label) // 2 :] for label in every]]
+        for fold, part in zip(folds, parts):
+            for k, label in enumerate(part):
+                fold[k] += label
+    return folds, how
+
+
+def choose_settings(average: HSMM, takes: list[TakeSteps], units: Sequence[str], floors: Floors,
+                    fps: float = REFERENCE_FPS) -> tuple[dict[str, UnitChoice], list[Statistics | None] | None]:
+    """Each unit's tree depth, then tau, with the best two-fold held-out log-likelihood per
+    frame of that unit's own steps (and lambda 0's alignment of all the style's steps, computed
+    on the way; None, and nothing computed, where no unit can be chosen, so such a style is
+    adapted from an alignment of all its steps at once, as before units were chosen apart).
+    Units with too few steps of a foot (MIN_STEPS_TO_CHOOSE) are left out: the caller gives
+    them the walk's choice.
+
+    Every candidate is adapted on all the training fold's units (the shared transforms learn from
+    them all), and each unit scores it on its own held-out steps. Chosen on all the style's
+    steps together, the walk decided for every unit and a one-take run could not take part
+    (docs/evaluate.md, "A run from one take a style"). A walk split in the halves of its one take
+    does not let tau below ONE_TAKE_MIN_TAU: those halves are alike (one performer, one session),
+    which rewards fitting the take, and issue 30's one-take walks were measured with it. Other
+    units' halves are not held so: a run's one take (35 to 40 frames a label, under the floor)
+    kept a third of itself at tau 64, and on every shared style's 11 other run takes tau 16
+    explains the runs better than 64 at every depth (docs/evaluate.md, "A run from one take a style")."""
+    folds, how = unit_folds(takes, units)
+    merged = _merge([segments for _, segments in takes])
+    chosen = [u for u in units if u in how and min(len(merged[k]) for k in _unit_labels(units, u)) >= MIN_STEPS_TO_CHOOSE]
+    if not chosen:
+        return {}, None
     firsts = [alignment(average, fold) for fold in folds]  # lambda 0's alignment, the same for every candidate
+    scored: dict[Settings, dict[str, float]] = {}
 
-    def score(settings: Settings) -> float:
-        total, frames = 0.0, 0
-        for train, test in ((0, 1), (1, 0)):
-            ll, n = heldout_score(adapt(average, folds[train], floors, settings, first=firsts[train], fps=fps), folds[test])
-            total, frames = total + ll, frames + n
-        return total / max(frames, 1)
+    def score(settings: Settings) -> dict[str, float]:
+        """Held-out log-likelihood per frame of each chosen unit's steps (each candidate adapted once)."""
+        if settings not in scored:
+            total, frames = dict.fromkeys(chosen, 0.0), dict.fromkeys(chosen, 0)
+            for train, test in ((0, 1), (1, 0)):
+                model = adapt(average, folds[train], floors, settings, first=firsts[train], fps=fps)
+                for unit in chosen:
+                    ll, n = heldout_score(model, [folds[test][k] if k in _unit_labels(units, unit) else []
+                                                  for k in range(len(folds[test]))])
+                    total[unit], frames[unit] = total[unit] + ll, frames[unit] + n
+            scored[settings] = {unit: total[unit] / max(frames[unit], 1) for unit in chosen}
+        return scored[settings]
 
-    scores = {depth: score(replace(quick, depth=depth)) for depth in DEPTHS}
-    depth = max(scores, key=scores.get)
-    by_tau = {tau: scores[depth] if tau == quick.tau else score(replace(quick, depth=depth, tau=tau)) for tau in taus}
-    tau = max(by_tau, key=by_tau.get)
-    return replace(DEFAULT, depth=depth, tau=tau), by_tau[tau], combined(*firsts)
+    choices = {}
+    for unit in chosen:
+        taus = TAUS if how[unit] == "takes" or unit != "walk" else tuple(t for t in TAUS if t >= ONE_TAKE_MIN_TAU)
+        quick = replace(DEFAULT, iterations=2, tau=taus[0])
+        depth = max(DEPTHS, key=lambda d: score(replace(quick, depth=d))[unit])
+        by_tau = {tau: score(replace(quick, depth=depth, tau=tau))[unit] for tau in taus}
+        tau = max(by_tau, key=by_tau.get)
+        choices[unit] = UnitChoice(replace(DEFAULT, depth=depth, tau=tau), by_tau[tau], how[unit])
+    return choices, combined(*firsts)
 
 
-def adapt_styles(average: HSMM, takes_per_style: dict[str, list[list[list[np.ndarray]]]], floors: Floors,
-                 warnings: list[str], fixed: Settings | None = None,
-                 fps: float = REFERENCE_FPS) -> tuple[HSMM, dict[str, StyleReport]]:
+def adapt_styles(average: HSMM, takes_per_style: dict[str, list[TakeSteps]], floors: Floors,
+                 warnings: list[str], fixed: Settings | None = None, fps: float = REFERENCE_FPS,
+                 units: Sequence[str] = ("walk",)) -> tuple[HSMM, dict[str, StyleReport]]:
     """All style models stacked on a leading style axis (in the order of `takes_per_style`, whose
-    values are per take, per label, the step segments at `fps`), with what was chosen and
-    measured for each. `fixed` skips the held-out choice."""
+    values are per take its unit and, per label, its step segments at `fps`), with what was
+    chosen and measured for each. `units` are the model's, in the order of its labels (the labels
+    after theirs, gestures', are adapted with the walk's settings). `fixed` skips the held-out
+    choice.
+
+    Each unit's labels come from an adaptation of all the style's steps with that unit's
+    settings, so a run still learns the shared transforms from the walk; one adaptation is run per
+    distinct setting. A unit with too few steps of a foot to split (MIN_STEPS_TO_CHOOSE: a run of
+    fewer than 4, 1 to 3, steps a foot) takes the walk's depth and the smallest tau, TAUS[0]: on
+    the shared runs, a one-take run split anyway (halves of 1 or 2 steps) chose no transform for
+    normal (409.5 per frame on its 11 other takes, against 441.8 with the tree), and at the
+    walk's depth tau 16 was the best of the three for every style's other run takes. A style
+    whose walk is too small is adapted with DEFAULT, and warned of."""
     models, reports = [], {}
     for style, takes in takes_per_style.items():
-        segments = _merge(takes)
-        fewest = min(len(label) for label in segments[:2])  # the walk's steps (other units may be few: MAP holds them)
-        settings, heldout, first = fixed or DEFAULT, None, None
-        if fixed is None and fewest >= MIN_STEPS_TO_CHOOSE:
-            settings, heldout, first = choose_settings(average, takes, floors, fps)
-        elif fixed is None:
-            message = (f"style {style!r} has only {fewest} walking steps of one foot: too few to choose the adaptation "
-                       f"by held-out likelihood, one shared transform is used")
-            warnings.append(message)
+        segments = _merge([s for _, s in takes])
+        choices, first = ({}, None) if fixed is not None else choose_settings(average, takes, units, floors, fps)
+        walk = choices.get("walk")
+        if walk is None:
+            walk = UnitChoice(fixed or DEFAULT, None, "fixed" if fixed else "default")
+            if fixed is None:
+                fewest = min(len(label) for label in segments[:2])
+                warnings.append(f"style {style!r} has only {fewest} walking steps of one foot: too few to choose the "
+                                "adaptation of its walk by held-out likelihood, its walk takes one shared transform")
+        few = walk if fixed is not None else UnitChoice(replace(walk.settings, tau=TAUS[0]), None, "few")
+        per_unit = {u: choices.get(u, walk if u == "walk" else few)
+                    for u in units if u == "walk" or any(segments[k] for k in _unit_labels(units, u))}
         trace: list[float] = []
-        model = adapt(average, segments, floors, settings, trace, first, fps)
+        adapted = {walk.settings: adapt(average, segments, floors, walk.settings, trace, first, fps)}
+        for choice in per_unit.values():
+            if choice.settings not in adapted:
+                adapted[choice.settings] = adapt(average, segments, floors, choice.settings, first=first, fps=fps)
+        model = stitched(adapted, [per_unit[u].settings if u in per_unit else walk.settings for u in units],
+                         walk.settings)
         models.append(model)
-        reports[style] = StyleReport(settings, heldout, trace, float(model.duration_means.min()))
-    fields = ("means", "variances", "duration_means", "duration_variances")
-    stacked = HSMM(*(np.stack([getattr(m, f) for m in models]) for f in fields))
+        reports[style] = StyleReport(walk.settings, walk.heldout_loglik_per_frame, trace, float(model.duration_means.min()),
+                                     per_unit)
+    stacked = HSMM(*(np.stack([getattr(m, f) for m in models]) for f in _FIELDS))
     return stacked, reports
+
+
+def stitched(adapted: dict[Settings, HSMM], unit_settings: Sequence[Settings], rest: Settings) -> HSMM:
+    """One style model from its adaptations (one per distinct setting): each unit's two labels
+    (right and left step, in the order of `unit_settings`) from the adaptation with that unit's
+    settings, every later label (the gestures') from `rest`'s. The adaptations all learn from all
+    the style's steps, so a unit's labels differ only in the prior they were pulled toward."""
+    labels = len(next(iter(adapted.values())).means)
+    per_label = [unit_settings[k // 2] if k < 2 * len(unit_settings) else rest for k in range(labels)]
+    return HSMM(*(np.stack([getattr(adapted[s], f)[k] for k, s in enumerate(per_label)]) for f in _FIELDS))

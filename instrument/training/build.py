@@ -83,8 +83,8 @@ def build_model(
     floors = variance_floors(segments)
     average = train_average(segments, states, floors, report=report, on_iteration=on_iteration)
     style_names = sorted({t.style for t in takes})
-    per_style = {s: [labelled([t]) for t in takes if t.style == s] for s in style_names}
-    styles, adapted = adapt_styles(average, per_style, floors, report.warnings, adaptation, fps)
+    per_style = {s: [(t.unit, labelled([t])) for t in takes if t.style == s] for s in style_names}
+    styles, adapted = adapt_styles(average, per_style, floors, report.warnings, adaptation, fps, units)
     data_weights = {}
     if little_tau is not None:  # each unit's step durations toward the style's own (training/little.py)
         mine = [labelled([t for t in takes if t.style == style]) for style in style_names]
