@@ -291,7 +291,7 @@ def swing_share(world_pos, leg):  # pragma: no cover - compiled
 
 @njit(cache=True, error_model="numpy")
 def lock_target(world_rot, world_pos, leg, foot, tip, ground_f, tip_ground, weight, point, landed, held, swing_lift,
-                target):  # pragma: no cover - compiled
+                target, pull=-1.0):  # pragma: no cover - compiled
     """Where the ankle (leg: hip, knee, ankle) should be, written into `target` (3,): the lock
     blended in horizontally, the lowest foot joint on the floor while planted, never below it,
     and a little above it while swinging on a bent knee. A released foot rises as generated (held down, the knee would
@@ -310,12 +310,13 @@ def lock_target(world_rot, world_pos, leg, foot, tip, ground_f, tip_ground, weig
     for i in range(3):
         target[i] = world_pos[leg[2], i]
     w = ease(weight)
+    p = w if pull < 0.0 else pull
     down = held * w * lift if held > 0.0 else 0.0
-    if w > 0:
+    if p > 0:
         pivot = _pivot_at(world_rot, world_pos, leg[2], foot[-1], tip)
-        target[0] += w * (point[0] - pivot[0])
-        target[2] += w * (point[2] - pivot[2])
-        target[1] -= down
+        target[0] += p * (point[0] - pivot[0])
+        target[2] += p * (point[2] - pivot[2])
+    target[1] -= down
     lowest_after = lift - down
     floor = (1.0 - landed) * (1.0 - w) * swing_lift * swing_share(world_pos, leg) if landed < 1.0 else 0.0
     if lowest_after < floor:
@@ -599,7 +600,7 @@ def lock_work():  # pragma: no cover - compiled
     (2, 3, 3), angles (2,), scratch matrices (8, 3, 3), closing steps' lifts (2,) and holds (2,), the
     legs' generated local rotations (2, 4, 3, 3: `release_joints`' joints) and the lock's own weights (2,)."""
     return (np.empty(2, dtype=np.bool_), np.empty(2), np.empty((2, 3)), np.empty((2, 3, 3)), np.empty(2),
-            np.empty((8, 3, 3)), np.empty(2), np.empty(2), np.empty((2, 4, 3, 3)), np.empty(2))
+            np.empty((8, 3, 3)), np.empty(2), np.empty(2), np.empty((2, 4, 3, 3)), np.empty(2), np.empty(2))
 
 
 @njit(cache=True, error_model="numpy")
@@ -610,7 +611,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     """One character's frame (arrays of that character; `drop` a 1-element view, `standing` a
     bool). Returns nothing: rotations, translations, the world transforms and the state are
     updated in place."""
-    planted, extension, targets, turns, angles, matrices, lifts, holding, generated, locking = work
+    planted, extension, targets, turns, angles, matrices, lifts, holding, generated, locking, pulls = work
     for f in range(2):  # the legs' local rotations as made, which a locked foot's offsets are measured from
         leg = (joints[f, 0], joints[f, 1], joints[f, 2], feet[f, -1])
         for k in range(3):
@@ -652,6 +653,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         # the weight the lock itself holds the foot with: none while it is given back in joint space
         # (`weights` still blends out as before, for the body's follow and the footfalls)
         locking[f] = 0.0 if releasing[f] > 0.0 else weights[f]
+        pulls[f] = ease(weights[f])
     settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, tips, across,
                 SETTLE_CM / cm,
                 1.0 / (SETTLE_SECONDS * fps), SETTLE_LIFT_CM / cm, lifts)
@@ -671,7 +673,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         extension[f] = np.sqrt(_dot(gap, gap))
     on_floor = CONTACT_CM / cm
     rise_step = HEEL_RISE_SPEED / fps
-    _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, locking, points, planted, landed, held,
+    _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, locking, pulls, points, planted, landed, held,
              hold_step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
     # eased towards what it needs by 1 / BLEND_FRAMES of the way a frame at REFERENCE_FPS: the same time at any rate
     drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) * eased_per_frame(
@@ -680,7 +682,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         for a in range(3):  # [0, drop, 0] @ parent_rot, element by element (no temporary array)
             translations[root, a] -= drop[0] * parent_rot[1, a]
         world_pos[:, 1] -= drop[0]
-        _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, locking, points, planted, landed,
+        _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, locking, pulls, points, planted, landed,
                  held, hold_step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
     rises[0], rises[1] = angles[0], angles[1]
     held[0], held[1] = holding[0], holding[1]
@@ -936,7 +938,7 @@ def _turned(kx, ky, kz, c, s, x, y, z):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed, held,
+def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, pulls, points, planted, landed, held,
              hold_step,
              swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding):  # pragma: no cover - compiled
     """Each ankle's target (2, 3), each foot's heel-rise turn (2, 3, 3) and angle (2,), and how far
@@ -951,7 +953,7 @@ def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, gro
         holding[f] = min(1.0, held[f] + hold_step) if planted[f] or handing_over else max(0.0, held[f] - hold_step)
         lock_target(world_rot, world_pos, joints[f], feet[f], tips[f], ground[f], pivot_ground[f], weights[f], points[f],
                     ease(landed[f]), ease(holding[f]),
-                    swing_lift, targets[f])
+                    swing_lift, targets[f], pulls[f])
         _set_identity(turns[f])
         angles[f] = 0.0
         if weights[f] > 0.0 or rises[f] > 0.0:
@@ -962,6 +964,8 @@ def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, gro
                                   targets[f],
                                   extension[f], low, high, turns[f])
         if not planted[f] and not planted[1 - f] and weights[f] > 0.0:  # (a walk's other foot is down)
+            within_reach(targets[f], world_pos[joints[f, 0]], extension[f])
+        elif weights[f] == 0.0 and pulls[f] > 0.0:  # a walk's foot given back in joint space, its toes held
             within_reach(targets[f], world_pos[joints[f, 0]], extension[f])
 
 
