@@ -787,15 +787,16 @@ def _risen(world_rot, world_pos, ankle, pivot, tip, across, ankle_clearance, piv
 
 @njit(cache=True, error_model="numpy")
 def _scaled_rotation(rotation, share, out):  # pragma: no cover - compiled
-    """out = `rotation` with its angle scaled by `share`, about the same axis."""
-    c = min(max((rotation[0, 0] + rotation[1, 1] + rotation[2, 2] - 1.0) / 2.0, -1.0), 1.0)
-    angle = np.arccos(c)
-    s = np.sin(angle)
-    if angle < 1e-9 or s < 1e-9:
+    """out = `rotation` with its angle scaled by `share`, about the same axis (the angle from both
+    its sine and its cosine, and the axis of unit length: arccos alone loses half the digits of a
+    small angle)."""
+    axis = (rotation[2, 1] - rotation[1, 2], rotation[0, 2] - rotation[2, 0], rotation[1, 0] - rotation[0, 1])
+    twice_sine = np.sqrt(_dot(axis, axis))
+    if twice_sine < 1e-12:  # none (or a half turn, which a lock's offset is not)
         _set_identity(out)
         return
-    axis = ((rotation[2, 1] - rotation[1, 2]) / (2.0 * s), (rotation[0, 2] - rotation[2, 0]) / (2.0 * s),
-            (rotation[1, 0] - rotation[0, 1]) / (2.0 * s))
+    angle = np.arctan2(twice_sine, rotation[0, 0] + rotation[1, 1] + rotation[2, 2] - 1.0)
+    axis = _scaled(axis, twice_sine)
     _axis_rotation(axis, np.sin(share * angle), 1.0 - np.cos(share * angle), out)
 
 
