@@ -71,12 +71,12 @@ def test_info_json(small_model):
     # no style state collapses: the floor is 2 frames where the steps are long enough (these are)
     assert min(info["shortest_state_frames"].values()) >= 2.0 - 1e-9
     # what the adaptation chose, per unit (a walks-only model: the walk's, on alternate takes), as info prints it
+    printed = cli("info", str(path)).stdout
     for style, chosen in info["training"]["adaptation"].items():
         assert chosen["units"] == {"walk": {"depth": chosen["depth"], "tau": chosen["tau"], "folds": "takes",
                                             "heldout_loglik_per_frame": chosen["heldout_loglik_per_frame"]}}
         depth = "none" if chosen["depth"] is None else chosen["depth"]
-        assert f"{style:<12} walk {depth}/{chosen['tau']:g}\n" in cli("info", str(path)).stdout
-
+        assert f"{style:<12} walk {depth}/{chosen['tau']:g}\n" in printed
 
 
 def test_info_prints_how_each_units_settings_were_chosen(small_model, tmp_path):
@@ -99,6 +99,9 @@ def test_info_prints_how_each_units_settings_were_chosen(small_model, tmp_path):
     walk = units["walk"]
     walk_depth = "none" if walk["depth"] is None else walk["depth"]
     assert f"normal       walk {walk_depth}/{walk['tau']:g}, run 2/16 (few), stand none/64 (halves)\n" in result.stdout
+
+
+def test_save_and_load_round_trip(small_model, tmp_path):
     model = load_model(small_model[0])
     copy = tmp_path / "copy.npz"
     save_model(copy, model)

@@ -5,6 +5,8 @@ pieces of still standing, motion/standing.py). A model trained on walks alone ho
 (and its metadata may not even say so: `Model.units`).
 """
 
+from collections.abc import Sequence
+
 UNITS = ("walk", "run", "turn-left", "turn-right", "stand")
 
 # the gestures a model may hold, in the order it stores them after the units' labels
@@ -12,6 +14,13 @@ UNITS = ("walk", "run", "turn-left", "turn-right", "stand")
 # nothing, so the control table can name them without loading the numerical code.
 GESTURES = ("wave", "raise")
 JOINED = 8  # a unit word this long is two joined (turnleft): found anywhere in a name (`named_by_words`)
+
+
+def unit_labels(units: Sequence[str], unit: str) -> range:
+    """`unit`'s labels among a model's `units` (in its label order): its right and left step,
+    label = 2 * unit + foot."""
+    k = units.index(unit)
+    return range(2 * k, 2 * k + 2)
 
 
 def named_by_words(content: str, table: tuple[tuple[tuple[str, ...], str], ...]) -> str | None:

@@ -32,11 +32,12 @@ the data (see duration_floor), and the floor does not lengthen the step (floored
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 
 from ..models.hsmm import HSMM, Floors, Statistics, expected_statistics, log_likelihood, map_update
+from ..models.units import unit_labels
 from ..motion.features import REFERENCE_FPS
 
 DEPTHS = (None, 0, 1, 2)  # None: no transform (MAP only); 0: one class; 1: one per label; 2: one per state
@@ -69,7 +70,7 @@ ONE_PASS_MAP = Settings(depth=None, tau=10.0, iterations=1, floor_share=0.0)
 
 # a take as the adaptation reads it: its unit, and per label its step segments
 TakeSteps = tuple[str, list[list[np.ndarray]]]
-_FIELDS = ("means", "variances", "duration_means", "duration_variances")
+_FIELDS = tuple(f.name for f in fields(HSMM))  # means, variances, duration means and variances
 
 
 @dataclass(frozen=True)
@@ -89,11 +90,19 @@ class UnitChoice:
 
 @dataclass
 class StyleReport:
-    settings: Settings  # the walk's (and the gestures')
-    heldout_loglik_per_frame: float | None  # of the walk's settings on its held-out steps, None if not chosen by held-out
+    units: dict[str, UnitChoice]  # each unit the style has (always its walk): its settings and how chosen
     loglik_per_frame: list[float] = field(default_factory=list)  # per EM iteration, full data, the walk's settings
     min_duration: float = 0.0  # shortest state duration mean of the adapted model (frames)
-    units: dict[str, UnitChoice] = field(default_factory=dict)  # each unit the style has: its settings
+
+    @property
+    def settings(self) -> Settings:
+        """The walk's settings (the gestures' too): what the style-level metadata records."""
+        return self.units["walk"].settings
+
+    @property
+    def heldout_loglik_per_frame(self) -> float | None:
+        """Of the walk's settings on its held-out steps; None if not chosen by held-out likelihood."""
+        return self.units["walk"].heldout_loglik_per_frame
 
     def to_dict(self) -> dict:
         return {**asdict(self.settings), "heldout_loglik_per_frame": self.heldout_loglik_per_frame,
@@ -296,12 +305,6 @@ def _merge(takes: list[list[list[np.ndarray]]]) -> list[list[np.ndarray]]:
     return [[seg for take in takes for seg in take[k]] for k in range(len(takes[0]))]
 
 
-def _unit_labels(units: Sequence[str], unit: str) -> range:
-    """A unit's labels: its right and left step (label = 2 * unit + foot, models/units.py)."""
-    k = units.index(unit)
-    return range(2 * k, 2 * k + 2)
-
-
 def unit_folds(takes: list[TakeSteps], units: Sequence[str]) -> tuple[list[list[list[np.ndarray]]], dict[str, str]]:
     """The style's steps in two folds, each unit split on its own, and how ("takes" or "halves").
 
@@ -315,7 +318,7 @@ def unit_folds(takes: list[TakeSteps], units: Sequence[str]) -> tuple[list[list[
     how = {}
     for unit in dict.fromkeys(u for u, _ in takes):
         mine = [segments for u, segments in takes if u == unit]
-        feet = _unit_labels(units, unit) if unit in units else range(0)  # a unit left out of the model has none
+        feet = unit_labels(units, unit) if unit in units else range(0)  # a unit left out of the model has none
         parts = [_merge(mine[0::2]), _merge(mine[1::2])] if len(mine) >= 2 else []
         how[unit] = "takes" if parts and all(part[k] for part in parts for k in feet) else "halves"
         if how[unit] == "halves":
@@ -347,7 +350,7 @@ def choose_settings(average: HSMM, takes: list[TakeSteps], units: Sequence[str],
     explains the runs better than 64 at every depth (docs/evaluate.md, "A run from one take a style")."""
     folds, how = unit_folds(takes, units)
     merged = _merge([segments for _, segments in takes])
-    chosen = [u for u in units if u in how and min(len(merged[k]) for k in _unit_labels(units, u)) >= MIN_STEPS_TO_CHOOSE]
+    chosen = [u for u in units if u in how and min(len(merged[k]) for k in unit_labels(units, u)) >= MIN_STEPS_TO_CHOOSE]
     if not chosen:
         return {}, None
     firsts = [alignment(average, fold) for fold in folds]  # lambda 0's alignment, the same for every candidate
@@ -360,8 +363,8 @@ def choose_settings(average: HSMM, takes: list[TakeSteps], units: Sequence[str],
             for train, test in ((0, 1), (1, 0)):
                 model = adapt(average, folds[train], floors, settings, first=firsts[train], fps=fps)
                 for unit in chosen:
-                    ll, n = heldout_score(model, [folds[test][k] if k in _unit_labels(units, unit) else []
-                                                  for k in range(len(folds[test]))])
+                    mine = unit_labels(units, unit)
+                    ll, n = heldout_score(model, [label if k in mine else [] for k, label in enumerate(folds[test])])
                     total[unit], frames[unit] = total[unit] + ll, frames[unit] + n
             scored[settings] = {unit: total[unit] / max(frames[unit], 1) for unit in chosen}
         return scored[settings]
@@ -407,7 +410,7 @@ def adapt_styles(average: HSMM, takes_per_style: dict[str, list[TakeSteps]], flo
                                 "adaptation of its walk by held-out likelihood, its walk takes one shared transform")
         few = walk if fixed is not None else UnitChoice(replace(walk.settings, tau=TAUS[0]), None, "few")
         per_unit = {u: choices.get(u, walk if u == "walk" else few)
-                    for u in units if u == "walk" or any(segments[k] for k in _unit_labels(units, u))}
+                    for u in units if u == "walk" or any(segments[k] for k in unit_labels(units, u))}
         trace: list[float] = []
         adapted = {walk.settings: adapt(average, segments, floors, walk.settings, trace, first, fps)}
         for choice in per_unit.values():
@@ -416,8 +419,7 @@ def adapt_styles(average: HSMM, takes_per_style: dict[str, list[TakeSteps]], flo
         model = stitched(adapted, [per_unit[u].settings if u in per_unit else walk.settings for u in units],
                          walk.settings)
         models.append(model)
-        reports[style] = StyleReport(walk.settings, walk.heldout_loglik_per_frame, trace, float(model.duration_means.min()),
-                                     per_unit)
+        reports[style] = StyleReport(per_unit, trace, float(model.duration_means.min()))
     stacked = HSMM(*(np.stack([getattr(m, f) for m in models]) for f in _FIELDS))
     return stacked, reports
 
