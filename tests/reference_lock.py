@@ -262,10 +262,13 @@ class FootLock:
         # its toes' world turn (locked @ made^T), as of its last locked frame; and how much of them a
         # walk's released foot still carries (1..0), given back in joint space over RELEASE_FRAMES
         self.offsets = np.tile(np.eye(3), (2, 4, 1, 1))
+        self.released = np.tile(np.eye(3), (2, 4, 1, 1))  # the offsets a released foot gives back (its offsets then)
         self.releasing = np.zeros(2)
         self.release_step = REFERENCE_FPS / fps / RELEASE_FRAMES
         self.locking = np.zeros(2)  # the weight the lock's target holds each foot with (none while released in joint space)
-        self.pulls = np.zeros(2)  # the share of the lock's horizontal pull on each foot's pivot
+        # the share of the lock's horizontal pull on each foot's pivot: in on an ease-out curve while
+        # planted, out on a smoothstep while not, each frame moving along its curve from where it is
+        self.pulls = np.zeros(2)
 
     def toes(self, f: int, world_rot: np.ndarray, world_pos: np.ndarray) -> np.ndarray:
         """Foot f's toe line (`_toe_line`)."""
@@ -315,19 +318,18 @@ class FootLock:
         step = self.blend_step
         # landing from flight (the other foot neither planted nor held): its lock comes in faster
         pace = [LANDING_PACE * step if self.weight[1 - f] == 0.0 and not planted[1 - f] else step for f in range(2)]
+        landing = [planted[f] and self.weight[f] == 0.0 for f in range(2)]
         for f in range(2):
-            if planted[f]:
-                self.releasing[f] = 0.0
-            elif self.weight[f] == 1.0 and planted[1 - f]:  # a walk's foot let go from its full lock: in joint space
+            if not planted[f] and self.weight[f] == 1.0 and planted[1 - f]:  # a walk's foot let go from its full lock: in joint space
                 self.releasing[f], self.rise[f], self.held[f] = 1.0, 0.0, 0.0
+                self.released[f] = self.offsets[f]
         for f, leg in enumerate(self.limbs.legs):
-            if planted[f] and self.weight[f] == 0.0:
-                self.lock[f] = self.pivots(world_rot, world_pos)[f]
-                self.heading[f] = _heading(world_rot, leg, self.across[f])
-                self.settling[f] = 0.0  # landed; and the other foot, if closed up, may be closed up again
-                if self.settling[1 - f] == CLOSED:
-                    self.settling[1 - f] = 0.0
             self.weight[f] = min(1.0, self.weight[f] + pace[f]) if planted[f] else max(0.0, self.weight[f] - step)
+            if planted[f]:  # along an ease-out curve 1 - (1 - a)^2, from where the pull is on it
+                along = min(1.0, 1.0 - np.sqrt(max(0.0, 1.0 - self.pulls[f])) + pace[f])
+                self.pulls[f] = 1.0 - (1.0 - along) ** 2
+            else:  # along smoothstep, from where the pull is on it (its inverse: 1/2 - sin(asin(1 - 2p) / 3))
+                self.pulls[f] = EASE(max(0.0, 0.5 - np.sin(np.arcsin(np.clip(1.0 - 2.0 * self.pulls[f], -1.0, 1.0)) / 3.0) - step))
             step_in = self.hold_step if planted[f] else -self.hold_step  # the swing lift goes as the foot is planted
             self.landed[f] = min(max(self.landed[f] + step_in, 0.0), 1.0)
             if self.releasing[f] > 0.0:
@@ -335,8 +337,14 @@ class FootLock:
                 self.landed[f] = max(self.landed[f], self.releasing[f])  # the swing lift comes in as the offsets go
                 world_rot, world_pos = self._release(f, rotations, translations, world_rot, world_pos,
                                                      EASE(self.releasing[f]))
-            self.locking[f] = 0.0 if self.releasing[f] > 0.0 else self.weight[f]
-            self.pulls[f] = EASE(self.weight[f])
+            self.locking[f] = 0.0 if self.releasing[f] > 0.0 and not planted[f] else self.weight[f]
+        for f, leg in enumerate(self.limbs.legs):
+            if landing[f]:  # locked where it is shown, any release of it applied
+                self.lock[f] = self.pivots(world_rot, world_pos)[f]
+                self.heading[f] = _heading(world_rot, leg, self.across[f])
+                self.settling[f] = 0.0  # landed; and the other foot, if closed up, may be closed up again
+                if self.settling[1 - f] == CLOSED:
+                    self.settling[1 - f] = 0.0
         lifts = self._settle(still, planted, world_rot, world_pos)
         for f, leg in enumerate(self.limbs.legs):
             if self.locking[f] > 0.0:  # the foot turned about the vertical through its ankle, back to its landing heading
@@ -420,7 +428,7 @@ class FootLock:
         made = self._risen(f, world_rot, world_pos)
         toes_made = world_rot[leg.pivot].copy()
         for k, j in enumerate((leg.hip, leg.knee, leg.ankle)):
-            rotations[j] = rotations[j] @ _scaled_rotation(self.offsets[f, k], share)
+            rotations[j] = rotations[j] @ _scaled_rotation(self.released[f, k], share)
         world_rot, world_pos = (a[0] for a in forward_kinematics(self.layout.skeleton, rotations[None], translations[None]))
         excess = self._risen(f, world_rot, world_pos) - max(MAX_HEEL_RISE, made)
         axis = world_rot[leg.ankle] @ self.across[f]
@@ -432,7 +440,7 @@ class FootLock:
                 world_pos[j] = ankle + pitch @ (world_pos[j] - ankle)
             rotations[leg.ankle] = world_rot[leg.knee].T @ world_rot[leg.ankle]
         if leg.pivot != leg.ankle:
-            rotations[leg.pivot] = world_rot[self.parents[leg.pivot]].T @ (_scaled_rotation(self.offsets[f, 3], share)
+            rotations[leg.pivot] = world_rot[self.parents[leg.pivot]].T @ (_scaled_rotation(self.released[f, 3], share)
                                                                            @ toes_made)
             world_rot, world_pos = (a[0] for a in forward_kinematics(self.layout.skeleton, rotations[None],
                                                                      translations[None]))

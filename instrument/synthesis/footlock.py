@@ -13,7 +13,13 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 - `lay_flat`: a planted foot alone on the floor, toes up, pitched down about its ankle to flat
   (about its axis across it, as `heel_rise` pitches it);
 - `lock_target`: where an ankle should go (the lock blended in, the floor, the swing lift as
-  `swing_share` allows);
+  `swing_share` allows); the horizontal hold by `pull_step`'s curve: in fastest at touch-down
+  (ease-out), out on a smoothstep;
+- `release_joints`: a walk's foot let go from its full lock (the other planted) given back in
+  joint space: its lock's last solution, kept each locked frame as rotation offsets at hip, knee
+  and ankle and the toes' world turn, eased out over RELEASE_FRAMES on top of the generated leg
+  (letting go of the IK's target instead jumped the knee as the heel-rise cap fell at toe-off:
+  docs/evaluate.md, "The release in joint space");
 - `heel_rise`: the foot pitched up about its front-most joint (the toes) where the lock would stretch a
   planted leg past its generated length (the toes beyond it keep their generated world rotation,
   as a real foot bends there, instead of dipping into the floor), at most MAX_HEEL_RISE from
@@ -123,7 +129,9 @@ class LockState:
     # (N, 2, 4, 3, 3) each planted foot's lock as local rotation offsets (generated^T @ locked) at its
     # hip, knee and ankle, and its pivot's world turn (locked @ generated^T), as of its last locked frame
     offsets: np.ndarray
-    releasing: np.ndarray  # (N, 2) how much of those offsets a released walk's foot still carries, 1..0 (0: none)
+    released: np.ndarray  # (N, 2, 4, 3, 3) the offsets a released walk's foot is giving back (its `offsets` at release)
+    releasing: np.ndarray  # (N, 2) how much of them it still carries, 1..0 (0: none)
+    pulls: np.ndarray  # (N, 2) how far the lock holds each foot horizontally, 0..1 (`pull_step`)
 
     def part(self, start: int, stop: int) -> LockState:
         """Characters start to stop: views of the same arrays, for a part of the crowd on a core."""
@@ -135,7 +143,7 @@ class LockState:
         self.rises[n] = 0.0
         self.settling[n] = 0.0
         self.landed[n], self.held[n] = 0.0, 0.0
-        self.offsets[n], self.releasing[n] = np.eye(3), 0.0
+        self.offsets[n], self.released[n], self.releasing[n], self.pulls[n] = np.eye(3), np.eye(3), 0.0, 0.0
 
 
 class FootLock:
@@ -174,7 +182,8 @@ class FootLock:
         """The state of `count` characters before their first frame: nothing locked yet."""
         return LockState(np.zeros((count, 2)), np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros(count),
                          np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros((count, 2)), np.zeros((count, 2)),
-                         np.zeros((count, 2)), np.tile(np.eye(3), (count, 2, 4, 1, 1)), np.zeros((count, 2)))
+                         np.zeros((count, 2)), np.tile(np.eye(3), (count, 2, 4, 1, 1)), np.tile(np.eye(3), (count, 2, 4, 1, 1)),
+                         np.zeros((count, 2)), np.zeros((count, 2)))
 
     def apply(self, state: LockState, rotations: np.ndarray, translations: np.ndarray, shares: np.ndarray,
               world_rot: np.ndarray, world_pos: np.ndarray, standing: np.ndarray | None = None) -> None:
@@ -186,7 +195,7 @@ class FootLock:
         standing = np.zeros(len(shares), dtype=np.bool_) if standing is None else np.ascontiguousarray(standing, dtype=np.bool_)
         lock_crowd(rotations, translations, np.ascontiguousarray(shares, dtype=np.float64), world_rot, world_pos,
                    state.weights, state.points, state.headings, state.drop, state.previous, state.rises,
-                   state.settling, state.landed, state.held, state.offsets, state.releasing, standing, self.parents, self.joints, self.feet, self.across,
+                   state.settling, state.landed, state.held, state.offsets, state.released, state.releasing, state.pulls, standing, self.parents, self.joints, self.feet, self.across,
                    self.tips, self.pivot_ground, self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm,
                    self.swing_lift)
 
@@ -600,18 +609,18 @@ def lock_work():  # pragma: no cover - compiled
     (2, 3, 3), angles (2,), scratch matrices (8, 3, 3), closing steps' lifts (2,) and holds (2,), the
     legs' generated local rotations (2, 4, 3, 3: `release_joints`' joints) and the lock's own weights (2,)."""
     return (np.empty(2, dtype=np.bool_), np.empty(2), np.empty((2, 3)), np.empty((2, 3, 3)), np.empty(2),
-            np.empty((8, 3, 3)), np.empty(2), np.empty(2), np.empty((2, 4, 3, 3)), np.empty(2), np.empty(2))
+            np.empty((8, 3, 3)), np.empty(2), np.empty(2), np.empty((2, 4, 3, 3)), np.empty(2), np.empty(2, dtype=np.bool_))
 
 
 @njit(cache=True, error_model="numpy")
 def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, landed, held, offsets, releasing, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
+               settling, landed, held, offsets, released, releasing, pulls, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
                root, fps, cm,
                swing_lift, work):  # pragma: no cover - compiled
     """One character's frame (arrays of that character; `drop` a 1-element view, `standing` a
     bool). Returns nothing: rotations, translations, the world transforms and the state are
     updated in place."""
-    planted, extension, targets, turns, angles, matrices, lifts, holding, generated, locking, pulls = work
+    planted, extension, targets, turns, angles, matrices, lifts, holding, generated, locking, fresh = work
     for f in range(2):  # the legs' local rotations as made, which a locked foot's offsets are measured from
         leg = (joints[f, 0], joints[f, 1], joints[f, 2], feet[f, -1])
         for k in range(3):
@@ -623,7 +632,30 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     step = per_frame(BLEND_FRAMES, fps)
     hold_step = per_frame(HOLD_FRAMES, fps)
     for f in range(2):
-        if planted[f] and weights[f] == 0.0:
+        fresh[f] = planted[f] and weights[f] == 0.0  # landing: locked where it is (below, once any release is applied)
+    # each foot's pace in: faster landing from flight, the other foot neither planted nor held
+    pace = (LANDING_PACE * step if weights[1] == 0.0 and not planted[1] else step,
+            LANDING_PACE * step if weights[0] == 0.0 and not planted[0] else step)
+    for f in range(2):
+        if not planted[f] and weights[f] == 1.0 and planted[1 - f]:  # a walk's foot let go from its full lock: given back in joint space
+            releasing[f], rises[f], held[f] = 1.0, 0.0, 0.0
+            for k in range(4):
+                _copy_matrix(offsets[f, k], released[f, k])
+    for f in range(2):
+        weights[f] = min(1.0, weights[f] + pace[f]) if planted[f] else max(0.0, weights[f] - step)
+        pulls[f] = pull_step(pulls[f], planted[f], pace[f], step)
+        landed[f] = min(1.0, landed[f] + hold_step) if planted[f] else max(0.0, landed[f] - hold_step)
+        if releasing[f] > 0.0:  # runs out even if the foot lands again first (a quick step: it lands where it is shown)
+            releasing[f] = max(0.0, releasing[f] - per_frame(RELEASE_FRAMES, fps))
+            # the swing lift comes in as the offsets go (at once, a bent knee's foot was lifted 2 cm in a frame)
+            landed[f] = max(landed[f], releasing[f])
+            release_joints(rotations, translations, world_rot, world_pos, parents, joints[f], feet[f], tips[f], across[f],
+                           ground[f, 0], pivot_ground[f], released[f], ease(releasing[f]), matrices[:3])
+        # the weight the lock itself holds the foot with: none while a released foot is given back in
+        # joint space (`weights` still blends out as before, for the body's follow and the footfalls)
+        locking[f] = 0.0 if releasing[f] > 0.0 and not planted[f] else weights[f]
+    for f in range(2):
+        if fresh[f]:
             pivot = _pivot_at(world_rot, world_pos, joints[f, 2], feet[f, -1], tips[f])
             for i in range(3):
                 points[f, i] = pivot[i]
@@ -633,27 +665,6 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             settling[f] = 0.0
             if settling[1 - f] == CLOSED:
                 settling[1 - f] = 0.0
-    # each foot's pace in: faster landing from flight, the other foot neither planted nor held
-    pace = (LANDING_PACE * step if weights[1] == 0.0 and not planted[1] else step,
-            LANDING_PACE * step if weights[0] == 0.0 and not planted[0] else step)
-    for f in range(2):
-        if planted[f]:
-            releasing[f] = 0.0
-        elif weights[f] == 1.0 and planted[1 - f]:  # a walk's foot let go from its full lock: given back in joint space
-            releasing[f], rises[f], held[f] = 1.0, 0.0, 0.0
-    for f in range(2):
-        weights[f] = min(1.0, weights[f] + pace[f]) if planted[f] else max(0.0, weights[f] - step)
-        landed[f] = min(1.0, landed[f] + hold_step) if planted[f] else max(0.0, landed[f] - hold_step)
-        if releasing[f] > 0.0:
-            releasing[f] = max(0.0, releasing[f] - per_frame(RELEASE_FRAMES, fps))
-            # the swing lift comes in as the offsets go (at once, a bent knee's foot was lifted 2 cm in a frame)
-            landed[f] = max(landed[f], releasing[f])
-            release_joints(rotations, translations, world_rot, world_pos, parents, joints[f], feet[f], tips[f], across[f],
-                           ground[f, 0], pivot_ground[f], offsets[f], ease(releasing[f]), matrices[:3])
-        # the weight the lock itself holds the foot with: none while it is given back in joint space
-        # (`weights` still blends out as before, for the body's follow and the footfalls)
-        locking[f] = 0.0 if releasing[f] > 0.0 else weights[f]
-        pulls[f] = ease(weights[f])
     settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, tips, across,
                 SETTLE_CM / cm,
                 1.0 / (SETTLE_SECONDS * fps), SETTLE_LIFT_CM / cm, lifts)
@@ -704,7 +715,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
                       targets[f], matrices[1:])
         elif not _identity(turns[f]):  # the ankle where it was made, the foot turned all the same
             _product_t(world_rot[joints[f, 1]], world_rot[ankle], rotations[ankle])
-    for f in range(2):  # a held foot's lock as offsets from the rotations made, for its release
+    for f in range(2):  # a held foot's lock (with what it still gives back of an earlier one) as offsets from the rotations made
         if planted[f] and weights[f] > 0.0:
             leg = (joints[f, 0], joints[f, 1], joints[f, 2], feet[f, -1])
             for k in range(3):
@@ -713,6 +724,25 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             for i in range(3):
                 for j in range(3):
                     offsets[f, 3, i, j] = _dot(world_rot[leg[3]][i], generated[f, 3][j])
+
+
+@njit(cache=True, error_model="numpy")
+def pull_step(pull, planted, pace, step):  # pragma: no cover - compiled
+    """A foot's horizontal hold a frame on (0..1): a planted foot's comes in on an ease-out curve
+    (fastest at touch-down, `pace` of the curve a frame), a lifted foot's goes on a smoothstep
+    (`step` a frame). Each frame finds where on its curve the hold is and moves along it, so a foot
+    that lands or lifts again partway through keeps its hold, and its position, continuous. On
+    smoothstep, a landing foot slid on at the made foot's speed for the first frames of its blend
+    (the made heel strike's: 50-85 cm/s at 120 fps) while the hold started at zero speed; eased out,
+    the hold's own speed at touch-down is still zero (the lock's point is where the foot is), and
+    the planted slide at 30 / 120 fps went from 4.65 / 7.05 to 3.79 / 3.90 cm/s on active at weight
+    2 (docs/evaluate.md, "A landing foot's hold, eased out"). A foot is let go as before: smoothstep
+    ends at zero speed, where an ease-out would jump by the whole gap to the made foot."""
+    if planted:
+        along = min(1.0, 1.0 - np.sqrt(max(0.0, 1.0 - pull)) + pace)
+        return 1.0 - (1.0 - along) * (1.0 - along)
+    along = max(0.0, 0.5 - np.sin(np.arcsin(min(1.0, max(-1.0, 1.0 - 2.0 * pull))) / 3.0) - step)
+    return ease(along)
 
 
 @njit(cache=True, error_model="numpy")
@@ -989,14 +1019,14 @@ def within_reach(target, hip, extension):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, landed, held, offsets, releasing, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
+               settling, landed, held, offsets, released, releasing, pulls, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
                root, fps, cm,
                swing_lift):  # pragma: no cover - compiled
     """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
     work = lock_work()
     for n in range(rotations.shape[0]):
         lock_frame(rotations[n], translations[n], shares[n], world_rot[n], world_pos[n], weights[n], points[n], headings[n],
-                   drop[n : n + 1], previous[n], rises[n], settling[n], landed[n], held[n], offsets[n], releasing[n],
+                   drop[n : n + 1], previous[n], rises[n], settling[n], landed[n], held[n], offsets[n], released[n], releasing[n], pulls[n],
                    standing[n], parents, joints, feet,
                    across, tips, pivot_ground, ground, reach, parent_rot, root, fps, cm, swing_lift, work)
     _compose(parents, rotations, translations, world_rot, world_pos)
