@@ -18,8 +18,8 @@ from instrument.synthesis.posing import Pose
 from instrument.synthesis.contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, HOLD_FRAMES, NEARLY_STRAIGHT,
                                           POSSIBLE, PLANTED, REFERENCE_FPS, SWING_BENT, SWING_CM)
 from instrument.synthesis.follow import STRENGTH
-from instrument.synthesis.footlock import (CLOSED, HEEL_RISE_SPEED, LANDING_PACE, MAX_HEEL_RISE, SETTLE_CM, SETTLE_LIFT_CM,
-                                           SETTLE_SECONDS, SETTLE_STILL_CM_S, STRETCH)
+from instrument.synthesis.footlock import (CLOSED, HEEL_RISE_SPEED, LANDING_PACE, MAX_HEEL_RISE, RELEASE_FRAMES, SETTLE_CM,
+                                           SETTLE_LIFT_CM, SETTLE_SECONDS, SETTLE_STILL_CM_S, STRETCH)
 
 
 def EASE(x: float) -> float:
@@ -129,6 +129,14 @@ def _leg_swings(hip, knee, ankle, target, toes):  # pragma: no cover - compiled
     bend = _axis_rotation(hinge, np.pi - np.arccos(cos_new) - now)
     swing = _rotation_between(thigh_vector + bend @ shin_vector, reach)
     return swing, swing @ bend @ swing.T
+
+
+def _scaled_rotation(rotation: np.ndarray, share: float) -> np.ndarray:
+    """`rotation` with its angle scaled by `share`, about the same axis."""
+    axis = np.array([rotation[2, 1] - rotation[1, 2], rotation[0, 2] - rotation[2, 0], rotation[1, 0] - rotation[0, 1]])
+    if np.linalg.norm(axis) < 1e-12:
+        return np.eye(3)
+    return _axis_rotation(axis, share * np.arctan2(np.linalg.norm(axis), np.trace(rotation) - 1.0))
 
 
 def _pitch_to_height(toes: np.ndarray, axis: np.ndarray, height: float) -> float | None:
@@ -250,6 +258,17 @@ class FootLock:
         self.drop_share = 1.0 - (1.0 - 1.0 / BLEND_FRAMES) ** (REFERENCE_FPS / fps)  # of the way to the body's drop
         self.landed = np.zeros(2)  # how far each foot's swing lift has gone since it was planted
         self.held = np.zeros(2)  # how far each foot's lowest joint is held on the floor
+        # each held foot's lock as local rotation offsets (made^T @ locked) at hip, knee and ankle, and
+        # its toes' world turn (locked @ made^T), as of its last locked frame; and how much of them a
+        # walk's released foot still carries (1..0), given back in joint space over RELEASE_FRAMES
+        self.offsets = np.tile(np.eye(3), (2, 4, 1, 1))
+        self.released = np.tile(np.eye(3), (2, 4, 1, 1))  # the offsets a released foot gives back (its offsets then)
+        self.releasing = np.zeros(2)
+        self.release_step = REFERENCE_FPS / fps / RELEASE_FRAMES
+        self.locking = np.zeros(2)  # the weight the lock's target holds each foot with (none while released in joint space)
+        # the share of the lock's horizontal pull on each foot's pivot: in on an ease-out curve while
+        # planted, out on a smoothstep while not, each frame moving along its curve from where it is
+        self.pulls = np.zeros(2)
 
     def toes(self, f: int, world_rot: np.ndarray, world_pos: np.ndarray) -> np.ndarray:
         """Foot f's toe line (`_toe_line`)."""
@@ -292,25 +311,44 @@ class FootLock:
         rotations = rotations.copy()
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
         world_rot, world_pos = world_rot[0], world_pos[0]
+        made = [[rotations[j].copy() for j in (leg.hip, leg.knee, leg.ankle)] + [world_rot[leg.pivot].copy()]
+                for leg in self.limbs.legs]  # the legs as made, which a held foot's offsets are measured from
         planted, speeds = self._planted(shares, world_rot, world_pos)
         still = standing and bool((speeds < SETTLE_STILL_CM_S).all())  # NaN (first frame): not still
         step = self.blend_step
         # landing from flight (the other foot neither planted nor held): its lock comes in faster
         pace = [LANDING_PACE * step if self.weight[1 - f] == 0.0 and not planted[1 - f] else step for f in range(2)]
+        landing = [planted[f] and self.weight[f] == 0.0 for f in range(2)]
+        for f in range(2):
+            if not planted[f] and self.weight[f] == 1.0 and planted[1 - f]:  # a walk's foot let go from its full lock: in joint space
+                self.releasing[f], self.rise[f], self.held[f] = 1.0, 0.0, 0.0
+                self.released[f] = self.offsets[f]
         for f, leg in enumerate(self.limbs.legs):
-            if planted[f] and self.weight[f] == 0.0:
+            self.weight[f] = min(1.0, self.weight[f] + pace[f]) if planted[f] else max(0.0, self.weight[f] - step)
+            if planted[f]:  # along an ease-out curve 1 - (1 - a)^2, from where the pull is on it
+                along = min(1.0, 1.0 - np.sqrt(max(0.0, 1.0 - self.pulls[f])) + pace[f])
+                self.pulls[f] = 1.0 - (1.0 - along) ** 2
+            else:  # along smoothstep, from where the pull is on it (its inverse: 1/2 - sin(asin(1 - 2p) / 3))
+                self.pulls[f] = EASE(max(0.0, 0.5 - np.sin(np.arcsin(np.clip(1.0 - 2.0 * self.pulls[f], -1.0, 1.0)) / 3.0) - step))
+            step_in = self.hold_step if planted[f] else -self.hold_step  # the swing lift goes as the foot is planted
+            self.landed[f] = min(max(self.landed[f] + step_in, 0.0), 1.0)
+            if self.releasing[f] > 0.0:
+                self.releasing[f] = max(0.0, self.releasing[f] - self.release_step)
+                self.landed[f] = max(self.landed[f], self.releasing[f])  # the swing lift comes in as the offsets go
+                world_rot, world_pos = self._release(f, rotations, translations, world_rot, world_pos,
+                                                     EASE(self.releasing[f]))
+            self.locking[f] = 0.0 if self.releasing[f] > 0.0 and not planted[f] else self.weight[f]
+        for f, leg in enumerate(self.limbs.legs):
+            if landing[f]:  # locked where it is shown, any release of it applied
                 self.lock[f] = self.pivots(world_rot, world_pos)[f]
                 self.heading[f] = _heading(world_rot, leg, self.across[f])
                 self.settling[f] = 0.0  # landed; and the other foot, if closed up, may be closed up again
                 if self.settling[1 - f] == CLOSED:
                     self.settling[1 - f] = 0.0
-            self.weight[f] = min(1.0, self.weight[f] + pace[f]) if planted[f] else max(0.0, self.weight[f] - step)
-            step_in = self.hold_step if planted[f] else -self.hold_step  # the swing lift goes as the foot is planted
-            self.landed[f] = min(max(self.landed[f] + step_in, 0.0), 1.0)
         lifts = self._settle(still, planted, world_rot, world_pos)
         for f, leg in enumerate(self.limbs.legs):
-            if self.weight[f] > 0.0:  # the foot turned about the vertical through its ankle, back to its landing heading
-                turn = EASE(self.weight[f]) * ((self.heading[f] - _heading(world_rot, leg, self.across[f]) + np.pi)
+            if self.locking[f] > 0.0:  # the foot turned about the vertical through its ankle, back to its landing heading
+                turn = EASE(self.locking[f]) * ((self.heading[f] - _heading(world_rot, leg, self.across[f]) + np.pi)
                                                % (2 * np.pi) - np.pi)
                 yaw = _axis_rotation(np.array([0.0, 1.0, 0.0]), turn)
                 ankle = world_pos[leg.ankle].copy()
@@ -320,7 +358,7 @@ class FootLock:
                 rotations[leg.ankle] = world_rot[leg.knee].T @ world_rot[leg.ankle]
         for f, leg in enumerate(self.limbs.legs):  # alone on the floor, a planted foot is pitched flat about its ankle
             # (a released other foot, its lock still blending out, does not keep it from standing flat)
-            share = EASE(self.weight[f]) * (1.0 - (EASE(self.weight[1 - f]) if planted[1 - f] else 0.0))
+            share = EASE(self.locking[f]) * (1.0 - (EASE(self.locking[1 - f]) if planted[1 - f] else 0.0))
             toes = self.toes(f, world_rot, world_pos)
             up = toes[1] - (self.pivot_ground(f) - self.ground[f][list(leg.foot).index(leg.ankle)])
             axis = world_rot[leg.ankle] @ self.across[f]  # pitched about its axis across it
@@ -362,7 +400,51 @@ class FootLock:
             elif not np.array_equal(turns[f], np.eye(3)):  # the ankle where it was made, the foot turned all the same
                 rotations[leg.ankle] = world_rot[leg.knee].T @ world_rot[leg.ankle]
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
+        for f, leg in enumerate(self.limbs.legs):  # a held foot's lock as offsets from the leg as made, for its release
+            if planted[f] and self.weight[f] > 0.0:
+                for k, j in enumerate((leg.hip, leg.knee, leg.ankle)):
+                    self.offsets[f, k] = made[f][k].T @ rotations[j]
+                self.offsets[f, 3] = world_rot[0, leg.pivot] @ made[f][3].T
         return rotations, translations, world_rot[0], world_pos[0]
+
+    def _risen(self, f: int, world_rot: np.ndarray, world_pos: np.ndarray) -> float:
+        """How far foot f's heel is up from standing flat (radians, growing past the vertical)."""
+        leg = self.limbs.legs[f]
+        toes = self.toes(f, world_rot, world_pos)
+        k = world_rot[leg.ankle] @ self.across[f]
+        level, length = np.hypot(k[0], k[2]), np.linalg.norm(toes)
+        if level < 1e-12 or length < 1e-12:
+            return 0.0
+        flat = np.arcsin(np.clip((self.pivot_ground(f) - self.ground[f][0]) / length, -1.0, 1.0))
+        return float(flat - np.arctan2(toes[1], (toes[2] * k[0] - toes[0] * k[2]) / level))
+
+    def _release(self, f: int, rotations: np.ndarray, translations: np.ndarray, world_rot: np.ndarray,
+                 world_pos: np.ndarray, share: float) -> tuple[np.ndarray, np.ndarray]:
+        """A walk's released foot given back in joint space (footlock.release_joints): `share` of
+        each offset (its angle scaled about its axis) on the rotations made; the foot pitched back
+        about its ankle to MAX_HEEL_RISE from flat (or as made, if more); the toes their world
+        rotation as made turned by `share` of the lock's turn of them. Returns the new world transforms."""
+        leg = self.limbs.legs[f]
+        made = self._risen(f, world_rot, world_pos)
+        toes_made = world_rot[leg.pivot].copy()
+        for k, j in enumerate((leg.hip, leg.knee, leg.ankle)):
+            rotations[j] = rotations[j] @ _scaled_rotation(self.released[f, k], share)
+        world_rot, world_pos = (a[0] for a in forward_kinematics(self.layout.skeleton, rotations[None], translations[None]))
+        excess = self._risen(f, world_rot, world_pos) - max(MAX_HEEL_RISE, made)
+        axis = world_rot[leg.ankle] @ self.across[f]
+        if excess > 0.0 and np.hypot(axis[0], axis[2]) > 1e-12:
+            pitch = _axis_rotation(axis, -excess)
+            ankle = world_pos[leg.ankle].copy()
+            for j in leg.foot:
+                world_rot[j] = pitch @ world_rot[j]
+                world_pos[j] = ankle + pitch @ (world_pos[j] - ankle)
+            rotations[leg.ankle] = world_rot[leg.knee].T @ world_rot[leg.ankle]
+        if leg.pivot != leg.ankle:
+            rotations[leg.pivot] = world_rot[self.parents[leg.pivot]].T @ (_scaled_rotation(self.released[f, 3], share)
+                                                                           @ toes_made)
+            world_rot, world_pos = (a[0] for a in forward_kinematics(self.layout.skeleton, rotations[None],
+                                                                     translations[None]))
+        return world_rot, world_pos
 
     def _settle(self, still: bool, planted: np.ndarray, world_rot: np.ndarray, world_pos: np.ndarray) -> np.ndarray:
         """A closing step (footlock.settle_feet): the first time since a landing that a still stand
@@ -422,12 +504,12 @@ class FootLock:
         how far the hold has come this frame, self.landed how far the lift has gone."""
         lift = self.lift(f, world_rot, world_pos)
         target = world_pos[leg.ankle].copy()
-        w = EASE(self.weight[f])
+        w = EASE(self.locking[f])
         down = EASE(held) * w * lift if held > 0.0 else 0.0
-        if w > 0:
+        if self.pulls[f] > 0:  # a foot released in joint space too: its pivot held where it was locked as the lock goes
             pull = self.lock[f] - self.pivots(world_rot, world_pos)[f]
-            target[[0, 2]] += w * pull[[0, 2]]
-            target[1] -= down
+            target[[0, 2]] += self.pulls[f] * pull[[0, 2]]
+        target[1] -= down
         lowest_after = lift - down
         floor = (1.0 - EASE(self.landed[f])) * (1.0 - w) * self.swing_lift * _swing_share(world_pos, leg)
         if lowest_after < floor:
@@ -445,14 +527,15 @@ class FootLock:
             self.next_held[f] = min(1.0, self.held[f] + self.hold_step) if holding else max(0.0, self.held[f] - self.hold_step)
             target = self._target(f, leg, world_rot, world_pos, self.next_held[f])
             turn = np.eye(3)
-            if self.weight[f] > 0 or self.rise[f] > 0:  # after its lock, a heel comes down at the same pace
+            if self.locking[f] > 0 or self.rise[f] > 0:  # after its lock, a heel comes down at the same pace
                 low = max(self.rise[f] - self.rise_step, 0.0)
-                high = min(self.rise[f] + self.rise_step, MAX_HEEL_RISE) if self.weight[f] > 0 else low
+                high = min(self.rise[f] + self.rise_step, MAX_HEEL_RISE) if self.locking[f] > 0 else low
                 clearance = (self.ground[f][0], self.pivot_ground(f))
                 turn, target, self.next_rise[f] = _heel_rise(world_rot, world_pos, leg, self.toes(f, world_rot, world_pos),
                                                              self.across[f], clearance, CONTACT_CM / self.cm, target,
                                                              extension[f], low, high)
-            if not planted[f] and not planted[1 - f] and self.weight[f] > 0:  # released in flight: the leg no longer than made
+            released = self.locking[f] == 0.0 and self.pulls[f] > 0.0  # in joint space, its pivot still pulled
+            if (not planted[f] and not planted[1 - f] and self.locking[f] > 0) or released:  # the leg no longer than made
                 gap = target - world_pos[leg.hip]
                 if np.linalg.norm(gap) > extension[f] > 0.0:
                     target = world_pos[leg.hip] + gap * (extension[f] / np.linalg.norm(gap))

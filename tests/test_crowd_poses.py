@@ -100,6 +100,29 @@ def test_one_character_makes_the_reference_poses_through_style_changes_and_extra
     assert max(moved) > 1e-2 and np.mean(np.array(moved) > 1e-6) > 0.5
 
 
+def test_a_quick_walks_feet_land_again_while_their_release_runs_as_the_reference_has_it(model, space):
+    """At 2.5 times the pace a walk's foot lands again before the joint-space release of its last
+    stance has run out (RELEASE_FRAMES is longer than such a swing): the release runs on as the new
+    lock comes in from where the foot is shown, and the compiled lock and the reference make the
+    same poses through it (with the pull's ease-out in and smoothstep out, `footlock.pull_step`).
+    Dropped at once at such a landing, a release gave back up to a third of its lock's correction
+    in one frame (docs/evaluate.md, "A landing foot's hold, eased out")."""
+    weights = np.eye(len(model.style_names))[model.style_names.index("active")]
+    static, shares = _features(model, space, [[Controls(weights, speed=2.5)] * 240])
+    contact = contact_space(model)
+    stream = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps))
+    poses, landings, before = [], 0, np.zeros(2)
+    for row, s in zip(static[:, 0], shares[:, 0]):
+        poses.append(stream.next(row, s))
+        state = stream.crowd.lock_state
+        landings += int(((before == 0.0) & (state.weights[0] > 0.0) & (state.releasing[0] > 0.0)).sum())
+        before = state.weights[0].copy()
+    assert landings >= 5
+    for got, want in zip(poses, _reference_run(model, static[:, 0], shares[:, 0])):
+        for field in FIELDS:
+            np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
+
+
 def test_a_toe_less_foot_makes_the_reference_poses(toe_less):
     """A rig whose feet are their ankles alone, ending in an End Site at the toe tip (the shared
     walks' toe joints dropped: `toe_less`), its heels rolling up about those tips: the compiled

@@ -137,10 +137,13 @@ def test_a_run_at_120_fps_keeps_every_styles_planted_feet_as_still_as_at_30(runs
     planted slide, read by the same reader from the takes (`stillest_takes_slide`: masculine's,
     3.8 cm/s on its first three takes, 3.7 on all 25; the styles' run from there to elderly's 18.6).
     A foot that slides less than a capture's planted foot is one a viewer cannot tell from it,
-    and a ratio of two slides of 1 cm/s is noise: normal goes 0.97 -> 2.03 cm/s (2.10 times), and
-    elderly -1 1.84 -> 3.15 (1.72), the largest at 120 fps that the floor lets by (1.67 -> 3.18 on
-    10 s). The others: active 2.57 -> 3.31 (1.29), feminine 2.46 -> 3.00 (1.22), masculine 1.18,
-    elderly 1.18, exhausted 1.03, youthful 1.20, normal 2 1.19, active 2 5.79 -> 7.37 (1.27).
+    and a ratio of two slides of 1 cm/s is noise: normal goes 0.70 -> 1.37 cm/s (1.96 times). The
+    others: active 2.38 -> 2.39, elderly 0.64 -> 0.57, exhausted 1.82 -> 1.25, feminine 1.43 ->
+    1.39, masculine 1.00 -> 0.84, youthful 1.34 -> 1.45, normal 2 0.77 -> 0.66, active 2 3.79 ->
+    3.90 (1.03), elderly -1 1.06 -> 1.83 (1.73, under the floor). Before a landing foot's hold came
+    in eased out (footlock.pull_step) and a walk's release went in joint space: normal 0.97 ->
+    2.03, elderly -1 1.84 -> 3.15, active 2 5.79 -> 7.37; with the joint-space release alone
+    active 2 went 4.65 -> 7.05 (1.52): its landings' slide, which 30 fps frames step over.
     Held at the newest model frame's, the feet's contact shares took each state's step up to three
     output frames early and active slid 1.73 times as fast (4.45 against 2.57 cm/s); on a line
     between the frames (`Engine.shares_at`) 1.29. A walk's release held over two frames (reverted,

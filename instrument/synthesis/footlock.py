@@ -13,7 +13,13 @@ of the plain-Python lock it replaced (kept as the test oracle, tests/reference_l
 - `lay_flat`: a planted foot alone on the floor, toes up, pitched down about its ankle to flat
   (about its axis across it, as `heel_rise` pitches it);
 - `lock_target`: where an ankle should go (the lock blended in, the floor, the swing lift as
-  `swing_share` allows);
+  `swing_share` allows); the horizontal hold by `pull_step`'s curve: in fastest at touch-down
+  (ease-out), out on a smoothstep;
+- `release_joints`: a walk's foot let go from its full lock (the other planted) given back in
+  joint space: its lock's last solution, kept each locked frame as rotation offsets at hip, knee
+  and ankle and the toes' world turn, eased out over RELEASE_FRAMES on top of the generated leg
+  (letting go of the IK's target instead jumped the knee as the heel-rise cap fell at toe-off:
+  docs/evaluate.md, "The release in joint space");
 - `heel_rise`: the foot pitched up about its front-most joint (the toes) where the lock would stretch a
   planted leg past its generated length (the toes beyond it keep their generated world rotation,
   as a real foot bends there, instead of dipping into the floor), at most MAX_HEEL_RISE from
@@ -100,6 +106,10 @@ CLOSED = 2.0  # LockState.settling of a foot that has taken its closing step, or
 # BLEND_FRAMES, as a walk's heel strike rolls in with the other foot down, a run's landing foot slid on
 # for a third of a stance of six frames (active's run skated 1.08x its takes')
 LANDING_PACE = 2.0
+# a walk's foot released (the other planted) gives back the lock's correction in joint space: the
+# last locked frame's local rotation offsets at hip, knee, ankle and toes, eased out (smoothstep)
+# over this many frames at REFERENCE_FPS, on top of the generated rotations (`release_joints`)
+RELEASE_FRAMES = 8
 
 
 @dataclass
@@ -116,6 +126,12 @@ class LockState:
     settling: np.ndarray  # (N, 2) each foot's closing step: 0 may take one, (0, 1) how far through, CLOSED (`settle_feet`)
     landed: np.ndarray  # (N, 2) how far each foot's swing lift has gone as it was planted, 0..1 (over HOLD_FRAMES)
     held: np.ndarray  # (N, 2) how far each foot's lowest joint is held on the floor, 0..1 (over HOLD_FRAMES)
+    # (N, 2, 4, 3, 3) each planted foot's lock as local rotation offsets (generated^T @ locked) at its
+    # hip, knee and ankle, and its pivot's world turn (locked @ generated^T), as of its last locked frame
+    offsets: np.ndarray
+    released: np.ndarray  # (N, 2, 4, 3, 3) the offsets a released walk's foot is giving back (its `offsets` at release)
+    releasing: np.ndarray  # (N, 2) how much of them it still carries, 1..0 (0: none)
+    pulls: np.ndarray  # (N, 2) how far the lock holds each foot horizontally, 0..1 (`pull_step`)
 
     def part(self, start: int, stop: int) -> LockState:
         """Characters start to stop: views of the same arrays, for a part of the crowd on a core."""
@@ -127,6 +143,7 @@ class LockState:
         self.rises[n] = 0.0
         self.settling[n] = 0.0
         self.landed[n], self.held[n] = 0.0, 0.0
+        self.offsets[n], self.released[n], self.releasing[n], self.pulls[n] = np.eye(3), np.eye(3), 0.0, 0.0
 
 
 class FootLock:
@@ -165,7 +182,8 @@ class FootLock:
         """The state of `count` characters before their first frame: nothing locked yet."""
         return LockState(np.zeros((count, 2)), np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros(count),
                          np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros((count, 2)), np.zeros((count, 2)),
-                         np.zeros((count, 2)))
+                         np.zeros((count, 2)), np.tile(np.eye(3), (count, 2, 4, 1, 1)), np.tile(np.eye(3), (count, 2, 4, 1, 1)),
+                         np.zeros((count, 2)), np.zeros((count, 2)))
 
     def apply(self, state: LockState, rotations: np.ndarray, translations: np.ndarray, shares: np.ndarray,
               world_rot: np.ndarray, world_pos: np.ndarray, standing: np.ndarray | None = None) -> None:
@@ -177,7 +195,7 @@ class FootLock:
         standing = np.zeros(len(shares), dtype=np.bool_) if standing is None else np.ascontiguousarray(standing, dtype=np.bool_)
         lock_crowd(rotations, translations, np.ascontiguousarray(shares, dtype=np.float64), world_rot, world_pos,
                    state.weights, state.points, state.headings, state.drop, state.previous, state.rises,
-                   state.settling, state.landed, state.held, standing, self.parents, self.joints, self.feet, self.across,
+                   state.settling, state.landed, state.held, state.offsets, state.released, state.releasing, state.pulls, standing, self.parents, self.joints, self.feet, self.across,
                    self.tips, self.pivot_ground, self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm,
                    self.swing_lift)
 
@@ -282,7 +300,7 @@ def swing_share(world_pos, leg):  # pragma: no cover - compiled
 
 @njit(cache=True, error_model="numpy")
 def lock_target(world_rot, world_pos, leg, foot, tip, ground_f, tip_ground, weight, point, landed, held, swing_lift,
-                target):  # pragma: no cover - compiled
+                target, pull=-1.0):  # pragma: no cover - compiled
     """Where the ankle (leg: hip, knee, ankle) should be, written into `target` (3,): the lock
     blended in horizontally, the lowest foot joint on the floor while planted, never below it,
     and a little above it while swinging on a bent knee. A released foot rises as generated (held down, the knee would
@@ -301,12 +319,13 @@ def lock_target(world_rot, world_pos, leg, foot, tip, ground_f, tip_ground, weig
     for i in range(3):
         target[i] = world_pos[leg[2], i]
     w = ease(weight)
+    p = w if pull < 0.0 else pull
     down = held * w * lift if held > 0.0 else 0.0
-    if w > 0:
+    if p > 0:
         pivot = _pivot_at(world_rot, world_pos, leg[2], foot[-1], tip)
-        target[0] += w * (point[0] - pivot[0])
-        target[2] += w * (point[2] - pivot[2])
-        target[1] -= down
+        target[0] += p * (point[0] - pivot[0])
+        target[2] += p * (point[2] - pivot[2])
+    target[1] -= down
     lowest_after = lift - down
     floor = (1.0 - landed) * (1.0 - w) * swing_lift * swing_share(world_pos, leg) if landed < 1.0 else 0.0
     if lowest_after < floor:
@@ -587,27 +606,56 @@ def solve_leg(rotations, world_rot, world_pos, parents, hip, knee, ankle, toe, t
 def lock_work():  # pragma: no cover - compiled
     """What a character's `lock_frame` writes as it goes, made once for a whole crowd's call so the
     lock allocates nothing a character: planted (2,) bool, extension (2,), targets (2, 3), turns
-    (2, 3, 3), angles (2,), scratch matrices (8, 3, 3), closing steps' lifts (2,) and holds (2,)."""
+    (2, 3, 3), angles (2,), scratch matrices (8, 3, 3), closing steps' lifts (2,) and holds (2,), the
+    legs' generated local rotations (2, 4, 3, 3: `release_joints`' joints) and the lock's own weights (2,)."""
     return (np.empty(2, dtype=np.bool_), np.empty(2), np.empty((2, 3)), np.empty((2, 3, 3)), np.empty(2),
-            np.empty((8, 3, 3)), np.empty(2), np.empty(2))
+            np.empty((8, 3, 3)), np.empty(2), np.empty(2), np.empty((2, 4, 3, 3)), np.empty(2), np.empty(2, dtype=np.bool_))
 
 
 @njit(cache=True, error_model="numpy")
 def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, landed, held, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
+               settling, landed, held, offsets, released, releasing, pulls, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
                root, fps, cm,
                swing_lift, work):  # pragma: no cover - compiled
     """One character's frame (arrays of that character; `drop` a 1-element view, `standing` a
     bool). Returns nothing: rotations, translations, the world transforms and the state are
     updated in place."""
-    planted, extension, targets, turns, angles, matrices, lifts, holding = work
+    planted, extension, targets, turns, angles, matrices, lifts, holding, generated, locking, fresh = work
+    for f in range(2):  # the legs' local rotations as made, which a locked foot's offsets are measured from
+        leg = (joints[f, 0], joints[f, 1], joints[f, 2], feet[f, -1])
+        for k in range(3):
+            _copy_matrix(rotations[leg[k]], generated[f, k])
+        _copy_matrix(world_rot[leg[3]], generated[f, 3])  # the toes': their world rotation
     speeds = planted_feet(shares, world_rot, world_pos, previous, joints, feet, tips, pivot_ground, ground, fps, cm, planted)
     # both generated feet nearly still (no closing step while the pose steps off; NaN at first: not still)
     still = standing and speeds[0] < SETTLE_STILL_CM_S and speeds[1] < SETTLE_STILL_CM_S
     step = per_frame(BLEND_FRAMES, fps)
     hold_step = per_frame(HOLD_FRAMES, fps)
     for f in range(2):
-        if planted[f] and weights[f] == 0.0:
+        fresh[f] = planted[f] and weights[f] == 0.0  # landing: locked where it is (below, once any release is applied)
+    # each foot's pace in: faster landing from flight, the other foot neither planted nor held
+    pace = (LANDING_PACE * step if weights[1] == 0.0 and not planted[1] else step,
+            LANDING_PACE * step if weights[0] == 0.0 and not planted[0] else step)
+    for f in range(2):
+        if not planted[f] and weights[f] == 1.0 and planted[1 - f]:  # a walk's foot let go from its full lock: given back in joint space
+            releasing[f], rises[f], held[f] = 1.0, 0.0, 0.0
+            for k in range(4):
+                _copy_matrix(offsets[f, k], released[f, k])
+    for f in range(2):
+        weights[f] = min(1.0, weights[f] + pace[f]) if planted[f] else max(0.0, weights[f] - step)
+        pulls[f] = pull_step(pulls[f], planted[f], pace[f], step)
+        landed[f] = min(1.0, landed[f] + hold_step) if planted[f] else max(0.0, landed[f] - hold_step)
+        if releasing[f] > 0.0:  # runs out even if the foot lands again first (a quick step: it lands where it is shown)
+            releasing[f] = max(0.0, releasing[f] - per_frame(RELEASE_FRAMES, fps))
+            # the swing lift comes in as the offsets go (at once, a bent knee's foot was lifted 2 cm in a frame)
+            landed[f] = max(landed[f], releasing[f])
+            release_joints(rotations, translations, world_rot, world_pos, parents, joints[f], feet[f], tips[f], across[f],
+                           ground[f, 0], pivot_ground[f], released[f], ease(releasing[f]), matrices[:3])
+        # the weight the lock itself holds the foot with: none while a released foot is given back in
+        # joint space (`weights` still blends out as before, for the body's follow and the footfalls)
+        locking[f] = 0.0 if releasing[f] > 0.0 and not planted[f] else weights[f]
+    for f in range(2):
+        if fresh[f]:
             pivot = _pivot_at(world_rot, world_pos, joints[f, 2], feet[f, -1], tips[f])
             for i in range(3):
                 points[f, i] = pivot[i]
@@ -617,23 +665,17 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             settling[f] = 0.0
             if settling[1 - f] == CLOSED:
                 settling[1 - f] = 0.0
-    # each foot's pace in: faster landing from flight, the other foot neither planted nor held
-    pace = (LANDING_PACE * step if weights[1] == 0.0 and not planted[1] else step,
-            LANDING_PACE * step if weights[0] == 0.0 and not planted[0] else step)
-    for f in range(2):
-        weights[f] = min(1.0, weights[f] + pace[f]) if planted[f] else max(0.0, weights[f] - step)
-        landed[f] = min(1.0, landed[f] + hold_step) if planted[f] else max(0.0, landed[f] - hold_step)
     settle_feet(still, planted, weights, points, headings, settling, world_rot, world_pos, joints, feet, tips, across,
                 SETTLE_CM / cm,
                 1.0 / (SETTLE_SECONDS * fps), SETTLE_LIFT_CM / cm, lifts)
     for f in range(2):
-        if weights[f] > 0.0:
+        if locking[f] > 0.0:
             hold_heading(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], across[f], headings[f],
-                         ease(weights[f]))
+                         ease(locking[f]))
     for f in range(2):  # alone on the floor, a planted foot stands flat; a released other foot whose lock is
         # still blending out does not keep it from doing so (it would hold the landing foot's toes up
         # while the trailing foot's come off the floor: docs/evaluate.md, "Floating the stricter way")
-        share = ease(weights[f]) * (1.0 - (ease(weights[1 - f]) if planted[1 - f] else 0.0))
+        share = ease(locking[f]) * (1.0 - (ease(locking[1 - f]) if planted[1 - f] else 0.0))
         if share > 0.0:
             lay_flat(rotations, world_rot, world_pos, joints[f, 1], joints[f, 2], feet[f], tips[f], across[f], ground[f, 0],
                      pivot_ground[f], share)
@@ -642,7 +684,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         extension[f] = np.sqrt(_dot(gap, gap))
     on_floor = CONTACT_CM / cm
     rise_step = HEEL_RISE_SPEED / fps
-    _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed, held,
+    _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, locking, pulls, points, planted, landed, held,
              hold_step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
     # eased towards what it needs by 1 / BLEND_FRAMES of the way a frame at REFERENCE_FPS: the same time at any rate
     drop[0] += (body_drop(world_pos, joints, reach, targets, planted, extension) - drop[0]) * eased_per_frame(
@@ -651,7 +693,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
         for a in range(3):  # [0, drop, 0] @ parent_rot, element by element (no temporary array)
             translations[root, a] -= drop[0] * parent_rot[1, a]
         world_pos[:, 1] -= drop[0]
-        _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed,
+        _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, locking, pulls, points, planted, landed,
                  held, hold_step, swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding)
     rises[0], rises[1] = angles[0], angles[1]
     held[0], held[1] = holding[0], holding[1]
@@ -673,6 +715,119 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
                       targets[f], matrices[1:])
         elif not _identity(turns[f]):  # the ankle where it was made, the foot turned all the same
             _product_t(world_rot[joints[f, 1]], world_rot[ankle], rotations[ankle])
+    for f in range(2):  # a held foot's lock (with what it still gives back of an earlier one) as offsets from the rotations made
+        if planted[f] and weights[f] > 0.0:
+            leg = (joints[f, 0], joints[f, 1], joints[f, 2], feet[f, -1])
+            for k in range(3):
+                _product_t(generated[f, k], rotations[leg[k]], offsets[f, k])
+            # the toes' world turn (locked @ made^T): the toes keep their world rotation as the heel rises
+            for i in range(3):
+                for j in range(3):
+                    offsets[f, 3, i, j] = _dot(world_rot[leg[3]][i], generated[f, 3][j])
+
+
+@njit(cache=True, error_model="numpy")
+def pull_step(pull, planted, pace, step):  # pragma: no cover - compiled
+    """A foot's horizontal hold a frame on (0..1): a planted foot's comes in on an ease-out curve
+    (fastest at touch-down, `pace` of the curve a frame), a lifted foot's goes on a smoothstep
+    (`step` a frame). Each frame finds where on its curve the hold is and moves along it, so a foot
+    that lands or lifts again partway through keeps its hold, and its position, continuous. On
+    smoothstep, a landing foot slid on at the made foot's speed for the first frames of its blend
+    (the made heel strike's: 50-85 cm/s at 120 fps) while the hold started at zero speed; eased out,
+    the hold's own speed at touch-down is still zero (the lock's point is where the foot is), and
+    the planted slide at 30 / 120 fps went from 4.65 / 7.05 to 3.79 / 3.90 cm/s on active at weight
+    2 (docs/evaluate.md, "A landing foot's hold, eased out"). A foot is let go as before: smoothstep
+    ends at zero speed, where an ease-out would jump by the whole gap to the made foot."""
+    if planted:
+        along = min(1.0, 1.0 - np.sqrt(max(0.0, 1.0 - pull)) + pace)
+        return 1.0 - (1.0 - along) * (1.0 - along)
+    along = max(0.0, 0.5 - np.sin(np.arcsin(min(1.0, max(-1.0, 1.0 - 2.0 * pull))) / 3.0) - step)
+    return ease(along)
+
+
+@njit(cache=True, error_model="numpy")
+def release_joints(rotations, translations, world_rot, world_pos, parents, leg, foot, tip, across, ankle_clearance,
+                   pivot_clearance, offsets, share, turn):  # pragma: no cover - compiled
+    """A walk's released foot given back in joint space: `share` (1..0) of each of its lock's
+    offsets (4, 3, 3: generated^T @ locked local rotations at the hip, knee, ankle and pivot, as
+    of its last locked frame; the angle scaled about the offset's own axis) applied on top of
+    the generated local rotations, and the leg's world transforms (hip, knee and `foot`) by FK.
+    Letting go of the ankle's IK target instead (the lock's weight, hold and heel rise) jumped the
+    ankle as the rise's cap fell at toe-off; rotations eased out cannot snap. The foot is then
+    pitched back about its ankle to no more than MAX_HEEL_RISE from flat (or as made, if more):
+    the offsets' pitch on a made foot pitching up at toe-off took it up to 20 deg past the vertical
+    (elderly -1). The toes keep their world rotation as made but for a share of the lock's world
+    turn of them (offsets[3]: about the vertical, the held heading), as a rising heel leaves them.
+    `turn` (3, 3, 3): scratch."""
+    made = _risen(world_rot, world_pos, leg[2], foot[-1], tip, across, ankle_clearance, pivot_clearance)
+    pivot = foot[-1]
+    _copy_matrix(world_rot[pivot], turn[2])  # the toes' world rotation as made
+    chain = (leg[0], leg[1], leg[2])
+    for k in range(3):
+        _scaled_rotation(offsets[k], share, turn[0])
+        _product(rotations[chain[k]], turn[0], turn[1])  # the generated rotation, then the share of the offset
+        _copy_matrix(turn[1], rotations[chain[k]])
+    _leg_forward(rotations, translations, world_rot, world_pos, parents, leg, foot)
+    excess = _risen(world_rot, world_pos, leg[2], pivot, tip, across, ankle_clearance, pivot_clearance) - max(
+        MAX_HEEL_RISE, made)
+    r = world_rot[leg[2]]
+    k = (_dot(r[0], across), _dot(r[1], across), _dot(r[2], across))
+    if excess > 0.0 and np.hypot(k[0], k[2]) > 1e-12:  # about the foot's axis across it (heel_rise's): negative lowers the heel
+        turn_foot(rotations, world_rot, world_pos, leg[1], leg[2], foot, k[0], k[1], k[2], np.cos(excess), -np.sin(excess))
+    if pivot != leg[2]:  # the toes: their world rotation as made, turned by the share of the lock's world turn of them
+        _scaled_rotation(offsets[3], share, turn[0])
+        _product(turn[0], turn[2], turn[1])
+        _product_t(world_rot[parents[pivot]], turn[1], rotations[pivot])
+        _leg_forward(rotations, translations, world_rot, world_pos, parents, leg, foot)
+
+
+@njit(cache=True, error_model="numpy")
+def _leg_forward(rotations, translations, world_rot, world_pos, parents, leg, foot):  # pragma: no cover - compiled
+    """The world transforms of a leg's hip, knee and `foot` joints from their local ones (FK; a BVH
+    lists parents before children)."""
+    for j in range(parents.shape[0]):
+        member = j == leg[0] or j == leg[1]
+        for i in range(foot.shape[0]):
+            member = member or foot[i] == j
+        if not member:
+            continue
+        p = parents[j]
+        for a in range(3):
+            for b in range(3):
+                world_rot[j, a, b] = (world_rot[p, a, 0] * rotations[j, 0, b] + world_rot[p, a, 1] * rotations[j, 1, b]
+                                      + world_rot[p, a, 2] * rotations[j, 2, b])
+            world_pos[j, a] = world_pos[p, a] + (world_rot[p, a, 0] * translations[j, 0] + world_rot[p, a, 1] * translations[j, 1]
+                                                 + world_rot[p, a, 2] * translations[j, 2])
+
+
+@njit(cache=True, error_model="numpy")
+def _risen(world_rot, world_pos, ankle, pivot, tip, across, ankle_clearance, pivot_clearance) -> float:  # pragma: no cover - compiled
+    """How far the foot's heel is up from standing flat (radians; as `heel_rise` measures it,
+    growing past the vertical); 0 for a foot with no toe line or axis across it."""
+    toes = _toe_line(world_rot, world_pos, ankle, pivot, tip)
+    r = world_rot[ankle]
+    k = (_dot(r[0], across), _dot(r[1], across), _dot(r[2], across))
+    level = np.hypot(k[0], k[2])
+    length = np.sqrt(_dot(toes, toes))
+    if level < 1e-12 or length < 1e-12:
+        return 0.0
+    flat = np.arcsin(min(max((pivot_clearance - ankle_clearance) / length, -1.0), 1.0))
+    return flat - np.arctan2(toes[1], (toes[2] * k[0] - toes[0] * k[2]) / level)
+
+
+@njit(cache=True, error_model="numpy")
+def _scaled_rotation(rotation, share, out):  # pragma: no cover - compiled
+    """out = `rotation` with its angle scaled by `share`, about the same axis (the angle from both
+    its sine and its cosine, and the axis of unit length: arccos alone loses half the digits of a
+    small angle)."""
+    axis = (rotation[2, 1] - rotation[1, 2], rotation[0, 2] - rotation[2, 0], rotation[1, 0] - rotation[0, 1])
+    twice_sine = np.sqrt(_dot(axis, axis))
+    if twice_sine < 1e-12:  # none (or a half turn, which a lock's offset is not)
+        _set_identity(out)
+        return
+    angle = np.arctan2(twice_sine, rotation[0, 0] + rotation[1, 1] + rotation[2, 2] - 1.0)
+    axis = _scaled(axis, twice_sine)
+    _axis_rotation(axis, np.sin(share * angle), 1.0 - np.cos(share * angle), out)
 
 
 @njit(cache=True, error_model="numpy")
@@ -814,7 +969,7 @@ def _turned(kx, ky, kz, c, s, x, y, z):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, points, planted, landed, held,
+def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, pulls, points, planted, landed, held,
              hold_step,
              swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding):  # pragma: no cover - compiled
     """Each ankle's target (2, 3), each foot's heel-rise turn (2, 3, 3) and angle (2,), and how far
@@ -829,7 +984,7 @@ def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, gro
         holding[f] = min(1.0, held[f] + hold_step) if planted[f] or handing_over else max(0.0, held[f] - hold_step)
         lock_target(world_rot, world_pos, joints[f], feet[f], tips[f], ground[f], pivot_ground[f], weights[f], points[f],
                     ease(landed[f]), ease(holding[f]),
-                    swing_lift, targets[f])
+                    swing_lift, targets[f], pulls[f])
         _set_identity(turns[f])
         angles[f] = 0.0
         if weights[f] > 0.0 or rises[f] > 0.0:
@@ -840,6 +995,8 @@ def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, gro
                                   targets[f],
                                   extension[f], low, high, turns[f])
         if not planted[f] and not planted[1 - f] and weights[f] > 0.0:  # (a walk's other foot is down)
+            within_reach(targets[f], world_pos[joints[f, 0]], extension[f])
+        elif weights[f] == 0.0 and pulls[f] > 0.0:  # a walk's foot given back in joint space, its toes held
             within_reach(targets[f], world_pos[joints[f, 0]], extension[f])
 
 
@@ -862,13 +1019,14 @@ def within_reach(target, hip, extension):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, landed, held, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
+               settling, landed, held, offsets, released, releasing, pulls, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
                root, fps, cm,
                swing_lift):  # pragma: no cover - compiled
     """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
     work = lock_work()
     for n in range(rotations.shape[0]):
         lock_frame(rotations[n], translations[n], shares[n], world_rot[n], world_pos[n], weights[n], points[n], headings[n],
-                   drop[n : n + 1], previous[n], rises[n], settling[n], landed[n], held[n], standing[n], parents, joints, feet,
+                   drop[n : n + 1], previous[n], rises[n], settling[n], landed[n], held[n], offsets[n], released[n], releasing[n], pulls[n],
+                   standing[n], parents, joints, feet,
                    across, tips, pivot_ground, ground, reach, parent_rot, root, fps, cm, swing_lift, work)
     _compose(parents, rotations, translations, world_rot, world_pos)
