@@ -265,7 +265,7 @@ class FootLock:
         self.released = np.tile(np.eye(3), (2, 4, 1, 1))  # the offsets a released foot gives back (its offsets then)
         self.releasing = np.zeros(2)
         self.release_step = REFERENCE_FPS / fps / RELEASE_FRAMES
-        self.locking = np.zeros(2)  # the weight the lock's target holds each foot with (none while released in joint space)
+        self.locking = np.zeros(2)  # the weight the lock's target holds each foot with (from none at a release in joint space)
         # the share of the lock's horizontal pull on each foot's pivot: in on an ease-out curve while
         # planted, out on a smoothstep while not, each frame moving along its curve from where it is
         self.pulls = np.zeros(2)
@@ -321,7 +321,7 @@ class FootLock:
         landing = [planted[f] and self.weight[f] == 0.0 for f in range(2)]
         for f in range(2):
             if not planted[f] and self.weight[f] == 1.0 and planted[1 - f]:  # a walk's foot let go from its full lock: in joint space
-                self.releasing[f], self.rise[f], self.held[f] = 1.0, 0.0, 0.0
+                self.releasing[f], self.rise[f], self.held[f], self.locking[f] = 1.0, 0.0, 0.0, 0.0
                 self.released[f] = self.offsets[f]
         for f, leg in enumerate(self.limbs.legs):
             self.weight[f] = min(1.0, self.weight[f] + pace[f]) if planted[f] else max(0.0, self.weight[f] - step)
@@ -337,7 +337,8 @@ class FootLock:
                 self.landed[f] = max(self.landed[f], self.releasing[f])  # the swing lift comes in as the offsets go
                 world_rot, world_pos = self._release(f, rotations, translations, world_rot, world_pos,
                                                      EASE(self.releasing[f]))
-            self.locking[f] = 0.0 if self.releasing[f] > 0.0 and not planted[f] else self.weight[f]
+            # the IK's weight: the weight's pace, from none at a walk's release (given back in joint space)
+            self.locking[f] = min(1.0, self.locking[f] + pace[f]) if planted[f] else max(0.0, self.locking[f] - step)
         for f, leg in enumerate(self.limbs.legs):
             if landing[f]:  # locked where it is shown, any release of it applied
                 self.lock[f] = self.pivots(world_rot, world_pos)[f]

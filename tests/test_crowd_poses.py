@@ -123,6 +123,44 @@ def test_a_quick_walks_feet_land_again_while_their_release_runs_as_the_reference
             np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
 
 
+def test_feet_planted_and_lifted_at_random_make_the_reference_poses_and_take_the_lock_in_gradually(model, space):
+    """Contact shares flickering at random (each foot on or off for 1 to 6 frames), which no
+    shipped walk makes but a hand-made or badly trained model may: a foot lands again while its
+    release runs, is released again before it ran out, lands while its hold is still going. The
+    compiled lock and the reference make the same poses, and the IK's weight (`LockState.locking`)
+    comes in and goes out by at most a landing's pace a frame but where a walk's release sets it to
+    none (its correction then given back in joint space): planted again before the release had run
+    out, it took `weights`, not yet 0, in one frame (the heading, the flat foot, the hold at once)."""
+    weights = np.eye(len(model.style_names))[model.style_names.index("active")]
+    static, _ = _features(model, space, [[Controls(weights, speed=1.5)] * 150])
+    contact = contact_space(model)
+    rng = np.random.default_rng(7)
+    pace = footlock.LANDING_PACE / footlock.BLEND_FRAMES + 1e-12
+    replanted = 0
+    for _ in range(3):
+        shares = np.zeros((len(static), 2))
+        for f in range(2):
+            t, on = 0, bool(rng.integers(2))
+            while t < len(shares):
+                n = int(rng.integers(1, 7))
+                shares[t:t + n, f], t, on = (0.9 if on else 0.0), t + n, not on
+        stream = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps))
+        poses, locking, releasing = [], [np.zeros(2)], [np.zeros(2)]
+        for row, s in zip(static[:, 0], shares):
+            poses.append(stream.next(row, s))
+            locking.append(stream.crowd.lock_state.locking[0].copy())
+            releasing.append(stream.crowd.lock_state.releasing[0].copy())
+        locking, releasing = np.array(locking), np.array(releasing)
+        released = releasing[1:] > releasing[:-1]  # a release began (or began again) this frame
+        moved = np.abs(np.diff(locking, axis=0))
+        assert (moved[~released] <= pace).all(), moved[~released].max()
+        replanted += int(((np.diff(locking, axis=0) > 0) & (releasing[1:] > 0)).sum())
+        for got, want in zip(poses, _reference_run(model, static[:, 0], shares)):
+            for field in FIELDS:
+                np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
+    assert replanted >= 3  # feet took the lock in again while their release ran
+
+
 def test_a_toe_less_foot_makes_the_reference_poses(toe_less):
     """A rig whose feet are their ankles alone, ending in an End Site at the toe tip (the shared
     walks' toe joints dropped: `toe_less`), its heels rolling up about those tips: the compiled

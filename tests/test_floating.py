@@ -80,7 +80,7 @@ def _released_foot(handing_over: bool, weight: float) -> float:
     ground = np.array([10.0, 4.0])  # the ankle's and the toes' clearance
     target = np.empty(3)
     lock_target(np.repeat(np.eye(3)[None], 4, axis=0), world_pos, leg, foot, np.zeros(3), ground, 0.0, weight,
-                world_pos[3].copy(), 0.0, 1.0 if handing_over else 0.0, 0.0, target)
+                world_pos[3].copy(), 0.0, 1.0 if handing_over else 0.0, 0.0, target, ease(weight))
     moved = target[1] - world_pos[2, 1]  # the whole foot moves with its ankle
     return float(np.min(world_pos[foot, 1] - ground)) + moved
 

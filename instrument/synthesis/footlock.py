@@ -131,6 +131,9 @@ class LockState:
     offsets: np.ndarray
     released: np.ndarray  # (N, 2, 4, 3, 3) the offsets a released walk's foot is giving back (its `offsets` at release)
     releasing: np.ndarray  # (N, 2) how much of them it still carries, 1..0 (0: none)
+    # (N, 2) how far the lock's IK holds each foot, 0..1: `weights` but while a released foot is given
+    # back in joint space (none), and from none again, at the landing's pace, once such a foot lands
+    locking: np.ndarray
     pulls: np.ndarray  # (N, 2) how far the lock holds each foot horizontally, 0..1 (`pull_step`)
 
     def part(self, start: int, stop: int) -> LockState:
@@ -144,6 +147,7 @@ class LockState:
         self.settling[n] = 0.0
         self.landed[n], self.held[n] = 0.0, 0.0
         self.offsets[n], self.released[n], self.releasing[n], self.pulls[n] = np.eye(3), np.eye(3), 0.0, 0.0
+        self.locking[n] = 0.0
 
 
 class FootLock:
@@ -183,7 +187,7 @@ class FootLock:
         return LockState(np.zeros((count, 2)), np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros(count),
                          np.full((count, 2, 3), np.nan), np.zeros((count, 2)), np.zeros((count, 2)), np.zeros((count, 2)),
                          np.zeros((count, 2)), np.tile(np.eye(3), (count, 2, 4, 1, 1)), np.tile(np.eye(3), (count, 2, 4, 1, 1)),
-                         np.zeros((count, 2)), np.zeros((count, 2)))
+                         np.zeros((count, 2)), np.zeros((count, 2)), np.zeros((count, 2)))
 
     def apply(self, state: LockState, rotations: np.ndarray, translations: np.ndarray, shares: np.ndarray,
               world_rot: np.ndarray, world_pos: np.ndarray, standing: np.ndarray | None = None) -> None:
@@ -195,7 +199,7 @@ class FootLock:
         standing = np.zeros(len(shares), dtype=np.bool_) if standing is None else np.ascontiguousarray(standing, dtype=np.bool_)
         lock_crowd(rotations, translations, np.ascontiguousarray(shares, dtype=np.float64), world_rot, world_pos,
                    state.weights, state.points, state.headings, state.drop, state.previous, state.rises,
-                   state.settling, state.landed, state.held, state.offsets, state.released, state.releasing, state.pulls, standing, self.parents, self.joints, self.feet, self.across,
+                   state.settling, state.landed, state.held, state.offsets, state.released, state.releasing, state.pulls, state.locking, standing, self.parents, self.joints, self.feet, self.across,
                    self.tips, self.pivot_ground, self.ground, self.reach, self.parent_rot, self.layout.root, self.fps, self.cm,
                    self.swing_lift)
 
@@ -300,7 +304,7 @@ def swing_share(world_pos, leg):  # pragma: no cover - compiled
 
 @njit(cache=True, error_model="numpy")
 def lock_target(world_rot, world_pos, leg, foot, tip, ground_f, tip_ground, weight, point, landed, held, swing_lift,
-                target, pull=-1.0):  # pragma: no cover - compiled
+                target, pull):  # pragma: no cover - compiled
     """Where the ankle (leg: hip, knee, ankle) should be, written into `target` (3,): the lock
     blended in horizontally, the lowest foot joint on the floor while planted, never below it,
     and a little above it while swinging on a bent knee. A released foot rises as generated (held down, the knee would
@@ -312,19 +316,19 @@ def lock_target(world_rot, world_pos, leg, foot, tip, ground_f, tip_ground, weig
     (docs/evaluate.md, "Floating the stricter way"). `landed` (0..1, eased): how far the swing
     lift has gone as the foot was planted (1 planted, 0 swinging); `held`: how far its lowest
     joint is held down (1 planted or handing over, 0 released): both change over HOLD_FRAMES'
-    time, not in a frame, and only vertically: the horizontal pull is the lock's own weight, so
-    a foot held down is held where it was planted as much as before. The pivot is `_pivot_at`'s
-    (a toe-less foot's `tip`)."""
+    time, not in a frame, and only vertically. `weight` is the lock's IK weight (`LockState.locking`),
+    `pull` (0..1) how far the pivot is pulled horizontally to `point` (`LockState.pulls`: in faster
+    than the weight as a foot lands, and kept on a walk's released foot while its weight is none).
+    The pivot is `_pivot_at`'s (a toe-less foot's `tip`)."""
     lift = _lowest_lift(world_rot, world_pos, foot, tip, ground_f, tip_ground)
     for i in range(3):
         target[i] = world_pos[leg[2], i]
     w = ease(weight)
-    p = w if pull < 0.0 else pull
     down = held * w * lift if held > 0.0 else 0.0
-    if p > 0:
+    if pull > 0:
         pivot = _pivot_at(world_rot, world_pos, leg[2], foot[-1], tip)
-        target[0] += p * (point[0] - pivot[0])
-        target[2] += p * (point[2] - pivot[2])
+        target[0] += pull * (point[0] - pivot[0])
+        target[2] += pull * (point[2] - pivot[2])
     target[1] -= down
     lowest_after = lift - down
     floor = (1.0 - landed) * (1.0 - w) * swing_lift * swing_share(world_pos, leg) if landed < 1.0 else 0.0
@@ -607,20 +611,20 @@ def lock_work():  # pragma: no cover - compiled
     """What a character's `lock_frame` writes as it goes, made once for a whole crowd's call so the
     lock allocates nothing a character: planted (2,) bool, extension (2,), targets (2, 3), turns
     (2, 3, 3), angles (2,), scratch matrices (8, 3, 3), closing steps' lifts (2,) and holds (2,), the
-    legs' generated local rotations (2, 4, 3, 3: `release_joints`' joints) and the lock's own weights (2,)."""
+    legs' generated local rotations (2, 4, 3, 3: `release_joints`' joints) and which feet land (2,) bool."""
     return (np.empty(2, dtype=np.bool_), np.empty(2), np.empty((2, 3)), np.empty((2, 3, 3)), np.empty(2),
-            np.empty((8, 3, 3)), np.empty(2), np.empty(2), np.empty((2, 4, 3, 3)), np.empty(2), np.empty(2, dtype=np.bool_))
+            np.empty((8, 3, 3)), np.empty(2), np.empty(2), np.empty((2, 4, 3, 3)), np.empty(2, dtype=np.bool_))
 
 
 @njit(cache=True, error_model="numpy")
 def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, landed, held, offsets, released, releasing, pulls, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
+               settling, landed, held, offsets, released, releasing, pulls, locking, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
                root, fps, cm,
                swing_lift, work):  # pragma: no cover - compiled
     """One character's frame (arrays of that character; `drop` a 1-element view, `standing` a
     bool). Returns nothing: rotations, translations, the world transforms and the state are
     updated in place."""
-    planted, extension, targets, turns, angles, matrices, lifts, holding, generated, locking, fresh = work
+    planted, extension, targets, turns, angles, matrices, lifts, holding, generated, fresh = work
     for f in range(2):  # the legs' local rotations as made, which a locked foot's offsets are measured from
         leg = (joints[f, 0], joints[f, 1], joints[f, 2], feet[f, -1])
         for k in range(3):
@@ -638,7 +642,7 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             LANDING_PACE * step if weights[0] == 0.0 and not planted[0] else step)
     for f in range(2):
         if not planted[f] and weights[f] == 1.0 and planted[1 - f]:  # a walk's foot let go from its full lock: given back in joint space
-            releasing[f], rises[f], held[f] = 1.0, 0.0, 0.0
+            releasing[f], rises[f], held[f], locking[f] = 1.0, 0.0, 0.0, 0.0
             for k in range(4):
                 _copy_matrix(offsets[f, k], released[f, k])
     for f in range(2):
@@ -651,9 +655,11 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
             landed[f] = max(landed[f], releasing[f])
             release_joints(rotations, translations, world_rot, world_pos, parents, joints[f], feet[f], tips[f], across[f],
                            ground[f, 0], pivot_ground[f], released[f], ease(releasing[f]), matrices[:3])
-        # the weight the lock itself holds the foot with: none while a released foot is given back in
-        # joint space (`weights` still blends out as before, for the body's follow and the footfalls)
-        locking[f] = 0.0 if releasing[f] > 0.0 and not planted[f] else weights[f]
+        # the weight the lock's IK holds the foot with: `weights`' pace, but none from a walk's release
+        # on (given back in joint space; `weights` still blends out as before, for the body's follow
+        # and the footfalls), so a foot planted again before its release ran out takes the lock in
+        # from none (at `weights`, not yet 0, the heading, the flat foot and the hold came back in a frame)
+        locking[f] = min(1.0, locking[f] + pace[f]) if planted[f] else max(0.0, locking[f] - step)
     for f in range(2):
         if fresh[f]:
             pivot = _pivot_at(world_rot, world_pos, joints[f, 2], feet[f, -1], tips[f])
@@ -969,7 +975,7 @@ def _turned(kx, ky, kz, c, s, x, y, z):  # pragma: no cover - compiled
 
 
 @njit(cache=True, error_model="numpy")
-def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, weights, pulls, points, planted, landed, held,
+def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, ground, locking, pulls, points, planted, landed, held,
              hold_step,
              swing_lift, on_floor, extension, rises, rise_step, targets, turns, angles, holding):  # pragma: no cover - compiled
     """Each ankle's target (2, 3), each foot's heel-rise turn (2, 3, 3) and angle (2,), and how far
@@ -982,21 +988,21 @@ def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, gro
         handing_over = planted[1 - f] and _sole_lift(world_rot, world_pos, feet[1 - f], tips[1 - f], ground[1 - f],
                                                      pivot_ground[1 - f]) >= on_floor
         holding[f] = min(1.0, held[f] + hold_step) if planted[f] or handing_over else max(0.0, held[f] - hold_step)
-        lock_target(world_rot, world_pos, joints[f], feet[f], tips[f], ground[f], pivot_ground[f], weights[f], points[f],
+        lock_target(world_rot, world_pos, joints[f], feet[f], tips[f], ground[f], pivot_ground[f], locking[f], points[f],
                     ease(landed[f]), ease(holding[f]),
                     swing_lift, targets[f], pulls[f])
         _set_identity(turns[f])
         angles[f] = 0.0
-        if weights[f] > 0.0 or rises[f] > 0.0:
+        if locking[f] > 0.0 or rises[f] > 0.0:
             clearance = (ground[f, 0], pivot_ground[f])
             low = max(rises[f] - rise_step, 0.0)
-            high = min(rises[f] + rise_step, MAX_HEEL_RISE) if weights[f] > 0.0 else low
+            high = min(rises[f] + rise_step, MAX_HEEL_RISE) if locking[f] > 0.0 else low
             angles[f] = heel_rise(world_rot, world_pos, joints[f], feet[f, -1], tips[f], across[f], clearance, on_floor,
                                   targets[f],
                                   extension[f], low, high, turns[f])
-        if not planted[f] and not planted[1 - f] and weights[f] > 0.0:  # (a walk's other foot is down)
+        if not planted[f] and not planted[1 - f] and locking[f] > 0.0:  # (a walk's other foot is down)
             within_reach(targets[f], world_pos[joints[f, 0]], extension[f])
-        elif weights[f] == 0.0 and pulls[f] > 0.0:  # a walk's foot given back in joint space, its toes held
+        elif locking[f] == 0.0 and pulls[f] > 0.0:  # held by its pull alone (a walk's foot given back in joint space)
             within_reach(targets[f], world_pos[joints[f, 0]], extension[f])
 
 
@@ -1019,14 +1025,14 @@ def within_reach(target, hip, extension):  # pragma: no cover - compiled
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def lock_crowd(rotations, translations, shares, world_rot, world_pos, weights, points, headings, drop, previous, rises,
-               settling, landed, held, offsets, released, releasing, pulls, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
+               settling, landed, held, offsets, released, releasing, pulls, locking, standing, parents, joints, feet, across, tips, pivot_ground, ground, reach, parent_rot,
                root, fps, cm,
                swing_lift):  # pragma: no cover - compiled
     """Every character's `lock_frame`, then the world transforms of the adjusted poses."""
     work = lock_work()
     for n in range(rotations.shape[0]):
         lock_frame(rotations[n], translations[n], shares[n], world_rot[n], world_pos[n], weights[n], points[n], headings[n],
-                   drop[n : n + 1], previous[n], rises[n], settling[n], landed[n], held[n], offsets[n], released[n], releasing[n], pulls[n],
+                   drop[n : n + 1], previous[n], rises[n], settling[n], landed[n], held[n], offsets[n], released[n], releasing[n], pulls[n], locking[n],
                    standing[n], parents, joints, feet,
                    across, tips, pivot_ground, ground, reach, parent_rot, root, fps, cm, swing_lift, work)
     _compose(parents, rotations, translations, world_rot, world_pos)
