@@ -15,7 +15,7 @@ from instrument.synthesis.engine import default_controls, render
 from instrument.training.build import ranged_and_standing
 from instrument.training.corpus import make_takes, read_motions
 from instrument.training.height import _unlocked, stand_on_the_floor, standing_height
-from instrument.training.widen import calibrate_range
+from instrument.training.widen import SKATE_ALLOWANCE, calibrate_range
 
 STYLE = "elderly"
 
@@ -128,7 +128,9 @@ def test_the_shoulders_are_calibrated_past_the_features_bound(model, real_walks)
 def test_the_hips_and_knees_are_calibrated_together_on_the_played_walk(model, real_walks):
     """Training's calibration with two of elderly's takes, from the shipped model with elderly's
     thigh factors put off by a tenth (log ratio), brings the played thigh's swing, and the
-    knee's with it, within 3% of these takes', and its feet skate no more than before. A planted
+    knee's with it, within 3% of these takes', and its feet skate no more than before or than half
+    the takes' own (widen.SKATE_ALLOWANCE: with feet that skate a tenth of the takes', held to the
+    walk before alone the calibration kept no step; here 0.17 against 0.10 cm/s before). A planted
     thigh's swing is the lock's geometry (the foot stays where it landed): widening the thighs'
     features narrows the played hip (here by more than 3%), so a ratio step on the hips alone
     cannot converge; the hips are moved with the knees by their measured sensitivities. (The
@@ -148,4 +150,6 @@ def test_the_hips_and_knees_are_calibrated_together_on_the_played_walk(model, re
     for figure in real:
         played = _limb(after, model, limbs, figure)
         assert abs(played / real[figure] - 1.0) < 0.03, (figure, played, real[figure])
-    assert skate(world_positions(after), limbs, after.fps) <= skate(world_positions(before), limbs, before.fps)
+    takes_skate = np.average([skate(world_positions(m), limbs, m.fps) for m in motions], weights=weights)
+    assert skate(world_positions(after), limbs, after.fps) <= max(skate(world_positions(before), limbs, before.fps),
+                                                                  SKATE_ALLOWANCE * takes_skate)
