@@ -259,7 +259,7 @@ class FootLock:
         self.landed = np.zeros(2)  # how far each foot's swing lift has gone since it was planted
         self.held = np.zeros(2)  # how far each foot's lowest joint is held on the floor
         # each held foot's lock as local rotation offsets (made^T @ locked) at hip, knee and ankle, and
-        # its toes' world turn (locked @ made^T), as of its last locked frame; and how much of them a
+        # its toes' world turn (locked @ made^T), as of its last fully locked frame; and how much of them a
         # walk's released foot still carries (1..0), given back in joint space over RELEASE_FRAMES
         self.offsets = np.tile(np.eye(3), (2, 4, 1, 1))
         self.released = np.tile(np.eye(3), (2, 4, 1, 1))  # the offsets a released foot gives back (its offsets then)
@@ -401,8 +401,8 @@ class FootLock:
             elif not np.array_equal(turns[f], np.eye(3)):  # the ankle where it was made, the foot turned all the same
                 rotations[leg.ankle] = world_rot[leg.knee].T @ world_rot[leg.ankle]
         world_rot, world_pos = forward_kinematics(self.layout.skeleton, rotations[None], translations[None])
-        for f, leg in enumerate(self.limbs.legs):  # a held foot's lock as offsets from the leg as made, for its release
-            if planted[f] and self.weight[f] > 0.0:
+        for f, leg in enumerate(self.limbs.legs):  # a fully held foot's lock as offsets from the leg as made, for its release
+            if planted[f] and self.weight[f] == 1.0:
                 for k, j in enumerate((leg.hip, leg.knee, leg.ankle)):
                     self.offsets[f, k] = made[f][k].T @ rotations[j]
                 self.offsets[f, 3] = world_rot[0, leg.pivot] @ made[f][3].T

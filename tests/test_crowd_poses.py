@@ -59,6 +59,25 @@ def _reference_run(model, static, shares, position=None, heading=0.0, locked=Tru
     return [stream.next(row, s if locked else None) for row, s in zip(static, shares)]
 
 
+def _locked_run(model, static, shares, fps=None, lock=None, watch=()) -> tuple[list, dict[str, np.ndarray]]:
+    """One character's poses from the compiled pose stream (its foot lock `lock`, or the model's
+    without tips), and each frame's copy of the lock state's fields named in `watch` (frames, ...)."""
+    fps = fps or model.fps
+    lock = lock or FootLock(model.layout, contact_space(model).clearance, fps)
+    stream = PoseStream(model.layout, fps, lock)
+    poses, seen = [], {name: [] for name in watch}
+    for row, s in zip(static, shares):
+        poses.append(stream.next(row, s))
+        for name in watch:
+            seen[name].append(getattr(stream.crowd.lock_state, name)[0].copy())
+    return poses, {name: np.array(values) for name, values in seen.items()}
+
+
+def _assert_same_pose(got, want) -> None:
+    for field in FIELDS:
+        np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
+
+
 @pytest.mark.parametrize("fps", [120.0, 24.0])
 def test_at_another_rate_the_lock_makes_the_reference_poses(model, space, fps):
     """Posed at another rate than 30 fps (the same frames: a walk slower or faster, but the lock's
@@ -67,32 +86,22 @@ def test_at_another_rate_the_lock_makes_the_reference_poses(model, space, fps):
     frame's: the compiled lock and the reference make the same poses, and at 120 fps a foot's
     hold passes through values between 0 and 1."""
     static, shares = _features(model, space, [_performance(model, 200, 1)])
-    contact = contact_space(model)
-    stream = PoseStream(model.layout, fps, FootLock(model.layout, contact.clearance, fps))
-    poses, held = [], []
-    for row, s in zip(static[:, 0], shares[:, 0]):
-        poses.append(stream.next(row, s))
-        held.append(stream.crowd.lock_state.held[0].copy())
+    poses, state = _locked_run(model, static[:, 0], shares[:, 0], fps=fps, watch=("held",))
+    held = state["held"]
     for got, want in zip(poses, _reference_run(model, static[:, 0], shares[:, 0], fps=fps)):
-        for field in FIELDS:
-            np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
-    between = ((np.array(held) > 0.0) & (np.array(held) < 1.0)).any()
+        _assert_same_pose(got, want)
+    between = ((held > 0.0) & (held < 1.0)).any()
     assert between == (fps > 30.0)
 
 
 def test_one_character_makes_the_reference_poses_through_style_changes_and_extrapolation(model, space):
     static, shares = _features(model, space, [_performance(model, 400, 0)])
-    contact = contact_space(model)
-    stream = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps))
-    poses, drops = [], []
-    for row, s in zip(static[:, 0], shares[:, 0]):
-        poses.append(stream.next(row, s))
-        drops.append(stream.crowd.lock_state.drop[0])
+    poses, state = _locked_run(model, static[:, 0], shares[:, 0], watch=("drop",))
+    drops = state["drop"]
     expected = _reference_run(model, static[:, 0], shares[:, 0])
     for got, want in zip(poses, expected):
         assert (got.index, got.time) == (want.index, want.time)
-        for field in FIELDS:
-            np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
+        _assert_same_pose(got, want)
     # the lock did something on this walk, the body's drop included (so the comparison covers it)
     assert max(drops) > 1e-3
     plain = _reference_run(model, static[:, 0], shares[:, 0], locked=False)
@@ -109,18 +118,12 @@ def test_a_quick_walks_feet_land_again_while_their_release_runs_as_the_reference
     in one frame (docs/evaluate.md, "A landing foot's hold, eased out")."""
     weights = np.eye(len(model.style_names))[model.style_names.index("active")]
     static, shares = _features(model, space, [[Controls(weights, speed=2.5)] * 240])
-    contact = contact_space(model)
-    stream = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps))
-    poses, landings, before = [], 0, np.zeros(2)
-    for row, s in zip(static[:, 0], shares[:, 0]):
-        poses.append(stream.next(row, s))
-        state = stream.crowd.lock_state
-        landings += int(((before == 0.0) & (state.weights[0] > 0.0) & (state.releasing[0] > 0.0)).sum())
-        before = state.weights[0].copy()
+    poses, state = _locked_run(model, static[:, 0], shares[:, 0], watch=("weights", "releasing"))
+    before = np.vstack([np.zeros((1, 2)), state["weights"][:-1]])
+    landings = int(((before == 0.0) & (state["weights"] > 0.0) & (state["releasing"] > 0.0)).sum())
     assert landings >= 5
     for got, want in zip(poses, _reference_run(model, static[:, 0], shares[:, 0])):
-        for field in FIELDS:
-            np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
+        _assert_same_pose(got, want)
 
 
 def test_feet_planted_and_lifted_at_random_make_the_reference_poses_and_take_the_lock_in_gradually(model, space):
@@ -133,7 +136,6 @@ def test_feet_planted_and_lifted_at_random_make_the_reference_poses_and_take_the
     out, it took `weights`, not yet 0, in one frame (the heading, the flat foot, the hold at once)."""
     weights = np.eye(len(model.style_names))[model.style_names.index("active")]
     static, _ = _features(model, space, [[Controls(weights, speed=1.5)] * 150])
-    contact = contact_space(model)
     rng = np.random.default_rng(7)
     pace = footlock.LANDING_PACE / footlock.BLEND_FRAMES + 1e-12
     replanted = 0
@@ -144,20 +146,14 @@ def test_feet_planted_and_lifted_at_random_make_the_reference_poses_and_take_the
             while t < len(shares):
                 n = int(rng.integers(1, 7))
                 shares[t:t + n, f], t, on = (0.9 if on else 0.0), t + n, not on
-        stream = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps))
-        poses, locking, releasing = [], [np.zeros(2)], [np.zeros(2)]
-        for row, s in zip(static[:, 0], shares):
-            poses.append(stream.next(row, s))
-            locking.append(stream.crowd.lock_state.locking[0].copy())
-            releasing.append(stream.crowd.lock_state.releasing[0].copy())
-        locking, releasing = np.array(locking), np.array(releasing)
+        poses, state = _locked_run(model, static[:, 0], shares, watch=("locking", "releasing"))
+        locking, releasing = (np.vstack([np.zeros((1, 2)), state[name]]) for name in ("locking", "releasing"))
         released = releasing[1:] > releasing[:-1]  # a release began (or began again) this frame
         moved = np.abs(np.diff(locking, axis=0))
         assert (moved[~released] <= pace).all(), moved[~released].max()
         replanted += int(((np.diff(locking, axis=0) > 0) & (releasing[1:] > 0)).sum())
         for got, want in zip(poses, _reference_run(model, static[:, 0], shares)):
-            for field in FIELDS:
-                np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
+            _assert_same_pose(got, want)
     assert replanted >= 3  # feet took the lock in again while their release ran
 
 
@@ -171,14 +167,10 @@ def test_a_toe_less_foot_makes_the_reference_poses(toe_less):
     static, shares = _features(model, style_space(model), [_performance(model, 400, 0)])
     lock = FootLock(model.layout, contact.clearance, model.fps, contact.tip_clearance)
     assert lock.tips.any(axis=1).all()
-    stream = PoseStream(model.layout, model.fps, lock)
-    poses, rises = [], []
-    for row, s in zip(static[:, 0], shares[:, 0]):
-        poses.append(stream.next(row, s))
-        rises.append(stream.crowd.lock_state.rises[0].copy())
+    poses, state = _locked_run(model, static[:, 0], shares[:, 0], lock=lock, watch=("rises",))
+    rises = state["rises"]
     for got, want in zip(poses, _reference_run(model, static[:, 0], shares[:, 0])):
-        for field in FIELDS:
-            np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
+        _assert_same_pose(got, want)
     assert np.max(rises) > 0.05  # radians: a heel rose about its tip
     tipless = PoseStream(model.layout, model.fps, FootLock(model.layout, contact.clearance, model.fps))
     moved = [np.abs(tipless.next(row, s).world_positions - got.world_positions).max()
@@ -201,8 +193,7 @@ def test_a_crowd_makes_each_characters_own_poses(model, space):
         expected = _reference_run(model, static[:, n], shares[:, n], positions[n], headings[n])
         for frame, want in zip(frames, expected):
             got = frame.character(n)
-            for field in FIELDS:
-                np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
+            _assert_same_pose(got, want)
     # the characters really differ (different controls and places)
     last = frames[-1].world_positions
     assert np.abs(last[0] - last[1]).max() > 1.0 and np.abs(last[1] - last[2]).max() > 1.0
@@ -218,8 +209,7 @@ def test_a_character_placed_mid_walk_walks_on_as_if_it_had_started_there(model, 
     frames = [crowd.next(row, s) for row, s in zip(static[60:], shares[60:])]
     expected = _reference_run(model, static[60:, 1], shares[60:, 1], [500.0, 0.0, 500.0], 2.0)
     for frame, want in zip(frames, expected):
-        for field in FIELDS:
-            np.testing.assert_allclose(getattr(frame.character(1), field), getattr(want, field), rtol=0, atol=1e-9)
+        _assert_same_pose(frame.character(1), want)
     # the other character walked on undisturbed
     unmoved = _reference_run(model, static[:, 0], shares[:, 0])[60:]
     np.testing.assert_allclose(frames[-1].world_positions[0], unmoved[-1].world_positions, rtol=0, atol=1e-9)
@@ -234,8 +224,7 @@ def test_without_a_lock_or_shares_the_feet_are_left_as_made(model, space):
     for row, want in zip(static[:, 0], expected):
         for stream in (unlocked, no_shares):
             got = stream.next(row)
-            for field in FIELDS:
-                np.testing.assert_allclose(getattr(got, field), getattr(want, field), rtol=0, atol=1e-9)
+            _assert_same_pose(got, want)
 
 
 def test_a_wrong_shape_is_refused_not_read_past(model):

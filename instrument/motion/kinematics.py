@@ -95,20 +95,28 @@ def _compose(parents, rotations, translations, world_rot, world_pos):  # pragma:
     A recurrence down the tree: numpy would need one call per joint (or per depth), ~100 us for
     a live frame; compiled, it is a few microseconds."""
     for t in range(rotations.shape[0]):
+        rot, trans, wrot, wpos = rotations[t], translations[t], world_rot[t], world_pos[t]
         for j in range(parents.shape[0]):
-            p = parents[j]
-            if p < 0:
-                world_rot[t, j] = rotations[t, j]
-                world_pos[t, j] = translations[t, j]
-                continue
-            for a in range(3):
-                for b in range(3):
-                    world_rot[t, j, a, b] = (world_rot[t, p, a, 0] * rotations[t, j, 0, b]
-                                             + world_rot[t, p, a, 1] * rotations[t, j, 1, b]
-                                             + world_rot[t, p, a, 2] * rotations[t, j, 2, b])
-                world_pos[t, j, a] = world_pos[t, p, a] + (world_rot[t, p, a, 0] * translations[t, j, 0]
-                                                           + world_rot[t, p, a, 1] * translations[t, j, 1]
-                                                           + world_rot[t, p, a, 2] * translations[t, j, 2])
+            compose_joint(parents, rot, trans, wrot, wpos, j)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def compose_joint(parents, rotations, translations, world_rot, world_pos, j):  # pragma: no cover - compiled
+    """Joint j's world transform from its parent's, in one frame's arrays (J, 3, 3) and (J, 3):
+    `_compose`'s step, which the foot lock also takes for the joints of a leg it turns."""
+    p = parents[j]
+    if p < 0:
+        for a in range(3):
+            for b in range(3):
+                world_rot[j, a, b] = rotations[j, a, b]
+            world_pos[j, a] = translations[j, a]
+        return
+    for a in range(3):
+        for b in range(3):
+            world_rot[j, a, b] = (world_rot[p, a, 0] * rotations[j, 0, b] + world_rot[p, a, 1] * rotations[j, 1, b]
+                                  + world_rot[p, a, 2] * rotations[j, 2, b])
+        world_pos[j, a] = world_pos[p, a] + (world_rot[p, a, 0] * translations[j, 0] + world_rot[p, a, 1] * translations[j, 1]
+                                             + world_rot[p, a, 2] * translations[j, 2])
 
 
 def world_positions(motion: Motion) -> np.ndarray:

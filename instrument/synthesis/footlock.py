@@ -79,7 +79,7 @@ import numpy as np
 from numba import njit
 
 from ..motion.features import FeatureLayout
-from ..motion.kinematics import _compose, forward_kinematics
+from ..motion.kinematics import _compose, compose_joint, forward_kinematics
 from ..motion.limbs import centimetres_per_unit, find_limbs, foot_tip
 from .contact import (BLEND_FRAMES, CONTACT_CM, CONTACT_SPEED_CM_S, HOLD_FRAMES, NEARLY_STRAIGHT, PLANTED, POSSIBLE, SWING_BENT,
                       SWING_CM, eased_per_frame, per_frame)
@@ -107,7 +107,7 @@ CLOSED = 2.0  # LockState.settling of a foot that has taken its closing step, or
 # for a third of a stance of six frames (active's run skated 1.08x its takes')
 LANDING_PACE = 2.0
 # a walk's foot released (the other planted) gives back the lock's correction in joint space: the
-# last locked frame's local rotation offsets at hip, knee, ankle and toes, eased out (smoothstep)
+# last fully locked frame's local rotation offsets at hip, knee, ankle and toes, eased out (smoothstep)
 # over this many frames at REFERENCE_FPS, on top of the generated rotations (`release_joints`)
 RELEASE_FRAMES = 8
 
@@ -127,7 +127,7 @@ class LockState:
     landed: np.ndarray  # (N, 2) how far each foot's swing lift has gone as it was planted, 0..1 (over HOLD_FRAMES)
     held: np.ndarray  # (N, 2) how far each foot's lowest joint is held on the floor, 0..1 (over HOLD_FRAMES)
     # (N, 2, 4, 3, 3) each planted foot's lock as local rotation offsets (generated^T @ locked) at its
-    # hip, knee and ankle, and its pivot's world turn (locked @ generated^T), as of its last locked frame
+    # hip, knee and ankle, and its pivot's world turn (locked @ generated^T), as of its last fully locked frame
     offsets: np.ndarray
     released: np.ndarray  # (N, 2, 4, 3, 3) the offsets a released walk's foot is giving back (its `offsets` at release)
     releasing: np.ndarray  # (N, 2) how much of them it still carries, 1..0 (0: none)
@@ -378,19 +378,14 @@ def heel_rise(world_rot, world_pos, leg, pivot, tip, across, clearance, on_floor
     # the foot's pitch axis, lifting the heel: its axis across it (up x the toe line, for a flat
     # foot), which the turn leaves where it is, and so the heading held; the toe line's own, near
     # vertical at toe-off, turned the foot sideways
-    r = world_rot[leg[2]]
-    k = (_dot(r[0], across), _dot(r[1], across), _dot(r[2], across))
+    k = _across_world(world_rot, leg[2], across)
     level = np.hypot(k[0], k[2])
     if level < 1e-12:
         _set_identity(turn)
         return 0.0
     # from flat, not from the pose made: a foot made already rising at push-off was turned past
     # the vertical, its heel in front of its toes, and back the next frame (a 35 deg flicker)
-    length = np.sqrt(_dot(toes, toes))
-    flat = np.arcsin(min(max((clearance[1] - clearance[0]) / length, -1.0), 1.0))  # the toes' elevation standing flat
-    # how far the heel is up in the pose made, the toes' elevation measured along the foot's level
-    # forward (k x up), so it keeps growing as a foot pitches past vertical
-    risen = flat - np.arctan2(toes[1], (toes[2] * k[0] - toes[0] * k[2]) / level)
+    risen = _rise_angle(toes, k, level, clearance[0], clearance[1])
     high = min(high, max(MAX_HEEL_RISE - risen, 0.0))
     theta = min(max(_needed_rise(world_pos[leg[0]], toes, toe, k, clearance, on_floor, target, allowed), min(low, high)),
                 high)
@@ -625,12 +620,13 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
     bool). Returns nothing: rotations, translations, the world transforms and the state are
     updated in place."""
     planted, extension, targets, turns, angles, matrices, lifts, holding, generated, fresh = work
-    for f in range(2):  # the legs' local rotations as made, which a locked foot's offsets are measured from
-        leg = (joints[f, 0], joints[f, 1], joints[f, 2], feet[f, -1])
-        for k in range(3):
-            _copy_matrix(rotations[leg[k]], generated[f, k])
-        _copy_matrix(world_rot[leg[3]], generated[f, 3])  # the toes': their world rotation
     speeds = planted_feet(shares, world_rot, world_pos, previous, joints, feet, tips, pivot_ground, ground, fps, cm, planted)
+    for f in range(2):  # a planted leg's local rotations as made, which its lock's offsets are measured from
+        if planted[f]:
+            leg = (joints[f, 0], joints[f, 1], joints[f, 2], feet[f, -1])
+            for k in range(3):
+                _copy_matrix(rotations[leg[k]], generated[f, k])
+            _copy_matrix(world_rot[leg[3]], generated[f, 3])  # the toes': their world rotation
     # both generated feet nearly still (no closing step while the pose steps off; NaN at first: not still)
     still = standing and speeds[0] < SETTLE_STILL_CM_S and speeds[1] < SETTLE_STILL_CM_S
     step = per_frame(BLEND_FRAMES, fps)
@@ -721,8 +717,9 @@ def lock_frame(rotations, translations, shares, world_rot, world_pos, weights, p
                       targets[f], matrices[1:])
         elif not _identity(turns[f]):  # the ankle where it was made, the foot turned all the same
             _product_t(world_rot[joints[f, 1]], world_rot[ankle], rotations[ankle])
-    for f in range(2):  # a held foot's lock (with what it still gives back of an earlier one) as offsets from the rotations made
-        if planted[f] and weights[f] > 0.0:
+    for f in range(2):  # a fully held foot's lock (with what it still gives back of an earlier one) as offsets from
+        # the rotations made: what a release the next frame gives back (only a foot at full weight is released so)
+        if planted[f] and weights[f] == 1.0:
             leg = (joints[f, 0], joints[f, 1], joints[f, 2], feet[f, -1])
             for k in range(3):
                 _product_t(generated[f, k], rotations[leg[k]], offsets[f, k])
@@ -756,7 +753,7 @@ def release_joints(rotations, translations, world_rot, world_pos, parents, leg, 
                    pivot_clearance, offsets, share, turn):  # pragma: no cover - compiled
     """A walk's released foot given back in joint space: `share` (1..0) of each of its lock's
     offsets (4, 3, 3: generated^T @ locked local rotations at the hip, knee, ankle and pivot, as
-    of its last locked frame; the angle scaled about the offset's own axis) applied on top of
+    of its last fully locked frame; the angle scaled about the offset's own axis) applied on top of
     the generated local rotations, and the leg's world transforms (hip, knee and `foot`) by FK.
     Letting go of the ankle's IK target instead (the lock's weight, hold and heel rise) jumped the
     ankle as the rise's cap fell at toe-off; rotations eased out cannot snap. The foot is then
@@ -776,8 +773,7 @@ def release_joints(rotations, translations, world_rot, world_pos, parents, leg, 
     _leg_forward(rotations, translations, world_rot, world_pos, parents, leg, foot)
     excess = _risen(world_rot, world_pos, leg[2], pivot, tip, across, ankle_clearance, pivot_clearance) - max(
         MAX_HEEL_RISE, made)
-    r = world_rot[leg[2]]
-    k = (_dot(r[0], across), _dot(r[1], across), _dot(r[2], across))
+    k = _across_world(world_rot, leg[2], across)
     if excess > 0.0 and np.hypot(k[0], k[2]) > 1e-12:  # about the foot's axis across it (heel_rise's): negative lowers the heel
         turn_foot(rotations, world_rot, world_pos, leg[1], leg[2], foot, k[0], k[1], k[2], np.cos(excess), -np.sin(excess))
     if pivot != leg[2]:  # the toes: their world rotation as made, turned by the share of the lock's world turn of them
@@ -795,15 +791,8 @@ def _leg_forward(rotations, translations, world_rot, world_pos, parents, leg, fo
         member = j == leg[0] or j == leg[1]
         for i in range(foot.shape[0]):
             member = member or foot[i] == j
-        if not member:
-            continue
-        p = parents[j]
-        for a in range(3):
-            for b in range(3):
-                world_rot[j, a, b] = (world_rot[p, a, 0] * rotations[j, 0, b] + world_rot[p, a, 1] * rotations[j, 1, b]
-                                      + world_rot[p, a, 2] * rotations[j, 2, b])
-            world_pos[j, a] = world_pos[p, a] + (world_rot[p, a, 0] * translations[j, 0] + world_rot[p, a, 1] * translations[j, 1]
-                                                 + world_rot[p, a, 2] * translations[j, 2])
+        if member:
+            compose_joint(parents, rotations, translations, world_rot, world_pos, j)
 
 
 @njit(cache=True, error_model="numpy")
@@ -811,14 +800,29 @@ def _risen(world_rot, world_pos, ankle, pivot, tip, across, ankle_clearance, piv
     """How far the foot's heel is up from standing flat (radians; as `heel_rise` measures it,
     growing past the vertical); 0 for a foot with no toe line or axis across it."""
     toes = _toe_line(world_rot, world_pos, ankle, pivot, tip)
-    r = world_rot[ankle]
-    k = (_dot(r[0], across), _dot(r[1], across), _dot(r[2], across))
+    k = _across_world(world_rot, ankle, across)
     level = np.hypot(k[0], k[2])
-    length = np.sqrt(_dot(toes, toes))
-    if level < 1e-12 or length < 1e-12:
+    if level < 1e-12 or _dot(toes, toes) < 1e-24:
         return 0.0
-    flat = np.arcsin(min(max((pivot_clearance - ankle_clearance) / length, -1.0), 1.0))
+    return _rise_angle(toes, k, level, ankle_clearance, pivot_clearance)
+
+
+@njit(cache=True, error_model="numpy")
+def _rise_angle(toes, k, level, ankle_clearance, pivot_clearance) -> float:  # pragma: no cover - compiled
+    """How far the heel is up from standing flat (radians): the toes' elevation standing flat (from
+    the clearances) less their elevation in the pose, measured along the foot's level forward (k x
+    up, k the foot's axis across it in the world, `level` its horizontal length), so it keeps
+    growing as a foot pitches past vertical."""
+    flat = np.arcsin(min(max((pivot_clearance - ankle_clearance) / np.sqrt(_dot(toes, toes)), -1.0), 1.0))
     return flat - np.arctan2(toes[1], (toes[2] * k[0] - toes[0] * k[2]) / level)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _across_world(world_rot, ankle, across):  # pragma: no cover - compiled
+    """The foot's axis across it (`across`, in the ankle's frame: `across_axes`) in the world, as a
+    tuple: what its heading, its heel rise and its laying flat turn it about."""
+    r = world_rot[ankle]
+    return (_dot(r[0], across), _dot(r[1], across), _dot(r[2], across))
 
 
 @njit(cache=True, error_model="numpy")
@@ -928,8 +932,7 @@ def lay_flat(rotations, world_rot, world_pos, knee, ankle, foot, tip, across, an
     # about the foot's axis across it (up x toes for a flat foot; as the heading and the heel rise
     # read it, so the turn leaves the heading held): a positive turn pitches the toes down. The
     # toes turned by t are at height  along_k + a cos t + b sin t:  solved for the height wanted
-    r = world_rot[ankle]
-    k = (_dot(r[0], across), _dot(r[1], across), _dot(r[2], across))
+    k = _across_world(world_rot, ankle, across)
     if _dot(k, k) < 1e-12:
         return
     v = (vx, vy, vz)
