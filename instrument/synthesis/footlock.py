@@ -1003,9 +1003,9 @@ def _targets(world_rot, world_pos, joints, feet, across, tips, pivot_ground, gro
             angles[f] = heel_rise(world_rot, world_pos, joints[f], feet[f, -1], tips[f], across[f], clearance, on_floor,
                                   targets[f],
                                   extension[f], low, high, turns[f])
-        if not planted[f] and not planted[1 - f] and locking[f] > 0.0:  # (a walk's other foot is down)
-            within_reach(targets[f], world_pos[joints[f, 0]], extension[f])
-        elif locking[f] == 0.0 and pulls[f] > 0.0:  # held by its pull alone (a walk's foot given back in joint space)
+        # a foot released in a run's flight (a walk's other foot is down), or held by its pull alone (a
+        # walk's foot given back in joint space): no further than its leg as made
+        if (not planted[f] and not planted[1 - f] and locking[f] > 0.0) or (locking[f] == 0.0 and pulls[f] > 0.0):
             within_reach(targets[f], world_pos[joints[f, 0]], extension[f])
 
 
